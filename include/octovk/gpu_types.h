@@ -1,0 +1,180 @@
+// Structs and constants shared by the C++ host code and the GLSL compute shaders.
+// Included verbatim by both: every layout that crosses the host/device line is defined here once.
+// Layout tests (tests/layout_test.cpp) check that both sides agree on sizes and offsets.
+#ifndef OCTOVK_GPU_TYPES_H
+#define OCTOVK_GPU_TYPES_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace octovk::gpu {
+using uint = std::uint32_t;
+#define OCTOVK_CONST static constexpr
+#else
+#define OCTOVK_CONST const
+#endif
+
+// Tree geometry, as OctoMap's 16-level OcTree.
+OCTOVK_CONST uint kTreeDepth = 16u;
+OCTOVK_CONST uint kTreeMaxVal = 32768u;
+
+// Node pool: node index = block * 8 + slot. Block 0 holds the root in slot 0 (slots 1..7 unused).
+OCTOVK_CONST uint kNoBlock = 0xFFFFFFFFu;
+OCTOVK_CONST uint kRootNode = 0u;
+
+// Bits of Node::mask.
+OCTOVK_CONST uint kChildMask = 0xFFu;       // bit i: child i exists
+OCTOVK_CONST uint kFlagNew = 0x100u;        // created alone during this scan (never expanded)
+OCTOVK_CONST uint kFlagTouched = 0x200u;    // on an updated path, listed for the prune pass
+OCTOVK_CONST uint kFlagAllocReq = 0x400u;   // listed for block allocation at this level
+OCTOVK_CONST uint kWantShift = 16u;         // bits 16..23: children wanted before the block exists
+OCTOVK_CONST uint kFlagsMask = 0x00FFFF00u;
+
+// Hash set of cell keys: key packed as x | y << 16 | z << 32; empty slots hold all ones.
+OCTOVK_CONST uint kHashFlagOccupied = 2u;
+
+// Status bits in ScanCounters::status.
+OCTOVK_CONST uint kStatusHashFull = 1u;
+OCTOVK_CONST uint kStatusPoolFull = 2u;
+OCTOVK_CONST uint kStatusEndpointHashFull = 4u;
+
+OCTOVK_CONST uint kWorkgroupSize = 64u;
+OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
+
+// One octree node. 12 B.
+struct Node {
+  float log_odds;  // 4B (0)
+  uint children;   // 4B (4)  block index of the 8 child slots, or kNoBlock
+  uint mask;       // 4B (8)  child bits and per-scan flags (kChildMask, kFlag*)
+};
+
+// Where a block of 8 child slots hangs in the tree. 16 B.
+struct BlockMeta {
+  uint parent;   // 4B (0)  node index of the parent, kNoBlock when the block is free
+  uint depth;    // 4B (4)  depth of the parent (children are at depth + 1)
+  uint key_xy;   // 4B (8)  parent key x | y << 16 (bits below the parent's depth are zero)
+  uint key_z;    // 4B (12) parent key z
+};
+
+// One leaf of the map, for renderers and queries. 20 B.
+struct LeafBox {
+  float center_x;   // 4B (0)
+  float center_y;   // 4B (4)
+  float center_z;   // 4B (8)
+  float size;       // 4B (12) edge length in metres
+  float log_odds;   // 4B (16)
+};
+
+// Persistent allocator state of the node pool. 32 B.
+struct PoolState {
+  uint bump;            // 4B (0)  next never-used block
+  uint capacity;        // 4B (4)  blocks in the pool
+  uint free_count;      // 4B (8)  entries on the free-block stack
+  uint pops;            // 4B (12) free-stack pops during the current scan
+  uint root_exists;     // 4B (16)
+  uint leaf_count;      // 4B (20) entries written to the leaf-box buffer by the last rebuild
+  uint live_nodes;      // 4B (24) nodes in the tree (maintained by the passes)
+  uint pad0;            // 4B (28)
+};
+
+// Per-scan parameters, written once per scan. 112 B.
+struct ScanParams {
+  double resolution;        // 8B (0)
+  double resolution_factor; // 8B (8)
+  double max_range;         // 8B (16) < 0: unlimited
+  float origin_x;           // 4B (24)
+  float origin_y;           // 4B (28)
+  float origin_z;           // 4B (32)
+  float prob_hit_log;       // 4B (36)
+  float prob_miss_log;      // 4B (40)
+  float clamp_min_log;      // 4B (44)
+  float clamp_max_log;      // 4B (48)
+  uint point_count;         // 4B (52)
+  uint hash_capacity;       // 4B (56) power of two
+  uint hash_log2;           // 4B (60)
+  uint endpoint_capacity;   // 4B (64) power of two
+  uint endpoint_log2;       // 4B (68)
+  float rot_u;              // 4B (72) sensor rotation (OctoMap quaternion order u, x, y, z)
+  float rot_x;              // 4B (76)
+  float rot_y;              // 4B (80)
+  float rot_z;              // 4B (84)
+  uint active_capacity;     // 4B (88)
+  float trans_x;            // 4B (92) sensor translation
+  float trans_y;            // 4B (96)
+  float trans_z;            // 4B (100)
+  uint pad0;                // 4B (104)
+  uint pad1;                // 4B (108)
+};
+
+// Per-cell state of the descent through the tree, one per active cell. 12 B.
+struct ActiveCell {
+  uint slot;     // 4B (0) hash-set slot of the cell
+  uint node;     // 4B (4) node reached so far (or the parent whose block is pending)
+  uint pending;  // 4B (8) child index waiting for its parent's block, or kNoBlock
+};
+
+// An entry of a per-level block-allocation list. 8 B.
+struct AllocRequest {
+  uint node;    // 4B (0) node that receives a block of children
+  uint cell;    // 4B (4) index of an active cell under it (gives the node's key)
+};
+
+// Indirect dispatch arguments, as VkDispatchIndirectCommand. 12 B.
+struct DispatchArgs {
+  uint x;  // 4B (0)
+  uint y;  // 4B (4)
+  uint z;  // 4B (8)
+};
+
+// Counters of one scan, reset at its start. The host reads this struct back once per scan.
+struct ScanCounters {
+  uint status;              // 4B (0)   kStatus* bits
+  uint hash_entries;        // 4B (4)   distinct cells in the hash set
+  uint endpoint_entries;    // 4B (8)   distinct end cells (discretize)
+  uint active_cells;        // 4B (12)  cells whose update was not aborted early
+  uint skipped_nonfinite;   // 4B (16)  points with NaN or infinite coordinates
+  uint skipped_outside;     // 4B (20)  points whose ray or end cell lies outside the map
+  uint occupied_cells;      // 4B (24)
+  uint free_cells;          // 4B (28)
+  uint aborted;             // 4B (32)
+  uint new_nodes;           // 4B (36)
+  uint pruned_blocks;       // 4B (40)
+  uint pad0;                // 4B (44)
+  uint first_depth_hist[kLevelCount];      // 68B (48)  active cells by depth of the deepest existing node
+  uint alloc_count[kLevelCount];           // 68B (116)
+  uint touched_count[kLevelCount];         // 68B (184)
+  uint pad1;                               // 4B (252)
+  DispatchArgs alloc_args[kLevelCount];    // 204B (256)
+  DispatchArgs touched_args[kLevelCount];  // 204B (460)
+};
+
+// Push constants shared by every pass. 16 B.
+struct PassConstants {
+  uint level;   // 4B (0)  tree depth the pass works on
+  uint count;   // 4B (4)  number of work items, where the host knows it
+  uint mode;    // 4B (8)  pass-specific switch
+  uint offset;  // 4B (12) pass-specific offset
+};
+
+// Descriptor bindings: every pass sees the same set layout.
+OCTOVK_CONST uint kBindParams = 0u;
+OCTOVK_CONST uint kBindCounters = 1u;
+OCTOVK_CONST uint kBindPool = 2u;
+OCTOVK_CONST uint kBindPoints = 3u;
+OCTOVK_CONST uint kBindHashKeys = 4u;
+OCTOVK_CONST uint kBindHashFlags = 5u;
+OCTOVK_CONST uint kBindNodes = 6u;
+OCTOVK_CONST uint kBindBlockMeta = 7u;
+OCTOVK_CONST uint kBindFreeStack = 8u;
+OCTOVK_CONST uint kBindActive = 9u;
+OCTOVK_CONST uint kBindTouched = 10u;
+OCTOVK_CONST uint kBindAllocList = 11u;
+OCTOVK_CONST uint kBindLeafBoxes = 12u;
+OCTOVK_CONST uint kBindEndpointKeys = 13u;
+OCTOVK_CONST uint kBindingCount = 14u;
+
+#ifdef __cplusplus
+}  // namespace octovk::gpu
+#undef OCTOVK_CONST
+#endif
+
+#endif  // OCTOVK_GPU_TYPES_H

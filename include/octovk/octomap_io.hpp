@@ -1,0 +1,43 @@
+// OctoMap interop: the map as an octomap::OcTree, OctoMap's .bt / .ot files and .graph scan logs.
+// OctoMap is used here only to read and write its formats, never in the mapping path.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <octomap/OcTree.h>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+/// The map as an OctoMap tree with the same nodes and bit-identical log-odds (downloads the map).
+std::unique_ptr<octomap::OcTree> toOcTree(const OccupancyMap& map);
+
+/// Replaces the map's contents with `tree` (uploads it). The map's resolution must match.
+void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree);
+
+/// Writes the map in the format its extension names: .bt (OctoMap's writeBinary: max-likelihood,
+/// pruned) or .ot (full log-odds). Written to a temporary file and renamed, so a failed write
+/// leaves no partial file behind.
+void writeMapFile(const OccupancyMap& map, const std::string& path);
+
+/// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and, for .ot,
+/// its sensor model.
+OccupancyMap readMapFile(Context& context, const std::string& path);
+
+/// One scan of a scan graph: points in the sensor frame, and the sensor pose in the world.
+struct GraphScan {
+  std::vector<Eigen::Vector3f> points_sensor;
+  Pose T_world_sensor;
+};
+
+/// Reads an OctoMap ScanGraph binary file (.graph), checking its structure first.
+std::vector<GraphScan> readScanGraph(const std::string& path);
+
+/// The sensor origin graph2tree uses for a scan (in the sensor frame), to pass with the pose:
+/// pose.inverse().transform(pose.translation).
+Eigen::Vector3f graph2treeSensorOrigin(const Pose& T_world_sensor);
+
+}  // namespace octovk

@@ -1,0 +1,192 @@
+// octovk: an OctoMap-compatible occupancy octree that lives and is updated on a Vulkan device.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace octovk {
+
+/// What went wrong, coarsely, so callers can react without parsing messages.
+enum class ErrorCode {
+  kNoDevice,           ///< no Vulkan device (install mesa-vulkan-drivers for the CPU device)
+  kMissingFeature,     ///< the device lacks a feature octovk needs; the message names it
+  kInvalidArgument,    ///< a parameter or input is out of its domain
+  kOutOfDeviceMemory,  ///< the device could not hold the map; the map is as before the call
+  kVulkan,             ///< an unexpected Vulkan failure; the message names the call and VkResult
+  kIo,                 ///< a file could not be read or written
+  kFormat,             ///< a file is not in the expected format
+};
+
+/// The one exception type of octovk. The library never exits the process.
+class Error : public std::runtime_error {
+ public:
+  Error(ErrorCode code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  ErrorCode code() const noexcept { return code_; }
+
+ private:
+  ErrorCode code_;
+};
+
+/// A value or the reason there is none, for setup steps that fail for ordinary reasons.
+template <class T>
+class Result {
+ public:
+  Result(T value) : value_(std::move(value)) {}  // NOLINT(google-explicit-constructor)
+  Result(Error error) : error_(std::move(error)) {}  // NOLINT(google-explicit-constructor)
+  explicit operator bool() const noexcept { return value_.has_value(); }
+  T& value() {
+    if (!value_) throw *error_;
+    return *value_;
+  }
+  const Error& error() const { return *error_; }
+
+ private:
+  std::optional<T> value_;
+  std::optional<Error> error_;
+};
+
+/// The sensor model and grid, with OctoMap's defaults.
+struct MapParams {
+  double resolution = 0.1;
+  double prob_hit = 0.7;
+  double prob_miss = 0.4;
+  double clamping_min = 0.1192;
+  double clamping_max = 0.971;
+  double occupancy_threshold = 0.5;
+
+  /// Empty when valid, else a sentence naming the bad value.
+  std::string validate() const;
+};
+
+/// A rigid transform with OctoMap's float arithmetic (octomath::Pose6D): rotation applied as
+/// q * v * q^-1 in single precision, then the translation added.
+struct Pose {
+  Eigen::Vector3f translation = Eigen::Vector3f::Zero();
+  Eigen::Quaternionf rotation = Eigen::Quaternionf::Identity();
+
+  /// `this` applied to v, bit-exact with octomath::Pose6D::transform.
+  Eigen::Vector3f transform(const Eigen::Vector3f& v) const;
+  /// The inverse, bit-exact with octomath::Pose6D::inv.
+  Pose inverse() const;
+};
+
+/// Which device to use: empty picks a real GPU when present, else lavapipe. The OCTOVK_DEVICE
+/// environment variable (index or name substring) overrides when `selector` is empty.
+struct ContextOptions {
+  std::string selector;
+  bool enable_validation = false;
+};
+
+/// The device a Context runs on.
+struct DeviceInfo {
+  std::string name;
+  std::string type;  ///< "discrete GPU", "integrated GPU", "CPU", ...
+  std::uint32_t index = 0;
+  std::uint64_t memory_bytes = 0;
+};
+
+namespace vk {
+class Device;
+}
+
+/// The Vulkan device every map of a process shares. Create one; it must outlive its maps.
+class Context {
+ public:
+  static Result<std::unique_ptr<Context>> create(const ContextOptions& options = {});
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  const DeviceInfo& device() const noexcept;
+  /// Every usable Vulkan device, for --help and error messages.
+  static std::vector<DeviceInfo> listDevices();
+
+  vk::Device& vulkan() noexcept { return *device_; }
+
+ private:
+  explicit Context(std::unique_ptr<vk::Device> device);
+  std::unique_ptr<vk::Device> device_;
+};
+
+/// What one insertPointCloud did.
+struct ScanStats {
+  std::size_t points = 0;
+  std::size_t skipped_nonfinite = 0;  ///< NaN or infinite coordinates: nothing inserted
+  std::size_t skipped_outside = 0;    ///< ray or end cell outside the map: nothing inserted
+  std::size_t free_cells = 0;         ///< distinct cells updated as free (before early abort)
+  std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
+  std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
+  std::size_t nodes = 0;              ///< nodes in the tree after the scan
+  double wall_ms = 0.0;
+};
+
+/// The tree as the host sees it after an explicit download. Node index = block * 8 + slot;
+/// the root is node 0. Children of node n are at children * 8 + i where bit i of mask is set.
+struct HostTree {
+  struct Node {
+    float log_odds;
+    std::uint32_t children;
+    std::uint32_t mask;
+  };
+  bool root_exists = false;
+  std::vector<Node> nodes;
+};
+
+/// The occupancy octree, held in device buffers. Not copyable; movable.
+class OccupancyMap {
+ public:
+  OccupancyMap(Context& context, const MapParams& params);
+  ~OccupancyMap();
+  OccupancyMap(OccupancyMap&&) noexcept;
+  OccupancyMap& operator=(OccupancyMap&&) noexcept;
+
+  const MapParams& params() const noexcept;
+
+  /// OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=false, discretize) with
+  /// points and origin in the world frame. max_range_m < 0 means unlimited.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, double max_range_m = -1.0,
+                             bool discretize = false);
+
+  /// OctoMap's insertPointCloud(points, sensor_origin, frame_origin, ...): points and sensor origin
+  /// in the sensor frame; both are moved to the world by T_world_sensor, the points on the device.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                             const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
+                             double max_range_m = -1.0, bool discretize = false);
+
+  /// Nodes in the tree (read from the device's counters, no map data moves).
+  std::size_t nodeCount() const;
+  /// Device bytes held by this map's buffers.
+  std::size_t deviceBytes() const;
+  /// Leaves written by the last leaf-box rebuild.
+  std::size_t leafCount() const;
+
+  /// Explicit transfer of the whole tree to the host.
+  HostTree download() const;
+  /// Replaces the map with `tree` (explicit transfer to the device).
+  void upload(const HostTree& tree);
+
+  /// The leaf boxes (centre, size, log-odds) of the last rebuild, downloaded.
+  struct LeafBoxHost {
+    float center[3];
+    float size;
+    float log_odds;
+  };
+  std::vector<LeafBoxHost> downloadLeafBoxes() const;
+
+  class Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace octovk

@@ -1,0 +1,47 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Early abort: for every distinct cell of the scan, OctoMap's search() on the tree as it was
+// before the scan; cells already at the clamping bound in their update's direction are dropped,
+// the rest become the active cells of the tree passes.
+#include "common.glsl"
+#include "tree.glsl"
+
+void main() {
+  uint slot = invocationIndex();
+  if (slot >= params.hash_capacity) return;
+  if (hash_keys[slot] == kEmptyKey) return;
+  bool occupied = (hash_flags[slot] & kHashFlagOccupied) != 0u;
+  if (occupied) atomicAdd(counters.occupied_cells, 1u);
+  else atomicAdd(counters.free_cells, 1u);
+  float update = cellUpdate(slot);
+  uvec3 k = cellKey(slot);
+
+  // search(): the deepest existing node on the path; a node with other children but not this
+  // one means "not found". depth = depth of the deepest existing node (0 without a root).
+  bool found = false;
+  uint depth = 0u;
+  float value = 0.0;
+  if (pool.root_exists != 0u) {
+    uint n = kRootNode;
+    for (depth = 0u; depth < kTreeDepth; ++depth) {
+      uint c = childIndex(k, depth);
+      uint m = nodes[n].mask;
+      if ((m & (1u << c)) != 0u) {
+        n = nodes[n].children * 8u + c;
+      } else {
+        found = (m & kChildMask) == 0u;
+        break;
+      }
+    }
+    if (depth == kTreeDepth) found = true;
+    value = nodes[n].log_odds;
+  }
+  if (found && ((update >= 0.0 && value >= params.clamp_max_log) ||
+                (update <= 0.0 && value <= params.clamp_min_log))) {
+    atomicAdd(counters.aborted, 1u);
+    return;
+  }
+  uint at = atomicAdd(counters.active_cells, 1u);
+  cells[at] = ActiveCell(slot, kRootNode, kNoBlock);
+  atomicAdd(counters.first_depth_hist[depth], 1u);
+}

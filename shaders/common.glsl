@@ -1,0 +1,103 @@
+// Bindings and the portable map math shared by every pass. The C++ twin of the math is
+// src/map/reference.hpp; both follow OctoMap 1.9.7 operation for operation (float where OctoMap
+// uses float, double where it uses double) and `precise` keeps the compiler from fusing them.
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#extension GL_EXT_shader_atomic_int64 : require
+
+#include "octovk/gpu_types.h"
+
+layout(local_size_x = 64) in;
+
+layout(push_constant) uniform PushBlock { PassConstants pc; };
+
+layout(std430, binding = 0) buffer ParamsBuf { ScanParams params; };
+layout(std430, binding = 1) buffer CountersBuf { ScanCounters counters; };
+layout(std430, binding = 2) buffer PoolBuf { PoolState pool; };
+layout(std430, binding = 3) buffer PointsBuf { float points[]; };
+layout(std430, binding = 4) buffer HashKeysBuf { uint64_t hash_keys[]; };
+layout(std430, binding = 5) buffer HashFlagsBuf { uint hash_flags[]; };
+layout(std430, binding = 6) buffer NodesBuf { Node nodes[]; };
+layout(std430, binding = 7) buffer BlockMetaBuf { BlockMeta block_meta[]; };
+layout(std430, binding = 8) buffer FreeStackBuf { uint free_stack[]; };
+layout(std430, binding = 9) buffer ActiveBuf { ActiveCell cells[]; };
+layout(std430, binding = 10) buffer TouchedBuf { uint touched[]; };
+layout(std430, binding = 11) buffer AllocBuf { AllocRequest alloc_list[]; };
+layout(std430, binding = 12) buffer LeafBuf { LeafBox leaf_boxes[]; };
+layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
+
+const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
+
+// Work item index of a 1-D workload folded into x and y by the host.
+uint invocationIndex() {
+  return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+}
+
+// ---- keys (OcTreeBaseImpl::coordToKeyChecked / keyToCoord) ----
+
+bool coordToKeyChecked(float coord, out uint key) {
+  precise double scaled = floor(params.resolution_factor * double(coord));
+  key = 0u;
+  // Also rejects NaN; the range test comes before the int conversion, which is undefined beyond it.
+  if (!(scaled >= -32768.0lf && scaled < 32768.0lf)) return false;
+  key = uint(int(scaled) + 32768);
+  return true;
+}
+
+double keyToCoord(uint key) {
+  precise double c = (double(int(key) - 32768) + 0.5lf) * params.resolution;
+  return c;
+}
+
+uint64_t packKey(uvec3 k) {
+  return uint64_t(k.x) | (uint64_t(k.y) << 16) | (uint64_t(k.z) << 32);
+}
+
+uvec3 unpackKey(uint64_t k) {
+  return uvec3(uint(k & 0xFFFFul), uint((k >> 16) & 0xFFFFul), uint((k >> 32) & 0xFFFFul));
+}
+
+// Index of the child at depth+1 on the path of key k from a node at `depth` (computeChildIdx).
+uint childIndex(uvec3 k, uint depth) {
+  uint bit = 15u - depth;
+  return ((k.x >> bit) & 1u) | (((k.y >> bit) & 1u) << 1) | (((k.z >> bit) & 1u) << 2);
+}
+
+// ---- float helpers that match IEEE single precision on the host ----
+
+// Correctly rounded a / b in float: double has more than 2 * 24 + 2 bits, so rounding the double
+// quotient to float is exact (Vulkan allows 2.5 ULP for float division).
+float divFloat(float a, float b) {
+  precise double q = double(a) / double(b);
+  return float(q);
+}
+
+// Vector3::norm(): the squared norm summed in float, its square root taken in double.
+double normOf(float x, float y, float z) {
+  precise float sq = x * x + y * y + z * z;
+  return sqrt(double(sq));
+}
+
+// ---- the hash sets of cell keys ----
+
+uint hashSlot(uint64_t k, uint log2cap) {
+  return uint((k * 0x9E3779B97F4A7C15ul) >> (64u - log2cap));
+}
+
+// Inserts k into the scan's cell set; returns its slot, or 0xFFFFFFFF when the set is full.
+uint insertCell(uint64_t k) {
+  uint cap = params.hash_capacity;
+  uint mask = cap - 1u;
+  uint s = hashSlot(k, params.hash_log2);
+  for (uint probe = 0u; probe < 4096u; ++probe) {
+    uint64_t prev = atomicCompSwap(hash_keys[s], kEmptyKey, k);
+    if (prev == kEmptyKey) {
+      uint n = atomicAdd(counters.hash_entries, 1u);
+      if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
+      return s;
+    }
+    if (prev == k) return s;
+    s = (s + 1u) & mask;
+  }
+  atomicOr(counters.status, kStatusHashFull);
+  return 0xFFFFFFFFu;
+}

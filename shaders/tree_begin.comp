@@ -1,0 +1,14 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Creates the root if the map is empty (OccupancyOcTreeBase::updateNode creates it on demand).
+#include "common.glsl"
+
+void main() {
+  if (invocationIndex() != 0u) return;
+  if (pool.root_exists == 0u) {
+    nodes[kRootNode] = Node(0.0, kNoBlock, kFlagNew);
+    block_meta[0] = BlockMeta(kNoBlock, 0u, 0u, 0u);
+    pool.root_exists = 1u;
+    pool.live_nodes = 1u;
+  }
+}

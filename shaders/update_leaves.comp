@@ -1,0 +1,17 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// The log-odds update of every active cell's leaf (updateNodeLogOdds): add, then clamp, in float.
+#include "common.glsl"
+#include "tree.glsl"
+
+void main() {
+  uint i = invocationIndex();
+  if (i >= pc.count) return;
+  ActiveCell cell = cells[i];
+  uint n = resolveNode(cell);
+  precise float value = nodes[n].log_odds + cellUpdate(cell.slot);
+  if (value < params.clamp_min_log) value = params.clamp_min_log;
+  else if (value > params.clamp_max_log) value = params.clamp_max_log;
+  nodes[n].log_odds = value;
+  nodes[n].mask = 0u;
+}

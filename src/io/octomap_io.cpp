@@ -1,0 +1,172 @@
+// The map as an octomap::OcTree and OctoMap's .bt / .ot files.
+#include "octovk/octomap_io.hpp"
+
+#include <octomap/AbstractOcTree.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <unistd.h>
+
+#include "map/reference.hpp"
+
+namespace octovk {
+
+namespace {
+
+// OcTree with access to the protected root, to build a tree node by node.
+class TreeBuilder : public octomap::OcTree {
+ public:
+  explicit TreeBuilder(double resolution) : octomap::OcTree(resolution) {}
+  octomap::OcTreeNode* makeRoot() {
+    root = new octomap::OcTreeNode();
+    tree_size = 1;
+    size_changed = true;
+    return root;
+  }
+};
+
+std::string extensionOf(const std::string& path) {
+  return std::filesystem::path(path).extension().string();
+}
+
+void applyParams(octomap::OcTree& tree, const MapParams& p) {
+  tree.setProbHit(p.prob_hit);
+  tree.setProbMiss(p.prob_miss);
+  tree.setClampingThresMin(p.clamping_min);
+  tree.setClampingThresMax(p.clamping_max);
+  tree.setOccupancyThres(p.occupancy_threshold);
+}
+
+}  // namespace
+
+std::unique_ptr<octomap::OcTree> toOcTree(const OccupancyMap& map) {
+  const HostTree host = map.download();
+  auto tree = std::make_unique<TreeBuilder>(map.params().resolution);
+  applyParams(*tree, map.params());
+  if (!host.root_exists) return tree;
+  std::function<void(std::uint32_t, octomap::OcTreeNode*, unsigned)> build =
+      [&](std::uint32_t index, octomap::OcTreeNode* node, unsigned depth) {
+        const HostTree::Node& n = host.nodes.at(index);
+        node->setLogOdds(n.log_odds);
+        if (depth >= 16) return;
+        for (unsigned i = 0; i < 8; ++i) {
+          if (!(n.mask & (1u << i))) continue;
+          build(n.children * 8 + i, tree->createNodeChild(node, i), depth + 1);
+        }
+      };
+  build(0, tree->makeRoot(), 0);
+  return tree;
+}
+
+void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
+  if (tree.getResolution() != map.params().resolution)
+    throw Error(ErrorCode::kInvalidArgument,
+                "fromOcTree: the tree's resolution " + std::to_string(tree.getResolution()) +
+                    " differs from the map's " + std::to_string(map.params().resolution));
+  HostTree host;
+  const octomap::OcTreeNode* root = tree.getRoot();
+  host.root_exists = root != nullptr;
+  if (root) {
+    host.nodes.resize(8);
+    host.nodes[0] = {root->getLogOdds(), 0xFFFFFFFFu, 0};
+    // Breadth first: each node with children gets the next block of 8 slots.
+    std::vector<std::pair<const octomap::OcTreeNode*, std::uint32_t>> queue{{root, 0}};
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const auto [node, index] = queue[head];
+      if (!tree.nodeHasChildren(node)) continue;
+      const std::uint32_t block = static_cast<std::uint32_t>(host.nodes.size() / 8);
+      host.nodes.resize(host.nodes.size() + 8, HostTree::Node{0.0f, 0xFFFFFFFFu, 0});
+      std::uint32_t mask = 0;
+      for (unsigned i = 0; i < 8; ++i) {
+        if (!tree.nodeChildExists(node, i)) continue;
+        const octomap::OcTreeNode* child = tree.getNodeChild(node, i);
+        host.nodes[block * 8 + i] = {child->getLogOdds(), 0xFFFFFFFFu, 0};
+        queue.emplace_back(child, block * 8 + i);
+        mask |= 1u << i;
+      }
+      host.nodes[index].children = block;
+      host.nodes[index].mask = mask;
+    }
+  }
+  map.upload(host);
+}
+
+void writeMapFile(const OccupancyMap& map, const std::string& path) {
+  const std::string ext = extensionOf(path);
+  if (ext != ".bt" && ext != ".ot")
+    throw Error(ErrorCode::kInvalidArgument,
+                "cannot write '" + path + "': unknown extension '" + ext +
+                    "'; use .bt (binary, max-likelihood) or .ot (full log-odds)");
+  const std::filesystem::path target(path);
+  const std::filesystem::path dir =
+      target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+  if (!std::filesystem::is_directory(dir))
+    throw Error(ErrorCode::kIo, "cannot write '" + path + "': directory '" + dir.string() +
+                                    "' does not exist");
+  std::unique_ptr<octomap::OcTree> tree = toOcTree(map);
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  bool ok = false;
+  {
+    std::ofstream out(tmp, std::ios_base::binary);
+    if (!out.is_open())
+      throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
+    if (ext == ".bt") ok = tree->writeBinary(out);  // prunes to max-likelihood first
+    else ok = tree->write(out);
+    out.close();
+    ok = ok && out.good();
+  }
+  if (!ok) {
+    std::remove(tmp.c_str());
+    throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + why);
+  }
+}
+
+OccupancyMap readMapFile(Context& context, const std::string& path) {
+  const std::string ext = extensionOf(path);
+  if (ext != ".bt" && ext != ".ot")
+    throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +
+                                                 ext + "'; use a .bt or .ot file");
+  std::ifstream in(path, std::ios_base::binary);
+  if (!in.is_open())
+    throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + std::strerror(errno));
+  std::string first_line;
+  std::getline(in, first_line);
+  in.seekg(0);
+  std::unique_ptr<octomap::OcTree> tree;
+  if (ext == ".bt") {
+    if (first_line.rfind("# Octomap OcTree binary file", 0) != 0)
+      throw Error(ErrorCode::kFormat,
+                  "'" + path + "' is not an OctoMap binary tree (.bt): bad header");
+    tree = std::make_unique<octomap::OcTree>(0.1);
+    if (!tree->readBinary(in) || tree->getResolution() <= 0.0)
+      throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated .bt file");
+  } else {
+    if (first_line.rfind("# Octomap OcTree file", 0) != 0)
+      throw Error(ErrorCode::kFormat, "'" + path + "' is not an OctoMap tree (.ot): bad header");
+    std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(in));
+    auto* as_tree = dynamic_cast<octomap::OcTree*>(abstract.get());
+    if (!as_tree)
+      throw Error(ErrorCode::kFormat,
+                  "'" + path + "' is a corrupt .ot file or holds another tree type than OcTree");
+    abstract.release();
+    tree.reset(as_tree);
+  }
+  if (in.bad())
+    throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated OctoMap file");
+  MapParams params;
+  params.resolution = tree->getResolution();
+  OccupancyMap map(context, params);
+  fromOcTree(map, *tree);
+  return map;
+}
+
+}  // namespace octovk

@@ -1,0 +1,558 @@
+// OccupancyMap: owns the map's device buffers and records the passes of a scan.
+// Each stage is one shader in shaders/ and one record* function here.
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+#include "map/reference.hpp"
+#include "octovk/gpu_types.h"
+#include "octovk/octovk.hpp"
+#include "vk/device.hpp"
+
+namespace octovk {
+
+namespace {
+
+using gpu::PassConstants;
+
+constexpr std::uint32_t kInitialBlocks = 1024;
+constexpr std::uint32_t kInitialHashLog2 = 16;
+constexpr std::uint32_t kInitialEndpointLog2 = 12;
+
+std::uint32_t groupsFor(std::size_t items) {
+  return static_cast<std::uint32_t>((items + gpu::kWorkgroupSize - 1) / gpu::kWorkgroupSize);
+}
+
+std::uint32_t nextPow2Log2(std::size_t n) {
+  std::uint32_t log2 = 0;
+  while ((std::size_t{1} << log2) < n) ++log2;
+  return log2;
+}
+
+gpu::ScanCounters freshCounters() {
+  gpu::ScanCounters c{};
+  for (auto& a : c.alloc_args) a = {0, 1, 1};
+  for (auto& a : c.touched_args) a = {0, 1, 1};
+  return c;
+}
+
+}  // namespace
+
+class OccupancyMap::Impl {
+ public:
+  Impl(Context& context, const MapParams& params)
+      : device_(context.vulkan()), params_(params), bindings_(device_), stream_(device_) {
+    if (std::string why = params.validate(); !why.empty())
+      throw Error(ErrorCode::kInvalidArgument, why);
+    logs_ = ref::LogOddsParams::from(params);
+    params_buf_ = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
+    counters_buf_ = vk::Buffer(device_, sizeof(gpu::ScanCounters), false);
+    pool_buf_ = vk::Buffer(device_, sizeof(gpu::PoolState), false);
+    readback_ = vk::Buffer(device_, sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState), true);
+    points_buf_ = vk::Buffer(device_, 16, false);
+    upload_ = vk::Buffer(device_, 16, true);
+    endpoint_log2_ = kInitialEndpointLog2;
+    endpoint_keys_ = vk::Buffer(device_, (std::size_t{1} << endpoint_log2_) * 8, false);
+    allocateHash(kInitialHashLog2);
+    allocateLists(1024);
+    allocatePool(kInitialBlocks, /*copy_old=*/false);
+    resetPool();
+  }
+
+  ScanStats insert(std::span<const Eigen::Vector3f> points, const Eigen::Vector3f& origin,
+                   const Pose* pose, double max_range, bool discretize);
+  HostTree download();
+  void upload(const HostTree& tree);
+  std::vector<LeafBoxHost> downloadLeafBoxes();
+  gpu::PoolState readPool();
+  std::size_t deviceBytes() const;
+
+  const MapParams& params() const { return params_; }
+
+ private:
+  void allocateHash(std::uint32_t log2);
+  void allocateLists(std::size_t active_capacity);
+  void allocatePool(std::uint32_t blocks, bool copy_old);
+  void resetPool();
+  void rebind();
+  void ensurePoints(std::size_t count);
+  gpu::ScanParams scanParams(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
+                             std::size_t count) const;
+
+  void recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize);
+  void recordClassify();
+  void recordTreeUpdate(std::uint32_t active);
+  void recordLeafBoxes();
+  void recordReadback();
+  void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
+
+  void dispatch(const char* pass, std::size_t items, PassConstants pc = {}) {
+    stream_.dispatch(device_.pass(pass), groupsFor(items), &pc, sizeof(pc));
+    stream_.barrier();
+  }
+
+  vk::Device& device_;
+  MapParams params_;
+  ref::LogOddsParams logs_;
+  vk::BindingSet bindings_;
+  vk::CommandStream stream_;
+
+  vk::Buffer params_buf_, counters_buf_, pool_buf_, readback_, points_buf_, upload_;
+  vk::Buffer hash_keys_, hash_flags_, cells_, endpoint_keys_;
+  vk::Buffer touched_, alloc_list_;
+  vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
+  std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
+  std::size_t active_capacity_ = 0;
+  std::uint32_t pool_blocks_ = 0;
+  std::size_t point_capacity_ = 0;
+};
+
+// ---- buffers ---------------------------------------------------------------------------------
+
+void OccupancyMap::Impl::allocateHash(std::uint32_t log2) {
+  const std::size_t cap = std::size_t{1} << log2;
+  vk::Buffer keys(device_, cap * sizeof(std::uint64_t), false);
+  vk::Buffer flags(device_, cap * sizeof(std::uint32_t), false);
+  vk::Buffer cells(device_, cap * sizeof(gpu::ActiveCell), false);
+  hash_keys_ = std::move(keys);
+  hash_flags_ = std::move(flags);
+  cells_ = std::move(cells);
+  hash_log2_ = log2;
+  rebind();
+}
+
+void OccupancyMap::Impl::allocateLists(std::size_t active_capacity) {
+  vk::Buffer touched(device_, active_capacity * gpu::kTreeDepth * sizeof(std::uint32_t), false);
+  vk::Buffer alloc(device_, active_capacity * gpu::kTreeDepth * sizeof(gpu::AllocRequest), false);
+  touched_ = std::move(touched);
+  alloc_list_ = std::move(alloc);
+  active_capacity_ = active_capacity;
+  rebind();
+}
+
+// Grows the pool to `blocks`, keeping the tree. All new buffers are made before any old one is
+// dropped, so a failed allocation leaves the map as it was.
+void OccupancyMap::Impl::allocatePool(std::uint32_t blocks, bool copy_old) {
+  vk::Buffer nodes(device_, std::size_t{blocks} * 8 * sizeof(gpu::Node), false);
+  vk::Buffer meta(device_, std::size_t{blocks} * sizeof(gpu::BlockMeta), false);
+  vk::Buffer free_stack(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
+  vk::Buffer leaves(device_, std::size_t{blocks} * 8 * sizeof(gpu::LeafBox), false);
+  if (copy_old) {
+    stream_.begin(bindings_);
+    stream_.copy(nodes_, nodes, nodes_.size());
+    stream_.copy(block_meta_, meta, block_meta_.size());
+    stream_.copy(free_stack_, free_stack, free_stack_.size());
+    stream_.update(pool_buf_, &blocks, sizeof(blocks), offsetof(gpu::PoolState, capacity));
+    stream_.submitAndWait();
+  }
+  nodes_ = std::move(nodes);
+  block_meta_ = std::move(meta);
+  free_stack_ = std::move(free_stack);
+  leaf_boxes_ = std::move(leaves);
+  pool_blocks_ = blocks;
+  rebind();
+}
+
+void OccupancyMap::Impl::resetPool() {
+  gpu::PoolState pool{};
+  pool.bump = 1;  // block 0 is the root's
+  pool.capacity = pool_blocks_;
+  stream_.begin(bindings_);
+  stream_.update(pool_buf_, &pool, sizeof(pool));
+  stream_.submitAndWait();
+}
+
+void OccupancyMap::Impl::rebind() {
+  if (!nodes_.valid() || !hash_keys_.valid() || !touched_.valid()) return;
+  const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
+      &params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_,
+      &hash_flags_, &nodes_,        &block_meta_, &free_stack_, &cells_,
+      &touched_,    &alloc_list_,   &leaf_boxes_, &endpoint_keys_};
+  bindings_.update(buffers);
+}
+
+void OccupancyMap::Impl::ensurePoints(std::size_t count) {
+  if (count <= point_capacity_) return;
+  const std::size_t cap = std::max(count, point_capacity_ * 2);
+  vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
+  vk::Buffer staging(device_, cap * 3 * sizeof(float), true);
+  points_buf_ = std::move(device_points);
+  upload_ = std::move(staging);
+  point_capacity_ = cap;
+  rebind();
+}
+
+std::size_t OccupancyMap::Impl::deviceBytes() const {
+  std::size_t total = 0;
+  for (const vk::Buffer* b :
+       {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_,
+        &cells_, &endpoint_keys_, &touched_, &alloc_list_, &nodes_, &block_meta_, &free_stack_,
+        &leaf_boxes_})
+    total += b->size();
+  return total;
+}
+
+// ---- one scan --------------------------------------------------------------------------------
+
+gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, const Pose* pose,
+                                               double max_range, std::size_t count) const {
+  gpu::ScanParams sp{};
+  sp.resolution = params_.resolution;
+  sp.resolution_factor = 1.0 / params_.resolution;
+  sp.max_range = max_range;
+  sp.origin_x = origin.x();
+  sp.origin_y = origin.y();
+  sp.origin_z = origin.z();
+  sp.prob_hit_log = logs_.hit;
+  sp.prob_miss_log = logs_.miss;
+  sp.clamp_min_log = logs_.clamp_min;
+  sp.clamp_max_log = logs_.clamp_max;
+  sp.point_count = static_cast<std::uint32_t>(count);
+  sp.hash_capacity = 1u << hash_log2_;
+  sp.hash_log2 = hash_log2_;
+  sp.endpoint_capacity = 1u << endpoint_log2_;
+  sp.endpoint_log2 = endpoint_log2_;
+  sp.active_capacity = static_cast<std::uint32_t>(active_capacity_);
+  if (pose) {
+    sp.rot_u = pose->rotation.w();
+    sp.rot_x = pose->rotation.x();
+    sp.rot_y = pose->rotation.y();
+    sp.rot_z = pose->rotation.z();
+    sp.trans_x = pose->translation.x();
+    sp.trans_y = pose->translation.y();
+    sp.trans_z = pose->translation.z();
+  }
+  return sp;
+}
+
+void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize) {
+  const gpu::ScanCounters counters = freshCounters();
+  stream_.update(params_buf_, &sp, sizeof(sp));
+  stream_.update(counters_buf_, &counters, sizeof(counters));
+  stream_.copy(upload_, points_buf_, std::size_t{sp.point_count} * 3 * sizeof(float));
+  stream_.fill(hash_keys_, 0xFFFFFFFFu);
+  stream_.fill(hash_flags_, 0u);
+  if (discretize) stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
+  stream_.barrier();
+  if (transform) dispatch("transform_points", sp.point_count, {0, sp.point_count, 0, 0});
+  if (discretize) {
+    dispatch("discretize", sp.point_count, {0, sp.point_count, 0, 0});
+    dispatch("ray_keys", sp.endpoint_capacity, {0, sp.endpoint_capacity, 1, 0});
+  } else {
+    dispatch("ray_keys", sp.point_count, {0, sp.point_count, 0, 0});
+  }
+}
+
+void OccupancyMap::Impl::recordClassify() { dispatch("classify", std::size_t{1} << hash_log2_); }
+
+void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
+  dispatch("tree_begin", 1);
+  const vk::Pass& descend = device_.pass("descend");
+  const vk::Pass& alloc = device_.pass("alloc");
+  const vk::Pass& prune = device_.pass("prune");
+  for (std::uint32_t level = 0; level < gpu::kTreeDepth; ++level) {
+    PassConstants pc{level, active, 0, 0};
+    stream_.dispatch(descend, groupsFor(active), &pc, sizeof(pc));
+    stream_.barrier();
+    stream_.dispatchIndirect(alloc, counters_buf_,
+                             offsetof(gpu::ScanCounters, alloc_args) +
+                                 level * sizeof(gpu::DispatchArgs),
+                             &pc, sizeof(pc));
+    stream_.barrier();
+  }
+  dispatch("tree_fixup", 1);
+  dispatch("update_leaves", active, {0, active, 0, 0});
+  for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
+    PassConstants pc{level, 0, 0, 0};
+    stream_.dispatchIndirect(prune, counters_buf_,
+                             offsetof(gpu::ScanCounters, touched_args) +
+                                 level * sizeof(gpu::DispatchArgs),
+                             &pc, sizeof(pc));
+    stream_.barrier();
+  }
+}
+
+void OccupancyMap::Impl::recordLeafBoxes() {
+  stream_.fill(pool_buf_, 0u, offsetof(gpu::PoolState, leaf_count), sizeof(std::uint32_t));
+  stream_.barrier();
+  dispatch("leaf_boxes", pool_blocks_);
+}
+
+void OccupancyMap::Impl::recordReadback() {
+  stream_.copy(counters_buf_, readback_, sizeof(gpu::ScanCounters));
+  stream_.copy(pool_buf_, readback_, sizeof(gpu::PoolState), 0, sizeof(gpu::ScanCounters));
+}
+
+void OccupancyMap::Impl::readBack(gpu::ScanCounters& counters, gpu::PoolState& pool) {
+  const auto* bytes = static_cast<const unsigned char*>(readback_.mapped());
+  std::memcpy(&counters, bytes, sizeof(counters));
+  std::memcpy(&pool, bytes + sizeof(counters), sizeof(pool));
+}
+
+gpu::PoolState OccupancyMap::Impl::readPool() {
+  stream_.begin(bindings_);
+  recordReadback();
+  stream_.submitAndWait();
+  gpu::ScanCounters counters;
+  gpu::PoolState pool;
+  readBack(counters, pool);
+  return pool;
+}
+
+ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
+                                     const Eigen::Vector3f& origin, const Pose* pose,
+                                     double max_range, bool discretize) {
+  const auto start = std::chrono::steady_clock::now();
+  if (!origin.allFinite())
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: the sensor origin is not finite (NaN or inf); pass the "
+                "sensor position in metres");
+  if (pose && (!pose->translation.allFinite() || !pose->rotation.coeffs().allFinite()))
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: the sensor pose is not finite (NaN or inf)");
+  if (std::isnan(max_range))
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: max_range is NaN; use a negative value for unlimited range");
+  if (points.size() > 0x7FFFFFFFu)
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: more than 2^31 points in one scan; split the scan");
+
+  ScanStats stats;
+  stats.points = points.size();
+  gpu::ScanCounters counters{};
+  gpu::PoolState pool{};
+  if (points.empty()) {
+    pool = readPool();
+    stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+    return stats;
+  }
+  ensurePoints(points.size());
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
+  std::memcpy(upload_.mapped(), points.data(), points.size() * sizeof(Eigen::Vector3f));
+
+  // Pass group 1: ray keys into the hash set and the early-abort classification. The counters
+  // come back so the host can grow the hash set (and retry) or the pool before the tree changes.
+  for (;;) {
+    const gpu::ScanParams sp = scanParams(origin, pose, max_range, points.size());
+    stream_.begin(bindings_);
+    recordRayKeys(sp, pose != nullptr, discretize);
+    recordClassify();
+    recordReadback();
+    stream_.submitAndWait();
+    readBack(counters, pool);
+    if (counters.status & gpu::kStatusEndpointHashFull) {
+      const std::uint32_t log2 = endpoint_log2_ + 2;
+      vk::Buffer keys(device_, (std::size_t{1} << log2) * 8, false);
+      endpoint_keys_ = std::move(keys);
+      endpoint_log2_ = log2;
+      rebind();
+      continue;
+    }
+    if (counters.status & gpu::kStatusHashFull) {
+      if (hash_log2_ >= 31)
+        throw Error(ErrorCode::kOutOfDeviceMemory,
+                    "insertPointCloud: a scan touches more than 2^30 cells; split the scan");
+      allocateHash(hash_log2_ + 2);
+      continue;
+    }
+    break;
+  }
+  stats.skipped_nonfinite = counters.skipped_nonfinite;
+  stats.skipped_outside = counters.skipped_outside;
+  stats.free_cells = counters.free_cells;
+  stats.occupied_cells = counters.occupied_cells;
+  stats.aborted_cells = counters.aborted;
+
+  const std::uint32_t active = counters.active_cells;
+  if (active > 0) {
+    // Upper bound of new blocks: at depth d at most one per active cell whose path leaves the
+    // existing tree at or above d, and at most 8^d.
+    std::uint64_t bound = 0, leaving = 0;
+    for (std::uint32_t d = 0; d < gpu::kTreeDepth; ++d) {
+      leaving += counters.first_depth_hist[d];
+      const std::uint64_t level_max = d < 21 ? (std::uint64_t{1} << (3 * d)) : UINT64_MAX;
+      bound += std::min(leaving, level_max);
+    }
+    const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
+    if (bound > available) {
+      const std::uint64_t needed = std::uint64_t{pool.bump} + bound - pool.free_count + 1;
+      const std::uint64_t blocks = std::max<std::uint64_t>(needed, std::uint64_t{pool_blocks_} * 2);
+      if (blocks > 0x1FFFFFFFu)
+        throw Error(ErrorCode::kOutOfDeviceMemory,
+                    "insertPointCloud: the node pool would exceed 2^32 nodes; the map is "
+                    "unchanged");
+      try {
+        allocatePool(static_cast<std::uint32_t>(blocks), /*copy_old=*/true);
+      } catch (const Error& e) {
+        throw Error(ErrorCode::kOutOfDeviceMemory,
+                    std::string("insertPointCloud: the device has no room to grow the node pool "
+                                "to ") +
+                        std::to_string(blocks * 8) + " nodes; the map is unchanged (" + e.what() +
+                        ")");
+      }
+    }
+    if (active > active_capacity_) allocateLists(std::size_t{1} << nextPow2Log2(active));
+
+    // Pass group 2: the tree update, pruning and the leaf-box rebuild.
+    const gpu::ScanParams sp = scanParams(origin, pose, max_range, points.size());
+    stream_.begin(bindings_);
+    stream_.update(params_buf_, &sp, sizeof(sp));
+    stream_.barrier();
+    recordTreeUpdate(active);
+    recordLeafBoxes();
+    recordReadback();
+    stream_.submitAndWait();
+    readBack(counters, pool);
+    if (counters.status & gpu::kStatusPoolFull)
+      throw Error(ErrorCode::kVulkan,
+                  "internal error: the node pool ran out during a scan despite its size check; "
+                  "please report this with the input");
+  }
+  stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+  stats.wall_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+// ---- explicit transfers ----------------------------------------------------------------------
+
+HostTree OccupancyMap::Impl::download() {
+  const gpu::PoolState pool = readPool();
+  HostTree tree;
+  tree.root_exists = pool.root_exists != 0;
+  const std::size_t count = std::size_t{pool.bump} * 8;
+  vk::Buffer staging(device_, count * sizeof(gpu::Node), true);
+  stream_.begin(bindings_);
+  stream_.copy(nodes_, staging, count * sizeof(gpu::Node));
+  stream_.submitAndWait();
+  tree.nodes.resize(count);
+  static_assert(sizeof(HostTree::Node) == sizeof(gpu::Node));
+  std::memcpy(tree.nodes.data(), staging.mapped(), count * sizeof(gpu::Node));
+  // Free blocks keep stale contents; only what hangs from the root is the tree.
+  return tree;
+}
+
+void OccupancyMap::Impl::upload(const HostTree& tree) {
+  const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);
+  if (blocks > 0x1FFFFFFFu)
+    throw Error(ErrorCode::kInvalidArgument, "upload: tree has more than 2^32 nodes");
+  std::vector<gpu::BlockMeta> meta(blocks, gpu::BlockMeta{gpu::kNoBlock, 0, 0, 0});
+  std::vector<gpu::Node> nodes(blocks * 8, gpu::Node{0.0f, gpu::kNoBlock, 0});
+  std::memcpy(nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(gpu::Node));
+  std::uint32_t live = 0;
+  if (tree.root_exists) {
+    // Walk from the root to fill in where each block hangs (for the leaf boxes).
+    struct Item {
+      std::uint32_t node, depth, kx, ky, kz;
+    };
+    std::vector<Item> stack{{gpu::kRootNode, 0, 0, 0, 0}};
+    while (!stack.empty()) {
+      const Item it = stack.back();
+      stack.pop_back();
+      ++live;
+      const gpu::Node& n = nodes[it.node];
+      if ((n.mask & gpu::kChildMask) == 0) continue;
+      if (n.children >= blocks || n.children == 0 || it.depth >= gpu::kTreeDepth)
+        throw Error(ErrorCode::kFormat, "upload: tree has a child block outside the pool");
+      meta[n.children] = {it.node, it.depth, it.kx | (it.ky << 16), it.kz};
+      const std::uint32_t bit = 15 - it.depth;
+      for (std::uint32_t s = 0; s < 8; ++s) {
+        if (!(n.mask & (1u << s))) continue;
+        stack.push_back({n.children * 8 + s, it.depth + 1, it.kx | ((s & 1u) << bit),
+                         it.ky | (((s >> 1) & 1u) << bit), it.kz | (((s >> 2) & 1u) << bit)});
+      }
+    }
+  }
+  // Blocks that nothing points at go onto the free stack.
+  std::vector<std::uint32_t> free_blocks;
+  for (std::uint32_t b = 1; b < blocks; ++b)
+    if (meta[b].parent == gpu::kNoBlock) free_blocks.push_back(b);
+
+  const std::uint32_t capacity =
+      std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks * 2), kInitialBlocks);
+  if (capacity > pool_blocks_) allocatePool(capacity, /*copy_old=*/false);
+  gpu::PoolState pool{};
+  pool.bump = static_cast<std::uint32_t>(blocks);
+  pool.capacity = pool_blocks_;
+  pool.free_count = static_cast<std::uint32_t>(free_blocks.size());
+  pool.root_exists = tree.root_exists ? 1u : 0u;
+  pool.live_nodes = live;
+
+  const std::size_t node_bytes = nodes.size() * sizeof(gpu::Node);
+  const std::size_t meta_bytes = meta.size() * sizeof(gpu::BlockMeta);
+  const std::size_t free_bytes = free_blocks.size() * sizeof(std::uint32_t);
+  vk::Buffer staging(device_, node_bytes + meta_bytes + free_bytes, true);
+  auto* bytes = static_cast<unsigned char*>(staging.mapped());
+  std::memcpy(bytes, nodes.data(), node_bytes);
+  std::memcpy(bytes + node_bytes, meta.data(), meta_bytes);
+  if (free_bytes) std::memcpy(bytes + node_bytes + meta_bytes, free_blocks.data(), free_bytes);
+  gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+  stream_.begin(bindings_);
+  stream_.update(params_buf_, &sp, sizeof(sp));
+  stream_.update(pool_buf_, &pool, sizeof(pool));
+  stream_.copy(staging, nodes_, node_bytes);
+  stream_.copy(staging, block_meta_, meta_bytes, node_bytes);
+  stream_.copy(staging, free_stack_, free_bytes, node_bytes + meta_bytes);
+  stream_.barrier();
+  recordLeafBoxes();
+  stream_.submitAndWait();
+}
+
+std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
+  const gpu::PoolState pool = readPool();
+  std::vector<LeafBoxHost> out(pool.leaf_count);
+  if (out.empty()) return out;
+  const std::size_t bytes = out.size() * sizeof(gpu::LeafBox);
+  vk::Buffer staging(device_, bytes, true);
+  stream_.begin(bindings_);
+  stream_.copy(leaf_boxes_, staging, bytes);
+  stream_.submitAndWait();
+  static_assert(sizeof(LeafBoxHost) == sizeof(gpu::LeafBox));
+  std::memcpy(out.data(), staging.mapped(), bytes);
+  return out;
+}
+
+// ---- public face -----------------------------------------------------------------------------
+
+OccupancyMap::OccupancyMap(Context& context, const MapParams& params)
+    : impl_(std::make_unique<Impl>(context, params)) {}
+OccupancyMap::~OccupancyMap() = default;
+OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
+OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;
+
+const MapParams& OccupancyMap::params() const noexcept { return impl_->params(); }
+
+ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                                         const Eigen::Vector3f& origin_world, double max_range_m,
+                                         bool discretize) {
+  return impl_->insert(points_world, origin_world, nullptr, max_range_m, discretize);
+}
+
+ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                                         const Eigen::Vector3f& origin_sensor,
+                                         const Pose& T_world_sensor, double max_range_m,
+                                         bool discretize) {
+  const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
+  return impl_->insert(points_sensor, origin_world, &T_world_sensor, max_range_m, discretize);
+}
+
+std::size_t OccupancyMap::nodeCount() const {
+  const gpu::PoolState pool = impl_->readPool();
+  return pool.root_exists ? pool.live_nodes : 0;
+}
+
+std::size_t OccupancyMap::leafCount() const { return impl_->readPool().leaf_count; }
+
+std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
+
+HostTree OccupancyMap::download() const { return impl_->download(); }
+
+void OccupancyMap::upload(const HostTree& tree) { impl_->upload(tree); }
+
+std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::downloadLeafBoxes() const {
+  return impl_->downloadLeafBoxes();
+}
+
+}  // namespace octovk

@@ -1,0 +1,32 @@
+#include <cmath>
+#include <sstream>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+namespace {
+bool inOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
+}  // namespace
+
+std::string MapParams::validate() const {
+  std::ostringstream why;
+  if (!std::isfinite(resolution) || resolution <= 0.0) {
+    why << "resolution must be a positive number of metres (got " << resolution << ")";
+  } else if (resolution < 1e-4 || resolution > 1e3) {
+    why << "resolution " << resolution << " m is outside the supported 0.0001 .. 1000 m";
+  } else if (!inOpenUnit(prob_hit) || prob_hit < 0.5) {
+    why << "prob_hit must lie in [0.5, 1) (got " << prob_hit << ")";
+  } else if (!inOpenUnit(prob_miss) || prob_miss > 0.5) {
+    why << "prob_miss must lie in (0, 0.5] (got " << prob_miss << ")";
+  } else if (!inOpenUnit(clamping_min) || !inOpenUnit(clamping_max) ||
+             clamping_min >= clamping_max) {
+    why << "clamping bounds must satisfy 0 < clamping_min < clamping_max < 1 (got "
+        << clamping_min << ", " << clamping_max << ")";
+  } else if (!inOpenUnit(occupancy_threshold)) {
+    why << "occupancy_threshold must lie in (0, 1) (got " << occupancy_threshold << ")";
+  }
+  return why.str();
+}
+
+}  // namespace octovk

@@ -1,0 +1,23 @@
+// Host twins of the map math in shaders/common.glsl, in OctoMap's arithmetic.
+#pragma once
+
+#include <cmath>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk::ref {
+
+/// octomap::logodds: computed in double, stored as float.
+inline float logodds(double probability) {
+  return static_cast<float>(std::log(probability / (1.0 - probability)));
+}
+
+struct LogOddsParams {
+  float hit = 0, miss = 0, clamp_min = 0, clamp_max = 0, occupancy = 0;
+  static LogOddsParams from(const MapParams& p) {
+    return {logodds(p.prob_hit), logodds(p.prob_miss), logodds(p.clamping_min),
+            logodds(p.clamping_max), logodds(p.occupancy_threshold)};
+  }
+};
+
+}  // namespace octovk::ref

@@ -1,0 +1,541 @@
+#include "vk/device.hpp"
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <utility>
+
+#include "octovk/gpu_types.h"
+#include "vk/shader_registry.hpp"
+
+namespace octovk::vk {
+
+const char* resultName(VkResult r) {
+  switch (r) {
+    case VK_SUCCESS: return "VK_SUCCESS";
+    case VK_NOT_READY: return "VK_NOT_READY";
+    case VK_TIMEOUT: return "VK_TIMEOUT";
+    case VK_ERROR_OUT_OF_HOST_MEMORY: return "VK_ERROR_OUT_OF_HOST_MEMORY";
+    case VK_ERROR_OUT_OF_DEVICE_MEMORY: return "VK_ERROR_OUT_OF_DEVICE_MEMORY";
+    case VK_ERROR_INITIALIZATION_FAILED: return "VK_ERROR_INITIALIZATION_FAILED";
+    case VK_ERROR_DEVICE_LOST: return "VK_ERROR_DEVICE_LOST";
+    case VK_ERROR_MEMORY_MAP_FAILED: return "VK_ERROR_MEMORY_MAP_FAILED";
+    case VK_ERROR_LAYER_NOT_PRESENT: return "VK_ERROR_LAYER_NOT_PRESENT";
+    case VK_ERROR_EXTENSION_NOT_PRESENT: return "VK_ERROR_EXTENSION_NOT_PRESENT";
+    case VK_ERROR_FEATURE_NOT_PRESENT: return "VK_ERROR_FEATURE_NOT_PRESENT";
+    case VK_ERROR_INCOMPATIBLE_DRIVER: return "VK_ERROR_INCOMPATIBLE_DRIVER";
+    case VK_ERROR_TOO_MANY_OBJECTS: return "VK_ERROR_TOO_MANY_OBJECTS";
+    case VK_ERROR_OUT_OF_POOL_MEMORY: return "VK_ERROR_OUT_OF_POOL_MEMORY";
+    default: return "VkResult(other)";
+  }
+}
+
+void check(VkResult r, const char* call, const char* file, int line) {
+  if (r == VK_SUCCESS) return;
+  std::ostringstream msg;
+  msg << call << " failed with " << resultName(r) << " (" << int(r) << ") at " << file << ":"
+      << line;
+  const bool oom = r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY;
+  throw Error(oom ? ErrorCode::kOutOfDeviceMemory : ErrorCode::kVulkan, msg.str());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Buffer
+
+Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible) : device_(&device) {
+  bytes_ = std::max<std::size_t>(bytes, 16);
+  VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  info.size = bytes_;
+  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+               VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
+  info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  OCTOVK_VK(vkCreateBuffer(device.handle(), &info, nullptr, &buffer_));
+  try {
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(device.handle(), buffer_, &req);
+    VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    alloc.allocationSize = req.size;
+    if (host_visible) {
+      alloc.memoryTypeIndex = device.memoryType(
+          req.memoryTypeBits,
+          VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT |
+              VK_MEMORY_PROPERTY_HOST_CACHED_BIT,
+          VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT);
+    } else {
+      alloc.memoryTypeIndex = device.memoryType(
+          req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0);
+    }
+    OCTOVK_VK(vkAllocateMemory(device.handle(), &alloc, nullptr, &memory_));
+    OCTOVK_VK(vkBindBufferMemory(device.handle(), buffer_, memory_, 0));
+    if (host_visible) OCTOVK_VK(vkMapMemory(device.handle(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+Buffer::~Buffer() { release(); }
+
+Buffer::Buffer(Buffer&& other) noexcept { *this = std::move(other); }
+
+Buffer& Buffer::operator=(Buffer&& other) noexcept {
+  if (this != &other) {
+    release();
+    device_ = other.device_;
+    buffer_ = std::exchange(other.buffer_, VK_NULL_HANDLE);
+    memory_ = std::exchange(other.memory_, VK_NULL_HANDLE);
+    bytes_ = std::exchange(other.bytes_, 0);
+    mapped_ = std::exchange(other.mapped_, nullptr);
+  }
+  return *this;
+}
+
+void Buffer::release() noexcept {
+  if (!device_) return;
+  if (buffer_) vkDestroyBuffer(device_->handle(), buffer_, nullptr);
+  if (memory_) vkFreeMemory(device_->handle(), memory_, nullptr);
+  buffer_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  mapped_ = nullptr;
+  bytes_ = 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// BindingSet
+
+BindingSet::BindingSet(Device& device) : device_(&device) {
+  VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, gpu::kBindingCount};
+  VkDescriptorPoolCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  info.maxSets = 1;
+  info.poolSizeCount = 1;
+  info.pPoolSizes = &size;
+  OCTOVK_VK(vkCreateDescriptorPool(device.handle(), &info, nullptr, &pool_));
+  VkDescriptorSetLayout layout = device.setLayout();
+  VkDescriptorSetAllocateInfo alloc{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  alloc.descriptorPool = pool_;
+  alloc.descriptorSetCount = 1;
+  alloc.pSetLayouts = &layout;
+  try {
+    OCTOVK_VK(vkAllocateDescriptorSets(device.handle(), &alloc, &set_));
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+BindingSet::~BindingSet() { release(); }
+
+BindingSet::BindingSet(BindingSet&& other) noexcept { *this = std::move(other); }
+
+BindingSet& BindingSet::operator=(BindingSet&& other) noexcept {
+  if (this != &other) {
+    release();
+    device_ = other.device_;
+    pool_ = std::exchange(other.pool_, VK_NULL_HANDLE);
+    set_ = std::exchange(other.set_, VK_NULL_HANDLE);
+  }
+  return *this;
+}
+
+void BindingSet::release() noexcept {
+  if (device_ && pool_) vkDestroyDescriptorPool(device_->handle(), pool_, nullptr);
+  pool_ = VK_NULL_HANDLE;
+  set_ = VK_NULL_HANDLE;
+}
+
+void BindingSet::update(std::span<const Buffer* const> buffers) {
+  std::vector<VkDescriptorBufferInfo> infos(buffers.size());
+  std::vector<VkWriteDescriptorSet> writes(buffers.size());
+  for (std::size_t i = 0; i < buffers.size(); ++i) {
+    infos[i] = {buffers[i]->handle(), 0, VK_WHOLE_SIZE};
+    writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    writes[i].dstSet = set_;
+    writes[i].dstBinding = static_cast<std::uint32_t>(i);
+    writes[i].descriptorCount = 1;
+    writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    writes[i].pBufferInfo = &infos[i];
+  }
+  vkUpdateDescriptorSets(device_->handle(), static_cast<std::uint32_t>(writes.size()),
+                         writes.data(), 0, nullptr);
+}
+
+// ---------------------------------------------------------------------------------------------
+// CommandStream
+
+CommandStream::CommandStream(Device& device) : device_(device) {
+  VkCommandPoolCreateInfo info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  info.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  info.queueFamilyIndex = device.queueFamily();
+  OCTOVK_VK(vkCreateCommandPool(device.handle(), &info, nullptr, &pool_));
+  VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  alloc.commandPool = pool_;
+  alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  alloc.commandBufferCount = 1;
+  VkFenceCreateInfo fence{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  try {
+    OCTOVK_VK(vkAllocateCommandBuffers(device.handle(), &alloc, &cmd_));
+    OCTOVK_VK(vkCreateFence(device.handle(), &fence, nullptr, &fence_));
+  } catch (...) {
+    if (fence_) vkDestroyFence(device.handle(), fence_, nullptr);
+    vkDestroyCommandPool(device.handle(), pool_, nullptr);
+    throw;
+  }
+}
+
+CommandStream::~CommandStream() {
+  if (recording_) vkEndCommandBuffer(cmd_);
+  vkDestroyFence(device_.handle(), fence_, nullptr);
+  vkDestroyCommandPool(device_.handle(), pool_, nullptr);
+}
+
+void CommandStream::begin(const BindingSet& bindings) {
+  OCTOVK_VK(vkResetCommandBuffer(cmd_, 0));
+  VkCommandBufferBeginInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  info.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  OCTOVK_VK(vkBeginCommandBuffer(cmd_, &info));
+  recording_ = true;
+  VkDescriptorSet set = bindings.handle();
+  vkCmdBindDescriptorSets(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, device_.pipelineLayout(), 0, 1,
+                          &set, 0, nullptr);
+}
+
+void CommandStream::dispatch(const Pass& pass, std::uint32_t groups, const void* constants,
+                             std::uint32_t constants_bytes) {
+  if (groups == 0) return;
+  vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, pass.pipeline);
+  if (constants_bytes)
+    vkCmdPushConstants(cmd_, device_.pipelineLayout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       constants_bytes, constants);
+  // Large 1-D workloads are folded into y so no dimension exceeds the guaranteed 65535.
+  const std::uint32_t x = std::min<std::uint32_t>(groups, 65535u);
+  const std::uint32_t y = (groups + x - 1) / x;
+  vkCmdDispatch(cmd_, x, y, 1);
+}
+
+void CommandStream::dispatchIndirect(const Pass& pass, const Buffer& args, std::size_t offset,
+                                     const void* constants, std::uint32_t constants_bytes) {
+  vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, pass.pipeline);
+  if (constants_bytes)
+    vkCmdPushConstants(cmd_, device_.pipelineLayout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       constants_bytes, constants);
+  vkCmdDispatchIndirect(cmd_, args.handle(), offset);
+}
+
+void CommandStream::barrier() {
+  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  b.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
+  b.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT |
+                    VK_ACCESS_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_TRANSFER_READ_BIT |
+                    VK_ACCESS_TRANSFER_WRITE_BIT;
+  vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+                       VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT |
+                           VK_PIPELINE_STAGE_DRAW_INDIRECT_BIT,
+                       0, 1, &b, 0, nullptr, 0, nullptr);
+}
+
+void CommandStream::copy(const Buffer& src, const Buffer& dst, std::size_t bytes,
+                         std::size_t src_offset, std::size_t dst_offset) {
+  if (bytes == 0) return;
+  VkBufferCopy region{src_offset, dst_offset, bytes};
+  vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
+}
+
+void CommandStream::fill(const Buffer& dst, std::uint32_t value, std::size_t offset,
+                         std::size_t bytes) {
+  vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, value);
+}
+
+void CommandStream::update(const Buffer& dst, const void* data, std::size_t bytes,
+                           std::size_t offset) {
+  vkCmdUpdateBuffer(cmd_, dst.handle(), offset, bytes, data);
+}
+
+void CommandStream::submitAndWait() {
+  OCTOVK_VK(vkEndCommandBuffer(cmd_));
+  recording_ = false;
+  VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  submit.commandBufferCount = 1;
+  submit.pCommandBuffers = &cmd_;
+  OCTOVK_VK(vkResetFences(device_.handle(), 1, &fence_));
+  OCTOVK_VK(vkQueueSubmit(device_.queue(), 1, &submit, fence_));
+  OCTOVK_VK(vkWaitForFences(device_.handle(), 1, &fence_, VK_TRUE, UINT64_MAX));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Device
+
+namespace {
+
+const char* typeName(VkPhysicalDeviceType t) {
+  switch (t) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual GPU";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "CPU";
+    default: return "other";
+  }
+}
+
+int typeRank(VkPhysicalDeviceType t) {
+  switch (t) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 0;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 1;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return 3;
+    default: return 4;
+  }
+}
+
+struct InstanceHandle {
+  VkInstance instance = VK_NULL_HANDLE;
+  ~InstanceHandle() {
+    if (instance) vkDestroyInstance(instance, nullptr);
+  }
+};
+
+const char* kNoDeviceHint =
+    "no Vulkan device found: install Mesa's CPU driver with `apt-get install "
+    "mesa-vulkan-drivers` (lavapipe) or a GPU driver, and check `vulkaninfo --summary`";
+
+VkResult makeInstance(bool validation, VkInstance* out) {
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  app.pApplicationName = "octovk";
+  app.apiVersion = VK_API_VERSION_1_2;
+  VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  info.pApplicationInfo = &app;
+  const char* layer = "VK_LAYER_KHRONOS_validation";
+  if (validation) {
+    info.enabledLayerCount = 1;
+    info.ppEnabledLayerNames = &layer;
+  }
+  return vkCreateInstance(&info, nullptr, out);
+}
+
+std::vector<VkPhysicalDevice> physicalDevices(VkInstance instance) {
+  std::uint32_t n = 0;
+  if (vkEnumeratePhysicalDevices(instance, &n, nullptr) != VK_SUCCESS) return {};
+  std::vector<VkPhysicalDevice> devices(n);
+  vkEnumeratePhysicalDevices(instance, &n, devices.data());
+  devices.resize(n);
+  return devices;
+}
+
+DeviceInfo describe(VkPhysicalDevice pd, std::uint32_t index) {
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(pd, &props);
+  VkPhysicalDeviceMemoryProperties mem;
+  vkGetPhysicalDeviceMemoryProperties(pd, &mem);
+  DeviceInfo info;
+  info.name = props.deviceName;
+  info.type = typeName(props.deviceType);
+  info.index = index;
+  for (std::uint32_t i = 0; i < mem.memoryHeapCount; ++i)
+    if (mem.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
+      info.memory_bytes = std::max<std::uint64_t>(info.memory_bytes, mem.memoryHeaps[i].size);
+  return info;
+}
+
+}  // namespace
+
+std::vector<DeviceInfo> Device::enumerate() {
+  InstanceHandle inst;
+  if (makeInstance(false, &inst.instance) != VK_SUCCESS) return {};
+  std::vector<DeviceInfo> out;
+  auto devices = physicalDevices(inst.instance);
+  for (std::uint32_t i = 0; i < devices.size(); ++i) out.push_back(describe(devices[i], i));
+  return out;
+}
+
+Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
+  std::unique_ptr<Device> dev(new Device());
+  VkResult r = makeInstance(options.enable_validation, &dev->instance_);
+  if (r == VK_ERROR_INCOMPATIBLE_DRIVER || r == VK_ERROR_INITIALIZATION_FAILED)
+    return Error(ErrorCode::kNoDevice, kNoDeviceHint);
+  if (r == VK_ERROR_LAYER_NOT_PRESENT)
+    return Error(ErrorCode::kNoDevice,
+                 "Vulkan validation layer requested but not installed: apt-get install "
+                 "vulkan-validationlayers");
+  if (r != VK_SUCCESS)
+    return Error(ErrorCode::kVulkan, std::string("vkCreateInstance failed with ") + resultName(r));
+
+  auto devices = physicalDevices(dev->instance_);
+  if (devices.empty()) return Error(ErrorCode::kNoDevice, kNoDeviceHint);
+
+  std::string selector = options.selector;
+  if (selector.empty()) {
+    if (const char* env = std::getenv("OCTOVK_DEVICE")) selector = env;
+  }
+  std::int64_t chosen = -1;
+  if (!selector.empty()) {
+    const bool numeric = std::all_of(selector.begin(), selector.end(), ::isdigit);
+    if (numeric) {
+      const auto idx = std::stoull(selector);
+      if (idx < devices.size()) chosen = static_cast<std::int64_t>(idx);
+    } else {
+      for (std::uint32_t i = 0; i < devices.size() && chosen < 0; ++i)
+        if (describe(devices[i], i).name.find(selector) != std::string::npos) chosen = i;
+    }
+    if (chosen < 0) {
+      std::string names;
+      for (std::uint32_t i = 0; i < devices.size(); ++i)
+        names += "\n  " + std::to_string(i) + ": " + describe(devices[i], i).name;
+      return Error(ErrorCode::kNoDevice, "device selector '" + selector +
+                                             "' (OCTOVK_DEVICE) matches no Vulkan device; "
+                                             "available:" + names);
+    }
+  } else {
+    int best_rank = 99;
+    for (std::uint32_t i = 0; i < devices.size(); ++i) {
+      VkPhysicalDeviceProperties props;
+      vkGetPhysicalDeviceProperties(devices[i], &props);
+      if (props.apiVersion < VK_API_VERSION_1_2) continue;
+      if (typeRank(props.deviceType) < best_rank) {
+        best_rank = typeRank(props.deviceType);
+        chosen = i;
+      }
+    }
+    if (chosen < 0)
+      return Error(ErrorCode::kMissingFeature,
+                   "no Vulkan 1.2 device found; octovk needs Vulkan 1.2 (Mesa's lavapipe from "
+                   "mesa-vulkan-drivers provides it)");
+  }
+  dev->physical_ = devices[static_cast<std::size_t>(chosen)];
+  dev->info_ = describe(dev->physical_, static_cast<std::uint32_t>(chosen));
+
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(dev->physical_, &props);
+  if (props.apiVersion < VK_API_VERSION_1_2)
+    return Error(ErrorCode::kMissingFeature,
+                 "device '" + dev->info_.name + "' supports only Vulkan " +
+                     std::to_string(VK_API_VERSION_MAJOR(props.apiVersion)) + "." +
+                     std::to_string(VK_API_VERSION_MINOR(props.apiVersion)) +
+                     "; octovk needs Vulkan 1.2");
+
+  // Features octovk needs, checked by name.
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2.pNext = &f12;
+  vkGetPhysicalDeviceFeatures2(dev->physical_, &f2);
+  std::vector<std::string> missing;
+  if (!f2.features.shaderInt64) missing.push_back("shaderInt64 (64-bit integers)");
+  if (!f2.features.shaderFloat64) missing.push_back("shaderFloat64 (the exact ray walk)");
+  if (!f12.shaderBufferInt64Atomics)
+    missing.push_back("shaderBufferInt64Atomics (64-bit atomics of the hash set)");
+  if (!missing.empty()) {
+    std::string list;
+    for (auto& m : missing) list += (list.empty() ? "" : ", ") + m;
+    return Error(ErrorCode::kMissingFeature,
+                 "device '" + dev->info_.name + "' lacks required features: " + list +
+                     "; choose another device with OCTOVK_DEVICE");
+  }
+
+  std::uint32_t qn = 0;
+  vkGetPhysicalDeviceQueueFamilyProperties(dev->physical_, &qn, nullptr);
+  std::vector<VkQueueFamilyProperties> qprops(qn);
+  vkGetPhysicalDeviceQueueFamilyProperties(dev->physical_, &qn, qprops.data());
+  bool found = false;
+  for (std::uint32_t i = 0; i < qn && !found; ++i) {
+    if (qprops[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
+      dev->queue_family_ = i;
+      found = true;
+    }
+  }
+  if (!found)
+    return Error(ErrorCode::kMissingFeature,
+                 "device '" + dev->info_.name + "' has no compute queue");
+
+  float priority = 1.0f;
+  VkDeviceQueueCreateInfo qinfo{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+  qinfo.queueFamilyIndex = dev->queue_family_;
+  qinfo.queueCount = 1;
+  qinfo.pQueuePriorities = &priority;
+  VkPhysicalDeviceVulkan12Features want12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  want12.shaderBufferInt64Atomics = VK_TRUE;
+  VkPhysicalDeviceFeatures2 want{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  want.pNext = &want12;
+  want.features.shaderInt64 = VK_TRUE;
+  want.features.shaderFloat64 = VK_TRUE;
+  VkDeviceCreateInfo dinfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  dinfo.pNext = &want;
+  dinfo.queueCreateInfoCount = 1;
+  dinfo.pQueueCreateInfos = &qinfo;
+  try {
+    OCTOVK_VK(vkCreateDevice(dev->physical_, &dinfo, nullptr, &dev->device_));
+    vkGetDeviceQueue(dev->device_, dev->queue_family_, 0, &dev->queue_);
+    vkGetPhysicalDeviceMemoryProperties(dev->physical_, &dev->memory_);
+
+    std::vector<VkDescriptorSetLayoutBinding> bindings(gpu::kBindingCount);
+    for (std::uint32_t i = 0; i < gpu::kBindingCount; ++i) {
+      bindings[i] = {};
+      bindings[i].binding = i;
+      bindings[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      bindings[i].descriptorCount = 1;
+      bindings[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+    }
+    VkDescriptorSetLayoutCreateInfo linfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    linfo.bindingCount = gpu::kBindingCount;
+    linfo.pBindings = bindings.data();
+    OCTOVK_VK(vkCreateDescriptorSetLayout(dev->device_, &linfo, nullptr, &dev->set_layout_));
+    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(gpu::PassConstants)};
+    VkPipelineLayoutCreateInfo pinfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    pinfo.setLayoutCount = 1;
+    pinfo.pSetLayouts = &dev->set_layout_;
+    pinfo.pushConstantRangeCount = 1;
+    pinfo.pPushConstantRanges = &range;
+    OCTOVK_VK(vkCreatePipelineLayout(dev->device_, &pinfo, nullptr, &dev->pipeline_layout_));
+  } catch (const Error& e) {
+    return e;
+  }
+  return dev;
+}
+
+Device::~Device() {
+  if (device_) {
+    vkDeviceWaitIdle(device_);
+    for (auto& p : passes_) vkDestroyPipeline(device_, p.pipeline, nullptr);
+    if (pipeline_layout_) vkDestroyPipelineLayout(device_, pipeline_layout_, nullptr);
+    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+    vkDestroyDevice(device_, nullptr);
+  }
+  if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+const Pass& Device::pass(std::string_view name) {
+  for (auto& p : passes_)
+    if (p.name == name) return p;
+  const std::span<const std::uint32_t> code = findShader(name);
+  if (code.empty())
+    throw Error(ErrorCode::kVulkan, "no embedded shader named '" + std::string(name) + "'");
+  VkShaderModuleCreateInfo minfo{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+  minfo.codeSize = code.size() * sizeof(std::uint32_t);
+  minfo.pCode = code.data();
+  VkShaderModule module;
+  OCTOVK_VK(vkCreateShaderModule(device_, &minfo, nullptr, &module));
+  VkComputePipelineCreateInfo cinfo{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  cinfo.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  cinfo.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  cinfo.stage.module = module;
+  cinfo.stage.pName = "main";
+  cinfo.layout = pipeline_layout_;
+  Pass p;
+  p.name = std::string(name);
+  const VkResult r =
+      vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cinfo, nullptr, &p.pipeline);
+  vkDestroyShaderModule(device_, module, nullptr);
+  check(r, "vkCreateComputePipelines", __FILE__, __LINE__);
+  passes_.push_back(p);
+  return passes_.back();
+}
+
+std::uint32_t Device::memoryType(std::uint32_t type_bits, VkMemoryPropertyFlags wanted,
+                                 VkMemoryPropertyFlags fallback) const {
+  for (VkMemoryPropertyFlags flags : {wanted, fallback}) {
+    for (std::uint32_t i = 0; i < memory_.memoryTypeCount; ++i)
+      if ((type_bits & (1u << i)) && (memory_.memoryTypes[i].propertyFlags & flags) == flags)
+        return i;
+  }
+  throw Error(ErrorCode::kOutOfDeviceMemory, "no suitable Vulkan memory type for a buffer");
+}
+
+}  // namespace octovk::vk

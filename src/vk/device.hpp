@@ -1,0 +1,151 @@
+// The thin Vulkan layer: device selection, buffers, compute passes and command streams.
+// Mapping code asks for "a buffer", "a pass", "a dispatch"; only this folder knows Vulkan.
+#pragma once
+
+#include <vulkan/vulkan.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <deque>
+#include <vector>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk::vk {
+
+/// Throws octovk::Error(kVulkan) naming the call, the VkResult and the place when r fails.
+void check(VkResult r, const char* call, const char* file, int line);
+#define OCTOVK_VK(call) ::octovk::vk::check((call), #call, __FILE__, __LINE__)
+
+const char* resultName(VkResult r);
+
+class Device;
+
+/// A storage buffer with one owner. Device-local unless created host-visible.
+class Buffer {
+ public:
+  Buffer() = default;
+  Buffer(Device& device, std::size_t bytes, bool host_visible);
+  ~Buffer();
+  Buffer(Buffer&& other) noexcept;
+  Buffer& operator=(Buffer&& other) noexcept;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+
+  VkBuffer handle() const noexcept { return buffer_; }
+  std::size_t size() const noexcept { return bytes_; }
+  bool valid() const noexcept { return buffer_ != VK_NULL_HANDLE; }
+  /// Host pointer of a host-visible buffer (persistently mapped).
+  void* mapped() const noexcept { return mapped_; }
+
+ private:
+  void release() noexcept;
+  Device* device_ = nullptr;
+  VkBuffer buffer_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  std::size_t bytes_ = 0;
+  void* mapped_ = nullptr;
+};
+
+/// One compute pipeline built from embedded SPIR-V; all passes share one pipeline layout.
+struct Pass {
+  VkPipeline pipeline = VK_NULL_HANDLE;
+  std::string name;
+};
+
+/// The buffers bound to the shared descriptor set layout, binding i = buffers[i].
+class BindingSet {
+ public:
+  BindingSet() = default;
+  explicit BindingSet(Device& device);
+  ~BindingSet();
+  BindingSet(BindingSet&& other) noexcept;
+  BindingSet& operator=(BindingSet&& other) noexcept;
+  BindingSet(const BindingSet&) = delete;
+  BindingSet& operator=(const BindingSet&) = delete;
+
+  /// Points every binding at its buffer; call after any buffer is replaced, while idle.
+  void update(std::span<const Buffer* const> buffers);
+  VkDescriptorSet handle() const noexcept { return set_; }
+
+ private:
+  void release() noexcept;
+  Device* device_ = nullptr;
+  VkDescriptorPool pool_ = VK_NULL_HANDLE;
+  VkDescriptorSet set_ = VK_NULL_HANDLE;
+};
+
+/// Records passes into one command buffer, submits it and waits.
+class CommandStream {
+ public:
+  explicit CommandStream(Device& device);
+  ~CommandStream();
+  CommandStream(const CommandStream&) = delete;
+  CommandStream& operator=(const CommandStream&) = delete;
+
+  void begin(const BindingSet& bindings);
+  void dispatch(const Pass& pass, std::uint32_t groups, const void* constants,
+                std::uint32_t constants_bytes);
+  void dispatchIndirect(const Pass& pass, const Buffer& args, std::size_t offset,
+                        const void* constants, std::uint32_t constants_bytes);
+  /// Makes every earlier shader/transfer write visible to later shaders, transfers and
+  /// indirect-argument reads.
+  void barrier();
+  void copy(const Buffer& src, const Buffer& dst, std::size_t bytes, std::size_t src_offset = 0,
+            std::size_t dst_offset = 0);
+  void fill(const Buffer& dst, std::uint32_t value, std::size_t offset = 0,
+            std::size_t bytes = VK_WHOLE_SIZE);
+  void update(const Buffer& dst, const void* data, std::size_t bytes, std::size_t offset = 0);
+  /// Ends recording, submits and waits for completion.
+  void submitAndWait();
+
+ private:
+  Device& device_;
+  VkCommandPool pool_ = VK_NULL_HANDLE;
+  VkCommandBuffer cmd_ = VK_NULL_HANDLE;
+  VkFence fence_ = VK_NULL_HANDLE;
+  bool recording_ = false;
+};
+
+/// Instance, physical device, logical device, queue and the shared pipeline layout.
+class Device {
+ public:
+  /// Fails with kNoDevice / kMissingFeature for the ordinary reasons.
+  static Result<std::unique_ptr<Device>> create(const ContextOptions& options);
+  static std::vector<DeviceInfo> enumerate();
+  ~Device();
+  Device(const Device&) = delete;
+  Device& operator=(const Device&) = delete;
+
+  const DeviceInfo& info() const noexcept { return info_; }
+  VkDevice handle() const noexcept { return device_; }
+  VkQueue queue() const noexcept { return queue_; }
+  std::uint32_t queueFamily() const noexcept { return queue_family_; }
+  VkPipelineLayout pipelineLayout() const noexcept { return pipeline_layout_; }
+  VkDescriptorSetLayout setLayout() const noexcept { return set_layout_; }
+
+  /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once.
+  const Pass& pass(std::string_view name);
+
+  /// Memory type index for the given requirements; throws kOutOfDeviceMemory if none.
+  std::uint32_t memoryType(std::uint32_t type_bits, VkMemoryPropertyFlags wanted,
+                           VkMemoryPropertyFlags fallback) const;
+
+ private:
+  Device() = default;
+  DeviceInfo info_;
+  VkInstance instance_ = VK_NULL_HANDLE;
+  VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueue queue_ = VK_NULL_HANDLE;
+  std::uint32_t queue_family_ = 0;
+  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  VkPipelineLayout pipeline_layout_ = VK_NULL_HANDLE;
+  VkPhysicalDeviceMemoryProperties memory_{};
+  std::deque<Pass> passes_;  // deque: references to passes stay valid
+};
+
+}  // namespace octovk::vk
