@@ -44,4 +44,14 @@ void main() {
   uint at = atomicAdd(counters.active_cells, 1u);
   cells[at] = ActiveCell(slot, kRootNode, kNoBlock);
   atomicAdd(counters.first_depth_hist[depth], 1u);
+
+  // Exact count of the blocks this scan allocates: one per distinct node on an active path that
+  // has no children yet (a missing root, a pruned leaf, or a node still to be created). The
+  // host grows the pool to fit before the tree changes, so the update passes cannot run out.
+  uint first = pool.root_exists == 0u ? 0u : (found ? depth : depth + 1u);
+  for (uint d = first; d < kTreeDepth; ++d) {
+    uint keep = d == 0u ? 0u : (0xFFFFu << (kTreeDepth - d)) & 0xFFFFu;
+    uint64_t prefix = packKey(k & uvec3(keep)) | (uint64_t(d) << 48);
+    if (insertEndpoint(prefix) == 1u) countEndpointEntry(atomicAdd(counters.new_blocks, 1u));
+  }
 }

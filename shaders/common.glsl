@@ -87,6 +87,9 @@ uint hashSlot(uint64_t k, uint log2cap) {
 uint insertCell(uint64_t k) {
   uint cap = params.hash_capacity;
   uint mask = cap - 1u;
+  // Once the set is known to be too small the scan is redone with a larger one: stop early
+  // rather than probe a crowded table.
+  if ((counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
   uint s = hashSlot(k, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
     uint64_t prev = atomicCompSwap(hash_keys[s], kEmptyKey, k);
@@ -100,4 +103,26 @@ uint insertCell(uint64_t k) {
   }
   atomicOr(counters.status, kStatusHashFull);
   return 0xFFFFFFFFu;
+}
+
+// Inserts k into the second set (discretize's end cells, then the prefixes of nodes that get
+// a block): 1 when inserted, 0 when present, 2 when the set is full.
+uint insertEndpoint(uint64_t k) {
+  uint cap = params.endpoint_capacity;
+  if ((counters.status & kStatusEndpointHashFull) != 0u) return 2u;
+  uint s = hashSlot(k, params.endpoint_log2);
+  for (uint probe = 0u; probe < 4096u; ++probe) {
+    uint64_t prev = atomicCompSwap(endpoint_keys[s], kEmptyKey, k);
+    if (prev == kEmptyKey) return 1u;
+    if (prev == k) return 0u;
+    s = (s + 1u) & (cap - 1u);
+  }
+  atomicOr(counters.status, kStatusEndpointHashFull);
+  return 2u;
+}
+
+// Counts an entry of the second set; flags it full beyond three quarters.
+void countEndpointEntry(uint n) {
+  uint cap = params.endpoint_capacity;
+  if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusEndpointHashFull);
 }

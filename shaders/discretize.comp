@@ -19,18 +19,6 @@ void main() {
     atomicAdd(counters.skipped_outside, 1u);
     return;
   }
-  uint64_t key = packKey(k);
-  uint cap = params.endpoint_capacity;
-  uint s = hashSlot(key, params.endpoint_log2);
-  for (uint probe = 0u; probe < 4096u; ++probe) {
-    uint64_t prev = atomicCompSwap(endpoint_keys[s], kEmptyKey, key);
-    if (prev == kEmptyKey) {
-      uint n = atomicAdd(counters.endpoint_entries, 1u);
-      if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusEndpointHashFull);
-      return;
-    }
-    if (prev == key) return;
-    s = (s + 1u) & (cap - 1u);
-  }
-  atomicOr(counters.status, kStatusEndpointHashFull);
+  if (insertEndpoint(packKey(k)) == 1u)
+    countEndpointEntry(atomicAdd(counters.endpoint_entries, 1u));
 }

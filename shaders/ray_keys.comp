@@ -55,7 +55,7 @@ bool insertRay(vec3 o, vec3 e) {
     double m01 = t_max[1] < t_max[0] ? t_max[1] : t_max[0];
     double dist = t_max[2] < m01 ? t_max[2] : m01;
     if (dist > double(len)) break;
-    insertCell(packKey(uvec3(cur[0], cur[1], cur[2])));
+    if (insertCell(packKey(uvec3(cur[0], cur[1], cur[2]))) == 0xFFFFFFFFu) break;  // redone
   }
   return true;
 }

@@ -35,7 +35,7 @@ OCTOVK_CONST uint kHashFlagOccupied = 2u;
 // Status bits in ScanCounters::status.
 OCTOVK_CONST uint kStatusHashFull = 1u;
 OCTOVK_CONST uint kStatusPoolFull = 2u;
-OCTOVK_CONST uint kStatusEndpointHashFull = 4u;
+OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of the scan is full
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
@@ -136,7 +136,7 @@ struct ScanCounters {
   uint occupied_cells;      // 4B (24)
   uint free_cells;          // 4B (28)
   uint aborted;             // 4B (32)
-  uint new_nodes;           // 4B (36)
+  uint new_blocks;          // 4B (36)  distinct nodes that get a block of children this scan
   uint pruned_blocks;       // 4B (40)
   uint pad0;                // 4B (44)
   uint first_depth_hist[kLevelCount];      // 68B (48)  active cells by depth of the deepest existing node

@@ -19,7 +19,6 @@ using gpu::PassConstants;
 
 constexpr std::uint32_t kInitialBlocks = 1024;
 constexpr std::uint32_t kInitialHashLog2 = 16;
-constexpr std::uint32_t kInitialEndpointLog2 = 12;
 
 std::uint32_t groupsFor(std::size_t items) {
   return static_cast<std::uint32_t>((items + gpu::kWorkgroupSize - 1) / gpu::kWorkgroupSize);
@@ -53,8 +52,7 @@ class OccupancyMap::Impl {
     readback_ = vk::Buffer(device_, sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState), true);
     points_buf_ = vk::Buffer(device_, 16, false);
     upload_ = vk::Buffer(device_, 16, true);
-    endpoint_log2_ = kInitialEndpointLog2;
-    endpoint_keys_ = vk::Buffer(device_, (std::size_t{1} << endpoint_log2_) * 8, false);
+    allocateEndpoints(kInitialHashLog2);
     allocateHash(kInitialHashLog2);
     allocateLists(1024);
     allocatePool(kInitialBlocks, /*copy_old=*/false);
@@ -74,6 +72,7 @@ class OccupancyMap::Impl {
  private:
   void allocateHash(std::uint32_t log2);
   void allocateLists(std::size_t active_capacity);
+  void allocateEndpoints(std::uint32_t log2);
   void allocatePool(std::uint32_t blocks, bool copy_old);
   void resetPool();
   void rebind();
@@ -120,6 +119,15 @@ void OccupancyMap::Impl::allocateHash(std::uint32_t log2) {
   hash_flags_ = std::move(flags);
   cells_ = std::move(cells);
   hash_log2_ = log2;
+  // The second set holds about as many entries as the first (end cells, or new-block prefixes).
+  if (endpoint_keys_.valid() && endpoint_log2_ < log2) allocateEndpoints(log2);
+  rebind();
+}
+
+void OccupancyMap::Impl::allocateEndpoints(std::uint32_t log2) {
+  vk::Buffer keys(device_, (std::size_t{1} << log2) * sizeof(std::uint64_t), false);
+  endpoint_keys_ = std::move(keys);
+  endpoint_log2_ = log2;
   rebind();
 }
 
@@ -245,7 +253,12 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   }
 }
 
-void OccupancyMap::Impl::recordClassify() { dispatch("classify", std::size_t{1} << hash_log2_); }
+void OccupancyMap::Impl::recordClassify() {
+  // The second set now collects the prefixes of nodes that get a block.
+  stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
+  stream_.barrier();
+  dispatch("classify", std::size_t{1} << hash_log2_);
+}
 
 void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
   dispatch("tree_begin", 1);
@@ -329,6 +342,10 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     return stats;
   }
   ensurePoints(points.size());
+  // First guess of the cell set's size: a few cells per point; it grows (and the ray pass is
+  // redone) when a scan needs more, and keeps its size for the next scans.
+  const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(points.size() * 4), 26);
+  if (guess > hash_log2_) allocateHash(guess);
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
   std::memcpy(upload_.mapped(), points.data(), points.size() * sizeof(Eigen::Vector3f));
 
@@ -342,19 +359,18 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     recordReadback();
     stream_.submitAndWait();
     readBack(counters, pool);
-    if (counters.status & gpu::kStatusEndpointHashFull) {
-      const std::uint32_t log2 = endpoint_log2_ + 2;
-      vk::Buffer keys(device_, (std::size_t{1} << log2) * 8, false);
-      endpoint_keys_ = std::move(keys);
-      endpoint_log2_ = log2;
-      rebind();
+    if (counters.status & gpu::kStatusHashFull) {
+      if (hash_log2_ >= 30)
+        throw Error(ErrorCode::kOutOfDeviceMemory,
+                    "insertPointCloud: a scan touches more than 2^29 cells; split the scan");
+      allocateHash(hash_log2_ + 2);
       continue;
     }
-    if (counters.status & gpu::kStatusHashFull) {
-      if (hash_log2_ >= 31)
+    if (counters.status & gpu::kStatusEndpointHashFull) {
+      if (endpoint_log2_ >= 30)
         throw Error(ErrorCode::kOutOfDeviceMemory,
-                    "insertPointCloud: a scan touches more than 2^30 cells; split the scan");
-      allocateHash(hash_log2_ + 2);
+                    "insertPointCloud: a scan creates more than 2^29 blocks; split the scan");
+      allocateEndpoints(endpoint_log2_ + 2);
       continue;
     }
     break;
@@ -367,18 +383,13 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
 
   const std::uint32_t active = counters.active_cells;
   if (active > 0) {
-    // Upper bound of new blocks: at depth d at most one per active cell whose path leaves the
-    // existing tree at or above d, and at most 8^d.
-    std::uint64_t bound = 0, leaving = 0;
-    for (std::uint32_t d = 0; d < gpu::kTreeDepth; ++d) {
-      leaving += counters.first_depth_hist[d];
-      const std::uint64_t level_max = d < 21 ? (std::uint64_t{1} << (3 * d)) : UINT64_MAX;
-      bound += std::min(leaving, level_max);
-    }
+    // Exactly the blocks the tree passes will take (counted by the classify pass).
+    const std::uint64_t bound = counters.new_blocks;
     const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
     if (bound > available) {
       const std::uint64_t needed = std::uint64_t{pool.bump} + bound - pool.free_count + 1;
-      const std::uint64_t blocks = std::max<std::uint64_t>(needed, std::uint64_t{pool_blocks_} * 2);
+      const std::uint64_t blocks =
+          std::max<std::uint64_t>(needed, std::uint64_t{pool_blocks_} + pool_blocks_ / 2);
       if (blocks > 0x1FFFFFFFu)
         throw Error(ErrorCode::kOutOfDeviceMemory,
                     "insertPointCloud: the node pool would exceed 2^32 nodes; the map is "

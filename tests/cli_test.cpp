@@ -1,0 +1,1 @@
+// cli_test: filled in by its owner.

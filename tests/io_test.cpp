@@ -1,0 +1,1 @@
+// io_test: filled in by its owner.

@@ -1,0 +1,1 @@
+// layout_test: filled in by its owner.

@@ -1,0 +1,1 @@
+// sample_data_test: filled in by its owner.

@@ -1,0 +1,1 @@
+// unit_test: filled in by its owner.
