@@ -62,6 +62,9 @@ struct MapParams {
   double clamping_min = 0.1192;
   double clamping_max = 0.971;
   double occupancy_threshold = 0.5;
+  /// Most nodes the device pool may hold; 0 = as many as the device's memory allows. A scan that
+  /// would need more throws kOutOfDeviceMemory and leaves the map as it was.
+  std::size_t max_nodes = 0;
 
   /// Empty when valid, else a sentence naming the bad value.
   std::string validate() const;

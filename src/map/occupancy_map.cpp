@@ -55,7 +55,7 @@ class OccupancyMap::Impl {
     allocateEndpoints(kInitialHashLog2);
     allocateHash(kInitialHashLog2);
     allocateLists(1024);
-    allocatePool(kInitialBlocks, /*copy_old=*/false);
+    allocatePool(std::min<std::uint32_t>(kInitialBlocks, blockLimit()), /*copy_old=*/false);
     resetPool();
   }
 
@@ -75,6 +75,12 @@ class OccupancyMap::Impl {
   void allocateEndpoints(std::uint32_t log2);
   void allocatePool(std::uint32_t blocks, bool copy_old);
   void resetPool();
+  /// Most blocks the pool may have (MapParams::max_nodes, and 2^32 nodes).
+  std::uint32_t blockLimit() const {
+    constexpr std::uint64_t kMax = 0x1FFFFFFFu;
+    if (params_.max_nodes == 0) return kMax;
+    return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(params_.max_nodes / 8, 2, kMax));
+  }
   void rebind();
   void ensurePoints(std::size_t count);
   gpu::ScanParams scanParams(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
@@ -388,12 +394,15 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
     if (bound > available) {
       const std::uint64_t needed = std::uint64_t{pool.bump} + bound - pool.free_count + 1;
-      const std::uint64_t blocks =
-          std::max<std::uint64_t>(needed, std::uint64_t{pool_blocks_} + pool_blocks_ / 2);
-      if (blocks > 0x1FFFFFFFu)
+      const std::uint64_t limit = blockLimit();
+      if (needed > limit)
         throw Error(ErrorCode::kOutOfDeviceMemory,
-                    "insertPointCloud: the node pool would exceed 2^32 nodes; the map is "
-                    "unchanged");
+                    "insertPointCloud: the scan needs a node pool of " +
+                        std::to_string(needed * 8) + " nodes, over the limit of " +
+                        std::to_string(limit * 8) +
+                        " (MapParams::max_nodes or 2^32); the map is unchanged");
+      const std::uint64_t blocks = std::min<std::uint64_t>(
+          limit, std::max<std::uint64_t>(needed, std::uint64_t{pool_blocks_} + pool_blocks_ / 2));
       try {
         allocatePool(static_cast<std::uint32_t>(blocks), /*copy_old=*/true);
       } catch (const Error& e) {
@@ -447,8 +456,11 @@ HostTree OccupancyMap::Impl::download() {
 
 void OccupancyMap::Impl::upload(const HostTree& tree) {
   const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);
-  if (blocks > 0x1FFFFFFFu)
-    throw Error(ErrorCode::kInvalidArgument, "upload: tree has more than 2^32 nodes");
+  if (blocks > blockLimit())
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "upload: the tree needs " + std::to_string(blocks * 8) +
+                    " pool nodes, over the limit of " + std::to_string(blockLimit() * 8ull) +
+                    " (MapParams::max_nodes or 2^32); the map is unchanged");
   std::vector<gpu::BlockMeta> meta(blocks, gpu::BlockMeta{gpu::kNoBlock, 0, 0, 0});
   std::vector<gpu::Node> nodes(blocks * 8, gpu::Node{0.0f, gpu::kNoBlock, 0});
   std::memcpy(nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(gpu::Node));
@@ -481,8 +493,8 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   for (std::uint32_t b = 1; b < blocks; ++b)
     if (meta[b].parent == gpu::kNoBlock) free_blocks.push_back(b);
 
-  const std::uint32_t capacity =
-      std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks * 2), kInitialBlocks);
+  const std::uint32_t capacity = std::min<std::uint32_t>(
+      blockLimit(), std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks * 2), kInitialBlocks));
   if (capacity > pool_blocks_) allocatePool(capacity, /*copy_old=*/false);
   gpu::PoolState pool{};
   pool.bump = static_cast<std::uint32_t>(blocks);
