@@ -120,6 +120,20 @@ class Context {
   std::unique_ptr<vk::Device> device_;
 };
 
+/// Device time of each stage of one scan, from Vulkan timestamp queries (all zero when the
+/// device has no timestamps on its compute queue).
+struct StageTimes {
+  double upload_ms = 0;       ///< points, parameters, clearing the cell sets
+  double ray_keys_ms = 0;     ///< transform, discretize, ray walk into the hash set
+  double classify_ms = 0;     ///< early abort against the tree, new-block count
+  double tree_update_ms = 0;  ///< create, expand, log-odds update
+  double prune_ms = 0;        ///< prune and inner-node values
+  double leaf_boxes_ms = 0;   ///< leaf-box rebuild
+  double total() const {
+    return upload_ms + ray_keys_ms + classify_ms + tree_update_ms + prune_ms + leaf_boxes_ms;
+  }
+};
+
 /// What one insertPointCloud did.
 struct ScanStats {
   std::size_t points = 0;
@@ -129,7 +143,9 @@ struct ScanStats {
   std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
   std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
   std::size_t nodes = 0;              ///< nodes in the tree after the scan
-  double wall_ms = 0.0;
+  std::size_t cell_set_attempts = 0;  ///< ray passes run (more than 1 when the cell set grew)
+  double wall_ms = 0.0;               ///< host wall time of the call
+  StageTimes device;                  ///< device time per stage (of the final attempt)
 };
 
 /// The tree as the host sees it after an explicit download. Node index = block * 8 + slot;

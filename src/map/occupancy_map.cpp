@@ -243,6 +243,7 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
 
 void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize) {
   const gpu::ScanCounters counters = freshCounters();
+  stream_.timestamp();
   stream_.update(params_buf_, &sp, sizeof(sp));
   stream_.update(counters_buf_, &counters, sizeof(counters));
   stream_.copy(upload_, points_buf_, std::size_t{sp.point_count} * 3 * sizeof(float));
@@ -250,6 +251,7 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   stream_.fill(hash_flags_, 0u);
   if (discretize) stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
   stream_.barrier();
+  stream_.timestamp();
   if (transform) dispatch("transform_points", sp.point_count, {0, sp.point_count, 0, 0});
   if (discretize) {
     dispatch("discretize", sp.point_count, {0, sp.point_count, 0, 0});
@@ -260,10 +262,12 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
 }
 
 void OccupancyMap::Impl::recordClassify() {
+  stream_.timestamp();
   // The second set now collects the prefixes of nodes that get a block.
   stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
   stream_.barrier();
   dispatch("classify", std::size_t{1} << hash_log2_);
+  stream_.timestamp();
 }
 
 void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
@@ -283,6 +287,7 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
   }
   dispatch("tree_fixup", 1);
   dispatch("update_leaves", active, {0, active, 0, 0});
+  stream_.timestamp();
   for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
     PassConstants pc{level, 0, 0, 0};
     stream_.dispatchIndirect(prune, counters_buf_,
@@ -291,12 +296,14 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
                              &pc, sizeof(pc));
     stream_.barrier();
   }
+  stream_.timestamp();
 }
 
 void OccupancyMap::Impl::recordLeafBoxes() {
   stream_.fill(pool_buf_, 0u, offsetof(gpu::PoolState, leaf_count), sizeof(std::uint32_t));
   stream_.barrier();
   dispatch("leaf_boxes", pool_blocks_);
+  stream_.timestamp();
 }
 
 void OccupancyMap::Impl::recordReadback() {
@@ -350,6 +357,7 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
   ensurePoints(points.size());
   // First guess of the cell set's size: a few cells per point; it grows (and the ray pass is
   // redone) when a scan needs more, and keeps its size for the next scans.
+  std::vector<double> t1;  // timestamps of group 1: start, uploaded, rays done, classified
   const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(points.size() * 4), 26);
   if (guess > hash_log2_) allocateHash(guess);
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
@@ -364,6 +372,8 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     recordClassify();
     recordReadback();
     stream_.submitAndWait();
+    t1 = stream_.timestampsNs();
+    ++stats.cell_set_attempts;
     readBack(counters, pool);
     if (counters.status & gpu::kStatusHashFull) {
       if (hash_log2_ >= 30)
@@ -380,6 +390,11 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
       continue;
     }
     break;
+  }
+  if (t1.size() == 4) {
+    stats.device.upload_ms = (t1[1] - t1[0]) * 1e-6;
+    stats.device.ray_keys_ms = (t1[2] - t1[1]) * 1e-6;
+    stats.device.classify_ms = (t1[3] - t1[2]) * 1e-6;
   }
   stats.skipped_nonfinite = counters.skipped_nonfinite;
   stats.skipped_outside = counters.skipped_outside;
@@ -420,10 +435,16 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     stream_.begin(bindings_);
     stream_.update(params_buf_, &sp, sizeof(sp));
     stream_.barrier();
+    stream_.timestamp();
     recordTreeUpdate(active);
     recordLeafBoxes();
     recordReadback();
     stream_.submitAndWait();
+    if (const auto t2 = stream_.timestampsNs(); t2.size() == 4) {
+      stats.device.tree_update_ms = (t2[1] - t2[0]) * 1e-6;
+      stats.device.prune_ms = (t2[2] - t2[1]) * 1e-6;
+      stats.device.leaf_boxes_ms = (t2[3] - t2[2]) * 1e-6;
+    }
     readBack(counters, pool);
     if (counters.status & gpu::kStatusPoolFull)
       throw Error(ErrorCode::kVulkan,

@@ -176,6 +176,12 @@ CommandStream::CommandStream(Device& device) : device_(device) {
   try {
     OCTOVK_VK(vkAllocateCommandBuffers(device.handle(), &alloc, &cmd_));
     OCTOVK_VK(vkCreateFence(device.handle(), &fence, nullptr, &fence_));
+    if (device.timestampPeriodNs() > 0) {
+      VkQueryPoolCreateInfo qinfo{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+      qinfo.queryType = VK_QUERY_TYPE_TIMESTAMP;
+      qinfo.queryCount = kMaxQueries;
+      OCTOVK_VK(vkCreateQueryPool(device.handle(), &qinfo, nullptr, &queries_));
+    }
   } catch (...) {
     if (fence_) vkDestroyFence(device.handle(), fence_, nullptr);
     vkDestroyCommandPool(device.handle(), pool_, nullptr);
@@ -185,6 +191,7 @@ CommandStream::CommandStream(Device& device) : device_(device) {
 
 CommandStream::~CommandStream() {
   if (recording_) vkEndCommandBuffer(cmd_);
+  if (queries_) vkDestroyQueryPool(device_.handle(), queries_, nullptr);
   vkDestroyFence(device_.handle(), fence_, nullptr);
   vkDestroyCommandPool(device_.handle(), pool_, nullptr);
 }
@@ -195,6 +202,8 @@ void CommandStream::begin(const BindingSet& bindings) {
   info.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
   OCTOVK_VK(vkBeginCommandBuffer(cmd_, &info));
   recording_ = true;
+  query_count_ = 0;
+  if (queries_) vkCmdResetQueryPool(cmd_, queries_, 0, kMaxQueries);
   VkDescriptorSet set = bindings.handle();
   vkCmdBindDescriptorSets(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, device_.pipelineLayout(), 0, 1,
                           &set, 0, nullptr);
@@ -249,6 +258,25 @@ void CommandStream::fill(const Buffer& dst, std::uint32_t value, std::size_t off
 void CommandStream::update(const Buffer& dst, const void* data, std::size_t bytes,
                            std::size_t offset) {
   vkCmdUpdateBuffer(cmd_, dst.handle(), offset, bytes, data);
+}
+
+std::uint32_t CommandStream::timestamp() {
+  if (!queries_ || query_count_ >= kMaxQueries) return query_count_;
+  vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, query_count_);
+  return query_count_++;
+}
+
+std::vector<double> CommandStream::timestampsNs() {
+  if (!queries_ || query_count_ == 0) return {};
+  std::vector<std::uint64_t> ticks(query_count_);
+  const VkResult r = vkGetQueryPoolResults(device_.handle(), queries_, 0, query_count_,
+                                           ticks.size() * sizeof(std::uint64_t), ticks.data(),
+                                           sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT);
+  if (r != VK_SUCCESS) return {};
+  std::vector<double> ns(ticks.size());
+  for (std::size_t i = 0; i < ticks.size(); ++i)
+    ns[i] = static_cast<double>(ticks[i]) * device_.timestampPeriodNs();
+  return ns;
 }
 
 void CommandStream::submitAndWait() {
@@ -439,6 +467,8 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
     if (qprops[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
       dev->queue_family_ = i;
       found = true;
+      if (qprops[i].timestampValidBits >= 36)
+        dev->timestamp_period_ns_ = static_cast<double>(props.limits.timestampPeriod);
     }
   }
   if (!found)

@@ -99,15 +99,24 @@ class CommandStream {
   void fill(const Buffer& dst, std::uint32_t value, std::size_t offset = 0,
             std::size_t bytes = VK_WHOLE_SIZE);
   void update(const Buffer& dst, const void* data, std::size_t bytes, std::size_t offset = 0);
+  /// Records a device timestamp once all earlier work is done; returns its index in this
+  /// recording. Without timestamp support it records nothing.
+  std::uint32_t timestamp();
   /// Ends recording, submits and waits for completion.
   void submitAndWait();
+  /// Device times in nanoseconds of the timestamps of the last submission (empty if the device
+  /// has no timestamps).
+  std::vector<double> timestampsNs();
 
  private:
   Device& device_;
   VkCommandPool pool_ = VK_NULL_HANDLE;
   VkCommandBuffer cmd_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
+  VkQueryPool queries_ = VK_NULL_HANDLE;
+  std::uint32_t query_count_ = 0;
   bool recording_ = false;
+  static constexpr std::uint32_t kMaxQueries = 64;
 };
 
 /// Instance, physical device, logical device, queue and the shared pipeline layout.
@@ -126,6 +135,8 @@ class Device {
   std::uint32_t queueFamily() const noexcept { return queue_family_; }
   VkPipelineLayout pipelineLayout() const noexcept { return pipeline_layout_; }
   VkDescriptorSetLayout setLayout() const noexcept { return set_layout_; }
+  /// Nanoseconds per timestamp tick, or 0 when the compute queue has no timestamps.
+  double timestampPeriodNs() const noexcept { return timestamp_period_ns_; }
 
   /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once.
   const Pass& pass(std::string_view name);
@@ -145,6 +156,7 @@ class Device {
   VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
   VkPipelineLayout pipeline_layout_ = VK_NULL_HANDLE;
   VkPhysicalDeviceMemoryProperties memory_{};
+  double timestamp_period_ns_ = 0.0;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
 };
 
