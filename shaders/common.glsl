@@ -92,7 +92,11 @@ uint insertCell(uint64_t k) {
   if ((counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
   uint s = hashSlot(k, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
-    uint64_t prev = atomicCompSwap(hash_keys[s], kEmptyKey, k);
+    // A plain read first: most inserts find their key already there (rays share the cells near
+    // the sensor), and reading avoids an atomic on a hot slot.
+    uint64_t seen = hash_keys[s];
+    if (seen == k) return s;
+    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, k) : seen;
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.hash_entries, 1u);
       if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
@@ -112,7 +116,9 @@ uint insertEndpoint(uint64_t k) {
   if ((counters.status & kStatusEndpointHashFull) != 0u) return 2u;
   uint s = hashSlot(k, params.endpoint_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
-    uint64_t prev = atomicCompSwap(endpoint_keys[s], kEmptyKey, k);
+    uint64_t seen = endpoint_keys[s];
+    if (seen == k) return 0u;
+    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(endpoint_keys[s], kEmptyKey, k) : seen;
     if (prev == kEmptyKey) return 1u;
     if (prev == k) return 0u;
     s = (s + 1u) & (cap - 1u);

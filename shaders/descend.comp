@@ -15,8 +15,13 @@ void main() {
   ActiveCell cell = cells[i];
   uint n = resolveNode(cell);
 
-  uint old = atomicOr(nodes[n].mask, kFlagTouched);
-  if ((old & kFlagTouched) == 0u) appendTouched(level, n);
+  // Most cells pass nodes other cells have already marked: read before the atomic. A child bit
+  // missed by this read is caught by the atomicOr below, so the plain read is safe.
+  uint old = nodes[n].mask;
+  if ((old & kFlagTouched) == 0u) {
+    old = atomicOr(nodes[n].mask, kFlagTouched);
+    if ((old & kFlagTouched) == 0u) appendTouched(level, n);
+  }
 
   uint c = childIndex(cellKey(cell.slot), level);
   uint bit = 1u << c;
@@ -34,9 +39,11 @@ void main() {
     cell.node = child;
     cell.pending = kNoBlock;
   } else {
-    atomicOr(nodes[n].mask, bit << kWantShift);
-    uint before = atomicOr(nodes[n].mask, kFlagAllocReq);
-    if ((before & kFlagAllocReq) == 0u) appendAlloc(level, n, i);
+    if ((old & (bit << kWantShift)) == 0u) atomicOr(nodes[n].mask, bit << kWantShift);
+    if ((old & kFlagAllocReq) == 0u) {
+      uint before = atomicOr(nodes[n].mask, kFlagAllocReq);
+      if ((before & kFlagAllocReq) == 0u) appendAlloc(level, n, i);
+    }
     cell.node = n;
     cell.pending = c;
   }
