@@ -21,8 +21,8 @@ void main() {
   bool found = false;
   uint depth = 0u;
   float value = 0.0;
+  uint n = kRootNode;
   if (pool.root_exists != 0u) {
-    uint n = kRootNode;
     for (depth = 0u; depth < kTreeDepth; ++depth) {
       uint c = childIndex(k, depth);
       uint m = nodes[n].mask;
@@ -42,7 +42,8 @@ void main() {
     return;
   }
   uint at = atomicAdd(counters.active_cells, 1u);
-  cells[at] = ActiveCell(slot, kRootNode, kNoBlock);
+  // The descent starts at the deepest existing node (the root, created by tree_begin, if none).
+  cells[at] = ActiveCell(slot, n, kNoBlock, depth);
   atomicAdd(counters.first_depth_hist[depth], 1u);
 
   // Exact count of the blocks this scan allocates: one per distinct node on an active path that

@@ -4,7 +4,8 @@
 // A cell at node n (depth pc.level) needs child c: if it exists, step into it; if n has a block
 // of children, claim the slot and create c alone; if n has no children, ask the alloc pass for a
 // block (alloc decides between OctoMap's expandNode and a single createNodeChild).
-// Every node passed is listed once per level for the prune pass.
+// Cells start at the deepest node that existed before the scan (found by classify), so a cell
+// whose leaf exists skips every level.
 #include "common.glsl"
 #include "tree.glsl"
 
@@ -13,15 +14,11 @@ void main() {
   if (i >= pc.count) return;
   uint level = pc.level;
   ActiveCell cell = cells[i];
+  if (cell.depth > level) return;  // its path exists down to cell.depth: nothing to create here
   uint n = resolveNode(cell);
 
-  // Most cells pass nodes other cells have already marked: read before the atomic. A child bit
-  // missed by this read is caught by the atomicOr below, so the plain read is safe.
+  // A child bit missed by this plain read is caught by the atomicOr below.
   uint old = nodes[n].mask;
-  if ((old & kFlagTouched) == 0u) {
-    old = atomicOr(nodes[n].mask, kFlagTouched);
-    if ((old & kFlagTouched) == 0u) appendTouched(level, n);
-  }
 
   uint c = childIndex(cellKey(cell.slot), level);
   uint bit = 1u << c;

@@ -1,9 +1,11 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// One level of the ascent (updateNodeRecurs going up), over the nodes the descent passed:
+// One level of the ascent (updateNodeRecurs going up), over the parents of the nodes updated one
+// level below:
 // pruneNode when all 8 children exist, are leaves and hold equal values; otherwise the node takes
 // the max of its children (updateOccupancyChildren). Pruned blocks go onto the free stack.
 #include "common.glsl"
+#include "tree.glsl"
 
 void main() {
   uint r = invocationIndex();
@@ -33,4 +35,5 @@ void main() {
     nodes[n].log_odds = max_value;
     nodes[n].mask = children;
   }
+  if (level > 0u) listParent(level - 1u, n);
 }

@@ -23,3 +23,11 @@ void appendAlloc(uint level, uint node, uint cell) {
 uint resolveNode(ActiveCell c) {
   return c.pending == kNoBlock ? c.node : nodes[c.node].children * 8u + c.pending;
 }
+
+// Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
+void listParent(uint level, uint node) {
+  uint parent = block_meta[node / 8u].parent;
+  if ((nodes[parent].mask & kFlagTouched) != 0u) return;
+  uint old = atomicOr(nodes[parent].mask, kFlagTouched);
+  if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
+}

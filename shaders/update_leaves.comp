@@ -1,6 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // The log-odds update of every active cell's leaf (updateNodeLogOdds): add, then clamp, in float.
+// Each leaf's parent is listed for the prune pass, which then lists its own parents level by level.
 #include "common.glsl"
 #include "tree.glsl"
 
@@ -14,4 +15,5 @@ void main() {
   else if (value > params.clamp_max_log) value = params.clamp_max_log;
   nodes[n].log_odds = value;
   nodes[n].mask = 0u;
+  listParent(kTreeDepth - 1u, n);
 }

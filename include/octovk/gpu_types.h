@@ -105,11 +105,12 @@ struct ScanParams {
   uint pad1;                // 4B (108)
 };
 
-// Per-cell state of the descent through the tree, one per active cell. 12 B.
+// Per-cell state of the descent through the tree, one per active cell. 16 B.
 struct ActiveCell {
-  uint slot;     // 4B (0) hash-set slot of the cell
-  uint node;     // 4B (4) node reached so far (or the parent whose block is pending)
-  uint pending;  // 4B (8) child index waiting for its parent's block, or kNoBlock
+  uint slot;     // 4B (0)  hash-set slot of the cell
+  uint node;     // 4B (4)  node reached so far (or the parent whose block is pending)
+  uint pending;  // 4B (8)  child index waiting for its parent's block, or kNoBlock
+  uint depth;    // 4B (12) depth of the deepest node on the path that existed before the scan
 };
 
 // An entry of a per-level block-allocation list. 8 B.
