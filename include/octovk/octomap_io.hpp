@@ -2,11 +2,11 @@
 // OctoMap is used here only to read and write its formats, never in the mapping path.
 #pragma once
 
+#include <octomap/OcTree.h>
+
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <octomap/OcTree.h>
 
 #include "octovk/octovk.hpp"
 

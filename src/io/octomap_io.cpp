@@ -2,6 +2,7 @@
 #include "octovk/octomap_io.hpp"
 
 #include <octomap/AbstractOcTree.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
@@ -9,7 +10,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <unistd.h>
 
 #include "map/reference.hpp"
 
@@ -105,8 +105,8 @@ void writeMapFile(const OccupancyMap& map, const std::string& path) {
   const std::filesystem::path dir =
       target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
   if (!std::filesystem::is_directory(dir))
-    throw Error(ErrorCode::kIo, "cannot write '" + path + "': directory '" + dir.string() +
-                                    "' does not exist");
+    throw Error(ErrorCode::kIo,
+                "cannot write '" + path + "': directory '" + dir.string() + "' does not exist");
   std::unique_ptr<octomap::OcTree> tree = toOcTree(map);
   const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
   bool ok = false;
@@ -114,8 +114,10 @@ void writeMapFile(const OccupancyMap& map, const std::string& path) {
     std::ofstream out(tmp, std::ios_base::binary);
     if (!out.is_open())
       throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
-    if (ext == ".bt") ok = tree->writeBinary(out);  // prunes to max-likelihood first
-    else ok = tree->write(out);
+    if (ext == ".bt")
+      ok = tree->writeBinary(out);  // prunes to max-likelihood first
+    else
+      ok = tree->write(out);
     out.close();
     ok = ok && out.good();
   }

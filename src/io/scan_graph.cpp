@@ -27,8 +27,8 @@ void checkStructure(const std::string& path) {
   auto readU32 = [&](const char* what) {
     std::uint32_t v = 0;
     if (!in.read(reinterpret_cast<char*>(&v), 4))
-      throw Error(ErrorCode::kFormat, "'" + path + "' is not a valid scan graph: truncated at the " +
-                                          what);
+      throw Error(ErrorCode::kFormat,
+                  "'" + path + "' is not a valid scan graph: truncated at the " + what);
     return v;
   };
   auto bad = [&](const std::string& why) {
@@ -46,7 +46,8 @@ void checkStructure(const std::string& path) {
                 " points, more than the file holds");
     // Spot-check the Vector3 size markers (always 3) of the first point and the pose.
     if (points > 0) {
-      if (readU32("first point") != 3) throw bad("scan " + std::to_string(i) + " has a bad point record");
+      if (readU32("first point") != 3)
+        throw bad("scan " + std::to_string(i) + " has a bad point record");
       in.seekg(static_cast<std::streamoff>(at + std::uint64_t{points} * kVectorBytes));
     }
     if (readU32("pose") != 3) throw bad("scan " + std::to_string(i) + " has a bad pose record");
@@ -65,8 +66,7 @@ void checkStructure(const std::string& path) {
 std::vector<GraphScan> readScanGraph(const std::string& path) {
   checkStructure(path);
   octomap::ScanGraph graph;
-  if (!graph.readBinary(path))
-    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "'");
+  if (!graph.readBinary(path)) throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "'");
   std::vector<GraphScan> scans;
   scans.reserve(graph.size());
   for (const octomap::ScanNode* node : graph) {
@@ -76,7 +76,8 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
     scan.T_world_sensor.translation = {t.x(), t.y(), t.z()};
     scan.T_world_sensor.rotation = Eigen::Quaternionf(q.u(), q.x(), q.y(), q.z());
     scan.points_sensor.reserve(node->scan->size());
-    for (const octomap::point3d& p : *node->scan) scan.points_sensor.emplace_back(p.x(), p.y(), p.z());
+    for (const octomap::point3d& p : *node->scan)
+      scan.points_sensor.emplace_back(p.x(), p.y(), p.z());
     scans.push_back(std::move(scan));
   }
   return scans;

@@ -181,8 +181,8 @@ void OccupancyMap::Impl::resetPool() {
 void OccupancyMap::Impl::rebind() {
   if (!nodes_.valid() || !hash_keys_.valid() || !touched_.valid()) return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
-      &params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_,
-      &hash_flags_, &nodes_,        &block_meta_, &free_stack_, &cells_,
+      &params_buf_, &counters_buf_, &pool_buf_,   &points_buf_,   &hash_keys_,
+      &hash_flags_, &nodes_,        &block_meta_, &free_stack_,   &cells_,
       &touched_,    &alloc_list_,   &leaf_boxes_, &endpoint_keys_};
   bindings_.update(buffers);
 }
@@ -200,10 +200,9 @@ void OccupancyMap::Impl::ensurePoints(std::size_t count) {
 
 std::size_t OccupancyMap::Impl::deviceBytes() const {
   std::size_t total = 0;
-  for (const vk::Buffer* b :
-       {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_,
-        &cells_, &endpoint_keys_, &touched_, &alloc_list_, &nodes_, &block_meta_, &free_stack_,
-        &leaf_boxes_})
+  for (const vk::Buffer* b : {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_,
+                              &hash_flags_, &cells_, &endpoint_keys_, &touched_, &alloc_list_,
+                              &nodes_, &block_meta_, &free_stack_, &leaf_boxes_})
     total += b->size();
   return total;
 }
@@ -279,10 +278,10 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
     PassConstants pc{level, active, 0, 0};
     stream_.dispatch(descend, groupsFor(active), &pc, sizeof(pc));
     stream_.barrier();
-    stream_.dispatchIndirect(alloc, counters_buf_,
-                             offsetof(gpu::ScanCounters, alloc_args) +
-                                 level * sizeof(gpu::DispatchArgs),
-                             &pc, sizeof(pc));
+    stream_.dispatchIndirect(
+        alloc, counters_buf_,
+        offsetof(gpu::ScanCounters, alloc_args) + level * sizeof(gpu::DispatchArgs), &pc,
+        sizeof(pc));
     stream_.barrier();
   }
   dispatch("tree_fixup", 1);
@@ -290,10 +289,10 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
   stream_.timestamp();
   for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
     PassConstants pc{level, 0, 0, 0};
-    stream_.dispatchIndirect(prune, counters_buf_,
-                             offsetof(gpu::ScanCounters, touched_args) +
-                                 level * sizeof(gpu::DispatchArgs),
-                             &pc, sizeof(pc));
+    stream_.dispatchIndirect(
+        prune, counters_buf_,
+        offsetof(gpu::ScanCounters, touched_args) + level * sizeof(gpu::DispatchArgs), &pc,
+        sizeof(pc));
     stream_.barrier();
   }
   stream_.timestamp();
@@ -515,7 +514,8 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
     if (meta[b].parent == gpu::kNoBlock) free_blocks.push_back(b);
 
   const std::uint32_t capacity = std::min<std::uint32_t>(
-      blockLimit(), std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks * 2), kInitialBlocks));
+      blockLimit(),
+      std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks * 2), kInitialBlocks));
   if (capacity > pool_blocks_) allocatePool(capacity, /*copy_old=*/false);
   gpu::PoolState pool{};
   pool.bump = static_cast<std::uint32_t>(blocks);

@@ -21,8 +21,8 @@ std::string MapParams::validate() const {
     why << "prob_miss must lie in (0, 0.5] (got " << prob_miss << ")";
   } else if (!inOpenUnit(clamping_min) || !inOpenUnit(clamping_max) ||
              clamping_min >= clamping_max) {
-    why << "clamping bounds must satisfy 0 < clamping_min < clamping_max < 1 (got "
-        << clamping_min << ", " << clamping_max << ")";
+    why << "clamping bounds must satisfy 0 < clamping_min < clamping_max < 1 (got " << clamping_min
+        << ", " << clamping_max << ")";
   } else if (!inOpenUnit(occupancy_threshold)) {
     why << "occupancy_threshold must lie in (0, 1) (got " << occupancy_threshold << ")";
   }

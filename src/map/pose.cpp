@@ -14,10 +14,9 @@ struct Quat {
 
 // octomath::Quaternion::operator*
 Quat mul(const Quat& a, const Quat& b) {
-  return {a.u * b.u - a.x * b.x - a.y * b.y - a.z * b.z,
-          a.y * b.z - b.y * a.z + a.u * b.x + b.u * a.x,
-          a.z * b.x - b.z * a.x + a.u * b.y + b.u * a.y,
-          a.x * b.y - b.x * a.y + a.u * b.z + b.u * a.z};
+  return {
+      a.u * b.u - a.x * b.x - a.y * b.y - a.z * b.z, a.y * b.z - b.y * a.z + a.u * b.x + b.u * a.x,
+      a.z * b.x - b.z * a.x + a.u * b.y + b.u * a.y, a.x * b.y - b.x * a.y + a.u * b.z + b.u * a.z};
 }
 
 Quat toQuat(const Eigen::Quaternionf& q) { return {q.w(), q.x(), q.y(), q.z()}; }

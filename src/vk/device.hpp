@@ -6,10 +6,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <span>
 #include <string>
 #include <string_view>
-#include <deque>
 #include <vector>
 
 #include "octovk/octovk.hpp"
