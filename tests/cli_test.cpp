@@ -1,1 +1,518 @@
-// cli_test: filled in by its owner.
+// cli_test: the octovk program run as a user runs it. Its .bt / .ot files must be byte-identical
+// to OctoMap's graph2tree on the same input and parameters, and bad input must give one error
+// line, a non-zero exit code and no file.
+#include <gtest/gtest.h>
+#include <octomap/AbstractOcTree.h>
+#include <octomap/OcTree.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kSphericalGraph = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+const std::string kFr079Dir = std::string(OCTOVK_SHARED_DATA_DIR) + "/fr079-2d";
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string readFile(const fs::path& path) {
+  std::ifstream in(path, std::ios_base::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+struct RunResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+// Runs `command` through the shell with stdout and stderr captured in `dir`.
+RunResult runShell(const std::string& command, const fs::path& dir) {
+  const fs::path out = dir / "stdout.txt";
+  const fs::path err = dir / "stderr.txt";
+  const int status =
+      std::system((command + " >" + quote(out) + " 2>" + quote(err) + " </dev/null").c_str());
+  RunResult r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  r.out = readFile(out);
+  r.err = readFile(err);
+  fs::remove(out);
+  fs::remove(err);
+  return r;
+}
+
+RunResult runOctovk(const std::vector<std::string>& args, const fs::path& dir) {
+  std::string command = quote(OCTOVK_CLI);
+  for (const std::string& a : args) {
+    command += ' ';
+    command += quote(a);
+  }
+  return runShell(command, dir);
+}
+
+bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK) == 0; }
+
+// A fresh directory per test under OCTOVK_TEST_TMP, removed when the test passed.
+class Scratch {
+ public:
+  Scratch() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    std::string name = "cli." + std::string(info->test_suite_name()) + "." + info->name() + "." +
+                       std::to_string(::getpid());
+    std::replace(name.begin(), name.end(), '/', '_');  // parameterized names hold slashes
+    dir_ = fs::path(OCTOVK_TEST_TMP) / name;
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  ~Scratch() {
+    if (!::testing::Test::HasFailure()) fs::remove_all(dir_);
+  }
+  Scratch(const Scratch&) = delete;
+  Scratch& operator=(const Scratch&) = delete;
+  const fs::path& dir() const { return dir_; }
+  std::string operator/(const std::string& name) const { return (dir_ / name).string(); }
+
+ private:
+  fs::path dir_;
+};
+
+// Node count of an OctoMap file, for a readable failure message.
+std::string describeTree(const fs::path& path) {
+  std::ifstream in(path, std::ios_base::binary);
+  if (!in) return "unreadable";
+  if (path.extension() == ".bt") {
+    octomap::OcTree tree(0.1);
+    if (!tree.readBinary(in)) return "unreadable .bt";
+    return std::to_string(tree.size()) + " nodes at " + std::to_string(tree.getResolution());
+  }
+  std::unique_ptr<octomap::AbstractOcTree> tree(octomap::AbstractOcTree::read(in));
+  if (!tree) return "unreadable .ot";
+  return std::to_string(tree->size()) + " nodes at " + std::to_string(tree->getResolution());
+}
+
+::testing::AssertionResult sameBytes(const fs::path& expected, const fs::path& actual) {
+  if (!fs::exists(expected)) return ::testing::AssertionFailure() << expected << " is missing";
+  if (!fs::exists(actual)) return ::testing::AssertionFailure() << actual << " is missing";
+  const std::string a = readFile(expected);
+  const std::string b = readFile(actual);
+  if (a == b) return ::testing::AssertionSuccess();
+  std::size_t first = 0;
+  while (first < a.size() && first < b.size() && a[first] == b[first]) ++first;
+  return ::testing::AssertionFailure()
+         << actual << " differs from " << expected << ": sizes " << b.size() << " vs " << a.size()
+         << " bytes, first difference at byte " << first << "; octovk " << describeTree(actual)
+         << ", graph2tree " << describeTree(expected);
+}
+
+// Gives `graph2tree` and `log2graph` to a test: a failure under CI, a skip elsewhere.
+#define REQUIRE_OCTOMAP_TOOLS()                                                           \
+  if (!isExecutable(OCTOVK_GRAPH2TREE) || !isExecutable(OCTOVK_LOG2GRAPH)) {              \
+    if (::octovk::test::runningInCi())                                                    \
+      FAIL() << "graph2tree / log2graph missing under CI: apt-get install octomap-tools"; \
+    GTEST_SKIP() << "graph2tree / log2graph missing: apt-get install octomap-tools";      \
+  }
+
+// Options given to both programs; empty strings leave a default.
+struct Params {
+  std::string resolution = "0.1";
+  std::string max_range;
+  bool discretize = false;
+  // All four or none (graph2tree sets them in pairs).
+  std::string prob_hit, prob_miss, clamping_min, clamping_max;
+};
+
+// Test names show the options, not the bytes of Params.
+void PrintTo(const Params& p, std::ostream* os) {
+  *os << "resolution " << p.resolution;
+  if (!p.max_range.empty()) *os << ", max range " << p.max_range;
+  if (p.discretize) *os << ", discretize";
+  if (!p.prob_hit.empty())
+    *os << ", hit " << p.prob_hit << ", miss " << p.prob_miss << ", clamping " << p.clamping_min
+        << ".." << p.clamping_max;
+}
+
+// Runs octovk and graph2tree with `p` on `graph` and compares both files byte for byte, plus the
+// summary's scan and node counts with graph2tree's.
+void expectParity(const std::string& graph, const Params& p, const Scratch& scratch,
+                  std::size_t expected_scans, const octovk::Context& ctx) {
+  const std::string bt = scratch / "octovk.bt";
+  const std::string ot = scratch / "octovk.ot";
+  const std::string ref = scratch / "graph2tree.bt";  // graph2tree also writes .bt.ot, _ml.ot
+
+  std::vector<std::string> args = {"integrate", graph, "-o", bt, "--output=" + ot};
+  std::string g2t = quote(OCTOVK_GRAPH2TREE) + " -i " + quote(graph) + " -o " + quote(ref) +
+                    " -res " + p.resolution;
+  args.push_back("--resolution=" + p.resolution);
+  if (!p.max_range.empty()) {
+    args.insert(args.end(), {"--max-range", p.max_range});
+    g2t += " -m " + p.max_range;
+  }
+  if (p.discretize) {
+    args.push_back("--discretize");
+    g2t += " -discretize";
+  }
+  if (!p.prob_hit.empty()) {
+    args.insert(args.end(), {"--prob-hit", p.prob_hit, "--prob-miss", p.prob_miss, "--clamping-min",
+                             p.clamping_min, "--clamping-max", p.clamping_max});
+    g2t += " -sensor " + p.prob_miss + " " + p.prob_hit + " -clamping " + p.clamping_min + " " +
+           p.clamping_max;
+  }
+
+  const RunResult reference = runShell(g2t, scratch.dir());
+  ASSERT_EQ(reference.exit_code, 0) << g2t << "\n" << reference.out << reference.err;
+  const RunResult mine = runOctovk(args, scratch.dir());
+  ASSERT_EQ(mine.exit_code, 0) << mine.out << mine.err;
+
+  EXPECT_TRUE(sameBytes(ref, bt));
+  EXPECT_TRUE(sameBytes(ref + ".ot", ot));
+
+  // The summary tells the truth: scan count, and the node count of the full (.ot) tree, which
+  // graph2tree prints first as "Tree size: N nodes".
+  EXPECT_NE(mine.out.find("scans:         " + std::to_string(expected_scans) + "\n"),
+            std::string::npos)
+      << mine.out;
+  const std::size_t at = reference.out.find("Tree size: ");
+  ASSERT_NE(at, std::string::npos) << reference.out;
+  const std::string nodes =
+      reference.out.substr(at + 11, reference.out.find(' ', at + 11) - at - 11);
+  EXPECT_NE(mine.out.find("nodes:         " + nodes + "\n"), std::string::npos)
+      << "graph2tree has " << nodes << " nodes; octovk said:\n"
+      << mine.out;
+  EXPECT_NE(mine.out.find("wrote:         " + bt + "\n"), std::string::npos) << mine.out;
+  EXPECT_NE(mine.out.find("wrote:         " + ot + "\n"), std::string::npos) << mine.out;
+  // The program picks the device this process picked (same OCTOVK_DEVICE, same rules).
+  EXPECT_NE(mine.out.find("device: " + ctx.device().name), std::string::npos) << mine.out;
+  // OctoMap's reader chatter and error lines stay off stderr on success.
+  EXPECT_EQ(mine.err.find("error"), std::string::npos) << mine.err;
+  EXPECT_EQ(mine.err.find("from binary file"), std::string::npos) << mine.err;
+  // Nothing but the outputs and graph2tree's files is left: no temporary file.
+  for (const auto& entry : fs::directory_iterator(scratch.dir()))
+    EXPECT_EQ(entry.path().string().find(".tmp"), std::string::npos) << entry.path();
+}
+
+// The first 200 scans of the FR-079 log as a scan graph, made once per test process.
+class Fr079Graph {
+ public:
+  static const Fr079Graph& get() {
+    static Fr079Graph instance;
+    return instance;
+  }
+  const std::string& path() const { return graph_; }
+  const std::string& error() const { return error_; }
+  ~Fr079Graph() {
+    if (!graph_.empty()) fs::remove(graph_);
+  }
+
+ private:
+  Fr079Graph() {
+    const fs::path dir = fs::path(OCTOVK_TEST_TMP);
+    fs::create_directories(dir);
+    // Per-process names: ctest may run several test processes at once.
+    const std::string stem = "fr079_200." + std::to_string(::getpid());
+    const std::string log = (dir / (stem + ".log")).string();
+    const std::string graph = (dir / (stem + ".graph")).string();
+    const RunResult made =
+        runShell("python3 " + quote(kFr079Dir + "/clf2log.py") + " " +
+                     quote(kFr079Dir + "/fr079.clf.bz2") + " " + quote(log) + " 200 && " +
+                     quote(OCTOVK_LOG2GRAPH) + " " + quote(log) + " " + quote(graph),
+                 dir);
+    fs::remove(log);
+    if (made.exit_code == 0 && fs::file_size(graph) > 0)
+      graph_ = graph;
+    else
+      error_ = made.out + made.err;
+  }
+  std::string graph_;
+  std::string error_;
+};
+
+// Suite names start with "cli" so that `ctest -R cli` selects exactly these tests.
+
+// ---- parity with graph2tree ----
+
+TEST(cliParity, SphericalScanAt10cm) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  REQUIRE_OCTOMAP_TOOLS();
+  Scratch scratch;
+  expectParity(kSphericalGraph, {.resolution = "0.1"}, scratch, 1, ctx);
+}
+
+TEST(cliParity, SphericalScanAt5cm) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  REQUIRE_OCTOMAP_TOOLS();
+  Scratch scratch;
+  expectParity(kSphericalGraph, {.resolution = "0.05"}, scratch, 1, ctx);
+}
+
+TEST(cliParity, SphericalScanMaxRange2) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  REQUIRE_OCTOMAP_TOOLS();
+  Scratch scratch;
+  expectParity(kSphericalGraph, {.resolution = "0.1", .max_range = "2"}, scratch, 1, ctx);
+}
+
+TEST(cliParity, SphericalScanDiscretize) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  REQUIRE_OCTOMAP_TOOLS();
+  Scratch scratch;
+  expectParity(kSphericalGraph, {.resolution = "0.1", .discretize = true}, scratch, 1, ctx);
+}
+
+class cliFr079 : public ::testing::TestWithParam<Params> {};
+
+TEST_P(cliFr079, MatchesGraph2tree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  REQUIRE_OCTOMAP_TOOLS();
+  const std::string& graph = Fr079Graph::get().path();
+  ASSERT_FALSE(graph.empty()) << "could not make the FR-079 graph with clf2log.py and log2graph: "
+                              << Fr079Graph::get().error();
+  Scratch scratch;
+  expectParity(graph, GetParam(), scratch, 200, ctx);
+}
+
+INSTANTIATE_TEST_SUITE_P(Slice200, cliFr079,
+                         ::testing::Values(Params{.resolution = "0.1"},
+                                           Params{.resolution = "0.05"},
+                                           Params{.resolution = "0.1", .max_range = "10"},
+                                           Params{.resolution = "0.05", .max_range = "10"},
+                                           Params{.resolution = "0.1",
+                                                  .prob_hit = "0.8",
+                                                  .prob_miss = "0.35",
+                                                  .clamping_min = "0.2",
+                                                  .clamping_max = "0.95"}),
+                         [](const ::testing::TestParamInfo<Params>& info) {
+                           std::string name = "Res" + info.param.resolution;
+                           if (!info.param.max_range.empty())
+                             name += "MaxRange" + info.param.max_range;
+                           if (!info.param.prob_hit.empty()) name += "SensorModel";
+                           for (char& c : name)
+                             if (c == '.') c = '_';
+                           return name;
+                         });
+
+// ---- bad input: one error line, the right exit code, nothing written ----
+
+// Runs octovk with `args` and expects exit code `exit_code`, one stderr line that starts with
+// "octovk: error: " and mentions `mention`, no stdout, and no map or temporary file in scratch.
+void expectRejected(const std::vector<std::string>& args, int exit_code, const std::string& mention,
+                    const Scratch& scratch) {
+  const RunResult r = runOctovk(args, scratch.dir());
+  EXPECT_EQ(r.exit_code, exit_code) << r.err;
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_TRUE(r.err.ends_with("\n")) << r.err;
+  EXPECT_NE(r.err.find(mention), std::string::npos) << "expected '" << mention << "' in: " << r.err;
+  EXPECT_EQ(r.out, "");
+  for (const auto& entry : fs::recursive_directory_iterator(scratch.dir())) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_FALSE(entry.is_regular_file() && (name.ends_with(".bt") || name.ends_with(".ot") ||
+                                             name.find(".tmp") != std::string::npos))
+        << "left behind: " << entry.path();
+  }
+}
+
+TEST(cliBadInput, MissingGraphFile) {
+  Scratch scratch;
+  const std::string missing = scratch / "no_such.graph";
+  expectRejected({"integrate", missing, "-o", scratch / "map.bt"}, 2, missing, scratch);
+}
+
+TEST(cliBadInput, GraphIsRandomBytes) {
+  Scratch scratch;
+  const std::string graph = scratch / "random.graph";
+  {
+    std::mt19937 rng(42);
+    std::ofstream out(graph, std::ios_base::binary);
+    for (int i = 0; i < 4096; ++i) out.put(static_cast<char>(rng() & 0xFF));
+  }
+  expectRejected({"integrate", graph, "-o", scratch / "map.bt", "-o", scratch / "map.ot"}, 1,
+                 "scan graph", scratch);
+}
+
+TEST(cliBadInput, GraphIsTruncated) {
+  Scratch scratch;
+  const std::string graph = scratch / "truncated.graph";
+  const std::string whole = readFile(kSphericalGraph);
+  ASSERT_GT(whole.size(), 1000u);
+  std::ofstream(graph, std::ios_base::binary) << whole.substr(0, whole.size() / 2);
+  expectRejected({"integrate", graph, "-o", scratch / "map.bt"}, 1, "scan graph", scratch);
+}
+
+TEST(cliBadInput, UnknownOutputExtension) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.xyz"}, 2, ".xyz", scratch);
+}
+
+TEST(cliBadInput, ResolutionZero) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--resolution", "0"}, 2,
+                 "resolution", scratch);
+}
+
+TEST(cliBadInput, ResolutionNegative) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--resolution", "-1"}, 2,
+                 "resolution", scratch);
+}
+
+TEST(cliBadInput, ResolutionNotANumber) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--resolution", "abc"}, 2,
+                 "'abc'", scratch);
+}
+
+TEST(cliBadInput, MissingOptionValue) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--resolution"}, 2,
+                 "--resolution", scratch);
+}
+
+TEST(cliBadInput, BadProbability) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--prob-hit", "0.3"}, 2,
+                 "--prob-hit", scratch);
+}
+
+TEST(cliBadInput, ClampingBoundsReversed) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--clamping-min", "0.9",
+                  "--clamping-max", "0.2"},
+                 2, "clamping", scratch);
+}
+
+TEST(cliBadInput, OutputDirectoryDoesNotExist) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "no_such_dir/map.bt"}, 2,
+                 "does not exist", scratch);
+  EXPECT_FALSE(fs::exists(scratch.dir() / "no_such_dir"));
+}
+
+TEST(cliBadInput, OutputIsAnExistingDirectory) {
+  // Tests run as root, so a read-only directory would still be writable; a directory in the
+  // place of the output file cannot be written by anyone.
+  Scratch scratch;
+  fs::create_directory(scratch.dir() / "taken.bt");
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "taken.bt"}, 2, "directory",
+                 scratch);
+  EXPECT_TRUE(fs::is_empty(scratch.dir() / "taken.bt"));
+}
+
+TEST(cliBadInput, OutputParentIsAFile) {
+  Scratch scratch;
+  std::ofstream(scratch / "plain_file") << "x";
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "plain_file/map.bt"}, 2,
+                 "not a directory", scratch);
+}
+
+TEST(cliBadInput, SecondOutputUnwritable) {
+  // The first output is fine: nothing may be written before every output has been checked.
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "good.bt", "-o",
+                  scratch / "no_such_dir/map.ot"},
+                 2, "does not exist", scratch);
+}
+
+TEST(cliBadInput, MissingOutput) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph}, 2, "-o", scratch);
+}
+
+TEST(cliBadInput, UnknownOption) {
+  Scratch scratch;
+  expectRejected({"integrate", kSphericalGraph, "-o", scratch / "map.bt", "--bogus"}, 2, "--bogus",
+                 scratch);
+}
+
+TEST(cliBadInput, UnknownCommandNamesTheKnownOnes) {
+  Scratch scratch;
+  expectRejected({"frobnicate"}, 2, "integrate", scratch);
+  expectRejected({"frobnicate"}, 2, "devices", scratch);
+}
+
+TEST(cliBadInput, NoCommand) {
+  Scratch scratch;
+  expectRejected({}, 2, "integrate", scratch);
+}
+
+// ---- help and devices ----
+
+void expectFullIntegrateHelp(const std::string& text) {
+  for (const char* word :
+       {"integrate", "-o", "--output", "--resolution", "--max-range", "--prob-hit", "--prob-miss",
+        "--clamping-min", "--clamping-max", "--discretize", "--quiet", "--help", ".bt", ".ot",
+        "OCTOVK_DEVICE", "Exit codes", "graph2tree"})
+    EXPECT_NE(text.find(word), std::string::npos) << "help lacks '" << word << "'";
+  // The defaults (OctoMap's), and the unlimited max range.
+  for (const std::string& value : {std::string("default: 0.1)"), std::string("default: 0.7)"),
+                                   std::string("default: 0.4)"), std::string("default: 0.1192)"),
+                                   std::string("default: 0.971)"), std::string("default: -1)")})
+    EXPECT_NE(text.find(value), std::string::npos) << "help lacks '" << value << "'";
+}
+
+TEST(cliHelp, TopLevelHelpListsEveryOption) {
+  Scratch scratch;
+  const RunResult r = runOctovk({"--help"}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.err, "");
+  expectFullIntegrateHelp(r.out);
+  EXPECT_NE(r.out.find("devices"), std::string::npos);
+}
+
+TEST(cliHelp, HelpCommandAndIntegrateHelp) {
+  Scratch scratch;
+  for (const std::vector<std::string>& args : {std::vector<std::string>{"help"},
+                                               {"help", "integrate"},
+                                               {"integrate", "--help"},
+                                               {"integrate", "-h"}}) {
+    const RunResult r = runOctovk(args, scratch.dir());
+    EXPECT_EQ(r.exit_code, 0) << args.front();
+    EXPECT_EQ(r.err, "");
+    expectFullIntegrateHelp(r.out);
+  }
+}
+
+TEST(cliDevices, ListsTheDeviceInUse) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch;
+  const RunResult r = runOctovk({"devices"}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find(ctx.device().name), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("selected: "), std::string::npos) << r.out;
+}
+
+TEST(cliDevices, UnmatchedSelectorIsOneErrorLine) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;  // the selector below must fail on a machine that has a device
+  Scratch scratch;
+  const RunResult r =
+      runShell("OCTOVK_DEVICE=no-such-device-xyz " + quote(OCTOVK_CLI) + " integrate " +
+                   quote(kSphericalGraph) + " -o " + quote(scratch / "map.bt"),
+               scratch.dir());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("OCTOVK_DEVICE"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_FALSE(fs::exists(scratch / "map.bt"));
+}
+
+}  // namespace

@@ -1,1 +1,149 @@
-int main() { return 0; }
+// octovk: the command-line program. Dispatches to a command; every failure ends here as one line
+// on stderr and an exit code (the library never exits, and neither does a command).
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk::cli {
+namespace {
+
+// Commands that exist, for the help and for the error on an unknown one.
+constexpr const char* kCommands = "integrate, devices, help";
+
+void printHelp(std::ostream& out) {
+  out << "octovk: OctoMap-compatible occupancy mapping on a Vulkan device\n"
+         "\n"
+         "Usage:\n"
+         "  octovk integrate SCANS.graph -o MAP.bt [-o MAP.ot] [options]\n"
+         "  octovk devices\n"
+         "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
+         "\n"
+         "Commands:\n"
+         "  integrate   insert a scan graph into a map and write .bt / .ot files, byte-identical\n"
+         "              to OctoMap's graph2tree\n"
+         "  devices     list the Vulkan devices and the one octovk picks\n"
+         "  help        this help, or a command's\n"
+         "\n"
+         "--- integrate ---\n";
+  printIntegrateHelp(out);
+  out << "\n";
+  printEnvironmentAndExitCodes(out);
+}
+
+void printDevicesHelp(std::ostream& out) {
+  out << "octovk devices\n"
+         "\n"
+         "Lists the Vulkan devices (index, name, type, device-local memory) and the one octovk\n"
+         "would use now, which OCTOVK_DEVICE changes.\n"
+         "\n";
+  printEnvironmentAndExitCodes(out);
+}
+
+int runDevices(const std::vector<std::string>& args) {
+  if (wantsHelp(args)) {
+    printDevicesHelp(std::cout);
+    return kExitOk;
+  }
+  if (!args.empty())
+    throw UsageError("devices takes no arguments (got '" + args.front() +
+                     "'); run 'octovk devices'");
+  const std::vector<DeviceInfo> devices = Context::listDevices();
+  if (devices.empty())
+    throw Error(ErrorCode::kNoDevice,
+                "no Vulkan device found: install Mesa's CPU driver (apt-get install "
+                "mesa-vulkan-drivers) or a GPU driver, and check 'vulkaninfo --summary'");
+  for (const DeviceInfo& d : devices) {
+    std::printf("%u: %s (%s), %.1f GiB device-local memory\n", d.index, d.name.c_str(),
+                d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0));
+  }
+  // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.
+  Result<std::unique_ptr<Context>> context = Context::create();
+  if (!context) throw context.error();
+  std::printf("selected: %u: %s\n", context.value()->device().index,
+              context.value()->device().name.c_str());
+  return kExitOk;
+}
+
+int runHelp(const std::vector<std::string>& args) {
+  if (args.empty()) {
+    printHelp(std::cout);
+  } else if (args.front() == "integrate") {
+    printIntegrateHelp(std::cout);
+    std::cout << "\n";
+    printEnvironmentAndExitCodes(std::cout);
+  } else if (args.front() == "devices") {
+    printDevicesHelp(std::cout);
+  } else if (args.front() == "help") {
+    printHelp(std::cout);
+  } else {
+    throw UsageError("no help for unknown command '" + args.front() + "'; commands: " + kCommands);
+  }
+  return kExitOk;
+}
+
+int dispatch(const std::vector<std::string>& args) {
+  if (args.empty())
+    throw UsageError(std::string("no command given; commands: ") + kCommands +
+                     " (see 'octovk --help')");
+  const std::string& command = args.front();
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (command == "-h" || command == "--help" || command == "help") return runHelp(rest);
+  if (command == "integrate") return runIntegrate(rest);
+  if (command == "devices") return runDevices(rest);
+  if (!command.empty() && command[0] == '-')
+    throw UsageError("unknown option '" + command + "' before a command; commands: " + kCommands +
+                     " (see 'octovk --help')");
+  throw UsageError("unknown command '" + command + "'; commands: " + kCommands +
+                   " (see 'octovk --help')");
+}
+
+// Library messages may hold line breaks (a device list); an error stays one line.
+std::string oneLine(const std::string& message) {
+  std::string out;
+  for (std::size_t i = 0; i < message.size(); ++i) {
+    const char c = message[i];
+    if (c != '\n' && c != '\r') {
+      out += c;
+      continue;
+    }
+    while (i + 1 < message.size() &&
+           (message[i + 1] == ' ' || message[i + 1] == '\n' || message[i + 1] == '\r'))
+      ++i;
+    if (!out.empty() && i + 1 < message.size()) out += out.back() == ':' ? " " : "; ";
+  }
+  return out;
+}
+
+void printError(const std::string& message) {
+  std::cout.flush();
+  std::fprintf(stderr, "octovk: error: %s\n", oneLine(message).c_str());
+  std::fflush(stderr);
+}
+
+}  // namespace
+}  // namespace octovk::cli
+
+int main(int argc, char** argv) {
+  using namespace octovk::cli;
+  try {
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    return dispatch(args);
+  } catch (const UsageError& e) {
+    printError(e.what());
+    return kExitUsage;
+  } catch (const octovk::Error& e) {
+    printError(e.what());
+    return kExitFailure;
+  } catch (const std::exception& e) {
+    printError(std::string("unexpected failure: ") + e.what());
+    return kExitFailure;
+  } catch (...) {
+    printError("unexpected failure of unknown type");
+    return kExitFailure;
+  }
+}

@@ -1,0 +1,333 @@
+// octovk integrate: every scan of an OctoMap scan graph into one map, written as .bt / .ot files
+// byte-identical to those of OctoMap's graph2tree on the same input and parameters.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <set>
+#include <sstream>
+
+#include "cli.hpp"
+#include "octovk/octomap_io.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct IntegrateOptions {
+  std::string graph_path;
+  std::vector<std::string> output_paths;
+  MapParams params;
+  double max_range_m = -1.0;
+  bool discretize = false;
+  bool quiet = false;
+};
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
+  IntegrateOptions o;
+  ArgReader reader(args, {"-o", "--output", "-r", "--resolution", "-m", "--max-range", "--prob-hit",
+                          "--prob-miss", "--clamping-min", "--clamping-max"});
+  while (reader.next()) {
+    if (!reader.isOption()) {
+      if (!o.graph_path.empty())
+        throw UsageError("unexpected argument '" + reader.positional() +
+                         "': integrate takes one scan graph (" + o.graph_path +
+                         "); outputs go after -o");
+      o.graph_path = reader.positional();
+      continue;
+    }
+    const ParsedOption& opt = reader.option();
+    if (opt.name == "-o" || opt.name == "--output")
+      o.output_paths.push_back(opt.value);
+    else if (opt.name == "-r" || opt.name == "--resolution")
+      o.params.resolution = parseNumber(opt, "0.05");
+    else if (opt.name == "-m" || opt.name == "--max-range")
+      o.max_range_m = parseNumber(opt, "10 (metres; negative: unlimited)");
+    else if (opt.name == "--prob-hit")
+      o.params.prob_hit = parseNumber(opt, "0.7");
+    else if (opt.name == "--prob-miss")
+      o.params.prob_miss = parseNumber(opt, "0.4");
+    else if (opt.name == "--clamping-min")
+      o.params.clamping_min = parseNumber(opt, "0.1192");
+    else if (opt.name == "--clamping-max")
+      o.params.clamping_max = parseNumber(opt, "0.971");
+    else if (opt.name == "--discretize")
+      o.discretize = true;
+    else if (opt.name == "-q" || opt.name == "--quiet")
+      o.quiet = true;
+    else
+      throw UsageError("unknown option '" + opt.name +
+                       "' for integrate; see 'octovk integrate --help' for the options");
+  }
+  return o;
+}
+
+void checkInput(const std::string& path) {
+  if (path.empty())
+    throw UsageError("no scan graph given; usage: octovk integrate SCANS.graph -o MAP.bt");
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (!fs::exists(st)) throw UsageError("scan graph '" + path + "' does not exist; check the path");
+  if (fs::is_directory(st))
+    throw UsageError("scan graph '" + path + "' is a directory; give a .graph file");
+  std::ifstream probe(path, std::ios_base::binary);
+  if (!probe.is_open())
+    throw UsageError("cannot read scan graph '" + path + "': " + std::strerror(errno) +
+                     "; check its permissions");
+}
+
+// Checks what writeMapFile would only find out after the whole integration.
+void checkOutput(const std::string& path) {
+  const fs::path target(path);
+  const std::string ext = target.extension().string();
+  if (ext != ".bt" && ext != ".ot")
+    throw UsageError("output '" + path + "' has unknown extension '" + ext +
+                     "'; name it .bt (max-likelihood binary) or .ot (full log-odds)");
+  std::error_code ec;
+  if (fs::is_directory(target, ec))
+    throw UsageError("output '" + path + "' is an existing directory; give a file name");
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  if (!fs::exists(dir, ec))
+    throw UsageError("output directory '" + dir.string() + "' of '" + path +
+                     "' does not exist; create it first (mkdir -p " + dir.string() + ")");
+  if (!fs::is_directory(dir, ec))
+    throw UsageError("output '" + path + "': '" + dir.string() +
+                     "' is not a directory; choose another output path");
+  // W_OK|X_OK also reports a read-only file system, which root's permissions do not bypass.
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw UsageError("cannot write into '" + dir.string() + "' for '" + path +
+                     "': " + std::strerror(errno) + "; choose a writable directory");
+}
+
+// validate() names MapParams fields; the user knows them as options.
+std::string paramFix(const std::string& why) {
+  const auto starts = [&](const char* field) { return why.rfind(field, 0) == 0; };
+  std::string option = "--resolution, --prob-hit, --prob-miss, --clamping-min or --clamping-max";
+  if (starts("resolution"))
+    option = "--resolution";
+  else if (starts("prob_hit"))
+    option = "--prob-hit";
+  else if (starts("prob_miss"))
+    option = "--prob-miss";
+  else if (starts("clamping"))
+    option = "--clamping-min / --clamping-max";
+  return "fix " + option + " (see 'octovk integrate --help')";
+}
+
+void validate(const IntegrateOptions& o) {
+  checkInput(o.graph_path);
+  if (o.output_paths.empty()) throw UsageError("no output file; add -o MAP.bt and/or -o MAP.ot");
+  std::set<fs::path> seen;
+  for (const std::string& path : o.output_paths) {
+    checkOutput(path);
+    if (!seen.insert(fs::absolute(path).lexically_normal()).second)
+      throw UsageError("output '" + path + "' is given twice; give each -o file once");
+  }
+  const std::string why = o.params.validate();
+  if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
+}
+
+// Progress lines on stderr: on a terminal from the start, elsewhere only once the run has taken
+// a second, so that short runs and test logs stay clean. At most one line per second or per 10%.
+class Progress {
+ public:
+  Progress(std::size_t total, bool enabled)
+      : total_(total), enabled_(enabled && total > 0), tty_(::isatty(STDERR_FILENO) == 1) {}
+
+  void update(std::size_t done) {
+    if (!enabled_) return;
+    const double elapsed_s = secondsSince(start_);
+    if (!tty_ && elapsed_s < 1.0) return;
+    const std::size_t decile = done * 10 / total_;
+    const double since_last_s = elapsed_s - last_s_;
+    const bool closing = done == total_ && printed_;  // a started report ends at 100%
+    if (!closing && since_last_s < 1.0 && (decile == last_decile_ || since_last_s < 0.2)) return;
+    printed_ = true;
+    last_s_ = elapsed_s;
+    last_decile_ = decile;
+    const double ms_per_scan = elapsed_s * 1e3 / static_cast<double>(done);
+    const double eta_s = ms_per_scan * static_cast<double>(total_ - done) / 1e3;
+    std::fprintf(stderr, "scan %zu/%zu (%zu%%), %.2f ms/scan, %.1f s left\n", done, total_,
+                 done * 100 / total_, ms_per_scan, eta_s);
+    std::fflush(stderr);
+  }
+
+ private:
+  std::size_t total_;
+  bool enabled_;
+  bool tty_;
+  Clock::time_point start_ = Clock::now();
+  double last_s_ = 0.0;
+  std::size_t last_decile_ = 0;
+  bool printed_ = false;
+};
+
+// OctoMap's ScanGraph reader and .bt writer report on stderr with fprintf (Debian builds it with
+// debug output); while they run, stderr points at /dev/null so it holds only progress and errors.
+class SilencedStderr {
+ public:
+  SilencedStderr() {
+    std::fflush(stderr);
+    saved_ = ::dup(STDERR_FILENO);
+    const int null_fd = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, STDERR_FILENO);
+    if (null_fd >= 0) ::close(null_fd);
+  }
+  ~SilencedStderr() {
+    if (saved_ < 0) return;
+    std::fflush(stderr);
+    ::dup2(saved_, STDERR_FILENO);
+    ::close(saved_);
+  }
+  SilencedStderr(const SilencedStderr&) = delete;
+  SilencedStderr& operator=(const SilencedStderr&) = delete;
+
+ private:
+  int saved_ = -1;
+};
+
+std::vector<GraphScan> readGraphQuietly(const std::string& path) {
+  SilencedStderr silenced;
+  return readScanGraph(path);
+}
+
+// Writes every output; if one fails, the ones this run already wrote are removed, so that a
+// failed run leaves no output behind.
+void writeOutputs(const OccupancyMap& map, const std::vector<std::string>& paths) {
+  SilencedStderr silenced;
+  std::vector<std::string> written;
+  try {
+    for (const std::string& path : paths) {
+      writeMapFile(map, path);
+      written.push_back(path);
+    }
+  } catch (...) {
+    for (const std::string& path : written) std::remove(path.c_str());
+    throw;
+  }
+}
+
+}  // namespace
+
+void printIntegrateHelp(std::ostream& out) {
+  const MapParams defaults;
+  out << "octovk integrate SCANS.graph -o MAP.bt [-o MAP.ot] [options]\n"
+         "\n"
+         "Inserts every scan of an OctoMap scan graph (.graph, as written by log2graph) into one\n"
+         "occupancy map on the Vulkan device and writes it. Each scan's points are moved to the\n"
+         "world by the scan's pose and cast from the pose's position, exactly as OctoMap's\n"
+         "graph2tree does; with the same parameters the files are byte-identical to graph2tree's\n"
+         "(-o X.bt writes graph2tree's X.bt, -o X.ot its X.bt.ot).\n"
+         "\n"
+         "Options:\n"
+         "  -o, --output FILE      file to write; repeat for several. The extension picks the\n"
+         "                         format: .bt = max-likelihood binary tree, pruned (OctoMap\n"
+         "                         writeBinary); .ot = full tree with float log-odds (OctoMap\n"
+         "                         write). Written to a temporary file and renamed. Required.\n"
+         "  -r, --resolution M     edge of the smallest voxel in metres (default: "
+      << defaults.resolution
+      << ")\n"
+         "  -m, --max-range M      beams longer than M metres only clear space up to M and mark\n"
+         "                         no occupied cell; negative = unlimited (default: -1)\n"
+         "      --prob-hit P       occupancy probability of a hit, in [0.5, 1) (default: "
+      << defaults.prob_hit
+      << ")\n"
+         "      --prob-miss P      occupancy probability of a miss, in (0, 0.5] (default: "
+      << defaults.prob_miss
+      << ")\n"
+         "      --clamping-min P   lower clamping bound of a voxel's probability (default: "
+      << defaults.clamping_min
+      << ")\n"
+         "      --clamping-max P   upper clamping bound, above --clamping-min (default: "
+      << defaults.clamping_max
+      << ")\n"
+         "      --discretize       reduce each scan to one point per voxel before ray casting\n"
+         "                         (OctoMap's discretize; faster, approximate) (default: off)\n"
+         "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
+         "                         or once a run takes longer than a second)\n"
+         "  -h, --help             show this help\n"
+         "Options take their value as '--name VALUE' or '--name=VALUE'.\n"
+         "\n"
+         "graph2tree equivalents: -r R = -res R, -m M = -m M, --discretize = -discretize,\n"
+         "--clamping-min A --clamping-max B = -clamping A B, --prob-miss A --prob-hit B =\n"
+         "-sensor A B.\n"
+         "\n"
+         "Output: the device used, then a summary on stdout (scans, points, skipped points,\n"
+         "insert time, nodes, device memory, files written).\n";
+}
+
+int runIntegrate(const std::vector<std::string>& args) {
+  if (wantsHelp(args)) {
+    printIntegrateHelp(std::cout);
+    std::cout << "\n";
+    printEnvironmentAndExitCodes(std::cout);
+    return kExitOk;
+  }
+  const IntegrateOptions o = parseIntegrate(args);
+  validate(o);
+
+  const auto run_start = Clock::now();
+  const std::vector<GraphScan> scans = readGraphQuietly(o.graph_path);
+
+  Result<std::unique_ptr<Context>> context_result = Context::create();
+  if (!context_result) throw context_result.error();
+  Context& context = *context_result.value();
+  const DeviceInfo& device = context.device();
+  std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
+
+  OccupancyMap map(context, o.params);
+  Progress progress(scans.size(), !o.quiet);
+  std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0;
+  const auto insert_start = Clock::now();
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const GraphScan& scan = scans[i];
+    const ScanStats stats =
+        map.insertPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
+                             scan.T_world_sensor, o.max_range_m, o.discretize);
+    points += stats.points;
+    skipped_nonfinite += stats.skipped_nonfinite;
+    skipped_outside += stats.skipped_outside;
+    progress.update(i + 1);
+  }
+  const double insert_s = secondsSince(insert_start);
+  const std::size_t nodes = map.nodeCount();
+  const std::size_t device_bytes = map.deviceBytes();
+
+  writeOutputs(map, o.output_paths);
+  const double total_s = secondsSince(run_start);
+
+  const double ms_per_scan =
+      scans.empty() ? 0.0 : insert_s * 1e3 / static_cast<double>(scans.size());
+  std::ostringstream s;
+  s << std::fixed;
+  s << "scans:         " << scans.size() << "\n"
+    << "points:        " << points << " (" << skipped_nonfinite + skipped_outside
+    << " skipped: " << skipped_nonfinite << " non-finite, " << skipped_outside
+    << " outside the map)\n"
+    << "insert time:   " << std::setprecision(3) << insert_s << " s, " << ms_per_scan
+    << " ms/scan (run total " << total_s << " s, with reading and writing)\n"
+    << "device:        " << device.name << " (" << device.type << ")\n"
+    << "nodes:         " << nodes << "\n"
+    << "device memory: " << std::setprecision(1)
+    << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB\n";
+  for (const std::string& path : o.output_paths) s << "wrote:         " << path << "\n";
+  std::cout << s.str() << std::flush;
+  return kExitOk;
+}
+
+}  // namespace octovk::cli
