@@ -33,7 +33,7 @@ struct GraphScan {
   Pose T_world_sensor;
 };
 
-/// Reads an OctoMap ScanGraph binary file (.graph), checking its structure first.
+/// Reads an OctoMap ScanGraph binary file (.graph); a corrupt or truncated file is a kFormat error.
 std::vector<GraphScan> readScanGraph(const std::string& path);
 
 /// The sensor origin graph2tree uses for a scan (in the sensor frame), to pass with the pose:

@@ -177,8 +177,8 @@ class Progress {
   bool printed_ = false;
 };
 
-// OctoMap's ScanGraph reader and .bt writer report on stderr with fprintf (Debian builds it with
-// debug output); while they run, stderr points at /dev/null so it holds only progress and errors.
+// OctoMap's .bt writer reports on stderr with fprintf (Debian builds it with debug output); while
+// it runs, stderr points at /dev/null so it holds only progress and errors.
 class SilencedStderr {
  public:
   SilencedStderr() {
@@ -200,11 +200,6 @@ class SilencedStderr {
  private:
   int saved_ = -1;
 };
-
-std::vector<GraphScan> readGraphQuietly(const std::string& path) {
-  SilencedStderr silenced;
-  return readScanGraph(path);
-}
 
 // Writes every output; if one fails, the ones this run already wrote are removed, so that a
 // failed run leaves no output behind.
@@ -282,7 +277,7 @@ int runIntegrate(const std::vector<std::string>& args) {
   validate(o);
 
   const auto run_start = Clock::now();
-  const std::vector<GraphScan> scans = readGraphQuietly(o.graph_path);
+  const std::vector<GraphScan> scans = readScanGraph(o.graph_path);
 
   Result<std::unique_ptr<Context>> context_result = Context::create();
   if (!context_result) throw context_result.error();

@@ -1,7 +1,7 @@
-// OctoMap scan graphs (.graph). The structure is checked first, so that a corrupt or truncated
-// file is reported instead of being half read (ScanGraph::readBinary reads what it can silently).
-#include <octomap/ScanGraph.h>
-
+// OctoMap scan graphs (.graph, ScanGraph::writeBinary). Parsed here rather than with
+// octomap::ScanGraph, which reads a corrupt or truncated file silently as far as it can and
+// prints progress lines on stderr for every scan. Values are converted exactly as OctoMap's
+// readers do: each coordinate is stored as a double and narrowed to float.
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -12,74 +12,99 @@ namespace octovk {
 
 namespace {
 
-// Sizes of ScanGraph's binary records: a Vector3 is an int and 3 doubles, a quaternion an int
-// and 4 doubles, a node is  points | pose | id, an edge  id | id | pose | weight.
+// Record sizes: a Vector3 is an int (3) and 3 doubles, a quaternion an int (4) and 4 doubles;
+// a node is  points | pose | id,  an edge  id | id | pose | weight.
 constexpr std::uint64_t kVectorBytes = 4 + 3 * 8;
 constexpr std::uint64_t kPoseBytes = kVectorBytes + 4 + 4 * 8;
 constexpr std::uint64_t kEdgeBytes = 4 + 4 + kPoseBytes + 8;
 
-void checkStructure(const std::string& path) {
+class GraphReader {
+ public:
+  GraphReader(const std::string& path, std::vector<char> bytes)
+      : path_(path), bytes_(std::move(bytes)) {}
+
+  std::uint32_t u32(const std::string& what) {
+    need(4, what);
+    std::uint32_t v;
+    std::memcpy(&v, bytes_.data() + at_, 4);
+    at_ += 4;
+    return v;
+  }
+  float narrowed(const std::string& what) {
+    need(8, what);
+    double v;
+    std::memcpy(&v, bytes_.data() + at_, 8);
+    at_ += 8;
+    return static_cast<float>(v);
+  }
+  void marker(std::uint32_t expected, const std::string& what) {
+    if (u32(what) != expected) throw bad("bad " + what + " record");
+  }
+  void need(std::uint64_t n, const std::string& what) const {
+    if (at_ + n > bytes_.size()) throw bad("truncated in the " + what);
+  }
+  std::uint64_t remaining() const { return bytes_.size() - at_; }
+  Error bad(const std::string& why) const {
+    return Error(ErrorCode::kFormat, "'" + path_ + "' is not a valid scan graph (.graph): " + why);
+  }
+
+ private:
+  std::string path_;
+  std::vector<char> bytes_;
+  std::uint64_t at_ = 0;
+};
+
+std::vector<char> readAll(const std::string& path) {
   std::ifstream in(path, std::ios_base::binary | std::ios_base::ate);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + std::strerror(errno));
-  const std::uint64_t size = static_cast<std::uint64_t>(in.tellg());
+  const std::streamoff size = in.tellg();
+  std::vector<char> bytes(static_cast<std::size_t>(size));
   in.seekg(0);
-  auto readU32 = [&](const char* what) {
-    std::uint32_t v = 0;
-    if (!in.read(reinterpret_cast<char*>(&v), 4))
-      throw Error(ErrorCode::kFormat,
-                  "'" + path + "' is not a valid scan graph: truncated at the " + what);
-    return v;
-  };
-  auto bad = [&](const std::string& why) {
-    return Error(ErrorCode::kFormat, "'" + path + "' is not a valid scan graph (.graph): " + why);
-  };
-  if (size < 8) throw bad("file is shorter than a graph header");
-  const std::uint32_t nodes = readU32("node count");
-  std::uint64_t at = 4;
-  for (std::uint32_t i = 0; i < nodes; ++i) {
-    const std::uint32_t points = readU32("point count");
-    at += 4;
-    const std::uint64_t body = std::uint64_t{points} * kVectorBytes + kPoseBytes + 4;
-    if (at + body > size)
-      throw bad("scan " + std::to_string(i) + " claims " + std::to_string(points) +
-                " points, more than the file holds");
-    // Spot-check the Vector3 size markers (always 3) of the first point and the pose.
-    if (points > 0) {
-      if (readU32("first point") != 3)
-        throw bad("scan " + std::to_string(i) + " has a bad point record");
-      in.seekg(static_cast<std::streamoff>(at + std::uint64_t{points} * kVectorBytes));
-    }
-    if (readU32("pose") != 3) throw bad("scan " + std::to_string(i) + " has a bad pose record");
-    at += body;
-    in.seekg(static_cast<std::streamoff>(at));
-  }
-  const std::uint32_t edges = readU32("edge count");
-  at += 4;
-  if (at + std::uint64_t{edges} * kEdgeBytes != size)
-    throw bad("its length does not match its " + std::to_string(nodes) + " scans and " +
-              std::to_string(edges) + " edges");
+  if (size > 0 && !in.read(bytes.data(), size))
+    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': read failed");
+  return bytes;
 }
 
 }  // namespace
 
 std::vector<GraphScan> readScanGraph(const std::string& path) {
-  checkStructure(path);
-  octomap::ScanGraph graph;
-  if (!graph.readBinary(path)) throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "'");
+  GraphReader in(path, readAll(path));
+  if (in.remaining() < 8) throw in.bad("file is shorter than a graph header");
+  const std::uint32_t count = in.u32("scan count");
   std::vector<GraphScan> scans;
-  scans.reserve(graph.size());
-  for (const octomap::ScanNode* node : graph) {
-    GraphScan scan;
-    const octomath::Vector3& t = node->pose.trans();
-    const octomath::Quaternion& q = node->pose.rot();
-    scan.T_world_sensor.translation = {t.x(), t.y(), t.z()};
-    scan.T_world_sensor.rotation = Eigen::Quaternionf(q.u(), q.x(), q.y(), q.z());
-    scan.points_sensor.reserve(node->scan->size());
-    for (const octomap::point3d& p : *node->scan)
-      scan.points_sensor.emplace_back(p.x(), p.y(), p.z());
-    scans.push_back(std::move(scan));
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const std::string scan = "scan " + std::to_string(i);
+    const std::uint32_t points = in.u32(scan + " point count");
+    if (std::uint64_t{points} * kVectorBytes + kPoseBytes + 4 > in.remaining())
+      throw in.bad(scan + " claims " + std::to_string(points) + " points, more than the file holds");
+    GraphScan out;
+    out.points_sensor.reserve(points);
+    for (std::uint32_t p = 0; p < points; ++p) {
+      in.marker(3, scan + " point");
+      const float x = in.narrowed(scan + " point");
+      const float y = in.narrowed(scan + " point");
+      const float z = in.narrowed(scan + " point");
+      out.points_sensor.emplace_back(x, y, z);
+    }
+    in.marker(3, scan + " pose translation");
+    const float tx = in.narrowed(scan + " pose");
+    const float ty = in.narrowed(scan + " pose");
+    const float tz = in.narrowed(scan + " pose");
+    in.marker(4, scan + " pose rotation");
+    const float qu = in.narrowed(scan + " pose");
+    const float qx = in.narrowed(scan + " pose");
+    const float qy = in.narrowed(scan + " pose");
+    const float qz = in.narrowed(scan + " pose");
+    in.u32(scan + " id");
+    out.T_world_sensor.translation = {tx, ty, tz};
+    out.T_world_sensor.rotation = Eigen::Quaternionf(qu, qx, qy, qz);
+    scans.push_back(std::move(out));
   }
+  const std::uint32_t edges = in.u32("edge count");
+  if (in.remaining() != std::uint64_t{edges} * kEdgeBytes)
+    throw in.bad("its length does not match its " + std::to_string(count) + " scans and " +
+                 std::to_string(edges) + " edges");
   return scans;
 }
 

@@ -417,14 +417,18 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   if (devices.empty()) return Error(ErrorCode::kNoDevice, kNoDeviceHint);
 
   std::string selector = options.selector;
+  const char* source = "ContextOptions::selector";
   if (selector.empty()) {
     if (const char* env = std::getenv("OCTOVK_DEVICE")) selector = env;
+    source = "OCTOVK_DEVICE";
   }
   std::int64_t chosen = -1;
   if (!selector.empty()) {
-    const bool numeric = std::all_of(selector.begin(), selector.end(), ::isdigit);
+    const bool numeric =
+        selector.size() <= 9 && std::all_of(selector.begin(), selector.end(),
+                                            [](unsigned char c) { return c >= '0' && c <= '9'; });
     if (numeric) {
-      const auto idx = std::stoull(selector);
+      const std::size_t idx = std::stoul(selector);
       if (idx < devices.size()) chosen = static_cast<std::int64_t>(idx);
     } else {
       for (std::uint32_t i = 0; i < devices.size() && chosen < 0; ++i)
@@ -433,11 +437,11 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
     if (chosen < 0) {
       std::string names;
       for (std::uint32_t i = 0; i < devices.size(); ++i)
-        names += "\n  " + std::to_string(i) + ": " + describe(devices[i], i).name;
-      return Error(ErrorCode::kNoDevice, "device selector '" + selector +
-                                             "' (OCTOVK_DEVICE) matches no Vulkan device; "
-                                             "available:" +
-                                             names);
+        names += std::string(i ? "; " : "") + std::to_string(i) + ": " +
+                 describe(devices[i], i).name;
+      return Error(ErrorCode::kNoDevice, std::string("device selector '") + selector + "' (" +
+                                             source +
+                                             ") matches no Vulkan device; available: " + names);
     }
   } else {
     int best_rank = 99;
