@@ -185,15 +185,20 @@ class OccupancyMap {
   std::size_t nodeCount() const;
   /// Device bytes held by this map's buffers.
   std::size_t deviceBytes() const;
-  /// Leaves written by the last leaf-box rebuild.
+  /// Leaves of the map (rebuilding the leaf boxes first if they are out of date).
   std::size_t leafCount() const;
+
+  /// Whether each scan ends by rebuilding the leaf boxes (the default). Off, they are rebuilt
+  /// on the next leafCount() / downloadLeafBoxes() instead: for callers that only write files,
+  /// since the rebuild visits every block of the map.
+  void setLeafBoxesEveryScan(bool every_scan);
 
   /// Explicit transfer of the whole tree to the host.
   HostTree download() const;
   /// Replaces the map with `tree` (explicit transfer to the device).
   void upload(const HostTree& tree);
 
-  /// The leaf boxes (centre, size, log-odds) of the last rebuild, downloaded.
+  /// The leaf boxes (centre, size, log-odds) of the map, downloaded.
   struct LeafBoxHost {
     float center[3];
     float size;

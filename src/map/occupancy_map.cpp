@@ -18,7 +18,7 @@ namespace {
 using gpu::PassConstants;
 
 constexpr std::uint32_t kInitialBlocks = 1024;
-constexpr std::uint32_t kInitialHashLog2 = 16;
+constexpr std::uint32_t kInitialHashLog2 = 12;
 
 std::uint32_t groupsFor(std::size_t items) {
   return static_cast<std::uint32_t>((items + gpu::kWorkgroupSize - 1) / gpu::kWorkgroupSize);
@@ -68,6 +68,15 @@ class OccupancyMap::Impl {
   std::size_t deviceBytes() const;
 
   const MapParams& params() const { return params_; }
+  void setLeafBoxesEveryScan(bool every_scan) { leaf_boxes_every_scan_ = every_scan; }
+  /// Rebuilds the leaf boxes if scans were inserted without rebuilding them.
+  void refreshLeafBoxes() {
+    if (!leaf_boxes_dirty_) return;
+    stream_.begin(bindings_);
+    recordLeafBoxes();
+    stream_.submitAndWait();
+    leaf_boxes_dirty_ = false;
+  }
 
  private:
   void allocateHash(std::uint32_t log2);
@@ -88,7 +97,7 @@ class OccupancyMap::Impl {
 
   void recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize);
   void recordClassify();
-  void recordTreeUpdate(std::uint32_t active);
+  void recordTreeUpdate(std::uint32_t active, std::uint32_t first_level);
   void recordLeafBoxes();
   void recordReadback();
   void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
@@ -112,6 +121,8 @@ class OccupancyMap::Impl {
   std::size_t active_capacity_ = 0;
   std::uint32_t pool_blocks_ = 0;
   std::size_t point_capacity_ = 0;
+  bool leaf_boxes_every_scan_ = true;
+  bool leaf_boxes_dirty_ = false;
 };
 
 // ---- buffers ---------------------------------------------------------------------------------
@@ -269,12 +280,14 @@ void OccupancyMap::Impl::recordClassify() {
   stream_.timestamp();
 }
 
-void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active) {
+// first_level: the shallowest depth at which some cell's path leaves the existing tree; the
+// levels above it have nothing to create and are not recorded.
+void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active, std::uint32_t first_level) {
   dispatch("tree_begin", 1);
   const vk::Pass& descend = device_.pass("descend");
   const vk::Pass& alloc = device_.pass("alloc");
   const vk::Pass& prune = device_.pass("prune");
-  for (std::uint32_t level = 0; level < gpu::kTreeDepth; ++level) {
+  for (std::uint32_t level = first_level; level < gpu::kTreeDepth; ++level) {
     PassConstants pc{level, active, 0, 0};
     stream_.dispatch(descend, groupsFor(active), &pc, sizeof(pc));
     stream_.barrier();
@@ -434,15 +447,19 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     stream_.begin(bindings_);
     stream_.update(params_buf_, &sp, sizeof(sp));
     stream_.barrier();
+    std::uint32_t first_level = 0;
+    while (first_level < gpu::kTreeDepth && counters.first_depth_hist[first_level] == 0)
+      ++first_level;
     stream_.timestamp();
-    recordTreeUpdate(active);
-    recordLeafBoxes();
+    recordTreeUpdate(active, first_level);
+    if (leaf_boxes_every_scan_) recordLeafBoxes();
+    leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
     recordReadback();
     stream_.submitAndWait();
-    if (const auto t2 = stream_.timestampsNs(); t2.size() == 4) {
+    if (const auto t2 = stream_.timestampsNs(); t2.size() >= 3) {
       stats.device.tree_update_ms = (t2[1] - t2[0]) * 1e-6;
       stats.device.prune_ms = (t2[2] - t2[1]) * 1e-6;
-      stats.device.leaf_boxes_ms = (t2[3] - t2[2]) * 1e-6;
+      if (t2.size() >= 4) stats.device.leaf_boxes_ms = (t2[3] - t2[2]) * 1e-6;
     }
     readBack(counters, pool);
     if (counters.status & gpu::kStatusPoolFull)
@@ -542,9 +559,11 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   stream_.barrier();
   recordLeafBoxes();
   stream_.submitAndWait();
+  leaf_boxes_dirty_ = false;
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
+  refreshLeafBoxes();
   const gpu::PoolState pool = readPool();
   std::vector<LeafBoxHost> out(pool.leaf_count);
   if (out.empty()) return out;
@@ -587,7 +606,14 @@ std::size_t OccupancyMap::nodeCount() const {
   return pool.root_exists ? pool.live_nodes : 0;
 }
 
-std::size_t OccupancyMap::leafCount() const { return impl_->readPool().leaf_count; }
+std::size_t OccupancyMap::leafCount() const {
+  impl_->refreshLeafBoxes();
+  return impl_->readPool().leaf_count;
+}
+
+void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
+  impl_->setLeafBoxesEveryScan(every_scan);
+}
 
 std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
 
