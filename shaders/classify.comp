@@ -18,24 +18,9 @@ void main() {
 
   // search(): the deepest existing node on the path; a node with other children but not this
   // one means "not found". depth = depth of the deepest existing node (0 without a root).
-  bool found = false;
-  uint depth = 0u;
-  float value = 0.0;
-  uint n = kRootNode;
-  if (pool.root_exists != 0u) {
-    for (depth = 0u; depth < kTreeDepth; ++depth) {
-      uint c = childIndex(k, depth);
-      uint m = nodes[n].mask;
-      if ((m & (1u << c)) != 0u) {
-        n = nodes[n].children * 8u + c;
-      } else {
-        found = (m & kChildMask) == 0u;
-        break;
-      }
-    }
-    if (depth == kTreeDepth) found = true;
-    value = nodes[n].log_odds;
-  }
+  uint n, depth;
+  bool found = searchNode(k, n, depth);
+  float value = nodes[n].log_odds;
   if (found && ((update >= 0.0 && value >= params.clamp_max_log) ||
                 (update <= 0.0 && value <= params.clamp_min_log))) {
     atomicAdd(counters.aborted, 1u);

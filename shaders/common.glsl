@@ -24,6 +24,7 @@ layout(std430, binding = 10) buffer TouchedBuf { uint touched[]; };
 layout(std430, binding = 11) buffer AllocBuf { AllocRequest alloc_list[]; };
 layout(std430, binding = 12) buffer LeafBuf { LeafBox leaf_boxes[]; };
 layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
+// Query inputs and outputs; each query pass declares its own view of these two bindings.
 
 const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
 
@@ -83,6 +84,10 @@ uint hashSlot(uint64_t k, uint log2cap) {
   return uint((k * 0x9E3779B97F4A7C15ul) >> (64u - log2cap));
 }
 
+// Loop iterations spent probing the sets, for passes that must budget them (lavapipe ends an
+// invocation's loops after 65535 iterations in total).
+int probes_spent = 0;
+
 // Inserts k into the scan's cell set; returns its slot, or 0xFFFFFFFF when the set is full.
 uint insertCell(uint64_t k) {
   uint cap = params.hash_capacity;
@@ -92,6 +97,7 @@ uint insertCell(uint64_t k) {
   if ((counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
   uint s = hashSlot(k, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
+    ++probes_spent;
     // A plain read first: most inserts find their key already there (rays share the cells near
     // the sensor), and reading avoids an atomic on a hot slot.
     uint64_t seen = hash_keys[s];
@@ -131,4 +137,25 @@ uint insertEndpoint(uint64_t k) {
 void countEndpointEntry(uint n) {
   uint cap = params.endpoint_capacity;
   if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusEndpointHashFull);
+}
+
+// ---- the tree ----
+
+// OcTreeBaseImpl::search(key): the deepest existing node on the key's path. Returns false when
+// the path ends at a node that has other children but not this one (or there is no root).
+// `node` and `depth` are the deepest node reached either way.
+bool searchNode(uvec3 k, out uint node, out uint depth) {
+  node = kRootNode;
+  depth = 0u;
+  if (pool.root_exists == 0u) return false;
+  for (; depth < kTreeDepth; ++depth) {
+    uint c = childIndex(k, depth);
+    uint m = nodes[node].mask;
+    if ((m & (1u << c)) != 0u) {
+      node = nodes[node].children * 8u + c;
+    } else {
+      return (m & kChildMask) == 0u;
+    }
+  }
+  return true;
 }

@@ -1,10 +1,27 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Rebuilds the compact leaf-box buffer: every leaf's centre, edge length and log-odds, found by
-// scanning the live blocks (block 0 stands for the root itself).
+// Leaves of the map, found by scanning the live blocks (block 0 stands for the root itself).
+// mode 0: the leaf-box rebuild — every leaf's centre, edge length and log-odds into leaf_boxes.
+// mode 1: leaves in a box — the leaves OctoMap's leaf_bbx_iterator visits (node key range
+//         overlapping the box's key range, as the iterator tests it), optionally only occupied
+//         ones, compacted into the query output.
 #include "common.glsl"
 
+layout(std430, binding = 14) buffer QueryInBuf { BoxQuery box; };
+layout(std430, binding = 15) buffer QueryOutBuf { LeafBox box_leaves[]; };
+
+bool inBox(uvec3 prefix, uint depth, float log_odds) {
+  if (box.occupied_only != 0u && log_odds < params.occupancy_log) return false;
+  // The iterator's centre key of a node at `depth` is its prefix + 32768 >> depth.
+  int off = int(kTreeMaxVal >> depth);
+  ivec3 centre = ivec3(prefix) + ivec3(off);
+  ivec3 lo = ivec3(box.min_x, box.min_y, box.min_z);
+  ivec3 hi = ivec3(box.max_x, box.max_y, box.max_z);
+  return !any(greaterThan(lo, centre + off)) && !any(lessThan(hi, centre - off));
+}
+
 void emit(uvec3 key, uint depth, float log_odds) {
+  if (pc.mode == 1u && !inBox(key, depth, log_odds)) return;
   // OcTreeBaseImpl::keyToCoord(key, depth), in double, then to float.
   uint shift = kTreeDepth - depth;
   double size = params.resolution * double(1u << shift);
@@ -18,8 +35,9 @@ void emit(uvec3 key, uint depth, float log_odds) {
     dvec3 c = (floor(k / double(1u << shift)) + 0.5lf) * size;
     centre = vec3(c);
   }
-  uint at = atomicAdd(pool.leaf_count, 1u);
-  leaf_boxes[at] = LeafBox(centre.x, centre.y, centre.z, float(size), log_odds);
+  LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, float(size), log_odds);
+  if (pc.mode == 0u) leaf_boxes[atomicAdd(pool.leaf_count, 1u)] = leaf;
+  else box_leaves[atomicAdd(counters.query_results, 1u)] = leaf;
 }
 
 void main() {
@@ -27,7 +45,7 @@ void main() {
   if (b >= pool.bump) return;
   if (b == 0u) {
     if (pool.root_exists != 0u && (nodes[kRootNode].mask & kChildMask) == 0u)
-      emit(uvec3(32768u), 0u, nodes[kRootNode].log_odds);
+      emit(uvec3(0u), 0u, nodes[kRootNode].log_odds);
     return;
   }
   BlockMeta meta = block_meta[b];

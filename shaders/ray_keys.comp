@@ -2,66 +2,131 @@
 #extension GL_GOOGLE_include_directive : require
 // Ray keys and hash set: for every point (mode 0) or every distinct end cell (mode 1, discretize),
 // the cells of OctoMap's computeRayKeys go into the scan's cell set as free and the end cell as
-// occupied (occupied wins: it is a flag on the same entry). Mirrors OccupancyOcTreeBase::computeUpdate.
+// occupied (occupied wins: it is a flag on the same entry). Mirrors
+// OccupancyOcTreeBase::computeUpdate.
+//
+// A walk stops after pc.level loop iterations (steps and hash probes) and is saved to a list; mode 2 continues the
+// walks of one list (pc.offset) and saves the unfinished ones to the other. llvmpipe (lavapipe)
+// ends an invocation's loops after 65535 iterations in total; a GPU gets a budget that finishes
+// every ray at once.
 #include "common.glsl"
 
-// OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
-bool insertRay(vec3 o, vec3 e) {
-  uvec3 ko, ke;
-  if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
-      !coordToKeyChecked(o.z, ko.z))
-    return false;
-  if (!coordToKeyChecked(e.x, ke.x) || !coordToKeyChecked(e.y, ke.y) ||
-      !coordToKeyChecked(e.z, ke.z))
-    return false;
-  if (ko == ke) return true;
-  insertCell(packKey(ko));
+layout(std430, binding = 16) buffer WalkBuf { WalkState walks[]; };
 
+// The walk of this invocation's ray.
+int budget;
+uvec3 key_end;
+float len;
+int step[3];
+double t_max[3];
+double t_delta[3];
+uint cur[3];
+
+// Direction, length, steps and tDelta of the ray o -> e (and tMax when starting), as
+// computeRayKeys computes them.
+void setUp(vec3 o, vec3 e, bool start) {
   precise float dir[3];
   dir[0] = e.x - o.x;
   dir[1] = e.y - o.y;
   dir[2] = e.z - o.z;
-  float len = float(normOf(dir[0], dir[1], dir[2]));
+  len = float(normOf(dir[0], dir[1], dir[2]));
   dir[0] = divFloat(dir[0], len);
   dir[1] = divFloat(dir[1], len);
   dir[2] = divFloat(dir[2], len);
   float org[3] = float[3](o.x, o.y, o.z);
-
-  int step[3];
-  precise double t_max[3];
-  double t_delta[3];
-  uint cur[3] = uint[3](ko.x, ko.y, ko.z);
   const double kDoubleMax = 1.7976931348623157e308lf;
   for (int i = 0; i < 3; ++i) {
     step[i] = dir[i] > 0.0 ? 1 : (dir[i] < 0.0 ? -1 : 0);
     if (step[i] != 0) {
-      precise double border = keyToCoord(cur[i]);
-      precise double half_step = double(step[i]) * params.resolution * 0.5lf;
-      border += double(float(half_step));
-      t_max[i] = (border - double(org[i])) / double(dir[i]);
       t_delta[i] = params.resolution / double(abs(dir[i]));
+      if (start) {
+        precise double border = keyToCoord(cur[i]);
+        precise double half_step = double(step[i]) * params.resolution * 0.5lf;
+        border += double(float(half_step));
+        t_max[i] = (border - double(org[i])) / double(dir[i]);
+      }
     } else {
-      t_max[i] = kDoubleMax;
       t_delta[i] = kDoubleMax;
+      if (start) t_max[i] = kDoubleMax;
     }
   }
-  for (uint guard = 0u; guard < 3u * 65536u; ++guard) {
+}
+
+// Steps until the ray is done (true) or the budget of loop iterations (the walk's and the set's
+// probes) is spent (false).
+bool walk() {
+  while (budget - probes_spent > 0) {
+    --budget;
     int dim;
-    if (t_max[0] < t_max[1]) dim = t_max[0] < t_max[2] ? 0 : 2;
-    else dim = t_max[1] < t_max[2] ? 1 : 2;
+    if (t_max[0] < t_max[1])
+      dim = t_max[0] < t_max[2] ? 0 : 2;
+    else
+      dim = t_max[1] < t_max[2] ? 1 : 2;
     cur[dim] = uint(int(cur[dim]) + step[dim]) & 0xFFFFu;
     t_max[dim] += t_delta[dim];
-    if (cur[0] == ke.x && cur[1] == ke.y && cur[2] == ke.z) break;
+    if (cur[0] == key_end.x && cur[1] == key_end.y && cur[2] == key_end.z) return true;
     double m01 = t_max[1] < t_max[0] ? t_max[1] : t_max[0];
     double dist = t_max[2] < m01 ? t_max[2] : m01;
-    if (dist > double(len)) break;
-    if (insertCell(packKey(uvec3(cur[0], cur[1], cur[2]))) == 0xFFFFFFFFu) break;  // redone
+    if (dist > double(len)) return true;
+    // A full set ends the walk: the scan is redone with a larger one.
+    if (insertCell(packKey(uvec3(cur[0], cur[1], cur[2]))) == 0xFFFFFFFFu) return true;
   }
+  return false;
+}
+
+void save(uint list, vec3 e) {
+  uint at = atomicAdd(counters.walk_count[list], 1u);
+  if (at % kWorkgroupSize == 0u) atomicAdd(counters.walk_args[list].x, 1u);
+  walks[list * params.point_count + at] =
+      WalkState(t_max[0], t_max[1], t_max[2], e.x, e.y, e.z, cur[0] | (cur[1] << 16), cur[2], 0u);
+}
+
+// OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
+// False when an end lies outside the map (no free cells).
+bool insertRay(vec3 o, vec3 e) {
+  uvec3 ko;
+  if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
+      !coordToKeyChecked(o.z, ko.z))
+    return false;
+  if (!coordToKeyChecked(e.x, key_end.x) || !coordToKeyChecked(e.y, key_end.y) ||
+      !coordToKeyChecked(e.z, key_end.z))
+    return false;
+  if (ko == key_end) return true;
+  insertCell(packKey(ko));
+  cur = uint[3](ko.x, ko.y, ko.z);
+  setUp(o, e, true);
+  if (!walk()) save(0u, e);
   return true;
+}
+
+vec3 scanOrigin() { return vec3(params.origin_x, params.origin_y, params.origin_z); }
+
+void continueWalk(uint i) {
+  uint from = pc.offset;
+  if (i >= counters.walk_count[from]) return;
+  WalkState w = walks[from * params.point_count + i];
+  vec3 e = vec3(w.end_x, w.end_y, w.end_z);
+  vec3 o = scanOrigin();
+  coordToKeyChecked(e.x, key_end.x);
+  coordToKeyChecked(e.y, key_end.y);
+  coordToKeyChecked(e.z, key_end.z);
+  t_max = double[3](w.t_max_x, w.t_max_y, w.t_max_z);
+  cur = uint[3](w.key_xy & 0xFFFFu, w.key_xy >> 16, w.key_z);
+  setUp(o, e, false);
+  if (walk()) return;
+  // pc.count == 0 marks the last continuation: a walk still unfinished is an error, not a
+  // silently shortened ray.
+  if (pc.count == 0u) atomicOr(counters.status, kStatusRayCut);
+  else save(1u - from, e);
 }
 
 void main() {
   uint i = invocationIndex();
+  budget = int(pc.level);
+  if (pc.mode == 2u) {
+    continueWalk(i);
+    return;
+  }
   vec3 p;
   if (pc.mode == 0u) {
     if (i >= pc.count) return;
@@ -77,14 +142,13 @@ void main() {
     uvec3 kk = unpackKey(k);
     p = vec3(float(keyToCoord(kk.x)), float(keyToCoord(kk.y)), float(keyToCoord(kk.z)));
   }
-  vec3 o = vec3(params.origin_x, params.origin_y, params.origin_z);
+  vec3 o = scanOrigin();
   bool inserted = false;
   precise float dx = p.x - o.x;
   precise float dy = p.y - o.y;
   precise float dz = p.z - o.z;
   double dist = normOf(dx, dy, dz);
   if (params.max_range < 0.0lf || dist <= params.max_range) {
-    inserted = insertRay(o, p);
     uvec3 k;
     if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
         coordToKeyChecked(p.z, k.z)) {
@@ -92,6 +156,7 @@ void main() {
       if (s != 0xFFFFFFFFu) atomicOr(hash_flags[s], kHashFlagOccupied);
       inserted = true;
     }
+    inserted = insertRay(o, p) || inserted;
   } else {
     // Point3d::normalized() then origin + direction * (float) maxrange.
     if (dist > 0.0lf) {

@@ -35,6 +35,7 @@ OCTOVK_CONST uint kHashFlagOccupied = 2u;
 // Status bits in ScanCounters::status.
 OCTOVK_CONST uint kStatusHashFull = 1u;
 OCTOVK_CONST uint kStatusPoolFull = 2u;
+OCTOVK_CONST uint kStatusRayCut = 8u;  // a ray walk was stopped by the device's loop limit
 OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of the scan is full
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
@@ -101,7 +102,7 @@ struct ScanParams {
   float trans_x;            // 4B (92) sensor translation
   float trans_y;            // 4B (96)
   float trans_z;            // 4B (100)
-  uint pad0;                // 4B (104)
+  float occupancy_log;      // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
   uint pad1;                // 4B (108)
 };
 
@@ -139,13 +140,85 @@ struct ScanCounters {
   uint aborted;             // 4B (32)
   uint new_blocks;          // 4B (36)  distinct nodes that get a block of children this scan
   uint pruned_blocks;       // 4B (40)
-  uint pad0;                // 4B (44)
+  uint query_results;       // 4B (44)  entries written by a compacting query (leaves in a box)
   uint first_depth_hist[kLevelCount];      // 68B (48)  active cells by depth of the deepest existing node
   uint alloc_count[kLevelCount];           // 68B (116)
   uint touched_count[kLevelCount];         // 68B (184)
   uint pad1;                               // 4B (252)
   DispatchArgs alloc_args[kLevelCount];    // 204B (256)
   DispatchArgs touched_args[kLevelCount];  // 204B (460)
+  uint walk_count[2];                      // 8B (664) unfinished ray walks, two lists (ping-pong)
+  DispatchArgs walk_args[2];               // 24B (672)
+};
+
+// Cell states of a point lookup.
+OCTOVK_CONST uint kCellUnknown = 0u;
+OCTOVK_CONST uint kCellFree = 1u;
+OCTOVK_CONST uint kCellOccupied = 2u;
+
+// Result of one point lookup (OctoMap's search). 16 B.
+struct LookupResult {
+  uint state;      // 4B (0)  kCellUnknown / kCellFree / kCellOccupied
+  float log_odds;  // 4B (4)  of the node found (0 when unknown)
+  uint depth;      // 4B (8)  depth of the node found (0 when unknown)
+  uint pad0;       // 4B (12)
+};
+
+// One castRay query. 40 B.
+struct RayQuery {
+  double max_range;     // 8B (0)  <= 0: unlimited (OctoMap's maxRange)
+  float origin_x;       // 4B (8)
+  float origin_y;       // 4B (12)
+  float origin_z;       // 4B (16)
+  float direction_x;    // 4B (20)
+  float direction_y;    // 4B (24)
+  float direction_z;    // 4B (28)
+  uint ignore_unknown;  // 4B (32)
+  uint pad0;            // 4B (36)
+};
+
+// Result of one castRay. 16 B.
+struct RayResult {
+  uint hit;     // 4B (0)  1: an occupied cell was hit (castRay returned true)
+  float end_x;  // 4B (4)  OctoMap's `end`: centre of the last cell visited
+  float end_y;  // 4B (8)
+  float end_z;  // 4B (12)
+};
+
+// A ray walk of the ray-key pass, saved between segments. 48 B.
+struct WalkState {
+  double t_max_x;  // 8B (0)
+  double t_max_y;  // 8B (8)
+  double t_max_z;  // 8B (16)
+  float end_x;     // 4B (24) the ray's end point (its origin is the scan's)
+  float end_y;     // 4B (28)
+  float end_z;     // 4B (32)
+  uint key_xy;     // 4B (36) current cell
+  uint key_z;      // 4B (40)
+  uint pad0;       // 4B (44)
+};
+
+// A castRay walk between segments (see shaders/cast_ray.comp). 40 B.
+struct RayState {
+  double t_max_x;  // 8B (0)
+  double t_max_y;  // 8B (8)
+  double t_max_z;  // 8B (16)
+  uint key_x;      // 4B (24)
+  uint key_y;      // 4B (28)
+  uint key_z;      // 4B (32)
+  uint done;       // 4B (36) 1: the result is written
+};
+
+// Leaves-in-a-box query (OctoMap's leaf_bbx_iterator): keys of the box corners. 32 B.
+struct BoxQuery {
+  uint min_x;          // 4B (0)
+  uint min_y;          // 4B (4)
+  uint min_z;          // 4B (8)
+  uint max_x;          // 4B (12)
+  uint max_y;          // 4B (16)
+  uint max_z;          // 4B (20)
+  uint occupied_only;  // 4B (24)
+  uint pad0;           // 4B (28)
 };
 
 // Push constants shared by every pass. 16 B.
@@ -171,7 +244,10 @@ OCTOVK_CONST uint kBindTouched = 10u;
 OCTOVK_CONST uint kBindAllocList = 11u;
 OCTOVK_CONST uint kBindLeafBoxes = 12u;
 OCTOVK_CONST uint kBindEndpointKeys = 13u;
-OCTOVK_CONST uint kBindingCount = 14u;
+OCTOVK_CONST uint kBindQueryIn = 14u;
+OCTOVK_CONST uint kBindQueryOut = 15u;
+OCTOVK_CONST uint kBindWalks = 16u;
+OCTOVK_CONST uint kBindingCount = 17u;
 
 #ifdef __cplusplus
 }  // namespace octovk::gpu

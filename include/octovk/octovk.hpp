@@ -159,6 +159,44 @@ struct HostTree {
   std::vector<Node> nodes;
 };
 
+/// State of a cell as OctoMap's search() and isNodeOccupied() see it.
+enum class CellState : std::uint32_t { kUnknown = 0, kFree = 1, kOccupied = 2 };
+
+/// Result of a point lookup: the deepest existing node on the point's path (OctoMap's search,
+/// pruned nodes included). Unknown for points outside the map, NaN points and unmapped space.
+struct Lookup {
+  CellState state = CellState::kUnknown;
+  float log_odds = 0.0f;    ///< of the node found (0 when unknown)
+  std::uint32_t depth = 0;  ///< depth of the node found, 16 = finest (0 when unknown)
+};
+
+/// A castRay query, as OctoMap's castRay(origin, direction, end, ignore_unknown, max_range).
+struct Ray {
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  Eigen::Vector3f direction = Eigen::Vector3f::UnitX();  ///< need not be normalised
+  double max_range_m = -1.0;                             ///< <= 0: up to the map's border
+  bool ignore_unknown = false;                           ///< true: unknown cells count as free
+};
+
+/// Result of a castRay: OctoMap's return value and its `end` (the centre of the last cell
+/// visited). Where OctoMap leaves `end` untouched (origin outside the map, zero direction) it is
+/// the ray's origin.
+struct RayHit {
+  bool hit = false;
+  Eigen::Vector3f end = Eigen::Vector3f::Zero();
+};
+
+/// Queries to run right after a scan, in the same command stream.
+struct QueryRequest {
+  std::span<const Eigen::Vector3f> lookups;
+  std::span<const Ray> rays;
+};
+
+struct QueryResults {
+  std::vector<Lookup> lookups;
+  std::vector<RayHit> rays;
+};
+
 /// The occupancy octree, held in device buffers. Not copyable; movable.
 class OccupancyMap {
  public:
@@ -181,6 +219,27 @@ class OccupancyMap {
                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
                              double max_range_m = -1.0, bool discretize = false);
 
+  /// One leaf: centre, edge length, log-odds.
+  struct LeafBoxHost {
+    float center[3];
+    float size;
+    float log_odds;
+  };
+  /// The same scan, then `queries` on the updated map, recorded in the same command stream (no
+  /// host round trip between the update and the queries).
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, double max_range_m,
+                             bool discretize, const QueryRequest& queries, QueryResults& results);
+
+  /// OctoMap's search() for each point, on the device.
+  std::vector<Lookup> search(std::span<const Eigen::Vector3f> points) const;
+  /// OctoMap's castRay for each ray, on the device.
+  std::vector<RayHit> castRays(std::span<const Ray> rays) const;
+  /// The leaves OctoMap's leaf_bbx_iterator(min, max) visits (all, or only the occupied ones),
+  /// compacted on the device and downloaded. Empty if a corner lies outside the map.
+  std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                                       bool occupied_only = false) const;
+
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;
   /// Device bytes held by this map's buffers.
@@ -199,11 +258,6 @@ class OccupancyMap {
   void upload(const HostTree& tree);
 
   /// The leaf boxes (centre, size, log-odds) of the map, downloaded.
-  struct LeafBoxHost {
-    float center[3];
-    float size;
-    float log_odds;
-  };
   std::vector<LeafBoxHost> downloadLeafBoxes() const;
 
   class Impl;

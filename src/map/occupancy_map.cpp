@@ -34,6 +34,7 @@ gpu::ScanCounters freshCounters() {
   gpu::ScanCounters c{};
   for (auto& a : c.alloc_args) a = {0, 1, 1};
   for (auto& a : c.touched_args) a = {0, 1, 1};
+  for (auto& a : c.walk_args) a = {0, 1, 1};
   return c;
 }
 
@@ -50,7 +51,9 @@ class OccupancyMap::Impl {
     counters_buf_ = vk::Buffer(device_, sizeof(gpu::ScanCounters), false);
     pool_buf_ = vk::Buffer(device_, sizeof(gpu::PoolState), false);
     readback_ = vk::Buffer(device_, sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState), true);
+    ensureQueryBuffers(64, 64);
     points_buf_ = vk::Buffer(device_, 16, false);
+    walks_ = vk::Buffer(device_, 16, false);
     upload_ = vk::Buffer(device_, 16, true);
     allocateEndpoints(kInitialHashLog2);
     allocateHash(kInitialHashLog2);
@@ -60,7 +63,11 @@ class OccupancyMap::Impl {
   }
 
   ScanStats insert(std::span<const Eigen::Vector3f> points, const Eigen::Vector3f& origin,
-                   const Pose* pose, double max_range, bool discretize);
+                   const Pose* pose, double max_range, bool discretize,
+                   const QueryRequest* queries = nullptr, QueryResults* results = nullptr);
+  QueryResults runQueries(const QueryRequest& queries);
+  std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                                       bool occupied_only);
   HostTree download();
   void upload(const HostTree& tree);
   std::vector<LeafBoxHost> downloadLeafBoxes();
@@ -101,6 +108,10 @@ class OccupancyMap::Impl {
   void recordLeafBoxes();
   void recordReadback();
   void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
+  void stageQueries(const QueryRequest& queries);
+  void recordQueries(const QueryRequest& queries);
+  QueryResults collectQueries(const QueryRequest& queries);
+  void ensureQueryBuffers(std::size_t in_bytes, std::size_t out_bytes);
 
   void dispatch(const char* pass, std::size_t items, PassConstants pc = {}) {
     stream_.dispatch(device_.pass(pass), groupsFor(items), &pc, sizeof(pc));
@@ -117,6 +128,8 @@ class OccupancyMap::Impl {
   vk::Buffer hash_keys_, hash_flags_, cells_, endpoint_keys_;
   vk::Buffer touched_, alloc_list_;
   vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
+  vk::Buffer query_in_, query_out_, query_staging_in_, query_staging_out_;
+  vk::Buffer walks_;  // ray walks saved between segments (two lists of point_capacity_)
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;
   std::uint32_t pool_blocks_ = 0;
@@ -190,11 +203,11 @@ void OccupancyMap::Impl::resetPool() {
 }
 
 void OccupancyMap::Impl::rebind() {
-  if (!nodes_.valid() || !hash_keys_.valid() || !touched_.valid()) return;
+  if (!nodes_.valid() || !hash_keys_.valid() || !touched_.valid() || !query_in_.valid()) return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
-      &params_buf_, &counters_buf_, &pool_buf_,   &points_buf_,   &hash_keys_,
-      &hash_flags_, &nodes_,        &block_meta_, &free_stack_,   &cells_,
-      &touched_,    &alloc_list_,   &leaf_boxes_, &endpoint_keys_};
+      &params_buf_, &counters_buf_,  &pool_buf_,   &points_buf_, &hash_keys_, &hash_flags_,
+      &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &alloc_list_,
+      &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_};
   bindings_.update(buffers);
 }
 
@@ -203,17 +216,38 @@ void OccupancyMap::Impl::ensurePoints(std::size_t count) {
   const std::size_t cap = std::max(count, point_capacity_ * 2);
   vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
   vk::Buffer staging(device_, cap * 3 * sizeof(float), true);
+  vk::Buffer walks(device_, 2 * cap * sizeof(gpu::WalkState), false);
   points_buf_ = std::move(device_points);
   upload_ = std::move(staging);
+  walks_ = std::move(walks);
   point_capacity_ = cap;
+  rebind();
+}
+
+void OccupancyMap::Impl::ensureQueryBuffers(std::size_t in_bytes, std::size_t out_bytes) {
+  in_bytes = std::max<std::size_t>(in_bytes, 64);
+  out_bytes = std::max<std::size_t>(out_bytes, 64);
+  if (query_in_.size() < in_bytes) {
+    vk::Buffer device_in(device_, in_bytes, false);
+    vk::Buffer staging(device_, in_bytes, true);
+    query_in_ = std::move(device_in);
+    query_staging_in_ = std::move(staging);
+  }
+  if (query_out_.size() < out_bytes) {
+    vk::Buffer device_out(device_, out_bytes, false);
+    vk::Buffer staging(device_, out_bytes, true);
+    query_out_ = std::move(device_out);
+    query_staging_out_ = std::move(staging);
+  }
   rebind();
 }
 
 std::size_t OccupancyMap::Impl::deviceBytes() const {
   std::size_t total = 0;
-  for (const vk::Buffer* b : {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_,
-                              &hash_flags_, &cells_, &endpoint_keys_, &touched_, &alloc_list_,
-                              &nodes_, &block_meta_, &free_stack_, &leaf_boxes_})
+  for (const vk::Buffer* b :
+       {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_, &cells_,
+        &endpoint_keys_, &touched_, &alloc_list_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
+        &query_in_, &query_out_, &walks_})
     total += b->size();
   return total;
 }
@@ -239,6 +273,7 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
   sp.endpoint_capacity = 1u << endpoint_log2_;
   sp.endpoint_log2 = endpoint_log2_;
   sp.active_capacity = static_cast<std::uint32_t>(active_capacity_);
+  sp.occupancy_log = logs_.occupancy;
   if (pose) {
     sp.rot_u = pose->rotation.w();
     sp.rot_x = pose->rotation.x();
@@ -263,11 +298,32 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   stream_.barrier();
   stream_.timestamp();
   if (transform) dispatch("transform_points", sp.point_count, {0, sp.point_count, 0, 0});
+  // lavapipe ends an invocation's loops after 65535 iterations in total (silently, and counted for
+  // 8 lanes at once): there a walk stops after 30000 of its own iterations (steps and hash probes)
+  // and is continued by up to 24 more dispatches, each over the walks left unfinished (3 * 65536
+  // steps reach any border). A walk still unfinished after them is reported. A GPU walks every
+  // ray in one go.
+  const bool loop_limited = device_.info().type == "CPU";
+  const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
   if (discretize) {
     dispatch("discretize", sp.point_count, {0, sp.point_count, 0, 0});
-    dispatch("ray_keys", sp.endpoint_capacity, {0, sp.endpoint_capacity, 1, 0});
+    dispatch("ray_keys", sp.endpoint_capacity, {budget, sp.endpoint_capacity, 1, 0});
   } else {
-    dispatch("ray_keys", sp.point_count, {0, sp.point_count, 0, 0});
+    dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 0, 0});
+  }
+  const std::uint32_t continuations = loop_limited ? 24u : 0u;
+  const vk::Pass& ray_keys = device_.pass("ray_keys");
+  for (std::uint32_t round = 0; round < continuations; ++round) {
+    const std::uint32_t from = round % 2, to = 1 - from;
+    stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count) + 4 * to, 4);
+    stream_.fill(counters_buf_, 0u,
+                 offsetof(gpu::ScanCounters, walk_args) + to * sizeof(gpu::DispatchArgs), 4);
+    stream_.barrier();
+    const PassConstants pc{budget, round + 1 < continuations ? 1u : 0u, 2, from};
+    stream_.dispatchIndirect(
+        ray_keys, counters_buf_,
+        offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs), &pc, sizeof(pc));
+    stream_.barrier();
   }
 }
 
@@ -341,7 +397,8 @@ gpu::PoolState OccupancyMap::Impl::readPool() {
 
 ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
                                      const Eigen::Vector3f& origin, const Pose* pose,
-                                     double max_range, bool discretize) {
+                                     double max_range, bool discretize, const QueryRequest* queries,
+                                     QueryResults* results) {
   const auto start = std::chrono::steady_clock::now();
   if (!origin.allFinite())
     throw Error(ErrorCode::kInvalidArgument,
@@ -362,6 +419,7 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
   gpu::ScanCounters counters{};
   gpu::PoolState pool{};
   if (points.empty()) {
+    if (queries) *results = runQueries(*queries);
     pool = readPool();
     stats.nodes = pool.root_exists ? pool.live_nodes : 0;
     return stats;
@@ -387,6 +445,12 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     t1 = stream_.timestampsNs();
     ++stats.cell_set_attempts;
     readBack(counters, pool);
+    if (counters.status & gpu::kStatusRayCut)
+      throw Error(ErrorCode::kMissingFeature,
+                  "insertPointCloud: a ray crosses more cells than octovk walks on the device '" +
+                      device_.info().name +
+                      "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
+                      "or a max range");
     if (counters.status & gpu::kStatusHashFull) {
       if (hash_log2_ >= 30)
         throw Error(ErrorCode::kOutOfDeviceMemory,
@@ -442,7 +506,9 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     }
     if (active > active_capacity_) allocateLists(std::size_t{1} << nextPow2Log2(active));
 
-    // Pass group 2: the tree update, pruning and the leaf-box rebuild.
+    if (queries) stageQueries(*queries);
+
+    // Pass group 2: the tree update, pruning and the leaf-box rebuild (then the queries).
     const gpu::ScanParams sp = scanParams(origin, pose, max_range, points.size());
     stream_.begin(bindings_);
     stream_.update(params_buf_, &sp, sizeof(sp));
@@ -454,8 +520,16 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     recordTreeUpdate(active, first_level);
     if (leaf_boxes_every_scan_) recordLeafBoxes();
     leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
+    if (queries) {
+      stream_.barrier();
+      recordQueries(*queries);
+    }
     recordReadback();
     stream_.submitAndWait();
+    if (queries) {
+      *results = collectQueries(*queries);
+      queries = nullptr;  // answered
+    }
     if (const auto t2 = stream_.timestampsNs(); t2.size() >= 3) {
       stats.device.tree_update_ms = (t2[1] - t2[0]) * 1e-6;
       stats.device.prune_ms = (t2[2] - t2[1]) * 1e-6;
@@ -467,10 +541,140 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
                   "internal error: the node pool ran out during a scan despite its size check; "
                   "please report this with the input");
   }
+  // A scan that changed nothing still answers its queries.
+  if (queries) *results = runQueries(*queries);
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
   stats.wall_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;
+}
+
+// ---- queries ---------------------------------------------------------------------------------
+// One batch: the rays, then the lookup points, in the input; their results in the same order in
+// the output.
+
+void OccupancyMap::Impl::stageQueries(const QueryRequest& q) {
+  const std::size_t ray_bytes = q.rays.size() * sizeof(gpu::RayQuery);
+  const std::size_t point_bytes = q.lookups.size() * 3 * sizeof(float);
+  const std::size_t out_bytes = (q.rays.size() + q.lookups.size()) * sizeof(gpu::RayResult) +
+                                q.rays.size() * sizeof(gpu::RayState);
+  static_assert(sizeof(gpu::RayResult) == sizeof(gpu::LookupResult));
+  ensureQueryBuffers(ray_bytes + point_bytes, out_bytes);
+  auto* bytes = static_cast<unsigned char*>(query_staging_in_.mapped());
+  for (std::size_t i = 0; i < q.rays.size(); ++i) {
+    const Ray& r = q.rays[i];
+    gpu::RayQuery g{};
+    g.max_range = r.max_range_m;
+    g.origin_x = r.origin.x();
+    g.origin_y = r.origin.y();
+    g.origin_z = r.origin.z();
+    g.direction_x = r.direction.x();
+    g.direction_y = r.direction.y();
+    g.direction_z = r.direction.z();
+    g.ignore_unknown = r.ignore_unknown ? 1u : 0u;
+    std::memcpy(bytes + i * sizeof(g), &g, sizeof(g));
+  }
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
+  if (point_bytes) std::memcpy(bytes + ray_bytes, q.lookups.data(), point_bytes);
+}
+
+void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
+  const auto rays = static_cast<std::uint32_t>(q.rays.size());
+  const auto points = static_cast<std::uint32_t>(q.lookups.size());
+  const std::size_t in_bytes = rays * sizeof(gpu::RayQuery) + points * 3 * sizeof(float);
+  const gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+  stream_.update(params_buf_, &sp, sizeof(sp));
+  stream_.copy(query_staging_in_, query_in_, in_bytes);
+  stream_.barrier();
+  if (rays) {
+    // The walk states follow the results in the output buffer.
+    const auto state_word =
+        static_cast<std::uint32_t>((rays + points) * sizeof(gpu::RayResult) / 4);
+    // lavapipe ends an invocation's loops after 65535 iterations in total, so there the walk runs
+    // in segments of 30000 (see recordRayKeys); the longest castRay (3 * 65536 steps, each with a
+    // search of up to 17 iterations) then needs 112 continuations, over ever fewer rays. A GPU
+    // walks each ray in one segment.
+    const bool loop_limited = device_.info().type == "CPU";
+    const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
+    const std::uint32_t continuations =
+        loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
+    dispatch("cast_ray", rays, {budget, rays, 0, state_word});
+    for (std::uint32_t c = 0; c < continuations; ++c)
+      dispatch("cast_ray", rays, {budget, rays, 1, state_word});
+  }
+  if (points) {
+    const auto first_float =
+        static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float));
+    dispatch("lookup", points, {rays, points, 0, first_float});
+  }
+  stream_.copy(query_out_, query_staging_out_, (rays + points) * sizeof(gpu::RayResult));
+}
+
+QueryResults OccupancyMap::Impl::collectQueries(const QueryRequest& q) {
+  QueryResults out;
+  const auto* bytes = static_cast<const unsigned char*>(query_staging_out_.mapped());
+  out.rays.resize(q.rays.size());
+  for (std::size_t i = 0; i < q.rays.size(); ++i) {
+    gpu::RayResult r;
+    std::memcpy(&r, bytes + i * sizeof(r), sizeof(r));
+    out.rays[i] = {r.hit != 0, Eigen::Vector3f(r.end_x, r.end_y, r.end_z)};
+  }
+  out.lookups.resize(q.lookups.size());
+  for (std::size_t i = 0; i < q.lookups.size(); ++i) {
+    gpu::LookupResult r;
+    std::memcpy(&r, bytes + (q.rays.size() + i) * sizeof(r), sizeof(r));
+    out.lookups[i] = {static_cast<CellState>(r.state), r.log_odds, r.depth};
+  }
+  return out;
+}
+
+QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
+  if (q.rays.empty() && q.lookups.empty()) return {};
+  if (q.rays.size() + q.lookups.size() > 0x7FFFFFFFu)
+    throw Error(ErrorCode::kInvalidArgument, "queries: more than 2^31 queries in one batch");
+  stageQueries(q);
+  stream_.begin(bindings_);
+  recordQueries(q);
+  stream_.submitAndWait();
+  return collectQueries(q);
+}
+
+std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eigen::Vector3f& min,
+                                                                       const Eigen::Vector3f& max,
+                                                                       bool occupied_only) {
+  gpu::BoxQuery box{};
+  const double factor = 1.0 / params_.resolution;
+  if (!ref::coordToKeyChecked(factor, min.x(), box.min_x) ||
+      !ref::coordToKeyChecked(factor, min.y(), box.min_y) ||
+      !ref::coordToKeyChecked(factor, min.z(), box.min_z) ||
+      !ref::coordToKeyChecked(factor, max.x(), box.max_x) ||
+      !ref::coordToKeyChecked(factor, max.y(), box.max_y) ||
+      !ref::coordToKeyChecked(factor, max.z(), box.max_z))
+    return {};  // as OctoMap's iterator: a corner outside the map gives no leaves
+  box.occupied_only = occupied_only ? 1u : 0u;
+  ensureQueryBuffers(sizeof(box), std::size_t{pool_blocks_} * 8 * sizeof(gpu::LeafBox));
+  const gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+  stream_.begin(bindings_);
+  stream_.update(params_buf_, &sp, sizeof(sp));
+  stream_.update(query_in_, &box, sizeof(box));
+  stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, query_results),
+               sizeof(std::uint32_t));
+  stream_.barrier();
+  dispatch("leaf_boxes", pool_blocks_, {0, 0, 1, 0});
+  recordReadback();
+  stream_.submitAndWait();
+  gpu::ScanCounters counters;
+  gpu::PoolState pool;
+  readBack(counters, pool);
+  std::vector<LeafBoxHost> out(counters.query_results);
+  if (out.empty()) return out;
+  const std::size_t bytes = out.size() * sizeof(gpu::LeafBox);
+  stream_.begin(bindings_);
+  stream_.copy(query_out_, query_staging_out_, bytes);
+  stream_.submitAndWait();
+  static_assert(sizeof(LeafBoxHost) == sizeof(gpu::LeafBox));
+  std::memcpy(out.data(), query_staging_out_.mapped(), bytes);
+  return out;
 }
 
 // ---- explicit transfers ----------------------------------------------------------------------
@@ -599,6 +803,28 @@ ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points
                                          bool discretize) {
   const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
   return impl_->insert(points_sensor, origin_world, &T_world_sensor, max_range_m, discretize);
+}
+
+ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                                         const Eigen::Vector3f& origin_world, double max_range_m,
+                                         bool discretize, const QueryRequest& queries,
+                                         QueryResults& results) {
+  return impl_->insert(points_world, origin_world, nullptr, max_range_m, discretize, &queries,
+                       &results);
+}
+
+std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points) const {
+  return impl_->runQueries({points, {}}).lookups;
+}
+
+std::vector<RayHit> OccupancyMap::castRays(std::span<const Ray> rays) const {
+  return impl_->runQueries({{}, rays}).rays;
+}
+
+std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::leavesInBox(const Eigen::Vector3f& min,
+                                                                 const Eigen::Vector3f& max,
+                                                                 bool occupied_only) const {
+  return impl_->leavesInBox(min, max, occupied_only);
 }
 
 std::size_t OccupancyMap::nodeCount() const {

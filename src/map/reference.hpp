@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
 
 #include "octovk/octovk.hpp"
 
@@ -19,5 +20,13 @@ struct LogOddsParams {
             logodds(p.clamping_max), logodds(p.occupancy_threshold)};
   }
 };
+
+/// OcTreeBaseImpl::coordToKeyChecked for one coordinate (NaN and out-of-map fail).
+inline bool coordToKeyChecked(double resolution_factor, float coordinate, std::uint32_t& key) {
+  const double scaled = std::floor(resolution_factor * coordinate);
+  if (!(scaled >= -32768.0 && scaled < 32768.0)) return false;
+  key = static_cast<std::uint32_t>(static_cast<int>(scaled) + 32768);
+  return true;
+}
 
 }  // namespace octovk::ref

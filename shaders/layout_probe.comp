@@ -1,0 +1,221 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Layout probe for tests/layout_test.cpp, never run by the library: one invocation writes a
+// distinct marker into every field of every shared struct through the shared bindings (element 0
+// and 1 of the arrays, for the stride), and copies the push constants and a few constants out, so
+// the test can check that each lands at its C++ offsetof. Marker of field `id`: uint
+// 0xC0DE0000 + id, float id + 0.5, double id + 0.25, uint64 0xC0DE0000C0DE0000 + id.
+#include "common.glsl"
+
+// The query bindings, which each query pass views its own way: here every query struct at once
+// (two elements each, for the stride).
+layout(std430, binding = 14) buffer QueryInBuf {
+  RayQuery probe_rays[2];
+  BoxQuery probe_box;
+  RayState probe_states[2];
+};
+layout(std430, binding = 15) buffer QueryOutBuf {
+  LookupResult probe_lookups[2];
+  RayResult probe_ray_results[2];
+};
+// The saved ray walks of the ray-key pass.
+layout(std430, binding = 16) buffer WalkBuf { WalkState probe_walks[]; };
+
+uint mu(uint id) { return 0xC0DE0000u + id; }
+float mf(uint id) { return float(id) + 0.5; }
+double md(uint id) { return double(id) + 0.25lf; }
+uint64_t m64(uint id) { return 0xC0DE0000C0DE0000ul + uint64_t(id); }
+
+void probeNode(uint i, uint id) {
+  nodes[i].log_odds = mf(id);
+  nodes[i].children = mu(id + 1u);
+  nodes[i].mask = mu(id + 2u);
+}
+
+void probeBlockMeta(uint i, uint id) {
+  block_meta[i].parent = mu(id);
+  block_meta[i].depth = mu(id + 1u);
+  block_meta[i].key_xy = mu(id + 2u);
+  block_meta[i].key_z = mu(id + 3u);
+}
+
+void probeActiveCell(uint i, uint id) {
+  cells[i].slot = mu(id);
+  cells[i].node = mu(id + 1u);
+  cells[i].pending = mu(id + 2u);
+  cells[i].depth = mu(id + 3u);
+}
+
+void probeAllocRequest(uint i, uint id) {
+  alloc_list[i].node = mu(id);
+  alloc_list[i].cell = mu(id + 1u);
+}
+
+void probeLeafBox(uint i, uint id) {
+  leaf_boxes[i].center_x = mf(id);
+  leaf_boxes[i].center_y = mf(id + 1u);
+  leaf_boxes[i].center_z = mf(id + 2u);
+  leaf_boxes[i].size = mf(id + 3u);
+  leaf_boxes[i].log_odds = mf(id + 4u);
+}
+
+void main() {
+  if (invocationIndex() != 0u) return;
+
+  // ScanParams: 100 + field index.
+  params.resolution = md(100u);
+  params.resolution_factor = md(101u);
+  params.max_range = md(102u);
+  params.origin_x = mf(103u);
+  params.origin_y = mf(104u);
+  params.origin_z = mf(105u);
+  params.prob_hit_log = mf(106u);
+  params.prob_miss_log = mf(107u);
+  params.clamp_min_log = mf(108u);
+  params.clamp_max_log = mf(109u);
+  params.point_count = mu(110u);
+  params.hash_capacity = mu(111u);
+  params.hash_log2 = mu(112u);
+  params.endpoint_capacity = mu(113u);
+  params.endpoint_log2 = mu(114u);
+  params.rot_u = mf(115u);
+  params.rot_x = mf(116u);
+  params.rot_y = mf(117u);
+  params.rot_z = mf(118u);
+  params.active_capacity = mu(119u);
+  params.trans_x = mf(120u);
+  params.trans_y = mf(121u);
+  params.trans_z = mf(122u);
+  params.occupancy_log = mf(123u);
+  params.pad1 = mu(124u);
+
+  // ScanCounters: scalars 200 + field index; arrays from 300, 320, 340; pad1 360; walk_count
+  // 370 + list, walk_args 380 + 3 * list + component; alloc_args 400 + 3 * level + component,
+  // touched_args 500 + 3 * level + component.
+  counters.status = mu(200u);
+  counters.hash_entries = mu(201u);
+  counters.endpoint_entries = mu(202u);
+  counters.active_cells = mu(203u);
+  counters.skipped_nonfinite = mu(204u);
+  counters.skipped_outside = mu(205u);
+  counters.occupied_cells = mu(206u);
+  counters.free_cells = mu(207u);
+  counters.aborted = mu(208u);
+  counters.new_blocks = mu(209u);
+  counters.pruned_blocks = mu(210u);
+  counters.query_results = mu(211u);
+  for (uint l = 0u; l < kLevelCount; ++l) {
+    counters.first_depth_hist[l] = mu(300u + l);
+    counters.alloc_count[l] = mu(320u + l);
+    counters.touched_count[l] = mu(340u + l);
+    counters.alloc_args[l].x = mu(400u + 3u * l);
+    counters.alloc_args[l].y = mu(401u + 3u * l);
+    counters.alloc_args[l].z = mu(402u + 3u * l);
+    counters.touched_args[l].x = mu(500u + 3u * l);
+    counters.touched_args[l].y = mu(501u + 3u * l);
+    counters.touched_args[l].z = mu(502u + 3u * l);
+  }
+  counters.pad1 = mu(360u);
+  for (uint w = 0u; w < 2u; ++w) {
+    counters.walk_count[w] = mu(370u + w);
+    counters.walk_args[w].x = mu(380u + 3u * w);
+    counters.walk_args[w].y = mu(381u + 3u * w);
+    counters.walk_args[w].z = mu(382u + 3u * w);
+  }
+
+  // PoolState: 600 + field index.
+  pool.bump = mu(600u);
+  pool.capacity = mu(601u);
+  pool.free_count = mu(602u);
+  pool.pops = mu(603u);
+  pool.root_exists = mu(604u);
+  pool.leaf_count = mu(605u);
+  pool.live_nodes = mu(606u);
+  pool.pad0 = mu(607u);
+
+  // Arrays of structs: element 0 at 700 + 10 * struct, element 1 five further.
+  probeNode(0u, 700u);
+  probeNode(1u, 705u);
+  probeBlockMeta(0u, 710u);
+  probeBlockMeta(1u, 715u);
+  probeActiveCell(0u, 720u);
+  probeActiveCell(1u, 725u);
+  probeAllocRequest(0u, 730u);
+  probeAllocRequest(1u, 735u);
+  probeLeafBox(0u, 740u);
+  probeLeafBox(1u, 750u);
+
+  // Query structs: RayQuery 900 + 10 * element, BoxQuery 920, LookupResult 930 + 5 * element,
+  // RayResult 940 + 5 * element, RayState 960 + 10 * element.
+  for (uint e = 0u; e < 2u; ++e) {
+    uint id = 900u + 10u * e;
+    probe_rays[e].max_range = md(id);
+    probe_rays[e].origin_x = mf(id + 1u);
+    probe_rays[e].origin_y = mf(id + 2u);
+    probe_rays[e].origin_z = mf(id + 3u);
+    probe_rays[e].direction_x = mf(id + 4u);
+    probe_rays[e].direction_y = mf(id + 5u);
+    probe_rays[e].direction_z = mf(id + 6u);
+    probe_rays[e].ignore_unknown = mu(id + 7u);
+    probe_rays[e].pad0 = mu(id + 8u);
+    id = 930u + 5u * e;
+    probe_lookups[e].state = mu(id);
+    probe_lookups[e].log_odds = mf(id + 1u);
+    probe_lookups[e].depth = mu(id + 2u);
+    probe_lookups[e].pad0 = mu(id + 3u);
+    id = 940u + 5u * e;
+    probe_ray_results[e].hit = mu(id);
+    probe_ray_results[e].end_x = mf(id + 1u);
+    probe_ray_results[e].end_y = mf(id + 2u);
+    probe_ray_results[e].end_z = mf(id + 3u);
+  }
+  for (uint e = 0u; e < 2u; ++e) {
+    uint id = 960u + 10u * e;
+    probe_states[e].t_max_x = md(id);
+    probe_states[e].t_max_y = md(id + 1u);
+    probe_states[e].t_max_z = md(id + 2u);
+    probe_states[e].key_x = mu(id + 3u);
+    probe_states[e].key_y = mu(id + 4u);
+    probe_states[e].key_z = mu(id + 5u);
+    probe_states[e].done = mu(id + 6u);
+  }
+  probe_box.min_x = mu(920u);
+  probe_box.min_y = mu(921u);
+  probe_box.min_z = mu(922u);
+  probe_box.max_x = mu(923u);
+  probe_box.max_y = mu(924u);
+  probe_box.max_z = mu(925u);
+  probe_box.occupied_only = mu(926u);
+  probe_box.pad0 = mu(927u);
+
+  // WalkState: 1000 + 10 * element.
+  for (uint e = 0u; e < 2u; ++e) {
+    uint id = 1000u + 10u * e;
+    probe_walks[e].t_max_x = md(id);
+    probe_walks[e].t_max_y = md(id + 1u);
+    probe_walks[e].t_max_z = md(id + 2u);
+    probe_walks[e].end_x = mf(id + 3u);
+    probe_walks[e].end_y = mf(id + 4u);
+    probe_walks[e].end_z = mf(id + 5u);
+    probe_walks[e].key_xy = mu(id + 6u);
+    probe_walks[e].key_z = mu(id + 7u);
+    probe_walks[e].pad0 = mu(id + 8u);
+  }
+
+  // Arrays of scalars: element 1.
+  points[1] = mf(800u);
+  hash_keys[1] = m64(801u);
+  hash_flags[1] = mu(802u);
+  free_stack[1] = mu(803u);
+  endpoint_keys[1] = m64(804u);
+
+  // Push constants and shared constants, as the shader sees them.
+  touched[0] = pc.level;
+  touched[1] = pc.count;
+  touched[2] = pc.mode;
+  touched[3] = pc.offset;
+  touched[4] = gl_WorkGroupSize.x;
+  touched[5] = kLevelCount;
+  touched[6] = kTreeDepth;
+  touched[7] = kNoBlock;
+}

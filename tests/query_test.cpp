@@ -1,0 +1,202 @@
+// Queries against OctoMap on the same maps: point lookups (search), castRay and the leaves of a
+// bounding box must give exactly OctoMap's answers.
+#include <octomap/octomap.h>
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include "test_support.hpp"
+
+namespace octovk {
+namespace {
+
+struct Built {
+  std::unique_ptr<OccupancyMap> map;
+  std::unique_ptr<octomap::OcTree> tree;
+  octomap::OcTree& oracle() { return *tree; }
+};
+
+// A map from a few random scans in a room-sized region, the same in both.
+Built buildMap(Context& ctx, double resolution, unsigned seed) {
+  Built b;
+  MapParams params;
+  params.resolution = resolution;
+  b.map = std::make_unique<OccupancyMap>(ctx, params);
+  b.tree = std::make_unique<octomap::OcTree>(resolution);  // OctoMap's defaults, as params
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int scan = 0; scan < 4; ++scan) {
+    const Eigen::Vector3f origin(0.3f * static_cast<float>(scan), 0.1f, 0.0f);
+    std::vector<Eigen::Vector3f> pts;
+    for (int i = 0; i < 800; ++i) {
+      Eigen::Vector3f d(u(rng), u(rng), 0.3f * u(rng));
+      if (d.norm() < 1e-3f) continue;
+      pts.push_back(origin + d.normalized() * (1.5f + 0.5f * u(rng)));
+    }
+    b.map->insertPointCloud(pts, origin);
+    b.oracle().insertPointCloud(test::toPointcloud(pts),
+                                octomap::point3d(origin.x(), origin.y(), origin.z()));
+  }
+  return b;
+}
+
+std::vector<Ray> randomRays(std::mt19937& rng, double resolution, std::size_t n) {
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Ray> rays;
+  const float r = static_cast<float>(resolution);
+  for (std::size_t i = 0; i < n; ++i) {
+    Ray ray;
+    switch (i % 6) {
+      case 0:  // from inside free space, random direction
+        ray.origin = {0.2f * u(rng), 0.2f * u(rng), 0.1f * u(rng)};
+        ray.direction = {u(rng), u(rng), u(rng)};
+        break;
+      case 1:  // along an axis
+        ray.origin = {0.1f * u(rng), 0.1f * u(rng), 0.0f};
+        ray.direction =
+            Eigen::Vector3f::Unit(static_cast<int>(i / 6 % 3)) * (u(rng) < 0 ? -1.f : 1.f);
+        break;
+      case 2:  // from a voxel border, along a diagonal
+        ray.origin = {r * std::round(5 * u(rng)), r * std::round(5 * u(rng)), 0.0f};
+        ray.direction = {1.0f, u(rng) < 0 ? -1.0f : 1.0f, 0.0f};
+        break;
+      case 3:  // starting in unknown space outside the scanned region
+        ray.origin = {5.0f * u(rng), 5.0f * u(rng), 2.0f + u(rng)};
+        ray.direction = {u(rng), u(rng), u(rng)};
+        break;
+      case 4:  // with a max range
+        ray.origin = {0.1f * u(rng), 0.1f * u(rng), 0.0f};
+        ray.direction = {u(rng), u(rng), 0.2f * u(rng)};
+        ray.max_range_m = 0.5 + std::abs(u(rng));
+        break;
+      default:  // outward from the scanned region, where unknown space follows
+        ray.origin = {0.0f, 0.0f, 0.0f};
+        ray.direction = {u(rng), u(rng), 0.5f * u(rng)};
+        break;
+    }
+    ray.ignore_unknown = (i / 2) % 2 == 1;
+    if (ray.direction.norm() < 1e-3f) ray.direction = Eigen::Vector3f::UnitX();
+    rays.push_back(ray);
+  }
+  return rays;
+}
+
+class Queries : public ::testing::TestWithParam<std::tuple<double, unsigned>> {};
+
+TEST_P(Queries, LookupsEqualOctoMapSearch) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const auto [resolution, seed] = GetParam();
+  Built b = buildMap(ctx, resolution, seed);
+  std::mt19937 rng(seed + 100);
+  std::uniform_real_distribution<float> u(-2.2f, 2.2f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 3000; ++i) pts.emplace_back(u(rng), u(rng), 0.2f * u(rng));
+  pts.emplace_back(std::nanf(""), 0.0f, 0.0f);
+  pts.emplace_back(1e9f, 0.0f, 0.0f);
+  const auto got = b.map->search(pts);
+  ASSERT_EQ(got.size(), pts.size());
+  std::size_t known = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const octomap::OcTreeNode* node = b.oracle().search(pts[i].x(), pts[i].y(), pts[i].z());
+    if (!node) {
+      EXPECT_EQ(got[i].state, CellState::kUnknown) << "point " << i;
+      continue;
+    }
+    ++known;
+    const CellState want =
+        b.oracle().isNodeOccupied(node) ? CellState::kOccupied : CellState::kFree;
+    EXPECT_EQ(got[i].state, want) << "point " << i;
+    EXPECT_EQ(got[i].log_odds, node->getLogOdds()) << "point " << i;
+  }
+  EXPECT_GT(known, pts.size() / 10);  // the test looks at mapped space, not only unknown
+}
+
+TEST_P(Queries, CastRayEqualsOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const auto [resolution, seed] = GetParam();
+  Built b = buildMap(ctx, resolution, seed);
+  std::mt19937 rng(seed + 200);
+  const auto rays = randomRays(rng, resolution, 3000);
+  const auto got = b.map->castRays(rays);
+  ASSERT_EQ(got.size(), rays.size());
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const Ray& r = rays[i];
+    octomap::point3d end(r.origin.x(), r.origin.y(), r.origin.z());
+    const bool hit =
+        b.oracle().castRay(octomap::point3d(r.origin.x(), r.origin.y(), r.origin.z()),
+                           octomap::point3d(r.direction.x(), r.direction.y(), r.direction.z()), end,
+                           r.ignore_unknown, r.max_range_m);
+    hits += hit;
+    EXPECT_EQ(got[i].hit, hit) << "ray " << i;
+    EXPECT_EQ(got[i].end.x(), end.x()) << "ray " << i;
+    EXPECT_EQ(got[i].end.y(), end.y()) << "ray " << i;
+    EXPECT_EQ(got[i].end.z(), end.z()) << "ray " << i;
+  }
+  EXPECT_GT(hits, rays.size() / 10);
+  EXPECT_LT(hits, rays.size());
+}
+
+TEST_P(Queries, LeavesInBoxEqualOctoMapIterator) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const auto [resolution, seed] = GetParam();
+  Built b = buildMap(ctx, resolution, seed);
+  using Leaf = std::tuple<float, float, float, float, float>;
+  for (bool occupied_only : {false, true}) {
+    const Eigen::Vector3f lo(-1.0f, -0.7f, -0.3f), hi(0.9f, 1.3f, 0.25f);
+    std::vector<Leaf> want;
+    for (auto it = b.oracle().begin_leafs_bbx(octomap::point3d(lo.x(), lo.y(), lo.z()),
+                                              octomap::point3d(hi.x(), hi.y(), hi.z())),
+              end = b.oracle().end_leafs_bbx();
+         it != end; ++it) {
+      if (occupied_only && !b.oracle().isNodeOccupied(*it)) continue;
+      const octomap::point3d c = it.getCoordinate();
+      want.emplace_back(c.x(), c.y(), c.z(), static_cast<float>(it.getSize()), it->getLogOdds());
+    }
+    std::vector<Leaf> got;
+    for (const auto& l : b.map->leavesInBox(lo, hi, occupied_only))
+      got.emplace_back(l.center[0], l.center[1], l.center[2], l.size, l.log_odds);
+    std::sort(want.begin(), want.end());
+    std::sort(got.begin(), got.end());
+    EXPECT_GT(want.size(), 10u);
+    EXPECT_EQ(got, want) << (occupied_only ? "occupied only" : "all leaves");
+  }
+  // A corner outside the map: no leaves, as OctoMap's iterator.
+  EXPECT_TRUE(b.map->leavesInBox(Eigen::Vector3f(-1e6f, 0, 0), Eigen::Vector3f(1, 1, 1)).empty());
+}
+
+TEST(QueriesAfterScan, SameCommandStreamAnswersOnTheUpdatedMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Built b = buildMap(ctx, 0.1, 7);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 200; ++i)
+    pts.emplace_back(2.5f, -1.0f + 0.01f * static_cast<float>(i), 0.05f);
+  const Eigen::Vector3f origin(0.0f, 0.0f, 0.05f);
+  std::vector<Ray> rays{{origin, {1.0f, 0.0f, 0.0f}, -1.0, false}};
+  std::vector<Eigen::Vector3f> lookups{{2.5f, 0.0f, 0.05f}, {1.0f, 0.0f, 0.05f}};
+  QueryResults results;
+  b.map->insertPointCloud(pts, origin, -1.0, false, {lookups, rays}, results);
+  b.oracle().insertPointCloud(test::toPointcloud(pts),
+                              octomap::point3d(origin.x(), origin.y(), origin.z()));
+  ASSERT_EQ(results.lookups.size(), 2u);
+  ASSERT_EQ(results.rays.size(), 1u);
+  for (std::size_t i = 0; i < lookups.size(); ++i) {
+    const auto* node = b.oracle().search(lookups[i].x(), lookups[i].y(), lookups[i].z());
+    ASSERT_NE(node, nullptr);
+    EXPECT_EQ(results.lookups[i].log_odds, node->getLogOdds());
+  }
+  EXPECT_EQ(results.lookups[0].state, CellState::kOccupied);
+  octomap::point3d end;
+  const bool hit =
+      b.oracle().castRay(octomap::point3d(0, 0, 0.05f), octomap::point3d(1, 0, 0), end);
+  EXPECT_EQ(results.rays[0].hit, hit);
+  EXPECT_EQ(results.rays[0].end.x(), end.x());
+}
+
+INSTANTIATE_TEST_SUITE_P(Maps, Queries,
+                         ::testing::Values(std::make_tuple(0.1, 1u), std::make_tuple(0.05, 2u),
+                                           std::make_tuple(0.2, 3u)));
+
+}  // namespace
+}  // namespace octovk
