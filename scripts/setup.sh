@@ -10,6 +10,7 @@ packages=(
   libeigen3-dev                          # math
   liboctomap-dev octomap-tools           # .bt/.ot/.graph I/O, the test oracle, graph2tree, sample data
   googletest libgtest-dev                # tests
+  libpng-dev                             # octovk render writes PNG
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
 )
 
