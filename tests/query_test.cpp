@@ -194,6 +194,143 @@ TEST(QueriesAfterScan, SameCommandStreamAnswersOnTheUpdatedMap) {
   EXPECT_EQ(results.rays[0].end.x(), end.x());
 }
 
+// The situations of OctoMap's own ray-casting test, answered on the device and compared with
+// OctoMap on the same map.
+std::vector<Eigen::Vector3f> sphereDirections(int n) {
+  std::vector<Eigen::Vector3f> dirs;
+  for (int i = 0; i < n; ++i) {
+    const double theta = M_PI * (i + 0.5) / n;
+    for (int j = 0; j < n; ++j) {
+      const double phi = 2.0 * M_PI * j / n;
+      dirs.emplace_back(static_cast<float>(std::sin(theta) * std::cos(phi)),
+                        static_cast<float>(std::sin(theta) * std::sin(phi)),
+                        static_cast<float>(std::cos(theta)));
+    }
+  }
+  return dirs;
+}
+
+::testing::AssertionResult sameAsOctoMap(const octomap::OcTree& tree, const std::vector<Ray>& rays,
+                                         const std::vector<RayHit>& got) {
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const Ray& r = rays[i];
+    octomap::point3d end(r.origin.x(), r.origin.y(), r.origin.z());
+    const bool hit =
+        tree.castRay(octomap::point3d(r.origin.x(), r.origin.y(), r.origin.z()),
+                     octomap::point3d(r.direction.x(), r.direction.y(), r.direction.z()), end,
+                     r.ignore_unknown, r.max_range_m);
+    auto same = [](float a, float b) { return a == b || (std::isnan(a) && std::isnan(b)); };
+    if (hit != got[i].hit || !same(end.x(), got[i].end.x()) || !same(end.y(), got[i].end.y()) ||
+        !same(end.z(), got[i].end.z()))
+      return ::testing::AssertionFailure()
+             << "ray " << i << ": OctoMap " << hit << " (" << end << "), octovk " << got[i].hit
+             << " (" << got[i].end.transpose() << ")";
+  }
+  return ::testing::AssertionSuccess();
+}
+
+TEST(RayCastingScenarios, SphereOfRadius2FromItsCentre) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params;
+  params.resolution = 0.05;
+  OccupancyMap map(ctx, params);
+  octomap::OcTree tree(0.05);
+  const Eigen::Vector3f origin(0.01f, 0.01f, 0.02f);
+  const auto dirs = sphereDirections(300);
+  std::vector<Eigen::Vector3f> pts;
+  for (const auto& d : dirs) pts.push_back(origin + 2.0f * d);
+  map.insertPointCloud(pts, origin);
+  tree.insertPointCloud(test::toPointcloud(pts),
+                        octomap::point3d(origin.x(), origin.y(), origin.z()));
+
+  std::vector<Ray> rays;
+  for (const auto& d : sphereDirections(120)) rays.push_back({origin, d, 3.0, false});
+  const auto got = map.castRays(rays);
+  EXPECT_TRUE(sameAsOctoMap(tree, rays, got));
+  double mean = 0;
+  std::size_t hits = 0;
+  for (const auto& h : got) {
+    hits += h.hit;
+    mean += (h.end - origin).norm();
+  }
+  EXPECT_EQ(hits, rays.size());  // every ray hits the sphere
+  EXPECT_NEAR(mean / static_cast<double>(rays.size()), 2.0, 0.05);
+}
+
+TEST(RayCastingScenarios, CubeWithAnOccupiedWallAndAFloor) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const double res = 0.1;
+  const float half = static_cast<float>(res / 2);
+  octomap::OcTree tree(res);
+  // Free inside a cube, its +x face occupied, and a few occupied floor cells below the origin.
+  for (int ix = 0; ix < 20; ++ix)
+    for (int iy = 0; iy < 20; ++iy)
+      for (int iz = 0; iz < 20; ++iz) {
+        const float x = -0.95f + static_cast<float>(ix * res);
+        const float y = -0.95f + static_cast<float>(iy * res);
+        const float z = -0.95f + static_cast<float>(iz * res);
+        tree.updateNode(octomap::point3d(x, y, z), x >= 0.9f);
+      }
+  for (float fx : {half, 3 * half, -half, -3 * half})
+    tree.updateNode(octomap::point3d(fx, half, -half), true);
+  MapParams params;
+  params.resolution = res;
+  OccupancyMap map(ctx, params);
+  fromOcTree(map, tree);
+
+  const Eigen::Vector3f o = Eigen::Vector3f::Zero();
+  std::vector<Ray> rays = {
+      {o, {0.95f, 0.95f, 0.95f}, -1.0, false},           // the corner
+      {o, {1.0f, 0.0f, 0.0f}, -1.0, false},              // the wall
+      {{half, half, 0.5f}, {0, 0, -1.0f}, -1.0, false},  // the floor
+      {o, {0.0f, 1.0f, 0.0f}, -1.0, false},              // into unknown space: stops there
+      {o, {0.0f, 1.0f, 0.0f}, -1.0, true},               // ignoring unknown: up to the map's border
+      {o, {-1.0f, 0.0f, 0.0f}, -1.0, true},              // the other border
+      {o, {-1.0f, 0.0f, 0.0f}, 0.9, true},               // stopped by max range in free space
+  };
+  const auto got = map.castRays(rays);
+  EXPECT_TRUE(sameAsOctoMap(tree, rays, got));
+  EXPECT_TRUE(got[0].hit);
+  EXPECT_TRUE(got[1].hit);
+  EXPECT_NEAR((got[1].end - o).norm(), 1.0, res / 2);
+  EXPECT_TRUE(got[2].hit);
+  EXPECT_FLOAT_EQ(got[2].end.z(), -half);
+  EXPECT_FALSE(got[3].hit);
+  EXPECT_FALSE(got[4].hit);
+  EXPECT_FLOAT_EQ(got[4].end.y(), static_cast<float>(32768 * res - res / 2));
+  EXPECT_FALSE(got[5].hit);
+  EXPECT_FLOAT_EQ(got[5].end.x(), static_cast<float>(-32767 * res - res / 2));
+  EXPECT_FALSE(got[6].hit);
+  EXPECT_NEAR((got[6].end - o).norm(), 0.9, res);
+  const auto at_end = map.search(std::vector<Eigen::Vector3f>{got[6].end, got[3].end});
+  EXPECT_EQ(at_end[0].state, CellState::kFree);
+  EXPECT_EQ(at_end[1].state, CellState::kUnknown);
+}
+
+TEST(RayCastingScenarios, BadQueriesHaveDefinedResults) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Built b = buildMap(ctx, 0.1, 11);
+  const float nan = std::nanf("");
+  std::vector<Ray> rays = {
+      {{nan, 0, 0}, {1, 0, 0}, -1.0, false},   // NaN origin
+      {{0, 0, 0}, {0, 0, 0}, -1.0, true},      // zero direction
+      {{1e7f, 0, 0}, {1, 0, 0}, -1.0, false},  // origin outside the map
+      {{0, 0, 0}, {nan, 1, 0}, -1.0, false},   // NaN direction
+  };
+  const auto got = b.map->castRays(rays);
+  ASSERT_EQ(got.size(), rays.size());
+  // NaN components compare as OctoMap's arithmetic makes them (a NaN direction component simply
+  // never steps); the results equal OctoMap's, `end` included where OctoMap sets it.
+  EXPECT_TRUE(sameAsOctoMap(b.oracle(), rays, got));
+  EXPECT_FALSE(got[0].hit);
+  EXPECT_FALSE(got[1].hit);
+  EXPECT_FALSE(got[2].hit);
+  EXPECT_EQ(got[2].end.x(), 1e7f);  // `end` untouched by OctoMap: the origin
+  const auto looked = b.map->search(std::vector<Eigen::Vector3f>{{nan, 0, 0}, {1e7f, 0, 0}});
+  EXPECT_EQ(looked[0].state, CellState::kUnknown);
+  EXPECT_EQ(looked[1].state, CellState::kUnknown);
+}
+
 INSTANTIATE_TEST_SUITE_P(Maps, Queries,
                          ::testing::Values(std::make_tuple(0.1, 1u), std::make_tuple(0.05, 2u),
                                            std::make_tuple(0.2, 3u)));
