@@ -1,1 +1,598 @@
-// layout_test: filled in by its owner.
+// Layout tests: the structs of gpu_types.h have the sizes and offsets their comments state (C++),
+// and the GLSL side agrees: shaders/layout_probe.comp writes a marker into every field through
+// the shared bindings, and each marker must land at the C++ offsetof.
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <type_traits>
+
+#include "octovk/gpu_types.h"
+#include "test_support.hpp"
+#include "vk/device.hpp"
+
+namespace octovk {
+namespace {
+
+using namespace gpu;  // NOLINT(google-build-using-namespace): the test names every struct
+
+// ---- C++ side: the byte offsets written in gpu_types.h's comments ------------------------------
+
+static_assert(std::is_standard_layout_v<Node> && std::is_trivially_copyable_v<Node>);
+static_assert(sizeof(Node) == 12);
+static_assert(offsetof(Node, log_odds) == 0);
+static_assert(offsetof(Node, children) == 4);
+static_assert(offsetof(Node, mask) == 8);
+
+static_assert(sizeof(BlockMeta) == 16);
+static_assert(offsetof(BlockMeta, parent) == 0);
+static_assert(offsetof(BlockMeta, depth) == 4);
+static_assert(offsetof(BlockMeta, key_xy) == 8);
+static_assert(offsetof(BlockMeta, key_z) == 12);
+
+static_assert(sizeof(LeafBox) == 20);
+static_assert(offsetof(LeafBox, center_x) == 0);
+static_assert(offsetof(LeafBox, center_y) == 4);
+static_assert(offsetof(LeafBox, center_z) == 8);
+static_assert(offsetof(LeafBox, size) == 12);
+static_assert(offsetof(LeafBox, log_odds) == 16);
+
+static_assert(sizeof(PoolState) == 32);
+static_assert(offsetof(PoolState, bump) == 0);
+static_assert(offsetof(PoolState, capacity) == 4);
+static_assert(offsetof(PoolState, free_count) == 8);
+static_assert(offsetof(PoolState, pops) == 12);
+static_assert(offsetof(PoolState, root_exists) == 16);
+static_assert(offsetof(PoolState, leaf_count) == 20);
+static_assert(offsetof(PoolState, live_nodes) == 24);
+static_assert(offsetof(PoolState, pad0) == 28);
+
+static_assert(sizeof(ScanParams) == 112);
+static_assert(offsetof(ScanParams, resolution) == 0);
+static_assert(offsetof(ScanParams, resolution_factor) == 8);
+static_assert(offsetof(ScanParams, max_range) == 16);
+static_assert(offsetof(ScanParams, origin_x) == 24);
+static_assert(offsetof(ScanParams, origin_y) == 28);
+static_assert(offsetof(ScanParams, origin_z) == 32);
+static_assert(offsetof(ScanParams, prob_hit_log) == 36);
+static_assert(offsetof(ScanParams, prob_miss_log) == 40);
+static_assert(offsetof(ScanParams, clamp_min_log) == 44);
+static_assert(offsetof(ScanParams, clamp_max_log) == 48);
+static_assert(offsetof(ScanParams, point_count) == 52);
+static_assert(offsetof(ScanParams, hash_capacity) == 56);
+static_assert(offsetof(ScanParams, hash_log2) == 60);
+static_assert(offsetof(ScanParams, endpoint_capacity) == 64);
+static_assert(offsetof(ScanParams, endpoint_log2) == 68);
+static_assert(offsetof(ScanParams, rot_u) == 72);
+static_assert(offsetof(ScanParams, rot_x) == 76);
+static_assert(offsetof(ScanParams, rot_y) == 80);
+static_assert(offsetof(ScanParams, rot_z) == 84);
+static_assert(offsetof(ScanParams, active_capacity) == 88);
+static_assert(offsetof(ScanParams, trans_x) == 92);
+static_assert(offsetof(ScanParams, trans_y) == 96);
+static_assert(offsetof(ScanParams, trans_z) == 100);
+static_assert(offsetof(ScanParams, occupancy_log) == 104);
+static_assert(offsetof(ScanParams, pad1) == 108);
+
+static_assert(sizeof(ActiveCell) == 16);
+static_assert(offsetof(ActiveCell, slot) == 0);
+static_assert(offsetof(ActiveCell, node) == 4);
+static_assert(offsetof(ActiveCell, pending) == 8);
+static_assert(offsetof(ActiveCell, depth) == 12);
+
+static_assert(sizeof(AllocRequest) == 8);
+static_assert(offsetof(AllocRequest, node) == 0);
+static_assert(offsetof(AllocRequest, cell) == 4);
+
+// VkDispatchIndirectCommand is three uint32 x, y, z.
+static_assert(sizeof(DispatchArgs) == 12);
+static_assert(offsetof(DispatchArgs, x) == 0);
+static_assert(offsetof(DispatchArgs, y) == 4);
+static_assert(offsetof(DispatchArgs, z) == 8);
+static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
+
+static_assert(kLevelCount == 17);
+static_assert(sizeof(ScanCounters) == 696);
+static_assert(offsetof(ScanCounters, status) == 0);
+static_assert(offsetof(ScanCounters, hash_entries) == 4);
+static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
+static_assert(offsetof(ScanCounters, active_cells) == 12);
+static_assert(offsetof(ScanCounters, skipped_nonfinite) == 16);
+static_assert(offsetof(ScanCounters, skipped_outside) == 20);
+static_assert(offsetof(ScanCounters, occupied_cells) == 24);
+static_assert(offsetof(ScanCounters, free_cells) == 28);
+static_assert(offsetof(ScanCounters, aborted) == 32);
+static_assert(offsetof(ScanCounters, new_blocks) == 36);
+static_assert(offsetof(ScanCounters, pruned_blocks) == 40);
+static_assert(offsetof(ScanCounters, query_results) == 44);
+static_assert(offsetof(ScanCounters, first_depth_hist) == 48);
+static_assert(offsetof(ScanCounters, alloc_count) == 116);
+static_assert(offsetof(ScanCounters, touched_count) == 184);
+static_assert(offsetof(ScanCounters, pad1) == 252);
+static_assert(offsetof(ScanCounters, alloc_args) == 256);
+static_assert(offsetof(ScanCounters, touched_args) == 460);
+static_assert(offsetof(ScanCounters, walk_count) == 664);
+static_assert(offsetof(ScanCounters, walk_args) == 672);
+static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
+// Indirect dispatch arguments must be 4-byte aligned inside the buffer.
+static_assert(offsetof(ScanCounters, alloc_args) % 4 == 0);
+static_assert(offsetof(ScanCounters, touched_args) % 4 == 0);
+
+static_assert(sizeof(LookupResult) == 16);
+static_assert(offsetof(LookupResult, state) == 0);
+static_assert(offsetof(LookupResult, log_odds) == 4);
+static_assert(offsetof(LookupResult, depth) == 8);
+static_assert(offsetof(LookupResult, pad0) == 12);
+
+static_assert(sizeof(RayQuery) == 40);
+static_assert(offsetof(RayQuery, max_range) == 0);
+static_assert(offsetof(RayQuery, origin_x) == 8);
+static_assert(offsetof(RayQuery, origin_y) == 12);
+static_assert(offsetof(RayQuery, origin_z) == 16);
+static_assert(offsetof(RayQuery, direction_x) == 20);
+static_assert(offsetof(RayQuery, direction_y) == 24);
+static_assert(offsetof(RayQuery, direction_z) == 28);
+static_assert(offsetof(RayQuery, ignore_unknown) == 32);
+static_assert(offsetof(RayQuery, pad0) == 36);
+
+static_assert(sizeof(RayResult) == 16);
+static_assert(offsetof(RayResult, hit) == 0);
+static_assert(offsetof(RayResult, end_x) == 4);
+static_assert(offsetof(RayResult, end_y) == 8);
+static_assert(offsetof(RayResult, end_z) == 12);
+
+static_assert(sizeof(WalkState) == 48);
+static_assert(offsetof(WalkState, t_max_x) == 0);
+static_assert(offsetof(WalkState, t_max_y) == 8);
+static_assert(offsetof(WalkState, t_max_z) == 16);
+static_assert(offsetof(WalkState, end_x) == 24);
+static_assert(offsetof(WalkState, end_y) == 28);
+static_assert(offsetof(WalkState, end_z) == 32);
+static_assert(offsetof(WalkState, key_xy) == 36);
+static_assert(offsetof(WalkState, key_z) == 40);
+static_assert(offsetof(WalkState, pad0) == 44);
+
+static_assert(sizeof(RayState) == 40);
+static_assert(offsetof(RayState, t_max_x) == 0);
+static_assert(offsetof(RayState, t_max_y) == 8);
+static_assert(offsetof(RayState, t_max_z) == 16);
+static_assert(offsetof(RayState, key_x) == 24);
+static_assert(offsetof(RayState, key_y) == 28);
+static_assert(offsetof(RayState, key_z) == 32);
+static_assert(offsetof(RayState, done) == 36);
+
+static_assert(sizeof(BoxQuery) == 32);
+static_assert(offsetof(BoxQuery, min_x) == 0);
+static_assert(offsetof(BoxQuery, min_y) == 4);
+static_assert(offsetof(BoxQuery, min_z) == 8);
+static_assert(offsetof(BoxQuery, max_x) == 12);
+static_assert(offsetof(BoxQuery, max_y) == 16);
+static_assert(offsetof(BoxQuery, max_z) == 20);
+static_assert(offsetof(BoxQuery, occupied_only) == 24);
+static_assert(offsetof(BoxQuery, pad0) == 28);
+
+static_assert(sizeof(PassConstants) == 16);
+static_assert(offsetof(PassConstants, level) == 0);
+static_assert(offsetof(PassConstants, count) == 4);
+static_assert(offsetof(PassConstants, mode) == 8);
+static_assert(offsetof(PassConstants, offset) == 12);
+
+// The public mirrors of device structs that are copied byte for byte.
+static_assert(sizeof(HostTree::Node) == sizeof(Node));
+static_assert(offsetof(HostTree::Node, log_odds) == offsetof(Node, log_odds));
+static_assert(offsetof(HostTree::Node, children) == offsetof(Node, children));
+static_assert(offsetof(HostTree::Node, mask) == offsetof(Node, mask));
+static_assert(sizeof(OccupancyMap::LeafBoxHost) == sizeof(LeafBox));
+static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, center_x));
+static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
+static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox, log_odds));
+
+static_assert(kBindingCount == 17);
+static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
+              kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 && kBindBlockMeta == 7 &&
+              kBindFreeStack == 8 && kBindActive == 9 && kBindTouched == 10 &&
+              kBindAllocList == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
+              kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16);
+
+TEST(Layout, HostSizesAndOffsets) {
+  // The static_asserts above hold at compile time; the same facts at run time, for the report.
+  EXPECT_EQ(sizeof(Node), 12u);
+  EXPECT_EQ(sizeof(BlockMeta), 16u);
+  EXPECT_EQ(sizeof(LeafBox), 20u);
+  EXPECT_EQ(sizeof(PoolState), 32u);
+  EXPECT_EQ(sizeof(ScanParams), 112u);
+  EXPECT_EQ(sizeof(ActiveCell), 16u);
+  EXPECT_EQ(sizeof(AllocRequest), 8u);
+  EXPECT_EQ(sizeof(DispatchArgs), 12u);
+  EXPECT_EQ(sizeof(ScanCounters), 696u);
+  EXPECT_EQ(sizeof(WalkState), 48u);
+  EXPECT_EQ(sizeof(PassConstants), 16u);
+  EXPECT_EQ(sizeof(LookupResult), 16u);
+  EXPECT_EQ(sizeof(RayQuery), 40u);
+  EXPECT_EQ(sizeof(RayResult), 16u);
+  EXPECT_EQ(sizeof(BoxQuery), 32u);
+  EXPECT_EQ(sizeof(RayState), 40u);
+  EXPECT_EQ(offsetof(ScanCounters, walk_args) + 2 * sizeof(DispatchArgs), sizeof(ScanCounters));
+  EXPECT_EQ(offsetof(ScanParams, pad1) + 4, sizeof(ScanParams));
+}
+
+// ---- GLSL side: run the probe shader and find each marker --------------------------------------
+
+enum class Kind { kUint, kFloat, kDouble, kUint64 };
+
+struct Field {
+  std::string name;
+  std::uint32_t binding;
+  std::size_t offset;
+  Kind kind;
+  std::uint32_t id;
+};
+
+// The probe's markers (shaders/layout_probe.comp).
+std::uint32_t markerUint(std::uint32_t id) { return 0xC0DE0000u + id; }
+float markerFloat(std::uint32_t id) { return static_cast<float>(id) + 0.5f; }
+double markerDouble(std::uint32_t id) { return static_cast<double>(id) + 0.25; }
+std::uint64_t markerUint64(std::uint32_t id) { return 0xC0DE0000C0DE0000ull + id; }
+
+#define OCTOVK_FIELD(binding, Struct, member, kind, id) \
+  Field { #Struct "::" #member, binding, offsetof(Struct, member), kind, id }
+#define OCTOVK_ELEMENT(binding, Struct, index, member, kind, id)      \
+  Field {                                                             \
+#Struct "[" #index "]::" #member, binding,                        \
+        (index) * sizeof(Struct) + offsetof(Struct, member), kind, id \
+  }
+
+// "[i]", built without operator+ on a literal (GCC 12 warns falsely on that).
+std::string subscript(std::uint32_t i) {
+  std::string s = "[";
+  s += std::to_string(i);
+  s += ']';
+  return s;
+}
+
+std::vector<Field> probedFields() {
+  constexpr Kind U = Kind::kUint, F = Kind::kFloat, D = Kind::kDouble, U64 = Kind::kUint64;
+  std::vector<Field> f = {
+      OCTOVK_FIELD(kBindParams, ScanParams, resolution, D, 100),
+      OCTOVK_FIELD(kBindParams, ScanParams, resolution_factor, D, 101),
+      OCTOVK_FIELD(kBindParams, ScanParams, max_range, D, 102),
+      OCTOVK_FIELD(kBindParams, ScanParams, origin_x, F, 103),
+      OCTOVK_FIELD(kBindParams, ScanParams, origin_y, F, 104),
+      OCTOVK_FIELD(kBindParams, ScanParams, origin_z, F, 105),
+      OCTOVK_FIELD(kBindParams, ScanParams, prob_hit_log, F, 106),
+      OCTOVK_FIELD(kBindParams, ScanParams, prob_miss_log, F, 107),
+      OCTOVK_FIELD(kBindParams, ScanParams, clamp_min_log, F, 108),
+      OCTOVK_FIELD(kBindParams, ScanParams, clamp_max_log, F, 109),
+      OCTOVK_FIELD(kBindParams, ScanParams, point_count, U, 110),
+      OCTOVK_FIELD(kBindParams, ScanParams, hash_capacity, U, 111),
+      OCTOVK_FIELD(kBindParams, ScanParams, hash_log2, U, 112),
+      OCTOVK_FIELD(kBindParams, ScanParams, endpoint_capacity, U, 113),
+      OCTOVK_FIELD(kBindParams, ScanParams, endpoint_log2, U, 114),
+      OCTOVK_FIELD(kBindParams, ScanParams, rot_u, F, 115),
+      OCTOVK_FIELD(kBindParams, ScanParams, rot_x, F, 116),
+      OCTOVK_FIELD(kBindParams, ScanParams, rot_y, F, 117),
+      OCTOVK_FIELD(kBindParams, ScanParams, rot_z, F, 118),
+      OCTOVK_FIELD(kBindParams, ScanParams, active_capacity, U, 119),
+      OCTOVK_FIELD(kBindParams, ScanParams, trans_x, F, 120),
+      OCTOVK_FIELD(kBindParams, ScanParams, trans_y, F, 121),
+      OCTOVK_FIELD(kBindParams, ScanParams, trans_z, F, 122),
+      OCTOVK_FIELD(kBindParams, ScanParams, occupancy_log, F, 123),
+      OCTOVK_FIELD(kBindParams, ScanParams, pad1, U, 124),
+
+      OCTOVK_FIELD(kBindCounters, ScanCounters, status, U, 200),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, hash_entries, U, 201),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, endpoint_entries, U, 202),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, active_cells, U, 203),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, skipped_nonfinite, U, 204),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, skipped_outside, U, 205),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, occupied_cells, U, 206),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, free_cells, U, 207),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, aborted, U, 208),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, new_blocks, U, 209),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, pruned_blocks, U, 210),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, query_results, U, 211),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, pad1, U, 360),
+
+      OCTOVK_FIELD(kBindPool, PoolState, bump, U, 600),
+      OCTOVK_FIELD(kBindPool, PoolState, capacity, U, 601),
+      OCTOVK_FIELD(kBindPool, PoolState, free_count, U, 602),
+      OCTOVK_FIELD(kBindPool, PoolState, pops, U, 603),
+      OCTOVK_FIELD(kBindPool, PoolState, root_exists, U, 604),
+      OCTOVK_FIELD(kBindPool, PoolState, leaf_count, U, 605),
+      OCTOVK_FIELD(kBindPool, PoolState, live_nodes, U, 606),
+      OCTOVK_FIELD(kBindPool, PoolState, pad0, U, 607),
+
+      OCTOVK_ELEMENT(kBindNodes, Node, 0, log_odds, F, 700),
+      OCTOVK_ELEMENT(kBindNodes, Node, 0, children, U, 701),
+      OCTOVK_ELEMENT(kBindNodes, Node, 0, mask, U, 702),
+      OCTOVK_ELEMENT(kBindNodes, Node, 1, log_odds, F, 705),
+      OCTOVK_ELEMENT(kBindNodes, Node, 1, children, U, 706),
+      OCTOVK_ELEMENT(kBindNodes, Node, 1, mask, U, 707),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, parent, U, 710),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, depth, U, 711),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, key_xy, U, 712),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, key_z, U, 713),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, parent, U, 715),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, depth, U, 716),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, key_xy, U, 717),
+      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, key_z, U, 718),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, slot, U, 720),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, node, U, 721),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, pending, U, 722),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, depth, U, 723),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, slot, U, 725),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, node, U, 726),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, pending, U, 727),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, depth, U, 728),
+      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 0, node, U, 730),
+      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 0, cell, U, 731),
+      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 1, node, U, 735),
+      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 1, cell, U, 736),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_x, F, 740),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_y, F, 741),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_z, F, 742),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, size, F, 743),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, log_odds, F, 744),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, center_x, F, 750),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, center_y, F, 751),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, center_z, F, 752),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, size, F, 753),
+      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, log_odds, F, 754),
+
+      Field{"points[1]", kBindPoints, 1 * sizeof(float), F, 800},
+      Field{"hash_keys[1]", kBindHashKeys, 1 * sizeof(std::uint64_t), U64, 801},
+      Field{"hash_flags[1]", kBindHashFlags, 1 * sizeof(std::uint32_t), U, 802},
+      Field{"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803},
+      Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
+  };
+  for (std::uint32_t w = 0; w < 2; ++w) {
+    const std::string at = subscript(w);
+    const std::size_t args = offsetof(ScanCounters, walk_args) + w * sizeof(DispatchArgs);
+    f.push_back({"ScanCounters::walk_count" + at, kBindCounters,
+                 offsetof(ScanCounters, walk_count) + w * sizeof(std::uint32_t), U, 370 + w});
+    f.push_back({"ScanCounters::walk_args" + at + ".x", kBindCounters,
+                 args + offsetof(DispatchArgs, x), U, 380 + 3 * w});
+    f.push_back({"ScanCounters::walk_args" + at + ".y", kBindCounters,
+                 args + offsetof(DispatchArgs, y), U, 381 + 3 * w});
+    f.push_back({"ScanCounters::walk_args" + at + ".z", kBindCounters,
+                 args + offsetof(DispatchArgs, z), U, 382 + 3 * w});
+    const std::size_t walk = w * sizeof(WalkState);
+    const std::uint32_t id = 1000 + 10 * w;
+    f.push_back(
+        {"WalkState" + at + "::t_max_x", kBindWalks, walk + offsetof(WalkState, t_max_x), D, id});
+    f.push_back({"WalkState" + at + "::t_max_y", kBindWalks, walk + offsetof(WalkState, t_max_y), D,
+                 id + 1});
+    f.push_back({"WalkState" + at + "::t_max_z", kBindWalks, walk + offsetof(WalkState, t_max_z), D,
+                 id + 2});
+    f.push_back(
+        {"WalkState" + at + "::end_x", kBindWalks, walk + offsetof(WalkState, end_x), F, id + 3});
+    f.push_back(
+        {"WalkState" + at + "::end_y", kBindWalks, walk + offsetof(WalkState, end_y), F, id + 4});
+    f.push_back(
+        {"WalkState" + at + "::end_z", kBindWalks, walk + offsetof(WalkState, end_z), F, id + 5});
+    f.push_back(
+        {"WalkState" + at + "::key_xy", kBindWalks, walk + offsetof(WalkState, key_xy), U, id + 6});
+    f.push_back(
+        {"WalkState" + at + "::key_z", kBindWalks, walk + offsetof(WalkState, key_z), U, id + 7});
+    f.push_back(
+        {"WalkState" + at + "::pad0", kBindWalks, walk + offsetof(WalkState, pad0), U, id + 8});
+  }
+
+  // The probe's views of the query bindings: RayQuery[2], BoxQuery, RayState[2]; LookupResult[2]
+  // then RayResult[2].
+  const std::size_t box_at = 2 * sizeof(RayQuery);
+  const std::size_t states_at = box_at + sizeof(BoxQuery);
+  const std::size_t ray_results_at = 2 * sizeof(LookupResult);
+  for (std::uint32_t e = 0; e < 2; ++e) {
+    const std::string at = subscript(e);
+    const std::size_t ray = e * sizeof(RayQuery);
+    const std::uint32_t id = 900 + 10 * e;
+    f.push_back({"RayQuery" + at + "::max_range", kBindQueryIn, ray + offsetof(RayQuery, max_range),
+                 D, id});
+    f.push_back({"RayQuery" + at + "::origin_x", kBindQueryIn, ray + offsetof(RayQuery, origin_x),
+                 F, id + 1});
+    f.push_back({"RayQuery" + at + "::origin_y", kBindQueryIn, ray + offsetof(RayQuery, origin_y),
+                 F, id + 2});
+    f.push_back({"RayQuery" + at + "::origin_z", kBindQueryIn, ray + offsetof(RayQuery, origin_z),
+                 F, id + 3});
+    f.push_back({"RayQuery" + at + "::direction_x", kBindQueryIn,
+                 ray + offsetof(RayQuery, direction_x), F, id + 4});
+    f.push_back({"RayQuery" + at + "::direction_y", kBindQueryIn,
+                 ray + offsetof(RayQuery, direction_y), F, id + 5});
+    f.push_back({"RayQuery" + at + "::direction_z", kBindQueryIn,
+                 ray + offsetof(RayQuery, direction_z), F, id + 6});
+    f.push_back({"RayQuery" + at + "::ignore_unknown", kBindQueryIn,
+                 ray + offsetof(RayQuery, ignore_unknown), U, id + 7});
+    f.push_back(
+        {"RayQuery" + at + "::pad0", kBindQueryIn, ray + offsetof(RayQuery, pad0), U, id + 8});
+    const std::size_t state = states_at + e * sizeof(RayState);
+    const std::uint32_t sid = 960 + 10 * e;
+    f.push_back(
+        {"RayState" + at + "::t_max_x", kBindQueryIn, state + offsetof(RayState, t_max_x), D, sid});
+    f.push_back({"RayState" + at + "::t_max_y", kBindQueryIn, state + offsetof(RayState, t_max_y),
+                 D, sid + 1});
+    f.push_back({"RayState" + at + "::t_max_z", kBindQueryIn, state + offsetof(RayState, t_max_z),
+                 D, sid + 2});
+    f.push_back(
+        {"RayState" + at + "::key_x", kBindQueryIn, state + offsetof(RayState, key_x), U, sid + 3});
+    f.push_back(
+        {"RayState" + at + "::key_y", kBindQueryIn, state + offsetof(RayState, key_y), U, sid + 4});
+    f.push_back(
+        {"RayState" + at + "::key_z", kBindQueryIn, state + offsetof(RayState, key_z), U, sid + 5});
+    f.push_back(
+        {"RayState" + at + "::done", kBindQueryIn, state + offsetof(RayState, done), U, sid + 6});
+    const std::size_t lookup = e * sizeof(LookupResult);
+    const std::uint32_t lid = 930 + 5 * e;
+    f.push_back({"LookupResult" + at + "::state", kBindQueryOut,
+                 lookup + offsetof(LookupResult, state), U, lid});
+    f.push_back({"LookupResult" + at + "::log_odds", kBindQueryOut,
+                 lookup + offsetof(LookupResult, log_odds), F, lid + 1});
+    f.push_back({"LookupResult" + at + "::depth", kBindQueryOut,
+                 lookup + offsetof(LookupResult, depth), U, lid + 2});
+    f.push_back({"LookupResult" + at + "::pad0", kBindQueryOut,
+                 lookup + offsetof(LookupResult, pad0), U, lid + 3});
+    const std::size_t result = ray_results_at + e * sizeof(RayResult);
+    const std::uint32_t rid = 940 + 5 * e;
+    f.push_back(
+        {"RayResult" + at + "::hit", kBindQueryOut, result + offsetof(RayResult, hit), U, rid});
+    f.push_back({"RayResult" + at + "::end_x", kBindQueryOut, result + offsetof(RayResult, end_x),
+                 F, rid + 1});
+    f.push_back({"RayResult" + at + "::end_y", kBindQueryOut, result + offsetof(RayResult, end_y),
+                 F, rid + 2});
+    f.push_back({"RayResult" + at + "::end_z", kBindQueryOut, result + offsetof(RayResult, end_z),
+                 F, rid + 3});
+  }
+  f.push_back({"BoxQuery::min_x", kBindQueryIn, box_at + offsetof(BoxQuery, min_x), U, 920});
+  f.push_back({"BoxQuery::min_y", kBindQueryIn, box_at + offsetof(BoxQuery, min_y), U, 921});
+  f.push_back({"BoxQuery::min_z", kBindQueryIn, box_at + offsetof(BoxQuery, min_z), U, 922});
+  f.push_back({"BoxQuery::max_x", kBindQueryIn, box_at + offsetof(BoxQuery, max_x), U, 923});
+  f.push_back({"BoxQuery::max_y", kBindQueryIn, box_at + offsetof(BoxQuery, max_y), U, 924});
+  f.push_back({"BoxQuery::max_z", kBindQueryIn, box_at + offsetof(BoxQuery, max_z), U, 925});
+  f.push_back({"BoxQuery::occupied_only", kBindQueryIn, box_at + offsetof(BoxQuery, occupied_only),
+               U, 926});
+  f.push_back({"BoxQuery::pad0", kBindQueryIn, box_at + offsetof(BoxQuery, pad0), U, 927});
+
+  for (std::uint32_t l = 0; l < kLevelCount; ++l) {
+    const std::string at = subscript(l);
+    const std::size_t u = sizeof(std::uint32_t);
+    f.push_back({"ScanCounters::first_depth_hist" + at, kBindCounters,
+                 offsetof(ScanCounters, first_depth_hist) + l * u, U, 300 + l});
+    f.push_back({"ScanCounters::alloc_count" + at, kBindCounters,
+                 offsetof(ScanCounters, alloc_count) + l * u, U, 320 + l});
+    f.push_back({"ScanCounters::touched_count" + at, kBindCounters,
+                 offsetof(ScanCounters, touched_count) + l * u, U, 340 + l});
+    const std::size_t alloc = offsetof(ScanCounters, alloc_args) + l * sizeof(DispatchArgs);
+    const std::size_t touched = offsetof(ScanCounters, touched_args) + l * sizeof(DispatchArgs);
+    f.push_back({"ScanCounters::alloc_args" + at + ".x", kBindCounters,
+                 alloc + offsetof(DispatchArgs, x), U, 400 + 3 * l});
+    f.push_back({"ScanCounters::alloc_args" + at + ".y", kBindCounters,
+                 alloc + offsetof(DispatchArgs, y), U, 401 + 3 * l});
+    f.push_back({"ScanCounters::alloc_args" + at + ".z", kBindCounters,
+                 alloc + offsetof(DispatchArgs, z), U, 402 + 3 * l});
+    f.push_back({"ScanCounters::touched_args" + at + ".x", kBindCounters,
+                 touched + offsetof(DispatchArgs, x), U, 500 + 3 * l});
+    f.push_back({"ScanCounters::touched_args" + at + ".y", kBindCounters,
+                 touched + offsetof(DispatchArgs, y), U, 501 + 3 * l});
+    f.push_back({"ScanCounters::touched_args" + at + ".z", kBindCounters,
+                 touched + offsetof(DispatchArgs, z), U, 502 + 3 * l});
+  }
+  return f;
+}
+
+// Where, if anywhere, a marker landed in the buffer (to say how an offset is off).
+std::string findMarker(const unsigned char* bytes, std::size_t size, const void* marker,
+                       std::size_t marker_size) {
+  for (std::size_t at = 0; at + marker_size <= size; at += 4)
+    if (std::memcmp(bytes + at, marker, marker_size) == 0)
+      return "found at byte " + std::to_string(at);
+  return "not found in the buffer";
+}
+
+TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  vk::Device& device = ctx.vulkan();
+  const vk::Pass& probe = device.pass("layout_probe");
+  ASSERT_NE(probe.pipeline, VK_NULL_HANDLE);
+
+  // Single structs get exactly their size; arrays four elements.
+  std::array<std::size_t, kBindingCount> sizes{};
+  sizes[kBindParams] = sizeof(ScanParams);
+  sizes[kBindCounters] = sizeof(ScanCounters);
+  sizes[kBindPool] = sizeof(PoolState);
+  sizes[kBindPoints] = 4 * sizeof(float);
+  sizes[kBindHashKeys] = 4 * sizeof(std::uint64_t);
+  sizes[kBindHashFlags] = 4 * sizeof(std::uint32_t);
+  sizes[kBindNodes] = 4 * sizeof(Node);
+  sizes[kBindBlockMeta] = 4 * sizeof(BlockMeta);
+  sizes[kBindFreeStack] = 4 * sizeof(std::uint32_t);
+  sizes[kBindActive] = 4 * sizeof(ActiveCell);
+  sizes[kBindTouched] = 8 * sizeof(std::uint32_t);
+  sizes[kBindAllocList] = 4 * sizeof(AllocRequest);
+  sizes[kBindLeafBoxes] = 4 * sizeof(LeafBox);
+  sizes[kBindEndpointKeys] = 4 * sizeof(std::uint64_t);
+  sizes[kBindQueryIn] = 2 * sizeof(RayQuery) + sizeof(BoxQuery) + 2 * sizeof(RayState);
+  sizes[kBindQueryOut] = 2 * sizeof(LookupResult) + 2 * sizeof(RayResult);
+  sizes[kBindWalks] = 2 * sizeof(WalkState);
+
+  std::vector<vk::Buffer> buffers;
+  buffers.reserve(kBindingCount);
+  std::array<const vk::Buffer*, kBindingCount> bound{};
+  for (std::uint32_t b = 0; b < kBindingCount; ++b) {
+    buffers.emplace_back(device, sizes[b], /*host_visible=*/true);
+    std::memset(buffers[b].mapped(), 0xFF, buffers[b].size());
+    bound[b] = &buffers[b];
+  }
+  vk::BindingSet bindings(device);
+  bindings.update(bound);
+
+  const PassConstants pc{0x11111111u, 0x22222222u, 0x33333333u, 0x44444444u};
+  vk::CommandStream stream(device);
+  stream.begin(bindings);
+  stream.dispatch(probe, 1, &pc, sizeof(pc));
+  stream.barrier();
+  stream.submitAndWait();
+
+  const std::vector<Field> fields = probedFields();
+  EXPECT_EQ(fields.size(), 25u + 13u + 8u + 36u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+                               2u * (4u + 9u) + 9u * kLevelCount);
+  for (const Field& f : fields) {
+    const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
+    const std::size_t size = buffers[f.binding].size();
+    unsigned char expected[8];
+    std::size_t n = 4;
+    switch (f.kind) {
+      case Kind::kUint: {
+        const std::uint32_t m = markerUint(f.id);
+        std::memcpy(expected, &m, 4);
+        break;
+      }
+      case Kind::kFloat: {
+        const float m = markerFloat(f.id);
+        std::memcpy(expected, &m, 4);
+        break;
+      }
+      case Kind::kDouble: {
+        const double m = markerDouble(f.id);
+        std::memcpy(expected, &m, 8);
+        n = 8;
+        break;
+      }
+      case Kind::kUint64: {
+        const std::uint64_t m = markerUint64(f.id);
+        std::memcpy(expected, &m, 8);
+        n = 8;
+        break;
+      }
+    }
+    ASSERT_LE(f.offset + n, size) << f.name;
+    EXPECT_EQ(std::memcmp(bytes + f.offset, expected, n), 0)
+        << f.name << ": the shader's marker is not at the C++ offset " << f.offset << " ("
+        << findMarker(bytes, size, expected, n) << ")";
+  }
+
+  // Every byte of the single-struct buffers was written: the GLSL structs have no field the C++
+  // side lacks, nor padding the C++ side does not name.
+  for (std::uint32_t b :
+       {kBindParams, kBindCounters, kBindPool, kBindQueryIn, kBindQueryOut, kBindWalks}) {
+    const auto* bytes = static_cast<const unsigned char*>(buffers[b].mapped());
+    for (std::size_t at = 0; at + 4 <= sizes[b]; at += 4) {
+      std::uint32_t word;
+      std::memcpy(&word, bytes + at, 4);
+      EXPECT_NE(word, 0xFFFFFFFFu) << "binding " << b << ": byte " << at << " never written";
+    }
+  }
+
+  // Push constants as the shader saw them, and the constants it shares with the host.
+  const auto* touched = static_cast<const std::uint32_t*>(buffers[kBindTouched].mapped());
+  EXPECT_EQ(touched[0], pc.level);
+  EXPECT_EQ(touched[1], pc.count);
+  EXPECT_EQ(touched[2], pc.mode);
+  EXPECT_EQ(touched[3], pc.offset);
+  EXPECT_EQ(touched[4], kWorkgroupSize) << "the shaders' local size differs from kWorkgroupSize";
+  EXPECT_EQ(touched[5], kLevelCount);
+  EXPECT_EQ(touched[6], kTreeDepth);
+  EXPECT_EQ(touched[7], kNoBlock);
+}
+
+}  // namespace
+}  // namespace octovk

@@ -25,8 +25,10 @@ inline Context* sharedContext(std::string* why) {
   if (!tried) {
     tried = true;
     auto result = Context::create();
-    if (result) context = std::move(result.value());
-    else error = result.error().what();
+    if (result)
+      context = std::move(result.value());
+    else
+      error = result.error().what();
   }
   if (why) *why = error;
   return context.get();
@@ -41,13 +43,13 @@ inline bool runningInCi() {
 
 /// Gives `ctx` (octovk::Context&) to the test; with CI set a missing device fails the test,
 /// elsewhere it is skipped with the reason.
-#define OCTOVK_REQUIRE_CONTEXT(ctx)                                                   \
-  std::string octovk_why_;                                                            \
-  ::octovk::Context* octovk_ctx_ = ::octovk::test::sharedContext(&octovk_why_);       \
-  if (!octovk_ctx_) {                                                                 \
+#define OCTOVK_REQUIRE_CONTEXT(ctx)                                                            \
+  std::string octovk_why_;                                                                     \
+  ::octovk::Context* octovk_ctx_ = ::octovk::test::sharedContext(&octovk_why_);                \
+  if (!octovk_ctx_) {                                                                          \
     if (::octovk::test::runningInCi()) FAIL() << "no Vulkan device under CI: " << octovk_why_; \
-    GTEST_SKIP() << "no Vulkan device: " << octovk_why_;                              \
-  }                                                                                   \
+    GTEST_SKIP() << "no Vulkan device: " << octovk_why_;                                       \
+  }                                                                                            \
   ::octovk::Context& ctx = *octovk_ctx_
 
 namespace octovk::test {
@@ -64,13 +66,72 @@ inline std::string btBytes(const octomap::OcTree& tree) {
   return s.str();
 }
 
+/// The first node (depth-first, children in index order) where two trees differ, in words.
+inline std::string firstDifference(const octomap::OcTree& expected, const octomap::OcTree& actual) {
+  std::ostringstream out;
+  struct Walk {
+    const octomap::OcTree& a;
+    const octomap::OcTree& b;
+    std::ostringstream& out;
+    bool operator()(const octomap::OcTreeNode* x, const octomap::OcTreeNode* y, unsigned depth,
+                    unsigned kx, unsigned ky, unsigned kz) {
+      auto where = [&] {
+        const double size = a.getNodeSize(depth);
+        out << "node at depth " << depth << " key (" << kx << ", " << ky << ", " << kz
+            << ") centre ("
+            << a.keyToCoord(octomap::OcTreeKey(static_cast<octomap::key_type>(kx),
+                                               static_cast<octomap::key_type>(ky),
+                                               static_cast<octomap::key_type>(kz)),
+                            depth)
+            << ") size " << size << ": ";
+      };
+      if (!x || !y) {
+        if (x != y) {
+          where();
+          out << (x ? "missing in octovk" : "missing in OctoMap");
+          return false;
+        }
+        return true;
+      }
+      if (x->getLogOdds() != y->getLogOdds()) {
+        where();
+        out.precision(9);
+        out << "log-odds OctoMap " << x->getLogOdds() << ", octovk " << y->getLogOdds();
+        return false;
+      }
+      const bool cx = a.nodeHasChildren(x), cy = b.nodeHasChildren(y);
+      if (cx != cy) {
+        where();
+        out << (cx ? "inner in OctoMap, leaf in octovk" : "leaf in OctoMap, inner in octovk");
+        return false;
+      }
+      if (depth >= 16 || !cx) return true;
+      const unsigned bit = 15 - depth;
+      for (unsigned i = 0; i < 8; ++i) {
+        const octomap::OcTreeNode* xc = a.nodeChildExists(x, i) ? a.getNodeChild(x, i) : nullptr;
+        const octomap::OcTreeNode* yc = b.nodeChildExists(y, i) ? b.getNodeChild(y, i) : nullptr;
+        if (!(*this)(xc, yc, depth + 1, kx | ((i & 1u) << bit), ky | (((i >> 1) & 1u) << bit),
+                     kz | (((i >> 2) & 1u) << bit)))
+          return false;
+      }
+      return true;
+    }
+  };
+  Walk walk{expected, actual, out};
+  if (walk(expected.getRoot(), actual.getRoot(), 0, 0, 0, 0)) out << "no differing node found";
+  return out.str();
+}
+
 /// Node-by-node equality (OcTree::operator==) and byte-identical .ot (log-odds bits included).
 inline ::testing::AssertionResult sameTree(const octomap::OcTree& expected,
                                            const octomap::OcTree& actual) {
   if (expected.size() != actual.size())
     return ::testing::AssertionFailure()
-           << "node count differs: OctoMap " << expected.size() << ", octovk " << actual.size();
-  if (!(expected == actual)) return ::testing::AssertionFailure() << "OcTree::operator== is false";
+           << "node count differs: OctoMap " << expected.size() << ", octovk " << actual.size()
+           << "; first difference: " << firstDifference(expected, actual);
+  if (!(expected == actual))
+    return ::testing::AssertionFailure() << "OcTree::operator== is false; first difference: "
+                                         << firstDifference(expected, actual);
   if (otBytes(expected) != otBytes(actual))
     return ::testing::AssertionFailure() << ".ot bytes differ";
   return ::testing::AssertionSuccess();
@@ -91,5 +152,137 @@ inline octomap::OcTree makeOracle(const MapParams& p) {
   tree.setOccupancyThres(p.occupancy_threshold);
   return tree;
 }
+
+}  // namespace octovk::test
+
+#include <octomap/Pointcloud.h>
+#include <octomap/math/Pose6D.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <tuple>
+
+namespace octovk::test {
+
+inline octomap::point3d toPoint(const Eigen::Vector3f& v) {
+  return octomap::point3d(v.x(), v.y(), v.z());
+}
+
+/// The same pose as OctoMap's Pose6D (octomath::Quaternion(u, x, y, z) = Eigen w, x, y, z).
+inline octomath::Pose6D toPose6D(const Pose& pose) {
+  return octomath::Pose6D(
+      octomath::Vector3(pose.translation.x(), pose.translation.y(), pose.translation.z()),
+      octomath::Quaternion(pose.rotation.w(), pose.rotation.x(), pose.rotation.y(),
+                           pose.rotation.z()));
+}
+
+/// The test's scratch folder (OCTOVK_TEST_TMP), created when missing.
+inline std::string tmpDir() {
+  std::filesystem::create_directories(OCTOVK_TEST_TMP);
+  return OCTOVK_TEST_TMP;
+}
+
+inline std::string tmpPath(const std::string& name) { return tmpDir() + "/" + name; }
+
+inline std::string fileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios_base::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+inline void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+/// Inserts one scan into both trees (world frame) and checks them equal.
+inline ::testing::AssertionResult insertBoth(OccupancyMap& map, octomap::OcTree& oracle,
+                                             const std::vector<Eigen::Vector3f>& points,
+                                             const Eigen::Vector3f& origin, double max_range,
+                                             bool discretize, ScanStats* stats = nullptr) {
+  oracle.insertPointCloud(toPointcloud(points), toPoint(origin), max_range, false, discretize);
+  const ScanStats s = map.insertPointCloud(points, origin, max_range, discretize);
+  if (stats) *stats = s;
+  if (s.nodes != oracle.size())
+    return ::testing::AssertionFailure()
+           << "ScanStats::nodes " << s.nodes << " but OctoMap has " << oracle.size() << " nodes";
+  auto ours = toOcTree(map);
+  return sameTree(oracle, *ours);
+}
+
+/// Leaf boxes as comparable tuples: centre, size and log-odds bits.
+using LeafTuple = std::array<std::uint32_t, 5>;
+
+inline std::uint32_t floatBits(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, sizeof(u));
+  return u;
+}
+
+/// OctoMap's leaves, sorted: centre keyToCoord(key, depth) as float, getNodeSize(depth), log-odds.
+inline std::vector<LeafTuple> oracleLeaves(const octomap::OcTree& tree) {
+  std::vector<LeafTuple> out;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it) {
+    const octomap::point3d c = it.getCoordinate();
+    out.push_back({floatBits(c.x()), floatBits(c.y()), floatBits(c.z()),
+                   floatBits(static_cast<float>(it.getSize())), floatBits(it->getLogOdds())});
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+inline std::vector<LeafTuple> mapLeaves(const OccupancyMap& map) {
+  std::vector<LeafTuple> out;
+  for (const auto& b : map.downloadLeafBoxes())
+    out.push_back({floatBits(b.center[0]), floatBits(b.center[1]), floatBits(b.center[2]),
+                   floatBits(b.size), floatBits(b.log_odds)});
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+/// Same leaf multiset, with the first difference described.
+inline ::testing::AssertionResult sameLeaves(const octomap::OcTree& expected,
+                                             const OccupancyMap& map) {
+  const auto a = oracleLeaves(expected);
+  const auto b = mapLeaves(map);
+  if (a.size() != b.size())
+    return ::testing::AssertionFailure()
+           << "leaf count differs: OctoMap " << a.size() << ", octovk " << b.size();
+  const auto [ia, ib] = std::mismatch(a.begin(), a.end(), b.begin());
+  if (ia != a.end()) {
+    auto f = [](std::uint32_t u) {
+      float x;
+      std::memcpy(&x, &u, sizeof(x));
+      return x;
+    };
+    return ::testing::AssertionFailure()
+           << "leaf " << (ia - a.begin()) << " differs: OctoMap (" << f((*ia)[0]) << ", "
+           << f((*ia)[1]) << ", " << f((*ia)[2]) << ") size " << f((*ia)[3]) << " log-odds "
+           << f((*ia)[4]) << "; octovk (" << f((*ib)[0]) << ", " << f((*ib)[1]) << ", "
+           << f((*ib)[2]) << ") size " << f((*ib)[3]) << " log-odds " << f((*ib)[4]);
+  }
+  return ::testing::AssertionSuccess();
+}
+
+/// Silences std::cout while alive (OctoMap's ScanGraph reader reports every scan there).
+class QuietCout {
+ public:
+  QuietCout() : old_(std::cout.rdbuf(sink_.rdbuf())) {}
+  ~QuietCout() { std::cout.rdbuf(old_); }
+  QuietCout(const QuietCout&) = delete;
+  QuietCout& operator=(const QuietCout&) = delete;
+
+ private:
+  std::ostringstream sink_;
+  std::streambuf* old_;
+};
+
+/// Runs a shell command, returning its exit status.
+inline int shell(const std::string& command) { return std::system(command.c_str()); }
 
 }  // namespace octovk::test

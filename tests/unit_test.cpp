@@ -1,1 +1,505 @@
-// unit_test: filled in by its owner.
+// Unit tests: pose arithmetic against octomath, parameter validation, bad input, device
+// selection, node counts and leaf boxes against OctoMap.
+#include <octomap/math/Pose6D.h>
+#include <octomap/octomap.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <limits>
+
+#include "test_support.hpp"
+
+namespace octovk {
+namespace {
+
+using test::insertBoth;
+using test::makeOracle;
+using test::sameTree;
+using test::toPoint;
+using test::toPointcloud;
+
+bool sameBits(float a, float b) { return test::floatBits(a) == test::floatBits(b); }
+
+::testing::AssertionResult sameBits(const Eigen::Vector3f& ours, const octomath::Vector3& theirs) {
+  for (int i = 0; i < 3; ++i)
+    if (!sameBits(ours[i], theirs(static_cast<unsigned>(i))))
+      return ::testing::AssertionFailure() << "component " << i << ": octovk " << ours[i]
+                                           << ", octomath " << theirs(static_cast<unsigned>(i));
+  return ::testing::AssertionSuccess();
+}
+
+std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::Vector3f& origin,
+                                        std::size_t n, float radius) {
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::uniform_real_distribution<float> r(0.2f * radius, radius);
+  std::vector<Eigen::Vector3f> pts;
+  while (pts.size() < n) {
+    Eigen::Vector3f d(u(rng), u(rng), u(rng));
+    if (d.norm() < 1e-3f) continue;
+    d.normalize();
+    pts.push_back(origin + d * r(rng));
+  }
+  return pts;
+}
+
+MapParams withResolution(double resolution) {
+  MapParams params;
+  params.resolution = resolution;
+  return params;
+}
+
+// ---- Pose vs octomath::Pose6D (host only) -----------------------------------------------------
+
+TEST(Pose, TransformAndInverseBitExactWithPose6D) {
+  std::mt19937 rng(2024);
+  std::normal_distribution<float> n(0.0f, 1.0f);
+  std::uniform_real_distribution<float> t(-50.0f, 50.0f);
+  for (int i = 0; i < 20000; ++i) {
+    // Unit and (i % 5 == 4) slightly non-unit quaternions, as read from files.
+    Eigen::Quaternionf q(n(rng), n(rng), n(rng), n(rng));
+    q.normalize();
+    if (i % 5 == 4) q.coeffs() *= 1.0f + 1e-4f * n(rng);
+    Pose pose;
+    pose.rotation = q;
+    pose.translation = Eigen::Vector3f(t(rng), t(rng), t(rng));
+    const octomath::Pose6D theirs = test::toPose6D(pose);
+    const Eigen::Vector3f v(t(rng), t(rng), t(rng));
+
+    ASSERT_TRUE(
+        sameBits(pose.transform(v), theirs.transform(octomath::Vector3(v.x(), v.y(), v.z()))))
+        << "transform, sample " << i;
+
+    const Pose inv = pose.inverse();
+    const octomath::Pose6D theirs_inv = theirs.inv();
+    ASSERT_TRUE(sameBits(inv.translation, theirs_inv.trans())) << "inverse translation, " << i;
+    ASSERT_TRUE(sameBits(inv.rotation.w(), theirs_inv.rot().u())) << "inverse rotation u, " << i;
+    ASSERT_TRUE(sameBits(inv.rotation.x(), theirs_inv.rot().x())) << "inverse rotation x, " << i;
+    ASSERT_TRUE(sameBits(inv.rotation.y(), theirs_inv.rot().y())) << "inverse rotation y, " << i;
+    ASSERT_TRUE(sameBits(inv.rotation.z(), theirs_inv.rot().z())) << "inverse rotation z, " << i;
+    ASSERT_TRUE(
+        sameBits(inv.transform(v), theirs_inv.transform(octomath::Vector3(v.x(), v.y(), v.z()))))
+        << "inverse transform, sample " << i;
+
+    // graph2tree's sensor origin: pose.inv().transform(pose.trans()).
+    ASSERT_TRUE(sameBits(graph2treeSensorOrigin(pose), theirs.inv().transform(theirs.trans())))
+        << "graph2tree origin, sample " << i;
+  }
+}
+
+TEST(Pose, IdentityAndSpecialRotations) {
+  const Pose identity;
+  const Eigen::Vector3f v(1.5f, -2.25f, 3.0f);
+  EXPECT_EQ(identity.transform(v), v);
+  const Pose inv = identity.inverse();
+  EXPECT_EQ(inv.transform(v), v);
+  // Rotations about single axes by right angles, compared with Pose6D from roll/pitch/yaw.
+  for (double yaw : {M_PI_2, M_PI, -M_PI_2})
+    for (double roll : {0.0, M_PI_2}) {
+      const octomath::Pose6D theirs(0.5f, -1.0f, 2.0f, roll, 0.0, yaw);
+      Pose pose;
+      pose.translation = Eigen::Vector3f(0.5f, -1.0f, 2.0f);
+      pose.rotation = Eigen::Quaternionf(theirs.rot().u(), theirs.rot().x(), theirs.rot().y(),
+                                         theirs.rot().z());
+      EXPECT_TRUE(
+          sameBits(pose.transform(v), theirs.transform(octomath::Vector3(v.x(), v.y(), v.z()))));
+      EXPECT_TRUE(sameBits(pose.inverse().translation, theirs.inv().trans()));
+    }
+}
+
+// ---- MapParams ----------------------------------------------------------------------------------
+
+TEST(MapParams, DefaultsAreOctoMaps) {
+  const MapParams p;
+  EXPECT_EQ(p.validate(), "");
+  octomap::OcTree tree(0.1);
+  // OcTree keeps the log-odds (its probability getters convert back, not exactly).
+  EXPECT_EQ(octomap::logodds(p.prob_hit), tree.getProbHitLog());
+  EXPECT_EQ(octomap::logodds(p.prob_miss), tree.getProbMissLog());
+  EXPECT_EQ(octomap::logodds(p.clamping_min), tree.getClampingThresMinLog());
+  EXPECT_EQ(octomap::logodds(p.clamping_max), tree.getClampingThresMaxLog());
+  EXPECT_EQ(octomap::logodds(p.occupancy_threshold), tree.getOccupancyThresLog());
+}
+
+struct BadParams {
+  const char* name;
+  MapParams params;
+  const char* field;
+};
+
+std::vector<BadParams> badParams() {
+  std::vector<BadParams> out;
+  auto add = [&](const char* name, const char* field, auto mutate) {
+    MapParams p;
+    mutate(p);
+    out.push_back({name, p, field});
+  };
+  add("resolution_zero", "resolution", [](MapParams& p) { p.resolution = 0.0; });
+  add("resolution_negative", "resolution", [](MapParams& p) { p.resolution = -1.0; });
+  add("resolution_nan", "resolution",
+      [](MapParams& p) { p.resolution = std::numeric_limits<double>::quiet_NaN(); });
+  add("resolution_inf", "resolution",
+      [](MapParams& p) { p.resolution = std::numeric_limits<double>::infinity(); });
+  add("prob_hit_below_half", "prob_hit", [](MapParams& p) { p.prob_hit = 0.3; });
+  add("prob_hit_one", "prob_hit", [](MapParams& p) { p.prob_hit = 1.0; });
+  add("prob_miss_above_half", "prob_miss", [](MapParams& p) { p.prob_miss = 0.7; });
+  add("prob_miss_zero", "prob_miss", [](MapParams& p) { p.prob_miss = 0.0; });
+  add("clamping_equal", "clamping_min", [](MapParams& p) {
+    p.clamping_min = 0.5;
+    p.clamping_max = 0.5;
+  });
+  add("clamping_inverted", "clamping_min", [](MapParams& p) {
+    p.clamping_min = 0.9;
+    p.clamping_max = 0.2;
+  });
+  add("occupancy_threshold_one", "occupancy_threshold",
+      [](MapParams& p) { p.occupancy_threshold = 1.0; });
+  return out;
+}
+
+void PrintTo(const BadParams& b, std::ostream* os) { *os << b.name; }
+
+class InvalidParams : public ::testing::TestWithParam<BadParams> {};
+
+TEST_P(InvalidParams, ConstructorThrowsNamingTheField) {
+  const BadParams& bad = GetParam();
+  const std::string why = bad.params.validate();
+  EXPECT_NE(why.find(bad.field), std::string::npos) << why;
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  try {
+    OccupancyMap map(ctx, bad.params);
+    FAIL() << "no exception for " << bad.name;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find(bad.field), std::string::npos) << e.what();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, InvalidParams, ::testing::ValuesIn(badParams()),
+                         [](const ::testing::TestParamInfo<BadParams>& info) {
+                           return std::string(info.param.name);
+                         });
+
+// ---- bad scan input
+// ------------------------------------------------------------------------------
+
+TEST(BadInput, NonFinitePointsAreSkippedAndCounted) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (bool discretize : {false, true})
+    for (double max_range : {-1.0, 0.8}) {
+      SCOPED_TRACE(std::string(discretize ? "discretize" : "no discretize") +
+                   (max_range < 0 ? ", unlimited" : ", max range"));
+      const MapParams params = withResolution(0.05);
+      OccupancyMap map(ctx, params);
+      octomap::OcTree oracle = makeOracle(params);
+      std::mt19937 rng(31);
+      const Eigen::Vector3f origin(0.01f, 0.02f, 0.03f);
+      for (int scan = 0; scan < 3; ++scan) {
+        const auto finite = randomScan(rng, origin, 300, 1.2f);
+        std::vector<Eigen::Vector3f> mixed;
+        std::size_t bad = 0;
+        for (std::size_t i = 0; i < finite.size(); ++i) {
+          mixed.push_back(finite[i]);
+          if (i % 10 == 0) {
+            Eigen::Vector3f p = finite[i];
+            p[static_cast<int>(i % 3)] = (i % 20 == 0) ? nan : ((i % 30 == 0) ? -inf : inf);
+            mixed.push_back(p);
+            ++bad;
+          }
+        }
+        mixed.emplace_back(nan, nan, nan);
+        mixed.emplace_back(inf, -inf, inf);
+        bad += 2;
+        oracle.insertPointCloud(toPointcloud(finite), toPoint(origin), max_range, false,
+                                discretize);
+        const ScanStats stats = map.insertPointCloud(mixed, origin, max_range, discretize);
+        EXPECT_EQ(stats.points, mixed.size());
+        EXPECT_EQ(stats.skipped_nonfinite, bad);
+        EXPECT_EQ(stats.nodes, oracle.size());
+        auto ours = toOcTree(map);
+        ASSERT_TRUE(sameTree(oracle, *ours)) << "scan " << scan;
+      }
+    }
+}
+
+TEST(BadInput, PointsOutsideTheMapAreSkippedAndCounted) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const double res = 0.1;
+  const float edge = static_cast<float>(32768 * res);  // the map spans [-edge, edge)
+  const MapParams params = withResolution(res);
+  std::mt19937 rng(41);
+  const Eigen::Vector3f origin(0.3f, -0.2f, 0.1f);
+  const std::vector<Eigen::Vector3f> outside = {
+      {edge + 10.0f, 0.0f, 0.0f}, {0.0f, -edge - 1.0f, 0.0f}, {0.0f, 0.0f, 2.0f * edge},
+      {-5000.0f, 5000.0f, 1.0f},  {1.0e9f, 1.0f, 1.0f},       {edge, 0.5f, 0.5f}};
+  {
+    SCOPED_TRACE("unlimited range: rays to outside points are skipped");
+    OccupancyMap map(ctx, params);
+    octomap::OcTree oracle = makeOracle(params);
+    for (int scan = 0; scan < 3; ++scan) {
+      auto pts = randomScan(rng, origin, 300, 3.0f);
+      pts.insert(pts.begin() + 50, outside.begin(), outside.end());
+      ScanStats stats;
+      ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats)) << "scan " << scan;
+      EXPECT_EQ(stats.skipped_outside, outside.size());
+      EXPECT_EQ(stats.skipped_nonfinite, 0u);
+    }
+  }
+  {
+    SCOPED_TRACE("max range: outside points give free rays clipped to the range");
+    OccupancyMap map(ctx, params);
+    octomap::OcTree oracle = makeOracle(params);
+    for (int scan = 0; scan < 3; ++scan) {
+      auto pts = randomScan(rng, origin, 300, 3.0f);
+      pts.insert(pts.end(), outside.begin(), outside.end());
+      ScanStats stats;
+      ASSERT_TRUE(insertBoth(map, oracle, pts, origin, 2.0, false, &stats)) << "scan " << scan;
+      EXPECT_EQ(stats.skipped_outside, 0u);
+    }
+  }
+  {
+    SCOPED_TRACE("an origin outside the map: no free cells, end points inside still count");
+    OccupancyMap map(ctx, params);
+    octomap::OcTree oracle = makeOracle(params);
+    const Eigen::Vector3f far_origin(edge + 1.0f, 0.0f, 0.0f);
+    const auto pts = randomScan(rng, Eigen::Vector3f(1.0f, 1.0f, 1.0f), 60, 1.0f);
+    ScanStats stats;
+    ASSERT_TRUE(insertBoth(map, oracle, pts, far_origin, -1.0, false, &stats));
+    EXPECT_EQ(stats.free_cells, 0u);
+    EXPECT_GT(oracle.size(), 1u);
+  }
+  {
+    SCOPED_TRACE("points near the map's edge, inside");
+    OccupancyMap map(ctx, params);
+    octomap::OcTree oracle = makeOracle(params);
+    const Eigen::Vector3f o(edge - 2.0f, -edge + 2.0f, edge - 1.0f);
+    auto pts = randomScan(rng, o, 300, 2.5f);
+    ScanStats stats;
+    ASSERT_TRUE(insertBoth(map, oracle, pts, o, -1.0, false, &stats));
+    EXPECT_GT(stats.skipped_outside, 0u);
+    EXPECT_LT(stats.skipped_outside, pts.size());
+  }
+}
+
+TEST(BadInput, EmptyScanLeavesTheMapUnchanged) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  OccupancyMap map(ctx, params);
+  const std::vector<Eigen::Vector3f> none;
+  ScanStats stats = map.insertPointCloud(none, Eigen::Vector3f::Zero());
+  EXPECT_EQ(stats.points, 0u);
+  EXPECT_EQ(stats.nodes, 0u);
+  EXPECT_EQ(map.nodeCount(), 0u);
+  EXPECT_EQ(toOcTree(map)->size(), 0u);
+
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(3);
+  const auto pts = randomScan(rng, Eigen::Vector3f::Zero(), 200, 2.0f);
+  ASSERT_TRUE(insertBoth(map, oracle, pts, Eigen::Vector3f::Zero(), -1.0, false));
+  const std::string before = test::otBytes(*toOcTree(map));
+  stats = map.insertPointCloud(none, Eigen::Vector3f(1.0f, 2.0f, 3.0f), 5.0, true);
+  EXPECT_EQ(stats.points, 0u);
+  EXPECT_EQ(stats.nodes, oracle.size());
+  Pose pose;
+  pose.translation = Eigen::Vector3f(1.0f, 0.0f, 0.0f);
+  stats = map.insertPointCloud(none, Eigen::Vector3f::Zero(), pose);
+  EXPECT_EQ(stats.nodes, oracle.size());
+  EXPECT_EQ(test::otBytes(*toOcTree(map)), before);
+  EXPECT_TRUE(test::sameLeaves(oracle, map));
+}
+
+TEST(BadInput, NonFiniteOriginOrMaxRangeThrowsAndLeavesTheMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(4);
+  const auto pts = randomScan(rng, Eigen::Vector3f::Zero(), 200, 2.0f);
+  ASSERT_TRUE(insertBoth(map, oracle, pts, Eigen::Vector3f::Zero(), -1.0, false));
+  const std::string before = test::otBytes(*toOcTree(map));
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+
+  auto expectInvalid = [&](auto&& call, const char* what) {
+    try {
+      call();
+      ADD_FAILURE() << "no exception for " << what;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << what << ": " << e.what();
+    }
+    EXPECT_EQ(test::otBytes(*toOcTree(map)), before) << "map changed by " << what;
+    EXPECT_EQ(map.nodeCount(), oracle.size()) << what;
+  };
+  expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(nan, 0.0f, 0.0f)); }, "NaN origin");
+  expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(0.0f, inf, 0.0f)); },
+                "infinite origin");
+  expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(0.0f, 0.0f, -inf), 2.0, true); },
+                "-inf origin, discretize");
+  expectInvalid(
+      [&] {
+        map.insertPointCloud(pts, Eigen::Vector3f::Zero(),
+                             std::numeric_limits<double>::quiet_NaN());
+      },
+      "NaN max range");
+  Pose bad_translation;
+  bad_translation.translation = Eigen::Vector3f(nan, 0.0f, 0.0f);
+  expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f::Zero(), bad_translation); },
+                "NaN pose translation");
+  Pose bad_rotation;
+  bad_rotation.rotation = Eigen::Quaternionf(inf, 0.0f, 0.0f, 0.0f);
+  expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f::Zero(), bad_rotation); },
+                "infinite pose rotation");
+  expectInvalid(
+      [&] { map.insertPointCloud(pts, Eigen::Vector3f(nan, nan, nan), Pose{}, 1.0, false); },
+      "NaN sensor origin with a pose");
+
+  // The map still works afterwards.
+  const auto more = randomScan(rng, Eigen::Vector3f(0.5f, 0.0f, 0.0f), 200, 2.0f);
+  ASSERT_TRUE(insertBoth(map, oracle, more, Eigen::Vector3f(0.5f, 0.0f, 0.0f), -1.0, false));
+}
+
+// The node pool and the hash set start small: one big first scan must grow both several times.
+TEST(Growth, HugeFirstScanEqualsOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.02);
+  OccupancyMap map(ctx, params);
+  const std::size_t bytes_before = map.deviceBytes();
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Eigen::Vector3f> pts;
+  const Eigen::Vector3f origin(0.011f, -0.007f, 0.003f);
+  // End points fill a 2 m cube, so that the scan has hundreds of thousands of distinct cells.
+  while (pts.size() < 200000) pts.push_back(origin + Eigen::Vector3f(u(rng), u(rng), u(rng)));
+  ScanStats stats;
+  ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats));
+  EXPECT_GT(stats.free_cells + stats.occupied_cells, 800000u);
+  EXPECT_GT(oracle.size(), 800000u);
+  // 1024 blocks and 2^16 hash slots at first: grown by far more than one step.
+  EXPECT_GT(map.deviceBytes(), bytes_before * 8);
+  EXPECT_TRUE(test::sameLeaves(oracle, map));
+  // And a second, smaller scan into the grown map.
+  const auto second = randomScan(rng, Eigen::Vector3f(0.3f, 0.2f, 0.1f), 20000, 1.5f);
+  ASSERT_TRUE(insertBoth(map, oracle, second, Eigen::Vector3f(0.3f, 0.2f, 0.1f), -1.0, true));
+}
+
+// ---- device selection -------------------------------------------------------------------------
+
+TEST(Context, UnknownSelectorListsTheDevices) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ContextOptions options;
+  options.selector = "no-such-gpu";
+  auto result = Context::create(options);
+  ASSERT_FALSE(result);
+  EXPECT_EQ(result.error().code(), ErrorCode::kNoDevice);
+  const std::string message = result.error().what();
+  EXPECT_NE(message.find("no-such-gpu"), std::string::npos) << message;
+  const auto devices = Context::listDevices();
+  ASSERT_FALSE(devices.empty());
+  for (const DeviceInfo& d : devices)
+    EXPECT_NE(message.find(d.name), std::string::npos) << "'" << d.name << "' not in: " << message;
+  EXPECT_NE(message.find(ctx.device().name), std::string::npos) << message;
+  // value() of a failed result throws the error.
+  try {
+    result.value();
+    ADD_FAILURE() << "Result::value() did not throw";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kNoDevice);
+  }
+  // An index past the end is as unknown as a name.
+  options.selector = std::to_string(devices.size() + 5);
+  auto by_index = Context::create(options);
+  ASSERT_FALSE(by_index);
+  EXPECT_EQ(by_index.error().code(), ErrorCode::kNoDevice);
+}
+
+// OCTOVK_DEVICE applies when the options name no device.
+TEST(Context, EnvironmentVariableSelectsTheDevice) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const char* old = std::getenv("OCTOVK_DEVICE");
+  const std::string saved = old ? old : "";
+  ::setenv("OCTOVK_DEVICE", "no-such-gpu-from-env", 1);
+  auto missing = Context::create();
+  ::setenv("OCTOVK_DEVICE", ctx.device().name.c_str(), 1);
+  auto found = Context::create();
+  if (old)
+    ::setenv("OCTOVK_DEVICE", saved.c_str(), 1);
+  else
+    ::unsetenv("OCTOVK_DEVICE");
+  ASSERT_FALSE(missing);
+  EXPECT_EQ(missing.error().code(), ErrorCode::kNoDevice);
+  EXPECT_NE(std::string(missing.error().what()).find("no-such-gpu-from-env"), std::string::npos)
+      << missing.error().what();
+  EXPECT_NE(std::string(missing.error().what()).find(ctx.device().name), std::string::npos)
+      << missing.error().what();
+  ASSERT_TRUE(found) << found.error().what();
+  EXPECT_EQ(found.value()->device().name, ctx.device().name);
+}
+
+TEST(Context, SelectorByNameAndIndexFindsTheDevice) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ContextOptions options;
+  options.selector = ctx.device().name;
+  auto by_name = Context::create(options);
+  ASSERT_TRUE(by_name) << by_name.error().what();
+  EXPECT_EQ(by_name.value()->device().name, ctx.device().name);
+  options.selector = std::to_string(ctx.device().index);
+  auto by_index = Context::create(options);
+  ASSERT_TRUE(by_index) << by_index.error().what();
+  EXPECT_EQ(by_index.value()->device().index, ctx.device().index);
+  EXPECT_FALSE(ctx.device().type.empty());
+}
+
+// ---- node count and leaf boxes ------------------------------------------------------------------
+
+TEST(Queries, NodeCountAndLeafBoxesMatchOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (double res : {0.01, 0.05, 0.1, 0.2}) {
+    SCOPED_TRACE("resolution " + std::to_string(res));
+    const MapParams params = withResolution(res);
+    OccupancyMap map(ctx, params);
+    octomap::OcTree oracle = makeOracle(params);
+    EXPECT_EQ(map.nodeCount(), 0u);
+    EXPECT_TRUE(map.downloadLeafBoxes().empty());
+    std::mt19937 rng(static_cast<unsigned>(res * 1000));
+    const float radius = static_cast<float>(res * 25);
+    for (int scan = 0; scan < 12; ++scan) {
+      // Alternate sides of the origin, so leaves have negative and positive coordinates, and
+      // repeat scans so that pruned leaves (depth < 16) appear.
+      const float s = (scan % 2) ? -1.0f : 1.0f;
+      const Eigen::Vector3f origin(s * 0.3f * radius, 0.1f * radius, -0.2f * radius);
+      std::mt19937 scan_rng(scan % 4);
+      const auto pts = randomScan(scan % 3 == 0 ? rng : scan_rng, origin, 300, radius);
+      ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false)) << "scan " << scan;
+      EXPECT_EQ(map.nodeCount(), oracle.size());
+      EXPECT_EQ(map.leafCount(), oracle.getNumLeafNodes());
+      ASSERT_TRUE(test::sameLeaves(oracle, map)) << "scan " << scan;
+    }
+    std::size_t coarse = 0;
+    for (const auto& b : map.downloadLeafBoxes())
+      if (b.size > static_cast<float>(res) * 1.5f) ++coarse;
+    EXPECT_GT(coarse, 0u) << "no pruned leaf was exercised";
+  }
+}
+
+TEST(Queries, SingleCellTreeHasOneLeafBox) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  // Origin and end point in the same cell: no free cells, one occupied cell (17 nodes).
+  const std::vector<Eigen::Vector3f> pts = {{-0.01f, -0.02f, -0.03f}};
+  ASSERT_TRUE(insertBoth(map, oracle, pts, Eigen::Vector3f(-0.05f, -0.05f, -0.05f), -1.0, false));
+  EXPECT_EQ(map.nodeCount(), 17u);
+  const auto boxes = map.downloadLeafBoxes();
+  ASSERT_EQ(boxes.size(), 1u);
+  EXPECT_FLOAT_EQ(boxes[0].size, 0.1f);
+  EXPECT_EQ(boxes[0].center[0], -0.05f);
+  EXPECT_EQ(boxes[0].log_odds, octomap::logodds(0.7));
+  EXPECT_TRUE(test::sameLeaves(oracle, map));
+}
+
+}  // namespace
+}  // namespace octovk

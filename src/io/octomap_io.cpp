@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -154,6 +155,17 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
   } else {
     if (first_line.rfind("# Octomap OcTree file", 0) != 0)
       throw Error(ErrorCode::kFormat, "'" + path + "' is not an OctoMap tree (.ot): bad header");
+    // The header's node count: OctoMap's reader does not compare it with what it read.
+    std::size_t header_size = 0;
+    bool has_size = false;
+    for (std::string line; std::getline(in, line) && line.rfind("data", 0) != 0;) {
+      if (line.rfind("size ", 0) == 0) {
+        header_size = std::strtoull(line.c_str() + 5, nullptr, 10);
+        has_size = true;
+      }
+    }
+    in.clear();
+    in.seekg(0);
     std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(in));
     auto* as_tree = dynamic_cast<octomap::OcTree*>(abstract.get());
     if (!as_tree)
@@ -161,6 +173,12 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
                   "'" + path + "' is a corrupt .ot file or holds another tree type than OcTree");
     abstract.release();
     tree.reset(as_tree);
+    if (in.fail() || !has_size || tree->size() != header_size)
+      throw Error(ErrorCode::kFormat, "'" + path +
+                                          "' is a truncated or corrupt .ot file: its header "
+                                          "announces " +
+                                          std::to_string(header_size) + " nodes, the data holds " +
+                                          std::to_string(tree->size()));
   }
   if (in.bad())
     throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated OctoMap file");
