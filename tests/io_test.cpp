@@ -12,6 +12,8 @@
 namespace octovk {
 namespace {
 
+using test::randomScan;
+
 namespace fs = std::filesystem;
 using test::fileBytes;
 using test::makeOracle;
@@ -47,20 +49,6 @@ octomap::OcTree sphericalTree(double resolution) {
     tree.insertPointCloud(pc, origin, -1.0, false, false);
   }
   return tree;
-}
-
-std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::Vector3f& origin,
-                                        std::size_t n, float radius) {
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::uniform_real_distribution<float> r(0.2f * radius, radius);
-  std::vector<Eigen::Vector3f> pts;
-  while (pts.size() < n) {
-    Eigen::Vector3f d(u(rng), u(rng), u(rng));
-    if (d.norm() < 1e-3f) continue;
-    d.normalize();
-    pts.push_back(origin + d * r(rng));
-  }
-  return pts;
 }
 
 // Runs `call`, which must throw octovk::Error with `code`; returns its message.

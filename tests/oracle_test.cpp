@@ -10,6 +10,8 @@
 namespace octovk {
 namespace {
 
+using test::withResolution;
+
 using test::insertBoth;
 using test::makeOracle;
 using test::sameTree;
@@ -28,12 +30,6 @@ std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::Vector3f
     pts.push_back(origin + d * r(rng));
   }
   return pts;
-}
-
-MapParams withResolution(double resolution) {
-  MapParams params;
-  params.resolution = resolution;
-  return params;
 }
 
 // ---- random scans over seeds, resolutions, max range and discretize --------------------------

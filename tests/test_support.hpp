@@ -285,4 +285,25 @@ class QuietCout {
 /// Runs a shell command, returning its exit status.
 inline int shell(const std::string& command) { return std::system(command.c_str()); }
 
+/// n points between 0.2 and 1 times `radius` from `origin`, in uniformly random directions.
+inline std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::Vector3f& origin,
+                                               std::size_t n, float radius) {
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::uniform_real_distribution<float> r(0.2f * radius, radius);
+  std::vector<Eigen::Vector3f> pts;
+  while (pts.size() < n) {
+    Eigen::Vector3f d(u(rng), u(rng), u(rng));
+    if (d.norm() < 1e-3f) continue;
+    d.normalize();
+    pts.push_back(origin + d * r(rng));
+  }
+  return pts;
+}
+
+inline MapParams withResolution(double resolution) {
+  MapParams params;
+  params.resolution = resolution;
+  return params;
+}
+
 }  // namespace octovk::test

@@ -13,6 +13,9 @@
 namespace octovk {
 namespace {
 
+using test::randomScan;
+using test::withResolution;
+
 using test::insertBoth;
 using test::makeOracle;
 using test::sameTree;
@@ -27,26 +30,6 @@ bool sameBits(float a, float b) { return test::floatBits(a) == test::floatBits(b
       return ::testing::AssertionFailure() << "component " << i << ": octovk " << ours[i]
                                            << ", octomath " << theirs(static_cast<unsigned>(i));
   return ::testing::AssertionSuccess();
-}
-
-std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::Vector3f& origin,
-                                        std::size_t n, float radius) {
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::uniform_real_distribution<float> r(0.2f * radius, radius);
-  std::vector<Eigen::Vector3f> pts;
-  while (pts.size() < n) {
-    Eigen::Vector3f d(u(rng), u(rng), u(rng));
-    if (d.norm() < 1e-3f) continue;
-    d.normalize();
-    pts.push_back(origin + d * r(rng));
-  }
-  return pts;
-}
-
-MapParams withResolution(double resolution) {
-  MapParams params;
-  params.resolution = resolution;
-  return params;
 }
 
 // ---- Pose vs octomath::Pose6D (host only) -----------------------------------------------------
