@@ -7,9 +7,9 @@
 #include "tree.glsl"
 
 void main() {
-  uint slot = invocationIndex();
-  if (slot >= params.hash_capacity) return;
-  if (hash_keys[slot] == kEmptyKey) return;
+  uint i = invocationIndex();
+  if (i >= counters.hash_entries) return;
+  uint slot = slots[i];
   bool occupied = (hash_flags[slot] & kHashFlagOccupied) != 0u;
   if (occupied) atomicAdd(counters.occupied_cells, 1u);
   else atomicAdd(counters.free_cells, 1u);
@@ -38,6 +38,8 @@ void main() {
   for (uint d = first; d < kTreeDepth; ++d) {
     uint keep = d == 0u ? 0u : (0xFFFFu << (kTreeDepth - d)) & 0xFFFFu;
     uint64_t prefix = packKey(k & uvec3(keep)) | (uint64_t(d) << 48);
-    if (insertEndpoint(prefix) == 1u) countEndpointEntry(atomicAdd(counters.new_blocks, 1u));
+    uint prefix_slot;
+    if (insertEndpoint(prefix, prefix_slot) == 1u)
+      countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
   }
 }

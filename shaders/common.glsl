@@ -25,6 +25,9 @@ layout(std430, binding = 11) buffer AllocBuf { AllocRequest alloc_list[]; };
 layout(std430, binding = 12) buffer LeafBuf { LeafBox leaf_boxes[]; };
 layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
 // Query inputs and outputs; each query pass declares its own view of these two bindings.
+// Slots filled in the cell set (from 0), then in the second set (from params.hash_capacity): the
+// passes visit and clear exactly these instead of whole tables.
+layout(std430, binding = 17) buffer SlotsBuf { uint slots[]; };
 
 const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
 
@@ -105,6 +108,8 @@ uint insertCell(uint64_t k) {
     uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, k) : seen;
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.hash_entries, 1u);
+      slots[n] = s;
+      if (n % kWorkgroupSize == 0u) atomicAdd(counters.cell_args.x, 1u);
       if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
       return s;
     }
@@ -116,8 +121,8 @@ uint insertCell(uint64_t k) {
 }
 
 // Inserts k into the second set (discretize's end cells, then the prefixes of nodes that get
-// a block): 1 when inserted, 0 when present, 2 when the set is full.
-uint insertEndpoint(uint64_t k) {
+// a block): 1 when inserted (at `slot`), 0 when present, 2 when the set is full.
+uint insertEndpoint(uint64_t k, out uint slot) {
   uint cap = params.endpoint_capacity;
   if ((counters.status & kStatusEndpointHashFull) != 0u) return 2u;
   uint s = hashSlot(k, params.endpoint_log2);
@@ -125,6 +130,7 @@ uint insertEndpoint(uint64_t k) {
     uint64_t seen = endpoint_keys[s];
     if (seen == k) return 0u;
     uint64_t prev = seen == kEmptyKey ? atomicCompSwap(endpoint_keys[s], kEmptyKey, k) : seen;
+    slot = s;
     if (prev == kEmptyKey) return 1u;
     if (prev == k) return 0u;
     s = (s + 1u) & (cap - 1u);
@@ -133,8 +139,9 @@ uint insertEndpoint(uint64_t k) {
   return 2u;
 }
 
-// Counts an entry of the second set; flags it full beyond three quarters.
-void countEndpointEntry(uint n) {
+// Records the n-th entry of the second set, at `slot`; flags the set full beyond three quarters.
+void countEndpointEntry(uint n, uint slot) {
+  slots[params.hash_capacity + n] = slot;
   uint cap = params.endpoint_capacity;
   if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusEndpointHashFull);
 }

@@ -19,6 +19,7 @@ void main() {
     atomicAdd(counters.skipped_outside, 1u);
     return;
   }
-  if (insertEndpoint(packKey(k)) == 1u)
-    countEndpointEntry(atomicAdd(counters.endpoint_entries, 1u));
+  uint slot;
+  if (insertEndpoint(packKey(k), slot) == 1u)
+    countEndpointEntry(atomicAdd(counters.endpoint_entries, 1u), slot);
 }

@@ -122,6 +122,9 @@ void main() {
     counters.walk_args[w].y = mu(381u + 3u * w);
     counters.walk_args[w].z = mu(382u + 3u * w);
   }
+  counters.cell_args.x = mu(390u);
+  counters.cell_args.y = mu(391u);
+  counters.cell_args.z = mu(392u);
 
   // PoolState: 600 + field index.
   pool.bump = mu(600u);
@@ -208,6 +211,7 @@ void main() {
   hash_flags[1] = mu(802u);
   free_stack[1] = mu(803u);
   endpoint_keys[1] = m64(804u);
+  slots[1] = mu(805u);
 
   // Push constants and shared constants, as the shader sees them.
   touched[0] = pc.level;

@@ -136,10 +136,8 @@ void main() {
       return;
     }
   } else {
-    if (i >= params.endpoint_capacity) return;
-    uint64_t k = endpoint_keys[i];
-    if (k == kEmptyKey) return;
-    uvec3 kk = unpackKey(k);
+    if (i >= counters.endpoint_entries) return;
+    uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
     p = vec3(float(keyToCoord(kk.x)), float(keyToCoord(kk.y)), float(keyToCoord(kk.z)));
   }
   vec3 o = scanOrigin();

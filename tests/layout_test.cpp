@@ -92,7 +92,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 696);
+static_assert(sizeof(ScanCounters) == 708);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, hash_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -114,6 +114,7 @@ static_assert(offsetof(ScanCounters, touched_args) == 460);
 static_assert(offsetof(ScanCounters, walk_count) == 664);
 static_assert(offsetof(ScanCounters, walk_args) == 672);
 static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
+static_assert(offsetof(ScanCounters, cell_args) == 696);
 // Indirect dispatch arguments must be 4-byte aligned inside the buffer.
 static_assert(offsetof(ScanCounters, alloc_args) % 4 == 0);
 static_assert(offsetof(ScanCounters, touched_args) % 4 == 0);
@@ -187,12 +188,12 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, c
 static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox, log_odds));
 
-static_assert(kBindingCount == 17);
+static_assert(kBindingCount == 18);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 && kBindBlockMeta == 7 &&
               kBindFreeStack == 8 && kBindActive == 9 && kBindTouched == 10 &&
               kBindAllocList == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
-              kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16);
+              kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16 && kBindSlots == 17);
 
 TEST(Layout, HostSizesAndOffsets) {
   // The static_asserts above hold at compile time; the same facts at run time, for the report.
@@ -204,7 +205,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(AllocRequest), 8u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 696u);
+  EXPECT_EQ(sizeof(ScanCounters), 708u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
   EXPECT_EQ(sizeof(LookupResult), 16u);
@@ -212,7 +213,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(RayResult), 16u);
   EXPECT_EQ(sizeof(BoxQuery), 32u);
   EXPECT_EQ(sizeof(RayState), 40u);
-  EXPECT_EQ(offsetof(ScanCounters, walk_args) + 2 * sizeof(DispatchArgs), sizeof(ScanCounters));
+  EXPECT_EQ(offsetof(ScanCounters, cell_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
   EXPECT_EQ(offsetof(ScanParams, pad1) + 4, sizeof(ScanParams));
 }
 
@@ -344,6 +345,13 @@ std::vector<Field> probedFields() {
       Field{"hash_flags[1]", kBindHashFlags, 1 * sizeof(std::uint32_t), U, 802},
       Field{"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803},
       Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
+      Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
+      Field{"ScanCounters::cell_args.x", kBindCounters,
+            offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, x), U, 390},
+      Field{"ScanCounters::cell_args.y", kBindCounters,
+            offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, y), U, 391},
+      Field{"ScanCounters::cell_args.z", kBindCounters,
+            offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, z), U, 392},
   };
   for (std::uint32_t w = 0; w < 2; ++w) {
     const std::string at = subscript(w);
@@ -513,6 +521,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindQueryIn] = 2 * sizeof(RayQuery) + sizeof(BoxQuery) + 2 * sizeof(RayState);
   sizes[kBindQueryOut] = 2 * sizeof(LookupResult) + 2 * sizeof(RayResult);
   sizes[kBindWalks] = 2 * sizeof(WalkState);
+  sizes[kBindSlots] = 4 * sizeof(std::uint32_t);
 
   std::vector<vk::Buffer> buffers;
   buffers.reserve(kBindingCount);
@@ -534,7 +543,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
 
   const std::vector<Field> fields = probedFields();
   EXPECT_EQ(fields.size(), 25u + 13u + 8u + 36u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
-                               2u * (4u + 9u) + 9u * kLevelCount);
+                               2u * (4u + 9u) + 9u * kLevelCount + 1u /* slots */ +
+                               3u /* cell_args */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
     const std::size_t size = buffers[f.binding].size();

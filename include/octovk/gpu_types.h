@@ -149,6 +149,7 @@ struct ScanCounters {
   DispatchArgs touched_args[kLevelCount];  // 204B (460)
   uint walk_count[2];                      // 8B (664) unfinished ray walks, two lists (ping-pong)
   DispatchArgs walk_args[2];               // 24B (672)
+  DispatchArgs cell_args;                  // 12B (696) groups over the cell set's entries
 };
 
 // Cell states of a point lookup.
@@ -247,7 +248,8 @@ OCTOVK_CONST uint kBindEndpointKeys = 13u;
 OCTOVK_CONST uint kBindQueryIn = 14u;
 OCTOVK_CONST uint kBindQueryOut = 15u;
 OCTOVK_CONST uint kBindWalks = 16u;
-OCTOVK_CONST uint kBindingCount = 17u;
+OCTOVK_CONST uint kBindSlots = 17u;  // the slots filled in the cell set, then those of the second set
+OCTOVK_CONST uint kBindingCount = 18u;
 
 #ifdef __cplusplus
 }  // namespace octovk::gpu

@@ -35,6 +35,7 @@ gpu::ScanCounters freshCounters() {
   for (auto& a : c.alloc_args) a = {0, 1, 1};
   for (auto& a : c.touched_args) a = {0, 1, 1};
   for (auto& a : c.walk_args) a = {0, 1, 1};
+  c.cell_args = {0, 1, 1};
   return c;
 }
 
@@ -89,6 +90,7 @@ class OccupancyMap::Impl {
   void allocateHash(std::uint32_t log2);
   void allocateLists(std::size_t active_capacity);
   void allocateEndpoints(std::uint32_t log2);
+  void allocateSlots();
   void allocatePool(std::uint32_t blocks, bool copy_old);
   void resetPool();
   /// Most blocks the pool may have (MapParams::max_nodes, and 2^32 nodes).
@@ -102,8 +104,8 @@ class OccupancyMap::Impl {
   gpu::ScanParams scanParams(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
                              std::size_t count) const;
 
-  void recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize);
-  void recordClassify();
+  void recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize, bool fill_sets);
+  void recordClassify(bool discretize, std::uint32_t points);
   void recordTreeUpdate(std::uint32_t active, std::uint32_t first_level);
   void recordLeafBoxes();
   void recordReadback();
@@ -130,6 +132,11 @@ class OccupancyMap::Impl {
   vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
   vk::Buffer query_in_, query_out_, query_staging_in_, query_staging_out_;
   vk::Buffer walks_;  // ray walks saved between segments (two lists of point_capacity_)
+  vk::Buffer slots_;  // filled slots of the cell set, then of the second set
+  // Whether the sets must be cleared whole (new, or left in an unknown state by a failed scan);
+  // else only the slots the last scan filled are cleared.
+  bool sets_need_fill_ = true;
+  std::uint32_t filled_cells_ = 0, filled_endpoints_ = 0;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;
   std::uint32_t pool_blocks_ = 0;
@@ -151,13 +158,24 @@ void OccupancyMap::Impl::allocateHash(std::uint32_t log2) {
   hash_log2_ = log2;
   // The second set holds about as many entries as the first (end cells, or new-block prefixes).
   if (endpoint_keys_.valid() && endpoint_log2_ < log2) allocateEndpoints(log2);
-  rebind();
+  allocateSlots();
 }
 
 void OccupancyMap::Impl::allocateEndpoints(std::uint32_t log2) {
   vk::Buffer keys(device_, (std::size_t{1} << log2) * sizeof(std::uint64_t), false);
   endpoint_keys_ = std::move(keys);
   endpoint_log2_ = log2;
+  allocateSlots();
+}
+
+// The slot lists cover both sets; new sets start unfilled and are cleared whole once.
+void OccupancyMap::Impl::allocateSlots() {
+  const std::size_t entries = (std::size_t{1} << hash_log2_) + (std::size_t{1} << endpoint_log2_);
+  if (slots_.size() < entries * sizeof(std::uint32_t)) {
+    vk::Buffer slots(device_, entries * sizeof(std::uint32_t), false);
+    slots_ = std::move(slots);
+  }
+  sets_need_fill_ = true;
   rebind();
 }
 
@@ -203,11 +221,13 @@ void OccupancyMap::Impl::resetPool() {
 }
 
 void OccupancyMap::Impl::rebind() {
-  if (!nodes_.valid() || !hash_keys_.valid() || !touched_.valid() || !query_in_.valid()) return;
+  if (!nodes_.valid() || !hash_keys_.valid() || !touched_.valid() || !query_in_.valid() ||
+      !slots_.valid())
+    return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params_buf_, &counters_buf_,  &pool_buf_,   &points_buf_, &hash_keys_, &hash_flags_,
       &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &alloc_list_,
-      &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_};
+      &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_,     &slots_};
   bindings_.update(buffers);
 }
 
@@ -247,7 +267,7 @@ std::size_t OccupancyMap::Impl::deviceBytes() const {
   for (const vk::Buffer* b :
        {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_, &cells_,
         &endpoint_keys_, &touched_, &alloc_list_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
-        &query_in_, &query_out_, &walks_})
+        &query_in_, &query_out_, &walks_, &slots_})
     total += b->size();
   return total;
 }
@@ -286,15 +306,22 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
   return sp;
 }
 
-void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize) {
+void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize,
+                                       bool fill_sets) {
   const gpu::ScanCounters counters = freshCounters();
   stream_.timestamp();
   stream_.update(params_buf_, &sp, sizeof(sp));
   stream_.update(counters_buf_, &counters, sizeof(counters));
   stream_.copy(upload_, points_buf_, std::size_t{sp.point_count} * 3 * sizeof(float));
-  stream_.fill(hash_keys_, 0xFFFFFFFFu);
-  stream_.fill(hash_flags_, 0u);
-  if (discretize) stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
+  if (fill_sets) {
+    stream_.fill(hash_keys_, 0xFFFFFFFFu);
+    stream_.fill(hash_flags_, 0u);
+    stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
+  } else {
+    stream_.barrier();
+    dispatch("clear_sets", std::max(filled_cells_, filled_endpoints_),
+             {0, filled_cells_, 0, filled_endpoints_});
+  }
   stream_.barrier();
   stream_.timestamp();
   if (transform) dispatch("transform_points", sp.point_count, {0, sp.point_count, 0, 0});
@@ -307,7 +334,7 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
   if (discretize) {
     dispatch("discretize", sp.point_count, {0, sp.point_count, 0, 0});
-    dispatch("ray_keys", sp.endpoint_capacity, {budget, sp.endpoint_capacity, 1, 0});
+    dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 1, 0});
   } else {
     dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 0, 0});
   }
@@ -327,12 +354,15 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   }
 }
 
-void OccupancyMap::Impl::recordClassify() {
+void OccupancyMap::Impl::recordClassify(bool discretize, std::uint32_t points) {
   stream_.timestamp();
-  // The second set now collects the prefixes of nodes that get a block.
-  stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
+  // The second set now collects the prefixes of nodes that get a block: empty discretize's end
+  // cells out of it first.
+  if (discretize) dispatch("clear_sets", points, {0, points, 1, 0});
+  const PassConstants pc{};
+  stream_.dispatchIndirect(device_.pass("classify"), counters_buf_,
+                           offsetof(gpu::ScanCounters, cell_args), &pc, sizeof(pc));
   stream_.barrier();
-  dispatch("classify", std::size_t{1} << hash_log2_);
   stream_.timestamp();
 }
 
@@ -433,13 +463,17 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
   std::memcpy(upload_.mapped(), points.data(), points.size() * sizeof(Eigen::Vector3f));
 
+  // Until this scan succeeds, the sets' contents are not known to be only its listed slots.
+  bool fill_sets = sets_need_fill_;
+  sets_need_fill_ = true;
+
   // Pass group 1: ray keys into the hash set and the early-abort classification. The counters
   // come back so the host can grow the hash set (and retry) or the pool before the tree changes.
-  for (;;) {
+  for (;; fill_sets = true) {
     const gpu::ScanParams sp = scanParams(origin, pose, max_range, points.size());
     stream_.begin(bindings_);
-    recordRayKeys(sp, pose != nullptr, discretize);
-    recordClassify();
+    recordRayKeys(sp, pose != nullptr, discretize, fill_sets);
+    recordClassify(discretize, static_cast<std::uint32_t>(points.size()));
     recordReadback();
     stream_.submitAndWait();
     t1 = stream_.timestampsNs();
@@ -541,6 +575,9 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
                   "internal error: the node pool ran out during a scan despite its size check; "
                   "please report this with the input");
   }
+  filled_cells_ = counters.hash_entries;
+  filled_endpoints_ = counters.new_blocks;
+  sets_need_fill_ = false;
   // A scan that changed nothing still answers its queries.
   if (queries) *results = runQueries(*queries);
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
