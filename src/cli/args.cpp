@@ -1,16 +1,29 @@
-// Command-line parsing shared by the octovk commands.
+// Command-line parsing, file checks and map loading shared by the octovk commands.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <ostream>
 
 #include "cli.hpp"
+#include "octovk/octomap_io.hpp"
 
 namespace octovk::cli {
 
-ArgReader::ArgReader(const std::vector<std::string>& args, std::vector<std::string> value_options)
-    : args_(args), value_options_(std::move(value_options)) {}
+namespace fs = std::filesystem;
+
+ArgReader::ArgReader(const std::vector<std::string>& args, std::vector<std::string> value_options,
+                     std::vector<std::pair<std::string, std::string>> multi_value_options)
+    : args_(args),
+      value_options_(std::move(value_options)),
+      multi_value_options_(std::move(multi_value_options)) {}
 
 bool ArgReader::next() {
   if (at_ >= args_.size()) return false;
@@ -36,6 +49,31 @@ bool ArgReader::next() {
   } else {
     option_.name = arg;
   }
+  const auto multi = std::find_if(multi_value_options_.begin(), multi_value_options_.end(),
+                                  [&](const auto& m) { return m.first == option_.name; });
+  if (multi != multi_value_options_.end()) {
+    const std::string& names = multi->second;
+    const auto count = static_cast<std::size_t>(std::count(names.begin(), names.end(), ' ') + 1);
+    if (has_inline) {
+      std::size_t start = 0;
+      for (std::size_t comma; (comma = option_.value.find(',', start)) != std::string::npos;
+           start = comma + 1)
+        option_.values.push_back(option_.value.substr(start, comma - start));
+      option_.values.push_back(option_.value.substr(start));
+    } else {
+      while (option_.values.size() < count && at_ < args_.size())
+        option_.values.push_back(args_[at_++]);
+    }
+    if (option_.values.size() != count) {
+      std::string commas = names;
+      std::replace(commas.begin(), commas.end(), ' ', ',');
+      throw UsageError("option " + option_.name + " needs " + std::to_string(count) +
+                       " values; write " + option_.name + " " + names + " or " + option_.name +
+                       "=" + commas);
+    }
+    option_.value = option_.values.front();
+    return true;
+  }
   const bool takes_value =
       std::find(value_options_.begin(), value_options_.end(), option_.name) != value_options_.end();
   if (takes_value && !has_inline) {
@@ -47,19 +85,34 @@ bool ArgReader::next() {
   } else if (!takes_value && has_inline) {
     throw UsageError("option " + option_.name + " takes no value; write just " + option_.name);
   }
+  if (takes_value) option_.values = {option_.value};
   return true;
 }
 
-double parseNumber(const ParsedOption& option, const std::string& example) {
-  const std::string& text = option.value;
+namespace {
+
+double parseNumberText(const std::string& name, const std::string& text,
+                       const std::string& example) {
   errno = 0;
   char* end = nullptr;
   const double value = std::strtod(text.c_str(), &end);
   const bool whole = !text.empty() && end == text.c_str() + text.size();
   if (!whole || errno == ERANGE || !std::isfinite(value))
-    throw UsageError(option.name + " expects a number, got '" + text + "'; e.g. " + option.name +
-                     " " + example);
+    throw UsageError(name + " expects a number, got '" + text + "'; e.g. " + name + " " + example);
   return value;
+}
+
+}  // namespace
+
+double parseNumber(const ParsedOption& option, const std::string& example) {
+  return parseNumberText(option.name, option.value, example);
+}
+
+std::vector<double> parseNumbers(const ParsedOption& option, const std::string& example) {
+  std::vector<double> out;
+  for (const std::string& text : option.values)
+    out.push_back(parseNumberText(option.name, text, example));
+  return out;
 }
 
 bool wantsHelp(const std::vector<std::string>& args) {
@@ -84,6 +137,93 @@ void printEnvironmentAndExitCodes(std::ostream& out) {
          "  2  usage error: unknown command or option, missing or bad value, missing input,\n"
          "     output in a directory that does not exist or cannot be written; nothing is done\n"
          "Errors are one line on stderr starting with 'octovk: error: '.\n";
+}
+
+void checkMapInput(const std::string& path, const std::string& usage) {
+  if (path.empty()) throw UsageError("no map file given; usage: " + usage);
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (!fs::exists(st)) throw UsageError("map file '" + path + "' does not exist; check the path");
+  if (fs::is_directory(st))
+    throw UsageError("map file '" + path + "' is a directory; give a .bt or .ot file");
+  const std::string ext = fs::path(path).extension().string();
+  if (ext != ".bt" && ext != ".ot")
+    throw UsageError("map file '" + path + "' has unknown extension '" + ext +
+                     "'; give an OctoMap .bt (binary) or .ot (full) file");
+  std::ifstream probe(path, std::ios_base::binary);
+  if (!probe.is_open())
+    throw UsageError("cannot read map file '" + path + "': " + std::strerror(errno) +
+                     "; check its permissions");
+}
+
+void checkOutputFile(const std::string& path, const std::vector<std::string>& extensions,
+                     const std::string& formats) {
+  const fs::path target(path);
+  const std::string ext = target.extension().string();
+  if (std::find(extensions.begin(), extensions.end(), ext) == extensions.end())
+    throw UsageError("output '" + path + "' has unknown extension '" + ext + "'; name it " +
+                     formats);
+  std::error_code ec;
+  if (fs::is_directory(target, ec))
+    throw UsageError("output '" + path + "' is an existing directory; give a file name");
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  if (!fs::exists(dir, ec))
+    throw UsageError("output directory '" + dir.string() + "' of '" + path +
+                     "' does not exist; create it first (mkdir -p " + dir.string() + ")");
+  if (!fs::is_directory(dir, ec))
+    throw UsageError("output '" + path + "': '" + dir.string() +
+                     "' is not a directory; choose another output path");
+  // W_OK|X_OK also reports a read-only file system, which root's permissions do not bypass.
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw UsageError("cannot write into '" + dir.string() + "' for '" + path +
+                     "': " + std::strerror(errno) + "; choose a writable directory");
+}
+
+void writeFileAtomically(const std::string& path,
+                         const std::function<void(const std::string&)>& write) {
+  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  try {
+    write(tmp);
+  } catch (...) {
+    std::remove(tmp.c_str());
+    throw;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + why);
+  }
+}
+
+std::unique_ptr<Context> createContext() {
+  Result<std::unique_ptr<Context>> context = Context::create();
+  if (!context) throw context.error();
+  return std::move(context.value());
+}
+
+OccupancyMap loadMap(Context& context, const std::string& path) {
+  StderrSilencer silenced;
+  return readMapFile(context, path);
+}
+
+StderrSilencer::StderrSilencer() {
+  std::fflush(stderr);
+  saved_ = ::dup(STDERR_FILENO);
+  const int null_fd = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+  if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, STDERR_FILENO);
+  if (null_fd >= 0) ::close(null_fd);
+}
+
+StderrSilencer::~StderrSilencer() {
+  if (saved_ < 0) return;
+  std::fflush(stderr);
+  ::dup2(saved_, STDERR_FILENO);
+  ::close(saved_);
+}
+
+float occupancyLogOdds(const MapParams& params) {
+  const double p = params.occupancy_threshold;
+  return static_cast<float>(std::log(p / (1.0 - p)));
 }
 
 }  // namespace octovk::cli

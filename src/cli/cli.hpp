@@ -2,10 +2,15 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <iosfwd>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "octovk/octovk.hpp"
 
 namespace octovk::cli {
 
@@ -23,15 +28,18 @@ inline constexpr int kExitUsage = 2;
 /// One command-line option as `--name value`, `--name=value` or a bare flag.
 struct ParsedOption {
   std::string name;   ///< "--resolution", "-o"
-  std::string value;  ///< empty for flags
+  std::string value;  ///< empty for flags; the first of `values` for a multi-value option
+  std::vector<std::string> values;  ///< every value (one for a single-value option)
 };
 
-/// Walks `args` and splits them into options and positional arguments. `takes_value` says which
-/// option names consume a value; names not listed are flags. Unknown names are kept for the
-/// caller to reject with its own list. "--" ends the options.
+/// Walks `args` and splits them into options and positional arguments. `value_options` says which
+/// option names consume a value, `multi_value_options` which consume several, with the names of
+/// the values ({"--eye", "X Y Z"}: "--eye 1 2 3" or "--eye=1,2,3"); names not listed are flags.
+/// Unknown names are kept for the caller to reject with its own list. "--" ends the options.
 class ArgReader {
  public:
-  ArgReader(const std::vector<std::string>& args, std::vector<std::string> value_options);
+  ArgReader(const std::vector<std::string>& args, std::vector<std::string> value_options,
+            std::vector<std::pair<std::string, std::string>> multi_value_options = {});
 
   /// The next option or positional argument; false at the end.
   bool next();
@@ -42,6 +50,7 @@ class ArgReader {
  private:
   const std::vector<std::string>& args_;
   std::vector<std::string> value_options_;
+  std::vector<std::pair<std::string, std::string>> multi_value_options_;
   std::size_t at_ = 0;
   bool options_done_ = false;
   bool is_option_ = false;
@@ -52,6 +61,9 @@ class ArgReader {
 /// `text` as a finite double, or a UsageError that names the option and gives `example`.
 double parseNumber(const ParsedOption& option, const std::string& example);
 
+/// Every value of a multi-value option as a finite double (see parseNumber).
+std::vector<double> parseNumbers(const ParsedOption& option, const std::string& example);
+
 /// True when `args` asks for help (-h / --help before any "--").
 bool wantsHelp(const std::vector<std::string>& args);
 
@@ -60,7 +72,56 @@ void printIntegrateHelp(std::ostream& out);
 /// `octovk integrate ARGS...` (without the command name). Throws UsageError or octovk::Error.
 int runIntegrate(const std::vector<std::string>& args);
 
+/// `octovk info MAP`: what a map file holds.
+void printInfoHelp(std::ostream& out);
+int runInfo(const std::vector<std::string>& args);
+
+/// `octovk render MAP -o VIEW.png`: a picture of the occupied cells, ray cast on the device.
+void printRenderHelp(std::ostream& out);
+int runRender(const std::vector<std::string>& args);
+
+/// `octovk export MAP -o CELLS.ply`: the leaf cells as a point cloud for other viewers.
+void printExportHelp(std::ostream& out);
+int runExport(const std::vector<std::string>& args);
+
 /// The environment and exit-code sections every help text ends with.
 void printEnvironmentAndExitCodes(std::ostream& out);
+
+// ---- files and maps, shared by the commands that read a map ----
+
+/// Checks a map file given to `command` before any work: given, a .bt or .ot name, an existing
+/// readable file. Throws UsageError naming the problem; `usage` is the command's usage line.
+void checkMapInput(const std::string& path, const std::string& usage);
+
+/// Checks that `path` can be created: its extension is one of `extensions` (".png"), it is not a
+/// directory, and its directory exists and is writable. `formats` names the extensions in words.
+void checkOutputFile(const std::string& path, const std::vector<std::string>& extensions,
+                     const std::string& formats);
+
+/// Writes `path` through `write(temporary_path)` and renames the result into place, so that a
+/// failure (an exception from `write`, or the rename) leaves neither file behind.
+void writeFileAtomically(const std::string& path,
+                         const std::function<void(const std::string&)>& write);
+
+/// The Vulkan context, or octovk::Error with the reason there is none.
+std::unique_ptr<Context> createContext();
+
+/// readMapFile with OctoMap's reader chatter kept off stderr.
+OccupancyMap loadMap(Context& context, const std::string& path);
+
+/// Points stderr at /dev/null while alive (OctoMap's readers and writers report there).
+class StderrSilencer {
+ public:
+  StderrSilencer();
+  ~StderrSilencer();
+  StderrSilencer(const StderrSilencer&) = delete;
+  StderrSilencer& operator=(const StderrSilencer&) = delete;
+
+ private:
+  int saved_ = -1;
+};
+
+/// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).
+float occupancyLogOdds(const MapParams& params);
 
 }  // namespace octovk::cli

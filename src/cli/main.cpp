@@ -13,21 +13,32 @@ namespace octovk::cli {
 namespace {
 
 // Commands that exist, for the help and for the error on an unknown one.
-constexpr const char* kCommands = "integrate, devices, help";
+constexpr const char* kCommands = "integrate, info, render, export, devices, help";
 
 void printHelp(std::ostream& out) {
   out << "octovk: OctoMap-compatible occupancy mapping on a Vulkan device\n"
          "\n"
          "Usage:\n"
          "  octovk integrate SCANS.graph -o MAP.bt [-o MAP.ot] [options]\n"
+         "  octovk info MAP.bt|MAP.ot\n"
+         "  octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
+         "                [--fov DEG] [--z-max Z]\n"
+         "  octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] [--box X0 Y0 Z0 X1 Y1 Z1]\n"
+         "                [--color height|occupancy]\n"
          "  octovk devices\n"
          "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
          "\n"
          "Commands:\n"
          "  integrate   insert a scan graph into a map and write .bt / .ot files, byte-identical\n"
          "              to OctoMap's graph2tree\n"
+         "  info        resolution, nodes, leaves (occupied / free), bounds and device memory of\n"
+         "              a map file\n"
+         "  render      a PNG picture of a map's occupied cells, ray cast on the device\n"
+         "  export      a map's leaf cells (centre, size, log-odds, colour) as an ASCII PLY file\n"
          "  devices     list the Vulkan devices and the one octovk picks\n"
          "  help        this help, or a command's\n"
+         "\n"
+         "Each command's options: octovk COMMAND --help (or octovk help COMMAND).\n"
          "\n"
          "--- integrate ---\n";
   printIntegrateHelp(out);
@@ -76,6 +87,13 @@ int runHelp(const std::vector<std::string>& args) {
     printIntegrateHelp(std::cout);
     std::cout << "\n";
     printEnvironmentAndExitCodes(std::cout);
+  } else if (args.front() == "info" || args.front() == "render" || args.front() == "export") {
+    const auto print = args.front() == "info"     ? printInfoHelp
+                       : args.front() == "render" ? printRenderHelp
+                                                  : printExportHelp;
+    print(std::cout);
+    std::cout << "\n";
+    printEnvironmentAndExitCodes(std::cout);
   } else if (args.front() == "devices") {
     printDevicesHelp(std::cout);
   } else if (args.front() == "help") {
@@ -94,6 +112,9 @@ int dispatch(const std::vector<std::string>& args) {
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (command == "-h" || command == "--help" || command == "help") return runHelp(rest);
   if (command == "integrate") return runIntegrate(rest);
+  if (command == "info") return runInfo(rest);
+  if (command == "render") return runRender(rest);
+  if (command == "export") return runExport(rest);
   if (command == "devices") return runDevices(rest);
   if (!command.empty() && command[0] == '-')
     throw UsageError("unknown option '" + command + "' before a command; commands: " + kCommands +

@@ -1,0 +1,146 @@
+// octovk info: what a map file holds (resolution, nodes, leaves by state, bounds, device memory),
+// counted on the device from the map's leaf boxes.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <limits>
+#include <sstream>
+
+#include "cli.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr const char* kInfoUsage = "octovk info MAP.bt|MAP.ot";
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Metric bounds of a set of leaves: the outer faces of their cells.
+struct Bounds {
+  double min[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+                   std::numeric_limits<double>::max()};
+  double max[3] = {std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest(),
+                   std::numeric_limits<double>::lowest()};
+  bool empty = true;
+
+  void add(const OccupancyMap::LeafBoxHost& leaf) {
+    const double half = 0.5 * leaf.size;
+    for (int a = 0; a < 3; ++a) {
+      min[a] = std::min(min[a], leaf.center[a] - half);
+      max[a] = std::max(max[a], leaf.center[a] + half);
+    }
+    empty = false;
+  }
+};
+
+std::string describe(const Bounds& b) {
+  if (b.empty) return "none";
+  char text[256];
+  std::snprintf(text, sizeof(text),
+                "min (%.3f, %.3f, %.3f) max (%.3f, %.3f, %.3f) m, size %.3f x %.3f x %.3f m",
+                b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2], b.max[0] - b.min[0],
+                b.max[1] - b.min[1], b.max[2] - b.min[2]);
+  return text;
+}
+
+}  // namespace
+
+void printInfoHelp(std::ostream& out) {
+  out << kInfoUsage
+      << "\n"
+         "\n"
+         "Reads an OctoMap .bt or .ot file onto the Vulkan device and prints what it holds:\n"
+         "  resolution      edge of the smallest voxel\n"
+         "  nodes           nodes of the tree, inner nodes included (OctoMap's size())\n"
+         "  leaves          leaf nodes (pruned leaves count once, whatever their size)\n"
+         "  occupied, free  leaves by state: occupied = log-odds at or above the occupancy\n"
+         "                  threshold (probability 0.5, log-odds 0; OctoMap's isNodeOccupied),\n"
+         "                  with the volume they cover\n"
+         "  bounds          min and max corner of all leaf cells (centre -/+ half the edge)\n"
+         "  occupied bounds the same for the occupied leaves only\n"
+         "  device memory   bytes the map holds on the device\n"
+         "and the device used and the time taken.\n"
+         "\n"
+         "Options:\n"
+         "  -h, --help      show this help\n";
+}
+
+int runInfo(const std::vector<std::string>& args) {
+  if (wantsHelp(args)) {
+    printInfoHelp(std::cout);
+    std::cout << "\n";
+    printEnvironmentAndExitCodes(std::cout);
+    return kExitOk;
+  }
+  std::string map_path;
+  ArgReader reader(args, {});
+  while (reader.next()) {
+    if (reader.isOption())
+      throw UsageError("unknown option '" + reader.option().name +
+                       "' for info; see 'octovk info --help'");
+    if (!map_path.empty())
+      throw UsageError("unexpected argument '" + reader.positional() +
+                       "': info takes one map file (" + map_path + ")");
+    map_path = reader.positional();
+  }
+  checkMapInput(map_path, kInfoUsage);
+
+  std::unique_ptr<Context> context = createContext();
+  const auto start = Clock::now();
+  const OccupancyMap map = loadMap(*context, map_path);
+  const double read_s = secondsSince(start);
+
+  const auto count_start = Clock::now();
+  const std::size_t nodes = map.nodeCount();
+  const std::vector<OccupancyMap::LeafBoxHost> leaves = map.downloadLeafBoxes();
+  const float occupied_log_odds = occupancyLogOdds(map.params());
+  std::size_t occupied = 0;
+  double occupied_m3 = 0.0, free_m3 = 0.0;
+  Bounds all, occupied_bounds;
+  for (const OccupancyMap::LeafBoxHost& leaf : leaves) {
+    const double volume = static_cast<double>(leaf.size) * leaf.size * leaf.size;
+    all.add(leaf);
+    if (leaf.log_odds >= occupied_log_odds) {
+      ++occupied;
+      occupied_m3 += volume;
+      occupied_bounds.add(leaf);
+    } else {
+      free_m3 += volume;
+    }
+  }
+  const double count_s = secondsSince(count_start);
+
+  std::ostringstream s;
+  char line[256];
+  s << "device:          " << context->device().name << " (" << context->device().type << ")\n";
+  s << "map:             " << map_path << "\n";
+  std::snprintf(line, sizeof(line), "resolution:      %g m\n", map.params().resolution);
+  s << line;
+  s << "nodes:           " << nodes << "\n"
+    << "leaves:          " << leaves.size() << "\n";
+  std::snprintf(line, sizeof(line), "occupied:        %zu leaves, %.3f m^3\n", occupied,
+                occupied_m3);
+  s << line;
+  std::snprintf(line, sizeof(line), "free:            %zu leaves, %.3f m^3\n",
+                leaves.size() - occupied, free_m3);
+  s << line;
+  s << "bounds:          " << describe(all) << "\n"
+    << "occupied bounds: " << describe(occupied_bounds) << "\n";
+  std::snprintf(line, sizeof(line), "device memory:   %.1f MiB\n",
+                static_cast<double>(map.deviceBytes()) / (1024.0 * 1024.0));
+  s << line;
+  std::snprintf(line, sizeof(line),
+                "time:            %.3f s (reading and upload %.3f s, counting %.3f s)\n",
+                read_s + count_s, read_s, count_s);
+  s << line;
+  std::cout << s.str() << std::flush;
+  return kExitOk;
+}
+
+}  // namespace octovk::cli

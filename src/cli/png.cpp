@@ -1,0 +1,47 @@
+// PNG files through libpng's simplified API (no setjmp in our code), and the height colormap.
+#include "png.hpp"
+
+#include <png.h>
+
+#include <algorithm>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk::cli {
+
+void writePng(const RgbImage& image, const std::string& path) {
+  png_image png{};
+  png.version = PNG_IMAGE_VERSION;
+  png.width = image.width;
+  png.height = image.height;
+  png.format = PNG_FORMAT_RGB;
+  const auto stride = static_cast<png_int_32>(image.width * 3);
+  if (!png_image_write_to_file(&png, path.c_str(), 0, image.pixels.data(), stride, nullptr)) {
+    const std::string why = png.message;
+    png_image_free(&png);
+    throw Error(ErrorCode::kIo, "cannot write PNG '" + path + "': " + why);
+  }
+}
+
+Rgb heightColor(double t) {
+  // Google's polynomial fit of Turbo (Mikhailov 2019), over [0.08, 0.92]: its ends are too dark
+  // to shade.
+  const double x = 0.08 + 0.84 * std::clamp(t, 0.0, 1.0);
+  const auto poly = [x](const double(&c)[6]) {
+    double sum = 0.0, power = 1.0;
+    for (double coefficient : c) {
+      sum += coefficient * power;
+      power *= x;
+    }
+    return static_cast<std::uint8_t>(std::clamp(sum, 0.0, 1.0) * 255.0 + 0.5);
+  };
+  static constexpr double kRed[6] = {0.13572138,   4.61539260,    -42.66032258,
+                                     132.13108234, -152.94239396, 59.28637943};
+  static constexpr double kGreen[6] = {0.09140261,   2.19418839, 4.84296658,
+                                       -14.18503333, 4.27729857, 2.82956604};
+  static constexpr double kBlue[6] = {0.10667330,   12.64194608,  -60.58204836,
+                                      110.36276771, -89.90310912, 27.34824973};
+  return {poly(kRed), poly(kGreen), poly(kBlue)};
+}
+
+}  // namespace octovk::cli

@@ -1,0 +1,38 @@
+// 8-bit RGB pictures for the octovk commands: a colormap for heights and PNG files (libpng).
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace octovk::cli {
+
+using Rgb = std::array<std::uint8_t, 3>;
+
+/// A picture, rows top to bottom, 3 bytes (red, green, blue) a pixel.
+struct RgbImage {
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  std::vector<std::uint8_t> pixels;
+
+  RgbImage(std::uint32_t w, std::uint32_t h)
+      : width(w), height(h), pixels(std::size_t{w} * h * 3, 0) {}
+  void set(std::uint32_t x, std::uint32_t y, const Rgb& c) {
+    const std::size_t at = (std::size_t{y} * width + x) * 3;
+    pixels[at] = c[0];
+    pixels[at + 1] = c[1];
+    pixels[at + 2] = c[2];
+  }
+};
+
+/// Writes `image` as an 8-bit RGB PNG at `path` (this file, not a temporary one). Throws
+/// octovk::Error (kIo) with libpng's reason.
+void writePng(const RgbImage& image, const std::string& path);
+
+/// Colour of a height: t = 0 (lowest) … 1 (highest) through a rainbow (Turbo) that stays light
+/// enough at both ends to show shading; t is clamped.
+Rgb heightColor(double t);
+
+}  // namespace octovk::cli

@@ -1,0 +1,507 @@
+// octovk render: a picture of a map's occupied cells, one castRay per pixel on the device, shaded
+// on the host by height (colour), the face each ray entered (light) and distance (haze).
+#include <Eigen/Core>
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <limits>
+#include <optional>
+#include <sstream>
+
+#include "cli.hpp"
+#include "octovk/octovk.hpp"
+#include "png.hpp"
+
+namespace octovk::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using Vec3 = Eigen::Vector3d;
+
+constexpr const char* kRenderUsage =
+    "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH] "
+    "[--fov DEG] [--z-max Z]";
+constexpr std::uint32_t kMaxSide = 8192;
+constexpr std::uint32_t kDefaultWidth = 800;
+constexpr std::uint32_t kDefaultHeight = 600;
+constexpr double kDefaultFovDeg = 60.0;
+// Rays per castRays call: bounds the host and device memory of large pictures.
+constexpr std::size_t kRayBatch = std::size_t{1} << 20;
+// The default camera looks down at this angle, from the side of the box's longer horizontal axis
+// and a little from its start, so that the long side fills the picture's width.
+constexpr double kDefaultElevationDeg = 55.0;
+constexpr double kDefaultSkewDeg = 18.0;
+
+struct RenderOptions {
+  std::string map_path;
+  std::string output_path;
+  std::optional<Vec3> eye;
+  std::optional<Vec3> look_at;
+  std::optional<double> z_max;
+  std::uint32_t width = kDefaultWidth;
+  std::uint32_t height = kDefaultHeight;
+  double fov_deg = kDefaultFovDeg;
+};
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Vec3 parseVec3(const ParsedOption& option) {
+  const std::vector<double> v = parseNumbers(option, "0 0 1.5");
+  return {v[0], v[1], v[2]};
+}
+
+std::uint32_t parseSide(const ParsedOption& option, const std::string& text) {
+  errno = 0;
+  char* end = nullptr;
+  const unsigned long long value = std::strtoull(text.c_str(), &end, 10);
+  const bool digits = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+  if (!digits || end != text.c_str() + text.size() || errno == ERANGE)
+    throw UsageError(option.name + " expects WIDTHxHEIGHT in pixels, got '" + option.value +
+                     "'; e.g. " + option.name + " 800x600");
+  if (value < 1 || value > kMaxSide)
+    throw UsageError(option.name + " " + option.value + ": width and height must be 1 to " +
+                     std::to_string(kMaxSide) + " pixels; e.g. " + option.name + " 800x600");
+  return static_cast<std::uint32_t>(value);
+}
+
+RenderOptions parseRender(const std::vector<std::string>& args) {
+  RenderOptions o;
+  ArgReader reader(args, {"-o", "--output", "--size", "--fov", "--z-max"},
+                   {{"--eye", "X Y Z"}, {"--look-at", "X Y Z"}});
+  while (reader.next()) {
+    if (!reader.isOption()) {
+      if (!o.map_path.empty())
+        throw UsageError("unexpected argument '" + reader.positional() +
+                         "': render takes one map file (" + o.map_path +
+                         "); the picture goes "
+                         "after -o");
+      o.map_path = reader.positional();
+      continue;
+    }
+    const ParsedOption& opt = reader.option();
+    if (opt.name == "-o" || opt.name == "--output") {
+      if (!o.output_path.empty()) throw UsageError("render writes one picture; -o is given twice");
+      o.output_path = opt.value;
+    } else if (opt.name == "--eye") {
+      o.eye = parseVec3(opt);
+    } else if (opt.name == "--look-at") {
+      o.look_at = parseVec3(opt);
+    } else if (opt.name == "--size") {
+      const std::size_t x = opt.value.find_first_of("xX");
+      if (x == std::string::npos)
+        throw UsageError(opt.name + " expects WIDTHxHEIGHT in pixels, got '" + opt.value +
+                         "'; e.g. " + opt.name + " 800x600");
+      o.width = parseSide(opt, opt.value.substr(0, x));
+      o.height = parseSide(opt, opt.value.substr(x + 1));
+    } else if (opt.name == "--z-max") {
+      o.z_max = parseNumber(opt, "2.0 (metres)");
+    } else if (opt.name == "--fov") {
+      o.fov_deg = parseNumber(opt, "60 (degrees, vertical)");
+      if (!(o.fov_deg >= 1.0 && o.fov_deg <= 170.0))
+        throw UsageError("--fov " + opt.value +
+                         ": the vertical field of view must be 1 to 170 degrees; e.g. --fov 60");
+    } else {
+      throw UsageError("unknown option '" + opt.name +
+                       "' for render; see 'octovk render --help' for the options");
+    }
+  }
+  checkMapInput(o.map_path, kRenderUsage);
+  if (o.output_path.empty()) throw UsageError("no output picture; add -o VIEW.png");
+  checkOutputFile(o.output_path, {".png"}, ".png");
+  if (o.eye && o.look_at && (*o.eye - *o.look_at).norm() < 1e-9)
+    throw UsageError("--eye and --look-at are the same point; the camera needs a direction");
+  return o;
+}
+
+// A pinhole camera; pixel (x, y) counts from the top-left corner.
+struct Camera {
+  Vec3 eye, look_at, forward, right, up;
+  double tan_half_h = 0, tan_half_v = 0;
+  std::uint32_t width = 0, height = 0;
+
+  Camera(const Vec3& eye_in, const Vec3& look_at_in, std::uint32_t w, std::uint32_t h,
+         double fov_v_deg)
+      : eye(eye_in), look_at(look_at_in), width(w), height(h) {
+    forward = (look_at - eye).normalized();
+    // Looking straight up or down, "up" in the picture is +y instead of +z.
+    const Vec3 world_up = std::abs(forward.z()) > 0.9999 ? Vec3::UnitY() : Vec3::UnitZ();
+    right = forward.cross(world_up).normalized();
+    up = right.cross(forward);
+    tan_half_v = std::tan(fov_v_deg * M_PI / 360.0);
+    tan_half_h = tan_half_v * w / h;
+  }
+
+  Vec3 direction(double px, double py) const {
+    const double sx = (2.0 * px / width - 1.0) * tan_half_h;
+    const double sy = (1.0 - 2.0 * py / height) * tan_half_v;
+    return (forward + sx * right + sy * up).normalized();
+  }
+};
+
+// An axis-aligned box of metric coordinates.
+struct Box {
+  Vec3 min = Vec3::Constant(std::numeric_limits<double>::max());
+  Vec3 max = Vec3::Constant(std::numeric_limits<double>::lowest());
+  void add(const OccupancyMap::LeafBoxHost& leaf) {
+    const Vec3 c(leaf.center[0], leaf.center[1], leaf.center[2]);
+    min = min.cwiseMin(c - Vec3::Constant(0.5 * leaf.size));
+    max = max.cwiseMax(c + Vec3::Constant(0.5 * leaf.size));
+  }
+  // The stretch [t_in, t_out] of the ray origin + t * dir inside the box; false if none ahead.
+  bool clip(const Vec3& origin, const Vec3& dir, double& t_in, double& t_out) const {
+    t_in = 0.0;
+    t_out = std::numeric_limits<double>::max();
+    for (int a = 0; a < 3; ++a) {
+      if (dir[a] == 0.0) {
+        if (origin[a] < min[a] || origin[a] > max[a]) return false;
+        continue;
+      }
+      double t0 = (min[a] - origin[a]) / dir[a];
+      double t1 = (max[a] - origin[a]) / dir[a];
+      if (t0 > t1) std::swap(t0, t1);
+      t_in = std::max(t_in, t0);
+      t_out = std::min(t_out, t1);
+    }
+    return t_in <= t_out;
+  }
+};
+
+// Where the default camera looks and stands, looking along -`view` at `cells`: the eye is just
+// far enough from the target for every cell to fit the picture, with a margin. With `centre`,
+// the target moves sideways (a few rounds, as perspective shifts what is near) until the cells
+// lie centred in the picture; without, it stays as given (--look-at).
+void frame(const std::vector<OccupancyMap::LeafBoxHost>& cells, const Vec3& view, std::uint32_t w,
+           std::uint32_t h, double fov_v_deg, bool centre, Vec3& target, Vec3& eye) {
+  const Camera probe(target + view, target, w, h, fov_v_deg);
+  const double k_h = probe.tan_half_h * 0.94, k_v = probe.tan_half_v * 0.94;
+  const auto fit = [&] {
+    double distance = 0.0;
+    for (const OccupancyMap::LeafBoxHost& c : cells) {
+      const Vec3 q = Vec3(c.center[0], c.center[1], c.center[2]) - target;
+      const double reach = 0.87 * c.size;                 // half the cell's diagonal
+      const double depth = q.dot(probe.forward) - reach;  // its nearest to the camera
+      distance = std::max(distance, (std::abs(q.dot(probe.right)) + reach) / k_h - depth);
+      distance = std::max(distance, (std::abs(q.dot(probe.up)) + reach) / k_v - depth);
+    }
+    return distance;
+  };
+  double distance = fit();
+  for (int round = 0; centre && round < 4; ++round) {
+    const Vec3 from = target + view * distance;
+    double lo[2] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+    double hi[2] = {std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest()};
+    for (const OccupancyMap::LeafBoxHost& c : cells) {
+      const Vec3 q = Vec3(c.center[0], c.center[1], c.center[2]) - from;
+      const double depth = std::max(q.dot(probe.forward), 1e-9);
+      const double sx = q.dot(probe.right) / depth, sy = q.dot(probe.up) / depth;
+      lo[0] = std::min(lo[0], sx);
+      hi[0] = std::max(hi[0], sx);
+      lo[1] = std::min(lo[1], sy);
+      hi[1] = std::max(hi[1], sy);
+    }
+    target += distance * (0.5 * (lo[0] + hi[0]) * probe.right + 0.5 * (lo[1] + hi[1]) * probe.up);
+    distance = fit();
+  }
+  eye = target + view * distance;
+}
+
+// What the ray of one pixel met: the depth along the ray where it entered the hit cell, the
+// face it entered (axis 0..2, sign of the outward normal), the cell centre's z. A walk that began
+// inside the hit cell (at depth t_start) entered it there.
+struct Sample {
+  double depth = -1.0;  // < 0: no hit
+  int axis = 2;
+  double normal_sign = 1.0;
+  double z = 0.0;
+  double face_u = 0.0, face_v = 0.0;  // entry point on the face, -1..1 across the cell
+};
+
+Sample sampleOf(const RayHit& hit, const Vec3& origin, const Vec3& dir, double resolution,
+                double t_start) {
+  Sample s;
+  const Vec3 centre = hit.end.cast<double>();
+  const double half = 0.5 * resolution;
+  double t_enter = -std::numeric_limits<double>::max();
+  for (int a = 0; a < 3; ++a) {
+    if (dir[a] == 0.0) continue;
+    const double near_face = centre[a] - (dir[a] > 0 ? half : -half);
+    const double t = (near_face - origin[a]) / dir[a];
+    if (t > t_enter) {
+      t_enter = t;
+      s.axis = a;
+      s.normal_sign = dir[a] > 0 ? -1.0 : 1.0;
+    }
+  }
+  s.depth = std::max(t_enter, t_start);
+  s.z = centre.z();
+  const Vec3 entry = origin + s.depth * dir;
+  s.face_u = (entry[(s.axis + 1) % 3] - centre[(s.axis + 1) % 3]) / half;
+  s.face_v = (entry[(s.axis + 2) % 3] - centre[(s.axis + 2) % 3]) / half;
+  return s;
+}
+
+Rgb scale(const Rgb& c, double f) {
+  const auto one = [f](std::uint8_t v) {
+    return static_cast<std::uint8_t>(std::clamp(v * f, 0.0, 255.0) + 0.5);
+  };
+  return {one(c[0]), one(c[1]), one(c[2])};
+}
+
+Rgb mix(const Rgb& a, const Rgb& b, double t) {
+  const auto one = [t](std::uint8_t x, std::uint8_t y) {
+    return static_cast<std::uint8_t>(std::clamp(x + (y - x) * t, 0.0, 255.0) + 0.5);
+  };
+  return {one(a[0], b[0]), one(a[1], b[1]), one(a[2], b[2])};
+}
+
+// Background for rays that hit nothing: a dark vertical gradient.
+Rgb background(std::uint32_t y, std::uint32_t height) {
+  const double t = static_cast<double>(y) / std::max<std::uint32_t>(height - 1, 1);
+  return mix(Rgb{52, 58, 72}, Rgb{18, 20, 26}, t);
+}
+
+std::string numberText(double v) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%g", v);
+  return text;
+}
+
+std::string vec3Text(const Vec3& v) {
+  char text[128];
+  std::snprintf(text, sizeof(text), "%.3f %.3f %.3f", v.x(), v.y(), v.z());
+  return text;
+}
+
+}  // namespace
+
+void printRenderHelp(std::ostream& out) {
+  out << "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
+         "              [--fov DEG] [--z-max Z]\n"
+         "\n"
+         "Renders the occupied cells of an OctoMap .bt or .ot map headless on the Vulkan device:\n"
+         "one ray per pixel from the eye, cast by OctoMap's castRay rules on the device with\n"
+         "unknown space treated as free, stopping at the first occupied cell (each ray starts\n"
+         "where it enters the occupied cells' bounding box: nothing before it can stop it).\n"
+         "The picture is coloured by the height of the cell hit (blue low, red high, over the\n"
+         "z range of the occupied cells shown), lit by the face of the cell the ray entered,\n"
+         "hazier with distance, with outlines where depth jumps; rays that hit nothing show\n"
+         "the background.\n"
+         "\n"
+         "Options:\n"
+         "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Written to a\n"
+         "                         temporary file and renamed. Required.\n"
+         "      --eye X Y Z        camera position in metres (default: on the side of the\n"
+         "                         occupied cells that shows their longer horizontal extent,\n"
+         "                         looking down at "
+      << kDefaultElevationDeg
+      << " degrees, just far enough away for all\n"
+         "                         of them to fit the picture)\n"
+         "      --look-at X Y Z    point at the centre of the picture (default: with the\n"
+         "                         default eye, the point that centres the occupied cells in\n"
+         "                         the picture; with --eye, the centre of their bounding box)\n"
+         "      --size WxH         picture size in pixels, each side 1 to "
+      << kMaxSide << " (default: " << kDefaultWidth << "x" << kDefaultHeight
+      << ")\n"
+         "      --fov DEG          vertical field of view in degrees, 1 to 170 (default: "
+      << kDefaultFovDeg
+      << ")\n"
+         "      --z-max Z          hide everything above height Z metres (cut at the cell\n"
+         "                         boundary nearest Z), e.g. to look into a building through\n"
+         "                         its ceiling (default: nothing hidden)\n"
+         "  -h, --help             show this help\n"
+         "Options take their value as '--name VALUE' or '--name=VALUE'; --eye and --look-at also\n"
+         "as '--eye=X,Y,Z'. Up in the picture is +z (+y when looking straight up or down).\n"
+         "\n"
+         "Output: the device used, then on stdout the picture size, the camera (eye, look-at,\n"
+         "field of view, to repeat or adjust with --eye / --look-at), how many rays hit, the\n"
+         "depth range, the time taken and the file written.\n";
+}
+
+int runRender(const std::vector<std::string>& args) {
+  if (wantsHelp(args)) {
+    printRenderHelp(std::cout);
+    std::cout << "\n";
+    printEnvironmentAndExitCodes(std::cout);
+    return kExitOk;
+  }
+  const RenderOptions o = parseRender(args);
+
+  std::unique_ptr<Context> context = createContext();
+  const auto start = Clock::now();
+  const OccupancyMap map = loadMap(*context, o.map_path);
+  const double resolution = map.params().resolution;
+  const float occupied_log_odds = occupancyLogOdds(map.params());
+  // The cells that can show: occupied, and below --z-max, which cuts at the cell boundary
+  // nearest it.
+  const double z_cut =
+      o.z_max ? std::round(*o.z_max / resolution) * resolution : std::numeric_limits<double>::max();
+  std::vector<OccupancyMap::LeafBoxHost> shown = map.downloadLeafBoxes();
+  std::erase_if(shown, [&](const OccupancyMap::LeafBoxHost& c) {
+    return !(c.log_odds >= occupied_log_odds) || c.center[2] - 0.5 * c.size >= z_cut;
+  });
+  if (shown.empty())
+    throw Error(ErrorCode::kInvalidArgument, "map '" + o.map_path + "' has no occupied cells" +
+                                                 (o.z_max ? " below --z-max" : "") +
+                                                 ": there is nothing to render");
+  Box occupied;
+  for (const OccupancyMap::LeafBoxHost& c : shown) occupied.add(c);
+  occupied.max.z() = std::min(occupied.max.z(), z_cut);
+  const double read_s = secondsSince(start);
+
+  Vec3 look_at = o.look_at.value_or(0.5 * (occupied.min + occupied.max));
+  Vec3 eye;
+  if (o.eye) {
+    eye = *o.eye;
+  } else {
+    const Vec3 extent = occupied.max - occupied.min;
+    const double elevation = kDefaultElevationDeg * M_PI / 180.0;
+    const double skew = kDefaultSkewDeg * M_PI / 180.0;
+    // From the side of the longer horizontal axis: -y of an x-long box, -x of a y-long one.
+    const Vec3 side = extent.x() >= extent.y() ? Vec3(-std::sin(skew), -std::cos(skew), 0.0)
+                                               : Vec3(-std::cos(skew), std::sin(skew), 0.0);
+    const Vec3 view = std::cos(elevation) * side + std::sin(elevation) * Vec3::UnitZ();
+    frame(shown, view, o.width, o.height, o.fov_deg, !o.look_at, look_at, eye);
+  }
+  if ((eye - look_at).norm() < 1e-9)
+    throw UsageError("--eye " + vec3Text(eye) + " is the point the camera looks at; move it");
+  // castRay needs its origin inside the map: keys 0 … 65535, centred on 0.
+  const double domain_m = 32767.0 * resolution;
+  if (eye.cwiseAbs().maxCoeff() >= domain_m)
+    throw UsageError("--eye " + vec3Text(eye) + " lies outside the map's domain (each coordinate " +
+                     "within " + numberText(domain_m) + " m of the origin at this resolution)");
+  const Camera camera(eye, look_at, o.width, o.height, o.fov_deg);
+
+  // Nothing outside the occupied cells' box stops a ray that ignores unknown space, so each ray
+  // starts where it enters the box and ends where it leaves it: the same first occupied cell as
+  // from the eye, without walking the empty space in front (and --z-max is exact this way).
+  const auto cast_start = Clock::now();
+  const std::size_t pixels = std::size_t{o.width} * o.height;
+  std::vector<Sample> samples(pixels);
+  std::vector<Ray> rays;
+  std::vector<std::size_t> ray_pixel;
+  std::vector<double> ray_start;
+  std::size_t cast = 0, hits = 0;
+  const auto flush = [&] {
+    const std::vector<RayHit> results = map.castRays(rays);
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      if (!results[i].hit) continue;
+      const std::size_t p = ray_pixel[i];
+      const Vec3 dir = camera.direction(static_cast<double>(p % o.width) + 0.5,
+                                        static_cast<double>(p / o.width) + 0.5);
+      samples[p] = sampleOf(results[i], eye, dir, resolution, ray_start[i]);
+      ++hits;
+    }
+    cast += rays.size();
+    rays.clear();
+    ray_pixel.clear();
+    ray_start.clear();
+  };
+  for (std::size_t p = 0; p < pixels; ++p) {
+    const Vec3 dir = camera.direction(static_cast<double>(p % o.width) + 0.5,
+                                      static_cast<double>(p / o.width) + 0.5);
+    double t_in, t_out;
+    if (!occupied.clip(eye, dir, t_in, t_out)) continue;
+    // A hair inside the box, so that a start on a cell face lies in the cell behind it.
+    if (t_in > 0.0) t_in += 1e-3 * resolution;
+    Ray ray;
+    ray.origin = (eye + t_in * dir).cast<float>();
+    ray.direction = dir.cast<float>();
+    ray.max_range_m = t_out - t_in + 2.0 * resolution;
+    ray.ignore_unknown = true;
+    rays.push_back(ray);
+    ray_pixel.push_back(p);
+    ray_start.push_back(t_in);
+    if (rays.size() == kRayBatch) flush();
+  }
+  if (!rays.empty()) flush();
+  const double cast_s = secondsSince(cast_start);
+
+  const auto shade_start = Clock::now();
+  double depth_min = std::numeric_limits<double>::max(), depth_max = 0.0;
+  for (const Sample& s : samples)
+    if (s.depth >= 0) {
+      depth_min = std::min(depth_min, s.depth);
+      depth_max = std::max(depth_max, s.depth);
+    }
+  const double z_low = occupied.min.z() + 0.5 * resolution;  // cell centres: z of a hit
+  const double z_span = std::max(occupied.max.z() - occupied.min.z() - resolution, resolution);
+  // A key light over the camera's left shoulder; faces turned away still get the ambient part.
+  const Vec3 light = (-camera.forward * 0.55 - camera.right * 0.4 + Vec3::UnitZ()).normalized();
+  const Rgb haze{70, 76, 92};
+  const double pixel_angle = 2.0 * camera.tan_half_v / o.height;
+  RgbImage image(o.width, o.height);
+  for (std::uint32_t y = 0; y < o.height; ++y) {
+    for (std::uint32_t x = 0; x < o.width; ++x) {
+      const Sample& s = samples[std::size_t{y} * o.width + x];
+      if (s.depth < 0) {
+        image.set(x, y, background(y, o.height));
+        continue;
+      }
+      Vec3 normal = Vec3::Zero();
+      normal[s.axis] = s.normal_sign;
+      double light_f = 0.38 + 0.62 * std::max(0.0, normal.dot(light));
+      // Cell edges where a cell spans several pixels, so that single voxels can be told apart.
+      const double cell_px = resolution / std::max(s.depth * pixel_angle, 1e-12);
+      if (cell_px > 5.0) {
+        const double edge = 1.0 - 2.4 / cell_px;
+        if (std::max(std::abs(s.face_u), std::abs(s.face_v)) > edge) light_f *= 0.72;
+      }
+      // Outlines where the neighbouring pixel lies much farther away (or is background).
+      bool outline = false;
+      const auto farther = [&](std::uint32_t nx, std::uint32_t ny) {
+        const Sample& n = samples[std::size_t{ny} * o.width + nx];
+        return n.depth < 0 || n.depth > s.depth * 1.04 + 3.0 * resolution;
+      };
+      if (x > 0 && farther(x - 1, y)) outline = true;
+      if (x + 1 < o.width && farther(x + 1, y)) outline = true;
+      if (y > 0 && farther(x, y - 1)) outline = true;
+      if (y + 1 < o.height && farther(x, y + 1)) outline = true;
+      if (outline) light_f *= 0.55;
+      const Rgb base = heightColor((s.z - z_low) / z_span);
+      const double far =
+          depth_max > depth_min ? (s.depth - depth_min) / (depth_max - depth_min) : 0;
+      image.set(x, y, mix(scale(base, light_f), haze, 0.4 * far));
+    }
+  }
+  writeFileAtomically(o.output_path, [&](const std::string& tmp) { writePng(image, tmp); });
+  const double shade_s = secondsSince(shade_start);
+
+  const double fov_h_deg = 2.0 * std::atan(camera.tan_half_h) * 180.0 / M_PI;
+  char line[512];
+  std::ostringstream s;
+  s << "device:  " << context->device().name << " (" << context->device().type << ")\n";
+  s << "map:     " << o.map_path << "\n";
+  std::snprintf(line, sizeof(line), "image:   %ux%u px\n", o.width, o.height);
+  s << line;
+  s << "camera:  --eye " << vec3Text(eye) << " --look-at " << vec3Text(look_at);
+  std::snprintf(line, sizeof(line), " --fov %g (vertical; %.1f horizontal)\n", o.fov_deg,
+                fov_h_deg);
+  s << line;
+  std::snprintf(line, sizeof(line),
+                "rays:    %zu cast (pixels whose ray crosses the occupied cells' box), %zu hit "
+                "(%.1f%% of %zu pixels)\n",
+                cast, hits, 100.0 * static_cast<double>(hits) / static_cast<double>(pixels),
+                pixels);
+  s << line;
+  if (hits > 0) {
+    std::snprintf(line, sizeof(line), "depth:   %.2f to %.2f m\n", depth_min, depth_max);
+    s << line;
+  }
+  std::snprintf(
+      line, sizeof(line),
+      "time:    %.3f s (reading and upload %.3f s, castRays %.3f s, shading and PNG %.3f s)\n",
+      read_s + cast_s + shade_s, read_s, cast_s, shade_s);
+  s << line;
+  s << "wrote:   " << o.output_path << "\n";
+  std::cout << s.str() << std::flush;
+  return kExitOk;
+}
+
+}  // namespace octovk::cli
