@@ -4,8 +4,9 @@
 // same precision, so the same cells and the same `end`). Cells inside a node already looked up
 // (a large free node, or an unknown region) reuse that lookup instead of searching the tree.
 //
-// The walk runs in resumable segments: mode 0 starts every ray, mode 1 continues the unfinished
-// ones from their saved state. A segment stops after about pc.level loop iterations because
+// The walk runs in resumable segments: mode 0 starts every ray, modes 1 and 2 continue the
+// unfinished ones listed in list 0 or 1 (indirect dispatch) and list those still unfinished in
+// the other. A segment stops after about pc.level loop iterations because
 // llvmpipe (lavapipe) ends an invocation's loops after 65535 iterations in total; on a GPU the
 // host passes a budget that finishes every ray in one segment.
 #include "common.glsl"
@@ -51,7 +52,16 @@ vec3 keyCentre(uvec3 k) {
   return vec3(float(keyToCoord(k.x)), float(keyToCoord(k.y)), float(keyToCoord(k.z)));
 }
 
+// The output buffer from word pc.offset on: 10 words of walk state per ray, then two lists of
+// the rays whose walks are unfinished (pc.count rays in the batch).
 uint stateBase(uint i) { return pc.offset + 10u * i; }
+uint listBase(uint list) { return pc.offset + 10u * pc.count + list * pc.count; }
+
+void postpone(uint list, uint i) {
+  uint at = atomicAdd(counters.walk_count[list], 1u);
+  if (at % kWorkgroupSize == 0u) atomicAdd(counters.walk_args[list].x, 1u);
+  state_words[listBase(list) + at] = i;
+}
 
 void saveState(uint i, uint done) {
   uint b = stateBase(i);
@@ -154,20 +164,28 @@ bool walk(uint i) {
 
 void main() {
   uint i = invocationIndex();
-  if (i >= pc.count) return;
   budget = int(pc.level);
+  if (pc.mode != 0u) {  // continue the walks listed in list pc.mode - 1
+    uint from = pc.mode - 1u;
+    if (i >= counters.walk_count[from]) return;
+    i = state_words[listBase(from) + i];
+  } else if (i >= pc.count) {
+    return;
+  }
   RayQuery q = rays[i];
   vec3 origin = vec3(q.origin_x, q.origin_y, q.origin_z);
 
-  if (pc.mode == 1u) {  // continue an unfinished walk
+  if (pc.mode != 0u) {
     uint b = stateBase(i);
-    if (state_words[b + 9u] != 0u) return;
     for (int a = 0; a < 3; ++a) {
       t_max[a] = packDouble2x32(uvec2(state_words[b + 2u * uint(a)], state_words[b + 2u * uint(a) + 1u]));
       key[a] = state_words[b + 6u + uint(a)];
     }
     setUp(q, false);
-    if (!walk(i)) saveState(i, 0u);
+    if (!walk(i)) {
+      saveState(i, 0u);
+      postpone(2u - pc.mode, i);
+    }
     return;
   }
 
@@ -191,5 +209,8 @@ void main() {
     finish(i, 0u, origin);
     return;
   }
-  if (!walk(i)) saveState(i, 0u);
+  if (!walk(i)) {
+    saveState(i, 0u);
+    postpone(0u, i);
+  }
 }

@@ -594,7 +594,7 @@ void OccupancyMap::Impl::stageQueries(const QueryRequest& q) {
   const std::size_t ray_bytes = q.rays.size() * sizeof(gpu::RayQuery);
   const std::size_t point_bytes = q.lookups.size() * 3 * sizeof(float);
   const std::size_t out_bytes = (q.rays.size() + q.lookups.size()) * sizeof(gpu::RayResult) +
-                                q.rays.size() * sizeof(gpu::RayState);
+                                q.rays.size() * (sizeof(gpu::RayState) + 2 * sizeof(std::uint32_t));
   static_assert(sizeof(gpu::RayResult) == sizeof(gpu::LookupResult));
   ensureQueryBuffers(ray_bytes + point_bytes, out_bytes);
   auto* bytes = static_cast<unsigned char*>(query_staging_in_.mapped());
@@ -635,9 +635,29 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
     const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
     const std::uint32_t continuations =
         loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
+    // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
+    // walked) and continued by indirect dispatches, which cost next to nothing once empty.
+    stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count),
+                 sizeof(gpu::ScanCounters::walk_count));
+    for (std::uint32_t list = 0; list < 2; ++list)
+      stream_.fill(counters_buf_, 0u,
+                   offsetof(gpu::ScanCounters, walk_args) + list * sizeof(gpu::DispatchArgs), 4);
+    stream_.barrier();
     dispatch("cast_ray", rays, {budget, rays, 0, state_word});
-    for (std::uint32_t c = 0; c < continuations; ++c)
-      dispatch("cast_ray", rays, {budget, rays, 1, state_word});
+    const vk::Pass& cast_ray = device_.pass("cast_ray");
+    for (std::uint32_t c = 0; c < continuations; ++c) {
+      const std::uint32_t from = c % 2, to = 1 - from;
+      stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count) + 4 * to, 4);
+      stream_.fill(counters_buf_, 0u,
+                   offsetof(gpu::ScanCounters, walk_args) + to * sizeof(gpu::DispatchArgs), 4);
+      stream_.barrier();
+      const PassConstants pc{budget, rays, from + 1, state_word};
+      stream_.dispatchIndirect(
+          cast_ray, counters_buf_,
+          offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs), &pc,
+          sizeof(pc));
+      stream_.barrier();
+    }
   }
   if (points) {
     const auto first_float =
