@@ -91,29 +91,6 @@ void checkInput(const std::string& path) {
                      "; check its permissions");
 }
 
-// Checks what writeMapFile would only find out after the whole integration.
-void checkOutput(const std::string& path) {
-  const fs::path target(path);
-  const std::string ext = target.extension().string();
-  if (ext != ".bt" && ext != ".ot")
-    throw UsageError("output '" + path + "' has unknown extension '" + ext +
-                     "'; name it .bt (max-likelihood binary) or .ot (full log-odds)");
-  std::error_code ec;
-  if (fs::is_directory(target, ec))
-    throw UsageError("output '" + path + "' is an existing directory; give a file name");
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  if (!fs::exists(dir, ec))
-    throw UsageError("output directory '" + dir.string() + "' of '" + path +
-                     "' does not exist; create it first (mkdir -p " + dir.string() + ")");
-  if (!fs::is_directory(dir, ec))
-    throw UsageError("output '" + path + "': '" + dir.string() +
-                     "' is not a directory; choose another output path");
-  // W_OK|X_OK also reports a read-only file system, which root's permissions do not bypass.
-  if (::access(dir.c_str(), W_OK | X_OK) != 0)
-    throw UsageError("cannot write into '" + dir.string() + "' for '" + path +
-                     "': " + std::strerror(errno) + "; choose a writable directory");
-}
-
 // validate() names MapParams fields; the user knows them as options.
 std::string paramFix(const std::string& why) {
   const auto starts = [&](const char* field) { return why.rfind(field, 0) == 0; };
@@ -134,7 +111,7 @@ void validate(const IntegrateOptions& o) {
   if (o.output_paths.empty()) throw UsageError("no output file; add -o MAP.bt and/or -o MAP.ot");
   std::set<fs::path> seen;
   for (const std::string& path : o.output_paths) {
-    checkOutput(path);
+    checkOutputFile(path, {".bt", ".ot"}, ".bt (max-likelihood binary) or .ot (full log-odds)");
     if (!seen.insert(fs::absolute(path).lexically_normal()).second)
       throw UsageError("output '" + path + "' is given twice; give each -o file once");
   }
@@ -177,34 +154,10 @@ class Progress {
   bool printed_ = false;
 };
 
-// OctoMap's .bt writer reports on stderr with fprintf (Debian builds it with debug output); while
-// it runs, stderr points at /dev/null so it holds only progress and errors.
-class SilencedStderr {
- public:
-  SilencedStderr() {
-    std::fflush(stderr);
-    saved_ = ::dup(STDERR_FILENO);
-    const int null_fd = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
-    if (saved_ >= 0 && null_fd >= 0) ::dup2(null_fd, STDERR_FILENO);
-    if (null_fd >= 0) ::close(null_fd);
-  }
-  ~SilencedStderr() {
-    if (saved_ < 0) return;
-    std::fflush(stderr);
-    ::dup2(saved_, STDERR_FILENO);
-    ::close(saved_);
-  }
-  SilencedStderr(const SilencedStderr&) = delete;
-  SilencedStderr& operator=(const SilencedStderr&) = delete;
-
- private:
-  int saved_ = -1;
-};
-
 // Writes every output; if one fails, the ones this run already wrote are removed, so that a
 // failed run leaves no output behind.
 void writeOutputs(const OccupancyMap& map, const std::vector<std::string>& paths) {
-  SilencedStderr silenced;
+  StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
   std::vector<std::string> written;
   try {
     for (const std::string& path : paths) {
@@ -279,9 +232,8 @@ int runIntegrate(const std::vector<std::string>& args) {
   const auto run_start = Clock::now();
   const std::vector<GraphScan> scans = readScanGraph(o.graph_path);
 
-  Result<std::unique_ptr<Context>> context_result = Context::create();
-  if (!context_result) throw context_result.error();
-  Context& context = *context_result.value();
+  const std::unique_ptr<Context> context_owner = createContext();
+  Context& context = *context_owner;
   const DeviceInfo& device = context.device();
   std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
 

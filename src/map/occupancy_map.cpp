@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
 
 #include "map/reference.hpp"
 #include "octovk/gpu_types.h"
@@ -106,6 +107,8 @@ class OccupancyMap::Impl {
 
   void recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize, bool fill_sets);
   void recordClassify(bool discretize, std::uint32_t points);
+  void recordContinuations(const char* pass, std::uint32_t rounds,
+                           const std::function<PassConstants(std::uint32_t, bool)>& constants);
   void recordTreeUpdate(std::uint32_t active, std::uint32_t first_level);
   void recordLeafBoxes();
   void recordReadback();
@@ -306,6 +309,27 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
   return sp;
 }
 
+// Records `rounds` indirect dispatches of `pass` that continue the walks listed in the two lists
+// of ScanCounters::walk_count, alternately: each round empties the other list, then continues
+// the listed walks, which list the ones still unfinished in it.
+void OccupancyMap::Impl::recordContinuations(
+    const char* pass, std::uint32_t rounds,
+    const std::function<PassConstants(std::uint32_t from, bool last)>& constants) {
+  const vk::Pass& p = device_.pass(pass);
+  for (std::uint32_t round = 0; round < rounds; ++round) {
+    const std::uint32_t from = round % 2, to = 1 - from;
+    stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count) + 4 * to, 4);
+    stream_.fill(counters_buf_, 0u,
+                 offsetof(gpu::ScanCounters, walk_args) + to * sizeof(gpu::DispatchArgs), 4);
+    stream_.barrier();
+    const PassConstants pc = constants(from, round + 1 == rounds);
+    stream_.dispatchIndirect(
+        p, counters_buf_, offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs),
+        &pc, sizeof(pc));
+    stream_.barrier();
+  }
+}
+
 void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize,
                                        bool fill_sets) {
   const gpu::ScanCounters counters = freshCounters();
@@ -339,19 +363,9 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
     dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 0, 0});
   }
   const std::uint32_t continuations = loop_limited ? 24u : 0u;
-  const vk::Pass& ray_keys = device_.pass("ray_keys");
-  for (std::uint32_t round = 0; round < continuations; ++round) {
-    const std::uint32_t from = round % 2, to = 1 - from;
-    stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count) + 4 * to, 4);
-    stream_.fill(counters_buf_, 0u,
-                 offsetof(gpu::ScanCounters, walk_args) + to * sizeof(gpu::DispatchArgs), 4);
-    stream_.barrier();
-    const PassConstants pc{budget, round + 1 < continuations ? 1u : 0u, 2, from};
-    stream_.dispatchIndirect(
-        ray_keys, counters_buf_,
-        offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs), &pc, sizeof(pc));
-    stream_.barrier();
-  }
+  recordContinuations("ray_keys", continuations, [&](std::uint32_t from, bool last) {
+    return PassConstants{budget, last ? 0u : 1u, 2, from};
+  });
 }
 
 void OccupancyMap::Impl::recordClassify(bool discretize, std::uint32_t points) {
@@ -644,20 +658,9 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
                    offsetof(gpu::ScanCounters, walk_args) + list * sizeof(gpu::DispatchArgs), 4);
     stream_.barrier();
     dispatch("cast_ray", rays, {budget, rays, 0, state_word});
-    const vk::Pass& cast_ray = device_.pass("cast_ray");
-    for (std::uint32_t c = 0; c < continuations; ++c) {
-      const std::uint32_t from = c % 2, to = 1 - from;
-      stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count) + 4 * to, 4);
-      stream_.fill(counters_buf_, 0u,
-                   offsetof(gpu::ScanCounters, walk_args) + to * sizeof(gpu::DispatchArgs), 4);
-      stream_.barrier();
-      const PassConstants pc{budget, rays, from + 1, state_word};
-      stream_.dispatchIndirect(
-          cast_ray, counters_buf_,
-          offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs), &pc,
-          sizeof(pc));
-      stream_.barrier();
-    }
+    recordContinuations("cast_ray", continuations, [&](std::uint32_t from, bool) {
+      return PassConstants{budget, rays, from + 1, state_word};
+    });
   }
   if (points) {
     const auto first_float =
