@@ -12,6 +12,7 @@ packages=(
   googletest libgtest-dev                # tests
   libpng-dev                             # octovk render writes PNG
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
+  gnuplot-nox                            # bench/plot_results.py draws the benchmark plot
 )
 
 missing=()

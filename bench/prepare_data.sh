@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Makes the benchmark's real-data inputs in DATA_DIR (default: build-bench/bench/data):
+#   scan.dat     OctoMap's 3D laser scan, from liboctomap-dev's examples (bzip2 -d)
+#   fr079.graph  the FR-079 sequence: ../shared/data/fr079-2d/clf2log.py, then log2graph
+# Skips files that exist. Needs python3, bzip2, liboctomap-dev and octomap-tools.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+data_dir="${1:-$root/build-bench/bench/data}"
+scan_src="${OCTOVK_SCANDAT_BZ2:-/usr/share/doc/liboctomap-dev/examples/data/scan.dat.bz2}"
+fr079_dir="${OCTOVK_FR079_DIR:-$root/../shared/data/fr079-2d}"
+mkdir -p "$data_dir"
+
+if [ ! -s "$data_dir/scan.dat" ]; then
+  [ -f "$scan_src" ] || { echo "prepare_data: $scan_src is missing (install liboctomap-dev)" >&2; exit 1; }
+  bzip2 -dc "$scan_src" > "$data_dir/scan.dat.tmp"
+  mv "$data_dir/scan.dat.tmp" "$data_dir/scan.dat"
+  echo "prepare_data: wrote $data_dir/scan.dat"
+fi
+
+if [ ! -s "$data_dir/fr079.graph" ]; then
+  for f in clf2log.py fr079.clf.bz2; do
+    [ -f "$fr079_dir/$f" ] || { echo "prepare_data: $fr079_dir/$f is missing (set OCTOVK_FR079_DIR)" >&2; exit 1; }
+  done
+  command -v log2graph >/dev/null || { echo "prepare_data: log2graph not found (install octomap-tools)" >&2; exit 1; }
+  python3 "$fr079_dir/clf2log.py" "$fr079_dir/fr079.clf.bz2" "$data_dir/fr079.log"
+  # log2graph prints lines per scan: kept in a log, shown only if it fails.
+  if ! log2graph "$data_dir/fr079.log" "$data_dir/fr079.graph.tmp" > "$data_dir/log2graph.log" 2>&1; then
+    tail -n 20 "$data_dir/log2graph.log" >&2
+    echo "prepare_data: log2graph failed" >&2
+    exit 1
+  fi
+  mv "$data_dir/fr079.graph.tmp" "$data_dir/fr079.graph"
+  rm -f "$data_dir/fr079.log" "$data_dir/log2graph.log"
+  echo "prepare_data: wrote $data_dir/fr079.graph"
+fi

@@ -1,0 +1,659 @@
+#include "workloads.hpp"
+
+#include <octomap/OcTree.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+#include "building.hpp"
+#include "measure.hpp"
+#include "octovk/octomap_io.hpp"
+
+namespace octovk::bench {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+constexpr std::size_t kPaperWidth = 320;
+constexpr std::size_t kPaperHeight = 240;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::vector<double> resolutionsFor(const BenchOptions& o, std::vector<double> full,
+                                   std::vector<double> quick) {
+  if (!o.resolutions.empty()) return o.resolutions;
+  return o.quick ? quick : full;
+}
+
+MapParams paramsFor(double resolution) {
+  MapParams p;
+  p.resolution = resolution;
+  return p;
+}
+
+OccupancyMap makeMap(Context& context, const BenchOptions& o, double resolution) {
+  OccupancyMap map(context, paramsFor(resolution));
+  map.setLeafBoxesEveryScan(o.leaf_boxes_every_scan);
+  return map;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Counts are the same in every repetition; each time is the median over the repetitions.
+ScanTiming medianOf(const std::vector<ScanTiming>& reps) {
+  ScanTiming m = reps.front();
+  const auto med = [&](const std::function<double(const ScanTiming&)>& get) {
+    std::vector<double> v;
+    for (const ScanTiming& r : reps) v.push_back(get(r));
+    return median(v);
+  };
+  m.om_compute_update_ms = med([](const ScanTiming& t) { return t.om_compute_update_ms; });
+  m.om_insert_ms = med([](const ScanTiming& t) { return t.om_insert_ms; });
+  m.vk.wall_ms = med([](const ScanTiming& t) { return t.vk.wall_ms; });
+  m.vk.device.upload_ms = med([](const ScanTiming& t) { return t.vk.device.upload_ms; });
+  m.vk.device.ray_keys_ms = med([](const ScanTiming& t) { return t.vk.device.ray_keys_ms; });
+  m.vk.device.classify_ms = med([](const ScanTiming& t) { return t.vk.device.classify_ms; });
+  m.vk.device.tree_update_ms = med([](const ScanTiming& t) { return t.vk.device.tree_update_ms; });
+  m.vk.device.prune_ms = med([](const ScanTiming& t) { return t.vk.device.prune_ms; });
+  m.vk.device.leaf_boxes_ms = med([](const ScanTiming& t) { return t.vk.device.leaf_boxes_ms; });
+  return m;
+}
+
+// Field-wise mean of several scans (for "per view" rows and Table I).
+ScanTiming meanOf(const std::vector<ScanTiming>& scans) {
+  ScanTiming m;
+  if (scans.empty()) return m;
+  const double n = static_cast<double>(scans.size());
+  double rays = 0, free_cells = 0, occupied = 0, om_free = 0, om_occ = 0;
+  m.om_compute_update_ms = 0;
+  for (const ScanTiming& t : scans) {
+    rays += static_cast<double>(t.rays);
+    free_cells += static_cast<double>(t.vk.free_cells);
+    occupied += static_cast<double>(t.vk.occupied_cells);
+    om_free += static_cast<double>(t.om_free_cells);
+    om_occ += static_cast<double>(t.om_occupied_cells);
+    m.om_compute_update_ms += t.om_compute_update_ms / n;
+    m.om_insert_ms += t.om_insert_ms / n;
+    m.vk.wall_ms += t.vk.wall_ms / n;
+    m.vk.device.upload_ms += t.vk.device.upload_ms / n;
+    m.vk.device.ray_keys_ms += t.vk.device.ray_keys_ms / n;
+    m.vk.device.classify_ms += t.vk.device.classify_ms / n;
+    m.vk.device.tree_update_ms += t.vk.device.tree_update_ms / n;
+    m.vk.device.prune_ms += t.vk.device.prune_ms / n;
+    m.vk.device.leaf_boxes_ms += t.vk.device.leaf_boxes_ms / n;
+    m.vk.cell_set_attempts = std::max(m.vk.cell_set_attempts, t.vk.cell_set_attempts);
+  }
+  m.rays = static_cast<std::size_t>(std::lround(rays / n));
+  m.vk.free_cells = static_cast<std::size_t>(std::lround(free_cells / n));
+  m.vk.occupied_cells = static_cast<std::size_t>(std::lround(occupied / n));
+  m.om_free_cells = static_cast<std::size_t>(std::lround(om_free / n));
+  m.om_occupied_cells = static_cast<std::size_t>(std::lround(om_occ / n));
+  m.om_nodes = scans.back().om_nodes;
+  m.vk.nodes = scans.back().vk.nodes;
+  return m;
+}
+
+std::size_t cells(const ScanTiming& t) { return t.vk.free_cells + t.vk.occupied_cells; }
+
+double perSecond(double count, double ms) { return ms > 0 ? count / (ms * 1e-3) : 0.0; }
+
+std::string fmt(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, v);
+  return buf;
+}
+
+// OctoMap's cell sets and octovk's (before early abort) must have the same sizes.
+int cellMismatches(const std::vector<ScanTiming>& scans) {
+  int bad = 0;
+  for (const ScanTiming& t : scans)
+    if (t.om_compute_update_ms >= 0 &&
+        (t.om_free_cells != t.vk.free_cells || t.om_occupied_cells != t.vk.occupied_cells))
+      ++bad;
+  return bad;
+}
+
+void printScanTable(const std::string& first_column, const std::vector<std::string>& labels,
+                    const std::vector<ScanTiming>& scans) {
+  std::printf(
+      "\n| %s | rays | cells (free + occupied) | OctoMap computeUpdate ms | OctoMap "
+      "insertPointCloud ms | octovk wall ms | OctoMap insert / octovk | octovk Mrays/s | "
+      "octovk M cell updates/s |\n"
+      "| --- | --: | --: | --: | --: | --: | --: | --: | --: |\n",
+      first_column.c_str());
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const ScanTiming& t = scans[i];
+    std::printf("| %s | %zu | %zu | %s | %.1f | %.1f | %.2fx | %.3g | %.3g |\n", labels[i].c_str(),
+                t.rays, cells(t),
+                t.om_compute_update_ms >= 0 ? fmt("%.1f", t.om_compute_update_ms).c_str() : "-",
+                t.om_insert_ms, t.vk.wall_ms, t.om_insert_ms / t.vk.wall_ms,
+                perSecond(static_cast<double>(t.rays), t.vk.wall_ms) * 1e-6,
+                perSecond(static_cast<double>(cells(t)), t.vk.wall_ms) * 1e-6);
+  }
+  std::fflush(stdout);
+}
+
+void printStageTable(const std::string& first_column, const std::vector<std::string>& labels,
+                     const std::vector<ScanTiming>& scans) {
+  std::printf(
+      "\n| %s | upload | ray walk + hash set | classify / early abort | tree update | prune | "
+      "leaf-box rebuild | device total | octovk wall | wall - device | cell-set passes |\n"
+      "| --- | --: | --: | --: | --: | --: | --: | --: | --: | --: | --: |\n",
+      first_column.c_str());
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const StageTimes& d = scans[i].vk.device;
+    std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %zu |\n",
+                labels[i].c_str(), d.upload_ms, d.ray_keys_ms, d.classify_ms, d.tree_update_ms,
+                d.prune_ms, d.leaf_boxes_ms, d.total(), scans[i].vk.wall_ms,
+                scans[i].vk.wall_ms - d.total(), scans[i].vk.cell_set_attempts);
+  }
+  std::fflush(stdout);
+}
+
+// The paper's Table I: one column per resolution, mean per view, milliseconds.
+void printTableOne(const std::vector<double>& resolutions, const std::vector<ScanTiming>& means) {
+  std::printf("\n| mean per view, ms |");
+  for (double r : resolutions) std::printf(" %g m |", r);
+  std::printf("\n| --- |");
+  for (std::size_t i = 0; i < resolutions.size(); ++i) std::printf(" --: |");
+  std::printf("\n");
+  const auto row = [&](const char* name, const std::function<std::string(const ScanTiming&)>& f) {
+    std::printf("| %s |", name);
+    for (const ScanTiming& m : means) std::printf(" %s |", f(m).c_str());
+    std::printf("\n");
+  };
+  const auto ms = [](double v) { return fmt("%.2f", v); };
+  row("OctoMap computeUpdate", [&](const ScanTiming& m) { return ms(m.om_compute_update_ms); });
+  row("OctoMap insertPointCloud", [&](const ScanTiming& m) { return ms(m.om_insert_ms); });
+  row("octovk upload", [&](const ScanTiming& m) { return ms(m.vk.device.upload_ms); });
+  row("octovk ray walk + hash set",
+      [&](const ScanTiming& m) { return ms(m.vk.device.ray_keys_ms); });
+  row("octovk classify / early abort",
+      [&](const ScanTiming& m) { return ms(m.vk.device.classify_ms); });
+  row("octovk tree update", [&](const ScanTiming& m) { return ms(m.vk.device.tree_update_ms); });
+  row("octovk prune", [&](const ScanTiming& m) { return ms(m.vk.device.prune_ms); });
+  row("octovk leaf-box rebuild",
+      [&](const ScanTiming& m) { return ms(m.vk.device.leaf_boxes_ms); });
+  row("octovk device total", [&](const ScanTiming& m) { return ms(m.vk.device.total()); });
+  row("octovk wall", [&](const ScanTiming& m) { return ms(m.vk.wall_ms); });
+  row("**OctoMap insert / octovk wall**",
+      [&](const ScanTiming& m) { return fmt("**%.2fx**", m.om_insert_ms / m.vk.wall_ms); });
+  row("cells per view (free + occupied)",
+      [&](const ScanTiming& m) { return fmt("%.0f", static_cast<double>(cells(m))); });
+  row("octovk Mrays/s", [&](const ScanTiming& m) {
+    return fmt("%.3g", perSecond(static_cast<double>(m.rays), m.vk.wall_ms) * 1e-6);
+  });
+  row("OctoMap Mrays/s", [&](const ScanTiming& m) {
+    return fmt("%.3g", perSecond(static_cast<double>(m.rays), m.om_insert_ms) * 1e-6);
+  });
+  row("octovk M cell updates/s", [&](const ScanTiming& m) {
+    return fmt("%.3g", perSecond(static_cast<double>(cells(m)), m.vk.wall_ms) * 1e-6);
+  });
+  row("OctoMap M cell updates/s", [&](const ScanTiming& m) {
+    return fmt("%.3g", perSecond(static_cast<double>(cells(m)), m.om_insert_ms) * 1e-6);
+  });
+  std::fflush(stdout);
+}
+
+void writeScans(JsonWriter& json, const std::vector<ScanTiming>& scans) {
+  json.beginArray();
+  for (const ScanTiming& t : scans) {
+    json.newline();
+    writeJson(json, t);
+  }
+  json.endArray();
+}
+
+// Runs `scans` in order into fresh maps, `repeat` times; per scan the median of the times.
+std::vector<ScanTiming> repeatSequence(
+    int repeat, const std::function<std::vector<ScanTiming>(int rep)>& run_once) {
+  std::vector<std::vector<ScanTiming>> runs;
+  for (int rep = 0; rep < repeat; ++rep) runs.push_back(run_once(rep));
+  std::vector<ScanTiming> out;
+  for (std::size_t i = 0; i < runs.front().size(); ++i) {
+    std::vector<ScanTiming> reps;
+    for (const auto& run : runs) reps.push_back(run[i]);
+    out.push_back(medianOf(reps));
+  }
+  return out;
+}
+
+void progress(const char* format, auto... args) {
+  std::fprintf(stderr, format, args...);
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+// ---- paper: six 320x240 views of the synthetic building ------------------------------------
+
+void runPaper(Context& context, const BenchOptions& o, JsonWriter& json) {
+  const std::vector<double> resolutions = resolutionsFor(o, {0.1, 0.05, 0.02}, {0.1, 0.05});
+  const Building building;
+  const std::vector<SensorPose> views = paperViews();
+  std::vector<std::vector<Eigen::Vector3f>> clouds;
+  std::vector<std::string> labels;
+  for (const SensorPose& v : views) {
+    clouds.push_back(rangeImage(building, v, kPaperWidth, kPaperHeight));
+    labels.push_back(v.name);
+  }
+
+  std::printf("\n## paper: synthetic building, %zu views of %zux%zu rays, depth 16\n", views.size(),
+              kPaperWidth, kPaperHeight);
+  std::printf(
+      "\nBuilding: %zu boxes (40 x 16 x 3 m, corridor, 10 furnished rooms, doors). "
+      "Max range: unlimited. Times: median of %d run(s), each into fresh maps.\n",
+      building.boxCount(), o.repeat);
+  json.key("paper").beginObject();
+  json.field("width", kPaperWidth).field("height", kPaperHeight).field("repeat", o.repeat);
+  json.key("views").beginArray();
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    const SensorPose& v = views[i];
+    json.beginObject()
+        .field("name", v.name)
+        .key("position")
+        .beginArray()
+        .value(v.position.x())
+        .value(v.position.y())
+        .value(v.position.z())
+        .endArray()
+        .field("yaw_deg", v.yaw_deg)
+        .field("pitch_deg", v.pitch_deg)
+        .field("rays", clouds[i].size())
+        .endObject();
+  }
+  json.endArray();
+  json.key("runs").beginArray();
+
+  std::vector<ScanTiming> means;
+  for (double res : resolutions) {
+    MemoryReport memory;
+    std::vector<double> sustained;
+    const std::vector<ScanTiming> scans = repeatSequence(o.repeat, [&](int rep) {
+      octomap::OcTree tree(res);
+      OccupancyMap map = makeMap(context, o, res);
+      std::vector<ScanTiming> run;
+      double rays = 0, wall_ms = 0;
+      for (std::size_t i = 0; i < views.size(); ++i) {
+        progress("paper %g m, run %d/%d: view %zu/%zu\n", res, rep + 1, o.repeat, i + 1,
+                 views.size());
+        const Eigen::Vector3f origin = views[i].position.cast<float>();
+        run.push_back(measureWorldScan(tree, map, clouds[i], origin, -1.0, o.compute_update));
+        rays += static_cast<double>(run.back().rays);
+        wall_ms += run.back().vk.wall_ms;
+      }
+      sustained.push_back(perSecond(rays, wall_ms));
+      if (rep == 0) memory = memoryReport(tree, map);
+      return run;
+    });
+    const ScanTiming mean = meanOf(scans);
+    means.push_back(mean);
+
+    std::printf("\n### paper, resolution %g m\n", res);
+    printScanTable("view", labels, scans);
+    printStageTable("view (octovk device ms)", labels, scans);
+    printMemoryTable({fmt("paper, 6 views, %g m", res)}, {memory});
+    std::printf(
+        "\n%s. Cell sets equal to OctoMap's computeUpdate in %zu of %zu views. "
+        "Six views back to back: %.3g Mrays/s (octovk wall).\n",
+        parityLine(memory.om_nodes, memory.vk_nodes).c_str(), scans.size() - cellMismatches(scans),
+        scans.size(), median(sustained) * 1e-6);
+
+    json.beginObject().field("resolution", res).key("scans");
+    writeScans(json, scans);
+    json.key("mean_per_view");
+    writeJson(json, mean);
+    json.field("back_to_back_rays_per_s", median(sustained));
+    json.field("cell_set_mismatches", cellMismatches(scans));
+    json.key("memory");
+    writeJson(json, memory);
+    json.endObject();
+  }
+  json.endArray();
+
+  std::printf("\n### paper: Table I (octovk per stage, mean per %zux%zu view)\n", kPaperWidth,
+              kPaperHeight);
+  printTableOne(resolutions, means);
+  json.endObject();
+}
+
+// ---- scan.dat: OctoMap's real 3D laser scan --------------------------------------------------
+
+namespace {
+
+std::vector<Eigen::Vector3f> readXyz(const std::string& path) {
+  std::ifstream in(path);
+  if (!in)
+    throw std::runtime_error("cannot read '" + path +
+                             "'; make it with bench/prepare_data.sh or give --scandat FILE");
+  std::vector<Eigen::Vector3f> points;
+  float x, y, z;
+  while (in >> x >> y >> z) points.emplace_back(x, y, z);
+  if (!in.eof() || points.empty())
+    throw std::runtime_error("'" + path + "' is not a list of 'x y z' lines");
+  return points;
+}
+
+}  // namespace
+
+void runScanDat(Context& context, const BenchOptions& o, JsonWriter& json) {
+  const std::vector<double> resolutions = resolutionsFor(o, {0.1, 0.05}, {0.1});
+  const std::vector<Eigen::Vector3f> points = readXyz(o.scandat_path);
+  std::printf("\n## scandat: OctoMap's scan.dat, %zu points, sensor at the origin\n",
+              points.size());
+  std::printf("\nOne scan into fresh maps; times: median of %d run(s). Max range: unlimited.\n",
+              o.repeat);
+  json.key("scandat").beginObject().field("file", o.scandat_path).field("points", points.size());
+  json.key("runs").beginArray();
+  std::vector<ScanTiming> scans;
+  std::vector<MemoryReport> memories;
+  std::vector<std::string> labels;
+  for (double res : resolutions) {
+    MemoryReport memory;
+    scans.push_back(repeatSequence(o.repeat, [&](int rep) {
+                      progress("scandat %g m, run %d/%d\n", res, rep + 1, o.repeat);
+                      octomap::OcTree tree(res);
+                      OccupancyMap map = makeMap(context, o, res);
+                      std::vector<ScanTiming> run{measureWorldScan(
+                          tree, map, points, Eigen::Vector3f::Zero(), -1.0, o.compute_update)};
+                      if (rep == 0) memory = memoryReport(tree, map);
+                      return run;
+                    }).front());
+    memories.push_back(memory);
+    labels.push_back(fmt("%g m", res));
+    json.beginObject().field("resolution", res).key("scan");
+    writeJson(json, scans.back());
+    json.key("memory");
+    writeJson(json, memory);
+    json.endObject();
+  }
+  json.endArray().endObject();
+  printScanTable("resolution", labels, scans);
+  printStageTable("resolution (octovk device ms)", labels, scans);
+  for (std::string& l : labels) l = "scan.dat, " + l;
+  printMemoryTable(labels, memories);
+  for (std::size_t i = 0; i < scans.size(); ++i)
+    std::printf("\n%s: %s; cell sets %s.\n", labels[i].c_str(),
+                parityLine(memories[i].om_nodes, memories[i].vk_nodes).c_str(),
+                cellMismatches({scans[i]}) ? "DIFFER from OctoMap's" : "equal to OctoMap's");
+}
+
+// ---- FR-079: 4,934 real 2D scans with odometry poses ------------------------------------------
+
+namespace {
+
+struct Window {
+  double om_ms_per_scan = 0, vk_ms_per_scan = 0;
+  double om_us_per_point = 0, vk_us_per_point = 0;
+  double vk_device_ms_per_scan = 0, vk_leaf_boxes_ms_per_scan = 0;
+  std::size_t nodes_at_end = 0;
+};
+
+Window window(const std::vector<ScanTiming>& scans, std::size_t begin, std::size_t end) {
+  Window w;
+  double points = 0;
+  for (std::size_t i = begin; i < end; ++i) {
+    const ScanTiming& t = scans[i];
+    points += static_cast<double>(t.rays);
+    w.om_ms_per_scan += t.om_insert_ms;
+    w.vk_ms_per_scan += t.vk.wall_ms;
+    w.vk_device_ms_per_scan += t.vk.device.total();
+    w.vk_leaf_boxes_ms_per_scan += t.vk.device.leaf_boxes_ms;
+  }
+  w.om_us_per_point = w.om_ms_per_scan * 1e3 / points;
+  w.vk_us_per_point = w.vk_ms_per_scan * 1e3 / points;
+  const double n = static_cast<double>(end - begin);
+  w.om_ms_per_scan /= n;
+  w.vk_ms_per_scan /= n;
+  w.vk_device_ms_per_scan /= n;
+  w.vk_leaf_boxes_ms_per_scan /= n;
+  w.nodes_at_end = scans[end - 1].vk.nodes;
+  return w;
+}
+
+void writeJson(JsonWriter& json, const Window& w) {
+  json.beginObject()
+      .field("octomap_insert_ms_per_scan", w.om_ms_per_scan)
+      .field("octovk_wall_ms_per_scan", w.vk_ms_per_scan)
+      .field("octomap_insert_us_per_point", w.om_us_per_point)
+      .field("octovk_wall_us_per_point", w.vk_us_per_point)
+      .field("octovk_device_ms_per_scan", w.vk_device_ms_per_scan)
+      .field("octovk_leaf_boxes_ms_per_scan", w.vk_leaf_boxes_ms_per_scan)
+      .field("octovk_nodes_at_end", w.nodes_at_end)
+      .endObject();
+}
+
+}  // namespace
+
+void runFr079(Context& context, const BenchOptions& o, JsonWriter& json) {
+  const std::vector<double> resolutions = resolutionsFor(o, {0.1, 0.05}, {0.1});
+  const auto read_start = Clock::now();
+  std::vector<GraphScan> graph = readScanGraph(o.fr079_path);
+  const std::size_t limit = o.fr079_scans ? o.fr079_scans : (o.quick ? 600 : 0);
+  if (limit && graph.size() > limit) graph.resize(limit);
+  std::size_t total_points = 0;
+  for (const GraphScan& s : graph) total_points += s.points_sensor.size();
+  progress("fr079: read %zu scans in %.1f s\n", graph.size(), secondsSince(read_start));
+
+  // First and last windows of 500 scans (a tenth of the run each when it is shorter).
+  const std::size_t win = std::min<std::size_t>(500, std::max<std::size_t>(graph.size() / 10, 1));
+  std::printf(
+      "\n## fr079: FR-079 corridor, %zu real 2D scans, %zu points, graph2tree's placement\n",
+      graph.size(), total_points);
+  std::printf(
+      "\nOne pass over the sequence per resolution, fresh maps. Max range: unlimited. "
+      "Leaf boxes rebuilt every scan: %s. Flatness: the last %zu scans against the "
+      "first %zu, per scan and per point.\n",
+      o.leaf_boxes_every_scan ? "yes (library default)" : "no (on demand)", win, win);
+  json.key("fr079").beginObject();
+  json.field("file", o.fr079_path).field("scans", graph.size()).field("points", total_points);
+  json.field("window", win).field("leaf_boxes_every_scan", o.leaf_boxes_every_scan);
+  json.key("runs").beginArray();
+
+  std::vector<std::string> labels;
+  std::vector<ScanTiming> means;
+  std::vector<MemoryReport> memories;
+  std::vector<std::pair<Window, Window>> windows;
+  for (double res : resolutions) {
+    octomap::OcTree tree(res);
+    OccupancyMap map = makeMap(context, o, res);
+    std::vector<ScanTiming> scans;
+    scans.reserve(graph.size());
+    const auto start = Clock::now();
+    double last_report = 0;
+    for (std::size_t i = 0; i < graph.size(); ++i) {
+      scans.push_back(measureGraphScan(tree, map, graph[i].points_sensor, graph[i].T_world_sensor,
+                                       -1.0, o.compute_update));
+      const double elapsed = secondsSince(start);
+      if (elapsed - last_report > 10.0 || i + 1 == graph.size()) {
+        last_report = elapsed;
+        progress("fr079 %g m: scan %zu/%zu, %.0f s\n", res, i + 1, graph.size(), elapsed);
+      }
+    }
+    const MemoryReport memory = memoryReport(tree, map);
+    const ScanTiming mean = meanOf(scans);
+    const Window first = window(scans, 0, win);
+    const Window last = window(scans, graph.size() - win, graph.size());
+    labels.push_back(fmt("%g m", res));
+    means.push_back(mean);
+    memories.push_back(memory);
+    windows.emplace_back(first, last);
+
+    double om_total = 0, om_cu_total = 0, vk_total = 0;
+    for (const ScanTiming& t : scans) {
+      om_total += t.om_insert_ms;
+      om_cu_total += std::max(0.0, t.om_compute_update_ms);
+      vk_total += t.vk.wall_ms;
+    }
+    int node_mismatches = 0;
+    for (const ScanTiming& t : scans) node_mismatches += t.om_nodes != t.vk.nodes;
+
+    json.beginObject().field("resolution", res);
+    json.field("octomap_insert_total_s", om_total * 1e-3);
+    json.field("octomap_compute_update_total_s", om_cu_total * 1e-3);
+    json.field("octovk_wall_total_s", vk_total * 1e-3);
+    json.field("scans_with_node_count_mismatch", node_mismatches);
+    json.field("cell_set_mismatches", cellMismatches(scans));
+    json.key("mean_per_scan");
+    writeJson(json, mean);
+    json.key("first_window");
+    writeJson(json, first);
+    json.key("last_window");
+    writeJson(json, last);
+    json.key("memory");
+    writeJson(json, memory);
+    // Per scan, as columns, to keep the file small.
+    json.key("columns").beginArray();
+    for (const char* c :
+         {"points", "octomap_compute_update_ms", "octomap_insert_ms", "octovk_wall_ms", "upload_ms",
+          "ray_keys_ms", "classify_ms", "tree_update_ms", "prune_ms", "leaf_boxes_ms",
+          "octomap_nodes", "octovk_nodes"})
+      json.value(c);
+    json.endArray();
+    json.key("per_scan").beginArray();
+    for (const ScanTiming& t : scans) {
+      const StageTimes& d = t.vk.device;
+      json.newline().beginArray();
+      json.value(t.rays).value(t.om_compute_update_ms).value(t.om_insert_ms).value(t.vk.wall_ms);
+      json.value(d.upload_ms).value(d.ray_keys_ms).value(d.classify_ms).value(d.tree_update_ms);
+      json.value(d.prune_ms).value(d.leaf_boxes_ms).value(t.om_nodes).value(t.vk.nodes);
+      json.endArray();
+    }
+    json.endArray().endObject();
+
+    std::printf(
+        "\n### fr079, resolution %g m: %zu scans, OctoMap insertPointCloud %.2f s "
+        "(computeUpdate alone %.2f s), octovk %.2f s: %.2fx\n",
+        res, scans.size(), om_total * 1e-3, om_cu_total * 1e-3, vk_total * 1e-3,
+        om_total / vk_total);
+    std::printf(
+        "\n%s at the end; per scan: node counts differ in %d of %zu scans, cell sets in "
+        "%d.\n",
+        parityLine(memory.om_nodes, memory.vk_nodes).c_str(), node_mismatches, scans.size(),
+        cellMismatches(scans));
+  }
+  json.endArray().endObject();
+
+  std::printf("\n### fr079: mean per scan\n");
+  printScanTable("resolution", labels, means);
+  printStageTable("resolution (octovk device ms)", labels, means);
+  std::vector<std::string> memory_labels;
+  for (const std::string& l : labels) memory_labels.push_back("FR-079, " + l);
+  printMemoryTable(memory_labels, memories);
+
+  std::printf("\n### fr079: time per scan against map size (first %zu scans vs last %zu)\n", win,
+              win);
+  std::printf(
+      "\n| resolution | system | first: ms/scan | last: ms/scan | last / first | "
+      "first: us/point | last: us/point | last / first (per point) | nodes after first "
+      "/ at end |\n| --- | --- | --: | --: | --: | --: | --: | --: | --: |\n");
+  for (std::size_t i = 0; i < labels.size(); ++i) {
+    const auto& [first, last] = windows[i];
+    std::printf(
+        "| %s | OctoMap insertPointCloud | %.3f | %.3f | %.2f | %.3f | %.3f | %.2f | "
+        "%zu / %zu |\n",
+        labels[i].c_str(), first.om_ms_per_scan, last.om_ms_per_scan,
+        last.om_ms_per_scan / first.om_ms_per_scan, first.om_us_per_point, last.om_us_per_point,
+        last.om_us_per_point / first.om_us_per_point, first.nodes_at_end, last.nodes_at_end);
+    std::printf("| %s | octovk wall | %.3f | %.3f | %.2f | %.3f | %.3f | %.2f | %zu / %zu |\n",
+                labels[i].c_str(), first.vk_ms_per_scan, last.vk_ms_per_scan,
+                last.vk_ms_per_scan / first.vk_ms_per_scan, first.vk_us_per_point,
+                last.vk_us_per_point, last.vk_us_per_point / first.vk_us_per_point,
+                first.nodes_at_end, last.nodes_at_end);
+    std::printf(
+        "| %s | octovk device (of which leaf boxes) | %.3f (%.3f) | %.3f (%.3f) | %.2f | "
+        "| | | |\n",
+        labels[i].c_str(), first.vk_device_ms_per_scan, first.vk_leaf_boxes_ms_per_scan,
+        last.vk_device_ms_per_scan, last.vk_leaf_boxes_ms_per_scan,
+        last.vk_device_ms_per_scan / first.vk_device_ms_per_scan);
+  }
+  std::fflush(stdout);
+}
+
+// ---- scaling: rays per scan and maximum range ----------------------------------------------
+
+void runScaling(Context& context, const BenchOptions& o, JsonWriter& json) {
+  const double res = o.scaling_resolution;
+  const Building building;
+  const std::vector<SensorPose> views = paperViews();
+  const SensorPose& room_view = views[1];      // rays mostly 2-8 m long
+  const SensorPose& corridor_view = views[0];  // rays up to 39 m down the corridor
+  const std::vector<std::size_t> ray_counts =
+      o.quick ? std::vector<std::size_t>{10'000, 30'000, 100'000}
+              : std::vector<std::size_t>{10'000, 30'000, 76'800, 100'000, 300'000, 1'000'000};
+  const std::vector<double> ranges =
+      o.quick ? std::vector<double>{2, 5, 10} : std::vector<double>{2, 5, 10, 15, 20, 30};
+
+  const auto measureOne = [&](const std::vector<Eigen::Vector3f>& cloud, const SensorPose& pose,
+                              double max_range) {
+    return repeatSequence(
+               o.repeat,
+               [&](int) {
+                 octomap::OcTree tree(res);
+                 OccupancyMap map = makeMap(context, o, res);
+                 return std::vector<ScanTiming>{measureWorldScan(
+                     tree, map, cloud, pose.position.cast<float>(), max_range, o.compute_update)};
+               })
+        .front();
+  };
+
+  std::printf("\n## scaling, resolution %g m: one scan into fresh maps, median of %d run(s)\n", res,
+              o.repeat);
+  json.key("scaling").beginObject().field("resolution", res).field("repeat", o.repeat);
+
+  std::vector<ScanTiming> by_rays;
+  std::vector<std::string> labels;
+  json.key("rays").beginObject().field("view", room_view.name).key("points").beginArray();
+  for (std::size_t rays : ray_counts) {
+    std::size_t w, h;
+    imageSizeFor(rays, &w, &h);
+    if (rays == kPaperWidth * kPaperHeight) w = kPaperWidth, h = kPaperHeight;
+    progress("scaling %g m: %zux%zu rays\n", res, w, h);
+    const std::vector<Eigen::Vector3f> cloud = rangeImage(building, room_view, w, h);
+    by_rays.push_back(measureOne(cloud, room_view, -1.0));
+    labels.push_back(std::to_string(w) + "x" + std::to_string(h));
+    json.newline().beginObject().field("width", w).field("height", h).key("scan");
+    writeJson(json, by_rays.back());
+    json.endObject();
+  }
+  json.endArray().endObject();
+  std::printf("\n### scaling with rays per scan (view '%s', unlimited range)\n",
+              room_view.name.c_str());
+  printScanTable("image", labels, by_rays);
+  printStageTable("image (octovk device ms)", labels, by_rays);
+
+  std::vector<ScanTiming> by_range;
+  labels.clear();
+  const std::vector<Eigen::Vector3f> corridor =
+      rangeImage(building, corridor_view, kPaperWidth, kPaperHeight);
+  json.key("max_range").beginObject().field("view", corridor_view.name).key("points").beginArray();
+  for (double range : ranges) {
+    progress("scaling %g m: max range %g m\n", res, range);
+    by_range.push_back(measureOne(corridor, corridor_view, range));
+    labels.push_back(fmt("%g m", range));
+    json.newline().beginObject().field("max_range_m", range).key("scan");
+    writeJson(json, by_range.back());
+    json.endObject();
+  }
+  json.endArray().endObject().endObject();
+  std::printf("\n### scaling with maximum range (view '%s', %zux%zu rays)\n",
+              corridor_view.name.c_str(), kPaperWidth, kPaperHeight);
+  printScanTable("max range", labels, by_range);
+  printStageTable("max range (octovk device ms)", labels, by_range);
+}
+
+}  // namespace octovk::bench

@@ -1,0 +1,31 @@
+// The benchmark's workloads: each runs OctoMap and octovk on the same scans in this process,
+// prints Markdown tables on stdout and writes its results into the JSON document.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "json.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk::bench {
+
+struct BenchOptions {
+  std::vector<double> resolutions;  ///< empty: each workload's own list
+  int repeat = 1;                   ///< fresh maps per measurement; the median is reported
+  bool quick = false;
+  bool compute_update = true;  ///< also time OcTree::computeUpdate on its own
+  bool leaf_boxes_every_scan = true;
+  std::string scandat_path;
+  std::string fr079_path;
+  std::size_t fr079_scans = 0;  ///< 0: all
+  double scaling_resolution = 0.05;
+};
+
+void runPaper(Context& context, const BenchOptions& options, JsonWriter& json);
+void runScanDat(Context& context, const BenchOptions& options, JsonWriter& json);
+void runFr079(Context& context, const BenchOptions& options, JsonWriter& json);
+void runScaling(Context& context, const BenchOptions& options, JsonWriter& json);
+
+}  // namespace octovk::bench
