@@ -218,8 +218,10 @@ void OccupancyMap::Impl::resetPool() {
   gpu::PoolState pool{};
   pool.bump = 1;  // block 0 is the root's
   pool.capacity = pool_blocks_;
+  const gpu::ScanCounters counters = freshCounters();
   stream_.begin(bindings_);
   stream_.update(pool_buf_, &pool, sizeof(pool));
+  stream_.update(counters_buf_, &counters, sizeof(counters));
   stream_.submitAndWait();
 }
 
@@ -651,11 +653,14 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
         loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
     // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
     // walked) and continued by indirect dispatches, which cost next to nothing once empty.
-    stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count),
-                 sizeof(gpu::ScanCounters::walk_count));
-    for (std::uint32_t list = 0; list < 2; ++list)
-      stream_.fill(counters_buf_, 0u,
-                   offsetof(gpu::ScanCounters, walk_args) + list * sizeof(gpu::DispatchArgs), 4);
+    // Both lists empty, with whole dispatch arguments: the counters may hold anything here (a map
+    // imported and queried before any scan has never had them reset).
+    static_assert(offsetof(gpu::ScanCounters, walk_args) ==
+                  offsetof(gpu::ScanCounters, walk_count) + sizeof(gpu::ScanCounters::walk_count));
+    const gpu::ScanCounters fresh = freshCounters();
+    stream_.update(counters_buf_, &fresh.walk_count,
+                   sizeof(fresh.walk_count) + sizeof(fresh.walk_args),
+                   offsetof(gpu::ScanCounters, walk_count));
     stream_.barrier();
     dispatch("cast_ray", rays, {budget, rays, 0, state_word});
     recordContinuations("cast_ray", continuations, [&](std::uint32_t from, bool) {
