@@ -99,6 +99,7 @@ struct DeviceInfo {
 namespace vk {
 class Device;
 }
+class InteropAccess;
 
 /// The Vulkan device every map of a process shares. Create one; it must outlive its maps.
 class Context {
@@ -263,6 +264,7 @@ class OccupancyMap {
   class Impl;
 
  private:
+  friend class InteropAccess;  // vulkan_interop.hpp
   std::unique_ptr<Impl> impl_;
 };
 

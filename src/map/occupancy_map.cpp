@@ -10,6 +10,7 @@
 #include "map/reference.hpp"
 #include "octovk/gpu_types.h"
 #include "octovk/octovk.hpp"
+#include "octovk/vulkan_interop.hpp"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -68,6 +69,10 @@ class OccupancyMap::Impl {
                    const Pose* pose, double max_range, bool discretize,
                    const QueryRequest* queries = nullptr, QueryResults* results = nullptr);
   QueryResults runQueries(const QueryRequest& queries);
+  /// A castRay (rays) or lookup batch between ranges of the caller's buffers (interop).
+  void queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDeviceSize in_size,
+                     VkBuffer out, VkDeviceSize out_offset, VkDeviceSize out_size,
+                     std::uint32_t count);
   std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
                                        bool occupied_only);
   HostTree download();
@@ -115,6 +120,8 @@ class OccupancyMap::Impl {
   void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
   void stageQueries(const QueryRequest& queries);
   void recordQueries(const QueryRequest& queries);
+  void recordCastRays(std::uint32_t rays, std::uint32_t state_word);
+  void recordLookups(std::uint32_t points, std::uint32_t first_result, std::uint32_t first_float);
   QueryResults collectQueries(const QueryRequest& queries);
   void ensureQueryBuffers(std::size_t in_bytes, std::size_t out_bytes);
 
@@ -639,40 +646,78 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
   stream_.update(params_buf_, &sp, sizeof(sp));
   stream_.copy(query_staging_in_, query_in_, in_bytes);
   stream_.barrier();
-  if (rays) {
-    // The walk states follow the results in the output buffer.
-    const auto state_word =
-        static_cast<std::uint32_t>((rays + points) * sizeof(gpu::RayResult) / 4);
-    // lavapipe ends an invocation's loops after 65535 iterations in total, so there the walk runs
-    // in segments of 30000 (see recordRayKeys); the longest castRay (3 * 65536 steps, each with a
-    // search of up to 17 iterations) then needs 112 continuations, over ever fewer rays. A GPU
-    // walks each ray in one segment.
-    const bool loop_limited = device_.info().type == "CPU";
-    const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
-    const std::uint32_t continuations =
-        loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
-    // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
-    // walked) and continued by indirect dispatches, which cost next to nothing once empty.
-    // Both lists empty, with whole dispatch arguments: the counters may hold anything here (a map
-    // imported and queried before any scan has never had them reset).
-    static_assert(offsetof(gpu::ScanCounters, walk_args) ==
-                  offsetof(gpu::ScanCounters, walk_count) + sizeof(gpu::ScanCounters::walk_count));
-    const gpu::ScanCounters fresh = freshCounters();
-    stream_.update(counters_buf_, &fresh.walk_count,
-                   sizeof(fresh.walk_count) + sizeof(fresh.walk_args),
-                   offsetof(gpu::ScanCounters, walk_count));
-    stream_.barrier();
-    dispatch("cast_ray", rays, {budget, rays, 0, state_word});
-    recordContinuations("cast_ray", continuations, [&](std::uint32_t from, bool) {
-      return PassConstants{budget, rays, from + 1, state_word};
-    });
-  }
-  if (points) {
-    const auto first_float =
-        static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float));
-    dispatch("lookup", points, {rays, points, 0, first_float});
-  }
+  // The walk states follow the results in the output buffer.
+  if (rays)
+    recordCastRays(rays, static_cast<std::uint32_t>((rays + points) * sizeof(gpu::RayResult) / 4));
+  if (points)
+    recordLookups(points, rays,
+                  static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float)));
   stream_.copy(query_out_, query_staging_out_, (rays + points) * sizeof(gpu::RayResult));
+}
+
+// castRay for `rays` queries at the start of the query input; results at the start of the
+// output, the walks' scratch from word `state_word` of it.
+void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t state_word) {
+  // lavapipe ends an invocation's loops after 65535 iterations in total, so there the walk runs
+  // in segments of 30000 (see recordRayKeys); the longest castRay (3 * 65536 steps, each with a
+  // search of up to 17 iterations) then needs 112 continuations, over ever fewer rays. A GPU
+  // walks each ray in one segment.
+  const bool loop_limited = device_.info().type == "CPU";
+  const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
+  const std::uint32_t continuations = loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
+  // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
+  // walked) and continued by indirect dispatches, which cost next to nothing once empty.
+  // Both lists empty, with whole dispatch arguments: the counters may hold anything here (a map
+  // imported and queried before any scan has never had them reset).
+  static_assert(offsetof(gpu::ScanCounters, walk_args) ==
+                offsetof(gpu::ScanCounters, walk_count) + sizeof(gpu::ScanCounters::walk_count));
+  const gpu::ScanCounters fresh = freshCounters();
+  stream_.update(counters_buf_, &fresh.walk_count,
+                 sizeof(fresh.walk_count) + sizeof(fresh.walk_args),
+                 offsetof(gpu::ScanCounters, walk_count));
+  stream_.barrier();
+  dispatch("cast_ray", rays, {budget, rays, 0, state_word});
+  recordContinuations("cast_ray", continuations, [&](std::uint32_t from, bool) {
+    return PassConstants{budget, rays, from + 1, state_word};
+  });
+}
+
+// search() for `points` points from float `first_float` of the query input; results from entry
+// `first_result` of the output.
+void OccupancyMap::Impl::recordLookups(std::uint32_t points, std::uint32_t first_result,
+                                       std::uint32_t first_float) {
+  dispatch("lookup", points, {first_result, points, 0, first_float});
+}
+
+void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset,
+                                       VkDeviceSize in_size, VkBuffer out, VkDeviceSize out_offset,
+                                       VkDeviceSize out_size, std::uint32_t count) {
+  const VkDeviceSize align = device_.storageOffsetAlignment();
+  if (in == VK_NULL_HANDLE || out == VK_NULL_HANDLE)
+    throw Error(ErrorCode::kInvalidArgument, "query on device: a buffer is VK_NULL_HANDLE");
+  if (in_offset % align != 0 || out_offset % align != 0)
+    throw Error(ErrorCode::kInvalidArgument,
+                "query on device: buffer offsets must be multiples of " + std::to_string(align) +
+                    " (minStorageBufferOffsetAlignment)");
+  if (count == 0) return;
+  // The map's own query buffers are swapped for the caller's ranges for this one submission.
+  bindings_.updateRange(gpu::kBindQueryIn, in, in_offset, in_size);
+  bindings_.updateRange(gpu::kBindQueryOut, out, out_offset, out_size);
+  try {
+    const gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+    stream_.begin(bindings_);
+    stream_.update(params_buf_, &sp, sizeof(sp));
+    stream_.barrier();
+    if (rays)
+      recordCastRays(count, count * static_cast<std::uint32_t>(sizeof(gpu::RayResult) / 4));
+    else
+      recordLookups(count, 0, 0);
+    stream_.submitAndWait();
+  } catch (...) {
+    rebind();
+    throw;
+  }
+  rebind();
 }
 
 QueryResults OccupancyMap::Impl::collectQueries(const QueryRequest& q) {
@@ -914,6 +959,41 @@ void OccupancyMap::upload(const HostTree& tree) { impl_->upload(tree); }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::downloadLeafBoxes() const {
   return impl_->downloadLeafBoxes();
+}
+
+// ---- Vulkan interop (vulkan_interop.hpp) ------------------------------------------------------
+
+class InteropAccess {
+ public:
+  static OccupancyMap::Impl& impl(OccupancyMap& map) { return *map.impl_; }
+};
+
+VulkanHandles vulkanHandles(Context& context) {
+  vk::Device& d = context.vulkan();
+  return {d.instance(), d.physical(),    d.handle(),
+          d.queue(),    d.queueFamily(), d.storageOffsetAlignment()};
+}
+
+void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,
+                    BufferRange results) {
+  InteropAccess::impl(map).queryOnDevice(false, points.buffer, points.offset, points.size,
+                                         results.buffer, results.offset, results.size, count);
+}
+
+std::size_t castRaysResultBytes(std::uint32_t count) {
+  return std::size_t{count} *
+         (sizeof(gpu::RayResult) + sizeof(gpu::RayState) + 2 * sizeof(std::uint32_t));
+}
+
+void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
+                      BufferRange results) {
+  if (results.size != VK_WHOLE_SIZE && results.size < castRaysResultBytes(count))
+    throw Error(ErrorCode::kInvalidArgument,
+                "castRaysOnDevice: the results range holds " + std::to_string(results.size) +
+                    " bytes; castRaysResultBytes(" + std::to_string(count) +
+                    ") = " + std::to_string(castRaysResultBytes(count)) + " are needed");
+  InteropAccess::impl(map).queryOnDevice(true, rays.buffer, rays.offset, rays.size, results.buffer,
+                                         results.offset, results.size, count);
 }
 
 }  // namespace octovk

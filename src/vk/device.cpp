@@ -176,6 +176,18 @@ void BindingSet::update(std::span<const Buffer* const> buffers) {
                          writes.data(), 0, nullptr);
 }
 
+void BindingSet::updateRange(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset,
+                             VkDeviceSize size) {
+  VkDescriptorBufferInfo info{buffer, offset, size};
+  VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  write.dstSet = set_;
+  write.dstBinding = binding;
+  write.descriptorCount = 1;
+  write.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  write.pBufferInfo = &info;
+  vkUpdateDescriptorSets(device_->handle(), 1, &write, 0, nullptr);
+}
+
 // ---------------------------------------------------------------------------------------------
 // CommandStream
 
@@ -500,6 +512,7 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
       found = true;
       if (qprops[i].timestampValidBits >= 36)
         dev->timestamp_period_ns_ = static_cast<double>(props.limits.timestampPeriod);
+      dev->storage_alignment_ = props.limits.minStorageBufferOffsetAlignment;
     }
   }
   if (!found)

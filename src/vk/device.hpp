@@ -69,6 +69,8 @@ class BindingSet {
 
   /// Points every binding at its buffer; call after any buffer is replaced, while idle.
   void update(std::span<const Buffer* const> buffers);
+  /// Points one binding at a range of a buffer the caller owns (interop).
+  void updateRange(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize size);
   VkDescriptorSet handle() const noexcept { return set_; }
 
  private:
@@ -137,6 +139,10 @@ class Device {
   VkDescriptorSetLayout setLayout() const noexcept { return set_layout_; }
   /// Nanoseconds per timestamp tick, or 0 when the compute queue has no timestamps.
   double timestampPeriodNs() const noexcept { return timestamp_period_ns_; }
+  /// minStorageBufferOffsetAlignment: offsets of bound buffer ranges must be multiples of it.
+  VkDeviceSize storageOffsetAlignment() const noexcept { return storage_alignment_; }
+  VkInstance instance() const noexcept { return instance_; }
+  VkPhysicalDevice physical() const noexcept { return physical_; }
 
   /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once.
   const Pass& pass(std::string_view name);
@@ -157,6 +163,7 @@ class Device {
   VkPipelineLayout pipeline_layout_ = VK_NULL_HANDLE;
   VkPhysicalDeviceMemoryProperties memory_{};
   double timestamp_period_ns_ = 0.0;
+  VkDeviceSize storage_alignment_ = 256;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
 };
 
