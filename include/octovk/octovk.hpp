@@ -245,6 +245,9 @@ class OccupancyMap {
   std::size_t nodeCount() const;
   /// Device bytes held by this map's buffers.
   std::size_t deviceBytes() const;
+  /// Of those, the node pool (nodes, block records, free-block stack, at their capacity); the
+  /// rest is per-scan scratch sized by the largest scan, query buffers and the leaf boxes.
+  std::size_t poolBytes() const;
   /// Leaves of the map (rebuilding the leaf boxes first if they are out of date).
   std::size_t leafCount() const;
 

@@ -132,8 +132,9 @@ int runInfo(const std::vector<std::string>& args) {
   s << line;
   s << "bounds:          " << describe(all) << "\n"
     << "occupied bounds: " << describe(occupied_bounds) << "\n";
-  std::snprintf(line, sizeof(line), "device memory:   %.1f MiB\n",
-                static_cast<double>(map.deviceBytes()) / (1024.0 * 1024.0));
+  std::snprintf(line, sizeof(line), "device memory:   %.1f MiB (node pool %.1f MiB)\n",
+                static_cast<double>(map.deviceBytes()) / (1024.0 * 1024.0),
+                static_cast<double>(map.poolBytes()) / (1024.0 * 1024.0));
   s << line;
   std::snprintf(line, sizeof(line),
                 "time:            %.3f s (reading and upload %.3f s, counting %.3f s)\n",

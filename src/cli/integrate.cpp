@@ -256,6 +256,7 @@ int runIntegrate(const std::vector<std::string>& args) {
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();
+  const std::size_t pool_bytes = map.poolBytes();
 
   writeOutputs(map, o.output_paths);
   const double total_s = secondsSince(run_start);
@@ -273,7 +274,9 @@ int runIntegrate(const std::vector<std::string>& args) {
     << "device:        " << device.name << " (" << device.type << ")\n"
     << "nodes:         " << nodes << "\n"
     << "device memory: " << std::setprecision(1)
-    << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB\n";
+    << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB (node pool "
+    << static_cast<double>(pool_bytes) / (1024.0 * 1024.0)
+    << " MiB; the rest is scan scratch and leaf boxes)\n";
   for (const std::string& path : o.output_paths) s << "wrote:         " << path << "\n";
   std::cout << s.str() << std::flush;
   return kExitOk;

@@ -80,6 +80,7 @@ class OccupancyMap::Impl {
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
   std::size_t deviceBytes() const;
+  std::size_t poolBytes() const { return nodes_.size() + block_meta_.size() + free_stack_.size(); }
 
   const MapParams& params() const { return params_; }
   void setLeafBoxesEveryScan(bool every_scan) { leaf_boxes_every_scan_ = every_scan; }
@@ -846,7 +847,7 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
 
   const std::uint32_t capacity = std::min<std::uint32_t>(
       blockLimit(),
-      std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks * 2), kInitialBlocks));
+      std::max<std::uint32_t>(static_cast<std::uint32_t>(blocks + blocks / 4), kInitialBlocks));
   if (capacity > pool_blocks_) allocatePool(capacity, /*copy_old=*/false);
   gpu::PoolState pool{};
   pool.bump = static_cast<std::uint32_t>(blocks);
@@ -952,6 +953,8 @@ void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
 }
 
 std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
+
+std::size_t OccupancyMap::poolBytes() const { return impl_->poolBytes(); }
 
 HostTree OccupancyMap::download() const { return impl_->download(); }
 
