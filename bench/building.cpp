@@ -22,26 +22,18 @@ constexpr double kOuter = 0.3;       // outer walls, floor and ceiling slabs
 constexpr double kDoorWidth = 1.0;
 constexpr double kDoorHeight = 2.1;
 
-// splitmix64: the same furniture on every platform (std:: distributions are not portable).
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-  double uniform(double lo, double hi) {
-    state_ += 0x9E3779B97F4A7C15ull;
-    std::uint64_t z = state_;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return lo + (hi - lo) * static_cast<double>(z >> 11) * 0x1.0p-53;
-  }
-
- private:
-  std::uint64_t state_;
-};
-
 double radians(double deg) { return deg * std::numbers::pi / 180.0; }
 
 }  // namespace
+
+double Rng::uniform(double lo, double hi) {
+  state_ += 0x9E3779B97F4A7C15ull;
+  std::uint64_t z = state_;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return lo + (hi - lo) * static_cast<double>(z >> 11) * 0x1.0p-53;
+}
 
 Building::Building() {
   // Shell: floor, ceiling, four outer walls.
@@ -170,6 +162,15 @@ double Building::castRay(const Eigen::Vector3d& origin, const Eigen::Vector3d& d
     if (!miss && t_near > 0.0 && t_near < best) best = t_near;
   }
   return std::isfinite(best) ? best : -1.0;
+}
+
+Box Building::bounds() const {
+  Box b{boxes_.front().lo, boxes_.front().hi};
+  for (const Box& box : boxes_) {
+    b.lo = b.lo.cwiseMin(box.lo);
+    b.hi = b.hi.cwiseMax(box.hi);
+  }
+  return b;
 }
 
 std::vector<SensorPose> paperViews() {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,17 @@ namespace octovk::bench {
 struct Box {
   Eigen::Vector3d lo;
   Eigen::Vector3d hi;
+};
+
+/// splitmix64: the same numbers on every platform (std:: distributions are not portable).
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : state_(seed) {}
+  /// Uniform in [lo, hi).
+  double uniform(double lo, double hi);
+
+ private:
+  std::uint64_t state_;
 };
 
 /// A closed two-row office floor: a 40 m corridor between ten 8 m x 7 m rooms, walls with doors,
@@ -24,6 +36,8 @@ class Building {
   double castRay(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
 
   std::size_t boxCount() const noexcept { return boxes_.size(); }
+  /// The smallest axis-aligned box around the whole building (slabs and outer walls included).
+  Box bounds() const;
 
  private:
   void add(double x0, double y0, double z0, double x1, double y1, double z1);

@@ -24,7 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 using octovk::bench::BenchOptions;
 
-const char* const kWorkloads[] = {"paper", "scandat", "fr079", "scaling"};
+const char* const kWorkloads[] = {"paper", "scandat", "fr079", "scaling", "queries"};
 
 struct Args {
   BenchOptions bench;
@@ -49,18 +49,28 @@ void printHelp(const char* data_dir) {
       "  fr079    the 4,934-scan FR-079 sequence (.graph from clf2log.py + log2graph), placed as\n"
       "           graph2tree does, at 0.1 and 0.05 m; time per scan against map size\n"
       "  scaling  rays per scan 10K..1M and maximum range 2..30 m, one scan into fresh maps\n"
+      "  queries  the paper map at 0.05 m in both systems, then point lookups (OcTree::search\n"
+      "           against OccupancyMap::search, 1,000,000 random points in the building) and\n"
+      "           castRay (against OccupancyMap::castRays, 100,000 random directions from the\n"
+      "           six sensor poses, ignore_unknown off and on, max range 10 m and unlimited):\n"
+      "           queries per second of both and every answer compared\n"
       "\n"
       "Options:\n"
-      "  --workload W        paper, scandat, fr079, scaling or all; repeat or comma-separate to\n"
-      "                      pick several (default: all)\n"
+      "  --workload W        paper, scandat, fr079, scaling, queries or all; repeat or\n"
+      "                      comma-separate to pick several (default: all)\n"
       "  --resolutions LIST  comma-separated resolutions in metres for paper, scandat and fr079\n"
       "                      (default: each workload's own, listed above)\n"
       "  --scaling-resolution M  resolution of the scaling runs (default: 0.05)\n"
       "  --repeat N          run each paper / scandat / scaling measurement N times into fresh\n"
-      "                      maps and report the median (default: 1)\n"
+      "                      maps, and each query batch N times, and report the median\n"
+      "                      (default: 1)\n"
+      "  --lookups N         points of the queries workload (default: 1,000,000; 100,000 with\n"
+      "                      --quick)\n"
+      "  --query-rays N      rays per castRay configuration of the queries workload (default:\n"
+      "                      100,000; 2,000 with --quick)\n"
       "  --json FILE         write all results as JSON to FILE\n"
       "  --quick             a smoke run of about a minute: fewer resolutions, the first 600\n"
-      "                      FR-079 scans, three scaling points each\n"
+      "                      FR-079 scans, three scaling points each, a tenth of the queries\n"
       "  --scandat FILE      scan.dat, plain text (default: %s/scan.dat)\n"
       "  --fr079 FILE        FR-079 scan graph (default: %s/fr079.graph)\n"
       "  --fr079-scans N     use only the first N scans of FR-079 (default: all; 600 with "
@@ -123,7 +133,8 @@ Args parseArgs(int argc, char** argv) {
         bool known = w == "all";
         for (const char* k : kWorkloads) known = known || w == k;
         if (!known)
-          usageError("unknown workload '" + w + "'; use paper, scandat, fr079, scaling or all");
+          usageError("unknown workload '" + w +
+                     "'; use paper, scandat, fr079, scaling, queries or all");
         if (w == "all")
           a.workloads.assign(std::begin(kWorkloads), std::end(kWorkloads));
         else
@@ -136,6 +147,10 @@ Args parseArgs(int argc, char** argv) {
       a.bench.scaling_resolution = parsePositive(name, next());
     } else if (name == "--repeat") {
       a.bench.repeat = static_cast<int>(parsePositive(name, next()));
+    } else if (name == "--lookups") {
+      a.bench.lookups = static_cast<std::size_t>(parsePositive(name, next()));
+    } else if (name == "--query-rays") {
+      a.bench.query_rays = static_cast<std::size_t>(parsePositive(name, next()));
     } else if (name == "--json") {
       a.json_path = next();
     } else if (name == "--quick") {
@@ -261,6 +276,7 @@ int main(int argc, char** argv) {
     if (wants(args, "scandat")) octovk::bench::runScanDat(context, args.bench, json);
     if (wants(args, "fr079")) octovk::bench::runFr079(context, args.bench, json);
     if (wants(args, "scaling")) octovk::bench::runScaling(context, args.bench, json);
+    if (wants(args, "queries")) octovk::bench::runQueries(context, args.bench, json);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "octovk_bench: %s\n", e.what());
     return 1;

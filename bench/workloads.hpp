@@ -21,11 +21,15 @@ struct BenchOptions {
   std::string fr079_path;
   std::size_t fr079_scans = 0;  ///< 0: all
   double scaling_resolution = 0.05;
+  std::size_t lookups = 0;     ///< points for the queries workload; 0: its default
+  std::size_t query_rays = 0;  ///< rays per castRay configuration; 0: its default
 };
 
 void runPaper(Context& context, const BenchOptions& options, JsonWriter& json);
 void runScanDat(Context& context, const BenchOptions& options, JsonWriter& json);
 void runFr079(Context& context, const BenchOptions& options, JsonWriter& json);
 void runScaling(Context& context, const BenchOptions& options, JsonWriter& json);
+/// Point lookups and castRay on the paper map at 0.05 m (in queries.cpp).
+void runQueries(Context& context, const BenchOptions& options, JsonWriter& json);
 
 }  // namespace octovk::bench
