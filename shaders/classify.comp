@@ -26,10 +26,17 @@ void main() {
     atomicAdd(counters.aborted, 1u);
     return;
   }
-  uint at = atomicAdd(counters.active_cells, 1u);
   // The descent starts at the deepest existing node (the root, created by tree_begin, if none).
+  // Cells whose leaf exists need no descent: they are kept at the back of `cells`, so that the
+  // descent passes run over the front part only.
+  uint at;
+  if (depth == kTreeDepth) {
+    at = params.hash_capacity - 1u - atomicAdd(counters.first_depth_hist[kTreeDepth], 1u);
+  } else {
+    at = atomicAdd(counters.active_cells, 1u);
+    atomicAdd(counters.first_depth_hist[depth], 1u);
+  }
   cells[at] = ActiveCell(slot, n, kNoBlock, depth);
-  atomicAdd(counters.first_depth_hist[depth], 1u);
 
   // Exact count of the blocks this scan allocates: one per distinct node on an active path that
   // has no children yet (a missing root, a pruned leaf, or a node still to be created). The

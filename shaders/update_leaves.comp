@@ -8,7 +8,9 @@
 void main() {
   uint i = invocationIndex();
   if (i >= pc.count) return;
-  ActiveCell cell = cells[i];
+  // pc.offset cells that descended at the front of `cells`, the ones whose leaf existed at the
+  // back (see classify).
+  ActiveCell cell = cells[i < pc.offset ? i : params.hash_capacity - 1u - (i - pc.offset)];
   uint n = resolveNode(cell);
   precise float value = nodes[n].log_odds + cellUpdate(cell.slot);
   if (value < params.clamp_min_log) value = params.clamp_min_log;

@@ -132,7 +132,8 @@ struct ScanCounters {
   uint status;              // 4B (0)   kStatus* bits
   uint hash_entries;        // 4B (4)   distinct cells in the hash set
   uint endpoint_entries;    // 4B (8)   distinct end cells (discretize)
-  uint active_cells;        // 4B (12)  cells whose update was not aborted early
+  uint active_cells;        // 4B (12)  updated cells whose path needs nodes (those whose leaf
+                            //          exists are counted in first_depth_hist[16])
   uint skipped_nonfinite;   // 4B (16)  points with NaN or infinite coordinates
   uint skipped_outside;     // 4B (20)  points whose ray or end cell lies outside the map
   uint occupied_cells;      // 4B (24)

@@ -115,7 +115,7 @@ class OccupancyMap::Impl {
   void recordClassify(bool discretize, std::uint32_t points);
   void recordContinuations(const char* pass, std::uint32_t rounds,
                            const std::function<PassConstants(std::uint32_t, bool)>& constants);
-  void recordTreeUpdate(std::uint32_t active, std::uint32_t first_level);
+  void recordTreeUpdate(std::uint32_t active, std::uint32_t descending, std::uint32_t first_level);
   void recordLeafBoxes();
   void recordReadback();
   void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
@@ -392,14 +392,15 @@ void OccupancyMap::Impl::recordClassify(bool discretize, std::uint32_t points) {
 
 // first_level: the shallowest depth at which some cell's path leaves the existing tree; the
 // levels above it have nothing to create and are not recorded.
-void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active, std::uint32_t first_level) {
+void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active, std::uint32_t descending,
+                                          std::uint32_t first_level) {
   dispatch("tree_begin", 1);
   const vk::Pass& descend = device_.pass("descend");
   const vk::Pass& alloc = device_.pass("alloc");
   const vk::Pass& prune = device_.pass("prune");
   for (std::uint32_t level = first_level; level < gpu::kTreeDepth; ++level) {
-    PassConstants pc{level, active, 0, 0};
-    stream_.dispatch(descend, groupsFor(active), &pc, sizeof(pc));
+    PassConstants pc{level, descending, 0, 0};
+    stream_.dispatch(descend, groupsFor(descending), &pc, sizeof(pc));
     stream_.barrier();
     stream_.dispatchIndirect(
         alloc, counters_buf_,
@@ -408,7 +409,7 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active, std::uint32_t fi
     stream_.barrier();
   }
   dispatch("tree_fixup", 1);
-  dispatch("update_leaves", active, {0, active, 0, 0});
+  dispatch("update_leaves", active, {0, active, 0, descending});
   stream_.timestamp();
   for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
     PassConstants pc{level, 0, 0, 0};
@@ -536,7 +537,9 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
   stats.occupied_cells = counters.occupied_cells;
   stats.aborted_cells = counters.aborted;
 
-  const std::uint32_t active = counters.active_cells;
+  // Cells to update: those whose path needs nodes (descending), and those whose leaf exists.
+  const std::uint32_t descending = counters.active_cells;
+  const std::uint32_t active = descending + counters.first_depth_hist[gpu::kTreeDepth];
   if (active > 0) {
     // Exactly the blocks the tree passes will take (counted by the classify pass).
     const std::uint64_t bound = counters.new_blocks;
@@ -575,7 +578,7 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     while (first_level < gpu::kTreeDepth && counters.first_depth_hist[first_level] == 0)
       ++first_level;
     stream_.timestamp();
-    recordTreeUpdate(active, first_level);
+    recordTreeUpdate(active, descending, first_level);
     if (leaf_boxes_every_scan_) recordLeafBoxes();
     leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
     if (queries) {
