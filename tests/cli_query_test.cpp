@@ -24,70 +24,20 @@
 #include <string>
 #include <vector>
 
+#include "cli_support.hpp"
 #include "test_support.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using octovk::test::quote;
+using octovk::test::readFile;
+using octovk::test::runOctovk;
+using octovk::test::RunResult;
+using octovk::test::Scratch;
 
 const std::string kGeb079 = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
 const std::string kSphericalGraph = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
-
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string readFile(const fs::path& path) {
-  std::ifstream in(path, std::ios_base::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-struct RunResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-// Runs octovk with `args`, stdout and stderr captured in files under `dir`.
-RunResult runOctovk(const std::vector<std::string>& args, const fs::path& dir) {
-  std::string command = quote(OCTOVK_CLI);
-  for (const std::string& a : args) command += ' ' + quote(a);
-  const fs::path out = dir / "stdout.txt";
-  const fs::path err = dir / "stderr.txt";
-  const int status =
-      std::system((command + " >" + quote(out) + " 2>" + quote(err) + " </dev/null").c_str());
-  RunResult r;
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = readFile(out);
-  r.err = readFile(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
-}
-
-// A fresh directory per test under OCTOVK_TEST_TMP, removed when the test passed.
-class Scratch {
- public:
-  Scratch() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::path(OCTOVK_TEST_TMP) / ("cliquery." + std::string(info->test_suite_name()) + "." +
-                                        info->name() + "." + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  ~Scratch() {
-    if (!::testing::Test::HasFailure()) fs::remove_all(dir_);
-  }
-  Scratch(const Scratch&) = delete;
-  Scratch& operator=(const Scratch&) = delete;
-  const fs::path& dir() const { return dir_; }
-  std::string operator/(const std::string& name) const { return (dir_ / name).string(); }
-
- private:
-  fs::path dir_;
-};
 
 // The rest of the stdout line that starts with `label` ("nodes:"), trimmed; empty if none.
 std::string field(const std::string& out, const std::string& label) {
