@@ -465,9 +465,14 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
   if (std::isnan(max_range))
     throw Error(ErrorCode::kInvalidArgument,
                 "insertPointCloud: max_range is NaN; use a negative value for unlimited range");
-  if (points.size() > 0x7FFFFFFFu)
+  // Lists of points and cells are walked by indirect dispatches of one group per 64 entries.
+  const std::size_t max_items = std::size_t{device_.maxGroupsX()} * gpu::kWorkgroupSize;
+  if (points.size() > std::min<std::size_t>(0x7FFFFFFFu, max_items))
     throw Error(ErrorCode::kInvalidArgument,
-                "insertPointCloud: more than 2^31 points in one scan; split the scan");
+                "insertPointCloud: " + std::to_string(points.size()) +
+                    " points in one scan; the device '" + device_.info().name + "' takes at most " +
+                    std::to_string(std::min<std::size_t>(0x7FFFFFFFu, max_items)) +
+                    " (maxComputeWorkGroupCount x 64); split the scan");
 
   ScanStats stats;
   stats.points = points.size();
@@ -746,6 +751,13 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
   if (q.rays.empty() && q.lookups.empty()) return {};
   if (q.rays.size() + q.lookups.size() > 0x7FFFFFFFu)
     throw Error(ErrorCode::kInvalidArgument, "queries: more than 2^31 queries in one batch");
+  // Unfinished castRay walks are continued by indirect dispatches of one group per 64 rays.
+  const std::size_t max_rays = std::size_t{device_.maxGroupsX()} * gpu::kWorkgroupSize;
+  if (q.rays.size() > max_rays)
+    throw Error(ErrorCode::kInvalidArgument,
+                "castRays: " + std::to_string(q.rays.size()) + " rays in one batch; the device '" +
+                    device_.info().name + "' takes at most " + std::to_string(max_rays) +
+                    " (maxComputeWorkGroupCount x 64); split the batch");
   stageQueries(q);
   stream_.begin(bindings_);
   recordQueries(q);

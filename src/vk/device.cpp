@@ -513,6 +513,7 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
       if (qprops[i].timestampValidBits >= 36)
         dev->timestamp_period_ns_ = static_cast<double>(props.limits.timestampPeriod);
       dev->storage_alignment_ = props.limits.minStorageBufferOffsetAlignment;
+      dev->max_groups_x_ = props.limits.maxComputeWorkGroupCount[0];
     }
   }
   if (!found)

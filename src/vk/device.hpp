@@ -141,6 +141,8 @@ class Device {
   double timestampPeriodNs() const noexcept { return timestamp_period_ns_; }
   /// minStorageBufferOffsetAlignment: offsets of bound buffer ranges must be multiples of it.
   VkDeviceSize storageOffsetAlignment() const noexcept { return storage_alignment_; }
+  /// maxComputeWorkGroupCount[0]: the most workgroups an indirect dispatch may ask for.
+  std::uint32_t maxGroupsX() const noexcept { return max_groups_x_; }
   VkInstance instance() const noexcept { return instance_; }
   VkPhysicalDevice physical() const noexcept { return physical_; }
 
@@ -164,6 +166,7 @@ class Device {
   VkPhysicalDeviceMemoryProperties memory_{};
   double timestamp_period_ns_ = 0.0;
   VkDeviceSize storage_alignment_ = 256;
+  std::uint32_t max_groups_x_ = 65535;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
 };
 
