@@ -109,7 +109,10 @@ uint insertCell(uint64_t k) {
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.hash_entries, 1u);
       slots[n] = s;
-      if (n % kWorkgroupSize == 0u) atomicAdd(counters.cell_args.x, 1u);
+      // Classify walks the filled slots by an indirect dispatch, which may not exceed the
+      // device's group count: beyond it the scan is refused.
+      if (n >= params.max_list_entries) atomicOr(counters.status, kStatusTooManyCells);
+      else if (n % kWorkgroupSize == 0u) atomicAdd(counters.cell_args.x, 1u);
       if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
       return s;
     }

@@ -87,7 +87,7 @@ void main() {
   params.trans_y = mf(121u);
   params.trans_z = mf(122u);
   params.occupancy_log = mf(123u);
-  params.pad1 = mu(124u);
+  params.max_list_entries = mu(124u);
 
   // ScanCounters: scalars 200 + field index; arrays from 300, 320, 340; pad1 360; walk_count
   // 370 + list, walk_args 380 + 3 * list + component; alloc_args 400 + 3 * level + component,

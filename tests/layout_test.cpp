@@ -72,7 +72,7 @@ static_assert(offsetof(ScanParams, trans_x) == 92);
 static_assert(offsetof(ScanParams, trans_y) == 96);
 static_assert(offsetof(ScanParams, trans_z) == 100);
 static_assert(offsetof(ScanParams, occupancy_log) == 104);
-static_assert(offsetof(ScanParams, pad1) == 108);
+static_assert(offsetof(ScanParams, max_list_entries) == 108);
 
 static_assert(sizeof(ActiveCell) == 16);
 static_assert(offsetof(ActiveCell, slot) == 0);
@@ -214,7 +214,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(BoxQuery), 32u);
   EXPECT_EQ(sizeof(RayState), 40u);
   EXPECT_EQ(offsetof(ScanCounters, cell_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
-  EXPECT_EQ(offsetof(ScanParams, pad1) + 4, sizeof(ScanParams));
+  EXPECT_EQ(offsetof(ScanParams, max_list_entries) + 4, sizeof(ScanParams));
 }
 
 // ---- GLSL side: run the probe shader and find each marker --------------------------------------
@@ -278,7 +278,7 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindParams, ScanParams, trans_y, F, 121),
       OCTOVK_FIELD(kBindParams, ScanParams, trans_z, F, 122),
       OCTOVK_FIELD(kBindParams, ScanParams, occupancy_log, F, 123),
-      OCTOVK_FIELD(kBindParams, ScanParams, pad1, U, 124),
+      OCTOVK_FIELD(kBindParams, ScanParams, max_list_entries, U, 124),
 
       OCTOVK_FIELD(kBindCounters, ScanCounters, status, U, 200),
       OCTOVK_FIELD(kBindCounters, ScanCounters, hash_entries, U, 201),

@@ -36,6 +36,7 @@ OCTOVK_CONST uint kHashFlagOccupied = 2u;
 OCTOVK_CONST uint kStatusHashFull = 1u;
 OCTOVK_CONST uint kStatusPoolFull = 2u;
 OCTOVK_CONST uint kStatusRayCut = 8u;  // a ray walk was stopped by the device's loop limit
+OCTOVK_CONST uint kStatusTooManyCells = 16u;  // more cells than one indirect dispatch covers
 OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of the scan is full
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
@@ -103,7 +104,7 @@ struct ScanParams {
   float trans_y;            // 4B (96)
   float trans_z;            // 4B (100)
   float occupancy_log;      // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
-  uint pad1;                // 4B (108)
+  uint max_list_entries;    // 4B (108) most entries of an indirectly walked list (groups x 64)
 };
 
 // Per-cell state of the descent through the tree, one per active cell. 16 B.
