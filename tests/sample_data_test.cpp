@@ -45,19 +45,19 @@ std::vector<OracleScan> graph2treeScans(const std::string& path) {
   return out;
 }
 
-struct GraphCase {
+struct InsertCase {
   double resolution;
   double max_range;
   bool discretize;
 };
 
-void PrintTo(const GraphCase& c, std::ostream* os) {
+void PrintTo(const InsertCase& c, std::ostream* os) {
   *os << "resolution " << c.resolution << ", max range " << c.max_range << ", discretize "
       << c.discretize;
 }
 
-std::string graphCaseName(const ::testing::TestParamInfo<GraphCase>& info) {
-  const GraphCase& c = info.param;
+std::string insertCaseName(const ::testing::TestParamInfo<InsertCase>& info) {
+  const InsertCase& c = info.param;
   return "res" + std::to_string(std::lround(c.resolution * 1000)) + "mm" +
          (c.max_range < 0 ? "" : "_maxrange" + std::to_string(std::lround(c.max_range)) + "m") +
          (c.discretize ? "_discretize" : "");
@@ -65,7 +65,7 @@ std::string graphCaseName(const ::testing::TestParamInfo<GraphCase>& info) {
 
 // Inserts every scan of `graph_path` into octovk (pose overload) and OctoMap (graph2tree's way),
 // comparing after every `every`-th scan and after the last.
-void compareGraph(Context& ctx, const std::string& graph_path, const GraphCase& c,
+void compareGraph(Context& ctx, const std::string& graph_path, const InsertCase& c,
                   std::size_t every, std::size_t expected_scans) {
   std::vector<GraphScan> scans;
   {
@@ -99,7 +99,7 @@ void compareGraph(Context& ctx, const std::string& graph_path, const GraphCase& 
 
 // ---- spherical_scan.graph --------------------------------------------------------------------
 
-class SphericalScan : public ::testing::TestWithParam<GraphCase> {};
+class SphericalScan : public ::testing::TestWithParam<InsertCase> {};
 
 TEST_P(SphericalScan, EqualsGraph2treeProcedure) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -107,11 +107,11 @@ TEST_P(SphericalScan, EqualsGraph2treeProcedure) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, SphericalScan,
-                         ::testing::Values(GraphCase{0.1, -1.0, false},
-                                           GraphCase{0.05, -1.0, false},
-                                           GraphCase{0.02, -1.0, false}, GraphCase{0.1, 2.0, true},
-                                           GraphCase{0.2, 3.0, false}),
-                         graphCaseName);
+                         ::testing::Values(InsertCase{0.1, -1.0, false},
+                                           InsertCase{0.05, -1.0, false},
+                                           InsertCase{0.02, -1.0, false},
+                                           InsertCase{0.1, 2.0, true}, InsertCase{0.2, 3.0, false}),
+                         insertCaseName);
 
 TEST(SphericalScan, ReadScanGraphMatchesOctoMap) {
   const std::string path = kOctomapData + "/spherical_scan.graph";
@@ -191,22 +191,11 @@ const std::vector<Eigen::Vector3f>& scanDat() {
   return points;
 }
 
-struct DatCase {
-  double resolution;
-  double max_range;
-  bool discretize;
-};
-
-void PrintTo(const DatCase& c, std::ostream* os) {
-  *os << "resolution " << c.resolution << ", max range " << c.max_range << ", discretize "
-      << c.discretize;
-}
-
-class ScanDat : public ::testing::TestWithParam<DatCase> {};
+class ScanDat : public ::testing::TestWithParam<InsertCase> {};
 
 TEST_P(ScanDat, EqualsOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  const DatCase c = GetParam();
+  const InsertCase c = GetParam();
   const auto& points = scanDat();
   ASSERT_EQ(points.size(), 88206u) << "could not decompress scan.dat.bz2";
   MapParams params;
@@ -226,14 +215,10 @@ TEST_P(ScanDat, EqualsOctoMap) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Cases, ScanDat,
-                         ::testing::Values(DatCase{0.1, -1.0, false}, DatCase{0.05, -1.0, false},
-                                           DatCase{0.05, 3.0, true}),
-                         [](const ::testing::TestParamInfo<DatCase>& info) {
-                           const DatCase& c = info.param;
-                           return "res" + std::to_string(std::lround(c.resolution * 1000)) + "mm" +
-                                  (c.max_range < 0 ? "" : "_maxrange") +
-                                  (c.discretize ? "_discretize" : "");
-                         });
+                         ::testing::Values(InsertCase{0.1, -1.0, false},
+                                           InsertCase{0.05, -1.0, false},
+                                           InsertCase{0.05, 3.0, true}),
+                         insertCaseName);
 
 // ---- a slice of the FR-079 corridor log ------------------------------------------------------
 
@@ -268,7 +253,7 @@ const std::string& fr079Graph(std::string* why) {
   return graph;
 }
 
-class Fr079 : public ::testing::TestWithParam<GraphCase> {};
+class Fr079 : public ::testing::TestWithParam<InsertCase> {};
 
 TEST_P(Fr079, EqualsGraph2treeEvery25Scans) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -279,10 +264,11 @@ TEST_P(Fr079, EqualsGraph2treeEvery25Scans) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Slice, Fr079,
-                         ::testing::Values(GraphCase{0.1, -1.0, false}, GraphCase{0.1, 10.0, false},
-                                           GraphCase{0.05, -1.0, false},
-                                           GraphCase{0.05, 10.0, false}),
-                         graphCaseName);
+                         ::testing::Values(InsertCase{0.1, -1.0, false},
+                                           InsertCase{0.1, 10.0, false},
+                                           InsertCase{0.05, -1.0, false},
+                                           InsertCase{0.05, 10.0, false}),
+                         insertCaseName);
 
 }  // namespace
 }  // namespace octovk

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <ostream>
 
 #include "cli.hpp"
@@ -226,4 +227,11 @@ float occupancyLogOdds(const MapParams& params) {
   return static_cast<float>(std::log(p / (1.0 - p)));
 }
 
+bool printHelpIfAsked(const std::vector<std::string>& args, void (*print)(std::ostream&)) {
+  if (!wantsHelp(args)) return false;
+  print(std::cout);
+  std::cout << "\n";
+  printEnvironmentAndExitCodes(std::cout);
+  return true;
+}
 }  // namespace octovk::cli

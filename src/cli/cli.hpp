@@ -67,6 +67,10 @@ std::vector<double> parseNumbers(const ParsedOption& option, const std::string& 
 /// True when `args` asks for help (-h / --help before any "--").
 bool wantsHelp(const std::vector<std::string>& args);
 
+/// If `args` ask for help, prints the command's help (`print`) and the environment and exit
+/// codes on stdout, and returns true.
+bool printHelpIfAsked(const std::vector<std::string>& args, void (*print)(std::ostream&));
+
 /// The help of `octovk integrate`: usage, every option with its default, files, exit codes.
 void printIntegrateHelp(std::ostream& out);
 /// `octovk integrate ARGS...` (without the command name). Throws UsageError or octovk::Error.

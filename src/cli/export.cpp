@@ -195,12 +195,7 @@ void printExportHelp(std::ostream& out) {
 }
 
 int runExport(const std::vector<std::string>& args) {
-  if (wantsHelp(args)) {
-    printExportHelp(std::cout);
-    std::cout << "\n";
-    printEnvironmentAndExitCodes(std::cout);
-    return kExitOk;
-  }
+  if (printHelpIfAsked(args, printExportHelp)) return kExitOk;
   const ExportOptions o = parseExport(args);
 
   std::unique_ptr<Context> context = createContext();

@@ -72,12 +72,7 @@ void printInfoHelp(std::ostream& out) {
 }
 
 int runInfo(const std::vector<std::string>& args) {
-  if (wantsHelp(args)) {
-    printInfoHelp(std::cout);
-    std::cout << "\n";
-    printEnvironmentAndExitCodes(std::cout);
-    return kExitOk;
-  }
+  if (printHelpIfAsked(args, printInfoHelp)) return kExitOk;
   std::string map_path;
   ArgReader reader(args, {});
   while (reader.next()) {

@@ -220,12 +220,7 @@ void printIntegrateHelp(std::ostream& out) {
 }
 
 int runIntegrate(const std::vector<std::string>& args) {
-  if (wantsHelp(args)) {
-    printIntegrateHelp(std::cout);
-    std::cout << "\n";
-    printEnvironmentAndExitCodes(std::cout);
-    return kExitOk;
-  }
+  if (printHelpIfAsked(args, printIntegrateHelp)) return kExitOk;
   const IntegrateOptions o = parseIntegrate(args);
   validate(o);
 

@@ -325,12 +325,7 @@ void printRenderHelp(std::ostream& out) {
 }
 
 int runRender(const std::vector<std::string>& args) {
-  if (wantsHelp(args)) {
-    printRenderHelp(std::cout);
-    std::cout << "\n";
-    printEnvironmentAndExitCodes(std::cout);
-    return kExitOk;
-  }
+  if (printHelpIfAsked(args, printRenderHelp)) return kExitOk;
   const RenderOptions o = parseRender(args);
 
   std::unique_ptr<Context> context = createContext();
