@@ -1,45 +1,48 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Gives each node that asked at this level a block of 8 child slots, from the free-block stack
-// first, then from the never-used tail. A node that existed before this scan (or came from an
-// expansion) and has no children is a pruned leaf: expandNode, 8 children with its value.
-// A node created in this scan gets only the children asked for, at 0 (createNodeChild).
+// Gives every node that gets children in this scan (the entries of the second set, counted by
+// classify) its block of 8 child slots: the n-th entry takes the n-th block from the top of the
+// free-block stack, then from the never-used tail. The block is filled before the descent links
+// it, from the tree as it was before the scan:
+// - the node lies at or under a pruned leaf (a leaf that existed, or its expansion): expandNode,
+//   8 children with the leaf's value;
+// - otherwise the node is created in this scan: createNodeChild, children at 0 that the descent
+//   switches on one by one.
 #include "common.glsl"
-#include "tree.glsl"
 
 void main() {
-  uint r = invocationIndex();
-  uint level = pc.level;
-  if (r >= counters.alloc_count[level]) return;
-  AllocRequest req = alloc_list[level * params.active_capacity + r];
-  uint n = req.node;
+  uint n = invocationIndex();
+  if (n >= counters.new_blocks) return;
+  uint slot = slots[params.hash_capacity + n];
+  uint64_t prefix = endpoint_keys[slot];
+  uint depth = uint(prefix >> 48);
+  uvec3 k = unpackKey(prefix);
 
-  uint pop = atomicAdd(pool.pops, 1u);
   uint block;
-  if (pop < pool.free_count) {
-    block = free_stack[pool.free_count - 1u - pop];
+  if (n < pool.free_count) {
+    block = free_stack[pool.free_count - 1u - n];
   } else {
-    block = atomicAdd(pool.bump, 1u);
+    block = pool.bump + (n - pool.free_count);
     if (block >= pool.capacity) {  // the host sizes the pool so this cannot happen
       atomicOr(counters.status, kStatusPoolFull);
       return;
     }
   }
+  endpoint_blocks[slot] = block;
 
-  uint m = nodes[n].mask;
-  uint want = (m >> kWantShift) & kChildMask;
-  bool expand = (m & kFlagNew) == 0u;
-  float parent_value = nodes[n].log_odds;
-  for (uint s = 0u; s < 8u; ++s) {
-    if (expand) nodes[block * 8u + s] = Node(parent_value, kNoBlock, 0u);
-    else nodes[block * 8u + s] = Node(0.0, kNoBlock, (want & (1u << s)) != 0u ? kFlagNew : 0u);
+  // The deepest existing node on the way to the prefix's node.
+  uint node = kRootNode;
+  uint d = 0u;
+  for (; d < depth; ++d) {
+    uint m = nodes[node].mask;
+    uint c = childIndex(k, d);
+    if ((m & (1u << c)) == 0u) break;
+    node = nodes[node].children * 8u + c;
   }
-  uint children = expand ? kChildMask : want;
-  atomicAdd(pool.live_nodes, uint(bitCount(children)));
-  nodes[n].children = block;
-  nodes[n].mask = (m & (kFlagNew | kFlagTouched)) | children;
-
-  uvec3 k = cellKey(cells[req.cell].slot);
-  uint keep = level == 0u ? 0u : (0xFFFFu << (kTreeDepth - level)) & 0xFFFFu;
-  block_meta[block] = BlockMeta(n, level, (k.x & keep) | ((k.y & keep) << 16), k.z & keep);
+  uint m = nodes[node].mask;
+  bool expand = (m & kChildMask) == 0u && (m & kFlagNew) == 0u;
+  Node child = expand ? Node(nodes[node].log_odds, kNoBlock, 0u) : Node(0.0, kNoBlock, kFlagNew);
+  for (uint s = 0u; s < 8u; ++s) nodes[block * 8u + s] = child;
+  // The parent is set by the descent, which links the block.
+  block_meta[block] = BlockMeta(kNoBlock, depth, uint(prefix & 0xFFFFFFFFul), k.z);
 }

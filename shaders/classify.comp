@@ -18,8 +18,20 @@ void main() {
 
   // search(): the deepest existing node on the path; a node with other children but not this
   // one means "not found". depth = depth of the deepest existing node (0 without a root).
-  uint n, depth;
-  bool found = searchNode(k, n, depth);
+  uint n = kRootNode, parent = kNoBlock, depth = 0u;
+  bool found = pool.root_exists != 0u;
+  if (found) {
+    for (; depth < kTreeDepth; ++depth) {
+      uint c = childIndex(k, depth);
+      uint m = nodes[n].mask;
+      if ((m & (1u << c)) == 0u) {
+        found = (m & kChildMask) == 0u;
+        break;
+      }
+      parent = n;
+      n = nodes[n].children * 8u + c;
+    }
+  }
   float value = nodes[n].log_odds;
   if (found && ((update >= 0.0 && value >= params.clamp_max_log) ||
                 (update <= 0.0 && value <= params.clamp_min_log))) {
@@ -27,8 +39,7 @@ void main() {
     return;
   }
   // The descent starts at the deepest existing node (the root, created by tree_begin, if none).
-  // Cells whose leaf exists need no descent: they are kept at the back of `cells`, so that the
-  // descent passes run over the front part only.
+  // Cells whose leaf exists need no descent: they are kept at the back of `cells`.
   uint at;
   if (depth == kTreeDepth) {
     at = params.hash_capacity - 1u - atomicAdd(counters.first_depth_hist[kTreeDepth], 1u);
@@ -36,17 +47,24 @@ void main() {
     at = atomicAdd(counters.active_cells, 1u);
     atomicAdd(counters.first_depth_hist[depth], 1u);
   }
-  cells[at] = ActiveCell(slot, n, kNoBlock, depth);
+  cells[at] = ActiveCell(slot, n, parent, depth);
+
+  // The path leaves an inner node that lacks this child: the child slot of its existing block is
+  // made ready here (no pass before the descent steps into it), so that the descent only sets
+  // the child's bit.
+  if (!found && pool.root_exists != 0u)
+    nodes[nodes[n].children * 8u + childIndex(k, depth)] = Node(0.0, kNoBlock, kFlagNew);
 
   // Exact count of the blocks this scan allocates: one per distinct node on an active path that
   // has no children yet (a missing root, a pruned leaf, or a node still to be created). The
   // host grows the pool to fit before the tree changes, so the update passes cannot run out.
+  // From the deepest such node up: a node already listed was listed by a cell that also lists
+  // every node above it (their paths agree up to there), so the walk stops at the first one.
   uint first = pool.root_exists == 0u ? 0u : (found ? depth : depth + 1u);
-  for (uint d = first; d < kTreeDepth; ++d) {
-    uint keep = d == 0u ? 0u : (0xFFFFu << (kTreeDepth - d)) & 0xFFFFu;
-    uint64_t prefix = packKey(k & uvec3(keep)) | (uint64_t(d) << 48);
+  for (uint d = kTreeDepth; d-- > first;) {
     uint prefix_slot;
-    if (insertEndpoint(prefix, prefix_slot) == 1u)
-      countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
+    uint inserted = insertEndpoint(prefixKey(k, d), prefix_slot);
+    if (inserted != 1u) break;  // present, or the set is full (the scan is then redone)
+    countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
   }
 }

@@ -21,7 +21,7 @@ layout(std430, binding = 7) buffer BlockMetaBuf { BlockMeta block_meta[]; };
 layout(std430, binding = 8) buffer FreeStackBuf { uint free_stack[]; };
 layout(std430, binding = 9) buffer ActiveBuf { ActiveCell cells[]; };
 layout(std430, binding = 10) buffer TouchedBuf { uint touched[]; };
-layout(std430, binding = 11) buffer AllocBuf { AllocRequest alloc_list[]; };
+layout(std430, binding = 11) buffer EndpointBlocksBuf { uint endpoint_blocks[]; };
 layout(std430, binding = 12) buffer LeafBuf { LeafBox leaf_boxes[]; };
 layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
 // Query inputs and outputs; each query pass declares its own view of these two bindings.
@@ -140,6 +140,27 @@ uint insertEndpoint(uint64_t k, out uint slot) {
   }
   atomicOr(counters.status, kStatusEndpointHashFull);
   return 2u;
+}
+
+// Key of the second set for the node at `depth` on the path of key k (the node that gets a block).
+uint64_t prefixKey(uvec3 k, uint depth) {
+  uint keep = depth == 0u ? 0u : (0xFFFFu << (kTreeDepth - depth)) & 0xFFFFu;
+  return packKey(k & uvec3(keep)) | (uint64_t(depth) << 48);
+}
+
+// The block the init_blocks pass gave to the node at `depth` on the path of k, or kNoBlock when
+// that node was not counted by classify (a bug, reported by the caller).
+uint blockOfPrefix(uvec3 k, uint depth) {
+  uint64_t key = prefixKey(k, depth);
+  uint cap = params.endpoint_capacity;
+  uint s = hashSlot(key, params.endpoint_log2);
+  for (uint probe = 0u; probe < cap; ++probe) {
+    uint64_t seen = endpoint_keys[s];
+    if (seen == key) return endpoint_blocks[s];
+    if (seen == kEmptyKey) break;
+    s = (s + 1u) & (cap - 1u);
+  }
+  return kNoBlock;
 }
 
 // Records the n-th entry of the second set, at `slot`; flags the set full beyond three quarters.

@@ -1,48 +1,62 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// One level of the descent (updateNodeRecurs going down), for every active cell at once.
-// A cell at node n (depth pc.level) needs child c: if it exists, step into it; if n has a block
-// of children, claim the slot and create c alone; if n has no children, ask the alloc pass for a
-// block (alloc decides between OctoMap's expandNode and a single createNodeChild).
-// Cells start at the deepest node that existed before the scan (found by classify), so a cell
-// whose leaf exists skips every level.
+// The descent and the log-odds update (updateNodeRecurs going down, then updateNodeLogOdds), for
+// every active cell in one pass. A cell starts at the deepest node that existed before the scan
+// (found by classify) and walks to its leaf. At a node that lacks the child:
+// - the node had children before the scan: the child's slot is ready (classify made it), the
+//   cell switches its bit on (createNodeChild);
+// - otherwise the cell links the block alloc gave to this node (every cell that gets here links
+//   the same one) and switches on that child alone if the node was created in this scan
+//   (createNodeChild), all 8 if it is a pruned leaf or the child of an expansion (expandNode).
+// At the leaf: add the update, clamp, and list the parent for the prune pass.
+//
+// No ordering between invocations is needed: a node's block is a function of the node (its
+// entry in the second set), so a cell that does not yet see another cell's link finds the block
+// itself; child bits only grow, by atomicOr; block contents were written by earlier passes.
 #include "common.glsl"
 #include "tree.glsl"
 
 void main() {
   uint i = invocationIndex();
   if (i >= pc.count) return;
-  uint level = pc.level;
-  ActiveCell cell = cells[i];
-  if (cell.depth > level) return;  // its path exists down to cell.depth: nothing to create here
-  uint n = resolveNode(cell);
-
-  // A child bit missed by this plain read is caught by the atomicOr below.
-  uint old = nodes[n].mask;
-
-  uint c = childIndex(cellKey(cell.slot), level);
-  uint bit = 1u << c;
-  uint block = nodes[n].children;  // only the alloc pass changes it
-  if ((old & bit) != 0u) {
-    cell.node = block * 8u + c;
-    cell.pending = kNoBlock;
-  } else if (block != kNoBlock) {
-    uint before = atomicOr(nodes[n].mask, bit);
-    uint child = block * 8u + c;
-    if ((before & bit) == 0u) {
-      nodes[child] = Node(0.0, kNoBlock, kFlagNew);
-      atomicAdd(pool.live_nodes, 1u);
+  // pc.offset cells that descend at the front of `cells`, the ones whose leaf existed at the back
+  // (see classify).
+  ActiveCell cell = cells[i < pc.offset ? i : params.hash_capacity - 1u - (i - pc.offset)];
+  uvec3 k = cellKey(cell.slot);
+  uint n = cell.node;
+  uint parent = cell.parent;
+  uint added = 0u;
+  for (uint d = cell.depth; d < kTreeDepth; ++d) {
+    uint c = childIndex(k, d);
+    uint bit = 1u << c;
+    uint m = nodes[n].mask;
+    uint block = nodes[n].children;
+    bool linked = block != kNoBlock;
+    if (!linked) {
+      block = blockOfPrefix(k, d);
+      if (block == kNoBlock) {  // not counted by classify: cannot happen
+        atomicOr(counters.status, kStatusPoolFull);
+        return;
+      }
     }
-    cell.node = child;
-    cell.pending = kNoBlock;
-  } else {
-    if ((old & (bit << kWantShift)) == 0u) atomicOr(nodes[n].mask, bit << kWantShift);
-    if ((old & kFlagAllocReq) == 0u) {
-      uint before = atomicOr(nodes[n].mask, kFlagAllocReq);
-      if ((before & kFlagAllocReq) == 0u) appendAlloc(level, n, i);
+    if ((m & bit) == 0u) {
+      uint want = !linked && (m & kFlagNew) == 0u ? kChildMask : bit;
+      if (!linked) {
+        block_meta[block].parent = n;
+        nodes[n].children = block;
+      }
+      uint before = atomicOr(nodes[n].mask, want);
+      added += bitCount(want & ~before);
     }
-    cell.node = n;
-    cell.pending = c;
+    parent = n;
+    n = block * 8u + c;
   }
-  cells[i] = cell;
+  if (added != 0u) atomicAdd(pool.live_nodes, added);
+
+  precise float value = nodes[n].log_odds + cellUpdate(cell.slot);
+  if (value < params.clamp_min_log) value = params.clamp_min_log;
+  else if (value > params.clamp_max_log) value = params.clamp_max_log;
+  nodes[n].log_odds = value;
+  nodes[n].mask = 0u;
+  listNode(kTreeDepth - 1u, parent);
 }

@@ -42,13 +42,8 @@ void probeBlockMeta(uint i, uint id) {
 void probeActiveCell(uint i, uint id) {
   cells[i].slot = mu(id);
   cells[i].node = mu(id + 1u);
-  cells[i].pending = mu(id + 2u);
+  cells[i].parent = mu(id + 2u);
   cells[i].depth = mu(id + 3u);
-}
-
-void probeAllocRequest(uint i, uint id) {
-  alloc_list[i].node = mu(id);
-  alloc_list[i].cell = mu(id + 1u);
 }
 
 void probeLeafBox(uint i, uint id) {
@@ -89,9 +84,8 @@ void main() {
   params.occupancy_log = mf(123u);
   params.max_list_entries = mu(124u);
 
-  // ScanCounters: scalars 200 + field index; arrays from 300, 320, 340; pad1 360; walk_count
-  // 370 + list, walk_args 380 + 3 * list + component; alloc_args 400 + 3 * level + component,
-  // touched_args 500 + 3 * level + component.
+  // ScanCounters: scalars 200 + field index; arrays from 300, 340; walk_count 370 + list,
+  // walk_args 380 + 3 * list + component; touched_args 500 + 3 * level + component.
   counters.status = mu(200u);
   counters.hash_entries = mu(201u);
   counters.endpoint_entries = mu(202u);
@@ -106,16 +100,11 @@ void main() {
   counters.query_results = mu(211u);
   for (uint l = 0u; l < kLevelCount; ++l) {
     counters.first_depth_hist[l] = mu(300u + l);
-    counters.alloc_count[l] = mu(320u + l);
     counters.touched_count[l] = mu(340u + l);
-    counters.alloc_args[l].x = mu(400u + 3u * l);
-    counters.alloc_args[l].y = mu(401u + 3u * l);
-    counters.alloc_args[l].z = mu(402u + 3u * l);
     counters.touched_args[l].x = mu(500u + 3u * l);
     counters.touched_args[l].y = mu(501u + 3u * l);
     counters.touched_args[l].z = mu(502u + 3u * l);
   }
-  counters.pad1 = mu(360u);
   for (uint w = 0u; w < 2u; ++w) {
     counters.walk_count[w] = mu(370u + w);
     counters.walk_args[w].x = mu(380u + 3u * w);
@@ -130,7 +119,7 @@ void main() {
   pool.bump = mu(600u);
   pool.capacity = mu(601u);
   pool.free_count = mu(602u);
-  pool.pops = mu(603u);
+  pool.pad1 = mu(603u);
   pool.root_exists = mu(604u);
   pool.leaf_count = mu(605u);
   pool.live_nodes = mu(606u);
@@ -143,8 +132,6 @@ void main() {
   probeBlockMeta(1u, 715u);
   probeActiveCell(0u, 720u);
   probeActiveCell(1u, 725u);
-  probeAllocRequest(0u, 730u);
-  probeAllocRequest(1u, 735u);
   probeLeafBox(0u, 740u);
   probeLeafBox(1u, 750u);
 
@@ -212,6 +199,7 @@ void main() {
   free_stack[1] = mu(803u);
   endpoint_keys[1] = m64(804u);
   slots[1] = mu(805u);
+  endpoint_blocks[1] = mu(806u);
 
   // Push constants and shared constants, as the shader sees them.
   touched[0] = pc.level;

@@ -13,21 +13,12 @@ void appendTouched(uint level, uint node) {
   if (at % kWorkgroupSize == 0u) atomicAdd(counters.touched_args[level].x, 1u);
 }
 
-void appendAlloc(uint level, uint node, uint cell) {
-  uint at = atomicAdd(counters.alloc_count[level], 1u);
-  alloc_list[level * params.active_capacity + at] = AllocRequest(node, cell);
-  if (at % kWorkgroupSize == 0u) atomicAdd(counters.alloc_args[level].x, 1u);
-}
-
-// The node a cell has reached, resolving a child whose block was allocated by the last pass.
-uint resolveNode(ActiveCell c) {
-  return c.pending == kNoBlock ? c.node : nodes[c.node].children * 8u + c.pending;
-}
-
-// Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
-void listParent(uint level, uint node) {
-  uint parent = block_meta[node / 8u].parent;
+// Lists `parent` (at depth `level`) once for the prune pass at that level.
+void listNode(uint level, uint parent) {
   if ((nodes[parent].mask & kFlagTouched) != 0u) return;
   uint old = atomicOr(nodes[parent].mask, kFlagTouched);
   if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
 }
+
+// Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
+void listParent(uint level, uint node) { listNode(level, block_meta[node / 8u].parent); }

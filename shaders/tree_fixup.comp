@@ -1,10 +1,11 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// After the descent: the blocks popped from the free stack leave it.
+// After alloc: the blocks it took leave the free stack, then the never-used tail.
 #include "common.glsl"
 
 void main() {
   if (invocationIndex() != 0u) return;
-  pool.free_count -= min(pool.pops, pool.free_count);
-  pool.pops = 0u;
+  uint popped = min(counters.new_blocks, pool.free_count);
+  pool.free_count -= popped;
+  pool.bump += counters.new_blocks - popped;
 }

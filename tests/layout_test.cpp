@@ -41,7 +41,7 @@ static_assert(sizeof(PoolState) == 32);
 static_assert(offsetof(PoolState, bump) == 0);
 static_assert(offsetof(PoolState, capacity) == 4);
 static_assert(offsetof(PoolState, free_count) == 8);
-static_assert(offsetof(PoolState, pops) == 12);
+static_assert(offsetof(PoolState, pad1) == 12);
 static_assert(offsetof(PoolState, root_exists) == 16);
 static_assert(offsetof(PoolState, leaf_count) == 20);
 static_assert(offsetof(PoolState, live_nodes) == 24);
@@ -77,12 +77,8 @@ static_assert(offsetof(ScanParams, max_list_entries) == 108);
 static_assert(sizeof(ActiveCell) == 16);
 static_assert(offsetof(ActiveCell, slot) == 0);
 static_assert(offsetof(ActiveCell, node) == 4);
-static_assert(offsetof(ActiveCell, pending) == 8);
+static_assert(offsetof(ActiveCell, parent) == 8);
 static_assert(offsetof(ActiveCell, depth) == 12);
-
-static_assert(sizeof(AllocRequest) == 8);
-static_assert(offsetof(AllocRequest, node) == 0);
-static_assert(offsetof(AllocRequest, cell) == 4);
 
 // VkDispatchIndirectCommand is three uint32 x, y, z.
 static_assert(sizeof(DispatchArgs) == 12);
@@ -92,7 +88,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 708);
+static_assert(sizeof(ScanCounters) == 432);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, hash_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -106,18 +102,15 @@ static_assert(offsetof(ScanCounters, new_blocks) == 36);
 static_assert(offsetof(ScanCounters, pruned_blocks) == 40);
 static_assert(offsetof(ScanCounters, query_results) == 44);
 static_assert(offsetof(ScanCounters, first_depth_hist) == 48);
-static_assert(offsetof(ScanCounters, alloc_count) == 116);
-static_assert(offsetof(ScanCounters, touched_count) == 184);
-static_assert(offsetof(ScanCounters, pad1) == 252);
-static_assert(offsetof(ScanCounters, alloc_args) == 256);
-static_assert(offsetof(ScanCounters, touched_args) == 460);
-static_assert(offsetof(ScanCounters, walk_count) == 664);
-static_assert(offsetof(ScanCounters, walk_args) == 672);
-static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
-static_assert(offsetof(ScanCounters, cell_args) == 696);
+static_assert(offsetof(ScanCounters, touched_count) == 116);
+static_assert(offsetof(ScanCounters, touched_args) == 184);
+static_assert(offsetof(ScanCounters, walk_count) == 388);
+static_assert(offsetof(ScanCounters, walk_args) == 396);
+static_assert(offsetof(ScanCounters, cell_args) == 420);
 // Indirect dispatch arguments must be 4-byte aligned inside the buffer.
-static_assert(offsetof(ScanCounters, alloc_args) % 4 == 0);
 static_assert(offsetof(ScanCounters, touched_args) % 4 == 0);
+static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
+static_assert(offsetof(ScanCounters, cell_args) % 4 == 0);
 
 static_assert(sizeof(LookupResult) == 16);
 static_assert(offsetof(LookupResult, state) == 0);
@@ -192,7 +185,7 @@ static_assert(kBindingCount == 18);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 && kBindBlockMeta == 7 &&
               kBindFreeStack == 8 && kBindActive == 9 && kBindTouched == 10 &&
-              kBindAllocList == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
+              kBindEndpointBlocks == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
               kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16 && kBindSlots == 17);
 
 TEST(Layout, HostSizesAndOffsets) {
@@ -203,9 +196,8 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(PoolState), 32u);
   EXPECT_EQ(sizeof(ScanParams), 112u);
   EXPECT_EQ(sizeof(ActiveCell), 16u);
-  EXPECT_EQ(sizeof(AllocRequest), 8u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 708u);
+  EXPECT_EQ(sizeof(ScanCounters), 432u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
   EXPECT_EQ(sizeof(LookupResult), 16u);
@@ -292,12 +284,11 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindCounters, ScanCounters, new_blocks, U, 209),
       OCTOVK_FIELD(kBindCounters, ScanCounters, pruned_blocks, U, 210),
       OCTOVK_FIELD(kBindCounters, ScanCounters, query_results, U, 211),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, pad1, U, 360),
 
       OCTOVK_FIELD(kBindPool, PoolState, bump, U, 600),
       OCTOVK_FIELD(kBindPool, PoolState, capacity, U, 601),
       OCTOVK_FIELD(kBindPool, PoolState, free_count, U, 602),
-      OCTOVK_FIELD(kBindPool, PoolState, pops, U, 603),
+      OCTOVK_FIELD(kBindPool, PoolState, pad1, U, 603),
       OCTOVK_FIELD(kBindPool, PoolState, root_exists, U, 604),
       OCTOVK_FIELD(kBindPool, PoolState, leaf_count, U, 605),
       OCTOVK_FIELD(kBindPool, PoolState, live_nodes, U, 606),
@@ -319,16 +310,12 @@ std::vector<Field> probedFields() {
       OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, key_z, U, 718),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, slot, U, 720),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, node, U, 721),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, pending, U, 722),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, parent, U, 722),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, depth, U, 723),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, slot, U, 725),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, node, U, 726),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, pending, U, 727),
+      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, parent, U, 727),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, depth, U, 728),
-      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 0, node, U, 730),
-      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 0, cell, U, 731),
-      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 1, node, U, 735),
-      OCTOVK_ELEMENT(kBindAllocList, AllocRequest, 1, cell, U, 736),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_x, F, 740),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_y, F, 741),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_z, F, 742),
@@ -346,6 +333,7 @@ std::vector<Field> probedFields() {
       Field{"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803},
       Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
       Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
+      Field{"endpoint_blocks[1]", kBindEndpointBlocks, 1 * sizeof(std::uint32_t), U, 806},
       Field{"ScanCounters::cell_args.x", kBindCounters,
             offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, x), U, 390},
       Field{"ScanCounters::cell_args.y", kBindCounters,
@@ -465,18 +453,9 @@ std::vector<Field> probedFields() {
     const std::size_t u = sizeof(std::uint32_t);
     f.push_back({"ScanCounters::first_depth_hist" + at, kBindCounters,
                  offsetof(ScanCounters, first_depth_hist) + l * u, U, 300 + l});
-    f.push_back({"ScanCounters::alloc_count" + at, kBindCounters,
-                 offsetof(ScanCounters, alloc_count) + l * u, U, 320 + l});
     f.push_back({"ScanCounters::touched_count" + at, kBindCounters,
                  offsetof(ScanCounters, touched_count) + l * u, U, 340 + l});
-    const std::size_t alloc = offsetof(ScanCounters, alloc_args) + l * sizeof(DispatchArgs);
     const std::size_t touched = offsetof(ScanCounters, touched_args) + l * sizeof(DispatchArgs);
-    f.push_back({"ScanCounters::alloc_args" + at + ".x", kBindCounters,
-                 alloc + offsetof(DispatchArgs, x), U, 400 + 3 * l});
-    f.push_back({"ScanCounters::alloc_args" + at + ".y", kBindCounters,
-                 alloc + offsetof(DispatchArgs, y), U, 401 + 3 * l});
-    f.push_back({"ScanCounters::alloc_args" + at + ".z", kBindCounters,
-                 alloc + offsetof(DispatchArgs, z), U, 402 + 3 * l});
     f.push_back({"ScanCounters::touched_args" + at + ".x", kBindCounters,
                  touched + offsetof(DispatchArgs, x), U, 500 + 3 * l});
     f.push_back({"ScanCounters::touched_args" + at + ".y", kBindCounters,
@@ -515,7 +494,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindFreeStack] = 4 * sizeof(std::uint32_t);
   sizes[kBindActive] = 4 * sizeof(ActiveCell);
   sizes[kBindTouched] = 8 * sizeof(std::uint32_t);
-  sizes[kBindAllocList] = 4 * sizeof(AllocRequest);
+  sizes[kBindEndpointBlocks] = 4 * sizeof(std::uint32_t);
   sizes[kBindLeafBoxes] = 4 * sizeof(LeafBox);
   sizes[kBindEndpointKeys] = 4 * sizeof(std::uint64_t);
   sizes[kBindQueryIn] = 2 * sizeof(RayQuery) + sizeof(BoxQuery) + 2 * sizeof(RayState);
@@ -542,9 +521,9 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   stream.submitAndWait();
 
   const std::vector<Field> fields = probedFields();
-  EXPECT_EQ(fields.size(), 25u + 13u + 8u + 36u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
-                               2u * (4u + 9u) + 9u * kLevelCount + 1u /* slots */ +
-                               3u /* cell_args */);
+  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 32u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+                               2u * (4u + 9u) + 5u * kLevelCount +
+                               2u /* slots, endpoint_blocks */ + 3u /* cell_args */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
     const std::size_t size = buffers[f.binding].size();

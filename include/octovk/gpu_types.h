@@ -25,9 +25,7 @@ OCTOVK_CONST uint kRootNode = 0u;
 OCTOVK_CONST uint kChildMask = 0xFFu;       // bit i: child i exists
 OCTOVK_CONST uint kFlagNew = 0x100u;        // created alone during this scan (never expanded)
 OCTOVK_CONST uint kFlagTouched = 0x200u;    // on an updated path, listed for the prune pass
-OCTOVK_CONST uint kFlagAllocReq = 0x400u;   // listed for block allocation at this level
-OCTOVK_CONST uint kWantShift = 16u;         // bits 16..23: children wanted before the block exists
-OCTOVK_CONST uint kFlagsMask = 0x00FFFF00u;
+OCTOVK_CONST uint kFlagsMask = 0x0000FF00u;
 
 // Hash set of cell keys: key packed as x | y << 16 | z << 32; empty slots hold all ones.
 OCTOVK_CONST uint kHashFlagOccupied = 2u;
@@ -71,7 +69,7 @@ struct PoolState {
   uint bump;            // 4B (0)  next never-used block
   uint capacity;        // 4B (4)  blocks in the pool
   uint free_count;      // 4B (8)  entries on the free-block stack
-  uint pops;            // 4B (12) free-stack pops during the current scan
+  uint pad1;            // 4B (12)
   uint root_exists;     // 4B (16)
   uint leaf_count;      // 4B (20) entries written to the leaf-box buffer by the last rebuild
   uint live_nodes;      // 4B (24) nodes in the tree (maintained by the passes)
@@ -110,16 +108,11 @@ struct ScanParams {
 // Per-cell state of the descent through the tree, one per active cell. 16 B.
 struct ActiveCell {
   uint slot;     // 4B (0)  hash-set slot of the cell
-  uint node;     // 4B (4)  node reached so far (or the parent whose block is pending)
-  uint pending;  // 4B (8)  child index waiting for its parent's block, or kNoBlock
-  uint depth;    // 4B (12) depth of the deepest node on the path that existed before the scan
+  uint node;     // 4B (4)  deepest node on the path that existed before the scan
+  uint parent;   // 4B (8)  its parent (kNoBlock for the root)
+  uint depth;    // 4B (12) its depth
 };
 
-// An entry of a per-level block-allocation list. 8 B.
-struct AllocRequest {
-  uint node;    // 4B (0) node that receives a block of children
-  uint cell;    // 4B (4) index of an active cell under it (gives the node's key)
-};
 
 // Indirect dispatch arguments, as VkDispatchIndirectCommand. 12 B.
 struct DispatchArgs {
@@ -144,14 +137,11 @@ struct ScanCounters {
   uint pruned_blocks;       // 4B (40)
   uint query_results;       // 4B (44)  entries written by a compacting query (leaves in a box)
   uint first_depth_hist[kLevelCount];      // 68B (48)  active cells by depth of the deepest existing node
-  uint alloc_count[kLevelCount];           // 68B (116)
-  uint touched_count[kLevelCount];         // 68B (184)
-  uint pad1;                               // 4B (252)
-  DispatchArgs alloc_args[kLevelCount];    // 204B (256)
-  DispatchArgs touched_args[kLevelCount];  // 204B (460)
-  uint walk_count[2];                      // 8B (664) unfinished ray walks, two lists (ping-pong)
-  DispatchArgs walk_args[2];               // 24B (672)
-  DispatchArgs cell_args;                  // 12B (696) groups over the cell set's entries
+  uint touched_count[kLevelCount];         // 68B (116) nodes listed for the prune pass, per depth
+  DispatchArgs touched_args[kLevelCount];  // 204B (184)
+  uint walk_count[2];                      // 8B (388) unfinished ray walks, two lists (ping-pong)
+  DispatchArgs walk_args[2];               // 24B (396)
+  DispatchArgs cell_args;                  // 12B (420) groups over the cell set's entries
 };
 
 // Cell states of a point lookup.
@@ -244,7 +234,7 @@ OCTOVK_CONST uint kBindBlockMeta = 7u;
 OCTOVK_CONST uint kBindFreeStack = 8u;
 OCTOVK_CONST uint kBindActive = 9u;
 OCTOVK_CONST uint kBindTouched = 10u;
-OCTOVK_CONST uint kBindAllocList = 11u;
+OCTOVK_CONST uint kBindEndpointBlocks = 11u;  // block given to each entry of the second set
 OCTOVK_CONST uint kBindLeafBoxes = 12u;
 OCTOVK_CONST uint kBindEndpointKeys = 13u;
 OCTOVK_CONST uint kBindQueryIn = 14u;

@@ -34,7 +34,6 @@ std::uint32_t nextPow2Log2(std::size_t n) {
 
 gpu::ScanCounters freshCounters() {
   gpu::ScanCounters c{};
-  for (auto& a : c.alloc_args) a = {0, 1, 1};
   for (auto& a : c.touched_args) a = {0, 1, 1};
   for (auto& a : c.walk_args) a = {0, 1, 1};
   c.cell_args = {0, 1, 1};
@@ -115,7 +114,7 @@ class OccupancyMap::Impl {
   void recordClassify(bool discretize, std::uint32_t points);
   void recordContinuations(const char* pass, std::uint32_t rounds,
                            const std::function<PassConstants(std::uint32_t, bool)>& constants);
-  void recordTreeUpdate(std::uint32_t active, std::uint32_t descending, std::uint32_t first_level);
+  void recordTreeUpdate(std::uint32_t new_blocks, std::uint32_t active, std::uint32_t descending);
   void recordLeafBoxes();
   void recordReadback();
   void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
@@ -139,7 +138,8 @@ class OccupancyMap::Impl {
 
   vk::Buffer params_buf_, counters_buf_, pool_buf_, readback_, points_buf_, upload_;
   vk::Buffer hash_keys_, hash_flags_, cells_, endpoint_keys_;
-  vk::Buffer touched_, alloc_list_;
+  vk::Buffer touched_;
+  vk::Buffer endpoint_blocks_;  // the block alloc gives each entry of the second set
   vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
   vk::Buffer query_in_, query_out_, query_staging_in_, query_staging_out_;
   vk::Buffer walks_;  // ray walks saved between segments (two lists of point_capacity_)
@@ -174,7 +174,9 @@ void OccupancyMap::Impl::allocateHash(std::uint32_t log2) {
 
 void OccupancyMap::Impl::allocateEndpoints(std::uint32_t log2) {
   vk::Buffer keys(device_, (std::size_t{1} << log2) * sizeof(std::uint64_t), false);
+  vk::Buffer blocks(device_, (std::size_t{1} << log2) * sizeof(std::uint32_t), false);
   endpoint_keys_ = std::move(keys);
+  endpoint_blocks_ = std::move(blocks);
   endpoint_log2_ = log2;
   allocateSlots();
 }
@@ -192,9 +194,7 @@ void OccupancyMap::Impl::allocateSlots() {
 
 void OccupancyMap::Impl::allocateLists(std::size_t active_capacity) {
   vk::Buffer touched(device_, active_capacity * gpu::kTreeDepth * sizeof(std::uint32_t), false);
-  vk::Buffer alloc(device_, active_capacity * gpu::kTreeDepth * sizeof(gpu::AllocRequest), false);
   touched_ = std::move(touched);
-  alloc_list_ = std::move(alloc);
   active_capacity_ = active_capacity;
   rebind();
 }
@@ -239,7 +239,7 @@ void OccupancyMap::Impl::rebind() {
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params_buf_, &counters_buf_,  &pool_buf_,   &points_buf_, &hash_keys_, &hash_flags_,
-      &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &alloc_list_,
+      &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &endpoint_blocks_,
       &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_,     &slots_};
   bindings_.update(buffers);
 }
@@ -279,7 +279,7 @@ std::size_t OccupancyMap::Impl::deviceBytes() const {
   std::size_t total = 0;
   for (const vk::Buffer* b :
        {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_, &cells_,
-        &endpoint_keys_, &touched_, &alloc_list_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
+        &endpoint_keys_, &touched_, &endpoint_blocks_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
         &query_in_, &query_out_, &walks_, &slots_})
     total += b->size();
   return total;
@@ -393,27 +393,18 @@ void OccupancyMap::Impl::recordClassify(bool discretize, std::uint32_t points) {
   stream_.timestamp();
 }
 
-// first_level: the shallowest depth at which some cell's path leaves the existing tree; the
-// levels above it have nothing to create and are not recorded.
-void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t active, std::uint32_t descending,
-                                          std::uint32_t first_level) {
+// new_blocks: the blocks alloc hands out (counted by classify); active: the cells to update, of
+// which the first `descending` need nodes created on their path.
+void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t new_blocks, std::uint32_t active,
+                                          std::uint32_t descending) {
   dispatch("tree_begin", 1);
-  const vk::Pass& descend = device_.pass("descend");
-  const vk::Pass& alloc = device_.pass("alloc");
-  const vk::Pass& prune = device_.pass("prune");
-  for (std::uint32_t level = first_level; level < gpu::kTreeDepth; ++level) {
-    PassConstants pc{level, descending, 0, 0};
-    stream_.dispatch(descend, groupsFor(descending), &pc, sizeof(pc));
-    stream_.barrier();
-    stream_.dispatchIndirect(
-        alloc, counters_buf_,
-        offsetof(gpu::ScanCounters, alloc_args) + level * sizeof(gpu::DispatchArgs), &pc,
-        sizeof(pc));
-    stream_.barrier();
+  if (new_blocks > 0) {
+    dispatch("alloc", new_blocks);
+    dispatch("tree_fixup", 1);
   }
-  dispatch("tree_fixup", 1);
-  dispatch("update_leaves", active, {0, active, 0, descending});
+  dispatch("descend", active, {0, active, 0, descending});
   stream_.timestamp();
+  const vk::Pass& prune = device_.pass("prune");
   for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
     PassConstants pc{level, 0, 0, 0};
     stream_.dispatchIndirect(
@@ -588,11 +579,8 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     stream_.begin(bindings_);
     stream_.update(params_buf_, &sp, sizeof(sp));
     stream_.barrier();
-    std::uint32_t first_level = 0;
-    while (first_level < gpu::kTreeDepth && counters.first_depth_hist[first_level] == 0)
-      ++first_level;
     stream_.timestamp();
-    recordTreeUpdate(active, descending, first_level);
+    recordTreeUpdate(counters.new_blocks, active, descending);
     if (leaf_boxes_every_scan_) recordLeafBoxes();
     leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
     if (queries) {
