@@ -1,22 +1,19 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Gives every node that gets children in this scan (the entries of the second set, counted by
+// Gives every node that gets children in this scan (the entries of the second set, listed by
 // classify) its block of 8 child slots: the n-th entry takes the n-th block from the top of the
-// free-block stack, then from the never-used tail. The block is filled before the descent links
-// it, from the tree as it was before the scan:
-// - the node lies at or under a pruned leaf (a leaf that existed, or its expansion): expandNode,
-//   8 children with the leaf's value;
-// - otherwise the node is created in this scan: createNodeChild, children at 0 that the descent
-//   switches on one by one.
+// free-block stack, then from the never-used tail, and fills it:
+// - under a pruned leaf (the leaf itself, or a child of its expansion): expandNode, 8 children
+//   with the leaf's value;
+// - a node created in this scan: createNodeChild, children at 0 that the descent switches on.
+// The link pass then hangs the blocks in the tree.
 #include "common.glsl"
 
 void main() {
   uint n = invocationIndex();
   if (n >= counters.new_blocks) return;
   uint slot = slots[params.hash_capacity + n];
-  uint64_t prefix = endpoint_keys[slot];
-  uint depth = uint(prefix >> 48);
-  uvec3 k = unpackKey(prefix);
+  NewBlock nb = prefix_blocks[slot];
 
   uint block;
   if (n < pool.free_count) {
@@ -28,21 +25,12 @@ void main() {
       return;
     }
   }
-  endpoint_blocks[slot] = block;
+  prefix_blocks[slot].block = block;
 
-  // The deepest existing node on the way to the prefix's node.
-  uint node = kRootNode;
-  uint d = 0u;
-  for (; d < depth; ++d) {
-    uint m = nodes[node].mask;
-    uint c = childIndex(k, d);
-    if ((m & (1u << c)) == 0u) break;
-    node = nodes[node].children * 8u + c;
-  }
-  uint m = nodes[node].mask;
-  bool expand = (m & kChildMask) == 0u && (m & kFlagNew) == 0u;
-  Node child = expand ? Node(nodes[node].log_odds, kNoBlock, 0u) : Node(0.0, kNoBlock, kFlagNew);
+  Node child = nb.source != kNoBlock ? Node(nodes[nb.source].log_odds, kNoBlock, 0u)
+                                     : Node(0.0, kNoBlock, kFlagNew);
   for (uint s = 0u; s < 8u; ++s) nodes[block * 8u + s] = child;
-  // The parent is set by the descent, which links the block.
-  block_meta[block] = BlockMeta(kNoBlock, depth, uint(prefix & 0xFFFFFFFFul), k.z);
+  uint64_t prefix = endpoint_keys[slot];
+  block_meta[block] =
+      BlockMeta(kNoBlock, uint(prefix >> 48), uint(prefix & 0xFFFFFFFFul), uint(prefix >> 32) & 0xFFFFu);
 }

@@ -60,11 +60,21 @@ void main() {
   // host grows the pool to fit before the tree changes, so the update passes cannot run out.
   // From the deepest such node up: a node already listed was listed by a cell that also lists
   // every node above it (their paths agree up to there), so the walk stops at the first one.
+  // Each listed node records what alloc needs: whether it exists before alloc runs (the root,
+  // the pruned leaf itself, or the child made ready above) and whether its block is an expansion.
   uint first = pool.root_exists == 0u ? 0u : (found ? depth : depth + 1u);
+  uint known_depth = pool.root_exists == 0u ? 0u : first;
+  uint known_node = pool.root_exists == 0u
+                        ? kRootNode
+                        : (found ? n : nodes[n].children * 8u + childIndex(k, depth));
+  uint source = found && pool.root_exists != 0u ? n : kNoBlock;
   for (uint d = kTreeDepth; d-- > first;) {
     uint prefix_slot;
     uint inserted = insertEndpoint(prefixKey(k, d), prefix_slot);
     if (inserted != 1u) break;  // present, or the set is full (the scan is then redone)
-    countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
+    uint entry = atomicAdd(counters.new_blocks, 1u);
+    countEndpointEntry(entry, prefix_slot);
+    prefix_blocks[prefix_slot] =
+        NewBlock(entry, d == known_depth ? known_node : kNoBlock, source, kNoBlock);
   }
 }

@@ -21,7 +21,7 @@ layout(std430, binding = 7) buffer BlockMetaBuf { BlockMeta block_meta[]; };
 layout(std430, binding = 8) buffer FreeStackBuf { uint free_stack[]; };
 layout(std430, binding = 9) buffer ActiveBuf { ActiveCell cells[]; };
 layout(std430, binding = 10) buffer TouchedBuf { uint touched[]; };
-layout(std430, binding = 11) buffer EndpointBlocksBuf { uint endpoint_blocks[]; };
+layout(std430, binding = 11) buffer NewBlocksBuf { NewBlock prefix_blocks[]; };
 layout(std430, binding = 12) buffer LeafBuf { LeafBox leaf_boxes[]; };
 layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
 // Query inputs and outputs; each query pass declares its own view of these two bindings.
@@ -87,6 +87,15 @@ uint hashSlot(uint64_t k, uint log2cap) {
   return uint((k * 0x9E3779B97F4A7C15ul) >> (64u - log2cap));
 }
 
+// Slot of a cell key in the cell set: the 2x2x2 brick of cells around it hashes to 8 adjacent
+// slots (one cache line of keys), so the consecutive cells of a ray, and the same cells reached
+// by neighbouring rays, share cache lines.
+uint cellSlot(uint64_t k, uint log2cap) {
+  uint64_t brick = (k >> 1) & 0x00007FFF7FFF7FFFul;
+  uint local = uint(k & 1ul) | uint((k >> 15) & 2ul) | uint((k >> 30) & 4ul);
+  return (uint((brick * 0x9E3779B97F4A7C15ul) >> (67u - log2cap)) << 3) | local;
+}
+
 // Loop iterations spent probing the sets, for passes that must budget them (lavapipe ends an
 // invocation's loops after 65535 iterations in total).
 int probes_spent = 0;
@@ -98,7 +107,7 @@ uint insertCell(uint64_t k) {
   // Once the set is known to be too small the scan is redone with a larger one: stop early
   // rather than probe a crowded table.
   if ((counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
-  uint s = hashSlot(k, params.hash_log2);
+  uint s = cellSlot(k, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
     ++probes_spent;
     // A plain read first: most inserts find their key already there (rays share the cells near
@@ -148,15 +157,13 @@ uint64_t prefixKey(uvec3 k, uint depth) {
   return packKey(k & uvec3(keep)) | (uint64_t(depth) << 48);
 }
 
-// The block the init_blocks pass gave to the node at `depth` on the path of k, or kNoBlock when
-// that node was not counted by classify (a bug, reported by the caller).
-uint blockOfPrefix(uvec3 k, uint depth) {
-  uint64_t key = prefixKey(k, depth);
+// Slot of `key` in the second set, or kNoBlock when it is not there.
+uint findEndpoint(uint64_t key) {
   uint cap = params.endpoint_capacity;
   uint s = hashSlot(key, params.endpoint_log2);
   for (uint probe = 0u; probe < cap; ++probe) {
     uint64_t seen = endpoint_keys[s];
-    if (seen == key) return endpoint_blocks[s];
+    if (seen == key) return s;
     if (seen == kEmptyKey) break;
     s = (s + 1u) & (cap - 1u);
   }

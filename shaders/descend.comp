@@ -2,17 +2,11 @@
 #extension GL_GOOGLE_include_directive : require
 // The descent and the log-odds update (updateNodeRecurs going down, then updateNodeLogOdds), for
 // every active cell in one pass. A cell starts at the deepest node that existed before the scan
-// (found by classify) and walks to its leaf. At a node that lacks the child:
-// - the node had children before the scan: the child's slot is ready (classify made it), the
-//   cell switches its bit on (createNodeChild);
-// - otherwise the cell links the block alloc gave to this node (every cell that gets here links
-//   the same one) and switches on that child alone if the node was created in this scan
-//   (createNodeChild), all 8 if it is a pruned leaf or the child of an expansion (expandNode).
-// At the leaf: add the update, clamp, and list the parent for the prune pass.
-//
-// No ordering between invocations is needed: a node's block is a function of the node (its
-// entry in the second set), so a cell that does not yet see another cell's link finds the block
-// itself; child bits only grow, by atomicOr; block contents were written by earlier passes.
+// (found by classify) and walks to its leaf; every node on the way has its block of children
+// (alloc and link gave one to each node that had none). A child missing on the way is switched on
+// (createNodeChild: classify or alloc made its slot ready). At the leaf: add the update, clamp,
+// and list the parent for the prune pass. Child bits only grow, by atomicOr, so the cells need
+// no ordering between them.
 #include "common.glsl"
 #include "tree.glsl"
 
@@ -29,27 +23,12 @@ void main() {
   for (uint d = cell.depth; d < kTreeDepth; ++d) {
     uint c = childIndex(k, d);
     uint bit = 1u << c;
-    uint m = nodes[n].mask;
-    uint block = nodes[n].children;
-    bool linked = block != kNoBlock;
-    if (!linked) {
-      block = blockOfPrefix(k, d);
-      if (block == kNoBlock) {  // not counted by classify: cannot happen
-        atomicOr(counters.status, kStatusPoolFull);
-        return;
-      }
-    }
-    if ((m & bit) == 0u) {
-      uint want = !linked && (m & kFlagNew) == 0u ? kChildMask : bit;
-      if (!linked) {
-        block_meta[block].parent = n;
-        nodes[n].children = block;
-      }
-      uint before = atomicOr(nodes[n].mask, want);
-      added += bitCount(want & ~before);
+    if ((nodes[n].mask & bit) == 0u) {
+      uint before = atomicOr(nodes[n].mask, bit);
+      if ((before & bit) == 0u) ++added;
     }
     parent = n;
-    n = block * 8u + c;
+    n = nodes[n].children * 8u + c;
   }
   if (added != 0u) atomicAdd(pool.live_nodes, added);
 

@@ -46,6 +46,13 @@ void probeActiveCell(uint i, uint id) {
   cells[i].depth = mu(id + 3u);
 }
 
+void probeNewBlock(uint i, uint id) {
+  prefix_blocks[i].entry = mu(id);
+  prefix_blocks[i].node = mu(id + 1u);
+  prefix_blocks[i].source = mu(id + 2u);
+  prefix_blocks[i].block = mu(id + 3u);
+}
+
 void probeLeafBox(uint i, uint id) {
   leaf_boxes[i].center_x = mf(id);
   leaf_boxes[i].center_y = mf(id + 1u);
@@ -132,6 +139,8 @@ void main() {
   probeBlockMeta(1u, 715u);
   probeActiveCell(0u, 720u);
   probeActiveCell(1u, 725u);
+  probeNewBlock(0u, 730u);
+  probeNewBlock(1u, 735u);
   probeLeafBox(0u, 740u);
   probeLeafBox(1u, 750u);
 
@@ -199,7 +208,6 @@ void main() {
   free_stack[1] = mu(803u);
   endpoint_keys[1] = m64(804u);
   slots[1] = mu(805u);
-  endpoint_blocks[1] = mu(806u);
 
   // Push constants and shared constants, as the shader sees them.
   touched[0] = pc.level;

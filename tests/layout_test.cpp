@@ -74,6 +74,12 @@ static_assert(offsetof(ScanParams, trans_z) == 100);
 static_assert(offsetof(ScanParams, occupancy_log) == 104);
 static_assert(offsetof(ScanParams, max_list_entries) == 108);
 
+static_assert(sizeof(NewBlock) == 16);
+static_assert(offsetof(NewBlock, entry) == 0);
+static_assert(offsetof(NewBlock, node) == 4);
+static_assert(offsetof(NewBlock, source) == 8);
+static_assert(offsetof(NewBlock, block) == 12);
+
 static_assert(sizeof(ActiveCell) == 16);
 static_assert(offsetof(ActiveCell, slot) == 0);
 static_assert(offsetof(ActiveCell, node) == 4);
@@ -185,7 +191,7 @@ static_assert(kBindingCount == 18);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 && kBindBlockMeta == 7 &&
               kBindFreeStack == 8 && kBindActive == 9 && kBindTouched == 10 &&
-              kBindEndpointBlocks == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
+              kBindNewBlocks == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
               kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16 && kBindSlots == 17);
 
 TEST(Layout, HostSizesAndOffsets) {
@@ -196,6 +202,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(PoolState), 32u);
   EXPECT_EQ(sizeof(ScanParams), 112u);
   EXPECT_EQ(sizeof(ActiveCell), 16u);
+  EXPECT_EQ(sizeof(NewBlock), 16u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
   EXPECT_EQ(sizeof(ScanCounters), 432u);
   EXPECT_EQ(sizeof(WalkState), 48u);
@@ -316,6 +323,14 @@ std::vector<Field> probedFields() {
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, node, U, 726),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, parent, U, 727),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, depth, U, 728),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, entry, U, 730),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, node, U, 731),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, source, U, 732),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, block, U, 733),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, entry, U, 735),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, node, U, 736),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, source, U, 737),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, block, U, 738),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_x, F, 740),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_y, F, 741),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_z, F, 742),
@@ -333,7 +348,6 @@ std::vector<Field> probedFields() {
       Field{"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803},
       Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
       Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
-      Field{"endpoint_blocks[1]", kBindEndpointBlocks, 1 * sizeof(std::uint32_t), U, 806},
       Field{"ScanCounters::cell_args.x", kBindCounters,
             offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, x), U, 390},
       Field{"ScanCounters::cell_args.y", kBindCounters,
@@ -494,7 +508,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindFreeStack] = 4 * sizeof(std::uint32_t);
   sizes[kBindActive] = 4 * sizeof(ActiveCell);
   sizes[kBindTouched] = 8 * sizeof(std::uint32_t);
-  sizes[kBindEndpointBlocks] = 4 * sizeof(std::uint32_t);
+  sizes[kBindNewBlocks] = 4 * sizeof(NewBlock);
   sizes[kBindLeafBoxes] = 4 * sizeof(LeafBox);
   sizes[kBindEndpointKeys] = 4 * sizeof(std::uint64_t);
   sizes[kBindQueryIn] = 2 * sizeof(RayQuery) + sizeof(BoxQuery) + 2 * sizeof(RayState);
@@ -521,9 +535,9 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   stream.submitAndWait();
 
   const std::vector<Field> fields = probedFields();
-  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 32u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 40u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
                                2u * (4u + 9u) + 5u * kLevelCount +
-                               2u /* slots, endpoint_blocks */ + 3u /* cell_args */);
+                               1u /* slots */ + 3u /* cell_args */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
     const std::size_t size = buffers[f.binding].size();

@@ -105,6 +105,16 @@ struct ScanParams {
   uint max_list_entries;    // 4B (108) most entries of an indirectly walked list (groups x 64)
 };
 
+// A node that gets a block of children in this scan: one per entry of the second set, at the
+// entry's slot. Written by classify (entry, node, source) and alloc (block). 16 B.
+struct NewBlock {
+  uint entry;   // 4B (0)  index of the entry (the n-th new block of the scan)
+  uint node;    // 4B (4)  the node, when it exists before alloc runs; else kNoBlock (it lies in
+                //         the block of the entry one level up)
+  uint source;  // 4B (8)  the pruned leaf whose value the block's 8 children take (expandNode),
+                //         or kNoBlock: a node created in this scan (createNodeChild)
+  uint block;   // 4B (12) the block given to the node
+};
 // Per-cell state of the descent through the tree, one per active cell. 16 B.
 struct ActiveCell {
   uint slot;     // 4B (0)  hash-set slot of the cell
@@ -234,7 +244,7 @@ OCTOVK_CONST uint kBindBlockMeta = 7u;
 OCTOVK_CONST uint kBindFreeStack = 8u;
 OCTOVK_CONST uint kBindActive = 9u;
 OCTOVK_CONST uint kBindTouched = 10u;
-OCTOVK_CONST uint kBindEndpointBlocks = 11u;  // block given to each entry of the second set
+OCTOVK_CONST uint kBindNewBlocks = 11u;  // NewBlock per slot of the second set
 OCTOVK_CONST uint kBindLeafBoxes = 12u;
 OCTOVK_CONST uint kBindEndpointKeys = 13u;
 OCTOVK_CONST uint kBindQueryIn = 14u;

@@ -139,7 +139,7 @@ class OccupancyMap::Impl {
   vk::Buffer params_buf_, counters_buf_, pool_buf_, readback_, points_buf_, upload_;
   vk::Buffer hash_keys_, hash_flags_, cells_, endpoint_keys_;
   vk::Buffer touched_;
-  vk::Buffer endpoint_blocks_;  // the block alloc gives each entry of the second set
+  vk::Buffer prefix_blocks_;  // gpu::NewBlock per slot of the second set
   vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
   vk::Buffer query_in_, query_out_, query_staging_in_, query_staging_out_;
   vk::Buffer walks_;  // ray walks saved between segments (two lists of point_capacity_)
@@ -174,9 +174,9 @@ void OccupancyMap::Impl::allocateHash(std::uint32_t log2) {
 
 void OccupancyMap::Impl::allocateEndpoints(std::uint32_t log2) {
   vk::Buffer keys(device_, (std::size_t{1} << log2) * sizeof(std::uint64_t), false);
-  vk::Buffer blocks(device_, (std::size_t{1} << log2) * sizeof(std::uint32_t), false);
+  vk::Buffer blocks(device_, (std::size_t{1} << log2) * sizeof(gpu::NewBlock), false);
   endpoint_keys_ = std::move(keys);
-  endpoint_blocks_ = std::move(blocks);
+  prefix_blocks_ = std::move(blocks);
   endpoint_log2_ = log2;
   allocateSlots();
 }
@@ -239,7 +239,7 @@ void OccupancyMap::Impl::rebind() {
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params_buf_, &counters_buf_,  &pool_buf_,   &points_buf_, &hash_keys_, &hash_flags_,
-      &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &endpoint_blocks_,
+      &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &prefix_blocks_,
       &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_,     &slots_};
   bindings_.update(buffers);
 }
@@ -279,7 +279,7 @@ std::size_t OccupancyMap::Impl::deviceBytes() const {
   std::size_t total = 0;
   for (const vk::Buffer* b :
        {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_, &cells_,
-        &endpoint_keys_, &touched_, &endpoint_blocks_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
+        &endpoint_keys_, &touched_, &prefix_blocks_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
         &query_in_, &query_out_, &walks_, &slots_})
     total += b->size();
   return total;
@@ -401,6 +401,7 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t new_blocks, std::uint32_
   if (new_blocks > 0) {
     dispatch("alloc", new_blocks);
     dispatch("tree_fixup", 1);
+    dispatch("link", new_blocks);
   }
   dispatch("descend", active, {0, active, 0, descending});
   stream_.timestamp();
