@@ -389,6 +389,32 @@ TEST_P(LargeRandomScans, EqualsOctoMapAfterEveryScan) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, LargeRandomScans, ::testing::Values(101u, 102u, 103u, 104u));
 
+// ---- growth of the scan's sets -----------------------------------------------------------------
+
+// Few points with long rays touch far more cells than the first guess of the cell set (16 slots
+// per point): the set grows, the ray pass is redone, and the map is the same as OctoMap's.
+TEST(SetGrowth, LongRaysFromFewPointsGrowTheCellSet) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const Eigen::Vector3f origin(0.01f, 0.02f, -0.03f);
+  for (int scan = 0; scan < 3; ++scan) {
+    std::vector<Eigen::Vector3f> pts;
+    for (int i = 0; i < 40 * (scan + 1); ++i) {
+      Eigen::Vector3f d(u(rng), u(rng), u(rng));
+      pts.push_back(origin + d.normalized() * (20.0f + 10.0f * u(rng)));
+    }
+    ScanStats stats;
+    ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats)) << "scan " << scan;
+    // About 400-900 cells per ray against 16 slots per point.
+    if (scan == 0) EXPECT_GT(stats.cell_set_attempts, 1u);
+    EXPECT_GT(stats.free_cells, pts.size() * 300);
+  }
+}
+
 // ---- conflicts within one scan ---------------------------------------------------------------
 
 TEST(Conflicts, OccupiedWinsOverFreeInOneScan) {
