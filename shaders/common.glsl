@@ -83,16 +83,24 @@ double normOf(float x, float y, float z) {
 
 // ---- the hash sets of cell keys ----
 
-uint hashSlot(uint64_t k, uint log2cap) {
-  return uint((k * 0x9E3779B97F4A7C15ul) >> (64u - log2cap));
-}
-
 // Slot of a cell key in the cell set: the 2x2x2 brick of cells around it hashes to 8 adjacent
 // slots (one cache line of keys), so the consecutive cells of a ray, and the same cells reached
 // by neighbouring rays, share cache lines.
 uint cellSlot(uint64_t k, uint log2cap) {
   uint64_t brick = (k >> 1) & 0x00007FFF7FFF7FFFul;
   uint local = uint(k & 1ul) | uint((k >> 15) & 2ul) | uint((k >> 30) & 4ul);
+  return (uint((brick * 0x9E3779B97F4A7C15ul) >> (67u - log2cap)) << 3) | local;
+}
+
+// Slot of a key of the second set (a node's key and depth, see prefixKey): like cellSlot, the
+// 2x2x2 brick of nodes of the same depth around it shares one cache line of slots, so the nodes
+// of neighbouring cells meet in the same lines.
+uint endpointSlot(uint64_t k, uint log2cap) {
+  uint depth = uint(k >> 48);
+  uvec3 c = unpackKey(k) >> (kTreeDepth - depth);
+  uint64_t node = packKey(c);
+  uint64_t brick = ((node >> 1) & 0x00007FFF7FFF7FFFul) | (uint64_t(depth) << 47);
+  uint local = (c.x & 1u) | ((c.y & 1u) << 1) | ((c.z & 1u) << 2);
   return (uint((brick * 0x9E3779B97F4A7C15ul) >> (67u - log2cap)) << 3) | local;
 }
 
@@ -137,7 +145,7 @@ uint insertCell(uint64_t k) {
 uint insertEndpoint(uint64_t k, out uint slot) {
   uint cap = params.endpoint_capacity;
   if ((counters.status & kStatusEndpointHashFull) != 0u) return 2u;
-  uint s = hashSlot(k, params.endpoint_log2);
+  uint s = endpointSlot(k, params.endpoint_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
     uint64_t seen = endpoint_keys[s];
     if (seen == k) return 0u;
@@ -160,7 +168,7 @@ uint64_t prefixKey(uvec3 k, uint depth) {
 // Slot of `key` in the second set, or kNoBlock when it is not there.
 uint findEndpoint(uint64_t key) {
   uint cap = params.endpoint_capacity;
-  uint s = hashSlot(key, params.endpoint_log2);
+  uint s = endpointSlot(key, params.endpoint_log2);
   for (uint probe = 0u; probe < cap; ++probe) {
     uint64_t seen = endpoint_keys[s];
     if (seen == key) return s;

@@ -20,6 +20,6 @@ void main() {
     return;
   }
   uint slot;
-  if (insertEndpoint(packKey(k), slot) == 1u)
+  if (insertEndpoint(prefixKey(k, kTreeDepth), slot) == 1u)
     countEndpointEntry(atomicAdd(counters.endpoint_entries, 1u), slot);
 }
