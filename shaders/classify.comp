@@ -8,9 +8,11 @@
 
 void main() {
   uint i = invocationIndex();
-  if (i >= counters.hash_entries) return;
-  uint slot = slots[i];
-  bool occupied = (hash_flags[slot] & kHashFlagOccupied) != 0u;
+  // A set found too small (the scan is redone) or a list too long (refused): nothing to classify.
+  if ((counters.status & (kStatusHashFull | kStatusTooManyCells)) != 0u) return;
+  if (i >= counters.cell_entries) return;
+  uint slot = cell_list[i];
+  bool occupied = cellOccupied(slot);
   if (occupied) atomicAdd(counters.occupied_cells, 1u);
   else atomicAdd(counters.free_cells, 1u);
   float update = cellUpdate(slot);
@@ -42,7 +44,7 @@ void main() {
   // Cells whose leaf exists need no descent: they are kept at the back of `cells`.
   uint at;
   if (depth == kTreeDepth) {
-    at = params.hash_capacity - 1u - atomicAdd(counters.first_depth_hist[kTreeDepth], 1u);
+    at = params.cell_capacity - 1u - atomicAdd(counters.first_depth_hist[kTreeDepth], 1u);
   } else {
     at = atomicAdd(counters.active_cells, 1u);
     atomicAdd(counters.first_depth_hist[depth], 1u);

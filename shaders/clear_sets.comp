@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // Empties the slots the sets' last use filled (listed in `slots`), so that each scan starts with
 // empty sets without clearing whole tables.
-// mode 0: the previous scan's pc.count cell entries and pc.offset second-set entries.
+// mode 0: the previous scan's pc.count bricks and pc.offset second-set entries.
 // mode 1: this scan's end cells of discretize, before classify reuses the second set.
 #include "common.glsl"
 
@@ -15,7 +15,7 @@ void main() {
   if (i < pc.count) {
     uint s = slots[i];
     hash_keys[s] = kEmptyKey;
-    hash_flags[s] = 0u;
+    for (uint w = 0u; w < kBrickFlagWords; ++w) hash_flags[s * kBrickFlagWords + w] = 0u;
   }
   if (i < pc.offset) endpoint_keys[slots[params.hash_capacity + i]] = kEmptyKey;
 }

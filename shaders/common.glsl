@@ -28,6 +28,7 @@ layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
 // Slots filled in the cell set (from 0), then in the second set (from params.hash_capacity): the
 // passes visit and clear exactly these instead of whole tables.
 layout(std430, binding = 17) buffer SlotsBuf { uint slots[]; };
+layout(std430, binding = 18) buffer CellListBuf { uint cell_list[]; };
 
 const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
 
@@ -83,18 +84,14 @@ double normOf(float x, float y, float z) {
 
 // ---- the hash sets of cell keys ----
 
-// Slot of a cell key in the cell set: the 2x2x2 brick of cells around it hashes to 8 adjacent
-// slots (one cache line of keys), so the consecutive cells of a ray, and the same cells reached
-// by neighbouring rays, share cache lines.
-uint cellSlot(uint64_t k, uint log2cap) {
-  uint64_t brick = (k >> 1) & 0x00007FFF7FFF7FFFul;
-  uint local = uint(k & 1ul) | uint((k >> 15) & 2ul) | uint((k >> 30) & 4ul);
-  return (uint((brick * 0x9E3779B97F4A7C15ul) >> (67u - log2cap)) << 3) | local;
+// Slot of a brick key in the cell set.
+uint brickSlot(uint64_t brick, uint log2cap) {
+  return uint((brick * 0x9E3779B97F4A7C15ul) >> (64u - log2cap));
 }
 
-// Slot of a key of the second set (a node's key and depth, see prefixKey): like cellSlot, the
-// 2x2x2 brick of nodes of the same depth around it shares one cache line of slots, so the nodes
-// of neighbouring cells meet in the same lines.
+// Slot of a key of the second set (a node's key and depth, see prefixKey): the 2x2x2 brick of
+// nodes of the same depth around it hashes to 8 adjacent slots (one cache line of keys), so the
+// nodes of neighbouring cells meet in the same lines.
 uint endpointSlot(uint64_t k, uint log2cap) {
   uint depth = uint(k >> 48);
   uvec3 c = unpackKey(k) >> (kTreeDepth - depth);
@@ -108,36 +105,59 @@ uint endpointSlot(uint64_t k, uint log2cap) {
 // invocation's loops after 65535 iterations in total).
 int probes_spent = 0;
 
-// Inserts k into the scan's cell set; returns its slot, or 0xFFFFFFFF when the set is full.
-uint insertCell(uint64_t k) {
+// Inserts a brick key into the scan's cell set; returns its slot, or 0xFFFFFFFF when the set is
+// full.
+uint insertBrick(uint64_t brick) {
   uint cap = params.hash_capacity;
   uint mask = cap - 1u;
   // Once the set is known to be too small the scan is redone with a larger one: stop early
   // rather than probe a crowded table.
   if ((counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
-  uint s = cellSlot(k, params.hash_log2);
+  uint s = brickSlot(brick, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
     ++probes_spent;
-    // A plain read first: most inserts find their key already there (rays share the cells near
-    // the sensor), and reading avoids an atomic on a hot slot.
+    // A plain read first: most lookups find their brick already there (rays share the bricks
+    // near the sensor), and reading avoids an atomic on a hot slot.
     uint64_t seen = hash_keys[s];
-    if (seen == k) return s;
-    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, k) : seen;
+    if (seen == brick) return s;
+    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, brick) : seen;
     if (prev == kEmptyKey) {
-      uint n = atomicAdd(counters.hash_entries, 1u);
+      uint n = atomicAdd(counters.brick_entries, 1u);
       slots[n] = s;
-      // Classify walks the filled slots by an indirect dispatch, which may not exceed the
-      // device's group count: beyond it the scan is refused.
+      // The bricks are walked by an indirect dispatch, which may not exceed the device's group
+      // count: beyond it the scan is refused.
       if (n >= params.max_list_entries) atomicOr(counters.status, kStatusTooManyCells);
-      else if (n % kWorkgroupSize == 0u) atomicAdd(counters.cell_args.x, 1u);
+      else if (n % kWorkgroupSize == 0u) atomicAdd(counters.brick_args.x, 1u);
       if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
       return s;
     }
-    if (prev == k) return s;
+    if (prev == brick) return s;
     s = (s + 1u) & mask;
   }
   atomicOr(counters.status, kStatusHashFull);
   return 0xFFFFFFFFu;
+}
+
+// The brick the last markCell of this invocation found: a ray's next cells are mostly in it.
+uint64_t marked_brick = kEmptyKey;
+uint marked_slot = 0u;
+
+// Puts cell key k into the scan's cell set (as occupied too when `occupied`). False when the set
+// is full.
+bool markCell(uint64_t k, bool occupied) {
+  uint64_t brick = (k >> 2) & 0x00003FFF3FFF3FFFul;
+  if (brick != marked_brick) {
+    uint s = insertBrick(brick);
+    if (s == 0xFFFFFFFFu) return false;
+    marked_brick = brick;
+    marked_slot = s;
+  }
+  uint index = uint(k & 3ul) | (uint(k >> 14) & 12u) | (uint(k >> 28) & 48u);
+  uint word = marked_slot * kBrickFlagWords + (index >> 5);
+  uint bit = 1u << (index & 31u);
+  if ((hash_flags[word] & bit) == 0u) atomicOr(hash_flags[word], bit);
+  if (occupied) atomicOr(hash_flags[word + 2u], bit);
+  return true;
 }
 
 // Inserts k into the second set (discretize's end cells, then the prefixes of nodes that get

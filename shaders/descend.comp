@@ -15,7 +15,7 @@ void main() {
   if (i >= pc.count) return;
   // pc.offset cells that descend at the front of `cells`, the ones whose leaf existed at the back
   // (see classify).
-  ActiveCell cell = cells[i < pc.offset ? i : params.hash_capacity - 1u - (i - pc.offset)];
+  ActiveCell cell = cells[i < pc.offset ? i : params.cell_capacity - 1u - (i - pc.offset)];
   uvec3 k = cellKey(cell.slot);
   uint n = cell.node;
   uint parent = cell.parent;

@@ -90,11 +90,13 @@ void main() {
   params.trans_z = mf(122u);
   params.occupancy_log = mf(123u);
   params.max_list_entries = mu(124u);
+  params.cell_capacity = mu(125u);
+  params.pad0 = mu(126u);
 
   // ScanCounters: scalars 200 + field index; arrays from 300, 340; walk_count 370 + list,
   // walk_args 380 + 3 * list + component; touched_args 500 + 3 * level + component.
   counters.status = mu(200u);
-  counters.hash_entries = mu(201u);
+  counters.brick_entries = mu(201u);
   counters.endpoint_entries = mu(202u);
   counters.active_cells = mu(203u);
   counters.skipped_nonfinite = mu(204u);
@@ -121,6 +123,10 @@ void main() {
   counters.cell_args.x = mu(390u);
   counters.cell_args.y = mu(391u);
   counters.cell_args.z = mu(392u);
+  counters.brick_args.x = mu(393u);
+  counters.brick_args.y = mu(394u);
+  counters.brick_args.z = mu(395u);
+  counters.cell_entries = mu(396u);
 
   // PoolState: 600 + field index.
   pool.bump = mu(600u);
@@ -208,6 +214,7 @@ void main() {
   free_stack[1] = mu(803u);
   endpoint_keys[1] = m64(804u);
   slots[1] = mu(805u);
+  cell_list[1] = mu(806u);
 
   // Push constants and shared constants, as the shader sees them.
   touched[0] = pc.level;

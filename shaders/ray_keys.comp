@@ -69,7 +69,7 @@ bool walk() {
     double dist = t_max[2] < m01 ? t_max[2] : m01;
     if (dist > double(len)) return true;
     // A full set ends the walk: the scan is redone with a larger one.
-    if (insertCell(packKey(uvec3(cur[0], cur[1], cur[2]))) == 0xFFFFFFFFu) return true;
+    if (!markCell(packKey(uvec3(cur[0], cur[1], cur[2])), false)) return true;
   }
   return false;
 }
@@ -92,7 +92,7 @@ bool insertRay(vec3 o, vec3 e) {
       !coordToKeyChecked(e.z, key_end.z))
     return false;
   if (ko == key_end) return true;
-  insertCell(packKey(ko));
+  markCell(packKey(ko), false);
   cur = uint[3](ko.x, ko.y, ko.z);
   setUp(o, e, true);
   if (!walk()) save(0u, e);
@@ -150,8 +150,7 @@ void main() {
     uvec3 k;
     if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
         coordToKeyChecked(p.z, k.z)) {
-      uint s = insertCell(packKey(k));
-      if (s != 0xFFFFFFFFu) atomicOr(hash_flags[s], kHashFlagOccupied);
+      markCell(packKey(k), true);
       inserted = true;
     }
     inserted = insertRay(o, p) || inserted;

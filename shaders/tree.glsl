@@ -1,9 +1,20 @@
 // Helpers of the tree passes.
 
-uvec3 cellKey(uint slot) { return unpackKey(hash_keys[slot]); }
+// Key of the cell with this id in the cell set (brick slot * 64 + index).
+uvec3 cellKey(uint id) {
+  uint index = id % kCellsPerBrick;
+  return (unpackKey(hash_keys[id / kCellsPerBrick]) << 2) |
+         uvec3(index & 3u, (index >> 2) & 3u, index >> 4);
+}
 
-float cellUpdate(uint slot) {
-  return (hash_flags[slot] & kHashFlagOccupied) != 0u ? params.prob_hit_log : params.prob_miss_log;
+bool cellOccupied(uint id) {
+  uint index = id % kCellsPerBrick;
+  uint word = (id / kCellsPerBrick) * kBrickFlagWords + 2u + (index >> 5);
+  return (hash_flags[word] & (1u << (index & 31u))) != 0u;
+}
+
+float cellUpdate(uint id) {
+  return cellOccupied(id) ? params.prob_hit_log : params.prob_miss_log;
 }
 
 // Appends item to a per-level list and keeps its indirect dispatch arguments in step.

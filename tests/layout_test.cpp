@@ -47,7 +47,7 @@ static_assert(offsetof(PoolState, leaf_count) == 20);
 static_assert(offsetof(PoolState, live_nodes) == 24);
 static_assert(offsetof(PoolState, pad0) == 28);
 
-static_assert(sizeof(ScanParams) == 112);
+static_assert(sizeof(ScanParams) == 120);
 static_assert(offsetof(ScanParams, resolution) == 0);
 static_assert(offsetof(ScanParams, resolution_factor) == 8);
 static_assert(offsetof(ScanParams, max_range) == 16);
@@ -73,6 +73,8 @@ static_assert(offsetof(ScanParams, trans_y) == 96);
 static_assert(offsetof(ScanParams, trans_z) == 100);
 static_assert(offsetof(ScanParams, occupancy_log) == 104);
 static_assert(offsetof(ScanParams, max_list_entries) == 108);
+static_assert(offsetof(ScanParams, cell_capacity) == 112);
+static_assert(offsetof(ScanParams, pad0) == 116);
 
 static_assert(sizeof(NewBlock) == 16);
 static_assert(offsetof(NewBlock, entry) == 0);
@@ -94,9 +96,9 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 432);
+static_assert(sizeof(ScanCounters) == 448);
 static_assert(offsetof(ScanCounters, status) == 0);
-static_assert(offsetof(ScanCounters, hash_entries) == 4);
+static_assert(offsetof(ScanCounters, brick_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
 static_assert(offsetof(ScanCounters, active_cells) == 12);
 static_assert(offsetof(ScanCounters, skipped_nonfinite) == 16);
@@ -113,10 +115,13 @@ static_assert(offsetof(ScanCounters, touched_args) == 184);
 static_assert(offsetof(ScanCounters, walk_count) == 388);
 static_assert(offsetof(ScanCounters, walk_args) == 396);
 static_assert(offsetof(ScanCounters, cell_args) == 420);
+static_assert(offsetof(ScanCounters, brick_args) == 432);
+static_assert(offsetof(ScanCounters, cell_entries) == 444);
 // Indirect dispatch arguments must be 4-byte aligned inside the buffer.
 static_assert(offsetof(ScanCounters, touched_args) % 4 == 0);
 static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
 static_assert(offsetof(ScanCounters, cell_args) % 4 == 0);
+static_assert(offsetof(ScanCounters, brick_args) % 4 == 0);
 
 static_assert(sizeof(LookupResult) == 16);
 static_assert(offsetof(LookupResult, state) == 0);
@@ -187,12 +192,13 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, c
 static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox, log_odds));
 
-static_assert(kBindingCount == 18);
+static_assert(kBindingCount == 19);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 && kBindBlockMeta == 7 &&
               kBindFreeStack == 8 && kBindActive == 9 && kBindTouched == 10 &&
               kBindNewBlocks == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
-              kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16 && kBindSlots == 17);
+              kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16 && kBindSlots == 17 &&
+              kBindCellList == 18);
 
 TEST(Layout, HostSizesAndOffsets) {
   // The static_asserts above hold at compile time; the same facts at run time, for the report.
@@ -200,11 +206,11 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(BlockMeta), 16u);
   EXPECT_EQ(sizeof(LeafBox), 20u);
   EXPECT_EQ(sizeof(PoolState), 32u);
-  EXPECT_EQ(sizeof(ScanParams), 112u);
+  EXPECT_EQ(sizeof(ScanParams), 120u);
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(NewBlock), 16u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 432u);
+  EXPECT_EQ(sizeof(ScanCounters), 448u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
   EXPECT_EQ(sizeof(LookupResult), 16u);
@@ -212,8 +218,8 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(RayResult), 16u);
   EXPECT_EQ(sizeof(BoxQuery), 32u);
   EXPECT_EQ(sizeof(RayState), 40u);
-  EXPECT_EQ(offsetof(ScanCounters, cell_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
-  EXPECT_EQ(offsetof(ScanParams, max_list_entries) + 4, sizeof(ScanParams));
+  EXPECT_EQ(offsetof(ScanCounters, cell_entries) + 4, sizeof(ScanCounters));
+  EXPECT_EQ(offsetof(ScanParams, pad0) + 4, sizeof(ScanParams));
 }
 
 // ---- GLSL side: run the probe shader and find each marker --------------------------------------
@@ -278,9 +284,11 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindParams, ScanParams, trans_z, F, 122),
       OCTOVK_FIELD(kBindParams, ScanParams, occupancy_log, F, 123),
       OCTOVK_FIELD(kBindParams, ScanParams, max_list_entries, U, 124),
+      OCTOVK_FIELD(kBindParams, ScanParams, cell_capacity, U, 125),
+      OCTOVK_FIELD(kBindParams, ScanParams, pad0, U, 126),
 
       OCTOVK_FIELD(kBindCounters, ScanCounters, status, U, 200),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, hash_entries, U, 201),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, brick_entries, U, 201),
       OCTOVK_FIELD(kBindCounters, ScanCounters, endpoint_entries, U, 202),
       OCTOVK_FIELD(kBindCounters, ScanCounters, active_cells, U, 203),
       OCTOVK_FIELD(kBindCounters, ScanCounters, skipped_nonfinite, U, 204),
@@ -348,6 +356,14 @@ std::vector<Field> probedFields() {
       Field{"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803},
       Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
       Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
+      Field{"cell_list[1]", kBindCellList, 1 * sizeof(std::uint32_t), U, 806},
+      Field{"ScanCounters::brick_args.x", kBindCounters,
+            offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, x), U, 393},
+      Field{"ScanCounters::brick_args.y", kBindCounters,
+            offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, y), U, 394},
+      Field{"ScanCounters::brick_args.z", kBindCounters,
+            offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, z), U, 395},
+      OCTOVK_FIELD(kBindCounters, ScanCounters, cell_entries, U, 396),
       Field{"ScanCounters::cell_args.x", kBindCounters,
             offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, x), U, 390},
       Field{"ScanCounters::cell_args.y", kBindCounters,
@@ -515,6 +531,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindQueryOut] = 2 * sizeof(LookupResult) + 2 * sizeof(RayResult);
   sizes[kBindWalks] = 2 * sizeof(WalkState);
   sizes[kBindSlots] = 4 * sizeof(std::uint32_t);
+  sizes[kBindCellList] = 4 * sizeof(std::uint32_t);
 
   std::vector<vk::Buffer> buffers;
   buffers.reserve(kBindingCount);
@@ -537,7 +554,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   const std::vector<Field> fields = probedFields();
   EXPECT_EQ(fields.size(), 25u + 12u + 8u + 40u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
                                2u * (4u + 9u) + 5u * kLevelCount +
-                               1u /* slots */ + 3u /* cell_args */);
+                               1u /* slots */ + 3u /* cell_args */ +
+                               2u /* ScanParams */ + 5u /* brick_args, cell_entries, cell_list */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
     const std::size_t size = buffers[f.binding].size();

@@ -415,6 +415,26 @@ TEST(SetGrowth, LongRaysFromFewPointsGrowTheCellSet) {
   }
 }
 
+// A bundle of rays one cell apart at its far end fills its bricks densely: the scan has many
+// more cells than the first guess of the cell list (16 per point) while its bricks fit the set.
+// The list outgrows its buffer, the sets grow, the ray pass is redone.
+TEST(SetGrowth, DenseBundleOfRaysOutgrowsTheCellList) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  const Eigen::Vector3f origin(0.01f, 0.02f, 0.03f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int j = 0; j < 32; ++j)
+    for (int k = 0; k < 32; ++k)
+      pts.emplace_back(3.2f, -0.8f + 0.05f * static_cast<float>(j) + 0.013f,
+                       -0.8f + 0.05f * static_cast<float>(k) + 0.021f);
+  ScanStats stats;
+  ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats));
+  EXPECT_GT(stats.free_cells, pts.size() * 16);
+  EXPECT_GT(stats.cell_set_attempts, 1u);
+}
+
 // ---- conflicts within one scan ---------------------------------------------------------------
 
 TEST(Conflicts, OccupiedWinsOverFreeInOneScan) {

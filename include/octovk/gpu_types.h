@@ -27,8 +27,13 @@ OCTOVK_CONST uint kFlagNew = 0x100u;        // created alone during this scan (n
 OCTOVK_CONST uint kFlagTouched = 0x200u;    // on an updated path, listed for the prune pass
 OCTOVK_CONST uint kFlagsMask = 0x0000FF00u;
 
-// Hash set of cell keys: key packed as x | y << 16 | z << 32; empty slots hold all ones.
-OCTOVK_CONST uint kHashFlagOccupied = 2u;
+// The scan's cell set: a hash set of 4x4x4 bricks of cells. Keys are brick keys (cell key / 4,
+// packed as x | y << 16 | z << 32; empty slots hold all ones); each brick slot has 4 flag words:
+// words 0-1 one bit per cell of the brick that the scan touches, words 2-3 one bit per cell that
+// is an end point (occupied wins). Cell index in the brick: x | y << 2 | z << 4 (low key bits);
+// a cell's id is brick slot * 64 + index.
+OCTOVK_CONST uint kCellsPerBrick = 64u;
+OCTOVK_CONST uint kBrickFlagWords = 4u;
 
 // Status bits in ScanCounters::status.
 OCTOVK_CONST uint kStatusHashFull = 1u;
@@ -76,7 +81,7 @@ struct PoolState {
   uint pad0;            // 4B (28)
 };
 
-// Per-scan parameters, written once per scan. 112 B.
+// Per-scan parameters, written once per scan. 120 B.
 struct ScanParams {
   double resolution;        // 8B (0)
   double resolution_factor; // 8B (8)
@@ -103,6 +108,8 @@ struct ScanParams {
   float trans_z;            // 4B (100)
   float occupancy_log;      // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
   uint max_list_entries;    // 4B (108) most entries of an indirectly walked list (groups x 64)
+  uint cell_capacity;       // 4B (112) entries of the cell list and the active-cell list
+  uint pad0;                // 4B (116)
 };
 
 // A node that gets a block of children in this scan: one per entry of the second set, at the
@@ -117,7 +124,7 @@ struct NewBlock {
 };
 // Per-cell state of the descent through the tree, one per active cell. 16 B.
 struct ActiveCell {
-  uint slot;     // 4B (0)  hash-set slot of the cell
+  uint slot;     // 4B (0)  id of the cell in the cell set (brick slot * 64 + index)
   uint node;     // 4B (4)  deepest node on the path that existed before the scan
   uint parent;   // 4B (8)  its parent (kNoBlock for the root)
   uint depth;    // 4B (12) its depth
@@ -134,7 +141,7 @@ struct DispatchArgs {
 // Counters of one scan, reset at its start. The host reads this struct back once per scan.
 struct ScanCounters {
   uint status;              // 4B (0)   kStatus* bits
-  uint hash_entries;        // 4B (4)   distinct cells in the hash set
+  uint brick_entries;       // 4B (4)   distinct bricks in the cell set
   uint endpoint_entries;    // 4B (8)   distinct end cells (discretize)
   uint active_cells;        // 4B (12)  updated cells whose path needs nodes (those whose leaf
                             //          exists are counted in first_depth_hist[16])
@@ -151,7 +158,9 @@ struct ScanCounters {
   DispatchArgs touched_args[kLevelCount];  // 204B (184)
   uint walk_count[2];                      // 8B (388) unfinished ray walks, two lists (ping-pong)
   DispatchArgs walk_args[2];               // 24B (396)
-  DispatchArgs cell_args;                  // 12B (420) groups over the cell set's entries
+  DispatchArgs cell_args;                  // 12B (420) groups over the cell list
+  DispatchArgs brick_args;                 // 12B (432) groups over the cell set's bricks
+  uint cell_entries;                       // 4B (444) distinct cells of the scan (the cell list)
 };
 
 // Cell states of a point lookup.
@@ -251,7 +260,8 @@ OCTOVK_CONST uint kBindQueryIn = 14u;
 OCTOVK_CONST uint kBindQueryOut = 15u;
 OCTOVK_CONST uint kBindWalks = 16u;
 OCTOVK_CONST uint kBindSlots = 17u;  // the slots filled in the cell set, then those of the second set
-OCTOVK_CONST uint kBindingCount = 18u;
+OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
+OCTOVK_CONST uint kBindingCount = 19u;
 
 #ifdef __cplusplus
 }  // namespace octovk::gpu

@@ -21,6 +21,10 @@ using gpu::PassConstants;
 
 constexpr std::uint32_t kInitialBlocks = 1024;
 constexpr std::uint32_t kInitialHashLog2 = 12;
+// Cell-list entries per brick slot of the cell set (rays touch 4-6 cells of most bricks they cross).
+constexpr std::uint32_t kCellsPerBrickSlot = 4;
+// Cell ids (brick slot * 64 + index) must fit 32 bits.
+constexpr std::uint32_t kMaxHashLog2 = 26;
 
 std::uint32_t groupsFor(std::size_t items) {
   return static_cast<std::uint32_t>((items + gpu::kWorkgroupSize - 1) / gpu::kWorkgroupSize);
@@ -37,6 +41,7 @@ gpu::ScanCounters freshCounters() {
   for (auto& a : c.touched_args) a = {0, 1, 1};
   for (auto& a : c.walk_args) a = {0, 1, 1};
   c.cell_args = {0, 1, 1};
+  c.brick_args = {0, 1, 1};
   return c;
 }
 
@@ -137,7 +142,7 @@ class OccupancyMap::Impl {
   vk::CommandStream stream_;
 
   vk::Buffer params_buf_, counters_buf_, pool_buf_, readback_, points_buf_, upload_;
-  vk::Buffer hash_keys_, hash_flags_, cells_, endpoint_keys_;
+  vk::Buffer hash_keys_, hash_flags_, cell_list_, cells_, endpoint_keys_;
   vk::Buffer touched_;
   vk::Buffer prefix_blocks_;  // gpu::NewBlock per slot of the second set
   vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
@@ -147,7 +152,7 @@ class OccupancyMap::Impl {
   // Whether the sets must be cleared whole (new, or left in an unknown state by a failed scan);
   // else only the slots the last scan filled are cleared.
   bool sets_need_fill_ = true;
-  std::uint32_t filled_cells_ = 0, filled_endpoints_ = 0;
+  std::uint32_t filled_bricks_ = 0, filled_endpoints_ = 0;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;
   std::uint32_t pool_blocks_ = 0;
@@ -158,13 +163,18 @@ class OccupancyMap::Impl {
 
 // ---- buffers ---------------------------------------------------------------------------------
 
+// The cell set: 2^log2 brick slots, and lists for 4 cells per brick slot (a list that outgrows
+// them makes the set grow like a full set does).
 void OccupancyMap::Impl::allocateHash(std::uint32_t log2) {
   const std::size_t cap = std::size_t{1} << log2;
+  const std::size_t cell_cap = cap * kCellsPerBrickSlot;
   vk::Buffer keys(device_, cap * sizeof(std::uint64_t), false);
-  vk::Buffer flags(device_, cap * sizeof(std::uint32_t), false);
-  vk::Buffer cells(device_, cap * sizeof(gpu::ActiveCell), false);
+  vk::Buffer flags(device_, cap * gpu::kBrickFlagWords * sizeof(std::uint32_t), false);
+  vk::Buffer cell_list(device_, cell_cap * sizeof(std::uint32_t), false);
+  vk::Buffer cells(device_, cell_cap * sizeof(gpu::ActiveCell), false);
   hash_keys_ = std::move(keys);
   hash_flags_ = std::move(flags);
+  cell_list_ = std::move(cell_list);
   cells_ = std::move(cells);
   hash_log2_ = log2;
   // The second set holds about as many entries as the first (end cells, or new-block prefixes).
@@ -240,7 +250,8 @@ void OccupancyMap::Impl::rebind() {
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params_buf_, &counters_buf_,  &pool_buf_,   &points_buf_, &hash_keys_, &hash_flags_,
       &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &prefix_blocks_,
-      &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_,     &slots_};
+      &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_,     &slots_,
+      &cell_list_};
   bindings_.update(buffers);
 }
 
@@ -280,7 +291,7 @@ std::size_t OccupancyMap::Impl::deviceBytes() const {
   for (const vk::Buffer* b :
        {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_, &cells_,
         &endpoint_keys_, &touched_, &prefix_blocks_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
-        &query_in_, &query_out_, &walks_, &slots_})
+        &query_in_, &query_out_, &walks_, &slots_, &cell_list_})
     total += b->size();
   return total;
 }
@@ -306,6 +317,7 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
   sp.endpoint_capacity = 1u << endpoint_log2_;
   sp.endpoint_log2 = endpoint_log2_;
   sp.active_capacity = static_cast<std::uint32_t>(active_capacity_);
+  sp.cell_capacity = (1u << hash_log2_) * kCellsPerBrickSlot;
   sp.occupancy_log = logs_.occupancy;
   sp.max_list_entries = static_cast<std::uint32_t>(
       std::min<std::uint64_t>(std::uint64_t{device_.maxGroupsX()} * gpu::kWorkgroupSize,
@@ -356,8 +368,8 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
     stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
   } else {
     stream_.barrier();
-    dispatch("clear_sets", std::max(filled_cells_, filled_endpoints_),
-             {0, filled_cells_, 0, filled_endpoints_});
+    dispatch("clear_sets", std::max(filled_bricks_, filled_endpoints_),
+             {0, filled_bricks_, 0, filled_endpoints_});
   }
   stream_.barrier();
   stream_.timestamp();
@@ -387,6 +399,9 @@ void OccupancyMap::Impl::recordClassify(bool discretize, std::uint32_t points) {
   // cells out of it first.
   if (discretize) dispatch("clear_sets", points, {0, points, 1, 0});
   const PassConstants pc{};
+  stream_.dispatchIndirect(device_.pass("list_cells"), counters_buf_,
+                           offsetof(gpu::ScanCounters, brick_args), &pc, sizeof(pc));
+  stream_.barrier();
   stream_.dispatchIndirect(device_.pass("classify"), counters_buf_,
                            offsetof(gpu::ScanCounters, cell_args), &pc, sizeof(pc));
   stream_.barrier();
@@ -480,12 +495,12 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
     return stats;
   }
   ensurePoints(points.size());
-  // First guess of the cell set's size: 16 slots per point (a 320x240 depth view at 0.05 m
-  // fills 0.6-1 million cells; 16 slots per point keep it below the 3/4 that makes the set grow),
-  // at most 2^22 slots; it grows (and the ray pass is redone) when a scan needs more, and keeps
-  // its size for the next scans.
+  // First guess of the cell set's size: 4 brick slots (16 cells) per point (a 320x240 depth view
+  // at 0.05 m touches 0.6-1 million cells in about a quarter as many bricks), at most 2^20 brick
+  // slots; it grows (and the ray pass is redone) when a scan needs more, and keeps its size for
+  // the next scans.
   std::vector<double> t1;  // timestamps of group 1: start, uploaded, rays done, classified
-  const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(points.size() * 16), 22);
+  const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(points.size() * 4), 20);
   if (guess > hash_log2_) allocateHash(guess);
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
   std::memcpy(upload_.mapped(), points.data(), points.size() * sizeof(Eigen::Vector3f));
@@ -519,9 +534,10 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
                       " distinct cells, more than the device '" + device_.info().name +
                       "' dispatches at once; the map is unchanged. Split the scan");
     if (counters.status & gpu::kStatusHashFull) {
-      if (hash_log2_ >= 30)
+      if (hash_log2_ + 2 > kMaxHashLog2)
         throw Error(ErrorCode::kOutOfDeviceMemory,
-                    "insertPointCloud: a scan touches more than 2^29 cells; split the scan");
+                    "insertPointCloud: a scan touches more than 2^25 bricks of 4x4x4 cells; the "
+                    "map is unchanged. Split the scan");
       allocateHash(hash_log2_ + 2);
       continue;
     }
@@ -607,7 +623,7 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
                   "internal error: the node pool ran out during a scan despite its size check; "
                   "please report this with the input");
   }
-  filled_cells_ = counters.hash_entries;
+  filled_bricks_ = counters.brick_entries;
   filled_endpoints_ = counters.new_blocks;
   sets_need_fill_ = false;
   // A scan that changed nothing still answers its queries.

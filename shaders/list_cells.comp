@@ -1,0 +1,40 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Lists the scan's distinct cells: for every brick of the cell set, the ids of its touched cells
+// go to the cell list, which classify walks. The list's indirect dispatch arguments grow with it.
+#include "common.glsl"
+
+void main() {
+  uint i = invocationIndex();
+  if (i >= counters.brick_entries) return;
+  uint slot = slots[i];
+  uint lo = hash_flags[slot * kBrickFlagWords];
+  uint hi = hash_flags[slot * kBrickFlagWords + 1u];
+  uint count = uint(bitCount(lo) + bitCount(hi));
+  uint at = atomicAdd(counters.cell_entries, count);
+  uint end = at + count;
+  // A list longer than its buffer: the scan is redone with larger sets. Longer than one indirect
+  // dispatch covers: the scan is refused.
+  if (end > params.cell_capacity) {
+    atomicOr(counters.status, kStatusHashFull);
+    return;
+  }
+  if (end > params.max_list_entries) {
+    atomicOr(counters.status, kStatusTooManyCells);
+    return;
+  }
+  // Groups of 64 entries that this range starts: together they make ceil(total / 64).
+  uint groups = (end + kWorkgroupSize - 1u) / kWorkgroupSize - (at + kWorkgroupSize - 1u) / kWorkgroupSize;
+  if (groups != 0u) atomicAdd(counters.cell_args.x, groups);
+  uint base = slot * kCellsPerBrick;
+  while (lo != 0u) {
+    int b = findLSB(lo);
+    cell_list[at++] = base + uint(b);
+    lo &= lo - 1u;
+  }
+  while (hi != 0u) {
+    int b = findLSB(hi);
+    cell_list[at++] = base + 32u + uint(b);
+    hi &= hi - 1u;
+  }
+}
