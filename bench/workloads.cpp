@@ -458,7 +458,7 @@ void runFr079(Context& context, const BenchOptions& o, JsonWriter& json) {
       "\nOne pass over the sequence per resolution, fresh maps. Max range: unlimited. "
       "Leaf boxes rebuilt every scan: %s. Flatness: the last %zu scans against the "
       "first %zu, per scan and per point.\n",
-      o.leaf_boxes_every_scan ? "yes (library default)" : "no (on demand)", win, win);
+      o.leaf_boxes_every_scan ? "yes" : "no (on demand, the library default)", win, win);
   json.key("fr079").beginObject();
   json.field("file", o.fr079_path).field("scans", graph.size()).field("points", total_points);
   json.field("window", win).field("leaf_boxes_every_scan", o.leaf_boxes_every_scan);

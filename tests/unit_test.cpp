@@ -437,12 +437,17 @@ TEST(Context, SelectorByNameAndIndexFindsTheDevice) {
 
 // ---- node count and leaf boxes ------------------------------------------------------------------
 
+// Both ways of keeping the leaf boxes: on demand (the default: the next request after a scan
+// rebuilds them) and after every scan.
 TEST(Queries, NodeCountAndLeafBoxesMatchOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  for (double res : {0.01, 0.05, 0.1, 0.2}) {
-    SCOPED_TRACE("resolution " + std::to_string(res));
+  for (const auto& [res, every_scan] : std::vector<std::pair<double, bool>>{
+           {0.01, false}, {0.05, true}, {0.1, false}, {0.2, true}}) {
+    SCOPED_TRACE("resolution " + std::to_string(res) +
+                 (every_scan ? ", leaf boxes every scan" : ", leaf boxes on demand"));
     const MapParams params = withResolution(res);
     OccupancyMap map(ctx, params);
+    if (every_scan) map.setLeafBoxesEveryScan(true);
     octomap::OcTree oracle = makeOracle(params);
     EXPECT_EQ(map.nodeCount(), 0u);
     EXPECT_TRUE(map.downloadLeafBoxes().empty());
@@ -455,7 +460,11 @@ TEST(Queries, NodeCountAndLeafBoxesMatchOctoMap) {
       const Eigen::Vector3f origin(s * 0.3f * radius, 0.1f * radius, -0.2f * radius);
       std::mt19937 scan_rng(scan % 4);
       const auto pts = randomScan(scan % 3 == 0 ? rng : scan_rng, origin, 300, radius);
-      ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false)) << "scan " << scan;
+      ScanStats stats;
+      ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats)) << "scan " << scan;
+      // The rebuild is timed only when it runs as part of the scan.
+      if (every_scan) EXPECT_GT(stats.device.leaf_boxes_ms, 0.0);
+      else EXPECT_EQ(stats.device.leaf_boxes_ms, 0.0);
       EXPECT_EQ(map.nodeCount(), oracle.size());
       EXPECT_EQ(map.leafCount(), oracle.getNumLeafNodes());
       ASSERT_TRUE(test::sameLeaves(oracle, map)) << "scan " << scan;

@@ -251,9 +251,9 @@ class OccupancyMap {
   /// Leaves of the map (rebuilding the leaf boxes first if they are out of date).
   std::size_t leafCount() const;
 
-  /// Whether each scan ends by rebuilding the leaf boxes (the default). Off, they are rebuilt
-  /// on the next leafCount() / downloadLeafBoxes() instead: for callers that only write files,
-  /// since the rebuild visits every block of the map.
+  /// Whether each scan ends by rebuilding the leaf boxes. Off (the default), they are rebuilt
+  /// on the next leafCount() / downloadLeafBoxes() that follows a scan: the rebuild visits every
+  /// block of the map, so doing it after every scan makes a scan's cost grow with the map.
   void setLeafBoxesEveryScan(bool every_scan);
 
   /// Explicit transfer of the whole tree to the host.

@@ -233,8 +233,6 @@ int runIntegrate(const std::vector<std::string>& args) {
   std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
 
   OccupancyMap map(context, o.params);
-  // Only files are written: the leaf boxes (for renderers and queries) are not needed per scan.
-  map.setLeafBoxesEveryScan(false);
   Progress progress(scans.size(), !o.quiet);
   std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0;
   const auto insert_start = Clock::now();

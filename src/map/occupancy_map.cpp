@@ -157,7 +157,7 @@ class OccupancyMap::Impl {
   std::size_t active_capacity_ = 0;
   std::uint32_t pool_blocks_ = 0;
   std::size_t point_capacity_ = 0;
-  bool leaf_boxes_every_scan_ = true;
+  bool leaf_boxes_every_scan_ = false;
   bool leaf_boxes_dirty_ = false;
 };
 
