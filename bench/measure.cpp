@@ -91,7 +91,8 @@ ScanTiming measureGraphScan(octomap::OcTree& tree, OccupancyMap& map,
 }
 
 std::size_t poolBytesPerBlock() {
-  return 8 * sizeof(gpu::Node) + sizeof(gpu::BlockMeta) + sizeof(std::uint32_t);
+  // 8 nodes, the block's parent entry, its free-stack entry.
+  return 8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t);
 }
 
 MemoryReport memoryReport(const octomap::OcTree& tree, const OccupancyMap& map) {

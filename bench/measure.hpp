@@ -59,7 +59,7 @@ struct MemoryReport {
   }
 };
 
-/// Node-pool bytes of one 8-slot block: 8 nodes, its BlockMeta, its free-stack entry.
+/// Node-pool bytes of one 8-slot block: 8 nodes, its parent entry, its free-stack entry.
 std::size_t poolBytesPerBlock();
 
 /// Reads both maps' sizes (downloads octovk's tree to count its live blocks).

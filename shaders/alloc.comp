@@ -27,10 +27,12 @@ void main() {
   }
   prefix_blocks[slot].block = block;
 
-  Node child = nb.source != kNoBlock ? Node(nodes[nb.source].log_odds, kNoBlock, 0u)
-                                     : Node(0.0, kNoBlock, kFlagNew);
+  // Children of an expansion exist at once; the ones of a created node when the descent
+  // switches them on.
+  bool expand = nb.source != kNoBlock;
+  Node child = expand ? Node(nodes[nb.source].log_odds, kNoChildren | kFlagLive)
+                      : Node(0.0, kNoChildren | kFlagNew);
   for (uint s = 0u; s < 8u; ++s) nodes[block * 8u + s] = child;
-  uint64_t prefix = endpoint_keys[slot];
-  block_meta[block] =
-      BlockMeta(kNoBlock, uint(prefix >> 48), uint(prefix & 0xFFFFFFFFul), uint(prefix >> 32) & 0xFFFFu);
+  if (expand) atomicAdd(pool.live_nodes, 8u);
+  block_parent[block] = kNoBlock;  // set by link
 }

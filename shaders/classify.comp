@@ -24,14 +24,15 @@ void main() {
   bool found = pool.root_exists != 0u;
   if (found) {
     for (; depth < kTreeDepth; ++depth) {
-      uint c = childIndex(k, depth);
-      uint m = nodes[n].mask;
-      if ((m & (1u << c)) == 0u) {
-        found = (m & kChildMask) == 0u;
+      uint block = childBlock(n);
+      if (block == kNoChildren) break;  // a leaf (pruned above depth 16): found
+      uint child = block * 8u + childIndex(k, depth);
+      if ((nodes[child].link & kFlagLive) == 0u) {
+        found = false;
         break;
       }
       parent = n;
-      n = nodes[n].children * 8u + c;
+      n = child;
     }
   }
   float value = nodes[n].log_odds;
@@ -55,7 +56,7 @@ void main() {
   // made ready here (no pass before the descent steps into it), so that the descent only sets
   // the child's bit.
   if (!found && pool.root_exists != 0u)
-    nodes[nodes[n].children * 8u + childIndex(k, depth)] = Node(0.0, kNoBlock, kFlagNew);
+    nodes[childBlock(n) * 8u + childIndex(k, depth)] = Node(0.0, kNoChildren | kFlagNew);
 
   // Exact count of the blocks this scan allocates: one per distinct node on an active path that
   // has no children yet (a missing root, a pruned leaf, or a node still to be created). The
@@ -68,7 +69,7 @@ void main() {
   uint known_depth = pool.root_exists == 0u ? 0u : first;
   uint known_node = pool.root_exists == 0u
                         ? kRootNode
-                        : (found ? n : nodes[n].children * 8u + childIndex(k, depth));
+                        : (found ? n : childBlock(n) * 8u + childIndex(k, depth));
   uint source = found && pool.root_exists != 0u ? n : kNoBlock;
   for (uint d = kTreeDepth; d-- > first;) {
     uint prefix_slot;

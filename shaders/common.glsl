@@ -17,7 +17,7 @@ layout(std430, binding = 3) buffer PointsBuf { float points[]; };
 layout(std430, binding = 4) buffer HashKeysBuf { uint64_t hash_keys[]; };
 layout(std430, binding = 5) buffer HashFlagsBuf { uint hash_flags[]; };
 layout(std430, binding = 6) buffer NodesBuf { Node nodes[]; };
-layout(std430, binding = 7) buffer BlockMetaBuf { BlockMeta block_meta[]; };
+layout(std430, binding = 7) buffer BlockParentsBuf { uint block_parent[]; };
 layout(std430, binding = 8) buffer FreeStackBuf { uint free_stack[]; };
 layout(std430, binding = 9) buffer ActiveBuf { ActiveCell cells[]; };
 layout(std430, binding = 10) buffer TouchedBuf { uint touched[]; };
@@ -215,13 +215,14 @@ bool searchNode(uvec3 k, out uint node, out uint depth) {
   depth = 0u;
   if (pool.root_exists == 0u) return false;
   for (; depth < kTreeDepth; ++depth) {
-    uint c = childIndex(k, depth);
-    uint m = nodes[node].mask;
-    if ((m & (1u << c)) != 0u) {
-      node = nodes[node].children * 8u + c;
-    } else {
-      return (m & kChildMask) == 0u;
-    }
+    uint block = nodes[node].link & kBlockMask;
+    if (block == kNoChildren) return true;
+    uint child = block * 8u + childIndex(k, depth);
+    if ((nodes[child].link & kFlagLive) == 0u) return false;
+    node = child;
   }
   return true;
 }
+
+// The block of node n's children, or kNoChildren.
+uint childBlock(uint n) { return nodes[n].link & kBlockMask; }

@@ -5,7 +5,7 @@
 // (found by classify) and walks to its leaf; every node on the way has its block of children
 // (alloc and link gave one to each node that had none). A child missing on the way is switched on
 // (createNodeChild: classify or alloc made its slot ready). At the leaf: add the update, clamp,
-// and list the parent for the prune pass. Child bits only grow, by atomicOr, so the cells need
+// and list the parent for the prune pass. Live bits only grow, by atomicOr, so the cells need
 // no ordering between them.
 #include "common.glsl"
 #include "tree.glsl"
@@ -21,14 +21,13 @@ void main() {
   uint parent = cell.parent;
   uint added = 0u;
   for (uint d = cell.depth; d < kTreeDepth; ++d) {
-    uint c = childIndex(k, d);
-    uint bit = 1u << c;
-    if ((nodes[n].mask & bit) == 0u) {
-      uint before = atomicOr(nodes[n].mask, bit);
-      if ((before & bit) == 0u) ++added;
+    uint child = childBlock(n) * 8u + childIndex(k, d);
+    if ((nodes[child].link & kFlagLive) == 0u) {
+      uint before = atomicOr(nodes[child].link, kFlagLive);
+      if ((before & kFlagLive) == 0u) ++added;
     }
     parent = n;
-    n = nodes[n].children * 8u + c;
+    n = child;
   }
   if (added != 0u) atomicAdd(pool.live_nodes, added);
 
@@ -36,6 +35,6 @@ void main() {
   if (value < params.clamp_min_log) value = params.clamp_min_log;
   else if (value > params.clamp_max_log) value = params.clamp_max_log;
   nodes[n].log_odds = value;
-  nodes[n].mask = 0u;
+  nodes[n].link = kNoChildren | kFlagLive;
   listNode(kTreeDepth - 1u, parent);
 }

@@ -28,15 +28,7 @@ uint64_t m64(uint id) { return 0xC0DE0000C0DE0000ul + uint64_t(id); }
 
 void probeNode(uint i, uint id) {
   nodes[i].log_odds = mf(id);
-  nodes[i].children = mu(id + 1u);
-  nodes[i].mask = mu(id + 2u);
-}
-
-void probeBlockMeta(uint i, uint id) {
-  block_meta[i].parent = mu(id);
-  block_meta[i].depth = mu(id + 1u);
-  block_meta[i].key_xy = mu(id + 2u);
-  block_meta[i].key_z = mu(id + 3u);
+  nodes[i].link = mu(id + 1u);
 }
 
 void probeActiveCell(uint i, uint id) {
@@ -141,8 +133,6 @@ void main() {
   // Arrays of structs: element 0 at 700 + 10 * struct, element 1 five further.
   probeNode(0u, 700u);
   probeNode(1u, 705u);
-  probeBlockMeta(0u, 710u);
-  probeBlockMeta(1u, 715u);
   probeActiveCell(0u, 720u);
   probeActiveCell(1u, 725u);
   probeNewBlock(0u, 730u);
@@ -215,6 +205,7 @@ void main() {
   endpoint_keys[1] = m64(804u);
   slots[1] = mu(805u);
   cell_list[1] = mu(806u);
+  block_parent[1] = mu(807u);
 
   // Push constants and shared constants, as the shader sees them.
   touched[0] = pc.level;

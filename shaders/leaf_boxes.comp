@@ -1,6 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Leaves of the map, found by scanning the live blocks (block 0 stands for the root itself).
+// Leaves of the map, found by scanning the live blocks (block 0 stands for the root itself); a
+// block's place in the tree comes from the parents above it.
 // mode 0: the leaf-box rebuild — every leaf's centre, edge length and log-odds into leaf_boxes.
 // mode 1: leaves in a box — the leaves OctoMap's leaf_bbx_iterator visits (node key range
 //         overlapping the box's key range, as the iterator tests it), optionally only occupied
@@ -44,20 +45,27 @@ void main() {
   uint b = invocationIndex();
   if (b >= pool.bump) return;
   if (b == 0u) {
-    if (pool.root_exists != 0u && (nodes[kRootNode].mask & kChildMask) == 0u)
+    if (pool.root_exists != 0u && childBlock(kRootNode) == kNoChildren)
       emit(uvec3(0u), 0u, nodes[kRootNode].log_odds);
     return;
   }
-  BlockMeta meta = block_meta[b];
-  if (meta.parent == kNoBlock) return;
-  uint children = nodes[meta.parent].mask & kChildMask;
-  uvec3 parent_key = uvec3(meta.key_xy & 0xFFFFu, meta.key_xy >> 16, meta.key_z);
-  uint bit = 15u - meta.depth;
+  uint parent = block_parent[b];
+  if (parent == kNoBlock) return;
+  // The parent's key and depth, from the slots of the nodes above it: the node at depth d is
+  // child (its slot) of the node above, which sets bit 16 - d of the key.
+  uvec3 up_bits = uvec3(0u);
+  uint depth = 0u;
+  for (uint n = parent; n != kRootNode && depth < kTreeDepth; n = block_parent[n / 8u]) {
+    uint s = n % 8u;
+    up_bits |= uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << depth;
+    ++depth;
+  }
+  uvec3 parent_key = depth == 0u ? uvec3(0u) : up_bits << (kTreeDepth - depth);
+  uint bit = 15u - depth;
   for (uint s = 0u; s < 8u; ++s) {
-    if ((children & (1u << s)) == 0u) continue;
     Node child = nodes[b * 8u + s];
-    if ((child.mask & kChildMask) != 0u) continue;
+    if ((child.link & kFlagLive) == 0u || (child.link & kBlockMask) != kNoChildren) continue;
     uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
-    emit(key, meta.depth + 1u, child.log_odds);
+    emit(key, depth + 1u, child.log_odds);
   }
 }

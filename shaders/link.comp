@@ -1,8 +1,8 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // Hangs each block alloc filled under its node: the node is known (it existed before alloc), or
-// it is a child in the block of the node one level up. An expansion switches on all 8 children;
-// a created node's children are switched on by the descent, one per path.
+// it is a child in the block of the node one level up. (An expansion's children exist already;
+// a created node's children are switched on by the descent, one per path.)
 #include "common.glsl"
 
 void main() {
@@ -22,10 +22,6 @@ void main() {
     }
     node = prefix_blocks[up].block * 8u + childIndex(k, depth - 1u);
   }
-  nodes[node].children = nb.block;
-  block_meta[nb.block].parent = node;
-  if (nb.source != kNoBlock) {
-    nodes[node].mask |= kChildMask;
-    atomicAdd(pool.live_nodes, 8u);
-  }
+  nodes[node].link = (nodes[node].link & ~kBlockMask) | nb.block;
+  block_parent[nb.block] = node;
 }

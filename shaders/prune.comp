@@ -12,28 +12,31 @@ void main() {
   uint level = pc.level;
   if (r >= counters.touched_count[level]) return;
   uint n = touched[level * params.active_capacity + r];
-  uint children = nodes[n].mask & kChildMask;
-  uint block = nodes[n].children;
+  uint link = nodes[n].link;
+  uint block = link & kBlockMask;
 
-  bool collapsible = children == kChildMask;
+  bool collapsible = true;
   float first = nodes[block * 8u].log_odds;
   float max_value = -3.40282347e38;
   for (uint s = 0u; s < 8u; ++s) {
-    if ((children & (1u << s)) == 0u) continue;
     Node child = nodes[block * 8u + s];
-    if ((child.mask & kChildMask) != 0u || child.log_odds != first) collapsible = false;
+    if ((child.link & kFlagLive) == 0u) {
+      collapsible = false;
+      continue;
+    }
+    if ((child.link & kBlockMask) != kNoChildren || child.log_odds != first) collapsible = false;
     if (child.log_odds > max_value) max_value = child.log_odds;
   }
   if (collapsible) {
-    nodes[n] = Node(first, kNoBlock, 0u);
-    block_meta[block].parent = kNoBlock;
+    nodes[n] = Node(first, kNoChildren | kFlagLive);
+    block_parent[block] = kNoBlock;
     uint at = atomicAdd(pool.free_count, 1u);
     free_stack[at] = block;
     atomicAdd(pool.live_nodes, uint(-8));
     atomicAdd(counters.pruned_blocks, 1u);
   } else {
     nodes[n].log_odds = max_value;
-    nodes[n].mask = children;
+    nodes[n].link = block | kFlagLive;
   }
   if (level > 0u) listParent(level - 1u, n);
 }

@@ -26,10 +26,10 @@ void appendTouched(uint level, uint node) {
 
 // Lists `parent` (at depth `level`) once for the prune pass at that level.
 void listNode(uint level, uint parent) {
-  if ((nodes[parent].mask & kFlagTouched) != 0u) return;
-  uint old = atomicOr(nodes[parent].mask, kFlagTouched);
+  if ((nodes[parent].link & kFlagTouched) != 0u) return;
+  uint old = atomicOr(nodes[parent].link, kFlagTouched);
   if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
 }
 
 // Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
-void listParent(uint level, uint node) { listNode(level, block_meta[node / 8u].parent); }
+void listParent(uint level, uint node) { listNode(level, block_parent[node / 8u]); }

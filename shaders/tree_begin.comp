@@ -6,8 +6,8 @@
 void main() {
   if (invocationIndex() != 0u) return;
   if (pool.root_exists == 0u) {
-    nodes[kRootNode] = Node(0.0, kNoBlock, kFlagNew);
-    block_meta[0] = BlockMeta(kNoBlock, 0u, 0u, 0u);
+    nodes[kRootNode] = Node(0.0, kNoChildren | kFlagNew | kFlagLive);
+    block_parent[0] = kNoBlock;
     pool.root_exists = 1u;
     pool.live_nodes = 1u;
   }

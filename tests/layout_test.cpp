@@ -19,16 +19,12 @@ using namespace gpu;  // NOLINT(google-build-using-namespace): the test names ev
 // ---- C++ side: the byte offsets written in gpu_types.h's comments ------------------------------
 
 static_assert(std::is_standard_layout_v<Node> && std::is_trivially_copyable_v<Node>);
-static_assert(sizeof(Node) == 12);
+static_assert(sizeof(Node) == 8);
 static_assert(offsetof(Node, log_odds) == 0);
-static_assert(offsetof(Node, children) == 4);
-static_assert(offsetof(Node, mask) == 8);
-
-static_assert(sizeof(BlockMeta) == 16);
-static_assert(offsetof(BlockMeta, parent) == 0);
-static_assert(offsetof(BlockMeta, depth) == 4);
-static_assert(offsetof(BlockMeta, key_xy) == 8);
-static_assert(offsetof(BlockMeta, key_z) == 12);
+static_assert(offsetof(Node, link) == 4);
+// The link's block field holds any block the pool can have (MapParams::max_nodes / 8 <= 2^29 - 1).
+static_assert(kNoChildren == kBlockMask &&
+              (kBlockMask & (kFlagNew | kFlagTouched | kFlagLive)) == 0);
 
 static_assert(sizeof(LeafBox) == 20);
 static_assert(offsetof(LeafBox, center_x) == 0);
@@ -183,10 +179,6 @@ static_assert(offsetof(PassConstants, mode) == 8);
 static_assert(offsetof(PassConstants, offset) == 12);
 
 // The public mirrors of device structs that are copied byte for byte.
-static_assert(sizeof(HostTree::Node) == sizeof(Node));
-static_assert(offsetof(HostTree::Node, log_odds) == offsetof(Node, log_odds));
-static_assert(offsetof(HostTree::Node, children) == offsetof(Node, children));
-static_assert(offsetof(HostTree::Node, mask) == offsetof(Node, mask));
 static_assert(sizeof(OccupancyMap::LeafBoxHost) == sizeof(LeafBox));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, center_x));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
@@ -194,16 +186,15 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox,
 
 static_assert(kBindingCount == 19);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
-              kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 && kBindBlockMeta == 7 &&
-              kBindFreeStack == 8 && kBindActive == 9 && kBindTouched == 10 &&
-              kBindNewBlocks == 11 && kBindLeafBoxes == 12 && kBindEndpointKeys == 13 &&
-              kBindQueryIn == 14 && kBindQueryOut == 15 && kBindWalks == 16 && kBindSlots == 17 &&
-              kBindCellList == 18);
+              kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 &&
+              kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
+              kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
+              kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
+              kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18);
 
 TEST(Layout, HostSizesAndOffsets) {
   // The static_asserts above hold at compile time; the same facts at run time, for the report.
-  EXPECT_EQ(sizeof(Node), 12u);
-  EXPECT_EQ(sizeof(BlockMeta), 16u);
+  EXPECT_EQ(sizeof(Node), 8u);
   EXPECT_EQ(sizeof(LeafBox), 20u);
   EXPECT_EQ(sizeof(PoolState), 32u);
   EXPECT_EQ(sizeof(ScanParams), 120u);
@@ -310,19 +301,9 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindPool, PoolState, pad0, U, 607),
 
       OCTOVK_ELEMENT(kBindNodes, Node, 0, log_odds, F, 700),
-      OCTOVK_ELEMENT(kBindNodes, Node, 0, children, U, 701),
-      OCTOVK_ELEMENT(kBindNodes, Node, 0, mask, U, 702),
+      OCTOVK_ELEMENT(kBindNodes, Node, 0, link, U, 701),
       OCTOVK_ELEMENT(kBindNodes, Node, 1, log_odds, F, 705),
-      OCTOVK_ELEMENT(kBindNodes, Node, 1, children, U, 706),
-      OCTOVK_ELEMENT(kBindNodes, Node, 1, mask, U, 707),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, parent, U, 710),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, depth, U, 711),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, key_xy, U, 712),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 0, key_z, U, 713),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, parent, U, 715),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, depth, U, 716),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, key_xy, U, 717),
-      OCTOVK_ELEMENT(kBindBlockMeta, BlockMeta, 1, key_z, U, 718),
+      OCTOVK_ELEMENT(kBindNodes, Node, 1, link, U, 706),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, slot, U, 720),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, node, U, 721),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, parent, U, 722),
@@ -357,6 +338,7 @@ std::vector<Field> probedFields() {
       Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
       Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
       Field{"cell_list[1]", kBindCellList, 1 * sizeof(std::uint32_t), U, 806},
+      Field{"block_parent[1]", kBindBlockParents, 1 * sizeof(std::uint32_t), U, 807},
       Field{"ScanCounters::brick_args.x", kBindCounters,
             offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, x), U, 393},
       Field{"ScanCounters::brick_args.y", kBindCounters,
@@ -520,7 +502,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindHashKeys] = 4 * sizeof(std::uint64_t);
   sizes[kBindHashFlags] = 4 * sizeof(std::uint32_t);
   sizes[kBindNodes] = 4 * sizeof(Node);
-  sizes[kBindBlockMeta] = 4 * sizeof(BlockMeta);
+  sizes[kBindBlockParents] = 4 * sizeof(std::uint32_t);
   sizes[kBindFreeStack] = 4 * sizeof(std::uint32_t);
   sizes[kBindActive] = 4 * sizeof(ActiveCell);
   sizes[kBindTouched] = 8 * sizeof(std::uint32_t);
@@ -552,10 +534,10 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   stream.submitAndWait();
 
   const std::vector<Field> fields = probedFields();
-  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 40u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
-                               2u * (4u + 9u) + 5u * kLevelCount +
-                               1u /* slots */ + 3u /* cell_args */ +
-                               2u /* ScanParams */ + 5u /* brick_args, cell_entries, cell_list */);
+  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 30u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+                               2u * (4u + 9u) + 5u * kLevelCount + 1u /* slots */ +
+                               3u /* cell_args */ + 2u /* ScanParams */ +
+                               6u /* brick_args, cell_entries, cell_list, block_parent */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
     const std::size_t size = buffers[f.binding].size();

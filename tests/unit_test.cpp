@@ -463,8 +463,10 @@ TEST(Queries, NodeCountAndLeafBoxesMatchOctoMap) {
       ScanStats stats;
       ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats)) << "scan " << scan;
       // The rebuild is timed only when it runs as part of the scan.
-      if (every_scan) EXPECT_GT(stats.device.leaf_boxes_ms, 0.0);
-      else EXPECT_EQ(stats.device.leaf_boxes_ms, 0.0);
+      if (every_scan)
+        EXPECT_GT(stats.device.leaf_boxes_ms, 0.0);
+      else
+        EXPECT_EQ(stats.device.leaf_boxes_ms, 0.0);
       EXPECT_EQ(map.nodeCount(), oracle.size());
       EXPECT_EQ(map.leafCount(), oracle.getNumLeafNodes());
       ASSERT_TRUE(test::sameLeaves(oracle, map)) << "scan " << scan;

@@ -21,11 +21,14 @@ OCTOVK_CONST uint kTreeMaxVal = 32768u;
 OCTOVK_CONST uint kNoBlock = 0xFFFFFFFFu;
 OCTOVK_CONST uint kRootNode = 0u;
 
-// Bits of Node::mask.
-OCTOVK_CONST uint kChildMask = 0xFFu;       // bit i: child i exists
-OCTOVK_CONST uint kFlagNew = 0x100u;        // created alone during this scan (never expanded)
-OCTOVK_CONST uint kFlagTouched = 0x200u;    // on an updated path, listed for the prune pass
-OCTOVK_CONST uint kFlagsMask = 0x0000FF00u;
+// Bits of Node::link: the block of the node's 8 child slots, and per-node flags.
+OCTOVK_CONST uint kBlockMask = 0x1FFFFFFFu;    // bits 0-28: block index of the children
+OCTOVK_CONST uint kNoChildren = 0x1FFFFFFFu;   // block field of a node without children
+OCTOVK_CONST uint kFlagNew = 0x20000000u;      // created alone during this scan (never expanded)
+OCTOVK_CONST uint kFlagTouched = 0x40000000u;  // on an updated path, listed for the prune pass
+OCTOVK_CONST uint kFlagLive = 0x80000000u;     // the node exists (its parent has this child)
+// Child bits of a node as the host tree (HostTree::Node::mask) gives them.
+OCTOVK_CONST uint kChildMask = 0xFFu;
 
 // The scan's cell set: a hash set of 4x4x4 bricks of cells. Keys are brick keys (cell key / 4,
 // packed as x | y << 16 | z << 32; empty slots hold all ones); each brick slot has 4 flag words:
@@ -38,78 +41,71 @@ OCTOVK_CONST uint kBrickFlagWords = 4u;
 // Status bits in ScanCounters::status.
 OCTOVK_CONST uint kStatusHashFull = 1u;
 OCTOVK_CONST uint kStatusPoolFull = 2u;
-OCTOVK_CONST uint kStatusRayCut = 8u;  // a ray walk was stopped by the device's loop limit
+OCTOVK_CONST uint kStatusRayCut = 8u;         // a ray walk was stopped by the device's loop limit
 OCTOVK_CONST uint kStatusTooManyCells = 16u;  // more cells than one indirect dispatch covers
 OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of the scan is full
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
 
-// One octree node. 12 B.
+// One octree node. 8 B. A node has children exactly when its block field is not kNoChildren,
+// and child i exists when slot i of that block has kFlagLive. kFlagNew and kFlagTouched are
+// clear between scans.
 struct Node {
   float log_odds;  // 4B (0)
-  uint children;   // 4B (4)  block index of the 8 child slots, or kNoBlock
-  uint mask;       // 4B (8)  child bits and per-scan flags (kChildMask, kFlag*)
-};
-
-// Where a block of 8 child slots hangs in the tree. 16 B.
-struct BlockMeta {
-  uint parent;   // 4B (0)  node index of the parent, kNoBlock when the block is free
-  uint depth;    // 4B (4)  depth of the parent (children are at depth + 1)
-  uint key_xy;   // 4B (8)  parent key x | y << 16 (bits below the parent's depth are zero)
-  uint key_z;    // 4B (12) parent key z
+  uint link;       // 4B (4)  child block (kBlockMask bits) | kFlag* bits
 };
 
 // One leaf of the map, for renderers and queries. 20 B.
 struct LeafBox {
-  float center_x;   // 4B (0)
-  float center_y;   // 4B (4)
-  float center_z;   // 4B (8)
-  float size;       // 4B (12) edge length in metres
-  float log_odds;   // 4B (16)
+  float center_x;  // 4B (0)
+  float center_y;  // 4B (4)
+  float center_z;  // 4B (8)
+  float size;      // 4B (12) edge length in metres
+  float log_odds;  // 4B (16)
 };
 
 // Persistent allocator state of the node pool. 32 B.
 struct PoolState {
-  uint bump;            // 4B (0)  next never-used block
-  uint capacity;        // 4B (4)  blocks in the pool
-  uint free_count;      // 4B (8)  entries on the free-block stack
-  uint pad1;            // 4B (12)
-  uint root_exists;     // 4B (16)
-  uint leaf_count;      // 4B (20) entries written to the leaf-box buffer by the last rebuild
-  uint live_nodes;      // 4B (24) nodes in the tree (maintained by the passes)
-  uint pad0;            // 4B (28)
+  uint bump;         // 4B (0)  next never-used block
+  uint capacity;     // 4B (4)  blocks in the pool
+  uint free_count;   // 4B (8)  entries on the free-block stack
+  uint pad1;         // 4B (12)
+  uint root_exists;  // 4B (16)
+  uint leaf_count;   // 4B (20) entries written to the leaf-box buffer by the last rebuild
+  uint live_nodes;   // 4B (24) nodes in the tree (maintained by the passes)
+  uint pad0;         // 4B (28)
 };
 
 // Per-scan parameters, written once per scan. 120 B.
 struct ScanParams {
-  double resolution;        // 8B (0)
-  double resolution_factor; // 8B (8)
-  double max_range;         // 8B (16) < 0: unlimited
-  float origin_x;           // 4B (24)
-  float origin_y;           // 4B (28)
-  float origin_z;           // 4B (32)
-  float prob_hit_log;       // 4B (36)
-  float prob_miss_log;      // 4B (40)
-  float clamp_min_log;      // 4B (44)
-  float clamp_max_log;      // 4B (48)
-  uint point_count;         // 4B (52)
-  uint hash_capacity;       // 4B (56) power of two
-  uint hash_log2;           // 4B (60)
-  uint endpoint_capacity;   // 4B (64) power of two
-  uint endpoint_log2;       // 4B (68)
-  float rot_u;              // 4B (72) sensor rotation (OctoMap quaternion order u, x, y, z)
-  float rot_x;              // 4B (76)
-  float rot_y;              // 4B (80)
-  float rot_z;              // 4B (84)
-  uint active_capacity;     // 4B (88)
-  float trans_x;            // 4B (92) sensor translation
-  float trans_y;            // 4B (96)
-  float trans_z;            // 4B (100)
-  float occupancy_log;      // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
-  uint max_list_entries;    // 4B (108) most entries of an indirectly walked list (groups x 64)
-  uint cell_capacity;       // 4B (112) entries of the cell list and the active-cell list
-  uint pad0;                // 4B (116)
+  double resolution;         // 8B (0)
+  double resolution_factor;  // 8B (8)
+  double max_range;          // 8B (16) < 0: unlimited
+  float origin_x;            // 4B (24)
+  float origin_y;            // 4B (28)
+  float origin_z;            // 4B (32)
+  float prob_hit_log;        // 4B (36)
+  float prob_miss_log;       // 4B (40)
+  float clamp_min_log;       // 4B (44)
+  float clamp_max_log;       // 4B (48)
+  uint point_count;          // 4B (52)
+  uint hash_capacity;        // 4B (56) power of two
+  uint hash_log2;            // 4B (60)
+  uint endpoint_capacity;    // 4B (64) power of two
+  uint endpoint_log2;        // 4B (68)
+  float rot_u;               // 4B (72) sensor rotation (OctoMap quaternion order u, x, y, z)
+  float rot_x;               // 4B (76)
+  float rot_y;               // 4B (80)
+  float rot_z;               // 4B (84)
+  uint active_capacity;      // 4B (88)
+  float trans_x;             // 4B (92) sensor translation
+  float trans_y;             // 4B (96)
+  float trans_z;             // 4B (100)
+  float occupancy_log;       // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
+  uint max_list_entries;     // 4B (108) most entries of an indirectly walked list (groups x 64)
+  uint cell_capacity;        // 4B (112) entries of the cell list and the active-cell list
+  uint pad0;                 // 4B (116)
 };
 
 // A node that gets a block of children in this scan: one per entry of the second set, at the
@@ -124,12 +120,11 @@ struct NewBlock {
 };
 // Per-cell state of the descent through the tree, one per active cell. 16 B.
 struct ActiveCell {
-  uint slot;     // 4B (0)  id of the cell in the cell set (brick slot * 64 + index)
-  uint node;     // 4B (4)  deepest node on the path that existed before the scan
-  uint parent;   // 4B (8)  its parent (kNoBlock for the root)
-  uint depth;    // 4B (12) its depth
+  uint slot;    // 4B (0)  id of the cell in the cell set (brick slot * 64 + index)
+  uint node;    // 4B (4)  deepest node on the path that existed before the scan
+  uint parent;  // 4B (8)  its parent (kNoBlock for the root)
+  uint depth;   // 4B (12) its depth
 };
-
 
 // Indirect dispatch arguments, as VkDispatchIndirectCommand. 12 B.
 struct DispatchArgs {
@@ -140,21 +135,22 @@ struct DispatchArgs {
 
 // Counters of one scan, reset at its start. The host reads this struct back once per scan.
 struct ScanCounters {
-  uint status;              // 4B (0)   kStatus* bits
-  uint brick_entries;       // 4B (4)   distinct bricks in the cell set
-  uint endpoint_entries;    // 4B (8)   distinct end cells (discretize)
-  uint active_cells;        // 4B (12)  updated cells whose path needs nodes (those whose leaf
-                            //          exists are counted in first_depth_hist[16])
-  uint skipped_nonfinite;   // 4B (16)  points with NaN or infinite coordinates
-  uint skipped_outside;     // 4B (20)  points whose ray or end cell lies outside the map
-  uint occupied_cells;      // 4B (24)
-  uint free_cells;          // 4B (28)
-  uint aborted;             // 4B (32)
-  uint new_blocks;          // 4B (36)  distinct nodes that get a block of children this scan
-  uint pruned_blocks;       // 4B (40)
-  uint query_results;       // 4B (44)  entries written by a compacting query (leaves in a box)
-  uint first_depth_hist[kLevelCount];      // 68B (48)  active cells by depth of the deepest existing node
-  uint touched_count[kLevelCount];         // 68B (116) nodes listed for the prune pass, per depth
+  uint status;             // 4B (0)   kStatus* bits
+  uint brick_entries;      // 4B (4)   distinct bricks in the cell set
+  uint endpoint_entries;   // 4B (8)   distinct end cells (discretize)
+  uint active_cells;       // 4B (12)  updated cells whose path needs nodes (those whose leaf
+                           //          exists are counted in first_depth_hist[16])
+  uint skipped_nonfinite;  // 4B (16)  points with NaN or infinite coordinates
+  uint skipped_outside;    // 4B (20)  points whose ray or end cell lies outside the map
+  uint occupied_cells;     // 4B (24)
+  uint free_cells;         // 4B (28)
+  uint aborted;            // 4B (32)
+  uint new_blocks;         // 4B (36)  distinct nodes that get a block of children this scan
+  uint pruned_blocks;      // 4B (40)
+  uint query_results;      // 4B (44)  entries written by a compacting query (leaves in a box)
+  uint first_depth_hist[kLevelCount];  // 68B (48)  active cells by depth of the deepest existing
+                                       // node
+  uint touched_count[kLevelCount];     // 68B (116) nodes listed for the prune pass, per depth
   DispatchArgs touched_args[kLevelCount];  // 204B (184)
   uint walk_count[2];                      // 8B (388) unfinished ray walks, two lists (ping-pong)
   DispatchArgs walk_args[2];               // 24B (396)
@@ -249,7 +245,7 @@ OCTOVK_CONST uint kBindPoints = 3u;
 OCTOVK_CONST uint kBindHashKeys = 4u;
 OCTOVK_CONST uint kBindHashFlags = 5u;
 OCTOVK_CONST uint kBindNodes = 6u;
-OCTOVK_CONST uint kBindBlockMeta = 7u;
+OCTOVK_CONST uint kBindBlockParents = 7u;  // per block, the node it hangs under (kNoBlock: free)
 OCTOVK_CONST uint kBindFreeStack = 8u;
 OCTOVK_CONST uint kBindActive = 9u;
 OCTOVK_CONST uint kBindTouched = 10u;
@@ -259,7 +255,8 @@ OCTOVK_CONST uint kBindEndpointKeys = 13u;
 OCTOVK_CONST uint kBindQueryIn = 14u;
 OCTOVK_CONST uint kBindQueryOut = 15u;
 OCTOVK_CONST uint kBindWalks = 16u;
-OCTOVK_CONST uint kBindSlots = 17u;  // the slots filled in the cell set, then those of the second set
+OCTOVK_CONST uint kBindSlots =
+    17u;  // the slots filled in the cell set, then those of the second set
 OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
 OCTOVK_CONST uint kBindingCount = 19u;
 

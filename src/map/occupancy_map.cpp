@@ -21,7 +21,8 @@ using gpu::PassConstants;
 
 constexpr std::uint32_t kInitialBlocks = 1024;
 constexpr std::uint32_t kInitialHashLog2 = 12;
-// Cell-list entries per brick slot of the cell set (rays touch 4-6 cells of most bricks they cross).
+// Cell-list entries per brick slot of the cell set (rays touch 4-6 cells of most bricks they
+// cross).
 constexpr std::uint32_t kCellsPerBrickSlot = 4;
 // Cell ids (brick slot * 64 + index) must fit 32 bits.
 constexpr std::uint32_t kMaxHashLog2 = 26;
@@ -84,7 +85,9 @@ class OccupancyMap::Impl {
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
   std::size_t deviceBytes() const;
-  std::size_t poolBytes() const { return nodes_.size() + block_meta_.size() + free_stack_.size(); }
+  std::size_t poolBytes() const {
+    return nodes_.size() + block_parents_.size() + free_stack_.size();
+  }
 
   const MapParams& params() const { return params_; }
   void setLeafBoxesEveryScan(bool every_scan) { leaf_boxes_every_scan_ = every_scan; }
@@ -145,7 +148,7 @@ class OccupancyMap::Impl {
   vk::Buffer hash_keys_, hash_flags_, cell_list_, cells_, endpoint_keys_;
   vk::Buffer touched_;
   vk::Buffer prefix_blocks_;  // gpu::NewBlock per slot of the second set
-  vk::Buffer nodes_, block_meta_, free_stack_, leaf_boxes_;
+  vk::Buffer nodes_, block_parents_, free_stack_, leaf_boxes_;
   vk::Buffer query_in_, query_out_, query_staging_in_, query_staging_out_;
   vk::Buffer walks_;  // ray walks saved between segments (two lists of point_capacity_)
   vk::Buffer slots_;  // filled slots of the cell set, then of the second set
@@ -213,19 +216,19 @@ void OccupancyMap::Impl::allocateLists(std::size_t active_capacity) {
 // dropped, so a failed allocation leaves the map as it was.
 void OccupancyMap::Impl::allocatePool(std::uint32_t blocks, bool copy_old) {
   vk::Buffer nodes(device_, std::size_t{blocks} * 8 * sizeof(gpu::Node), false);
-  vk::Buffer meta(device_, std::size_t{blocks} * sizeof(gpu::BlockMeta), false);
+  vk::Buffer parents(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
   vk::Buffer free_stack(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
   vk::Buffer leaves(device_, std::size_t{blocks} * 8 * sizeof(gpu::LeafBox), false);
   if (copy_old) {
     stream_.begin(bindings_);
     stream_.copy(nodes_, nodes, nodes_.size());
-    stream_.copy(block_meta_, meta, block_meta_.size());
+    stream_.copy(block_parents_, parents, block_parents_.size());
     stream_.copy(free_stack_, free_stack, free_stack_.size());
     stream_.update(pool_buf_, &blocks, sizeof(blocks), offsetof(gpu::PoolState, capacity));
     stream_.submitAndWait();
   }
   nodes_ = std::move(nodes);
-  block_meta_ = std::move(meta);
+  block_parents_ = std::move(parents);
   free_stack_ = std::move(free_stack);
   leaf_boxes_ = std::move(leaves);
   pool_blocks_ = blocks;
@@ -248,10 +251,10 @@ void OccupancyMap::Impl::rebind() {
       !slots_.valid())
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
-      &params_buf_, &counters_buf_,  &pool_buf_,   &points_buf_, &hash_keys_, &hash_flags_,
-      &nodes_,      &block_meta_,    &free_stack_, &cells_,      &touched_,   &prefix_blocks_,
-      &leaf_boxes_, &endpoint_keys_, &query_in_,   &query_out_,  &walks_,     &slots_,
-      &cell_list_};
+      &params_buf_, &counters_buf_,  &pool_buf_,      &points_buf_,    &hash_keys_,
+      &hash_flags_, &nodes_,         &block_parents_, &free_stack_,    &cells_,
+      &touched_,    &prefix_blocks_, &leaf_boxes_,    &endpoint_keys_, &query_in_,
+      &query_out_,  &walks_,         &slots_,         &cell_list_};
   bindings_.update(buffers);
 }
 
@@ -290,8 +293,8 @@ std::size_t OccupancyMap::Impl::deviceBytes() const {
   std::size_t total = 0;
   for (const vk::Buffer* b :
        {&params_buf_, &counters_buf_, &pool_buf_, &points_buf_, &hash_keys_, &hash_flags_, &cells_,
-        &endpoint_keys_, &touched_, &prefix_blocks_, &nodes_, &block_meta_, &free_stack_, &leaf_boxes_,
-        &query_in_, &query_out_, &walks_, &slots_, &cell_list_})
+        &endpoint_keys_, &touched_, &prefix_blocks_, &nodes_, &block_parents_, &free_stack_,
+        &leaf_boxes_, &query_in_, &query_out_, &walks_, &slots_, &cell_list_})
     total += b->size();
   return total;
 }
@@ -319,9 +322,8 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
   sp.active_capacity = static_cast<std::uint32_t>(active_capacity_);
   sp.cell_capacity = (1u << hash_log2_) * kCellsPerBrickSlot;
   sp.occupancy_log = logs_.occupancy;
-  sp.max_list_entries = static_cast<std::uint32_t>(
-      std::min<std::uint64_t>(std::uint64_t{device_.maxGroupsX()} * gpu::kWorkgroupSize,
-                              0xFFFFFFFFu));
+  sp.max_list_entries = static_cast<std::uint32_t>(std::min<std::uint64_t>(
+      std::uint64_t{device_.maxGroupsX()} * gpu::kWorkgroupSize, 0xFFFFFFFFu));
   if (pose) {
     sp.rot_u = pose->rotation.w();
     sp.rot_x = pose->rotation.x();
@@ -830,9 +832,21 @@ HostTree OccupancyMap::Impl::download() {
   stream_.begin(bindings_);
   stream_.copy(nodes_, staging, count * sizeof(gpu::Node));
   stream_.submitAndWait();
+  // Device nodes keep a node's existence in the node itself (kFlagLive); the host tree keeps a
+  // parent's child bits.
+  const auto* nodes = static_cast<const gpu::Node*>(staging.mapped());
   tree.nodes.resize(count);
-  static_assert(sizeof(HostTree::Node) == sizeof(gpu::Node));
-  std::memcpy(tree.nodes.data(), staging.mapped(), count * sizeof(gpu::Node));
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint32_t block = nodes[i].link & gpu::kBlockMask;
+    HostTree::Node& n = tree.nodes[i];
+    n.log_odds = nodes[i].log_odds;
+    n.children = gpu::kNoBlock;
+    n.mask = 0;
+    if (block == gpu::kNoChildren || block >= pool.bump) continue;
+    n.children = block;
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (nodes[std::size_t{block} * 8 + s].link & gpu::kFlagLive) n.mask |= 1u << s;
+  }
   // Free blocks keep stale contents; only what hangs from the root is the tree.
   return tree;
 }
@@ -844,37 +858,40 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
                 "upload: the tree needs " + std::to_string(blocks * 8) +
                     " pool nodes, over the limit of " + std::to_string(blockLimit() * 8ull) +
                     " (MapParams::max_nodes or 2^32); the map is unchanged");
-  std::vector<gpu::BlockMeta> meta(blocks, gpu::BlockMeta{gpu::kNoBlock, 0, 0, 0});
-  std::vector<gpu::Node> nodes(blocks * 8, gpu::Node{0.0f, gpu::kNoBlock, 0});
-  std::memcpy(nodes.data(), tree.nodes.data(), tree.nodes.size() * sizeof(gpu::Node));
+  std::vector<std::uint32_t> parents(blocks, gpu::kNoBlock);
+  std::vector<gpu::Node> nodes(blocks * 8, gpu::Node{0.0f, gpu::kNoChildren});
   std::uint32_t live = 0;
   if (tree.root_exists) {
-    // Walk from the root to fill in where each block hangs (for the leaf boxes).
+    if (tree.nodes.empty()) throw Error(ErrorCode::kFormat, "upload: the tree has no root node");
+    // Walk from the root: each node that hangs in the tree exists (kFlagLive) and each child
+    // block records its parent.
     struct Item {
-      std::uint32_t node, depth, kx, ky, kz;
+      std::uint32_t node, depth;
     };
-    std::vector<Item> stack{{gpu::kRootNode, 0, 0, 0, 0}};
+    std::vector<Item> stack{{gpu::kRootNode, 0}};
     while (!stack.empty()) {
       const Item it = stack.back();
       stack.pop_back();
       ++live;
-      const gpu::Node& n = nodes[it.node];
+      const HostTree::Node& n = tree.nodes[it.node];
+      gpu::Node& g = nodes[it.node];
+      g.log_odds = n.log_odds;
+      g.link = gpu::kNoChildren | gpu::kFlagLive;
       if ((n.mask & gpu::kChildMask) == 0) continue;
-      if (n.children >= blocks || n.children == 0 || it.depth >= gpu::kTreeDepth)
+      if (n.children >= blocks || n.children == 0 || it.depth >= gpu::kTreeDepth ||
+          std::size_t{n.children} * 8 + 8 > tree.nodes.size() ||
+          parents[n.children] != gpu::kNoBlock)
         throw Error(ErrorCode::kFormat, "upload: tree has a child block outside the pool");
-      meta[n.children] = {it.node, it.depth, it.kx | (it.ky << 16), it.kz};
-      const std::uint32_t bit = 15 - it.depth;
-      for (std::uint32_t s = 0; s < 8; ++s) {
-        if (!(n.mask & (1u << s))) continue;
-        stack.push_back({n.children * 8 + s, it.depth + 1, it.kx | ((s & 1u) << bit),
-                         it.ky | (((s >> 1) & 1u) << bit), it.kz | (((s >> 2) & 1u) << bit)});
-      }
+      g.link = n.children | gpu::kFlagLive;
+      parents[n.children] = it.node;
+      for (std::uint32_t s = 0; s < 8; ++s)
+        if (n.mask & (1u << s)) stack.push_back({n.children * 8 + s, it.depth + 1});
     }
   }
   // Blocks that nothing points at go onto the free stack.
   std::vector<std::uint32_t> free_blocks;
   for (std::uint32_t b = 1; b < blocks; ++b)
-    if (meta[b].parent == gpu::kNoBlock) free_blocks.push_back(b);
+    if (parents[b] == gpu::kNoBlock) free_blocks.push_back(b);
 
   const std::uint32_t capacity = std::min<std::uint32_t>(
       blockLimit(),
@@ -888,19 +905,19 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   pool.live_nodes = live;
 
   const std::size_t node_bytes = nodes.size() * sizeof(gpu::Node);
-  const std::size_t meta_bytes = meta.size() * sizeof(gpu::BlockMeta);
+  const std::size_t meta_bytes = parents.size() * sizeof(std::uint32_t);
   const std::size_t free_bytes = free_blocks.size() * sizeof(std::uint32_t);
   vk::Buffer staging(device_, node_bytes + meta_bytes + free_bytes, true);
   auto* bytes = static_cast<unsigned char*>(staging.mapped());
   std::memcpy(bytes, nodes.data(), node_bytes);
-  std::memcpy(bytes + node_bytes, meta.data(), meta_bytes);
+  std::memcpy(bytes + node_bytes, parents.data(), meta_bytes);
   if (free_bytes) std::memcpy(bytes + node_bytes + meta_bytes, free_blocks.data(), free_bytes);
   gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
   stream_.begin(bindings_);
   stream_.update(params_buf_, &sp, sizeof(sp));
   stream_.update(pool_buf_, &pool, sizeof(pool));
   stream_.copy(staging, nodes_, node_bytes);
-  stream_.copy(staging, block_meta_, meta_bytes, node_bytes);
+  stream_.copy(staging, block_parents_, meta_bytes, node_bytes);
   stream_.copy(staging, free_stack_, free_bytes, node_bytes + meta_bytes);
   stream_.barrier();
   recordLeafBoxes();
