@@ -110,9 +110,6 @@ int probes_spent = 0;
 uint insertBrick(uint64_t brick) {
   uint cap = params.hash_capacity;
   uint mask = cap - 1u;
-  // Once the set is known to be too small the scan is redone with a larger one: stop early
-  // rather than probe a crowded table.
-  if ((counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
   uint s = brickSlot(brick, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
     ++probes_spent;
@@ -120,6 +117,9 @@ uint insertBrick(uint64_t brick) {
     // near the sensor), and reading avoids an atomic on a hot slot.
     uint64_t seen = hash_keys[s];
     if (seen == brick) return s;
+    // Off the fast path: once the set is known to be too small the scan is redone with a larger
+    // one, so stop rather than probe a crowded table.
+    if (probe == 0u && (counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
     uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, brick) : seen;
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.brick_entries, 1u);
@@ -138,25 +138,44 @@ uint insertBrick(uint64_t brick) {
   return 0xFFFFFFFFu;
 }
 
-// The brick the last markCell of this invocation found: a ray's next cells are mostly in it.
-uint64_t marked_brick = kEmptyKey;
+// The brick the last markCell of this invocation found (a ray's next cells are mostly in it), and
+// the cells marked in it that are not yet stored in its flag words.
+uvec3 marked_brick = uvec3(0xFFFFFFFFu);
 uint marked_slot = 0u;
+uvec2 marked_bits = uvec2(0u);
 
-// Puts cell key k into the scan's cell set (as occupied too when `occupied`). False when the set
-// is full.
-bool markCell(uint64_t k, bool occupied) {
-  uint64_t brick = (k >> 2) & 0x00003FFF3FFF3FFFul;
+// Stores the pending marks of the current brick: one atomicOr per brick a ray crosses, not one
+// per cell (none when neighbouring rays stored them already).
+void flushMarks() {
+  uint base = marked_slot * kBrickFlagWords;
+  for (uint w = 0u; w < 2u; ++w) {
+    uint bits = marked_bits[w];
+    if (bits != 0u && (hash_flags[base + w] & bits) != bits) atomicOr(hash_flags[base + w], bits);
+  }
+  marked_bits = uvec2(0u);
+}
+
+// Marks cell k in the scan's cell set (as occupied too when `occupied`). False when the set is
+// full. The marks of a brick are stored when the ray leaves it; the invocation calls flushMarks()
+// when it is done.
+bool markCell(uvec3 k, bool occupied) {
+  uvec3 brick = k >> 2;
   if (brick != marked_brick) {
-    uint s = insertBrick(brick);
+    flushMarks();
+    uint s = insertBrick(packKey(brick));
     if (s == 0xFFFFFFFFu) return false;
     marked_brick = brick;
     marked_slot = s;
   }
-  uint index = uint(k & 3ul) | (uint(k >> 14) & 12u) | (uint(k >> 28) & 48u);
-  uint word = marked_slot * kBrickFlagWords + (index >> 5);
+  uint index = (k.x & 3u) | ((k.y & 3u) << 2) | ((k.z & 3u) << 4);
   uint bit = 1u << (index & 31u);
-  if ((hash_flags[word] & bit) == 0u) atomicOr(hash_flags[word], bit);
-  if (occupied) atomicOr(hash_flags[word + 2u], bit);
+  if (occupied) {
+    uint word = marked_slot * kBrickFlagWords + (index >> 5);
+    atomicOr(hash_flags[word], bit);
+    atomicOr(hash_flags[word + 2u], bit);
+  } else {
+    marked_bits[index >> 5] |= bit;
+  }
   return true;
 }
 

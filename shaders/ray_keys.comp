@@ -69,7 +69,7 @@ bool walk() {
     double dist = t_max[2] < m01 ? t_max[2] : m01;
     if (dist > double(len)) return true;
     // A full set ends the walk: the scan is redone with a larger one.
-    if (!markCell(packKey(uvec3(cur[0], cur[1], cur[2])), false)) return true;
+    if (!markCell(uvec3(cur[0], cur[1], cur[2]), false)) return true;
   }
   return false;
 }
@@ -92,7 +92,7 @@ bool insertRay(vec3 o, vec3 e) {
       !coordToKeyChecked(e.z, key_end.z))
     return false;
   if (ko == key_end) return true;
-  markCell(packKey(ko), false);
+  markCell(ko, false);
   cur = uint[3](ko.x, ko.y, ko.z);
   setUp(o, e, true);
   if (!walk()) save(0u, e);
@@ -125,6 +125,7 @@ void main() {
   budget = int(pc.level);
   if (pc.mode == 2u) {
     continueWalk(i);
+    flushMarks();
     return;
   }
   vec3 p;
@@ -150,7 +151,7 @@ void main() {
     uvec3 k;
     if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
         coordToKeyChecked(p.z, k.z)) {
-      markCell(packKey(k), true);
+      markCell(k, true);
       inserted = true;
     }
     inserted = insertRay(o, p) || inserted;
@@ -169,4 +170,5 @@ void main() {
     inserted = insertRay(o, vec3(ex, ey, ez));
   }
   if (!inserted) atomicAdd(counters.skipped_outside, 1u);
+  flushMarks();
 }
