@@ -84,9 +84,13 @@ double normOf(float x, float y, float z) {
 
 // ---- the hash sets of cell keys ----
 
-// Slot of a brick key in the cell set.
+// Slot of a brick key in the cell set: the 2x2x2 group of bricks around it hashes to 8 adjacent
+// slots (one cache line of keys), so a ray's next brick, and the bricks of neighbouring rays,
+// are mostly in a line already read.
 uint brickSlot(uint64_t brick, uint log2cap) {
-  return uint((brick * 0x9E3779B97F4A7C15ul) >> (64u - log2cap));
+  uint64_t group = (brick >> 1) & 0x00007FFF7FFF7FFFul;
+  uint local = uint(brick & 1ul) | uint((brick >> 15) & 2ul) | uint((brick >> 30) & 4ul);
+  return (uint((group * 0x9E3779B97F4A7C15ul) >> (67u - log2cap)) << 3) | local;
 }
 
 // Slot of a key of the second set (a node's key and depth, see prefixKey): the 2x2x2 brick of
