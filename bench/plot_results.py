@@ -67,18 +67,22 @@ def main():
             "set key bottom right\n"
             "plot " + SCAN_SERIES.format(f=f) + "\nunset logscale\n")
 
-    fr079_sets = [(d["fr079"], "")] if "fr079" in d else []
+    def leaf_label(fr079):
+        every = fr079.get("leaf_boxes_every_scan", True)
+        return ", leaf boxes every scan" if every else ", leaf boxes on demand"
+
+    # (FR-079 results, label suffix, whether to draw OctoMap's line too: once, from the main run)
+    fr079_sets = [(d["fr079"], leaf_label(d["fr079"]), True)] if "fr079" in d else []
     for path in more:
         with open(path) as f:
             extra = json.load(f)
         if "fr079" in extra:
-            lazy = not extra["fr079"]["leaf_boxes_every_scan"]
-            fr079_sets.append((extra["fr079"], ", leaf boxes on demand" if lazy else ""))
+            fr079_sets.append((extra["fr079"], leaf_label(extra["fr079"]), not fr079_sets))
     if fr079_sets:
         plots = []
         window = 100
-        runs = [(run, suffix) for fr079, suffix in fr079_sets for run in fr079["runs"]]
-        for k, (run, suffix) in enumerate(runs, start=1):
+        runs = [(run, suffix, main) for fr079, suffix, main in fr079_sets for run in fr079["runs"]]
+        for k, (run, suffix, main) in enumerate(runs, start=1):
             cols = run["columns"]
             i_om, i_vk = cols.index("octomap_insert_ms"), cols.index("octovk_wall_ms")
             i_nodes = cols.index("octovk_nodes")
@@ -92,10 +96,10 @@ def main():
             write(f, data)
             r = run["resolution"]
             dash = 1 if r >= 0.1 else 2
-            if not suffix:
+            if main:
                 plots.append(f"'{f}' u 1:2 w l lw 2 lc rgb '#c0392b' dt {dash} "
                              f"t 'OctoMap insertPointCloud, {r:g} m'")
-            colour = "#5dade2" if suffix else "#2471a3"
+            colour = "#2471a3" if main else "#5dade2"
             plots.append(f"'{f}' u 1:3 w l lw 2 lc rgb '{colour}' dt {dash} "
                          f"t 'octovk wall, {r:g} m{suffix}'")
         panels.append(

@@ -59,7 +59,7 @@ uint listBase(uint list) { return pc.offset + 10u * pc.count + list * pc.count; 
 
 void postpone(uint list, uint i) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
-  if (at % kWorkgroupSize == 0u) atomicAdd(counters.walk_args[list].x, 1u);
+  if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
   state_words[listBase(list) + at] = i;
 }
 

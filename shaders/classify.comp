@@ -8,8 +8,8 @@
 
 void main() {
   uint i = invocationIndex();
-  // A set found too small (the scan is redone) or a list too long (refused): nothing to classify.
-  if ((counters.status & (kStatusHashFull | kStatusTooManyCells)) != 0u) return;
+  // A set found too small (the scan is redone): nothing to classify.
+  if ((counters.status & kStatusHashFull) != 0u) return;
   if (i >= counters.cell_entries) return;
   uint slot = cell_list[i];
   bool occupied = cellOccupied(slot);

@@ -32,7 +32,18 @@ layout(std430, binding = 18) buffer CellListBuf { uint cell_list[]; };
 
 const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
 
-// Work item index of a 1-D workload folded into x and y by the host.
+// Keeps the indirect dispatch arguments `args` covering a list of `end` entries: groups of 64
+// entries, at most 65535 groups in x (the limit every device has), then rows of them in y, as the
+// host folds direct dispatches. Called by the entry that starts a group; atomicMax makes the
+// order of the callers irrelevant.
+#define OCTOVK_COVER_LIST(args, end)                                  \
+  {                                                                   \
+    uint groups_ = ((end) + kWorkgroupSize - 1u) / kWorkgroupSize;    \
+    atomicMax(args.x, min(groups_, 65535u));                          \
+    atomicMax(args.y, (groups_ + 65534u) / 65535u);                   \
+  }
+
+// Work item index of a 1-D workload folded into x and y (by the host, or OCTOVK_COVER_LIST).
 uint invocationIndex() {
   return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
 }
@@ -128,10 +139,7 @@ uint insertBrick(uint64_t brick) {
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.brick_entries, 1u);
       slots[n] = s;
-      // The bricks are walked by an indirect dispatch, which may not exceed the device's group
-      // count: beyond it the scan is refused.
-      if (n >= params.max_list_entries) atomicOr(counters.status, kStatusTooManyCells);
-      else if (n % kWorkgroupSize == 0u) atomicAdd(counters.brick_args.x, 1u);
+      if (n % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.brick_args, n + 1u);
       if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
       return s;
     }

@@ -13,19 +13,12 @@ void main() {
   uint count = uint(bitCount(lo) + bitCount(hi));
   uint at = atomicAdd(counters.cell_entries, count);
   uint end = at + count;
-  // A list longer than its buffer: the scan is redone with larger sets. Longer than one indirect
-  // dispatch covers: the scan is refused.
+  // A list longer than its buffer: the scan is redone with larger sets.
   if (end > params.cell_capacity) {
     atomicOr(counters.status, kStatusHashFull);
     return;
   }
-  if (end > params.max_list_entries) {
-    atomicOr(counters.status, kStatusTooManyCells);
-    return;
-  }
-  // Groups of 64 entries that this range starts: together they make ceil(total / 64).
-  uint groups = (end + kWorkgroupSize - 1u) / kWorkgroupSize - (at + kWorkgroupSize - 1u) / kWorkgroupSize;
-  if (groups != 0u) atomicAdd(counters.cell_args.x, groups);
+  if (count != 0u) OCTOVK_COVER_LIST(counters.cell_args, end);
   uint base = slot * kCellsPerBrick;
   while (lo != 0u) {
     int b = findLSB(lo);

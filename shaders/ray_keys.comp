@@ -91,7 +91,7 @@ bool walk() {
 
 void save(uint list, vec3 e) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
-  if (at % kWorkgroupSize == 0u) atomicAdd(counters.walk_args[list].x, 1u);
+  if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
   walks[list * params.point_count + at] =
       WalkState(t_max[0], t_max[1], t_max[2], e.x, e.y, e.z, cur[0] | (cur[1] << 16), cur[2], 0u);
 }

@@ -21,7 +21,7 @@ float cellUpdate(uint id) {
 void appendTouched(uint level, uint node) {
   uint at = atomicAdd(counters.touched_count[level], 1u);
   touched[level * params.active_capacity + at] = node;
-  if (at % kWorkgroupSize == 0u) atomicAdd(counters.touched_args[level].x, 1u);
+  if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.touched_args[level], at + 1u);
 }
 
 // Lists `parent` (at depth `level`) once for the prune pass at that level.

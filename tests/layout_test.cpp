@@ -68,7 +68,7 @@ static_assert(offsetof(ScanParams, trans_x) == 92);
 static_assert(offsetof(ScanParams, trans_y) == 96);
 static_assert(offsetof(ScanParams, trans_z) == 100);
 static_assert(offsetof(ScanParams, occupancy_log) == 104);
-static_assert(offsetof(ScanParams, max_list_entries) == 108);
+static_assert(offsetof(ScanParams, pad1) == 108);
 static_assert(offsetof(ScanParams, cell_capacity) == 112);
 static_assert(offsetof(ScanParams, pad0) == 116);
 
@@ -274,7 +274,7 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindParams, ScanParams, trans_y, F, 121),
       OCTOVK_FIELD(kBindParams, ScanParams, trans_z, F, 122),
       OCTOVK_FIELD(kBindParams, ScanParams, occupancy_log, F, 123),
-      OCTOVK_FIELD(kBindParams, ScanParams, max_list_entries, U, 124),
+      OCTOVK_FIELD(kBindParams, ScanParams, pad1, U, 124),
       OCTOVK_FIELD(kBindParams, ScanParams, cell_capacity, U, 125),
       OCTOVK_FIELD(kBindParams, ScanParams, pad0, U, 126),
 

@@ -435,6 +435,26 @@ TEST(SetGrowth, DenseBundleOfRaysOutgrowsTheCellList) {
   EXPECT_GT(stats.cell_set_attempts, 1u);
 }
 
+// More distinct cells than one row of 65535 workgroups of 64 covers (4,194,240, lavapipe's
+// limit in x): the lists of the scan are walked by indirect dispatches folded into y.
+TEST(SetGrowth, MoreCellsThanOneRowOfWorkgroups) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(11);
+  std::normal_distribution<float> n(0.0f, 1.0f);
+  const Eigen::Vector3f origin(0.01f, 0.02f, 0.03f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 12000; ++i) {
+    const Eigen::Vector3f d(n(rng), n(rng), n(rng));
+    pts.push_back(origin + d.normalized() * 20.0f);
+  }
+  ScanStats stats;
+  ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats));
+  EXPECT_GT(stats.free_cells, 4194240u);
+}
+
 // ---- conflicts within one scan ---------------------------------------------------------------
 
 TEST(Conflicts, OccupiedWinsOverFreeInOneScan) {

@@ -41,8 +41,7 @@ OCTOVK_CONST uint kBrickFlagWords = 4u;
 // Status bits in ScanCounters::status.
 OCTOVK_CONST uint kStatusHashFull = 1u;
 OCTOVK_CONST uint kStatusPoolFull = 2u;
-OCTOVK_CONST uint kStatusRayCut = 8u;         // a ray walk was stopped by the device's loop limit
-OCTOVK_CONST uint kStatusTooManyCells = 16u;  // more cells than one indirect dispatch covers
+OCTOVK_CONST uint kStatusRayCut = 8u;  // a ray walk was stopped by the device's loop limit
 OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of the scan is full
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
@@ -103,7 +102,7 @@ struct ScanParams {
   float trans_y;             // 4B (96)
   float trans_z;             // 4B (100)
   float occupancy_log;       // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
-  uint max_list_entries;     // 4B (108) most entries of an indirectly walked list (groups x 64)
+  uint pad1;                 // 4B (108)
   uint cell_capacity;        // 4B (112) entries of the cell list and the active-cell list
   uint pad0;                 // 4B (116)
 };

@@ -322,8 +322,6 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
   sp.active_capacity = static_cast<std::uint32_t>(active_capacity_);
   sp.cell_capacity = (1u << hash_log2_) * kCellsPerBrickSlot;
   sp.occupancy_log = logs_.occupancy;
-  sp.max_list_entries = static_cast<std::uint32_t>(std::min<std::uint64_t>(
-      std::uint64_t{device_.maxGroupsX()} * gpu::kWorkgroupSize, 0xFFFFFFFFu));
   if (pose) {
     sp.rot_u = pose->rotation.w();
     sp.rot_x = pose->rotation.x();
@@ -529,12 +527,6 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
                       device_.info().name +
                       "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
                       "or a max range");
-    if (counters.status & gpu::kStatusTooManyCells)
-      throw Error(ErrorCode::kInvalidArgument,
-                  "insertPointCloud: the scan touches more than " +
-                      std::to_string(std::uint64_t{device_.maxGroupsX()} * gpu::kWorkgroupSize) +
-                      " distinct cells, more than the device '" + device_.info().name +
-                      "' dispatches at once; the map is unchanged. Split the scan");
     if (counters.status & gpu::kStatusHashFull) {
       if (hash_log2_ + 2 > kMaxHashLog2)
         throw Error(ErrorCode::kOutOfDeviceMemory,
