@@ -247,10 +247,11 @@ int main(int argc, char** argv) {
               std::thread::hardware_concurrency());
   std::printf("- OctoMap: liboctomap %s (single-threaded), lazy_eval off, discretize off\n",
               OCTOVK_BENCH_OCTOMAP_VERSION);
-  std::printf("- octovk leaf boxes: %s\n", args.bench.leaf_boxes_every_scan
-                                               ? "rebuilt after every scan (setLeafBoxesEveryScan(true); "
-                                                 "the library default is on demand)"
-                                               : "rebuilt on demand (--lazy-leaf-boxes, the library default)");
+  std::printf("- octovk leaf boxes: %s\n",
+              args.bench.leaf_boxes_every_scan
+                  ? "rebuilt after every scan (setLeafBoxesEveryScan(true); "
+                    "the library default is on demand)"
+                  : "rebuilt on demand (--lazy-leaf-boxes, the library default)");
   std::fflush(stdout);
 
   std::ostringstream json_text;

@@ -75,9 +75,8 @@ void main() {
     uint prefix_slot;
     uint inserted = insertEndpoint(prefixKey(k, d), prefix_slot);
     if (inserted != 1u) break;  // present, or the set is full (the scan is then redone)
-    uint entry = atomicAdd(counters.new_blocks, 1u);
-    countEndpointEntry(entry, prefix_slot);
-    prefix_blocks[prefix_slot] =
-        NewBlock(entry, d == known_depth ? known_node : kNoBlock, source, kNoBlock);
+    countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
+    uint node = d == known_depth ? known_node : kNoBlock;
+    prefix_blocks[prefix_slot] = NewBlock(node, source, kNoBlock);
   }
 }

@@ -39,10 +39,9 @@ void probeActiveCell(uint i, uint id) {
 }
 
 void probeNewBlock(uint i, uint id) {
-  prefix_blocks[i].entry = mu(id);
-  prefix_blocks[i].node = mu(id + 1u);
-  prefix_blocks[i].source = mu(id + 2u);
-  prefix_blocks[i].block = mu(id + 3u);
+  prefix_blocks[i].node = mu(id);
+  prefix_blocks[i].source = mu(id + 1u);
+  prefix_blocks[i].block = mu(id + 2u);
 }
 
 void probeLeafBox(uint i, uint id) {

@@ -72,11 +72,10 @@ static_assert(offsetof(ScanParams, pad1) == 108);
 static_assert(offsetof(ScanParams, cell_capacity) == 112);
 static_assert(offsetof(ScanParams, pad0) == 116);
 
-static_assert(sizeof(NewBlock) == 16);
-static_assert(offsetof(NewBlock, entry) == 0);
-static_assert(offsetof(NewBlock, node) == 4);
-static_assert(offsetof(NewBlock, source) == 8);
-static_assert(offsetof(NewBlock, block) == 12);
+static_assert(sizeof(NewBlock) == 12);
+static_assert(offsetof(NewBlock, node) == 0);
+static_assert(offsetof(NewBlock, source) == 4);
+static_assert(offsetof(NewBlock, block) == 8);
 
 static_assert(sizeof(ActiveCell) == 16);
 static_assert(offsetof(ActiveCell, slot) == 0);
@@ -199,7 +198,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(PoolState), 32u);
   EXPECT_EQ(sizeof(ScanParams), 120u);
   EXPECT_EQ(sizeof(ActiveCell), 16u);
-  EXPECT_EQ(sizeof(NewBlock), 16u);
+  EXPECT_EQ(sizeof(NewBlock), 12u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
   EXPECT_EQ(sizeof(ScanCounters), 448u);
   EXPECT_EQ(sizeof(WalkState), 48u);
@@ -312,14 +311,12 @@ std::vector<Field> probedFields() {
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, node, U, 726),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, parent, U, 727),
       OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, depth, U, 728),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, entry, U, 730),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, node, U, 731),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, source, U, 732),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, block, U, 733),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, entry, U, 735),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, node, U, 736),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, source, U, 737),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, block, U, 738),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, node, U, 730),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, source, U, 731),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, block, U, 732),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, node, U, 735),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, source, U, 736),
+      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, block, U, 737),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_x, F, 740),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_y, F, 741),
       OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_z, F, 742),
@@ -534,7 +531,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   stream.submitAndWait();
 
   const std::vector<Field> fields = probedFields();
-  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 30u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 28u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
                                2u * (4u + 9u) + 5u * kLevelCount + 1u /* slots */ +
                                3u /* cell_args */ + 2u /* ScanParams */ +
                                6u /* brick_args, cell_entries, cell_list, block_parent */);

@@ -108,14 +108,13 @@ struct ScanParams {
 };
 
 // A node that gets a block of children in this scan: one per entry of the second set, at the
-// entry's slot. Written by classify (entry, node, source) and alloc (block). 16 B.
+// entry's slot. Written by classify (node, source) and alloc (block). 12 B.
 struct NewBlock {
-  uint entry;   // 4B (0)  index of the entry (the n-th new block of the scan)
-  uint node;    // 4B (4)  the node, when it exists before alloc runs; else kNoBlock (it lies in
+  uint node;    // 4B (0)  the node, when it exists before alloc runs; else kNoBlock (it lies in
                 //         the block of the entry one level up)
-  uint source;  // 4B (8)  the pruned leaf whose value the block's 8 children take (expandNode),
+  uint source;  // 4B (4)  the pruned leaf whose value the block's 8 children take (expandNode),
                 //         or kNoBlock: a node created in this scan (createNodeChild)
-  uint block;   // 4B (12) the block given to the node
+  uint block;   // 4B (8)  the block given to the node
 };
 // Per-cell state of the descent through the tree, one per active cell. 16 B.
 struct ActiveCell {
