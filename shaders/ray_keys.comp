@@ -6,9 +6,9 @@
 // OccupancyOcTreeBase::computeUpdate.
 //
 // A walk stops after pc.level loop iterations (steps and hash probes) and is saved to a list;
-// mode 2 continues the walks of one list (pc.offset) and saves the unfinished ones to the other. llvmpipe (lavapipe)
-// ends an invocation's loops after 65535 iterations in total; a GPU gets a budget that finishes
-// every ray at once.
+// mode 2 continues the walks of one list (pc.offset) and saves the unfinished ones to the other.
+// llvmpipe (lavapipe) ends an invocation's loops after 65535 iterations in total; a GPU gets a
+// budget that finishes every ray at once.
 #include "common.glsl"
 
 layout(std430, binding = 16) buffer WalkBuf { WalkState walks[]; };
