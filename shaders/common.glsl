@@ -93,7 +93,7 @@ double normOf(float x, float y, float z) {
   return sqrt(double(sq));
 }
 
-// ---- the hash sets of cell keys ----
+// ---- the scan's two hash sets: bricks of cells, and nodes (end cells for discretize) ----
 
 // Slot of a brick key in the cell set: the 2x2x2 group of bricks around it hashes to 8 adjacent
 // slots (one cache line of keys), so a ray's next brick, and the bricks of neighbouring rays,
