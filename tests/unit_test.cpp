@@ -293,6 +293,53 @@ TEST(BadInput, EmptyScanLeavesTheMapUnchanged) {
   EXPECT_TRUE(test::sameLeaves(oracle, map));
 }
 
+// upload() takes a host tree from the caller: one whose child blocks lie outside it, are shared
+// by two nodes, or that claims a root it does not have is refused, and the map keeps its tree.
+TEST(BadInput, MalformedHostTreeUploadThrowsAndLeavesTheMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(8);
+  const auto pts = randomScan(rng, Eigen::Vector3f::Zero(), 200, 2.0f);
+  ASSERT_TRUE(insertBoth(map, oracle, pts, Eigen::Vector3f::Zero(), -1.0, false));
+  const std::string before = test::otBytes(*toOcTree(map));
+  const HostTree good = map.download();
+  constexpr std::uint32_t kRoot = 0, kChildBits = 0xFFu;  // HostTree: root at 0, mask bits 0-7
+  ASSERT_TRUE(good.root_exists);
+  ASSERT_NE(good.nodes[kRoot].mask & kChildBits, 0u);
+  const std::uint32_t root_block = good.nodes[kRoot].children;
+
+  auto expectFormatError = [&](const HostTree& tree, const char* what) {
+    try {
+      map.upload(tree);
+      ADD_FAILURE() << "no exception for " << what;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kFormat) << what << ": " << e.what();
+    }
+    EXPECT_EQ(test::otBytes(*toOcTree(map)), before) << "map changed by " << what;
+    EXPECT_EQ(map.nodeCount(), oracle.size()) << what;
+  };
+  HostTree outside = good;
+  outside.nodes[kRoot].children = static_cast<std::uint32_t>(good.nodes.size() / 8 + 5);
+  expectFormatError(outside, "a child block outside the tree");
+  HostTree shared = good;
+  // A child of the root that has children of its own gets the root's block as well: a cycle.
+  for (std::uint32_t s = 0; s < 8; ++s) {
+    HostTree::Node& child = shared.nodes[root_block * 8 + s];
+    if ((good.nodes[kRoot].mask & (1u << s)) && (child.mask & kChildBits)) {
+      child.children = root_block;
+      break;
+    }
+  }
+  expectFormatError(shared, "a block shared by two nodes");
+  HostTree rootless;
+  rootless.root_exists = true;
+  expectFormatError(rootless, "a root without nodes");
+  // The tree it had still takes scans like OctoMap's.
+  ASSERT_TRUE(insertBoth(map, oracle, pts, Eigen::Vector3f(0.3f, 0.1f, 0.0f), -1.0, false));
+}
+
 TEST(BadInput, NonFiniteOriginOrMaxRangeThrowsAndLeavesTheMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const MapParams params = withResolution(0.1);
