@@ -26,14 +26,13 @@ void emit(uvec3 key, uint depth, float log_odds) {
   // OcTreeBaseImpl::keyToCoord(key, depth), in double, then to float.
   uint shift = kTreeDepth - depth;
   double size = params.resolution * double(1u << shift);
-  vec3 centre;
-  if (depth == 0u) {
-    centre = vec3(0.0);
-  } else if (depth == kTreeDepth) {
-    centre = vec3(float(keyToCoord(key.x)), float(keyToCoord(key.y)), float(keyToCoord(key.z)));
-  } else {
-    dvec3 k = dvec3(ivec3(key) - ivec3(32768));
-    dvec3 c = (floor(k / double(1u << shift)) + 0.5lf) * size;
+  // Below the root: (floor((key - 32768) / 2^shift) + 0.5) * size, where the floor of the
+  // division is an arithmetic shift of the integer; at depth 16 (shift 0, size = resolution)
+  // this is keyToCoord(key) operation for operation. One formula keeps the SIMD lanes of leaves
+  // at different depths together.
+  vec3 centre = vec3(0.0);
+  if (depth != 0u) {
+    precise dvec3 c = (dvec3((ivec3(key) - ivec3(32768)) >> int(shift)) + 0.5lf) * size;
     centre = vec3(c);
   }
   LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, float(size), log_odds);
