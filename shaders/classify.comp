@@ -20,9 +20,15 @@ void main() {
 
   // search(): the deepest existing node on the path; a node with other children but not this
   // one means "not found". depth = depth of the deepest existing node (0 without a root).
-  uint n = kRootNode, parent = kNoBlock, depth = 0u;
-  bool found = pool.root_exists != 0u;
-  if (found) {
+  // list_cells searched down to the brick's node for all cells of the brick; an open search
+  // goes on from there.
+  uint brick = (slot / kCellsPerBrick) * kBrickFlagWords;
+  uint n = hash_flags[brick];
+  uint shared_search = hash_flags[brick + 1u];
+  uint depth = shared_search & 0xFFu;
+  bool found = (shared_search & kBrickFound) != 0u;
+  uint parent = n == kRootNode ? kNoBlock : block_parent[n / 8u];
+  if ((shared_search & kBrickOpen) != 0u) {
     for (; depth < kTreeDepth; ++depth) {
       uint block = childBlock(n);
       if (block == kNoChildren) break;  // a leaf (pruned above depth 16): found

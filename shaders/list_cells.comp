@@ -2,6 +2,8 @@
 #extension GL_GOOGLE_include_directive : require
 // Lists the scan's distinct cells: for every brick of the cell set, the ids of its touched cells
 // go to the cell list, which classify walks. The list's indirect dispatch arguments grow with it.
+// Then the search of the tree that all cells of the brick share (OctoMap's search() down to the
+// brick's node at depth 14) replaces the touched bits, so classify only searches the last levels.
 #include "common.glsl"
 
 void main() {
@@ -19,6 +21,32 @@ void main() {
     return;
   }
   if (count != 0u) OCTOVK_COVER_LIST(counters.cell_args, end);
+
+  // The shared part of search(): the tree as it was before the scan (the classify loop, to the
+  // brick's depth).
+  uvec3 k = unpackKey(hash_keys[slot]) << 2;
+  uint n = kRootNode, depth = 0u;
+  bool found = pool.root_exists != 0u;
+  bool open = found;
+  if (found) {
+    for (; depth < kBrickDepth; ++depth) {
+      uint block = childBlock(n);
+      if (block == kNoChildren) {  // a leaf (pruned above the brick): found
+        open = false;
+        break;
+      }
+      uint child = block * 8u + childIndex(k, depth);
+      if ((nodes[child].link & kFlagLive) == 0u) {
+        found = false;
+        open = false;
+        break;
+      }
+      n = child;
+    }
+  }
+  hash_flags[slot * kBrickFlagWords] = n;
+  hash_flags[slot * kBrickFlagWords + 1u] =
+      depth | (found ? kBrickFound : 0u) | (open ? kBrickOpen : 0u);
   uint base = slot * kCellsPerBrick;
   while (lo != 0u) {
     int b = findLSB(lo);

@@ -35,8 +35,14 @@ OCTOVK_CONST uint kChildMask = 0xFFu;
 // words 0-1 one bit per cell of the brick that the scan touches, words 2-3 one bit per cell that
 // is an end point (occupied wins). Cell index in the brick: x | y << 2 | z << 4 (low key bits);
 // a cell's id is brick slot * 64 + index.
+// Once list_cells has listed a brick's cells, words 0-1 hold instead the search of the tree
+// down to the brick's node (depth 14), shared by its cells: word 0 the deepest node reached,
+// word 1 its depth | kBrickFound | kBrickOpen (the brick's node exists: cells search on).
 OCTOVK_CONST uint kCellsPerBrick = 64u;
 OCTOVK_CONST uint kBrickFlagWords = 4u;
+OCTOVK_CONST uint kBrickDepth = 14u;
+OCTOVK_CONST uint kBrickFound = 0x100u;
+OCTOVK_CONST uint kBrickOpen = 0x200u;
 
 // Status bits in ScanCounters::status.
 OCTOVK_CONST uint kStatusHashFull = 1u;
