@@ -51,10 +51,9 @@ void main() {
   // Cells whose leaf exists need no descent: they are kept at the back of `cells`.
   uint at;
   if (depth == kTreeDepth) {
-    at = params.cell_capacity - 1u - atomicAdd(counters.first_depth_hist[kTreeDepth], 1u);
+    at = params.cell_capacity - 1u - atomicAdd(counters.leaf_cells, 1u);
   } else {
     at = atomicAdd(counters.active_cells, 1u);
-    atomicAdd(counters.first_depth_hist[depth], 1u);
   }
   cells[at] = ActiveCell(slot, n, parent, depth);
 

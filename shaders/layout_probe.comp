@@ -84,7 +84,7 @@ void main() {
   params.cell_capacity = mu(125u);
   params.pad0 = mu(126u);
 
-  // ScanCounters: scalars 200 + field index; arrays from 300, 340; walk_count 370 + list,
+  // ScanCounters: scalars 200 + field index; touched_count 340 + level; walk_count 370 + list,
   // walk_args 380 + 3 * list + component; touched_args 500 + 3 * level + component.
   counters.status = mu(200u);
   counters.brick_entries = mu(201u);
@@ -98,8 +98,8 @@ void main() {
   counters.new_blocks = mu(209u);
   counters.pruned_blocks = mu(210u);
   counters.query_results = mu(211u);
+  counters.leaf_cells = mu(212u);
   for (uint l = 0u; l < kLevelCount; ++l) {
-    counters.first_depth_hist[l] = mu(300u + l);
     counters.touched_count[l] = mu(340u + l);
     counters.touched_args[l].x = mu(500u + 3u * l);
     counters.touched_args[l].y = mu(501u + 3u * l);

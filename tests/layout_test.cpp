@@ -91,7 +91,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 448);
+static_assert(sizeof(ScanCounters) == 384);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, brick_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -104,14 +104,14 @@ static_assert(offsetof(ScanCounters, aborted) == 32);
 static_assert(offsetof(ScanCounters, new_blocks) == 36);
 static_assert(offsetof(ScanCounters, pruned_blocks) == 40);
 static_assert(offsetof(ScanCounters, query_results) == 44);
-static_assert(offsetof(ScanCounters, first_depth_hist) == 48);
-static_assert(offsetof(ScanCounters, touched_count) == 116);
-static_assert(offsetof(ScanCounters, touched_args) == 184);
-static_assert(offsetof(ScanCounters, walk_count) == 388);
-static_assert(offsetof(ScanCounters, walk_args) == 396);
-static_assert(offsetof(ScanCounters, cell_args) == 420);
-static_assert(offsetof(ScanCounters, brick_args) == 432);
-static_assert(offsetof(ScanCounters, cell_entries) == 444);
+static_assert(offsetof(ScanCounters, leaf_cells) == 48);
+static_assert(offsetof(ScanCounters, touched_count) == 52);
+static_assert(offsetof(ScanCounters, touched_args) == 120);
+static_assert(offsetof(ScanCounters, walk_count) == 324);
+static_assert(offsetof(ScanCounters, walk_args) == 332);
+static_assert(offsetof(ScanCounters, cell_args) == 356);
+static_assert(offsetof(ScanCounters, brick_args) == 368);
+static_assert(offsetof(ScanCounters, cell_entries) == 380);
 // Indirect dispatch arguments must be 4-byte aligned inside the buffer.
 static_assert(offsetof(ScanCounters, touched_args) % 4 == 0);
 static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
@@ -200,7 +200,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(NewBlock), 12u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 448u);
+  EXPECT_EQ(sizeof(ScanCounters), 384u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
   EXPECT_EQ(sizeof(LookupResult), 16u);
@@ -246,6 +246,18 @@ std::string subscript(std::uint32_t i) {
   return s;
 }
 
+// The x, y, z fields of the DispatchArgs called `name` at `offset` in ScanCounters, markers
+// id, id + 1, id + 2.
+void addDispatchArgs(std::vector<Field>& f, const std::string& name, std::size_t offset,
+                     std::uint32_t id) {
+  f.push_back({"ScanCounters::" + name + ".x", kBindCounters, offset + offsetof(DispatchArgs, x),
+               Kind::kUint, id});
+  f.push_back({"ScanCounters::" + name + ".y", kBindCounters, offset + offsetof(DispatchArgs, y),
+               Kind::kUint, id + 1});
+  f.push_back({"ScanCounters::" + name + ".z", kBindCounters, offset + offsetof(DispatchArgs, z),
+               Kind::kUint, id + 2});
+}
+
 std::vector<Field> probedFields() {
   constexpr Kind U = Kind::kUint, F = Kind::kFloat, D = Kind::kDouble, U64 = Kind::kUint64;
   std::vector<Field> f = {
@@ -289,6 +301,7 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindCounters, ScanCounters, new_blocks, U, 209),
       OCTOVK_FIELD(kBindCounters, ScanCounters, pruned_blocks, U, 210),
       OCTOVK_FIELD(kBindCounters, ScanCounters, query_results, U, 211),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, leaf_cells, U, 212),
 
       OCTOVK_FIELD(kBindPool, PoolState, bump, U, 600),
       OCTOVK_FIELD(kBindPool, PoolState, capacity, U, 601),
@@ -336,31 +349,16 @@ std::vector<Field> probedFields() {
       Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
       Field{"cell_list[1]", kBindCellList, 1 * sizeof(std::uint32_t), U, 806},
       Field{"block_parent[1]", kBindBlockParents, 1 * sizeof(std::uint32_t), U, 807},
-      Field{"ScanCounters::brick_args.x", kBindCounters,
-            offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, x), U, 393},
-      Field{"ScanCounters::brick_args.y", kBindCounters,
-            offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, y), U, 394},
-      Field{"ScanCounters::brick_args.z", kBindCounters,
-            offsetof(ScanCounters, brick_args) + offsetof(DispatchArgs, z), U, 395},
       OCTOVK_FIELD(kBindCounters, ScanCounters, cell_entries, U, 396),
-      Field{"ScanCounters::cell_args.x", kBindCounters,
-            offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, x), U, 390},
-      Field{"ScanCounters::cell_args.y", kBindCounters,
-            offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, y), U, 391},
-      Field{"ScanCounters::cell_args.z", kBindCounters,
-            offsetof(ScanCounters, cell_args) + offsetof(DispatchArgs, z), U, 392},
   };
+  addDispatchArgs(f, "cell_args", offsetof(ScanCounters, cell_args), 390);
+  addDispatchArgs(f, "brick_args", offsetof(ScanCounters, brick_args), 393);
   for (std::uint32_t w = 0; w < 2; ++w) {
     const std::string at = subscript(w);
-    const std::size_t args = offsetof(ScanCounters, walk_args) + w * sizeof(DispatchArgs);
     f.push_back({"ScanCounters::walk_count" + at, kBindCounters,
                  offsetof(ScanCounters, walk_count) + w * sizeof(std::uint32_t), U, 370 + w});
-    f.push_back({"ScanCounters::walk_args" + at + ".x", kBindCounters,
-                 args + offsetof(DispatchArgs, x), U, 380 + 3 * w});
-    f.push_back({"ScanCounters::walk_args" + at + ".y", kBindCounters,
-                 args + offsetof(DispatchArgs, y), U, 381 + 3 * w});
-    f.push_back({"ScanCounters::walk_args" + at + ".z", kBindCounters,
-                 args + offsetof(DispatchArgs, z), U, 382 + 3 * w});
+    addDispatchArgs(f, "walk_args" + at,
+                    offsetof(ScanCounters, walk_args) + w * sizeof(DispatchArgs), 380 + 3 * w);
     const std::size_t walk = w * sizeof(WalkState);
     const std::uint32_t id = 1000 + 10 * w;
     f.push_back(
@@ -460,17 +458,10 @@ std::vector<Field> probedFields() {
   for (std::uint32_t l = 0; l < kLevelCount; ++l) {
     const std::string at = subscript(l);
     const std::size_t u = sizeof(std::uint32_t);
-    f.push_back({"ScanCounters::first_depth_hist" + at, kBindCounters,
-                 offsetof(ScanCounters, first_depth_hist) + l * u, U, 300 + l});
     f.push_back({"ScanCounters::touched_count" + at, kBindCounters,
                  offsetof(ScanCounters, touched_count) + l * u, U, 340 + l});
-    const std::size_t touched = offsetof(ScanCounters, touched_args) + l * sizeof(DispatchArgs);
-    f.push_back({"ScanCounters::touched_args" + at + ".x", kBindCounters,
-                 touched + offsetof(DispatchArgs, x), U, 500 + 3 * l});
-    f.push_back({"ScanCounters::touched_args" + at + ".y", kBindCounters,
-                 touched + offsetof(DispatchArgs, y), U, 501 + 3 * l});
-    f.push_back({"ScanCounters::touched_args" + at + ".z", kBindCounters,
-                 touched + offsetof(DispatchArgs, z), U, 502 + 3 * l});
+    addDispatchArgs(f, "touched_args" + at,
+                    offsetof(ScanCounters, touched_args) + l * sizeof(DispatchArgs), 500 + 3 * l);
   }
   return f;
 }
@@ -531,8 +522,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   stream.submitAndWait();
 
   const std::vector<Field> fields = probedFields();
-  EXPECT_EQ(fields.size(), 25u + 12u + 8u + 28u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
-                               2u * (4u + 9u) + 5u * kLevelCount + 1u /* slots */ +
+  EXPECT_EQ(fields.size(), 25u + 13u + 8u + 28u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+                               2u * (4u + 9u) + 4u * kLevelCount + 1u /* slots */ +
                                3u /* cell_args */ + 2u /* ScanParams */ +
                                6u /* brick_args, cell_entries, cell_list, block_parent */);
   for (const Field& f : fields) {

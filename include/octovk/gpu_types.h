@@ -143,7 +143,7 @@ struct ScanCounters {
   uint brick_entries;      // 4B (4)   distinct bricks in the cell set
   uint endpoint_entries;   // 4B (8)   distinct end cells (discretize)
   uint active_cells;       // 4B (12)  updated cells whose path needs nodes (those whose leaf
-                           //          exists are counted in first_depth_hist[16])
+                           //          exists are counted in leaf_cells)
   uint skipped_nonfinite;  // 4B (16)  points with NaN or infinite coordinates
   uint skipped_outside;    // 4B (20)  points whose ray or end cell lies outside the map
   uint occupied_cells;     // 4B (24)
@@ -152,15 +152,14 @@ struct ScanCounters {
   uint new_blocks;         // 4B (36)  distinct nodes that get a block of children this scan
   uint pruned_blocks;      // 4B (40)
   uint query_results;      // 4B (44)  entries written by a compacting query (leaves in a box)
-  uint first_depth_hist[kLevelCount];  // 68B (48)  active cells by depth of the deepest existing
-                                       // node
-  uint touched_count[kLevelCount];     // 68B (116) nodes listed for the prune pass, per depth
-  DispatchArgs touched_args[kLevelCount];  // 204B (184)
-  uint walk_count[2];                      // 8B (388) unfinished ray walks, two lists (ping-pong)
-  DispatchArgs walk_args[2];               // 24B (396)
-  DispatchArgs cell_args;                  // 12B (420) groups over the cell list
-  DispatchArgs brick_args;                 // 12B (432) groups over the cell set's bricks
-  uint cell_entries;                       // 4B (444) distinct cells of the scan (the cell list)
+  uint leaf_cells;         // 4B (48)   updated cells whose leaf exists (no descent needed)
+  uint touched_count[kLevelCount];         // 68B (52)  nodes listed for the prune pass, per depth
+  DispatchArgs touched_args[kLevelCount];  // 204B (120)
+  uint walk_count[2];                      // 8B (324) unfinished ray walks, two lists (ping-pong)
+  DispatchArgs walk_args[2];               // 24B (332)
+  DispatchArgs cell_args;                  // 12B (356) groups over the cell list
+  DispatchArgs brick_args;                 // 12B (368) groups over the cell set's bricks
+  uint cell_entries;                       // 4B (380) distinct cells of the scan (the cell list)
 };
 
 // Cell states of a point lookup.

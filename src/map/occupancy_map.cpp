@@ -557,7 +557,7 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
 
   // Cells to update: those whose path needs nodes (descending), and those whose leaf exists.
   const std::uint32_t descending = counters.active_cells;
-  const std::uint32_t active = descending + counters.first_depth_hist[gpu::kTreeDepth];
+  const std::uint32_t active = descending + counters.leaf_cells;
   if (active > 0) {
     // Exactly the blocks the tree passes will take (counted by the classify pass).
     const std::uint64_t bound = counters.new_blocks;
