@@ -28,19 +28,9 @@ void main() {
   uint depth = shared_search & 0xFFu;
   bool found = (shared_search & kBrickFound) != 0u;
   uint parent = n == kRootNode ? kNoBlock : block_parent[n / 8u];
-  if ((shared_search & kBrickOpen) != 0u) {
-    for (; depth < kTreeDepth; ++depth) {
-      uint block = childBlock(n);
-      if (block == kNoChildren) break;  // a leaf (pruned above depth 16): found
-      uint child = block * 8u + childIndex(k, depth);
-      if ((nodes[child].link & kFlagLive) == 0u) {
-        found = false;
-        break;
-      }
-      parent = n;
-      n = child;
-    }
-  }
+  if ((shared_search & kBrickOpen) != 0u &&
+      searchDown(k, kTreeDepth, n, parent, depth) == kSearchMissing)
+    found = false;
   float value = nodes[n].log_odds;
   if (found && ((update >= 0.0 && value >= params.clamp_max_log) ||
                 (update <= 0.0 && value <= params.clamp_min_log))) {

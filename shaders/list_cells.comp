@@ -22,28 +22,13 @@ void main() {
   }
   if (count != 0u) OCTOVK_COVER_LIST(counters.cell_args, end);
 
-  // The shared part of search(): the tree as it was before the scan (the classify loop, to the
-  // brick's depth).
+  // The shared part of search(), on the tree as it was before the scan, to the brick's depth.
   uvec3 k = unpackKey(hash_keys[slot]) << 2;
-  uint n = kRootNode, depth = 0u;
-  bool found = pool.root_exists != 0u;
-  bool open = found;
-  if (found) {
-    for (; depth < kBrickDepth; ++depth) {
-      uint block = childBlock(n);
-      if (block == kNoChildren) {  // a leaf (pruned above the brick): found
-        open = false;
-        break;
-      }
-      uint child = block * 8u + childIndex(k, depth);
-      if ((nodes[child].link & kFlagLive) == 0u) {
-        found = false;
-        open = false;
-        break;
-      }
-      n = child;
-    }
-  }
+  uint n = kRootNode, parent = kNoBlock, depth = 0u;
+  uint ended = kSearchMissing;  // no root
+  if (pool.root_exists != 0u) ended = searchDown(k, kBrickDepth, n, parent, depth);
+  bool found = ended != kSearchMissing;
+  bool open = ended == kSearchOpen;
   hash_flags[slot * kBrickFlagWords] = n;
   hash_flags[slot * kBrickFlagWords + 1u] =
       depth | (found ? kBrickFound : 0u) | (open ? kBrickOpen : 0u);
