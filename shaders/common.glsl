@@ -156,6 +156,15 @@ uvec3 marked_brick = uvec3(0xFFFFFFFFu);
 uint marked_slot = 0u;
 uvec2 marked_bits = uvec2(0u);
 
+// Index of cell k in its 4x4x4 brick: x | y << 2 | z << 4 of the low key bits.
+uint brickCellIndex(uvec3 k) { return (k.x & 3u) | ((k.y & 3u) << 2) | ((k.z & 3u) << 4); }
+
+// Notes cell k of the current brick as marked (stored by flushMarks).
+void noteMark(uvec3 k) {
+  uint index = brickCellIndex(k);
+  marked_bits[index >> 5] |= 1u << (index & 31u);
+}
+
 // Stores the pending marks of the current brick: one atomicOr per brick a ray crosses, not one
 // per cell (none when neighbouring rays stored them already).
 void flushMarks() {
@@ -179,14 +188,14 @@ bool markCell(uvec3 k, bool occupied) {
     marked_brick = brick;
     marked_slot = s;
   }
-  uint index = (k.x & 3u) | ((k.y & 3u) << 2) | ((k.z & 3u) << 4);
-  uint bit = 1u << (index & 31u);
   if (occupied) {
+    uint index = brickCellIndex(k);
     uint word = marked_slot * kBrickFlagWords + (index >> 5);
+    uint bit = 1u << (index & 31u);
     atomicOr(hash_flags[word], bit);
     atomicOr(hash_flags[word + 2u], bit);
   } else {
-    marked_bits[index >> 5] |= bit;
+    noteMark(k);
   }
   return true;
 }

@@ -79,8 +79,7 @@ bool walk() {
         entered = true;
         break;
       }
-      uint index = (c.x & 3u) | ((c.y & 3u) << 2) | ((c.z & 3u) << 4);
-      marked_bits[index >> 5] |= 1u << (index & 31u);
+      noteMark(c);
     }
     if (!entered) return false;
     // A full set ends the walk: the scan is redone with a larger one.
