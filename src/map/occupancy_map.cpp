@@ -870,10 +870,14 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
       g.log_odds = n.log_odds;
       g.link = gpu::kNoChildren | gpu::kFlagLive;
       if ((n.mask & gpu::kChildMask) == 0) continue;
-      if (n.children >= blocks || n.children == 0 || it.depth >= gpu::kTreeDepth ||
-          std::size_t{n.children} * 8 + 8 > tree.nodes.size() ||
-          parents[n.children] != gpu::kNoBlock)
-        throw Error(ErrorCode::kFormat, "upload: tree has a child block outside the pool");
+      if (it.depth >= gpu::kTreeDepth)
+        throw Error(ErrorCode::kFormat, "upload: the tree has nodes below depth 16");
+      if (n.children >= blocks || n.children == 0 ||
+          std::size_t{n.children} * 8 + 8 > tree.nodes.size())
+        throw Error(ErrorCode::kFormat, "upload: the tree has a child block outside its nodes");
+      if (parents[n.children] != gpu::kNoBlock)
+        throw Error(ErrorCode::kFormat,
+                    "upload: the tree has a child block shared by two nodes (a cycle or a copy)");
       g.link = n.children | gpu::kFlagLive;
       parents[n.children] = it.node;
       for (std::uint32_t s = 0; s < 8; ++s)
