@@ -293,6 +293,21 @@ TEST(BadInput, EmptyScanLeavesTheMapUnchanged) {
   EXPECT_TRUE(test::sameLeaves(oracle, map));
 }
 
+// Runs `call`, which must throw octovk::Error with `code`, and checks that the map still holds
+// the tree it had: the same .ot bytes (`before`) and OctoMap's node count (`nodes`).
+template <typename Call>
+void expectRefusedMapKept(Call&& call, ErrorCode code, const char* what, const OccupancyMap& map,
+                          const std::string& before, std::size_t nodes) {
+  try {
+    call();
+    ADD_FAILURE() << "no exception for " << what;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), code) << what << ": " << e.what();
+  }
+  EXPECT_EQ(test::otBytes(*toOcTree(map)), before) << "map changed by " << what;
+  EXPECT_EQ(map.nodeCount(), nodes) << what;
+}
+
 // upload() takes a host tree from the caller: one whose child blocks lie outside it, are shared
 // by two nodes, or that claims a root it does not have is refused, and the map keeps its tree.
 TEST(BadInput, MalformedHostTreeUploadThrowsAndLeavesTheMap) {
@@ -311,14 +326,8 @@ TEST(BadInput, MalformedHostTreeUploadThrowsAndLeavesTheMap) {
   const std::uint32_t root_block = good.nodes[kRoot].children;
 
   auto expectFormatError = [&](const HostTree& tree, const char* what) {
-    try {
-      map.upload(tree);
-      ADD_FAILURE() << "no exception for " << what;
-    } catch (const Error& e) {
-      EXPECT_EQ(e.code(), ErrorCode::kFormat) << what << ": " << e.what();
-    }
-    EXPECT_EQ(test::otBytes(*toOcTree(map)), before) << "map changed by " << what;
-    EXPECT_EQ(map.nodeCount(), oracle.size()) << what;
+    expectRefusedMapKept([&] { map.upload(tree); }, ErrorCode::kFormat, what, map, before,
+                         oracle.size());
   };
   HostTree outside = good;
   outside.nodes[kRoot].children = static_cast<std::uint32_t>(good.nodes.size() / 8 + 5);
@@ -353,14 +362,7 @@ TEST(BadInput, NonFiniteOriginOrMaxRangeThrowsAndLeavesTheMap) {
   const float inf = std::numeric_limits<float>::infinity();
 
   auto expectInvalid = [&](auto&& call, const char* what) {
-    try {
-      call();
-      ADD_FAILURE() << "no exception for " << what;
-    } catch (const Error& e) {
-      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << what << ": " << e.what();
-    }
-    EXPECT_EQ(test::otBytes(*toOcTree(map)), before) << "map changed by " << what;
-    EXPECT_EQ(map.nodeCount(), oracle.size()) << what;
+    expectRefusedMapKept(call, ErrorCode::kInvalidArgument, what, map, before, oracle.size());
   };
   expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(nan, 0.0f, 0.0f)); }, "NaN origin");
   expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(0.0f, inf, 0.0f)); },
