@@ -49,7 +49,7 @@ uint cellState(uvec3 k) {
 }
 
 vec3 keyCentre(uvec3 k) {
-  return vec3(float(keyToCoord(k.x)), float(keyToCoord(k.y)), float(keyToCoord(k.z)));
+  return vec3(toFloat(keyToCoord(k.x)), toFloat(keyToCoord(k.y)), toFloat(keyToCoord(k.z)));
 }
 
 // The output buffer from word pc.offset on: 10 words of walk state per ray, then two lists of
@@ -89,7 +89,7 @@ bool setUp(RayQuery q, bool start) {
   dir[2] = q.direction_z;
   double len = normOf(dir[0], dir[1], dir[2]);
   if (len > 0.0lf) {
-    float l = float(len);
+    float l = toFloat(len);
     dir[0] = divFloat(dir[0], l);
     dir[1] = divFloat(dir[1], l);
     dir[2] = divFloat(dir[2], l);

@@ -33,9 +33,9 @@ void emit(uvec3 key, uint depth, float log_odds) {
   vec3 centre = vec3(0.0);
   if (depth != 0u) {
     precise dvec3 c = (dvec3((ivec3(key) - ivec3(32768)) >> int(shift)) + 0.5lf) * size;
-    centre = vec3(c);
+    centre = toFloat(c);
   }
-  LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, float(size), log_odds);
+  LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, toFloat(size), log_odds);
   if (pc.mode == 0u) leaf_boxes[atomicAdd(pool.leaf_count, 1u)] = leaf;
   else box_leaves[atomicAdd(counters.query_results, 1u)] = leaf;
 }

@@ -29,7 +29,7 @@ void setUp(vec3 o, vec3 e, bool start) {
   dir[0] = e.x - o.x;
   dir[1] = e.y - o.y;
   dir[2] = e.z - o.z;
-  len = float(normOf(dir[0], dir[1], dir[2]));
+  len = toFloat(normOf(dir[0], dir[1], dir[2]));
   dir[0] = divFloat(dir[0], len);
   dir[1] = divFloat(dir[1], len);
   dir[2] = divFloat(dir[2], len);
@@ -42,7 +42,7 @@ void setUp(vec3 o, vec3 e, bool start) {
       if (start) {
         precise double border = keyToCoord(cur[i]);
         precise double half_step = double(step[i]) * params.resolution * 0.5lf;
-        border += double(float(half_step));
+        border += roundedToFloat(half_step);
         t_max[i] = (border - double(org[i])) / double(dir[i]);
       }
     } else {
@@ -153,7 +153,7 @@ void main() {
   } else {
     if (i >= counters.endpoint_entries) return;
     uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
-    p = vec3(float(keyToCoord(kk.x)), float(keyToCoord(kk.y)), float(keyToCoord(kk.z)));
+    p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
   }
   vec3 o = scanOrigin();
   bool inserted = false;
@@ -172,12 +172,12 @@ void main() {
   } else {
     // Point3d::normalized() then origin + direction * (float) maxrange.
     if (dist > 0.0lf) {
-      float l = float(dist);
+      float l = toFloat(dist);
       dx = divFloat(dx, l);
       dy = divFloat(dy, l);
       dz = divFloat(dz, l);
     }
-    float range = float(params.max_range);
+    float range = toFloat(params.max_range);
     precise float ex = o.x + dx * range;
     precise float ey = o.y + dy * range;
     precise float ez = o.z + dz * range;
