@@ -13,6 +13,7 @@ packages=(
   libpng-dev                             # octovk render writes PNG
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
   gnuplot-nox                            # bench/plot_results.py draws the benchmark plot
+  vulkan-validationlayers                # the tests run once under the Khronos validation layer
 )
 
 missing=()

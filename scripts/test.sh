@@ -1,9 +1,66 @@
 #!/usr/bin/env bash
-# Installs what is needed, builds, and runs every test (on lavapipe when there is no GPU).
-# With CI set, a missing Vulkan device fails the Vulkan tests instead of skipping them.
+# Installs what is needed, builds, and runs every test (on lavapipe when there is no GPU):
+#   1. the whole suite on the system's Vulkan driver (Debian's lavapipe, Mesa 22.3, without a GPU);
+#   2. the whole suite again on a second driver, lavapipe from Mesa 25 (scripts/lavapipe25.sh),
+#      because results must not depend on one driver's compiler;
+#   3. the whole suite with the Khronos validation layer (core + synchronization validation):
+#      any validation message fails the test that caused it;
+#   4. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh).
+# Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
+# Vulkan device fails the Vulkan tests instead of skipping them.
+# OCTOVK_TEST_STEPS (default "system mesa25 validation sanitize") picks steps, e.g. "system".
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
+steps="${OCTOVK_TEST_STEPS:-system mesa25 validation sanitize}"
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh"
-cd "$root/build"
-ctest --output-on-failure -j "$(nproc)"
+jobs="$(nproc)"
+failed=()
+
+step() { case " $steps " in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
+run_suite() {  # NAME, then VAR=VALUE words (no spaces) of the environment to run ctest in
+  local name="$1"
+  shift
+  echo "==== tests: $name ===="
+  local t0=$SECONDS
+  if (cd "$root/build" && env "$@" ctest --output-on-failure -j "$jobs"); then
+    echo "==== tests: $name passed ($((SECONDS - t0)) s) ===="
+  else
+    echo "==== tests: $name FAILED ($((SECONDS - t0)) s) ====" >&2
+    failed+=("$name")
+  fi
+}
+
+if step system; then
+  # With a GPU present this runs on it; on a machine without one, on the system's lavapipe.
+  run_suite "system driver"
+fi
+if step mesa25; then
+  if "$root/scripts/lavapipe25.sh" "$root/build/mesa25"; then
+    # env.sh sets VK_DRIVER_FILES, LD_LIBRARY_PATH and OCTOVK_EXPECT_DRIVER (the tests fail if
+    # the device they get is not that driver).
+    # shellcheck source=/dev/null
+    run_suite "Mesa 25 lavapipe" $(source "$root/build/mesa25/env.sh" && echo \
+      "VK_DRIVER_FILES=$VK_DRIVER_FILES LD_LIBRARY_PATH=$LD_LIBRARY_PATH OCTOVK_EXPECT_DRIVER=$OCTOVK_EXPECT_DRIVER")
+  else
+    echo "==== tests: Mesa 25 lavapipe UNAVAILABLE: the second driver could not be fetched ====" >&2
+    failed+=("Mesa 25 lavapipe (unavailable)")
+  fi
+fi
+if step validation; then
+  run_suite "validation layer" OCTOVK_VALIDATION=1
+fi
+if step sanitize; then
+  echo "==== tests: AddressSanitizer + UndefinedBehaviorSanitizer ===="
+  if "$root/scripts/sanitize.sh"; then
+    echo "==== tests: sanitizers passed ===="
+  else
+    failed+=("sanitizers")
+  fi
+fi
+
+if [ ${#failed[@]} -gt 0 ]; then
+  printf 'test.sh: FAILED: %s\n' "${failed[@]}" >&2
+  exit 1
+fi
+echo "test.sh: all steps passed: $steps"

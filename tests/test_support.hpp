@@ -24,7 +24,13 @@ inline Context* sharedContext(std::string* why) {
   static bool tried = false;
   if (!tried) {
     tried = true;
-    auto result = Context::create();
+    // Under OCTOVK_VALIDATION (the library turns the layer on), every validation message fails
+    // the test in whose Vulkan call it arose.
+    ContextOptions options;
+    options.on_validation_message = [](const std::string& message) {
+      ADD_FAILURE() << "Vulkan validation " << message;
+    };
+    auto result = Context::create(options);
     if (result)
       context = std::move(result.value());
     else

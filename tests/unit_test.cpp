@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "test_support.hpp"
+#include "vk/device.hpp"
 
 namespace octovk {
 namespace {
@@ -482,6 +483,47 @@ TEST(Context, SelectorByNameAndIndexFindsTheDevice) {
   ASSERT_TRUE(by_index) << by_index.error().what();
   EXPECT_EQ(by_index.value()->device().index, ctx.device().index);
   EXPECT_FALSE(ctx.device().type.empty());
+}
+
+// scripts/test.sh runs the suite on more than one driver and names the one each run must get
+// (OCTOVK_EXPECT_DRIVER): a run that silently fell back to another driver would prove nothing.
+TEST(Context, RunsOnTheDriverTheRunAskedFor) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  std::printf("device: %s (%s), driver: %s, loop limit: %u (0: none seen)\n",
+              ctx.device().name.c_str(), ctx.device().type.c_str(), ctx.device().driver.c_str(),
+              ctx.vulkan().loopLimit());
+  EXPECT_FALSE(ctx.device().driver.empty());
+  const char* expected = std::getenv("OCTOVK_EXPECT_DRIVER");
+  if (expected && *expected) {
+    EXPECT_NE(ctx.device().driver.find(expected), std::string::npos)
+        << "OCTOVK_EXPECT_DRIVER='" << expected << "' but the device's driver is '"
+        << ctx.device().driver << "'";
+  }
+}
+
+// A validation message reaches the callback of the Context that caused it and is counted (the
+// layer comes from vulkan-validationlayers, which scripts/setup.sh installs).
+TEST(Context, ValidationMessagesReachTheCallback) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  std::vector<std::string> messages;
+  ContextOptions options;
+  options.selector = std::to_string(ctx.device().index);
+  options.enable_validation = true;
+  options.on_validation_message = [&](const std::string& m) { messages.push_back(m); };
+  auto context = Context::create(options);
+  ASSERT_TRUE(context) << context.error().what();
+  const std::size_t before = validationMessageCount();
+  // A deliberate misuse: a buffer of size 0 (VUID-VkBufferCreateInfo-size-00912).
+  vk::Device& device = context.value()->vulkan();
+  VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  info.size = 0;
+  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  VkBuffer buffer = VK_NULL_HANDLE;
+  if (vkCreateBuffer(device.handle(), &info, nullptr, &buffer) == VK_SUCCESS && buffer)
+    vkDestroyBuffer(device.handle(), buffer, nullptr);
+  ASSERT_FALSE(messages.empty());
+  EXPECT_NE(messages.front().find("size"), std::string::npos) << messages.front();
+  EXPECT_GT(validationMessageCount(), before);
 }
 
 // ---- node count and leaf boxes ------------------------------------------------------------------

@@ -220,6 +220,42 @@ struct RayState {
   uint done;       // 4B (36) 1: the result is written
 };
 
+// The device probe (shaders/device_probe.comp, run when a Context is created): one case of the
+// arithmetic check. 32 B.
+struct ProbeCase {
+  double a;  // 8B (0)
+  double b;  // 8B (8)
+  float fa;  // 4B (16)
+  float fb;  // 4B (20)
+  float fc;  // 4B (24)
+  uint pad;  // 4B (28)
+};
+
+// What the device computed for one ProbeCase, compared bit for bit with the host. 64 B.
+struct ProbeResult {
+  double sum;         // 8B (0)  a + b
+  double difference;  // 8B (8)  a - b
+  double product;     // 8B (16) a * b
+  double quotient;    // 8B (24) a / b
+  double root;        // 8B (32) sqrt(|a|)
+  double floor_a;     // 8B (40) floor(a)
+  double rounded;     // 8B (48) roundedToFloat(a): a rounded to float, ties to even
+  float float_madd;   // 4B (56) fa * fb + fc in float, not fused
+  float float_div;    // 4B (60) divFloat(fa, fb)
+};
+
+// Cases of the device probe's arithmetic check (a multiple of the workgroup size).
+OCTOVK_CONST uint kProbeCases = 4096u;
+
+// Head of the probe's output (binding 15), followed by int(floor(a)) of each case (0 where it does
+// not fit an int), then the ProbeResults. 16 B.
+struct ProbeHeader {
+  uint loop_iterations;  // 4B (0) least over the invocations of mode 1
+  uint pad0;             // 4B (4)
+  uint pad1;             // 4B (8)
+  uint pad2;             // 4B (12)
+};
+
 // Leaves-in-a-box query (OctoMap's leaf_bbx_iterator): keys of the box corners. 32 B.
 struct BoxQuery {
   uint min_x;          // 4B (0)

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -85,13 +86,24 @@ struct Pose {
 /// environment variable (index or name substring) overrides when `selector` is empty.
 struct ContextOptions {
   std::string selector;
+  /// Runs every Vulkan call through the Khronos validation layer (core and synchronization
+  /// validation; package vulkan-validationlayers). The OCTOVK_VALIDATION environment variable
+  /// (set and not "0") turns it on too. For debugging and tests: it is slow.
   bool enable_validation = false;
+  /// Receives each validation warning or error (one line each), in the thread of the Vulkan call
+  /// that caused it. Without it, messages go to stderr. Either way they are counted
+  /// (validationMessageCount()).
+  std::function<void(const std::string&)> on_validation_message;
 };
+
+/// Validation messages received by every Context of this process so far.
+std::size_t validationMessageCount() noexcept;
 
 /// The device a Context runs on.
 struct DeviceInfo {
   std::string name;
   std::string type;  ///< "discrete GPU", "integrated GPU", "CPU", ...
+  std::string driver;  ///< driver name and version, e.g. "llvmpipe: Mesa 25.0.7 (LLVM 15.0.6)"
   std::uint32_t index = 0;
   std::uint64_t memory_bytes = 0;
 };

@@ -153,7 +153,14 @@ int main(int argc, char** argv) {
   using namespace octovk::cli;
   try {
     const std::vector<std::string> args(argv + 1, argv + argc);
-    return dispatch(args);
+    const int status = dispatch(args);
+    // Under OCTOVK_VALIDATION a message of the validation layer is a failure of the run.
+    if (const std::size_t messages = octovk::validationMessageCount(); messages > 0) {
+      printError(std::to_string(messages) +
+                 " Vulkan validation message(s) (OCTOVK_VALIDATION is set); see above");
+      return kExitFailure;
+    }
+    return status;
   } catch (const UsageError& e) {
     printError(e.what());
     return kExitUsage;

@@ -1,3 +1,4 @@
+#include "map/device_probe.hpp"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -8,6 +9,17 @@ Context::~Context() = default;
 Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) {
   auto device = vk::Device::create(options);
   if (!device) return device.error();
+  // What the exact walk takes from the device, checked before any map trusts it.
+  auto probe = probeDevice(*device.value());
+  if (!probe) return probe.error();
+  const std::uint32_t limit = probe.value().loop_limit;
+  if (limit != 0 && limit < 4096u)
+    return Error(ErrorCode::kMissingFeature,
+                 "device '" + device.value()->info().name + "' ends shader loops after " +
+                     std::to_string(limit) +
+                     " iterations, too few for the resumable ray walks; choose another device "
+                     "with OCTOVK_DEVICE");
+  device.value()->setLoopLimit(limit);
   return std::unique_ptr<Context>(new Context(std::move(device.value())));
 }
 

@@ -374,20 +374,21 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   stream_.barrier();
   stream_.timestamp();
   if (transform) dispatch("transform_points", sp.point_count, {0, sp.point_count, 0, 0});
-  // lavapipe ends an invocation's loops after 65535 iterations in total (silently, and counted for
-  // 8 lanes at once): there a walk stops after 30000 of its own iterations (steps and hash probes)
-  // and is continued by up to 24 more dispatches, each over the walks left unfinished (3 * 65536
-  // steps reach any border). A walk still unfinished after them is reported. A GPU walks every
-  // ray in one go.
-  const bool loop_limited = device_.info().type == "CPU";
-  const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
+  // Where the driver ends an invocation's loops early (the device probe measures it: llvmpipe
+  // after 65535 iterations in total, silently, counted for 8 lanes at once), a walk stops after
+  // its budget of iterations (steps and hash probes; 30000 there) and is continued by more
+  // dispatches, each over the walks left unfinished (3 * 65536 steps reach any border, 24 of
+  // 30000 leave room for the probes). A walk still unfinished after them is reported. Where no
+  // limit was seen, every ray is walked in one go.
+  const bool loop_limited = device_.loopLimit() != 0;
+  const std::uint32_t budget = device_.walkBudget();
   if (discretize) {
     dispatch("discretize", sp.point_count, {0, sp.point_count, 0, 0});
     dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 1, 0});
   } else {
     dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 0, 0});
   }
-  const std::uint32_t continuations = loop_limited ? 24u : 0u;
+  const std::uint32_t continuations = loop_limited ? (24u * 30000u + budget - 1) / budget : 0u;
   recordContinuations("ray_keys", continuations, [&](std::uint32_t from, bool last) {
     return PassConstants{budget, last ? 0u : 1u, 2, from};
   });
@@ -677,12 +678,12 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
 // castRay for `rays` queries at the start of the query input; results at the start of the
 // output, the walks' scratch from word `state_word` of it.
 void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t state_word) {
-  // lavapipe ends an invocation's loops after 65535 iterations in total, so there the walk runs
-  // in segments of 30000 (see recordRayKeys); the longest castRay (3 * 65536 steps, each with a
-  // search of up to 17 iterations) then needs 112 continuations, over ever fewer rays. A GPU
-  // walks each ray in one segment.
-  const bool loop_limited = device_.info().type == "CPU";
-  const std::uint32_t budget = loop_limited ? 30000u : 0x7FFFFFFFu;
+  // Where the driver limits loops (see recordRayKeys) the walk runs in segments of the walk
+  // budget (30000 on llvmpipe); the longest castRay (3 * 65536 steps, each with a search of up
+  // to 17 iterations) then needs 112 continuations, over ever fewer rays. Elsewhere each ray is
+  // walked in one segment.
+  const bool loop_limited = device_.loopLimit() != 0;
+  const std::uint32_t budget = device_.walkBudget();
   const std::uint32_t continuations = loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
   // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
   // walked) and continued by indirect dispatches, which cost next to nothing once empty.

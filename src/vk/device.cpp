@@ -1,6 +1,8 @@
 #include "vk/device.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <sstream>
@@ -364,16 +366,67 @@ const char* kNoDeviceHint =
     "no Vulkan device found: install Mesa's CPU driver with `apt-get install "
     "mesa-vulkan-drivers` (lavapipe) or a GPU driver, and check `vulkaninfo --summary`";
 
-VkResult makeInstance(bool validation, VkInstance* out) {
+std::atomic<std::size_t> validation_messages{0};
+
+// The validation layer's messages: counted, then given to the Context's callback or stderr.
+VKAPI_ATTR VkBool32 VKAPI_CALL onValidationMessage(
+    VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT,
+    const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
+  validation_messages.fetch_add(1, std::memory_order_relaxed);
+  std::string message = severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "error: "
+                                                                                   : "warning: ";
+  message += data && data->pMessage ? data->pMessage : "(no text)";
+  const auto* sink = static_cast<const std::function<void(const std::string&)>*>(user);
+  if (sink && *sink) {
+    (*sink)(message);
+  } else {
+    std::fprintf(stderr, "octovk: Vulkan validation %s\n", message.c_str());
+    std::fflush(stderr);
+  }
+  return VK_FALSE;
+}
+
+VkDebugUtilsMessengerCreateInfoEXT messengerInfo(const void* sink) {
+  VkDebugUtilsMessengerCreateInfoEXT info{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+  info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                         VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+  info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                     VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                     VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+  info.pfnUserCallback = onValidationMessage;
+  info.pUserData = const_cast<void*>(sink);
+  return info;
+}
+
+bool validationRequested(const ContextOptions& options) {
+  if (options.enable_validation) return true;
+  const char* env = std::getenv("OCTOVK_VALIDATION");
+  return env && *env && std::string(env) != "0";
+}
+
+// With `sink`, the instance runs the validation layer (core and synchronization validation) and
+// reports to it, also while the instance itself is created and destroyed.
+VkResult makeInstance(const std::function<void(const std::string&)>* sink, VkInstance* out) {
   VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
   app.pApplicationName = "octovk";
   app.apiVersion = VK_API_VERSION_1_2;
   VkInstanceCreateInfo info{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
   info.pApplicationInfo = &app;
   const char* layer = "VK_LAYER_KHRONOS_validation";
-  if (validation) {
+  const char* extension = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
+  const VkValidationFeatureEnableEXT enables[] = {
+      VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+  VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+  VkDebugUtilsMessengerCreateInfoEXT messenger = messengerInfo(sink);
+  if (sink) {
     info.enabledLayerCount = 1;
     info.ppEnabledLayerNames = &layer;
+    info.enabledExtensionCount = 1;
+    info.ppEnabledExtensionNames = &extension;
+    features.enabledValidationFeatureCount = 1;
+    features.pEnabledValidationFeatures = enables;
+    features.pNext = &messenger;
+    info.pNext = &features;
   }
   return vkCreateInstance(&info, nullptr, out);
 }
@@ -396,6 +449,13 @@ DeviceInfo describe(VkPhysicalDevice pd, std::uint32_t index) {
   info.name = props.deviceName;
   info.type = typeName(props.deviceType);
   info.index = index;
+  if (props.apiVersion >= VK_API_VERSION_1_2) {
+    VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+    VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+    props2.pNext = &driver;
+    vkGetPhysicalDeviceProperties2(pd, &props2);
+    info.driver = std::string(driver.driverName) + ": " + driver.driverInfo;
+  }
   for (std::uint32_t i = 0; i < mem.memoryHeapCount; ++i)
     if (mem.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
       info.memory_bytes = std::max<std::uint64_t>(info.memory_bytes, mem.memoryHeaps[i].size);
@@ -406,7 +466,7 @@ DeviceInfo describe(VkPhysicalDevice pd, std::uint32_t index) {
 
 std::vector<DeviceInfo> Device::enumerate() {
   InstanceHandle inst;
-  if (makeInstance(false, &inst.instance) != VK_SUCCESS) return {};
+  if (makeInstance(nullptr, &inst.instance) != VK_SUCCESS) return {};
   std::vector<DeviceInfo> out;
   auto devices = physicalDevices(inst.instance);
   for (std::uint32_t i = 0; i < devices.size(); ++i) out.push_back(describe(devices[i], i));
@@ -415,15 +475,28 @@ std::vector<DeviceInfo> Device::enumerate() {
 
 Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   std::unique_ptr<Device> dev(new Device());
-  VkResult r = makeInstance(options.enable_validation, &dev->instance_);
+  const bool validation = validationRequested(options);
+  dev->validation_sink_ = options.on_validation_message;
+  VkResult r = makeInstance(validation ? &dev->validation_sink_ : nullptr, &dev->instance_);
   if (r == VK_ERROR_INCOMPATIBLE_DRIVER || r == VK_ERROR_INITIALIZATION_FAILED)
     return Error(ErrorCode::kNoDevice, kNoDeviceHint);
   if (r == VK_ERROR_LAYER_NOT_PRESENT)
     return Error(ErrorCode::kNoDevice,
                  "Vulkan validation layer requested but not installed: apt-get install "
                  "vulkan-validationlayers");
+  if (r == VK_ERROR_EXTENSION_NOT_PRESENT)
+    return Error(ErrorCode::kNoDevice,
+                 "Vulkan validation requested but VK_EXT_debug_utils is missing: apt-get install "
+                 "vulkan-validationlayers");
   if (r != VK_SUCCESS)
     return Error(ErrorCode::kVulkan, std::string("vkCreateInstance failed with ") + resultName(r));
+  if (validation) {
+    auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(dev->instance_, "vkCreateDebugUtilsMessengerEXT"));
+    const VkDebugUtilsMessengerCreateInfoEXT info = messengerInfo(&dev->validation_sink_);
+    if (!create || create(dev->instance_, &info, nullptr, &dev->messenger_) != VK_SUCCESS)
+      return Error(ErrorCode::kVulkan, "vkCreateDebugUtilsMessengerEXT failed");
+  }
 
   auto devices = physicalDevices(dev->instance_);
   if (devices.empty()) return Error(ErrorCode::kNoDevice, kNoDeviceHint);
@@ -573,6 +646,11 @@ Device::~Device() {
     if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
     vkDestroyDevice(device_, nullptr);
   }
+  if (messenger_) {
+    auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance_, "vkDestroyDebugUtilsMessengerEXT"));
+    if (destroy) destroy(instance_, messenger_, nullptr);
+  }
   if (instance_) vkDestroyInstance(instance_, nullptr);
 }
 
@@ -614,3 +692,9 @@ std::uint32_t Device::memoryType(std::uint32_t type_bits, VkMemoryPropertyFlags 
 }
 
 }  // namespace octovk::vk
+
+namespace octovk {
+std::size_t validationMessageCount() noexcept {
+  return vk::validation_messages.load(std::memory_order_relaxed);
+}
+}  // namespace octovk

@@ -146,6 +146,18 @@ class Device {
   VkInstance instance() const noexcept { return instance_; }
   VkPhysicalDevice physical() const noexcept { return physical_; }
 
+  /// Loop iterations after which the driver ends an invocation's loops (llvmpipe: 65535, counted
+  /// for a whole SIMD batch), as the device probe measured it; 0 when it saw no limit.
+  std::uint32_t loopLimit() const noexcept { return loop_limit_; }
+  void setLoopLimit(std::uint32_t limit) noexcept { loop_limit_ = limit; }
+  /// Loop iterations a resumable walk (ray keys, castRay) takes per dispatch: 30000 per 65535 of
+  /// the measured limit (room for the loops around the walk and the batch's other lanes), or
+  /// all it needs where there is no limit.
+  std::uint32_t walkBudget() const noexcept {
+    return loop_limit_ == 0 ? 0x7FFFFFFFu
+                            : static_cast<std::uint32_t>(std::uint64_t{loop_limit_} * 30000u / 65535u);
+  }
+
   /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once.
   const Pass& pass(std::string_view name);
 
@@ -156,7 +168,9 @@ class Device {
  private:
   Device() = default;
   DeviceInfo info_;
+  std::function<void(const std::string&)> validation_sink_;  // before the instance that uses it
   VkInstance instance_ = VK_NULL_HANDLE;
+  VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
   VkPhysicalDevice physical_ = VK_NULL_HANDLE;
   VkDevice device_ = VK_NULL_HANDLE;
   VkQueue queue_ = VK_NULL_HANDLE;
@@ -167,6 +181,7 @@ class Device {
   double timestamp_period_ns_ = 0.0;
   VkDeviceSize storage_alignment_ = 256;
   std::uint32_t max_groups_x_ = 65535;
+  std::uint32_t loop_limit_ = 0;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
 };
 

@@ -1,0 +1,193 @@
+#include "map/device_probe.hpp"
+
+#include <bit>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "octovk/gpu_types.h"
+#include "vk/device.hpp"
+
+namespace octovk {
+namespace {
+
+using gpu::kProbeCases;
+using gpu::ProbeCase;
+using gpu::ProbeHeader;
+using gpu::ProbeResult;
+
+// Cases that matter to the walk: quotients and products of floats widened to double (divFloat,
+// tDelta, tMax), doubles with full 53-bit significands over a wide exponent range, exact ties and
+// near-ties of the float rounding, float's subnormal range and overflow, signed zeros, and the
+// key conversions (floor of scaled coordinates, negative and positive).
+std::vector<ProbeCase> probeCases() {
+  std::vector<ProbeCase> cases;
+  cases.reserve(kProbeCases);
+  std::mt19937_64 rng(20261123);
+  auto fromBits = [](std::uint64_t bits) { return std::bit_cast<double>(bits); };
+  auto randomDouble = [&](int min_exp, int max_exp) {
+    std::uniform_int_distribution<int> e(min_exp, max_exp);
+    const std::uint64_t mantissa = rng() & ((1ull << 52) - 1);
+    const std::uint64_t sign = (rng() & 1) << 63;
+    return fromBits(sign | (static_cast<std::uint64_t>(e(rng) + 1023) << 52) | mantissa);
+  };
+  std::uniform_real_distribution<float> unit(-40.0f, 40.0f);
+  auto push = [&](double a, double b, float fa, float fb, float fc) {
+    if (cases.size() < kProbeCases) cases.push_back(ProbeCase{a, b, fa, fb, fc, 0u});
+  };
+  // Edges of the float rounding: ties to even, ties one bit further, subnormals, overflow, zeros.
+  const double edges[] = {0.0,
+                          -0.0,
+                          1.0 + std::ldexp(1.0, -24),                          // tie: down to even
+                          1.0 + 3 * std::ldexp(1.0, -24),                      // tie: up to even
+                          1.0 + std::ldexp(1.0, -24) + std::ldexp(1.0, -52),   // just above a tie
+                          -(2.0 - std::ldexp(1.0, -25)),                       // carries to 2
+                          std::ldexp(1.0, -149),                               // least subnormal
+                          std::ldexp(1.0, -150),                               // tie to 0
+                          std::ldexp(1.5, -150),                               // rounds up
+                          std::ldexp(1.0, -127) * 1.75,                        // subnormal
+                          std::ldexp(1.0, -126) * (1.0 - std::ldexp(1.0, -25)),  // to least normal
+                          static_cast<double>(std::numeric_limits<float>::max()),
+                          std::ldexp(1.0, 128) - std::ldexp(1.0, 103),         // tie: to inf
+                          std::ldexp(1.0, 128) - std::ldexp(1.0, 104) * 0.75,  // down to max
+                          std::ldexp(1.0, 200),
+                          std::ldexp(1.0, -1030),                              // double subnormal
+                          -32768.5,
+                          32767.999999999996,
+                          0.1 * 0.5,
+                          -0.05 * 0.5};
+  for (double a : edges) push(a, 3.0, 1.0f, 3.0f, 0.5f);
+  // Float operands as the walk has them (directions, coordinates, resolutions).
+  while (cases.size() < kProbeCases / 2) {
+    const float fa = unit(rng), fb = unit(rng), fc = unit(rng);
+    const double resolution = static_cast<double>(1 + rng() % 40) * 0.005;
+    switch (rng() % 4) {
+      case 0:  push(static_cast<double>(fa) / resolution, static_cast<double>(fb), fa, fb, fc); break;
+      case 1:  push(resolution, static_cast<double>(std::abs(fb)), fa, fb, fc); break;
+      case 2:  push(static_cast<double>(fa) * 20.0, static_cast<double>(fb), fa, fb, fc); break;
+      default: push(static_cast<double>(fa) * static_cast<double>(fb), 1.0 / resolution, fa, fb, fc);
+    }
+  }
+  // Full-precision doubles over a wide range.
+  while (cases.size() < kProbeCases) {
+    const double a = randomDouble(-160, 140), b = randomDouble(-40, 40);
+    push(a, b, static_cast<float>(randomDouble(-20, 20)), static_cast<float>(randomDouble(-20, 20)),
+         static_cast<float>(randomDouble(-20, 20)));
+  }
+  return cases;
+}
+
+// The host's answers: IEEE 754 binary64/binary32, round to nearest even, nothing fused (the
+// library is built in ISO C++ mode, where GCC does not contract).
+ProbeResult expected(const ProbeCase& c) {
+  ProbeResult r{};
+  r.sum = c.a + c.b;
+  r.difference = c.a - c.b;
+  r.product = c.a * c.b;
+  r.quotient = c.a / c.b;
+  r.root = std::sqrt(std::abs(c.a));
+  r.floor_a = std::floor(c.a);
+  r.rounded = static_cast<double>(static_cast<float>(c.a));
+  const float product = c.fa * c.fb;
+  r.float_madd = product + c.fc;
+  r.float_div = static_cast<float>(static_cast<double>(c.fa) / static_cast<double>(c.fb));
+  return r;
+}
+
+std::string hex(double d) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%a", d);
+  return text;
+}
+
+template <typename T>
+bool sameBits(T x, T y) {
+  return std::memcmp(&x, &y, sizeof(T)) == 0;
+}
+
+}  // namespace
+
+Result<DeviceProbe> probeDevice(vk::Device& device) {
+  try {
+    const std::vector<ProbeCase> cases = probeCases();
+    const std::size_t out_bytes =
+        sizeof(ProbeHeader) + kProbeCases * sizeof(std::int32_t) + kProbeCases * sizeof(ProbeResult);
+    vk::Buffer in(device, cases.size() * sizeof(ProbeCase), /*host_visible=*/true);
+    vk::Buffer out(device, out_bytes, /*host_visible=*/true);
+    std::memcpy(in.mapped(), cases.data(), in.size());
+    std::memset(out.mapped(), 0, out.size());
+    ProbeHeader head{};
+    head.loop_iterations = 0xFFFFFFFFu;
+    std::memcpy(out.mapped(), &head, sizeof head);
+
+    vk::BindingSet bindings(device);
+    bindings.updateRange(gpu::kBindQueryIn, in.handle(), 0, in.size());
+    bindings.updateRange(gpu::kBindQueryOut, out.handle(), 0, out.size());
+    const vk::Pass& pass = device.pass("device_probe");
+    vk::CommandStream stream(device);
+    stream.begin(bindings);
+    const gpu::PassConstants arithmetic{0u, kProbeCases, 0u, 0u};
+    stream.dispatch(pass, kProbeCases / gpu::kWorkgroupSize, &arithmetic, sizeof arithmetic);
+    const gpu::PassConstants loop{0u, kProbeLoopIterations, 1u, 0u};
+    stream.dispatch(pass, 1, &loop, sizeof loop);
+    stream.barrier();
+    stream.submitAndWait();
+
+    const auto* bytes = static_cast<const unsigned char*>(out.mapped());
+    std::memcpy(&head, bytes, sizeof head);
+    std::vector<std::int32_t> floors(kProbeCases);
+    std::memcpy(floors.data(), bytes + sizeof head, floors.size() * sizeof(std::int32_t));
+    std::vector<ProbeResult> results(kProbeCases);
+    std::memcpy(results.data(), bytes + sizeof head + floors.size() * sizeof(std::int32_t),
+                results.size() * sizeof(ProbeResult));
+
+    const std::string who = "device '" + device.info().name + "' (" + device.info().driver + ")";
+    auto refuse = [&](const std::string& operation, const ProbeCase& c, const std::string& got,
+                      const std::string& want) {
+      return Error(ErrorCode::kMissingFeature,
+                   who + " fails octovk's exactness check: " + operation + " of a = " + hex(c.a) +
+                       ", b = " + hex(c.b) + " (fa = " + hex(c.fa) + ", fb = " + hex(c.fb) +
+                       ", fc = " + hex(c.fc) + ") gives " + got + ", IEEE 754 gives " + want +
+                       "; its maps would differ from OctoMap's. Choose another device with "
+                       "OCTOVK_DEVICE");
+    };
+    for (std::size_t i = 0; i < cases.size(); ++i) {
+      const ProbeCase& c = cases[i];
+      const ProbeResult want = expected(c);
+      const ProbeResult& got = results[i];
+      const struct {
+        const char* operation;
+        double got, want;
+      } doubles[] = {{"double addition", got.sum, want.sum},
+                     {"double subtraction", got.difference, want.difference},
+                     {"double multiplication", got.product, want.product},
+                     {"double division", got.quotient, want.quotient},
+                     {"double square root", got.root, want.root},
+                     {"double floor", got.floor_a, want.floor_a},
+                     {"rounding double to float (exact.glsl)", got.rounded, want.rounded}};
+      for (const auto& d : doubles)
+        if (!sameBits(d.got, d.want)) return refuse(d.operation, c, hex(d.got), hex(d.want));
+      if (!sameBits(got.float_madd, want.float_madd))
+        return refuse("unfused float multiply-add", c, hex(got.float_madd), hex(want.float_madd));
+      if (!sameBits(got.float_div, want.float_div))
+        return refuse("float division (divFloat)", c, hex(got.float_div), hex(want.float_div));
+      const double f = want.floor_a;
+      const std::int32_t want_int =
+          (f >= -2147483648.0 && f < 2147483648.0) ? static_cast<std::int32_t>(f) : 0;
+      if (floors[i] != want_int)
+        return refuse("double to int conversion", c, std::to_string(floors[i]),
+                      std::to_string(want_int));
+    }
+    DeviceProbe probe;
+    if (head.loop_iterations < kProbeLoopIterations) probe.loop_limit = head.loop_iterations;
+    return probe;
+  } catch (const Error& e) {
+    return e;
+  }
+}
+
+}  // namespace octovk

@@ -1,0 +1,29 @@
+// The device probe: checks, when a Context is created, what the exact ray walk takes from the
+// device (shaders/device_probe.comp), so that a device that would build a different map than
+// OctoMap is refused with the operation named instead of mapping silently wrong.
+#pragma once
+
+#include <cstdint>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+namespace vk {
+class Device;
+}
+
+struct DeviceProbe {
+  /// Loop iterations an invocation gets before the driver ends its loops (llvmpipe: 65535);
+  /// 0 when no limit was seen within kProbeLoopIterations.
+  std::uint32_t loop_limit = 0;
+};
+
+/// Iterations of the probe's loop: a limit above this is not seen (and does not matter: the
+/// longest walk is 3 * 65536 steps plus its hash probes, cut into budgets well below it).
+inline constexpr std::uint32_t kProbeLoopIterations = 4u << 20;
+
+/// Runs the probe. Fails with kMissingFeature naming the first operation whose result differs
+/// from the host's (IEEE 754 double, round to nearest even), with its operands.
+Result<DeviceProbe> probeDevice(vk::Device& device);
+
+}  // namespace octovk
