@@ -6,10 +6,16 @@
 #include "common.glsl"
 #include "tree.glsl"
 
+// A child slot made ready for the descent: log-odds 0, no children, not live yet.
+void prepareChild(uint slot) {
+  nodes[slot].log_odds = 0.0;
+  atomicExchange(nodes[slot].link, kNoChildren | kFlagNew);
+}
+
 void main() {
   uint i = invocationIndex();
   // A set found too small (the scan is redone): nothing to classify.
-  if ((counters.status & kStatusHashFull) != 0u) return;
+  if ((OCTOVK_LOAD(counters.status) & kStatusHashFull) != 0u) return;
   if (i >= counters.cell_entries) return;
   uint slot = cell_list[i];
   bool occupied = cellOccupied(slot);
@@ -48,10 +54,13 @@ void main() {
   cells[at] = ActiveCell(slot, n, parent, depth);
 
   // The path leaves an inner node that lacks this child: the child slot of its existing block is
-  // made ready here (no pass before the descent steps into it), so that the descent only sets
-  // the child's bit.
-  if (!found && pool.root_exists != 0u)
-    nodes[childBlock(n) * 8u + childIndex(k, depth)] = Node(0.0, kNoChildren | kFlagNew);
+  // made ready (no pass before the descent steps into it), so that the descent only sets the
+  // child's bit. One invocation writes it: the one cell whose leaf it is (depth 15), else the
+  // one cell that inserts the child's entry into the second set below. Others read its link
+  // (atomically) meanwhile: not live before, not live after.
+  bool prepare = !found && pool.root_exists != 0u;
+  uint prepared = prepare ? childBlock(n) * 8u + childIndex(k, depth) : kNoBlock;
+  if (prepare && depth + 1u == kTreeDepth) prepareChild(prepared);
 
   // Exact count of the blocks this scan allocates: one per distinct node on an active path that
   // has no children yet (a missing root, a pruned leaf, or a node still to be created). The
@@ -70,6 +79,7 @@ void main() {
     uint prefix_slot;
     uint inserted = insertEndpoint(prefixKey(k, d), prefix_slot);
     if (inserted != 1u) break;  // present, or the set is full (the scan is then redone)
+    if (prepare && d == depth + 1u) prepareChild(prepared);
     countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
     uint node = d == known_depth ? known_node : kNoBlock;
     prefix_blocks[prefix_slot] = NewBlock(node, source, kNoBlock);

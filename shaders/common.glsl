@@ -3,6 +3,8 @@
 // uses float, double where it uses double) and `precise` keeps the compiler from fusing them.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
+#extension GL_EXT_buffer_reference : require
+#extension GL_KHR_memory_scope_semantics : require
 
 #include "octovk/gpu_types.h"
 #include "exact.glsl"
@@ -14,24 +16,51 @@ layout(push_constant) uniform PushBlock { PassConstants pc; };
 layout(std430, binding = 0) buffer ParamsBuf { ScanParams params; };
 layout(std430, binding = 1) buffer CountersBuf { ScanCounters counters; };
 layout(std430, binding = 2) buffer PoolBuf { PoolState pool; };
-layout(std430, binding = 3) buffer PointsBuf { float points[]; };
-layout(std430, binding = 4) buffer HashKeysBuf { uint64_t hash_keys[]; };
-layout(std430, binding = 5) buffer HashFlagsBuf { uint hash_flags[]; };
-layout(std430, binding = 6) buffer NodesBuf { Node nodes[]; };
-layout(std430, binding = 7) buffer BlockParentsBuf { uint block_parent[]; };
-layout(std430, binding = 8) buffer FreeStackBuf { uint free_stack[]; };
-layout(std430, binding = 9) buffer ActiveBuf { ActiveCell cells[]; };
-layout(std430, binding = 10) buffer TouchedBuf { uint touched[]; };
-layout(std430, binding = 11) buffer NewBlocksBuf { NewBlock prefix_blocks[]; };
-layout(std430, binding = 12) buffer LeafBuf { LeafBox leaf_boxes[]; };
-layout(std430, binding = 13) buffer EndpointBuf { uint64_t endpoint_keys[]; };
-// Query inputs and outputs; each query pass declares its own view of these two bindings.
-// Slots filled in the cell set (from 0), then in the second set (from params.hash_capacity): the
-// passes visit and clear exactly these instead of whole tables.
-layout(std430, binding = 17) buffer SlotsBuf { uint slots[]; };
-layout(std430, binding = 18) buffer CellListBuf { uint cell_list[]; };
+// The map's arrays, by device address (see kAddressedBindings): `nodes[i]` reads
+// NodesRef(address of binding kBindNodes).v[i]. No descriptor range limits them.
+layout(std430, binding = kBindAddresses) restrict readonly buffer AddressBuf {
+  uint64_t buffer_address[kBindingCount];
+};
+#define OCTOVK_ADDRESSED(Ref, Type, align, binding) \
+  layout(buffer_reference, std430, buffer_reference_align = align) buffer Ref { Type v[]; }
+OCTOVK_ADDRESSED(PointsRef, float, 4, kBindPoints);
+OCTOVK_ADDRESSED(HashKeysRef, uint64_t, 8, kBindHashKeys);
+OCTOVK_ADDRESSED(HashFlagsRef, uint, 4, kBindHashFlags);
+OCTOVK_ADDRESSED(NodesRef, Node, 4, kBindNodes);
+OCTOVK_ADDRESSED(BlockParentsRef, uint, 4, kBindBlockParents);
+OCTOVK_ADDRESSED(FreeStackRef, uint, 4, kBindFreeStack);
+OCTOVK_ADDRESSED(ActiveRef, ActiveCell, 4, kBindActive);
+OCTOVK_ADDRESSED(TouchedRef, uint, 4, kBindTouched);
+OCTOVK_ADDRESSED(NewBlocksRef, NewBlock, 4, kBindNewBlocks);
+OCTOVK_ADDRESSED(LeafBoxesRef, LeafBox, 4, kBindLeafBoxes);
+OCTOVK_ADDRESSED(EndpointKeysRef, uint64_t, 8, kBindEndpointKeys);
+OCTOVK_ADDRESSED(WalksRef, WalkState, 8, kBindWalks);
+OCTOVK_ADDRESSED(SlotsRef, uint, 4, kBindSlots);
+OCTOVK_ADDRESSED(CellListRef, uint, 4, kBindCellList);
+#define points (PointsRef(buffer_address[kBindPoints]).v)
+#define hash_keys (HashKeysRef(buffer_address[kBindHashKeys]).v)
+#define hash_flags (HashFlagsRef(buffer_address[kBindHashFlags]).v)
+#define nodes (NodesRef(buffer_address[kBindNodes]).v)
+#define block_parent (BlockParentsRef(buffer_address[kBindBlockParents]).v)
+#define free_stack (FreeStackRef(buffer_address[kBindFreeStack]).v)
+#define cells (ActiveRef(buffer_address[kBindActive]).v)
+#define touched (TouchedRef(buffer_address[kBindTouched]).v)
+#define prefix_blocks (NewBlocksRef(buffer_address[kBindNewBlocks]).v)
+#define leaf_boxes (LeafBoxesRef(buffer_address[kBindLeafBoxes]).v)
+#define endpoint_keys (EndpointKeysRef(buffer_address[kBindEndpointKeys]).v)
+#define walks (WalksRef(buffer_address[kBindWalks]).v)
+#define slots (SlotsRef(buffer_address[kBindSlots]).v)
+#define cell_list (CellListRef(buffer_address[kBindCellList]).v)
+// Query inputs and outputs (bindings 14, 15): each query pass declares its own view of them.
 
 const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
+
+// A relaxed atomic load. Every word that other invocations of the same dispatch may write is read
+// this way (and written with atomics): under the Vulkan memory model a plain access racing with a
+// write is a data race, whose result is undefined (a 64-bit key could be read torn). Relaxed is
+// enough: no pass infers anything about other words from the value it reads.
+#define OCTOVK_LOAD(word) \
+  atomicLoad(word, gl_ScopeDevice, gl_StorageSemanticsBuffer, gl_SemanticsRelaxed)
 
 // Keeps the indirect dispatch arguments `args` covering a list of `end` entries: groups of 64
 // entries, at most 65535 groups in x (the limit every device has), then rows of them in y, as the
@@ -116,11 +145,11 @@ uint insertBrick(uint64_t brick) {
     ++probes_spent;
     // A plain read first: most lookups find their brick already there (rays share the bricks
     // near the sensor), and reading avoids an atomic on a hot slot.
-    uint64_t seen = hash_keys[s];
+    uint64_t seen = OCTOVK_LOAD(hash_keys[s]);
     if (seen == brick) return s;
     // Off the fast path: once the set is known to be too small the scan is redone with a larger
     // one, so stop rather than probe a crowded table.
-    if (probe == 0u && (counters.status & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
+    if (probe == 0u && (OCTOVK_LOAD(counters.status) & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
     uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, brick) : seen;
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.brick_entries, 1u);
@@ -157,7 +186,8 @@ void flushMarks() {
   uint base = marked_slot * kBrickFlagWords;
   for (uint w = 0u; w < 2u; ++w) {
     uint bits = marked_bits[w];
-    if (bits != 0u && (hash_flags[base + w] & bits) != bits) atomicOr(hash_flags[base + w], bits);
+    if (bits != 0u && (OCTOVK_LOAD(hash_flags[base + w]) & bits) != bits)
+      atomicOr(hash_flags[base + w], bits);
   }
   marked_bits = uvec2(0u);
 }
@@ -190,10 +220,10 @@ bool markCell(uvec3 k, bool occupied) {
 // a block): 1 when inserted (at `slot`), 0 when present, 2 when the set is full.
 uint insertEndpoint(uint64_t k, out uint slot) {
   uint cap = params.endpoint_capacity;
-  if ((counters.status & kStatusEndpointHashFull) != 0u) return 2u;
+  if ((OCTOVK_LOAD(counters.status) & kStatusEndpointHashFull) != 0u) return 2u;
   uint s = endpointSlot(k, params.endpoint_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
-    uint64_t seen = endpoint_keys[s];
+    uint64_t seen = OCTOVK_LOAD(endpoint_keys[s]);
     if (seen == k) return 0u;
     uint64_t prev = seen == kEmptyKey ? atomicCompSwap(endpoint_keys[s], kEmptyKey, k) : seen;
     slot = s;
@@ -216,7 +246,7 @@ uint findEndpoint(uint64_t key) {
   uint cap = params.endpoint_capacity;
   uint s = endpointSlot(key, params.endpoint_log2);
   for (uint probe = 0u; probe < cap; ++probe) {
-    uint64_t seen = endpoint_keys[s];
+    uint64_t seen = OCTOVK_LOAD(endpoint_keys[s]);
     if (seen == key) return s;
     if (seen == kEmptyKey) break;
     s = (s + 1u) & (cap - 1u);
@@ -233,8 +263,12 @@ void countEndpointEntry(uint n, uint slot) {
 
 // ---- the tree ----
 
+// Node n's link word. Read atomically: classify prepares child slots and the descent and the
+// prune pass set flags while other invocations search through the same nodes.
+uint linkOf(uint n) { return OCTOVK_LOAD(nodes[n].link); }
+
 // The block of node n's children, or kNoChildren.
-uint childBlock(uint n) { return nodes[n].link & kBlockMask; }
+uint childBlock(uint n) { return linkOf(n) & kBlockMask; }
 
 // How a walk down the tree along a key's path ended (searchDown).
 const uint kSearchOpen = 0u;     // reached the depth it was asked to stop at
@@ -248,7 +282,7 @@ uint searchDown(uvec3 k, uint until, inout uint node, inout uint parent, inout u
     uint block = childBlock(node);
     if (block == kNoChildren) return kSearchLeaf;
     uint child = block * 8u + childIndex(k, depth);
-    if ((nodes[child].link & kFlagLive) == 0u) return kSearchMissing;
+    if ((linkOf(child) & kFlagLive) == 0u) return kSearchMissing;
     parent = node;
     node = child;
   }

@@ -22,7 +22,7 @@ void main() {
   uint added = 0u;
   for (uint d = cell.depth; d < kTreeDepth; ++d) {
     uint child = childBlock(n) * 8u + childIndex(k, d);
-    if ((nodes[child].link & kFlagLive) == 0u) {
+    if ((linkOf(child) & kFlagLive) == 0u) {
       uint before = atomicOr(nodes[child].link, kFlagLive);
       if ((before & kFlagLive) == 0u) ++added;
     }

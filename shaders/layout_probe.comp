@@ -19,7 +19,7 @@ layout(std430, binding = 15) buffer QueryOutBuf {
   RayResult probe_ray_results[2];
 };
 // The saved ray walks of the ray-key pass.
-layout(std430, binding = 16) buffer WalkBuf { WalkState probe_walks[]; };
+#define probe_walks walks
 
 uint mu(uint id) { return 0xC0DE0000u + id; }
 float mf(uint id) { return float(id) + 0.5; }

@@ -11,7 +11,6 @@
 // budget that finishes every ray at once.
 #include "common.glsl"
 
-layout(std430, binding = 16) buffer WalkBuf { WalkState walks[]; };
 
 // The walk of this invocation's ray.
 int budget;

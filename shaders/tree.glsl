@@ -26,7 +26,7 @@ void appendTouched(uint level, uint node) {
 
 // Lists `parent` (at depth `level`) once for the prune pass at that level.
 void listNode(uint level, uint parent) {
-  if ((nodes[parent].link & kFlagTouched) != 0u) return;
+  if ((linkOf(parent) & kFlagTouched) != 0u) return;
   uint old = atomicOr(nodes[parent].link, kFlagTouched);
   if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
 }

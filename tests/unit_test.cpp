@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "test_support.hpp"
+#include "octovk/gpu_types.h"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -524,6 +525,39 @@ TEST(Context, ValidationMessagesReachTheCallback) {
   ASSERT_FALSE(messages.empty());
   EXPECT_NE(messages.front().find("size"), std::string::npos) << messages.front();
   EXPECT_GT(validationMessageCount(), before);
+}
+
+// A map far larger than one descriptor binding may reach: with the binding range forced down to
+// 1 MiB, the node pool, cell set and cell list (several MiB each) still work, because they are
+// reached by device address; a descriptor range beyond the limit is refused, not bound.
+TEST(BindingRange, MapsLargerThanOneBindingWithTheLimitForcedLow) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ContextOptions options;
+  options.selector = std::to_string(ctx.device().index);
+  options.max_binding_bytes = 1u << 20;
+  auto small = Context::create(options);
+  ASSERT_TRUE(small) << small.error().what();
+  EXPECT_EQ(small.value()->vulkan().maxBindingBytes(), 1u << 20);
+  const MapParams params = withResolution(0.01);
+  OccupancyMap map(*small.value(), params);
+  octomap::OcTree oracle = makeOracle(params);
+  std::mt19937 rng(77);
+  const Eigen::Vector3f origin(0.1f, -0.2f, 0.3f);
+  for (int scan = 0; scan < 2; ++scan) {
+    const auto pts = randomScan(rng, origin, 12000, 1.5f);
+    ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, scan == 1)) << "scan " << scan;
+  }
+  // Beyond 1 MiB of 8-byte nodes.
+  EXPECT_GT(map.nodeCount() * sizeof(gpu::Node), std::size_t{2} << 20);
+  vk::Buffer big(small.value()->vulkan(), (1u << 20) + 16, /*host_visible=*/false);
+  vk::BindingSet set(small.value()->vulkan());
+  try {
+    set.updateRange(gpu::kBindQueryIn, big.handle(), 0, big.size());
+    ADD_FAILURE() << "a range beyond the binding limit was bound";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("maxStorageBufferRange"), std::string::npos) << e.what();
+  }
 }
 
 // ---- node count and leaf boxes ------------------------------------------------------------------

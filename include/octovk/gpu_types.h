@@ -298,6 +298,18 @@ OCTOVK_CONST uint kBindSlots =
     17u;  // the slots filled in the cell set, then those of the second set
 OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
 OCTOVK_CONST uint kBindingCount = 19u;
+// The map's arrays that can outgrow one descriptor's range (maxStorageBufferRange: 128 MiB on
+// lavapipe, while a 0.02 m map's node pool alone takes 454 MiB) are not bound by descriptor:
+// the shaders reach them by device address (GL_EXT_buffer_reference). Their addresses, indexed
+// by binding, are in a table bound at kBindAddresses (uint64_t[kBindingCount]; 0 elsewhere).
+// Params, counters, pool state and the two query bindings stay descriptors (small, or ranges
+// of a caller's buffers).
+OCTOVK_CONST uint kBindAddresses = 19u;
+OCTOVK_CONST uint kAddressedBindings =
+    (1u << kBindPoints) | (1u << kBindHashKeys) | (1u << kBindHashFlags) | (1u << kBindNodes) |
+    (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
+    (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
+    (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList);
 
 #ifdef __cplusplus
 }  // namespace octovk::gpu

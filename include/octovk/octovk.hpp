@@ -94,6 +94,9 @@ struct ContextOptions {
   /// that caused it. Without it, messages go to stderr. Either way they are counted
   /// (validationMessageCount()).
   std::function<void(const std::string&)> on_validation_message;
+  /// For tests: treat the device's maxStorageBufferRange as at most this many bytes (0: the
+  /// device's own), to check that no binding depends on a large range.
+  std::uint64_t max_binding_bytes = 0;
 };
 
 /// Validation messages received by every Context of this process so far.

@@ -65,13 +65,17 @@ Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible) : device_(&
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = bytes_;
   info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
-               VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT;
+               VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT |
+               VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;
   info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   OCTOVK_VK(vkCreateBuffer(device.handle(), &info, nullptr, &buffer_));
   try {
     VkMemoryRequirements req;
     vkGetBufferMemoryRequirements(device.handle(), buffer_, &req);
+    VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+    flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
     VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+    alloc.pNext = &flags;
     alloc.allocationSize = req.size;
     if (host_visible) {
       alloc.memoryTypeIndex = device.memoryType(
@@ -87,6 +91,9 @@ Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible) : device_(&
     OCTOVK_VK(vkBindBufferMemory(device.handle(), buffer_, memory_, 0));
     if (host_visible)
       OCTOVK_VK(vkMapMemory(device.handle(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
+    VkBufferDeviceAddressInfo address{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+    address.buffer = buffer_;
+    address_ = vkGetBufferDeviceAddress(device.handle(), &address);
   } catch (...) {
     release();
     throw;
@@ -105,6 +112,7 @@ Buffer& Buffer::operator=(Buffer&& other) noexcept {
     memory_ = std::exchange(other.memory_, VK_NULL_HANDLE);
     bytes_ = std::exchange(other.bytes_, 0);
     mapped_ = std::exchange(other.mapped_, nullptr);
+    address_ = std::exchange(other.address_, 0);
   }
   return *this;
 }
@@ -117,13 +125,17 @@ void Buffer::release() noexcept {
   memory_ = VK_NULL_HANDLE;
   mapped_ = nullptr;
   bytes_ = 0;
+  address_ = 0;
 }
 
 // ---------------------------------------------------------------------------------------------
 // BindingSet
 
-BindingSet::BindingSet(Device& device) : device_(&device) {
-  VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, gpu::kBindingCount};
+BindingSet::BindingSet(Device& device)
+    : device_(&device),
+      addresses_(device, gpu::kBindingCount * sizeof(std::uint64_t), /*host_visible=*/true) {
+  std::memset(addresses_.mapped(), 0, addresses_.size());
+  VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, gpu::kBindingCount + 1};
   VkDescriptorPoolCreateInfo info{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   info.maxSets = 1;
   info.poolSizeCount = 1;
@@ -136,6 +148,7 @@ BindingSet::BindingSet(Device& device) : device_(&device) {
   alloc.pSetLayouts = &layout;
   try {
     OCTOVK_VK(vkAllocateDescriptorSets(device.handle(), &alloc, &set_));
+    write(gpu::kBindAddresses, addresses_.handle(), 0, VK_WHOLE_SIZE);
   } catch (...) {
     release();
     throw;
@@ -152,6 +165,7 @@ BindingSet& BindingSet::operator=(BindingSet&& other) noexcept {
     device_ = other.device_;
     pool_ = std::exchange(other.pool_, VK_NULL_HANDLE);
     set_ = std::exchange(other.set_, VK_NULL_HANDLE);
+    addresses_ = std::move(other.addresses_);
   }
   return *this;
 }
@@ -163,23 +177,31 @@ void BindingSet::release() noexcept {
 }
 
 void BindingSet::update(std::span<const Buffer* const> buffers) {
-  std::vector<VkDescriptorBufferInfo> infos(buffers.size());
-  std::vector<VkWriteDescriptorSet> writes(buffers.size());
+  auto* table = static_cast<std::uint64_t*>(addresses_.mapped());
   for (std::size_t i = 0; i < buffers.size(); ++i) {
-    infos[i] = {buffers[i]->handle(), 0, VK_WHOLE_SIZE};
-    writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    writes[i].dstSet = set_;
-    writes[i].dstBinding = static_cast<std::uint32_t>(i);
-    writes[i].descriptorCount = 1;
-    writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    writes[i].pBufferInfo = &infos[i];
+    const auto binding = static_cast<std::uint32_t>(i);
+    if (gpu::kAddressedBindings & (1u << binding))
+      table[binding] = buffers[i]->address();
+    else
+      write(binding, buffers[i]->handle(), 0, buffers[i]->size());
   }
-  vkUpdateDescriptorSets(device_->handle(), static_cast<std::uint32_t>(writes.size()),
-                         writes.data(), 0, nullptr);
 }
 
 void BindingSet::updateRange(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset,
                              VkDeviceSize size) {
+  write(binding, buffer, offset, size);
+}
+
+void BindingSet::write(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset,
+                       VkDeviceSize size) {
+  // A storage buffer descriptor may not reach further than maxStorageBufferRange: what could
+  // (the map's arrays) goes by device address, and what is bound here must fit.
+  if (size != VK_WHOLE_SIZE && size > device_->maxBindingBytes())
+    throw Error(ErrorCode::kInvalidArgument,
+                "a buffer range of " + std::to_string(size) + " bytes at binding " +
+                    std::to_string(binding) + " exceeds what one binding may hold on this device (" +
+                    std::to_string(device_->maxBindingBytes()) +
+                    " bytes, maxStorageBufferRange); split the batch");
   VkDescriptorBufferInfo info{buffer, offset, size};
   VkWriteDescriptorSet write{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   write.dstSet = set_;
@@ -566,6 +588,8 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   if (!f2.features.shaderFloat64) missing.push_back("shaderFloat64 (the exact ray walk)");
   if (!f12.shaderBufferInt64Atomics)
     missing.push_back("shaderBufferInt64Atomics (64-bit atomics of the hash set)");
+  if (!f12.bufferDeviceAddress)
+    missing.push_back("bufferDeviceAddress (maps larger than one descriptor's range)");
   if (!missing.empty()) {
     std::string list;
     for (auto& m : missing) list += (list.empty() ? "" : ", ") + m;
@@ -587,6 +611,10 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
         dev->timestamp_period_ns_ = static_cast<double>(props.limits.timestampPeriod);
       dev->storage_alignment_ = props.limits.minStorageBufferOffsetAlignment;
       dev->max_groups_x_ = props.limits.maxComputeWorkGroupCount[0];
+      dev->max_binding_bytes_ = props.limits.maxStorageBufferRange;
+      if (options.max_binding_bytes != 0)
+        dev->max_binding_bytes_ = std::min<std::uint64_t>(dev->max_binding_bytes_,
+                                                          options.max_binding_bytes);
     }
   }
   if (!found)
@@ -600,6 +628,7 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   qinfo.pQueuePriorities = &priority;
   VkPhysicalDeviceVulkan12Features want12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   want12.shaderBufferInt64Atomics = VK_TRUE;
+  want12.bufferDeviceAddress = VK_TRUE;
   VkPhysicalDeviceFeatures2 want{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   want.pNext = &want12;
   want.features.shaderInt64 = VK_TRUE;
@@ -613,8 +642,9 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
     vkGetDeviceQueue(dev->device_, dev->queue_family_, 0, &dev->queue_);
     vkGetPhysicalDeviceMemoryProperties(dev->physical_, &dev->memory_);
 
-    std::vector<VkDescriptorSetLayoutBinding> bindings(gpu::kBindingCount);
-    for (std::uint32_t i = 0; i < gpu::kBindingCount; ++i) {
+    // The map's bindings, then the address table (kBindAddresses).
+    std::vector<VkDescriptorSetLayoutBinding> bindings(gpu::kBindingCount + 1);
+    for (std::uint32_t i = 0; i <= gpu::kBindingCount; ++i) {
       bindings[i] = {};
       bindings[i].binding = i;
       bindings[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
@@ -622,7 +652,7 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
       bindings[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
     }
     VkDescriptorSetLayoutCreateInfo linfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    linfo.bindingCount = gpu::kBindingCount;
+    linfo.bindingCount = gpu::kBindingCount + 1;
     linfo.pBindings = bindings.data();
     OCTOVK_VK(vkCreateDescriptorSetLayout(dev->device_, &linfo, nullptr, &dev->set_layout_));
     VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(gpu::PassConstants)};

@@ -40,6 +40,8 @@ class Buffer {
   bool valid() const noexcept { return buffer_ != VK_NULL_HANDLE; }
   /// Host pointer of a host-visible buffer (persistently mapped).
   void* mapped() const noexcept { return mapped_; }
+  /// Device address (bufferDeviceAddress), for the bindings the shaders reach by address.
+  VkDeviceAddress address() const noexcept { return address_; }
 
  private:
   void release() noexcept;
@@ -48,6 +50,7 @@ class Buffer {
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   std::size_t bytes_ = 0;
   void* mapped_ = nullptr;
+  VkDeviceAddress address_ = 0;
 };
 
 /// One compute pipeline built from embedded SPIR-V; all passes share one pipeline layout.
@@ -56,7 +59,9 @@ struct Pass {
   std::string name;
 };
 
-/// The buffers bound to the shared descriptor set layout, binding i = buffers[i].
+/// The buffers bound to the shared descriptor set layout, binding i = buffers[i]: by descriptor,
+/// or for the bindings in gpu::kAddressedBindings by device address, through the address table
+/// this set owns (bound at gpu::kBindAddresses).
 class BindingSet {
  public:
   BindingSet() = default;
@@ -67,15 +72,19 @@ class BindingSet {
   BindingSet(const BindingSet&) = delete;
   BindingSet& operator=(const BindingSet&) = delete;
 
-  /// Points every binding at its buffer; call after any buffer is replaced, while idle.
+  /// Points every binding at its buffer; call after any buffer is replaced, while idle. Throws
+  /// kInvalidArgument when a descriptor-bound buffer exceeds the device's binding range.
   void update(std::span<const Buffer* const> buffers);
-  /// Points one binding at a range of a buffer the caller owns (interop).
+  /// Points one descriptor binding at a range of a buffer the caller owns (interop); the same
+  /// range check.
   void updateRange(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize size);
   VkDescriptorSet handle() const noexcept { return set_; }
 
  private:
   void release() noexcept;
+  void write(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offset, VkDeviceSize size);
   Device* device_ = nullptr;
+  Buffer addresses_;  // uint64_t[kBindingCount]: the device address of each addressed binding
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
   VkDescriptorSet set_ = VK_NULL_HANDLE;
 };
@@ -141,6 +150,9 @@ class Device {
   double timestampPeriodNs() const noexcept { return timestamp_period_ns_; }
   /// minStorageBufferOffsetAlignment: offsets of bound buffer ranges must be multiples of it.
   VkDeviceSize storageOffsetAlignment() const noexcept { return storage_alignment_; }
+  /// maxStorageBufferRange (or ContextOptions::max_binding_bytes if lower): the most bytes one
+  /// descriptor binding may reach.
+  std::uint64_t maxBindingBytes() const noexcept { return max_binding_bytes_; }
   /// maxComputeWorkGroupCount[0]: the most workgroups an indirect dispatch may ask for.
   std::uint32_t maxGroupsX() const noexcept { return max_groups_x_; }
   VkInstance instance() const noexcept { return instance_; }
@@ -182,6 +194,7 @@ class Device {
   VkDeviceSize storage_alignment_ = 256;
   std::uint32_t max_groups_x_ = 65535;
   std::uint32_t loop_limit_ = 0;
+  std::uint64_t max_binding_bytes_ = 1u << 27;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
 };
 
