@@ -31,7 +31,7 @@ void main() {
   // switches them on.
   bool expand = nb.source != kNoBlock;
   Node child = expand ? Node(nodes[nb.source].log_odds, kNoChildren | kFlagLive)
-                      : Node(0.0, kNoChildren | kFlagNew);
+                      : Node(0.0, kNoChildren);
   for (uint s = 0u; s < 8u; ++s) nodes[block * 8u + s] = child;
   if (expand) atomicAdd(pool.live_nodes, 8u);
   block_parent[block] = kNoBlock;  // set by link

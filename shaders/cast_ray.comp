@@ -4,17 +4,22 @@
 // same precision, so the same cells and the same `end`). Cells inside a node already looked up
 // (a large free node, or an unknown region) reuse that lookup instead of searching the tree.
 //
-// The walk runs in resumable segments: mode 0 starts every ray, modes 1 and 2 continue the
+// The walk runs in resumable segments: pc.resume 0 starts every ray, 1 and 2 continue the
 // unfinished ones listed in list 0 or 1 (indirect dispatch) and list those still unfinished in
-// the other. A segment stops after about pc.level loop iterations because
+// the other. A segment stops after about pc.budget loop iterations because
 // llvmpipe (lavapipe) ends an invocation's loops after 65535 iterations in total; on a GPU the
 // host passes a budget that finishes every ray in one segment.
 #include "common.glsl"
 
-layout(std430, binding = 14) buffer QueryInBuf { RayQuery rays[]; };
-layout(std430, binding = 15) buffer QueryOutBuf { RayResult ray_results[]; };
-// The same buffer, from byte 4 * pc.offset on: the walks' states.
-layout(std430, binding = 15) buffer RayStateBuf { uint state_words[]; };
+layout(push_constant) uniform PushBlock { CastRayConstants pc; };
+
+layout(std430, binding = kBindQueryIn) buffer QueryInBuf { RayQuery rays[]; };
+layout(std430, binding = kBindQueryOut) buffer QueryOutBuf { RayResult ray_results[]; };
+// The same buffer as RayStates, past the results: ray i's walk is saved in element
+// pc.first_state + i, which also holds entry i of the two lists of unfinished walks
+// (RayState::unfinished). Their fields are written one by one: a whole-struct store would
+// overwrite a list entry that another invocation writes.
+layout(std430, binding = kBindQueryOut) buffer RayStateBuf { RayState ray_states[]; };
 
 // The walk of this invocation's ray.
 uint key[3];
@@ -52,26 +57,28 @@ vec3 keyCentre(uvec3 k) {
   return vec3(toFloat(keyToCoord(k.x)), toFloat(keyToCoord(k.y)), toFloat(keyToCoord(k.z)));
 }
 
-// The output buffer from word pc.offset on: 10 words of walk state per ray, then two lists of
-// the rays whose walks are unfinished (pc.count rays in the batch).
-uint stateBase(uint i) { return pc.offset + 10u * i; }
-uint listBase(uint list) { return pc.offset + 10u * pc.count + list * pc.count; }
-
+// Lists ray i's walk as unfinished in `list`.
 void postpone(uint list, uint i) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
-  state_words[listBase(list) + at] = i;
+  ray_states[pc.first_state + at].unfinished[list] = i;
 }
 
 void saveState(uint i, uint done) {
-  uint b = stateBase(i);
-  for (int a = 0; a < 3; ++a) {
-    uvec2 w = unpackDouble2x32(t_max[a]);
-    state_words[b + 2u * uint(a)] = w.x;
-    state_words[b + 2u * uint(a) + 1u] = w.y;
-    state_words[b + 6u + uint(a)] = key[a];
-  }
-  state_words[b + 9u] = done;
+  uint s = pc.first_state + i;
+  ray_states[s].t_max_x = t_max[0];
+  ray_states[s].t_max_y = t_max[1];
+  ray_states[s].t_max_z = t_max[2];
+  ray_states[s].key_x = key[0];
+  ray_states[s].key_y = key[1];
+  ray_states[s].key_z = key[2];
+  ray_states[s].done = done;
+}
+
+void loadState(uint i) {
+  uint s = pc.first_state + i;
+  t_max = double[3](ray_states[s].t_max_x, ray_states[s].t_max_y, ray_states[s].t_max_z);
+  key = uint[3](ray_states[s].key_x, ray_states[s].key_y, ray_states[s].key_z);
 }
 
 void finish(uint i, uint hit, vec3 end) {
@@ -164,27 +171,23 @@ bool walk(uint i) {
 
 void main() {
   uint i = invocationIndex();
-  budget = int(pc.level);
-  if (pc.mode != 0u) {  // continue the walks listed in list pc.mode - 1
-    uint from = pc.mode - 1u;
+  budget = int(pc.budget);
+  if (pc.resume != 0u) {  // continue the walks listed in list pc.resume - 1
+    uint from = pc.resume - 1u;
     if (i >= counters.walk_count[from]) return;
-    i = state_words[listBase(from) + i];
-  } else if (i >= pc.count) {
+    i = ray_states[pc.first_state + i].unfinished[from];
+  } else if (i >= pc.ray_count) {
     return;
   }
   RayQuery q = rays[i];
   vec3 origin = vec3(q.origin_x, q.origin_y, q.origin_z);
 
-  if (pc.mode != 0u) {
-    uint b = stateBase(i);
-    for (int a = 0; a < 3; ++a) {
-      t_max[a] = packDouble2x32(uvec2(state_words[b + 2u * uint(a)], state_words[b + 2u * uint(a) + 1u]));
-      key[a] = state_words[b + 6u + uint(a)];
-    }
+  if (pc.resume != 0u) {
+    loadState(i);
     setUp(q, false);
     if (!walk(i)) {
       saveState(i, 0u);
-      postpone(2u - pc.mode, i);
+      postpone(2u - pc.resume, i);
     }
     return;
   }

@@ -9,7 +9,7 @@
 // A child slot made ready for the descent: log-odds 0, no children, not live yet.
 void prepareChild(uint slot) {
   nodes[slot].log_odds = 0.0;
-  atomicExchange(nodes[slot].link, kNoChildren | kFlagNew);
+  atomicExchange(nodes[slot].link, kNoChildren);
 }
 
 void main() {

@@ -11,11 +11,11 @@
 
 layout(local_size_x = 64) in;
 
-layout(push_constant) uniform PushBlock { PassConstants pc; };
+// Push constants: each pass declares its own block (gpu_types.h: one struct per pass).
 
-layout(std430, binding = 0) buffer ParamsBuf { ScanParams params; };
-layout(std430, binding = 1) buffer CountersBuf { ScanCounters counters; };
-layout(std430, binding = 2) buffer PoolBuf { PoolState pool; };
+layout(std430, binding = kBindParams) buffer ParamsBuf { ScanParams params; };
+layout(std430, binding = kBindCounters) buffer CountersBuf { ScanCounters counters; };
+layout(std430, binding = kBindPool) buffer PoolBuf { PoolState pool; };
 // The map's arrays, by device address (see kAddressedBindings): `nodes[i]` reads
 // NodesRef(address of binding kBindNodes).v[i]. No descriptor range limits them.
 layout(std430, binding = kBindAddresses) restrict readonly buffer AddressBuf {
@@ -51,7 +51,8 @@ OCTOVK_ADDRESSED(CellListRef, uint, 4, kBindCellList);
 #define walks (WalksRef(buffer_address[kBindWalks]).v)
 #define slots (SlotsRef(buffer_address[kBindSlots]).v)
 #define cell_list (CellListRef(buffer_address[kBindCellList]).v)
-// Query inputs and outputs (bindings 14, 15): each query pass declares its own view of them.
+// Query inputs and outputs (kBindQueryIn, kBindQueryOut): each query pass declares its own view
+// of them.
 
 const uint64_t kEmptyKey = 0xFFFFFFFFFFFFFFFFul;
 

@@ -10,12 +10,15 @@
 #include "common.glsl"
 #include "tree.glsl"
 
+layout(push_constant) uniform PushBlock { DescendConstants pc; };
+
 void main() {
   uint i = invocationIndex();
-  if (i >= pc.count) return;
-  // pc.offset cells that descend at the front of `cells`, the ones whose leaf existed at the back
-  // (see classify).
-  ActiveCell cell = cells[i < pc.offset ? i : params.cell_capacity - 1u - (i - pc.offset)];
+  if (i >= pc.cell_count) return;
+  // pc.descending cells that descend at the front of `cells`, the ones whose leaf existed at the
+  // back (see classify).
+  ActiveCell cell =
+      cells[i < pc.descending ? i : params.cell_capacity - 1u - (i - pc.descending)];
   uvec3 k = cellKey(cell.slot);
   uint n = cell.node;
   uint parent = cell.parent;

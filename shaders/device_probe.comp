@@ -2,19 +2,20 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 // The device probe, run once when a Context is created (src/map/device_probe.cpp):
-//   mode 0: per case, the operations the exact ray walk takes from the hardware (double add,
-//           subtract, multiply, divide, square root, floor, the conversions) and the integer
-//           float rounding of exact.glsl, written out to be compared bit for bit with the host;
-//   mode 1: how many iterations a loop of pc.count iterations really gets to run (llvmpipe ends
-//           an invocation's loops early, silently), least over the invocations.
+//   kProbeModeArithmetic: per case, the operations the exact ray walk takes from the hardware
+//           (double add, subtract, multiply, divide, square root, floor, the conversions) and the
+//           integer float rounding of exact.glsl, written out to be compared bit for bit with the
+//           host;
+//   kProbeModeLoop: how many iterations a loop of pc.loop_iterations iterations really gets to
+//           run (llvmpipe ends an invocation's loops early, silently), least over the invocations.
 // Uses only the two query bindings, with its own view of them.
 #include "octovk/gpu_types.h"
 #include "exact.glsl"
 
 layout(local_size_x = 64) in;
-layout(push_constant) uniform PushBlock { PassConstants pc; };
-layout(std430, binding = 14) readonly buffer ProbeIn { ProbeCase cases[]; };
-layout(std430, binding = 15) buffer ProbeOut {
+layout(push_constant) uniform PushBlock { DeviceProbeConstants pc; };
+layout(std430, binding = kBindQueryIn) readonly buffer ProbeIn { ProbeCase cases[]; };
+layout(std430, binding = kBindQueryOut) buffer ProbeOut {
   ProbeHeader header;
   int floors[kProbeCases];
   ProbeResult results[];
@@ -22,17 +23,17 @@ layout(std430, binding = 15) buffer ProbeOut {
 
 void main() {
   uint i = gl_GlobalInvocationID.x;
-  if (pc.mode == 1u) {
+  if (pc.mode == kProbeModeLoop) {
     // The exit test reads memory the compiler cannot see through, so the loop is not folded.
     uint n = 0u;
-    for (uint k = 0u; k < pc.count; ++k) {
+    for (uint k = 0u; k < pc.loop_iterations; ++k) {
       if (cases[(k + i) % kProbeCases].pad == 0xFFFFFFFFu) break;
       ++n;
     }
     atomicMin(header.loop_iterations, n);
     return;
   }
-  if (i >= pc.count) return;
+  if (i >= pc.case_count) return;
   ProbeCase c = cases[i];
   ProbeResult r;
   precise double sum = c.a + c.b;

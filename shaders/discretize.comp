@@ -5,9 +5,11 @@
 // out-of-map points are skipped and counted (OctoMap's unchecked coordToKey would wrap them).
 #include "common.glsl"
 
+layout(push_constant) uniform PushBlock { DiscretizeConstants pc; };
+
 void main() {
   uint i = invocationIndex();
-  if (i >= pc.count) return;
+  if (i >= pc.point_count) return;
   vec3 p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
   if (any(isnan(p)) || any(isinf(p))) {
     atomicAdd(counters.skipped_nonfinite, 1u);

@@ -7,16 +7,31 @@
 // 0xC0DE0000 + id, float id + 0.5, double id + 0.25, uint64 0xC0DE0000C0DE0000 + id.
 #include "common.glsl"
 
+// The push range, seen as one of the passes' structs (all four uints).
+layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
+
 // The query bindings, which each query pass views its own way: here every query struct at once
-// (two elements each, for the stride).
-layout(std430, binding = 14) buffer QueryInBuf {
+// (two elements each, for the stride), then every pass's push-constant struct (std430 lays out a
+// struct of four uints as a push block does).
+layout(std430, binding = kBindQueryIn) buffer QueryInBuf {
   RayQuery probe_rays[2];
   BoxQuery probe_box;
   RayState probe_states[2];
 };
-layout(std430, binding = 15) buffer QueryOutBuf {
+layout(std430, binding = kBindQueryOut) buffer QueryOutBuf {
   LookupResult probe_lookups[2];
   RayResult probe_ray_results[2];
+  NoConstants probe_no_constants;
+  ClearSetsConstants probe_clear_sets;
+  TransformPointsConstants probe_transform_points;
+  DiscretizeConstants probe_discretize;
+  RayKeysConstants probe_ray_keys;
+  DescendConstants probe_descend;
+  PruneConstants probe_prune;
+  LeafBoxesConstants probe_leaf_boxes;
+  LookupConstants probe_lookup;
+  CastRayConstants probe_cast_ray;
+  DeviceProbeConstants probe_device_probe;
 };
 // The saved ray walks of the ray-key pass.
 #define probe_walks walks
@@ -96,7 +111,7 @@ void main() {
   counters.free_cells = mu(207u);
   counters.aborted = mu(208u);
   counters.new_blocks = mu(209u);
-  counters.pruned_blocks = mu(210u);
+  counters.cell_entries = mu(210u);
   counters.query_results = mu(211u);
   counters.leaf_cells = mu(212u);
   for (uint l = 0u; l < kLevelCount; ++l) {
@@ -117,7 +132,6 @@ void main() {
   counters.brick_args.x = mu(393u);
   counters.brick_args.y = mu(394u);
   counters.brick_args.z = mu(395u);
-  counters.cell_entries = mu(396u);
 
   // PoolState: 600 + field index.
   pool.bump = mu(600u);
@@ -172,6 +186,8 @@ void main() {
     probe_states[e].key_y = mu(id + 4u);
     probe_states[e].key_z = mu(id + 5u);
     probe_states[e].done = mu(id + 6u);
+    probe_states[e].unfinished[0] = mu(id + 7u);
+    probe_states[e].unfinished[1] = mu(id + 8u);
   }
   probe_box.min_x = mu(920u);
   probe_box.min_y = mu(921u);
@@ -206,11 +222,54 @@ void main() {
   cell_list[1] = mu(806u);
   block_parent[1] = mu(807u);
 
+  // The passes' push-constant structs: 1100 + 10 * struct (in gpu_types.h's order) + field.
+  probe_no_constants = NoConstants(mu(1100u), mu(1101u), mu(1102u), mu(1103u));
+  probe_clear_sets.mode = mu(1110u);
+  probe_clear_sets.bricks = mu(1111u);
+  probe_clear_sets.endpoints = mu(1112u);
+  probe_clear_sets.pad0 = mu(1113u);
+  probe_transform_points.point_count = mu(1120u);
+  probe_transform_points.pad0 = mu(1121u);
+  probe_transform_points.pad1 = mu(1122u);
+  probe_transform_points.pad2 = mu(1123u);
+  probe_discretize.point_count = mu(1130u);
+  probe_discretize.pad0 = mu(1131u);
+  probe_discretize.pad1 = mu(1132u);
+  probe_discretize.pad2 = mu(1133u);
+  probe_ray_keys.budget = mu(1140u);
+  probe_ray_keys.point_count = mu(1141u);
+  probe_ray_keys.mode = mu(1142u);
+  probe_ray_keys.from_list = mu(1143u);
+  probe_descend.cell_count = mu(1150u);
+  probe_descend.descending = mu(1151u);
+  probe_descend.pad0 = mu(1152u);
+  probe_descend.pad1 = mu(1153u);
+  probe_prune.level = mu(1160u);
+  probe_prune.pad0 = mu(1161u);
+  probe_prune.pad1 = mu(1162u);
+  probe_prune.pad2 = mu(1163u);
+  probe_leaf_boxes.mode = mu(1170u);
+  probe_leaf_boxes.pad0 = mu(1171u);
+  probe_leaf_boxes.pad1 = mu(1172u);
+  probe_leaf_boxes.pad2 = mu(1173u);
+  probe_lookup.point_count = mu(1180u);
+  probe_lookup.first_float = mu(1181u);
+  probe_lookup.first_result = mu(1182u);
+  probe_lookup.pad0 = mu(1183u);
+  probe_cast_ray.budget = mu(1190u);
+  probe_cast_ray.ray_count = mu(1191u);
+  probe_cast_ray.resume = mu(1192u);
+  probe_cast_ray.first_state = mu(1193u);
+  probe_device_probe.mode = mu(1200u);
+  probe_device_probe.case_count = mu(1201u);
+  probe_device_probe.loop_iterations = mu(1202u);
+  probe_device_probe.pad0 = mu(1203u);
+
   // Push constants and shared constants, as the shader sees them.
-  touched[0] = pc.level;
-  touched[1] = pc.count;
+  touched[0] = pc.budget;
+  touched[1] = pc.point_count;
   touched[2] = pc.mode;
-  touched[3] = pc.offset;
+  touched[3] = pc.from_list;
   touched[4] = gl_WorkGroupSize.x;
   touched[5] = kLevelCount;
   touched[6] = kTreeDepth;

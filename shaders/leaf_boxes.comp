@@ -2,14 +2,16 @@
 #extension GL_GOOGLE_include_directive : require
 // Leaves of the map, found by scanning the live blocks (block 0 stands for the root itself); a
 // block's place in the tree comes from the parents above it.
-// mode 0: the leaf-box rebuild — every leaf's centre, edge length and log-odds into leaf_boxes.
-// mode 1: leaves in a box — the leaves OctoMap's leaf_bbx_iterator visits (node key range
-//         overlapping the box's key range, as the iterator tests it), optionally only occupied
-//         ones, compacted into the query output.
+// kLeafBoxesRebuild: every leaf's centre, edge length and log-odds into leaf_boxes.
+// kLeafBoxesInBox: the leaves OctoMap's leaf_bbx_iterator visits (node key range overlapping the
+//                  box's key range, as the iterator tests it), optionally only occupied ones,
+//                  compacted into the query output.
 #include "common.glsl"
 
-layout(std430, binding = 14) buffer QueryInBuf { BoxQuery box; };
-layout(std430, binding = 15) buffer QueryOutBuf { LeafBox box_leaves[]; };
+layout(push_constant) uniform PushBlock { LeafBoxesConstants pc; };
+
+layout(std430, binding = kBindQueryIn) buffer QueryInBuf { BoxQuery box; };
+layout(std430, binding = kBindQueryOut) buffer QueryOutBuf { LeafBox box_leaves[]; };
 
 bool inBox(uvec3 prefix, uint depth, float log_odds) {
   if (box.occupied_only != 0u && log_odds < params.occupancy_log) return false;
@@ -22,7 +24,7 @@ bool inBox(uvec3 prefix, uint depth, float log_odds) {
 }
 
 void emit(uvec3 key, uint depth, float log_odds) {
-  if (pc.mode == 1u && !inBox(key, depth, log_odds)) return;
+  if (pc.mode == kLeafBoxesInBox && !inBox(key, depth, log_odds)) return;
   // OcTreeBaseImpl::keyToCoord(key, depth), in double, then to float.
   uint shift = kTreeDepth - depth;
   double size = params.resolution * double(1u << shift);
@@ -36,7 +38,7 @@ void emit(uvec3 key, uint depth, float log_odds) {
     centre = toFloat(c);
   }
   LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, toFloat(size), log_odds);
-  if (pc.mode == 0u) leaf_boxes[atomicAdd(pool.leaf_count, 1u)] = leaf;
+  if (pc.mode == kLeafBoxesRebuild) leaf_boxes[atomicAdd(pool.leaf_count, 1u)] = leaf;
   else box_leaves[atomicAdd(counters.query_results, 1u)] = leaf;
 }
 

@@ -3,15 +3,17 @@
 // Point lookups: OctoMap's search(point) for each query point, on the tree as it is now.
 #include "common.glsl"
 
-layout(std430, binding = 14) buffer QueryInBuf { float query_points[]; };
-layout(std430, binding = 15) buffer QueryOutBuf { LookupResult lookup_results[]; };
+layout(push_constant) uniform PushBlock { LookupConstants pc; };
+
+layout(std430, binding = kBindQueryIn) buffer QueryInBuf { float query_points[]; };
+layout(std430, binding = kBindQueryOut) buffer QueryOutBuf { LookupResult lookup_results[]; };
 
 void main() {
   uint i = invocationIndex();
-  if (i >= pc.count) return;
-  // The points start pc.offset floats into the input, the results pc.level entries into the
-  // output (after the castRay queries of the same batch).
-  uint first = pc.offset + 3u * i;
+  if (i >= pc.point_count) return;
+  // The points start pc.first_float floats into the input, the results pc.first_result entries
+  // into the output (after the castRay queries of the same batch).
+  uint first = pc.first_float + 3u * i;
   LookupResult r = LookupResult(kCellUnknown, 0.0, 0u, 0u);
   uvec3 k;
   if (coordToKeyChecked(query_points[first], k.x) && coordToKeyChecked(query_points[first + 1u], k.y) &&
@@ -22,5 +24,5 @@ void main() {
       r = LookupResult(v >= params.occupancy_log ? kCellOccupied : kCellFree, v, depth, 0u);
     }
   }
-  lookup_results[pc.level + i] = r;
+  lookup_results[pc.first_result + i] = r;
 }

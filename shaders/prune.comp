@@ -7,6 +7,8 @@
 #include "common.glsl"
 #include "tree.glsl"
 
+layout(push_constant) uniform PushBlock { PruneConstants pc; };
+
 void main() {
   uint r = invocationIndex();
   uint level = pc.level;
@@ -33,7 +35,6 @@ void main() {
     uint at = atomicAdd(pool.free_count, 1u);
     free_stack[at] = block;
     atomicAdd(pool.live_nodes, uint(-8));
-    atomicAdd(counters.pruned_blocks, 1u);
   } else {
     nodes[n].log_odds = max_value;
     nodes[n].link = block | kFlagLive;

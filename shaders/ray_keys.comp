@@ -1,16 +1,18 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Ray keys and hash set: for every point (mode 0) or every distinct end cell (mode 1, discretize),
-// the cells of OctoMap's computeRayKeys go into the scan's cell set as free and the end cell as
-// occupied (occupied wins: it is a flag on the same entry). Mirrors
-// OccupancyOcTreeBase::computeUpdate.
+// Ray keys and hash set: for every point (kRayKeysPoints) or every distinct end cell
+// (kRayKeysEndCells, discretize), the cells of OctoMap's computeRayKeys go into the scan's cell
+// set as free and the end cell as occupied (occupied wins: it is a flag on the same entry).
+// Mirrors OccupancyOcTreeBase::computeUpdate.
 //
-// A walk stops after pc.level loop iterations (steps and hash probes) and is saved to a list;
-// mode 2 continues the walks of one list (pc.offset) and saves the unfinished ones to the other.
-// llvmpipe (lavapipe) ends an invocation's loops after 65535 iterations in total; a GPU gets a
-// budget that finishes every ray at once.
+// A walk stops after pc.budget loop iterations (steps and hash probes) and is saved to a list;
+// kRayKeysContinue continues the walks of one list (pc.from_list) and saves the unfinished ones to
+// the other (kRayKeysContinueLast, the last round, reports them instead). llvmpipe (lavapipe) ends
+// an invocation's loops after 65535 iterations in total; a GPU gets a budget that finishes every
+// ray at once.
 #include "common.glsl"
 
+layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 
 // The walk of this invocation's ray.
 int budget;
@@ -115,7 +117,7 @@ bool insertRay(vec3 o, vec3 e) {
 vec3 scanOrigin() { return vec3(params.origin_x, params.origin_y, params.origin_z); }
 
 void continueWalk(uint i) {
-  uint from = pc.offset;
+  uint from = pc.from_list;
   if (i >= counters.walk_count[from]) return;
   WalkState w = walks[from * params.point_count + i];
   vec3 e = vec3(w.end_x, w.end_y, w.end_z);
@@ -127,23 +129,23 @@ void continueWalk(uint i) {
   cur = uint[3](w.key_xy & 0xFFFFu, w.key_xy >> 16, w.key_z);
   setUp(o, e, false);
   if (walk()) return;
-  // pc.count == 0 marks the last continuation: a walk still unfinished is an error, not a
-  // silently shortened ray.
-  if (pc.count == 0u) atomicOr(counters.status, kStatusRayCut);
+  // After the last continuation a walk still unfinished is an error, not a silently shortened
+  // ray.
+  if (pc.mode == kRayKeysContinueLast) atomicOr(counters.status, kStatusRayCut);
   else save(1u - from, e);
 }
 
 void main() {
   uint i = invocationIndex();
-  budget = int(pc.level);
-  if (pc.mode == 2u) {
+  budget = int(pc.budget);
+  if (pc.mode == kRayKeysContinue || pc.mode == kRayKeysContinueLast) {
     continueWalk(i);
     flushMarks();
     return;
   }
   vec3 p;
-  if (pc.mode == 0u) {
-    if (i >= pc.count) return;
+  if (pc.mode == kRayKeysPoints) {
+    if (i >= pc.point_count) return;
     p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
     if (any(isnan(p)) || any(isinf(p))) {
       atomicAdd(counters.skipped_nonfinite, 1u);

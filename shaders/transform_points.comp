@@ -4,6 +4,8 @@
 // translation, with the same float operations in the same order.
 #include "common.glsl"
 
+layout(push_constant) uniform PushBlock { TransformPointsConstants pc; };
+
 vec4 quatMul(vec4 a, vec4 b) {  // (u, x, y, z), as octomath::Quaternion::operator*
   precise float u = a.x * b.x - a.y * b.y - a.z * b.z - a.w * b.w;
   precise float x = a.z * b.w - b.z * a.w + a.x * b.y + b.x * a.y;
@@ -14,7 +16,7 @@ vec4 quatMul(vec4 a, vec4 b) {  // (u, x, y, z), as octomath::Quaternion::operat
 
 void main() {
   uint i = invocationIndex();
-  if (i >= pc.count) return;
+  if (i >= pc.point_count) return;
   vec4 q = vec4(params.rot_u, params.rot_x, params.rot_y, params.rot_z);
   vec4 q_inv = vec4(q.x, -q.y, -q.z, -q.w);
   vec4 v = vec4(0.0, points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);

@@ -6,7 +6,7 @@
 void main() {
   if (invocationIndex() != 0u) return;
   if (pool.root_exists == 0u) {
-    nodes[kRootNode] = Node(0.0, kNoChildren | kFlagNew | kFlagLive);
+    nodes[kRootNode] = Node(0.0, kNoChildren | kFlagLive);
     block_parent[0] = kNoBlock;
     pool.root_exists = 1u;
     pool.live_nodes = 1u;

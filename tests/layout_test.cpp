@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <type_traits>
+#include <utility>
 
 #include "octovk/gpu_types.h"
 #include "test_support.hpp"
@@ -23,8 +24,7 @@ static_assert(sizeof(Node) == 8);
 static_assert(offsetof(Node, log_odds) == 0);
 static_assert(offsetof(Node, link) == 4);
 // The link's block field holds any block the pool can have (MapParams::max_nodes / 8 <= 2^29 - 1).
-static_assert(kNoChildren == kBlockMask &&
-              (kBlockMask & (kFlagNew | kFlagTouched | kFlagLive)) == 0);
+static_assert(kNoChildren == kBlockMask && (kBlockMask & (kFlagTouched | kFlagLive)) == 0);
 
 static_assert(sizeof(LeafBox) == 20);
 static_assert(offsetof(LeafBox, center_x) == 0);
@@ -91,7 +91,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 384);
+static_assert(sizeof(ScanCounters) == 380);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, brick_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -102,7 +102,7 @@ static_assert(offsetof(ScanCounters, occupied_cells) == 24);
 static_assert(offsetof(ScanCounters, free_cells) == 28);
 static_assert(offsetof(ScanCounters, aborted) == 32);
 static_assert(offsetof(ScanCounters, new_blocks) == 36);
-static_assert(offsetof(ScanCounters, pruned_blocks) == 40);
+static_assert(offsetof(ScanCounters, cell_entries) == 40);
 static_assert(offsetof(ScanCounters, query_results) == 44);
 static_assert(offsetof(ScanCounters, leaf_cells) == 48);
 static_assert(offsetof(ScanCounters, touched_count) == 52);
@@ -111,7 +111,9 @@ static_assert(offsetof(ScanCounters, walk_count) == 324);
 static_assert(offsetof(ScanCounters, walk_args) == 332);
 static_assert(offsetof(ScanCounters, cell_args) == 356);
 static_assert(offsetof(ScanCounters, brick_args) == 368);
-static_assert(offsetof(ScanCounters, cell_entries) == 380);
+static_assert(offsetof(ScanCounters, brick_args) + sizeof(DispatchArgs) == sizeof(ScanCounters));
+// The host reads ScanCounters and PoolState back in one buffer, the PoolState right after.
+static_assert(sizeof(ScanCounters) % alignof(PoolState) == 0);
 // Indirect dispatch arguments must be 4-byte aligned inside the buffer.
 static_assert(offsetof(ScanCounters, touched_args) % 4 == 0);
 static_assert(offsetof(ScanCounters, walk_args) % 4 == 0);
@@ -152,7 +154,7 @@ static_assert(offsetof(WalkState, key_xy) == 36);
 static_assert(offsetof(WalkState, key_z) == 40);
 static_assert(offsetof(WalkState, pad0) == 44);
 
-static_assert(sizeof(RayState) == 40);
+static_assert(sizeof(RayState) == 48);
 static_assert(offsetof(RayState, t_max_x) == 0);
 static_assert(offsetof(RayState, t_max_y) == 8);
 static_assert(offsetof(RayState, t_max_z) == 16);
@@ -160,6 +162,8 @@ static_assert(offsetof(RayState, key_x) == 24);
 static_assert(offsetof(RayState, key_y) == 28);
 static_assert(offsetof(RayState, key_z) == 32);
 static_assert(offsetof(RayState, done) == 36);
+static_assert(offsetof(RayState, unfinished) == 40);
+static_assert(sizeof(RayState::unfinished) == 8);
 
 static_assert(sizeof(BoxQuery) == 32);
 static_assert(offsetof(BoxQuery, min_x) == 0);
@@ -171,11 +175,75 @@ static_assert(offsetof(BoxQuery, max_z) == 20);
 static_assert(offsetof(BoxQuery, occupied_only) == 24);
 static_assert(offsetof(BoxQuery, pad0) == 28);
 
+// Push constants: the pipeline layout's 16-byte range, and each pass's view of it.
 static_assert(sizeof(PassConstants) == 16);
-static_assert(offsetof(PassConstants, level) == 0);
-static_assert(offsetof(PassConstants, count) == 4);
-static_assert(offsetof(PassConstants, mode) == 8);
-static_assert(offsetof(PassConstants, offset) == 12);
+static_assert(offsetof(PassConstants, words) == 0);
+
+static_assert(sizeof(NoConstants) == 16);
+static_assert(offsetof(NoConstants, pad0) == 0);
+static_assert(offsetof(NoConstants, pad1) == 4);
+static_assert(offsetof(NoConstants, pad2) == 8);
+static_assert(offsetof(NoConstants, pad3) == 12);
+
+static_assert(sizeof(ClearSetsConstants) == 16);
+static_assert(offsetof(ClearSetsConstants, mode) == 0);
+static_assert(offsetof(ClearSetsConstants, bricks) == 4);
+static_assert(offsetof(ClearSetsConstants, endpoints) == 8);
+static_assert(offsetof(ClearSetsConstants, pad0) == 12);
+
+static_assert(sizeof(TransformPointsConstants) == 16);
+static_assert(offsetof(TransformPointsConstants, point_count) == 0);
+static_assert(offsetof(TransformPointsConstants, pad0) == 4);
+static_assert(offsetof(TransformPointsConstants, pad1) == 8);
+static_assert(offsetof(TransformPointsConstants, pad2) == 12);
+
+static_assert(sizeof(DiscretizeConstants) == 16);
+static_assert(offsetof(DiscretizeConstants, point_count) == 0);
+static_assert(offsetof(DiscretizeConstants, pad0) == 4);
+static_assert(offsetof(DiscretizeConstants, pad1) == 8);
+static_assert(offsetof(DiscretizeConstants, pad2) == 12);
+
+static_assert(sizeof(RayKeysConstants) == 16);
+static_assert(offsetof(RayKeysConstants, budget) == 0);
+static_assert(offsetof(RayKeysConstants, point_count) == 4);
+static_assert(offsetof(RayKeysConstants, mode) == 8);
+static_assert(offsetof(RayKeysConstants, from_list) == 12);
+
+static_assert(sizeof(DescendConstants) == 16);
+static_assert(offsetof(DescendConstants, cell_count) == 0);
+static_assert(offsetof(DescendConstants, descending) == 4);
+static_assert(offsetof(DescendConstants, pad0) == 8);
+static_assert(offsetof(DescendConstants, pad1) == 12);
+
+static_assert(sizeof(PruneConstants) == 16);
+static_assert(offsetof(PruneConstants, level) == 0);
+static_assert(offsetof(PruneConstants, pad0) == 4);
+static_assert(offsetof(PruneConstants, pad1) == 8);
+static_assert(offsetof(PruneConstants, pad2) == 12);
+
+static_assert(sizeof(LeafBoxesConstants) == 16);
+static_assert(offsetof(LeafBoxesConstants, mode) == 0);
+static_assert(offsetof(LeafBoxesConstants, pad0) == 4);
+static_assert(offsetof(LeafBoxesConstants, pad1) == 8);
+static_assert(offsetof(LeafBoxesConstants, pad2) == 12);
+
+static_assert(sizeof(LookupConstants) == 16);
+static_assert(offsetof(LookupConstants, point_count) == 0);
+static_assert(offsetof(LookupConstants, first_float) == 4);
+static_assert(offsetof(LookupConstants, first_result) == 8);
+static_assert(offsetof(LookupConstants, pad0) == 12);
+
+static_assert(sizeof(CastRayConstants) == 16);
+static_assert(offsetof(CastRayConstants, budget) == 0);
+static_assert(offsetof(CastRayConstants, ray_count) == 4);
+static_assert(offsetof(CastRayConstants, resume) == 8);
+static_assert(offsetof(CastRayConstants, first_state) == 12);
+
+static_assert(sizeof(DeviceProbeConstants) == 16);
+static_assert(offsetof(DeviceProbeConstants, mode) == 0);
+static_assert(offsetof(DeviceProbeConstants, case_count) == 4);
+static_assert(offsetof(DeviceProbeConstants, loop_iterations) == 8);
+static_assert(offsetof(DeviceProbeConstants, pad0) == 12);
 
 // The public mirrors of device structs that are copied byte for byte.
 static_assert(sizeof(OccupancyMap::LeafBoxHost) == sizeof(LeafBox));
@@ -200,15 +268,15 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(NewBlock), 12u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 384u);
+  EXPECT_EQ(sizeof(ScanCounters), 380u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
   EXPECT_EQ(sizeof(LookupResult), 16u);
   EXPECT_EQ(sizeof(RayQuery), 40u);
   EXPECT_EQ(sizeof(RayResult), 16u);
   EXPECT_EQ(sizeof(BoxQuery), 32u);
-  EXPECT_EQ(sizeof(RayState), 40u);
-  EXPECT_EQ(offsetof(ScanCounters, cell_entries) + 4, sizeof(ScanCounters));
+  EXPECT_EQ(sizeof(RayState), 48u);
+  EXPECT_EQ(offsetof(ScanCounters, brick_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
   EXPECT_EQ(offsetof(ScanParams, pad0) + 4, sizeof(ScanParams));
 }
 
@@ -258,6 +326,29 @@ void addDispatchArgs(std::vector<Field>& f, const std::string& name, std::size_t
                Kind::kUint, id + 2});
 }
 
+// Push-constant structs the probe writes out (NoConstants and one per pass that takes constants).
+constexpr std::uint32_t kProbedConstants = 11;
+
+// The four fields of a push-constant struct (`name`) that the probe's query output holds at `at`,
+// markers id .. id + 3.
+void addConstants(std::vector<Field>& f, const char* name, std::size_t at, std::uint32_t id,
+                  const std::array<std::pair<const char*, std::size_t>, 4>& fields) {
+  for (std::uint32_t i = 0; i < 4; ++i) {
+    std::string field_name = name;
+    field_name += "::";
+    field_name += fields[i].first;
+    f.push_back({field_name, kBindQueryOut, at + fields[i].second, Kind::kUint, id + i});
+  }
+}
+// Push-constant struct number `index` (in gpu_types.h's order) of the probe's query output.
+#define OCTOVK_CONSTANTS(f, at, index, Struct, a, b, c, d)                       \
+  static_assert(sizeof(Struct) == sizeof(PassConstants));                        \
+  addConstants(f, #Struct, (at) + (index) * sizeof(Struct), 1100 + 10 * (index), \
+               {{{#a, offsetof(Struct, a)},                                      \
+                 {#b, offsetof(Struct, b)},                                      \
+                 {#c, offsetof(Struct, c)},                                      \
+                 {#d, offsetof(Struct, d)}}})
+
 std::vector<Field> probedFields() {
   constexpr Kind U = Kind::kUint, F = Kind::kFloat, D = Kind::kDouble, U64 = Kind::kUint64;
   std::vector<Field> f = {
@@ -299,7 +390,7 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindCounters, ScanCounters, free_cells, U, 207),
       OCTOVK_FIELD(kBindCounters, ScanCounters, aborted, U, 208),
       OCTOVK_FIELD(kBindCounters, ScanCounters, new_blocks, U, 209),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, pruned_blocks, U, 210),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, cell_entries, U, 210),
       OCTOVK_FIELD(kBindCounters, ScanCounters, query_results, U, 211),
       OCTOVK_FIELD(kBindCounters, ScanCounters, leaf_cells, U, 212),
 
@@ -349,7 +440,6 @@ std::vector<Field> probedFields() {
       Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
       Field{"cell_list[1]", kBindCellList, 1 * sizeof(std::uint32_t), U, 806},
       Field{"block_parent[1]", kBindBlockParents, 1 * sizeof(std::uint32_t), U, 807},
-      OCTOVK_FIELD(kBindCounters, ScanCounters, cell_entries, U, 396),
   };
   addDispatchArgs(f, "cell_args", offsetof(ScanCounters, cell_args), 390);
   addDispatchArgs(f, "brick_args", offsetof(ScanCounters, brick_args), 393);
@@ -424,6 +514,10 @@ std::vector<Field> probedFields() {
         {"RayState" + at + "::key_z", kBindQueryIn, state + offsetof(RayState, key_z), U, sid + 5});
     f.push_back(
         {"RayState" + at + "::done", kBindQueryIn, state + offsetof(RayState, done), U, sid + 6});
+    for (std::uint32_t l = 0; l < 2; ++l)
+      f.push_back({"RayState" + at + "::unfinished" + subscript(l), kBindQueryIn,
+                   state + offsetof(RayState, unfinished) + l * sizeof(std::uint32_t), U,
+                   sid + 7 + l});
     const std::size_t lookup = e * sizeof(LookupResult);
     const std::uint32_t lid = 930 + 5 * e;
     f.push_back({"LookupResult" + at + "::state", kBindQueryOut,
@@ -454,6 +548,22 @@ std::vector<Field> probedFields() {
   f.push_back({"BoxQuery::occupied_only", kBindQueryIn, box_at + offsetof(BoxQuery, occupied_only),
                U, 926});
   f.push_back({"BoxQuery::pad0", kBindQueryIn, box_at + offsetof(BoxQuery, pad0), U, 927});
+
+  // Every pass's push-constant struct, after the RayResults in the probe's output view.
+  const std::size_t constants_at = ray_results_at + 2 * sizeof(RayResult);
+  OCTOVK_CONSTANTS(f, constants_at, 0, NoConstants, pad0, pad1, pad2, pad3);
+  OCTOVK_CONSTANTS(f, constants_at, 1, ClearSetsConstants, mode, bricks, endpoints, pad0);
+  OCTOVK_CONSTANTS(f, constants_at, 2, TransformPointsConstants, point_count, pad0, pad1, pad2);
+  OCTOVK_CONSTANTS(f, constants_at, 3, DiscretizeConstants, point_count, pad0, pad1, pad2);
+  OCTOVK_CONSTANTS(f, constants_at, 4, RayKeysConstants, budget, point_count, mode, from_list);
+  OCTOVK_CONSTANTS(f, constants_at, 5, DescendConstants, cell_count, descending, pad0, pad1);
+  OCTOVK_CONSTANTS(f, constants_at, 6, PruneConstants, level, pad0, pad1, pad2);
+  OCTOVK_CONSTANTS(f, constants_at, 7, LeafBoxesConstants, mode, pad0, pad1, pad2);
+  OCTOVK_CONSTANTS(f, constants_at, 8, LookupConstants, point_count, first_float, first_result,
+                   pad0);
+  OCTOVK_CONSTANTS(f, constants_at, 9, CastRayConstants, budget, ray_count, resume, first_state);
+  OCTOVK_CONSTANTS(f, constants_at, 10, DeviceProbeConstants, mode, case_count, loop_iterations,
+                   pad0);
 
   for (std::uint32_t l = 0; l < kLevelCount; ++l) {
     const std::string at = subscript(l);
@@ -498,7 +608,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindLeafBoxes] = 4 * sizeof(LeafBox);
   sizes[kBindEndpointKeys] = 4 * sizeof(std::uint64_t);
   sizes[kBindQueryIn] = 2 * sizeof(RayQuery) + sizeof(BoxQuery) + 2 * sizeof(RayState);
-  sizes[kBindQueryOut] = 2 * sizeof(LookupResult) + 2 * sizeof(RayResult);
+  sizes[kBindQueryOut] =
+      2 * sizeof(LookupResult) + 2 * sizeof(RayResult) + kProbedConstants * sizeof(PassConstants);
   sizes[kBindWalks] = 2 * sizeof(WalkState);
   sizes[kBindSlots] = 4 * sizeof(std::uint32_t);
   sizes[kBindCellList] = 4 * sizeof(std::uint32_t);
@@ -514,7 +625,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   vk::BindingSet bindings(device);
   bindings.update(bound);
 
-  const PassConstants pc{0x11111111u, 0x22222222u, 0x33333333u, 0x44444444u};
+  // The probe's push block is a RayKeysConstants.
+  const RayKeysConstants pc{0x11111111u, 0x22222222u, 0x33333333u, 0x44444444u};
   vk::CommandStream stream(device);
   stream.begin(bindings);
   stream.dispatch(probe, 1, &pc, sizeof(pc));
@@ -522,10 +634,11 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   stream.submitAndWait();
 
   const std::vector<Field> fields = probedFields();
-  EXPECT_EQ(fields.size(), 25u + 13u + 8u + 28u + 5u + 2u * (9u + 7u + 4u + 4u) + 8u +
+  EXPECT_EQ(fields.size(), 25u + 13u + 8u + 28u + 5u + 2u * (9u + 9u + 4u + 4u) + 8u +
                                2u * (4u + 9u) + 4u * kLevelCount + 1u /* slots */ +
                                3u /* cell_args */ + 2u /* ScanParams */ +
-                               6u /* brick_args, cell_entries, cell_list, block_parent */);
+                               5u /* brick_args, cell_list, block_parent */ +
+                               4u * kProbedConstants /* push-constant structs */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());
     const std::size_t size = buffers[f.binding].size();
@@ -573,12 +686,13 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
     }
   }
 
-  // Push constants as the shader saw them, and the constants it shares with the host.
+  // Push constants as the shader saw them (the four words in order), and the constants it shares
+  // with the host.
   const auto* touched = static_cast<const std::uint32_t*>(buffers[kBindTouched].mapped());
-  EXPECT_EQ(touched[0], pc.level);
-  EXPECT_EQ(touched[1], pc.count);
+  EXPECT_EQ(touched[0], pc.budget);
+  EXPECT_EQ(touched[1], pc.point_count);
   EXPECT_EQ(touched[2], pc.mode);
-  EXPECT_EQ(touched[3], pc.offset);
+  EXPECT_EQ(touched[3], pc.from_list);
   EXPECT_EQ(touched[4], kWorkgroupSize) << "the shaders' local size differs from kWorkgroupSize";
   EXPECT_EQ(touched[5], kLevelCount);
   EXPECT_EQ(touched[6], kTreeDepth);

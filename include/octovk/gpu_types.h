@@ -22,9 +22,9 @@ OCTOVK_CONST uint kNoBlock = 0xFFFFFFFFu;
 OCTOVK_CONST uint kRootNode = 0u;
 
 // Bits of Node::link: the block of the node's 8 child slots, and per-node flags.
-OCTOVK_CONST uint kBlockMask = 0x1FFFFFFFu;    // bits 0-28: block index of the children
-OCTOVK_CONST uint kNoChildren = 0x1FFFFFFFu;   // block field of a node without children
-OCTOVK_CONST uint kFlagNew = 0x20000000u;      // created alone during this scan (never expanded)
+OCTOVK_CONST uint kBlockMask = 0x1FFFFFFFu;   // bits 0-28: block index of the children
+OCTOVK_CONST uint kNoChildren = 0x1FFFFFFFu;  // block field of a node without children
+// bit 29 is unused
 OCTOVK_CONST uint kFlagTouched = 0x40000000u;  // on an updated path, listed for the prune pass
 OCTOVK_CONST uint kFlagLive = 0x80000000u;     // the node exists (its parent has this child)
 // Child bits of a node as the host tree (HostTree::Node::mask) gives them.
@@ -54,8 +54,8 @@ OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
 
 // One octree node. 8 B. A node has children exactly when its block field is not kNoChildren,
-// and child i exists when slot i of that block has kFlagLive. kFlagNew and kFlagTouched are
-// clear between scans.
+// and child i exists when slot i of that block has kFlagLive. kFlagTouched is clear between
+// scans.
 struct Node {
   float log_odds;  // 4B (0)
   uint link;       // 4B (4)  child block (kBlockMask bits) | kFlag* bits
@@ -137,7 +137,8 @@ struct DispatchArgs {
   uint z;  // 4B (8)
 };
 
-// Counters of one scan, reset at its start. The host reads this struct back once per scan.
+// Counters of one scan, reset at its start. The host reads this struct back once per scan
+// (with the PoolState right after it, at byte 380). 380 B.
 struct ScanCounters {
   uint status;             // 4B (0)   kStatus* bits
   uint brick_entries;      // 4B (4)   distinct bricks in the cell set
@@ -150,16 +151,15 @@ struct ScanCounters {
   uint free_cells;         // 4B (28)
   uint aborted;            // 4B (32)
   uint new_blocks;         // 4B (36)  distinct nodes that get a block of children this scan
-  uint pruned_blocks;      // 4B (40)
+  uint cell_entries;       // 4B (40)  distinct cells of the scan (the cell list)
   uint query_results;      // 4B (44)  entries written by a compacting query (leaves in a box)
-  uint leaf_cells;         // 4B (48)   updated cells whose leaf exists (no descent needed)
+  uint leaf_cells;         // 4B (48)  updated cells whose leaf exists (no descent needed)
   uint touched_count[kLevelCount];         // 68B (52)  nodes listed for the prune pass, per depth
   DispatchArgs touched_args[kLevelCount];  // 204B (120)
   uint walk_count[2];                      // 8B (324) unfinished ray walks, two lists (ping-pong)
   DispatchArgs walk_args[2];               // 24B (332)
   DispatchArgs cell_args;                  // 12B (356) groups over the cell list
   DispatchArgs brick_args;                 // 12B (368) groups over the cell set's bricks
-  uint cell_entries;                       // 4B (380) distinct cells of the scan (the cell list)
 };
 
 // Cell states of a point lookup.
@@ -209,15 +209,19 @@ struct WalkState {
   uint pad0;       // 4B (44)
 };
 
-// A castRay walk between segments (see shaders/cast_ray.comp). 40 B.
+// A castRay walk between segments (see shaders/cast_ray.comp). The query output holds one per
+// ray after the results, from the first whole RayState after them (castRaysResultBytes); element
+// e of that array also holds entry e of the two lists of unfinished walks, which is not walk e's
+// (so the fields are written one by one, never the whole struct). 48 B.
 struct RayState {
-  double t_max_x;  // 8B (0)
-  double t_max_y;  // 8B (8)
-  double t_max_z;  // 8B (16)
-  uint key_x;      // 4B (24)
-  uint key_y;      // 4B (28)
-  uint key_z;      // 4B (32)
-  uint done;       // 4B (36) 1: the result is written
+  double t_max_x;      // 8B (0)
+  double t_max_y;      // 8B (8)
+  double t_max_z;      // 8B (16)
+  uint key_x;          // 4B (24)
+  uint key_y;          // 4B (28)
+  uint key_z;          // 4B (32)
+  uint done;           // 4B (36) 1: the result is written
+  uint unfinished[2];  // 8B (40) entry e of list 0 and of list 1: the index of an unfinished ray
 };
 
 // The device probe (shaders/device_probe.comp, run when a Context is created): one case of the
@@ -250,7 +254,7 @@ OCTOVK_CONST uint kProbeCases = 4096u;
 // Head of the probe's output (binding 15), followed by int(floor(a)) of each case (0 where it does
 // not fit an int), then the ProbeResults. 16 B.
 struct ProbeHeader {
-  uint loop_iterations;  // 4B (0) least over the invocations of mode 1
+  uint loop_iterations;  // 4B (0) least over the invocations of kProbeModeLoop
   uint pad0;             // 4B (4)
   uint pad1;             // 4B (8)
   uint pad2;             // 4B (12)
@@ -268,12 +272,116 @@ struct BoxQuery {
   uint pad0;           // 4B (28)
 };
 
-// Push constants shared by every pass. 16 B.
+// ---- push constants ----
+// Every pipeline layout has one 16-byte push-constant range. Each pass reads it as its own struct
+// of four uints below (`layout(push_constant) uniform PushBlock { XConstants pc; };` in the pass),
+// and the host pushes that struct when it records the pass. A pass that takes nothing declares no
+// push block; the host pushes NoConstants (zeros) for it: tree_begin, alloc, tree_fixup, link,
+// list_cells, classify.
+#ifdef __cplusplus
+// The push range as a whole (the pipeline layout's size, src/vk/device.cpp); no pass reads it as
+// such, and every XConstants has its size.
 struct PassConstants {
-  uint level;   // 4B (0)  tree depth the pass works on
-  uint count;   // 4B (4)  number of work items, where the host knows it
-  uint mode;    // 4B (8)  pass-specific switch
-  uint offset;  // 4B (12) pass-specific offset
+  uint words[4];  // 16B (0)
+};
+#endif
+
+// Passes without constants. 16 B.
+struct NoConstants {
+  uint pad0;  // 4B (0)
+  uint pad1;  // 4B (4)
+  uint pad2;  // 4B (8)
+  uint pad3;  // 4B (12)
+};
+
+// clear_sets. 16 B.
+OCTOVK_CONST uint kClearPrevious = 0u;  // the slots the previous scan filled in both sets
+OCTOVK_CONST uint kClearEndCells = 1u;  // discretize's end cells, before classify reuses the set
+struct ClearSetsConstants {
+  uint mode;       // 4B (0)  kClearPrevious / kClearEndCells
+  uint bricks;     // 4B (4)  kClearPrevious: bricks the previous scan filled in the cell set
+  uint endpoints;  // 4B (8)  kClearPrevious: entries it filled in the second set
+  uint pad0;       // 4B (12)
+};
+
+// transform_points. 16 B.
+struct TransformPointsConstants {
+  uint point_count;  // 4B (0)
+  uint pad0;         // 4B (4)
+  uint pad1;         // 4B (8)
+  uint pad2;         // 4B (12)
+};
+
+// discretize. 16 B.
+struct DiscretizeConstants {
+  uint point_count;  // 4B (0)
+  uint pad0;         // 4B (4)
+  uint pad1;         // 4B (8)
+  uint pad2;         // 4B (12)
+};
+
+// ray_keys. 16 B.
+OCTOVK_CONST uint kRayKeysPoints = 0u;        // a ray to every point of the scan
+OCTOVK_CONST uint kRayKeysEndCells = 1u;      // a ray to every distinct end cell (discretize)
+OCTOVK_CONST uint kRayKeysContinue = 2u;      // continue the walks of list from_list
+OCTOVK_CONST uint kRayKeysContinueLast = 3u;  // the same, last round: an unfinished walk is cut
+struct RayKeysConstants {
+  uint budget;       // 4B (0)  loop iterations a walk takes before it is saved
+  uint point_count;  // 4B (4)  kRayKeysPoints: points of the scan
+  uint mode;         // 4B (8)  kRayKeys*
+  uint from_list;    // 4B (12) kRayKeysContinue*: the list (0, 1) of walks to continue
+};
+
+// descend. 16 B.
+struct DescendConstants {
+  uint cell_count;  // 4B (0)  active cells
+  uint descending;  // 4B (4)  of which the first ones need nodes created on their path
+  uint pad0;        // 4B (8)
+  uint pad1;        // 4B (12)
+};
+
+// prune. 16 B.
+struct PruneConstants {
+  uint level;  // 4B (0)  depth of the nodes this dispatch prunes
+  uint pad0;   // 4B (4)
+  uint pad1;   // 4B (8)
+  uint pad2;   // 4B (12)
+};
+
+// leaf_boxes. 16 B.
+OCTOVK_CONST uint kLeafBoxesRebuild = 0u;  // every leaf into the leaf-box buffer
+OCTOVK_CONST uint kLeafBoxesInBox = 1u;    // the leaves in the query's BoxQuery, compacted
+struct LeafBoxesConstants {
+  uint mode;  // 4B (0)  kLeafBoxes*
+  uint pad0;  // 4B (4)
+  uint pad1;  // 4B (8)
+  uint pad2;  // 4B (12)
+};
+
+// lookup. 16 B.
+struct LookupConstants {
+  uint point_count;   // 4B (0)
+  uint first_float;   // 4B (4)  the points' first float in the query input (after the rays)
+  uint first_result;  // 4B (8)  their first LookupResult in the output (after the rays')
+  uint pad0;          // 4B (12)
+};
+
+// cast_ray. 16 B.
+struct CastRayConstants {
+  uint budget;       // 4B (0)  loop iterations a walk takes before it is saved
+  uint ray_count;    // 4B (4)
+  uint resume;       // 4B (8)  0: start every ray; 1 + l: continue the walks listed in list l
+  uint first_state;  // 4B (12) the RayState (element of the query output) of ray 0
+};
+
+// device_probe. 16 B.
+OCTOVK_CONST uint kProbeModeArithmetic = 0u;  // per case, the operations, into ProbeResults
+OCTOVK_CONST uint kProbeModeLoop = 1u;        // the iterations a loop really runs
+struct DeviceProbeConstants {
+  uint mode;             // 4B (0)  kProbeMode*
+  uint case_count;       // 4B (4)  kProbeModeArithmetic: cases
+  uint loop_iterations;  // 4B (8)  kProbeModeLoop: iterations the loop asks for
+  uint pad0;             // 4B (12)
 };
 
 // Descriptor bindings: every pass sees the same set layout.

@@ -130,9 +130,12 @@ Result<DeviceProbe> probeDevice(vk::Device& device) {
     const vk::Pass& pass = device.pass("device_probe");
     vk::CommandStream stream(device);
     stream.begin(bindings);
-    const gpu::PassConstants arithmetic{0u, kProbeCases, 0u, 0u};
+    static_assert(sizeof(gpu::DeviceProbeConstants) == sizeof(gpu::PassConstants));
+    const gpu::DeviceProbeConstants arithmetic{.mode = gpu::kProbeModeArithmetic,
+                                               .case_count = kProbeCases};
     stream.dispatch(pass, kProbeCases / gpu::kWorkgroupSize, &arithmetic, sizeof arithmetic);
-    const gpu::PassConstants loop{0u, kProbeLoopIterations, 1u, 0u};
+    const gpu::DeviceProbeConstants loop{.mode = gpu::kProbeModeLoop,
+                                         .loop_iterations = kProbeLoopIterations};
     stream.dispatch(pass, 1, &loop, sizeof loop);
     stream.barrier();
     stream.submitAndWait();

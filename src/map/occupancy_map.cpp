@@ -5,7 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <functional>
+#include <type_traits>
 
 #include "map/reference.hpp"
 #include "octovk/gpu_types.h"
@@ -16,8 +16,6 @@
 namespace octovk {
 
 namespace {
-
-using gpu::PassConstants;
 
 constexpr std::uint32_t kInitialBlocks = 1024;
 constexpr std::uint32_t kInitialHashLog2 = 12;
@@ -35,6 +33,13 @@ std::uint32_t nextPow2Log2(std::size_t n) {
   std::uint32_t log2 = 0;
   while ((std::size_t{1} << log2) < n) ++log2;
   return log2;
+}
+
+// The first RayState after `results` results in the query output: castRay's walk states follow
+// the results there, from the first element of a RayState array that lies past them.
+std::uint32_t firstRayState(std::size_t results) {
+  return static_cast<std::uint32_t>((results * sizeof(gpu::RayResult) + sizeof(gpu::RayState) - 1) /
+                                    sizeof(gpu::RayState));
 }
 
 gpu::ScanCounters freshCounters() {
@@ -120,22 +125,45 @@ class OccupancyMap::Impl {
 
   void recordRayKeys(const gpu::ScanParams& sp, bool transform, bool discretize, bool fill_sets);
   void recordClassify(bool discretize, std::uint32_t points);
-  void recordContinuations(const char* pass, std::uint32_t rounds,
-                           const std::function<PassConstants(std::uint32_t, bool)>& constants);
+  template <typename MakeConstants>
+  void recordContinuations(const char* pass, std::uint32_t rounds, MakeConstants constants);
   void recordTreeUpdate(std::uint32_t new_blocks, std::uint32_t active, std::uint32_t descending);
   void recordLeafBoxes();
   void recordReadback();
   void readBack(gpu::ScanCounters& counters, gpu::PoolState& pool);
   void stageQueries(const QueryRequest& queries);
   void recordQueries(const QueryRequest& queries);
-  void recordCastRays(std::uint32_t rays, std::uint32_t state_word);
+  void recordCastRays(std::uint32_t rays, std::uint32_t first_state);
   void recordLookups(std::uint32_t points, std::uint32_t first_result, std::uint32_t first_float);
   QueryResults collectQueries(const QueryRequest& queries);
   void ensureQueryBuffers(std::size_t in_bytes, std::size_t out_bytes);
 
-  void dispatch(const char* pass, std::size_t items, PassConstants pc = {}) {
+  // Each pass reads the pipeline layout's 16-byte push range as its own struct (gpu_types.h);
+  // these record it with that struct, or NoConstants for the passes that take none. The
+  // constants' type is always spelled out at the call: a braced list does not deduce one.
+  template <typename Constants>
+  static void checkConstants() {
+    static_assert(
+        sizeof(Constants) == sizeof(gpu::PassConstants) && std::is_trivially_copyable_v<Constants>,
+        "push constants are one of gpu_types.h's 16-byte structs");
+  }
+  /// One invocation per work item.
+  template <typename Constants>
+  void dispatch(const char* pass, std::size_t items, const Constants& pc) {
+    checkConstants<Constants>();
     stream_.dispatch(device_.pass(pass), groupsFor(items), &pc, sizeof(pc));
     stream_.barrier();
+  }
+  void dispatch(const char* pass, std::size_t items) { dispatch(pass, items, gpu::NoConstants{}); }
+  /// Groups read from the counters at byte `args_offset` (a DispatchArgs).
+  template <typename Constants>
+  void dispatchIndirect(const char* pass, std::size_t args_offset, const Constants& pc) {
+    checkConstants<Constants>();
+    stream_.dispatchIndirect(device_.pass(pass), counters_buf_, args_offset, &pc, sizeof(pc));
+    stream_.barrier();
+  }
+  void dispatchIndirect(const char* pass, std::size_t args_offset) {
+    dispatchIndirect(pass, args_offset, gpu::NoConstants{});
   }
 
   vk::Device& device_;
@@ -337,21 +365,20 @@ gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, co
 // Records `rounds` indirect dispatches of `pass` that continue the walks listed in the two lists
 // of ScanCounters::walk_count, alternately: each round empties the other list, then continues
 // the listed walks, which list the ones still unfinished in it.
-void OccupancyMap::Impl::recordContinuations(
-    const char* pass, std::uint32_t rounds,
-    const std::function<PassConstants(std::uint32_t from, bool last)>& constants) {
-  const vk::Pass& p = device_.pass(pass);
+// `constants(from, last)` gives the pass's push constants for the round that continues list
+// `from` (`last`: the last round).
+template <typename MakeConstants>
+void OccupancyMap::Impl::recordContinuations(const char* pass, std::uint32_t rounds,
+                                             MakeConstants constants) {
   for (std::uint32_t round = 0; round < rounds; ++round) {
     const std::uint32_t from = round % 2, to = 1 - from;
     stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, walk_count) + 4 * to, 4);
     stream_.fill(counters_buf_, 0u,
                  offsetof(gpu::ScanCounters, walk_args) + to * sizeof(gpu::DispatchArgs), 4);
     stream_.barrier();
-    const PassConstants pc = constants(from, round + 1 == rounds);
-    stream_.dispatchIndirect(
-        p, counters_buf_, offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs),
-        &pc, sizeof(pc));
-    stream_.barrier();
+    dispatchIndirect(pass,
+                     offsetof(gpu::ScanCounters, walk_args) + from * sizeof(gpu::DispatchArgs),
+                     constants(from, round + 1 == rounds));
   }
 }
 
@@ -368,12 +395,16 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
     stream_.fill(endpoint_keys_, 0xFFFFFFFFu);
   } else {
     stream_.barrier();
-    dispatch("clear_sets", std::max(filled_bricks_, filled_endpoints_),
-             {0, filled_bricks_, 0, filled_endpoints_});
+    dispatch(
+        "clear_sets", std::max(filled_bricks_, filled_endpoints_),
+        gpu::ClearSetsConstants{
+            .mode = gpu::kClearPrevious, .bricks = filled_bricks_, .endpoints = filled_endpoints_});
   }
   stream_.barrier();
   stream_.timestamp();
-  if (transform) dispatch("transform_points", sp.point_count, {0, sp.point_count, 0, 0});
+  if (transform)
+    dispatch("transform_points", sp.point_count,
+             gpu::TransformPointsConstants{.point_count = sp.point_count});
   // Where the driver ends an invocation's loops early (the device probe measures it: llvmpipe
   // after 65535 iterations in total, silently, counted for 8 lanes at once), a walk stops after
   // its budget of iterations (steps and hash probes; 30000 there) and is continued by more
@@ -383,14 +414,21 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   const bool loop_limited = device_.loopLimit() != 0;
   const std::uint32_t budget = device_.walkBudget();
   if (discretize) {
-    dispatch("discretize", sp.point_count, {0, sp.point_count, 0, 0});
-    dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 1, 0});
+    dispatch("discretize", sp.point_count, gpu::DiscretizeConstants{.point_count = sp.point_count});
+    dispatch("ray_keys", sp.point_count,
+             gpu::RayKeysConstants{
+                 .budget = budget, .point_count = sp.point_count, .mode = gpu::kRayKeysEndCells});
   } else {
-    dispatch("ray_keys", sp.point_count, {budget, sp.point_count, 0, 0});
+    dispatch("ray_keys", sp.point_count,
+             gpu::RayKeysConstants{
+                 .budget = budget, .point_count = sp.point_count, .mode = gpu::kRayKeysPoints});
   }
   const std::uint32_t continuations = loop_limited ? (24u * 30000u + budget - 1) / budget : 0u;
   recordContinuations("ray_keys", continuations, [&](std::uint32_t from, bool last) {
-    return PassConstants{budget, last ? 0u : 1u, 2, from};
+    return gpu::RayKeysConstants{.budget = budget,
+                                 .point_count = sp.point_count,
+                                 .mode = last ? gpu::kRayKeysContinueLast : gpu::kRayKeysContinue,
+                                 .from_list = from};
   });
 }
 
@@ -398,14 +436,10 @@ void OccupancyMap::Impl::recordClassify(bool discretize, std::uint32_t points) {
   stream_.timestamp();
   // The second set now collects the prefixes of nodes that get a block: empty discretize's end
   // cells out of it first.
-  if (discretize) dispatch("clear_sets", points, {0, points, 1, 0});
-  const PassConstants pc{};
-  stream_.dispatchIndirect(device_.pass("list_cells"), counters_buf_,
-                           offsetof(gpu::ScanCounters, brick_args), &pc, sizeof(pc));
-  stream_.barrier();
-  stream_.dispatchIndirect(device_.pass("classify"), counters_buf_,
-                           offsetof(gpu::ScanCounters, cell_args), &pc, sizeof(pc));
-  stream_.barrier();
+  if (discretize)
+    dispatch("clear_sets", points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
+  dispatchIndirect("list_cells", offsetof(gpu::ScanCounters, brick_args));
+  dispatchIndirect("classify", offsetof(gpu::ScanCounters, cell_args));
   stream_.timestamp();
 }
 
@@ -419,24 +453,20 @@ void OccupancyMap::Impl::recordTreeUpdate(std::uint32_t new_blocks, std::uint32_
     dispatch("tree_fixup", 1);
     dispatch("link", new_blocks);
   }
-  dispatch("descend", active, {0, active, 0, descending});
+  dispatch("descend", active,
+           gpu::DescendConstants{.cell_count = active, .descending = descending});
   stream_.timestamp();
-  const vk::Pass& prune = device_.pass("prune");
-  for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
-    PassConstants pc{level, 0, 0, 0};
-    stream_.dispatchIndirect(
-        prune, counters_buf_,
-        offsetof(gpu::ScanCounters, touched_args) + level * sizeof(gpu::DispatchArgs), &pc,
-        sizeof(pc));
-    stream_.barrier();
-  }
+  for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;)
+    dispatchIndirect("prune",
+                     offsetof(gpu::ScanCounters, touched_args) + level * sizeof(gpu::DispatchArgs),
+                     gpu::PruneConstants{.level = level});
   stream_.timestamp();
 }
 
 void OccupancyMap::Impl::recordLeafBoxes() {
   stream_.fill(pool_buf_, 0u, offsetof(gpu::PoolState, leaf_count), sizeof(std::uint32_t));
   stream_.barrier();
-  dispatch("leaf_boxes", pool_blocks_);
+  dispatch("leaf_boxes", pool_blocks_, gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesRebuild});
   stream_.timestamp();
 }
 
@@ -636,8 +666,9 @@ ScanStats OccupancyMap::Impl::insert(std::span<const Eigen::Vector3f> points,
 void OccupancyMap::Impl::stageQueries(const QueryRequest& q) {
   const std::size_t ray_bytes = q.rays.size() * sizeof(gpu::RayQuery);
   const std::size_t point_bytes = q.lookups.size() * 3 * sizeof(float);
-  const std::size_t out_bytes = (q.rays.size() + q.lookups.size()) * sizeof(gpu::RayResult) +
-                                q.rays.size() * (sizeof(gpu::RayState) + 2 * sizeof(std::uint32_t));
+  // The results, then (castRay) the walks' states from the first RayState past them.
+  const std::size_t results = q.rays.size() + q.lookups.size();
+  const std::size_t out_bytes = (firstRayState(results) + q.rays.size()) * sizeof(gpu::RayState);
   static_assert(sizeof(gpu::RayResult) == sizeof(gpu::LookupResult));
   ensureQueryBuffers(ray_bytes + point_bytes, out_bytes);
   auto* bytes = static_cast<unsigned char*>(query_staging_in_.mapped());
@@ -667,8 +698,7 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
   stream_.copy(query_staging_in_, query_in_, in_bytes);
   stream_.barrier();
   // The walk states follow the results in the output buffer.
-  if (rays)
-    recordCastRays(rays, static_cast<std::uint32_t>((rays + points) * sizeof(gpu::RayResult) / 4));
+  if (rays) recordCastRays(rays, firstRayState(rays + points));
   if (points)
     recordLookups(points, rays,
                   static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float)));
@@ -676,8 +706,8 @@ void OccupancyMap::Impl::recordQueries(const QueryRequest& q) {
 }
 
 // castRay for `rays` queries at the start of the query input; results at the start of the
-// output, the walks' scratch from word `state_word` of it.
-void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t state_word) {
+// output, the walks' states (and lists of unfinished walks) from its RayState `first_state` on.
+void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t first_state) {
   // Where the driver limits loops (see recordRayKeys) the walk runs in segments of the walk
   // budget (30000 on llvmpipe); the longest castRay (3 * 65536 steps, each with a search of up
   // to 17 iterations) then needs 112 continuations, over ever fewer rays. Elsewhere each ray is
@@ -696,9 +726,12 @@ void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t state_
                  sizeof(fresh.walk_count) + sizeof(fresh.walk_args),
                  offsetof(gpu::ScanCounters, walk_count));
   stream_.barrier();
-  dispatch("cast_ray", rays, {budget, rays, 0, state_word});
+  dispatch("cast_ray", rays,
+           gpu::CastRayConstants{
+               .budget = budget, .ray_count = rays, .resume = 0, .first_state = first_state});
   recordContinuations("cast_ray", continuations, [&](std::uint32_t from, bool) {
-    return PassConstants{budget, rays, from + 1, state_word};
+    return gpu::CastRayConstants{
+        .budget = budget, .ray_count = rays, .resume = from + 1, .first_state = first_state};
   });
 }
 
@@ -706,7 +739,9 @@ void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t state_
 // `first_result` of the output.
 void OccupancyMap::Impl::recordLookups(std::uint32_t points, std::uint32_t first_result,
                                        std::uint32_t first_float) {
-  dispatch("lookup", points, {first_result, points, 0, first_float});
+  dispatch("lookup", points,
+           gpu::LookupConstants{
+               .point_count = points, .first_float = first_float, .first_result = first_result});
 }
 
 void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset,
@@ -729,7 +764,7 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
     stream_.update(params_buf_, &sp, sizeof(sp));
     stream_.barrier();
     if (rays)
-      recordCastRays(count, count * static_cast<std::uint32_t>(sizeof(gpu::RayResult) / 4));
+      recordCastRays(count, firstRayState(count));
     else
       recordLookups(count, 0, 0);
     stream_.submitAndWait();
@@ -797,7 +832,7 @@ std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eig
   stream_.fill(counters_buf_, 0u, offsetof(gpu::ScanCounters, query_results),
                sizeof(std::uint32_t));
   stream_.barrier();
-  dispatch("leaf_boxes", pool_blocks_, {0, 0, 1, 0});
+  dispatch("leaf_boxes", pool_blocks_, gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesInBox});
   recordReadback();
   stream_.submitAndWait();
   gpu::ScanCounters counters;
@@ -1029,8 +1064,8 @@ void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,
 }
 
 std::size_t castRaysResultBytes(std::uint32_t count) {
-  return std::size_t{count} *
-         (sizeof(gpu::RayResult) + sizeof(gpu::RayState) + 2 * sizeof(std::uint32_t));
+  // The results, then from the first RayState past them one per ray (recordCastRays).
+  return (std::size_t{firstRayState(count)} + count) * sizeof(gpu::RayState);
 }
 
 void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
