@@ -410,7 +410,9 @@ TEST(SetGrowth, LongRaysFromFewPointsGrowTheCellSet) {
     ScanStats stats;
     ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &stats)) << "scan " << scan;
     // About 400-900 cells per ray against 16 slots per point.
-    if (scan == 0) EXPECT_GT(stats.cell_set_attempts, 1u);
+    if (scan == 0) {
+      EXPECT_GT(stats.cell_set_attempts, 1u);
+    }
     EXPECT_GT(stats.free_cells, pts.size() * 300);
   }
 }

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "test_support.hpp"
+#include "map/device_probe.hpp"
 #include "octovk/gpu_types.h"
 #include "vk/device.hpp"
 
@@ -558,6 +559,39 @@ TEST(BindingRange, MapsLargerThanOneBindingWithTheLimitForcedLow) {
     EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
     EXPECT_NE(std::string(e.what()).find("maxStorageBufferRange"), std::string::npos) << e.what();
   }
+}
+
+// The device probe's verdict: the host's own answers pass; one ULP off in one operation is named
+// with its operands. (On the devices the suite runs on, the probe passes at Context creation.)
+TEST(DeviceProbe, NamesTheFirstOperationThatDiffers) {
+  const std::vector<gpu::ProbeCase> cases = deviceProbeCases();
+  ASSERT_EQ(cases.size(), gpu::kProbeCases);
+  std::vector<gpu::ProbeResult> results;
+  std::vector<std::int32_t> floors;
+  for (const gpu::ProbeCase& c : cases) {
+    results.push_back(hostProbeResult(c));
+    const double f = results.back().floor_a;
+    floors.push_back(f >= -2147483648.0 && f < 2147483648.0 ? static_cast<std::int32_t>(f) : 0);
+  }
+  EXPECT_EQ(firstProbeMismatch(cases, results, floors), std::nullopt);
+  // Ties of the float rounding are among the cases: the host rounds them to even.
+  EXPECT_EQ(results[2].rounded, 1.0);
+  EXPECT_EQ(results[3].rounded, 1.0 + std::ldexp(1.0, -22));
+  auto wrong = results;
+  wrong[100].quotient = std::nextafter(wrong[100].quotient, 0.0);
+  const auto division = firstProbeMismatch(cases, wrong, floors);
+  ASSERT_TRUE(division.has_value());
+  EXPECT_EQ(division->rfind("double division of a = ", 0), 0u) << *division;
+  wrong = results;
+  wrong[7].rounded = std::nextafter(wrong[7].rounded, 1.0);
+  const auto rounding = firstProbeMismatch(cases, wrong, floors);
+  ASSERT_TRUE(rounding.has_value());
+  EXPECT_NE(rounding->find("rounding double to float"), std::string::npos) << *rounding;
+  auto bad_floors = floors;
+  bad_floors[50] += 1;
+  const auto conversion = firstProbeMismatch(cases, results, bad_floors);
+  ASSERT_TRUE(conversion.has_value());
+  EXPECT_NE(conversion->find("double to int conversion"), std::string::npos) << *conversion;
 }
 
 // ---- node count and leaf boxes ------------------------------------------------------------------

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <optional>
+#include <span>
 #include <random>
 #include <string>
 #include <vector>
@@ -111,6 +113,49 @@ bool sameBits(T x, T y) {
 
 }  // namespace
 
+std::vector<gpu::ProbeCase> deviceProbeCases() { return probeCases(); }
+
+gpu::ProbeResult hostProbeResult(const gpu::ProbeCase& c) { return expected(c); }
+
+std::optional<std::string> firstProbeMismatch(std::span<const ProbeCase> cases,
+                                              std::span<const ProbeResult> results,
+                                              std::span<const std::int32_t> floors) {
+  auto describe = [](const std::string& operation, const ProbeCase& c, const std::string& got,
+                     const std::string& want) {
+    return operation + " of a = " + hex(c.a) + ", b = " + hex(c.b) + " (fa = " + hex(c.fa) +
+           ", fb = " + hex(c.fb) + ", fc = " + hex(c.fc) + ") gives " + got + ", IEEE 754 gives " +
+           want;
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const ProbeCase& c = cases[i];
+    const ProbeResult want = expected(c);
+    const ProbeResult& got = results[i];
+    const struct {
+      const char* operation;
+      double got, want;
+    } doubles[] = {{"double addition", got.sum, want.sum},
+                   {"double subtraction", got.difference, want.difference},
+                   {"double multiplication", got.product, want.product},
+                   {"double division", got.quotient, want.quotient},
+                   {"double square root", got.root, want.root},
+                   {"double floor", got.floor_a, want.floor_a},
+                   {"rounding double to float (exact.glsl)", got.rounded, want.rounded}};
+    for (const auto& d : doubles)
+      if (!sameBits(d.got, d.want)) return describe(d.operation, c, hex(d.got), hex(d.want));
+    if (!sameBits(got.float_madd, want.float_madd))
+      return describe("unfused float multiply-add", c, hex(got.float_madd), hex(want.float_madd));
+    if (!sameBits(got.float_div, want.float_div))
+      return describe("float division (divFloat)", c, hex(got.float_div), hex(want.float_div));
+    const double f = want.floor_a;
+    const std::int32_t want_int =
+        (f >= -2147483648.0 && f < 2147483648.0) ? static_cast<std::int32_t>(f) : 0;
+    if (floors[i] != want_int)
+      return describe("double to int conversion", c, std::to_string(floors[i]),
+                      std::to_string(want_int));
+  }
+  return std::nullopt;
+}
+
 Result<DeviceProbe> probeDevice(vk::Device& device) {
   try {
     const std::vector<ProbeCase> cases = probeCases();
@@ -149,42 +194,11 @@ Result<DeviceProbe> probeDevice(vk::Device& device) {
                 results.size() * sizeof(ProbeResult));
 
     const std::string who = "device '" + device.info().name + "' (" + device.info().driver + ")";
-    auto refuse = [&](const std::string& operation, const ProbeCase& c, const std::string& got,
-                      const std::string& want) {
+    if (std::optional<std::string> mismatch = firstProbeMismatch(cases, results, floors))
       return Error(ErrorCode::kMissingFeature,
-                   who + " fails octovk's exactness check: " + operation + " of a = " + hex(c.a) +
-                       ", b = " + hex(c.b) + " (fa = " + hex(c.fa) + ", fb = " + hex(c.fb) +
-                       ", fc = " + hex(c.fc) + ") gives " + got + ", IEEE 754 gives " + want +
+                   who + " fails octovk's exactness check: " + *mismatch +
                        "; its maps would differ from OctoMap's. Choose another device with "
                        "OCTOVK_DEVICE");
-    };
-    for (std::size_t i = 0; i < cases.size(); ++i) {
-      const ProbeCase& c = cases[i];
-      const ProbeResult want = expected(c);
-      const ProbeResult& got = results[i];
-      const struct {
-        const char* operation;
-        double got, want;
-      } doubles[] = {{"double addition", got.sum, want.sum},
-                     {"double subtraction", got.difference, want.difference},
-                     {"double multiplication", got.product, want.product},
-                     {"double division", got.quotient, want.quotient},
-                     {"double square root", got.root, want.root},
-                     {"double floor", got.floor_a, want.floor_a},
-                     {"rounding double to float (exact.glsl)", got.rounded, want.rounded}};
-      for (const auto& d : doubles)
-        if (!sameBits(d.got, d.want)) return refuse(d.operation, c, hex(d.got), hex(d.want));
-      if (!sameBits(got.float_madd, want.float_madd))
-        return refuse("unfused float multiply-add", c, hex(got.float_madd), hex(want.float_madd));
-      if (!sameBits(got.float_div, want.float_div))
-        return refuse("float division (divFloat)", c, hex(got.float_div), hex(want.float_div));
-      const double f = want.floor_a;
-      const std::int32_t want_int =
-          (f >= -2147483648.0 && f < 2147483648.0) ? static_cast<std::int32_t>(f) : 0;
-      if (floors[i] != want_int)
-        return refuse("double to int conversion", c, std::to_string(floors[i]),
-                      std::to_string(want_int));
-    }
     DeviceProbe probe;
     if (head.loop_iterations < kProbeLoopIterations) probe.loop_limit = head.loop_iterations;
     return probe;

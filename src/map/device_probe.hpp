@@ -4,6 +4,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "octovk/gpu_types.h"
 
 #include "octovk/octovk.hpp"
 
@@ -21,6 +27,17 @@ struct DeviceProbe {
 /// Iterations of the probe's loop: a limit above this is not seen (and does not matter: the
 /// longest walk is 3 * 65536 steps plus its hash probes, cut into budgets well below it).
 inline constexpr std::uint32_t kProbeLoopIterations = 4u << 20;
+
+/// The probe's cases (deterministic), for tests.
+std::vector<gpu::ProbeCase> deviceProbeCases();
+/// What IEEE 754 gives for one case (the host's answer the device must match).
+gpu::ProbeResult hostProbeResult(const gpu::ProbeCase& c);
+
+/// The first case where the device's results differ from the host's IEEE 754 answers, in words
+/// (the operation, its operands, what the device gave, what IEEE 754 gives); none when all agree.
+std::optional<std::string> firstProbeMismatch(std::span<const gpu::ProbeCase> cases,
+                                              std::span<const gpu::ProbeResult> results,
+                                              std::span<const std::int32_t> floors);
 
 /// Runs the probe. Fails with kMissingFeature naming the first operation whose result differs
 /// from the host's (IEEE 754 double, round to nearest even), with its operands.
