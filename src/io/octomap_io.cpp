@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
+#include <vector>
 
 #include "map/reference.hpp"
 
@@ -29,6 +31,62 @@ class TreeBuilder : public octomap::OcTree {
     return root;
   }
 };
+
+// OctoMap's own header reader (protected in AbstractOcTree).
+struct HeaderReader : octomap::AbstractOcTree {
+  using octomap::AbstractOcTree::readHeader;
+};
+
+// OctoMap reads a tree's node records recursively, trusting every child flag, without checking
+// the stream: past the end of a truncated file it tests a flag byte it never read (uninitialized;
+// AddressSanitizer saw it recurse until the stack overflowed), and a corrupt file can nest deeper
+// than a tree's 16 levels. So the header is read as OctoMap reads it, and the node records after
+// it are walked here first, without recursion: true if they hold one whole tree OctoMap can read.
+// .bt (binary): a record per inner node, 2 bytes of 2 bits per child (11: an inner child, whose
+// record follows). .ot: a record per node, its float log-odds and a byte with a bit per child.
+bool treeDataIsWhole(std::istream& in, bool binary) {
+  std::string line, id;
+  unsigned size = 0;
+  double res = 0.0;
+  std::getline(in, line);  // the file type, checked by the caller
+  if (!HeaderReader::readHeader(in, id, size, res)) return false;
+  if (!binary && id != "OcTree") return false;  // another node type, another record
+  if (size == 0) return true;                   // OctoMap reads no record
+  const std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  struct Open {
+    unsigned depth;
+    unsigned children;  // a bit per child whose record is still to come
+  };
+  std::vector<Open> open;
+  std::size_t at = 0;
+  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(data[i]); };
+  const auto record = [&](unsigned depth) {
+    if (binary) {  // only inner nodes have one, and they lie above depth 16
+      if (depth >= 16 || data.size() - at < 2) return false;
+      unsigned inner = 0;
+      for (unsigned i = 0; i < 8; ++i)
+        if (((byte(at + i / 4) >> (2 * (i % 4))) & 3u) == 3u) inner |= 1u << i;
+      open.push_back({depth, inner});
+      at += 2;
+    } else {
+      const std::size_t bytes = sizeof(float) + 1;
+      if (data.size() - at < bytes || (depth == 16 && byte(at + bytes - 1) != 0)) return false;
+      open.push_back({depth, byte(at + bytes - 1)});
+      at += bytes;
+    }
+    return true;
+  };
+  if (!record(0)) return false;
+  while (!open.empty()) {
+    if (open.back().children == 0) {
+      open.pop_back();
+      continue;
+    }
+    open.back().children &= open.back().children - 1;  // the lowest child's record is next
+    if (!record(open.back().depth + 1)) return false;
+  }
+  return true;
+}
 
 std::string extensionOf(const std::string& path) {
   return std::filesystem::path(path).extension().string();
@@ -149,6 +207,10 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
     if (first_line.rfind("# Octomap OcTree binary file", 0) != 0)
       throw Error(ErrorCode::kFormat,
                   "'" + path + "' is not an OctoMap binary tree (.bt): bad header");
+    if (!treeDataIsWhole(in, true))
+      throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated .bt file");
+    in.clear();
+    in.seekg(0);
     tree = std::make_unique<octomap::OcTree>(0.1);
     if (!tree->readBinary(in) || tree->getResolution() <= 0.0)
       throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated .bt file");
@@ -164,6 +226,12 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
         has_size = true;
       }
     }
+    in.clear();
+    in.seekg(0);
+    if (!treeDataIsWhole(in, false))
+      throw Error(ErrorCode::kFormat, "'" + path +
+                                          "' is a truncated or corrupt .ot file, or holds another "
+                                          "tree type than OcTree");
     in.clear();
     in.seekg(0);
     std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(in));
