@@ -317,6 +317,34 @@ TEST(Io, TruncatedOtThrowsFormatError) {
   }
 }
 
+// Files whose node records nest deeper than a tree's 16 levels: OctoMap's recursive readers would
+// follow them until the stack overflows (a .bt header then 200 KB of 0xff, ~87,000 frames).
+// They are refused as format errors before OctoMap reads them, quickly.
+TEST(Io, NodeRecordsNestedDeeperThanSixteenLevelsAreRefused) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  octomap::OcTree tree = sphericalTree(0.1);
+  std::stringstream ot_stream, bt_stream;
+  ASSERT_TRUE(tree.write(ot_stream));
+  ASSERT_TRUE(tree.writeBinary(bt_stream));
+  const std::string ot = ot_stream.str(), bt = bt_stream.str();
+  const std::size_t ot_data = ot.find("\ndata\n") + 6, bt_data = bt.find("\ndata\n") + 6;
+  ASSERT_GT(ot_data, 6u);
+  ASSERT_GT(bt_data, 6u);
+  // .ot: every record a float log-odds and a child byte announcing one child.
+  for (std::size_t levels : {17u, 300000u}) {
+    std::string data;
+    for (std::size_t i = 0; i < levels; ++i) data += std::string(4, '\0') + std::string(1, '\x01');
+    const std::string path = tmpPath("deep.ot");
+    test::writeBytes(path, ot.substr(0, ot_data) + data);
+    expectError([&] { readMapFile(ctx, path); }, ErrorCode::kFormat,
+                (".ot nested " + std::to_string(levels) + " levels").c_str());
+  }
+  // .bt: all child pairs 11 (inner child follows), the fuzzing case of issue 11.
+  const std::string path = tmpPath("deep.bt");
+  test::writeBytes(path, bt.substr(0, bt_data) + std::string(200000, '\xff'));
+  expectError([&] { readMapFile(ctx, path); }, ErrorCode::kFormat, ".bt header + 200 KB of 0xff");
+}
+
 TEST(Io, MissingFileAndUnknownExtension) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const std::string missing = tmpPath("does_not_exist.bt");
