@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # Makes the benchmark's real-data inputs in DATA_DIR (default: build-bench/bench/data):
 #   scan.dat     OctoMap's 3D laser scan, from liboctomap-dev's examples (bzip2 -d)
-#   fr079.graph  the FR-079 sequence: ../shared/data/fr079-2d/clf2log.py, then log2graph
+#   fr079.graph  the FR-079 sequence: tests/data/fr079-2d/clf2log.py, then log2graph
 # Skips files that exist. Needs python3, bzip2, liboctomap-dev and octomap-tools.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 data_dir="${1:-$root/build-bench/bench/data}"
 scan_src="${OCTOVK_SCANDAT_BZ2:-/usr/share/doc/liboctomap-dev/examples/data/scan.dat.bz2}"
-fr079_dir="${OCTOVK_FR079_DIR:-$root/../shared/data/fr079-2d}"
+fr079_dir="${OCTOVK_FR079_DIR:-$root/tests/data/fr079-2d}"
 mkdir -p "$data_dir"
 
 if [ ! -s "$data_dir/scan.dat" ]; then
