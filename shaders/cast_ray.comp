@@ -9,6 +9,8 @@
 // the other. A segment stops after about pc.budget loop iterations because
 // llvmpipe (lavapipe) ends an invocation's loops after 65535 iterations in total; on a GPU the
 // host passes a budget that finishes every ray in one segment.
+// No node is written in this pass: links are read plainly (see linkOf).
+#define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
 
 layout(push_constant) uniform PushBlock { CastRayConstants pc; };

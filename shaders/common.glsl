@@ -266,7 +266,13 @@ void countEndpointEntry(uint n, uint slot) {
 
 // Node n's link word. Read atomically: classify prepares child slots and the descent and the
 // prune pass set flags while other invocations search through the same nodes.
+// A pass that writes no node (OCTOVK_NODES_READ_ONLY, defined before including this file) has no
+// racing writer and reads links plainly.
+#ifdef OCTOVK_NODES_READ_ONLY
+uint linkOf(uint n) { return nodes[n].link; }
+#else
 uint linkOf(uint n) { return OCTOVK_LOAD(nodes[n].link); }
+#endif
 
 // The block of node n's children, or kNoChildren.
 uint childBlock(uint n) { return linkOf(n) & kBlockMask; }

@@ -6,6 +6,8 @@
 // kLeafBoxesInBox: the leaves OctoMap's leaf_bbx_iterator visits (node key range overlapping the
 //                  box's key range, as the iterator tests it), optionally only occupied ones,
 //                  compacted into the query output.
+// No node is written in this pass: links are read plainly (see linkOf).
+#define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
 
 layout(push_constant) uniform PushBlock { LeafBoxesConstants pc; };

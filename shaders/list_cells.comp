@@ -4,6 +4,8 @@
 // go to the cell list, which classify walks. The list's indirect dispatch arguments grow with it.
 // Then the search of the tree that all cells of the brick share (OctoMap's search() down to the
 // brick's node at depth 14) replaces the touched bits, so classify only searches the last levels.
+// No node is written in this pass: links are read plainly (see linkOf).
+#define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
 
 void main() {

@@ -1,6 +1,8 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // Point lookups: OctoMap's search(point) for each query point, on the tree as it is now.
+// No node is written in this pass: links are read plainly (see linkOf).
+#define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
 
 layout(push_constant) uniform PushBlock { LookupConstants pc; };
