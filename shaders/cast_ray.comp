@@ -6,9 +6,9 @@
 //
 // The walk runs in resumable segments: pc.resume 0 starts every ray, 1 and 2 continue the
 // unfinished ones listed in list 0 or 1 (indirect dispatch) and list those still unfinished in
-// the other. A segment stops after about pc.budget loop iterations because
-// llvmpipe (lavapipe) ends an invocation's loops after 65535 iterations in total; on a GPU the
-// host passes a budget that finishes every ray in one segment.
+// the other. A segment stops after about pc.budget loop iterations, below the loop limit the
+// device probe measured (Mesa 22.3's llvmpipe: 65535 iterations in total); where none was seen
+// the host passes a budget that finishes every ray in one segment.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"

@@ -21,22 +21,22 @@ layout(std430, binding = kBindPool) buffer PoolBuf { PoolState pool; };
 layout(std430, binding = kBindAddresses) restrict readonly buffer AddressBuf {
   uint64_t buffer_address[kBindingCount];
 };
-#define OCTOVK_ADDRESSED(Ref, Type, align, binding) \
+#define OCTOVK_ADDRESSED(Ref, Type, align) \
   layout(buffer_reference, std430, buffer_reference_align = align) buffer Ref { Type v[]; }
-OCTOVK_ADDRESSED(PointsRef, float, 4, kBindPoints);
-OCTOVK_ADDRESSED(HashKeysRef, uint64_t, 8, kBindHashKeys);
-OCTOVK_ADDRESSED(HashFlagsRef, uint, 4, kBindHashFlags);
-OCTOVK_ADDRESSED(NodesRef, Node, 4, kBindNodes);
-OCTOVK_ADDRESSED(BlockParentsRef, uint, 4, kBindBlockParents);
-OCTOVK_ADDRESSED(FreeStackRef, uint, 4, kBindFreeStack);
-OCTOVK_ADDRESSED(ActiveRef, ActiveCell, 4, kBindActive);
-OCTOVK_ADDRESSED(TouchedRef, uint, 4, kBindTouched);
-OCTOVK_ADDRESSED(NewBlocksRef, NewBlock, 4, kBindNewBlocks);
-OCTOVK_ADDRESSED(LeafBoxesRef, LeafBox, 4, kBindLeafBoxes);
-OCTOVK_ADDRESSED(EndpointKeysRef, uint64_t, 8, kBindEndpointKeys);
-OCTOVK_ADDRESSED(WalksRef, WalkState, 8, kBindWalks);
-OCTOVK_ADDRESSED(SlotsRef, uint, 4, kBindSlots);
-OCTOVK_ADDRESSED(CellListRef, uint, 4, kBindCellList);
+OCTOVK_ADDRESSED(PointsRef, float, 4);
+OCTOVK_ADDRESSED(HashKeysRef, uint64_t, 8);
+OCTOVK_ADDRESSED(HashFlagsRef, uint, 4);
+OCTOVK_ADDRESSED(NodesRef, Node, 4);
+OCTOVK_ADDRESSED(BlockParentsRef, uint, 4);
+OCTOVK_ADDRESSED(FreeStackRef, uint, 4);
+OCTOVK_ADDRESSED(ActiveRef, ActiveCell, 4);
+OCTOVK_ADDRESSED(TouchedRef, uint, 4);
+OCTOVK_ADDRESSED(NewBlocksRef, NewBlock, 4);
+OCTOVK_ADDRESSED(LeafBoxesRef, LeafBox, 4);
+OCTOVK_ADDRESSED(EndpointKeysRef, uint64_t, 8);
+OCTOVK_ADDRESSED(WalksRef, WalkState, 8);
+OCTOVK_ADDRESSED(SlotsRef, uint, 4);
+OCTOVK_ADDRESSED(CellListRef, uint, 4);
 #define points (PointsRef(buffer_address[kBindPoints]).v)
 #define hash_keys (HashKeysRef(buffer_address[kBindHashKeys]).v)
 #define hash_flags (HashFlagsRef(buffer_address[kBindHashFlags]).v)
@@ -144,8 +144,8 @@ uint insertBrick(uint64_t brick) {
   uint s = brickSlot(brick, params.hash_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
     ++probes_spent;
-    // A plain read first: most lookups find their brick already there (rays share the bricks
-    // near the sensor), and reading avoids an atomic on a hot slot.
+    // A read first (atomic load, no write): most lookups find their brick already there (rays
+    // share the bricks near the sensor), and reading avoids a compare-and-swap on a hot slot.
     uint64_t seen = OCTOVK_LOAD(hash_keys[s]);
     if (seen == brick) return s;
     // Off the fast path: once the set is known to be too small the scan is redone with a larger

@@ -7,9 +7,9 @@
 //
 // A walk stops after pc.budget loop iterations (steps and hash probes) and is saved to a list;
 // kRayKeysContinue continues the walks of one list (pc.from_list) and saves the unfinished ones to
-// the other (kRayKeysContinueLast, the last round, reports them instead). llvmpipe (lavapipe) ends
-// an invocation's loops after 65535 iterations in total; a GPU gets a budget that finishes every
-// ray at once.
+// the other (kRayKeysContinueLast, the last round, reports them instead). Where the device probe
+// measured a loop limit (Mesa 22.3's llvmpipe: 65535 iterations in total) the budget stays below
+// it; elsewhere it finishes every ray at once.
 #include "common.glsl"
 
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };

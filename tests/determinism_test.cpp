@@ -20,6 +20,14 @@ namespace octovk {
 namespace {
 
 using test::floatBits;
+
+// Leaves above the finest depth: pruned groups of 8 equal cells.
+std::size_t prunedLeaves(const octomap::OcTree& tree) {
+  std::size_t pruned = 0;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+    if (it.getDepth() < 16) ++pruned;
+  return pruned;
+}
 using test::insertBoth;
 using test::LeafTuple;
 using test::makeOracle;
@@ -502,10 +510,7 @@ void allPointsInOneBrick(Context& ctx, bool discretize) {
       EXPECT_GT(stats.occupied_cells, 20u);
     }
     // Repeated hits clamp whole groups of 8 cells: they prune.
-    std::size_t pruned = 0;
-    for (auto it = oracle.begin_leafs(), end = oracle.end_leafs(); it != end; ++it)
-      if (it.getDepth() < 16) ++pruned;
-    EXPECT_GT(pruned, 0u);
+    EXPECT_GT(prunedLeaves(oracle), 0u);
   }
 }
 
@@ -652,10 +657,7 @@ void fifteenScansFromMovingOrigins(Context& ctx, bool discretize, double max_ran
   }
   EXPECT_GT(aborted, 0u);
   EXPECT_TRUE(test::sameLeaves(oracle, map));
-  std::size_t pruned = 0;
-  for (auto it = oracle.begin_leafs(), end = oracle.end_leafs(); it != end; ++it)
-    if (it.getDepth() < 16) ++pruned;
-  EXPECT_GT(pruned, 0u);
+  EXPECT_GT(prunedLeaves(oracle), 0u);
 }
 
 TEST(StressSequence, FifteenScansFromMovingOrigins) {

@@ -117,6 +117,11 @@ std::vector<gpu::ProbeCase> deviceProbeCases() { return probeCases(); }
 
 gpu::ProbeResult hostProbeResult(const gpu::ProbeCase& c) { return expected(c); }
 
+std::int32_t hostProbeFloor(const gpu::ProbeCase& c) {
+  const double f = std::floor(c.a);
+  return (f >= -2147483648.0 && f < 2147483648.0) ? static_cast<std::int32_t>(f) : 0;
+}
+
 std::optional<std::string> firstProbeMismatch(std::span<const ProbeCase> cases,
                                               std::span<const ProbeResult> results,
                                               std::span<const std::int32_t> floors) {
@@ -146,9 +151,7 @@ std::optional<std::string> firstProbeMismatch(std::span<const ProbeCase> cases,
       return describe("unfused float multiply-add", c, hex(got.float_madd), hex(want.float_madd));
     if (!sameBits(got.float_div, want.float_div))
       return describe("float division (divFloat)", c, hex(got.float_div), hex(want.float_div));
-    const double f = want.floor_a;
-    const std::int32_t want_int =
-        (f >= -2147483648.0 && f < 2147483648.0) ? static_cast<std::int32_t>(f) : 0;
+    const std::int32_t want_int = hostProbeFloor(c);
     if (floors[i] != want_int)
       return describe("double to int conversion", c, std::to_string(floors[i]),
                       std::to_string(want_int));

@@ -32,6 +32,8 @@ inline constexpr std::uint32_t kProbeLoopIterations = 4u << 20;
 std::vector<gpu::ProbeCase> deviceProbeCases();
 /// What IEEE 754 gives for one case (the host's answer the device must match).
 gpu::ProbeResult hostProbeResult(const gpu::ProbeCase& c);
+/// int(floor(a)) where it fits an int, else 0: what the probe's conversion must give.
+std::int32_t hostProbeFloor(const gpu::ProbeCase& c);
 
 /// The first case where the device's results differ from the host's IEEE 754 answers, in words
 /// (the operation, its operands, what the device gave, what IEEE 754 gives); none when all agree.

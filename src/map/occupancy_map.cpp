@@ -411,7 +411,6 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
   // dispatches, each over the walks left unfinished (3 * 65536 steps reach any border, 24 of
   // 30000 leave room for the probes). A walk still unfinished after them is reported. Where no
   // limit was seen, every ray is walked in one go.
-  const bool loop_limited = device_.loopLimit() != 0;
   const std::uint32_t budget = device_.walkBudget();
   if (discretize) {
     dispatch("discretize", sp.point_count, gpu::DiscretizeConstants{.point_count = sp.point_count});
@@ -423,7 +422,7 @@ void OccupancyMap::Impl::recordRayKeys(const gpu::ScanParams& sp, bool transform
              gpu::RayKeysConstants{
                  .budget = budget, .point_count = sp.point_count, .mode = gpu::kRayKeysPoints});
   }
-  const std::uint32_t continuations = loop_limited ? (24u * 30000u + budget - 1) / budget : 0u;
+  const std::uint32_t continuations = device_.walkContinuations(24u * 30000u);
   recordContinuations("ray_keys", continuations, [&](std::uint32_t from, bool last) {
     return gpu::RayKeysConstants{.budget = budget,
                                  .point_count = sp.point_count,
@@ -712,9 +711,8 @@ void OccupancyMap::Impl::recordCastRays(std::uint32_t rays, std::uint32_t first_
   // budget (30000 on llvmpipe); the longest castRay (3 * 65536 steps, each with a search of up
   // to 17 iterations) then needs 112 continuations, over ever fewer rays. Elsewhere each ray is
   // walked in one segment.
-  const bool loop_limited = device_.loopLimit() != 0;
   const std::uint32_t budget = device_.walkBudget();
-  const std::uint32_t continuations = loop_limited ? (3u * 65536u * 17u + budget - 1) / budget : 0u;
+  const std::uint32_t continuations = device_.walkContinuations(3u * 65536u * 17u);
   // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
   // walked) and continued by indirect dispatches, which cost next to nothing once empty.
   // Both lists empty, with whole dispatch arguments: the counters may hold anything here (a map

@@ -169,6 +169,13 @@ class Device {
     return loop_limit_ == 0 ? 0x7FFFFFFFu
                             : static_cast<std::uint32_t>(std::uint64_t{loop_limit_} * 30000u / 65535u);
   }
+  /// Continuation dispatches a resumable walk of at most `worst_iterations` needs after its
+  /// first one: enough budgets to cover it where loops are limited, none elsewhere.
+  std::uint32_t walkContinuations(std::uint64_t worst_iterations) const noexcept {
+    if (loop_limit_ == 0) return 0u;
+    const std::uint64_t budget = walkBudget();
+    return static_cast<std::uint32_t>((worst_iterations + budget - 1) / budget);
+  }
 
   /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once.
   const Pass& pass(std::string_view name);
