@@ -151,9 +151,10 @@ struct StageTimes {
 
 /// What one insertPointCloud did.
 struct ScanStats {
-  std::size_t points = 0;
+  std::size_t points = 0;             ///< points given (for a depth image: its pixels)
   std::size_t skipped_nonfinite = 0;  ///< NaN or infinite coordinates: nothing inserted
   std::size_t skipped_outside = 0;    ///< ray or end cell outside the map: nothing inserted
+  std::size_t skipped_no_depth = 0;   ///< depth-image pixels with d = 0 or non-finite d
   std::size_t free_cells = 0;         ///< distinct cells updated as free (before early abort)
   std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
   std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
@@ -162,6 +163,29 @@ struct ScanStats {
   double wall_ms = 0.0;               ///< host wall time of the call
   StageTimes device;                  ///< device time per stage (of the final attempt)
 };
+
+/// A depth image and the pinhole camera that took it (camera frame: x right, y down, z forward).
+/// Pixel (u, v) with depth d becomes the point z = d / depth_scale, x = (u - cx) * z / fx,
+/// y = (v - cy) * z / fy, in float, in that order; pixels with d = 0 or non-finite d are skipped.
+struct DepthImage {
+  enum class Encoding : std::uint32_t { kUint16 = 0, kFloat32 = 1 };
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  Encoding encoding = Encoding::kUint16;
+  /// width * height depths (std::uint16_t or float as `encoding` says), row by row, no padding.
+  const void* pixels = nullptr;
+  float fx = 525.0f, fy = 525.0f, cx = 319.5f, cy = 239.5f;  ///< TUM RGB-D's defaults
+  float depth_scale = 5000.0f;  ///< depth units per metre (TUM: 5000; metres in float: 1)
+
+  /// Empty when valid, else a sentence naming the bad value.
+  std::string validate() const;
+};
+
+/// The points of a depth image in the camera frame, computed on the host with the same float
+/// operations the device uses, row by row (v), then column (u). `skipped` (if given) receives
+/// the number of pixels with d = 0 or non-finite d.
+std::vector<Eigen::Vector3f> unprojectDepthImage(const DepthImage& image,
+                                                 std::size_t* skipped = nullptr);
 
 /// The tree as the host sees it after an explicit download. Node index = block * 8 + slot;
 /// the root is node 0. Children of node n are at children * 8 + i where bit i of mask is set.
@@ -234,6 +258,14 @@ class OccupancyMap {
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
                              double max_range_m = -1.0, bool discretize = false);
+
+  /// A depth image, unprojected on the device (DepthImage), then inserted like
+  /// insertPointCloud(points_camera, origin_camera, T_world_camera, max_range_m, discretize):
+  /// the result equals inserting unprojectDepthImage(image) with that overload.
+  ScanStats insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                             double max_range_m = -1.0,
+                             const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
+                             bool discretize = false);
 
   /// One leaf: centre, edge length, log-odds.
   struct LeafBoxHost {

@@ -994,6 +994,21 @@ ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points
   return impl_->insert(points_sensor, origin_world, &T_world_sensor, max_range_m, discretize);
 }
 
+ScanStats OccupancyMap::insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                                         double max_range_m,
+                                         const Eigen::Vector3f& origin_camera, bool discretize) {
+  if (std::string why = image.validate(); !why.empty())
+    throw Error(ErrorCode::kInvalidArgument, "insertDepthImage: " + why);
+  // For now unprojected on the host; the device pass (shaders/unproject.comp) replaces this.
+  std::size_t skipped = 0;
+  const std::vector<Eigen::Vector3f> points = unprojectDepthImage(image, &skipped);
+  ScanStats stats =
+      insertPointCloud(points, origin_camera, T_world_camera, max_range_m, discretize);
+  stats.skipped_no_depth = skipped;
+  stats.points += skipped;
+  return stats;
+}
+
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                                          const Eigen::Vector3f& origin_world, double max_range_m,
                                          bool discretize, const QueryRequest& queries,
