@@ -51,6 +51,12 @@ OCTOVK_ADDRESSED(CellListRef, uint, 4);
 #define walks (WalksRef(buffer_address[kBindWalks]).v)
 #define slots (SlotsRef(buffer_address[kBindSlots]).v)
 #define cell_list (CellListRef(buffer_address[kBindCellList]).v)
+// A depth image: its camera, then its pixels as words (kBindDepth).
+layout(buffer_reference, std430, buffer_reference_align = 4) buffer DepthRef {
+  DepthCamera camera;
+  uint words[];
+};
+#define depth_image (DepthRef(buffer_address[kBindDepth]))
 // Query inputs and outputs (kBindQueryIn, kBindQueryOut): each query pass declares its own view
 // of them.
 

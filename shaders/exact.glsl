@@ -43,6 +43,11 @@ double roundedToFloat(double x) {
 float toFloat(double x) { return float(roundedToFloat(x)); }
 vec3 toFloat(dvec3 x) { return vec3(toFloat(x.x), toFloat(x.y), toFloat(x.z)); }
 
+// Whether x is finite, decided on its bits: a compiler that assumes no NaN or inf may fold
+// isnan / isinf away (SPIR-V leaves that to float-controls modes these shaders do not set).
+bool finiteBits(float x) { return (floatBitsToUint(x) & 0x7F800000u) != 0x7F800000u; }
+bool finiteBits(vec3 v) { return finiteBits(v.x) && finiteBits(v.y) && finiteBits(v.z); }
+
 // Correctly rounded a / b in float: double has more than 2 * 24 + 2 bits, so rounding the
 // correctly rounded double quotient to float gives the correctly rounded float quotient (Vulkan
 // allows 2.5 ULP for a float division; the double division is checked by the device probe).

@@ -114,6 +114,7 @@ void main() {
   counters.cell_entries = mu(210u);
   counters.query_results = mu(211u);
   counters.leaf_cells = mu(212u);
+  counters.no_depth = mu(213u);
   for (uint l = 0u; l < kLevelCount; ++l) {
     counters.touched_count[l] = mu(340u + l);
     counters.touched_args[l].x = mu(500u + 3u * l);
@@ -221,6 +222,16 @@ void main() {
   slots[1] = mu(805u);
   cell_list[1] = mu(806u);
   block_parent[1] = mu(807u);
+  // DepthCamera at the start of the depth buffer, then its first pixel word: 810 + field index.
+  depth_image.camera.fx = mf(810u);
+  depth_image.camera.fy = mf(811u);
+  depth_image.camera.cx = mf(812u);
+  depth_image.camera.cy = mf(813u);
+  depth_image.camera.depth_scale = mf(814u);
+  depth_image.camera.width = mu(815u);
+  depth_image.camera.height = mu(816u);
+  depth_image.camera.encoding = mu(817u);
+  depth_image.words[0] = mu(818u);
 
   // The passes' push-constant structs: 1100 + 10 * struct (in gpu_types.h's order) + field.
   probe_no_constants = NoConstants(mu(1100u), mu(1101u), mu(1102u), mu(1103u));

@@ -147,7 +147,7 @@ void main() {
   if (pc.mode == kRayKeysPoints) {
     if (i >= pc.point_count) return;
     p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
-    if (any(isnan(p)) || any(isinf(p))) {
+    if (!finiteBits(p)) {
       atomicAdd(counters.skipped_nonfinite, 1u);
       return;
     }

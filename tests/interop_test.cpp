@@ -3,7 +3,11 @@
 // answers must equal the host API's (which the query tests compare with OctoMap).
 #include <octomap/octomap.h>
 
+#include <chrono>
 #include <cstring>
+#include <limits>
+#include <random>
+#include <thread>
 
 #include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
@@ -17,7 +21,7 @@ class CallerBuffer {
   CallerBuffer(const VulkanHandles& vk, VkDeviceSize bytes) : device_(vk.device) {
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     info.size = bytes;
-    info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+    info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
     EXPECT_EQ(vkCreateBuffer(device_, &info, nullptr, &buffer_), VK_SUCCESS);
     VkMemoryRequirements req;
     vkGetBufferMemoryRequirements(device_, buffer_, &req);
@@ -124,6 +128,90 @@ TEST(Interop, QueriesOnCallerBuffersEqualTheHostApi) {
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
   }
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// Scans whose input already lives in a caller's buffer: the same map as the host overloads, and
+// octovk reads the buffer only once the caller's timeline semaphore says it is ready.
+TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const VulkanHandles vk = vulkanHandles(ctx);
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2.pNext = &f12;
+  vkGetPhysicalDeviceFeatures2(vk.physical_device, &f2);
+  ASSERT_TRUE(f12.timelineSemaphore) << "the device has no timeline semaphores";
+  VkSemaphoreTypeCreateInfo type{VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
+  type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
+  type.initialValue = 0;
+  VkSemaphoreCreateInfo sinfo{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+  sinfo.pNext = &type;
+  VkSemaphore ready = VK_NULL_HANDLE;
+  ASSERT_EQ(vkCreateSemaphore(vk.device, &sinfo, nullptr, &ready), VK_SUCCESS);
+
+  MapParams params;
+  params.resolution = 0.05;
+  OccupancyMap on_device(ctx, params), on_host(ctx, params);
+  std::mt19937 rng(21);
+  Pose pose;
+  pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.4f, Eigen::Vector3f(1, 2, 3).normalized()));
+  pose.translation = Eigen::Vector3f(0.3f, -0.2f, 0.1f);
+  const Eigen::Vector3f origin(0.02f, 0.0f, -0.01f);
+  const auto points = test::randomScan(rng, origin, 2000, 3.0f);
+
+  // The buffer holds NaN until the producer thread writes the points and signals value 1: a scan
+  // that read it early would insert nothing.
+  CallerBuffer buffer(vk, points.size() * sizeof(Eigen::Vector3f));
+  std::vector<float> nan(points.size() * 3, std::numeric_limits<float>::quiet_NaN());
+  std::memcpy(buffer.data(), nan.data(), nan.size() * sizeof(float));
+  std::thread producer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    std::memcpy(buffer.data(), points.data(), points.size() * sizeof(Eigen::Vector3f));
+    VkSemaphoreSignalInfo signal{VK_STRUCTURE_TYPE_SEMAPHORE_SIGNAL_INFO};
+    signal.semaphore = ready;
+    signal.value = 1;
+    EXPECT_EQ(vkSignalSemaphore(vk.device, &signal), VK_SUCCESS);
+  });
+  const ScanStats stats =
+      insertPointCloudOnDevice(on_device, buffer.range(), static_cast<std::uint32_t>(points.size()),
+                               origin, pose, 2.5, false, WaitSemaphore{ready, 1});
+  producer.join();
+  EXPECT_EQ(stats.skipped_nonfinite, 0u) << "the scan read the buffer before it was ready";
+  on_host.insertPointCloud(points, origin, pose, 2.5);
+  ASSERT_TRUE(test::sameTree(*toOcTree(on_host), *toOcTree(on_device)));
+
+  // A depth image in a caller's buffer (odd pixel count: the last word is half used).
+  DepthImage image;
+  image.width = 33;
+  image.height = 25;
+  image.fx = image.fy = 30.0f;
+  image.cx = 16.0f;
+  image.cy = 12.0f;
+  std::vector<std::uint16_t> pixels(std::size_t{image.width} * image.height);
+  std::uniform_int_distribution<int> d(0, 20000);
+  for (auto& p : pixels) p = static_cast<std::uint16_t>(d(rng) < 1000 ? 0 : d(rng));
+  CallerBuffer pixel_buffer(vk, pixels.size() * sizeof(std::uint16_t));
+  std::memcpy(pixel_buffer.data(), pixels.data(), pixels.size() * sizeof(std::uint16_t));
+  const ScanStats depth_stats = insertDepthImageOnDevice(
+      on_device, pixel_buffer.range(), image, pose, -1.0, Eigen::Vector3f::Zero(), false, {});
+  image.pixels = pixels.data();
+  std::size_t skipped = 0;
+  on_host.insertPointCloud(unprojectDepthImage(image, &skipped), Eigen::Vector3f::Zero(), pose);
+  EXPECT_EQ(depth_stats.skipped_no_depth, skipped);
+  ASSERT_TRUE(test::sameTree(*toOcTree(on_host), *toOcTree(on_device)));
+
+  // Ranges too small for the input are refused; the map stays.
+  const std::size_t nodes = on_device.nodeCount();
+  BufferRange small = buffer.range();
+  small.size = 12;
+  EXPECT_THROW(insertPointCloudOnDevice(on_device, small, 2, origin, pose), Error);
+  EXPECT_EQ(on_device.nodeCount(), nodes);
+  vkDestroySemaphore(vk.device, ready, nullptr);
 }
 
 }  // namespace

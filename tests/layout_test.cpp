@@ -91,7 +91,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 380);
+static_assert(sizeof(ScanCounters) == 384);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, brick_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -111,7 +111,18 @@ static_assert(offsetof(ScanCounters, walk_count) == 324);
 static_assert(offsetof(ScanCounters, walk_args) == 332);
 static_assert(offsetof(ScanCounters, cell_args) == 356);
 static_assert(offsetof(ScanCounters, brick_args) == 368);
-static_assert(offsetof(ScanCounters, brick_args) + sizeof(DispatchArgs) == sizeof(ScanCounters));
+static_assert(offsetof(ScanCounters, no_depth) == 380);
+static_assert(offsetof(ScanCounters, no_depth) + sizeof(std::uint32_t) == sizeof(ScanCounters));
+
+static_assert(sizeof(DepthCamera) == 32);
+static_assert(offsetof(DepthCamera, fx) == 0);
+static_assert(offsetof(DepthCamera, fy) == 4);
+static_assert(offsetof(DepthCamera, cx) == 8);
+static_assert(offsetof(DepthCamera, cy) == 12);
+static_assert(offsetof(DepthCamera, depth_scale) == 16);
+static_assert(offsetof(DepthCamera, width) == 20);
+static_assert(offsetof(DepthCamera, height) == 24);
+static_assert(offsetof(DepthCamera, encoding) == 28);
 // The host reads ScanCounters and PoolState back in one buffer, the PoolState right after.
 static_assert(sizeof(ScanCounters) % alignof(PoolState) == 0);
 // Indirect dispatch arguments must be 4-byte aligned inside the buffer.
@@ -251,13 +262,14 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, c
 static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox, log_odds));
 
-static_assert(kBindingCount == 19);
+static_assert(kBindingCount == 20);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 &&
               kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
               kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
               kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
-              kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18);
+              kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18 &&
+              kBindDepth == 19 && kBindAddresses == 20);
 
 TEST(Layout, HostSizesAndOffsets) {
   // The static_asserts above hold at compile time; the same facts at run time, for the report.
@@ -268,7 +280,8 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(NewBlock), 12u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 380u);
+  EXPECT_EQ(sizeof(ScanCounters), 384u);
+  EXPECT_EQ(sizeof(DepthCamera), 32u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
   EXPECT_EQ(sizeof(LookupResult), 16u);
@@ -276,7 +289,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(RayResult), 16u);
   EXPECT_EQ(sizeof(BoxQuery), 32u);
   EXPECT_EQ(sizeof(RayState), 48u);
-  EXPECT_EQ(offsetof(ScanCounters, brick_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
+  EXPECT_EQ(offsetof(ScanCounters, no_depth) + 4, sizeof(ScanCounters));
   EXPECT_EQ(offsetof(ScanParams, pad0) + 4, sizeof(ScanParams));
 }
 
@@ -393,6 +406,16 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindCounters, ScanCounters, cell_entries, U, 210),
       OCTOVK_FIELD(kBindCounters, ScanCounters, query_results, U, 211),
       OCTOVK_FIELD(kBindCounters, ScanCounters, leaf_cells, U, 212),
+      OCTOVK_FIELD(kBindCounters, ScanCounters, no_depth, U, 213),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, fx, F, 810),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, fy, F, 811),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, cx, F, 812),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, cy, F, 813),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, depth_scale, F, 814),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, width, U, 815),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, height, U, 816),
+      OCTOVK_FIELD(kBindDepth, DepthCamera, encoding, U, 817),
+      Field{"depth words[0]", kBindDepth, sizeof(DepthCamera), U, 818},
 
       OCTOVK_FIELD(kBindPool, PoolState, bump, U, 600),
       OCTOVK_FIELD(kBindPool, PoolState, capacity, U, 601),
@@ -613,6 +636,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindWalks] = 2 * sizeof(WalkState);
   sizes[kBindSlots] = 4 * sizeof(std::uint32_t);
   sizes[kBindCellList] = 4 * sizeof(std::uint32_t);
+  sizes[kBindDepth] = sizeof(DepthCamera) + 4 * sizeof(std::uint32_t);
 
   std::vector<vk::Buffer> buffers;
   buffers.reserve(kBindingCount);
@@ -638,6 +662,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
                                2u * (4u + 9u) + 4u * kLevelCount + 1u /* slots */ +
                                3u /* cell_args */ + 2u /* ScanParams */ +
                                5u /* brick_args, cell_list, block_parent */ +
+                               1u /* no_depth */ + 9u /* DepthCamera, its first word */ +
                                4u * kProbedConstants /* push-constant structs */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());

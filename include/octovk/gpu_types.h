@@ -160,6 +160,8 @@ struct ScanCounters {
   DispatchArgs walk_args[2];               // 24B (332)
   DispatchArgs cell_args;                  // 12B (356) groups over the cell list
   DispatchArgs brick_args;                 // 12B (368) groups over the cell set's bricks
+  uint no_depth;  // 4B (380) depth-image pixels with d = 0 or non-finite d (written as NaN
+                  //          points, so also counted in skipped_nonfinite)
 };
 
 // Cell states of a point lookup.
@@ -207,6 +209,21 @@ struct WalkState {
   uint key_xy;     // 4B (36) current cell
   uint key_z;      // 4B (40)
   uint pad0;       // 4B (44)
+};
+
+// The camera of a depth image, at the start of the depth buffer (kBindDepth); the pixels follow
+// from byte 32: uint16 (two per word, the first in the low half) or float32. 32 B.
+OCTOVK_CONST uint kDepthUint16 = 0u;
+OCTOVK_CONST uint kDepthFloat32 = 1u;
+struct DepthCamera {
+  float fx;           // 4B (0)
+  float fy;           // 4B (4)
+  float cx;           // 4B (8)
+  float cy;           // 4B (12)
+  float depth_scale;  // 4B (16) depth units per metre: z = d / depth_scale
+  uint width;         // 4B (20)
+  uint height;        // 4B (24)
+  uint encoding;      // 4B (28) kDepthUint16 / kDepthFloat32
 };
 
 // A castRay walk between segments (see shaders/cast_ray.comp). The query output holds one per
@@ -320,6 +337,14 @@ struct DiscretizeConstants {
   uint pad2;         // 4B (12)
 };
 
+// unproject. 16 B.
+struct UnprojectConstants {
+  uint pixel_count;  // 4B (0)
+  uint pad0;         // 4B (4)
+  uint pad1;         // 4B (8)
+  uint pad2;         // 4B (12)
+};
+
 // ray_keys. 16 B.
 OCTOVK_CONST uint kRayKeysPoints = 0u;        // a ray to every point of the scan
 OCTOVK_CONST uint kRayKeysEndCells = 1u;      // a ray to every distinct end cell (discretize)
@@ -405,19 +430,21 @@ OCTOVK_CONST uint kBindWalks = 16u;
 OCTOVK_CONST uint kBindSlots =
     17u;  // the slots filled in the cell set, then those of the second set
 OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
-OCTOVK_CONST uint kBindingCount = 19u;
+OCTOVK_CONST uint kBindDepth = 19u;     // a depth image: DepthCamera, then its pixels
+OCTOVK_CONST uint kBindingCount = 20u;
 // The map's arrays that can outgrow one descriptor's range (maxStorageBufferRange: 128 MiB on
 // lavapipe, while a 0.02 m map's node pool alone takes 454 MiB) are not bound by descriptor:
 // the shaders reach them by device address (GL_EXT_buffer_reference). Their addresses, indexed
 // by binding, are in a table bound at kBindAddresses (uint64_t[kBindingCount]; 0 elsewhere).
 // Params, counters, pool state and the two query bindings stay descriptors (small, or ranges
 // of a caller's buffers).
-OCTOVK_CONST uint kBindAddresses = 19u;
+OCTOVK_CONST uint kBindAddresses = 20u;
 OCTOVK_CONST uint kAddressedBindings =
     (1u << kBindPoints) | (1u << kBindHashKeys) | (1u << kBindHashFlags) | (1u << kBindNodes) |
     (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
     (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
-    (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList);
+    (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
+    (1u << kBindDepth);
 
 #ifdef __cplusplus
 }  // namespace octovk::gpu

@@ -154,7 +154,7 @@ struct ScanStats {
   std::size_t points = 0;             ///< points given (for a depth image: its pixels)
   std::size_t skipped_nonfinite = 0;  ///< NaN or infinite coordinates: nothing inserted
   std::size_t skipped_outside = 0;    ///< ray or end cell outside the map: nothing inserted
-  std::size_t skipped_no_depth = 0;   ///< depth-image pixels with d = 0 or non-finite d
+  std::size_t skipped_no_depth = 0;   ///< depth-image pixels with no depth (d = 0, non-finite)
   std::size_t free_cells = 0;         ///< distinct cells updated as free (before early abort)
   std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
   std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
@@ -166,7 +166,9 @@ struct ScanStats {
 
 /// A depth image and the pinhole camera that took it (camera frame: x right, y down, z forward).
 /// Pixel (u, v) with depth d becomes the point z = d / depth_scale, x = (u - cx) * z / fx,
-/// y = (v - cy) * z / fy, in float, in that order; pixels with d = 0 or non-finite d are skipped.
+/// y = (v - cy) * z / fy, in float, in that order. Pixels with no usable depth are skipped:
+/// d = 0 or non-finite (also a subnormal d, or a z that is 0, subnormal or not finite, which no
+/// sensor produces and devices may flush differently).
 struct DepthImage {
   enum class Encoding : std::uint32_t { kUint16 = 0, kFloat32 = 1 };
   std::uint32_t width = 0;
@@ -183,7 +185,7 @@ struct DepthImage {
 
 /// The points of a depth image in the camera frame, computed on the host with the same float
 /// operations the device uses, row by row (v), then column (u). `skipped` (if given) receives
-/// the number of pixels with d = 0 or non-finite d.
+/// the number of pixels with no usable depth.
 std::vector<Eigen::Vector3f> unprojectDepthImage(const DepthImage& image,
                                                  std::size_t* skipped = nullptr);
 

@@ -33,6 +33,32 @@ struct BufferRange {
   VkDeviceSize size = VK_WHOLE_SIZE;
 };
 
+/// A semaphore the caller signals when its buffer is ready (VK_NULL_HANDLE: ready now). A
+/// timeline semaphore (needs the device's timelineSemaphore feature, which octovk enables where
+/// the device has it) is waited for `value`; a binary one is waited for and unsignalled.
+struct WaitSemaphore {
+  VkSemaphore semaphore = VK_NULL_HANDLE;
+  std::uint64_t value = 0;
+};
+
+/// OccupancyMap::insertPointCloud (sensor-frame overload) on points already in a device buffer:
+/// `points_sensor` holds count x, y, z floats (12 B each) and needs TRANSFER_SRC usage. octovk's
+/// first submission waits for `wait`, then copies the points on the device (nothing passes
+/// through the host). The caller must not change the range until the call returns; the call
+/// returns when the scan is in the map, with the same result as the host overload.
+ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
+                                   std::uint32_t count, const Eigen::Vector3f& origin_sensor,
+                                   const Pose& T_world_sensor, double max_range_m = -1.0,
+                                   bool discretize = false, WaitSemaphore wait = {});
+
+/// OccupancyMap::insertDepthImage on pixels already in a device buffer: `pixels` holds
+/// image.width * image.height depths in image.encoding (image.pixels is ignored), row by row,
+/// and needs TRANSFER_SRC usage. Waits and returns as insertPointCloudOnDevice.
+ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
+                                   const Pose& T_world_camera, double max_range_m = -1.0,
+                                   const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
+                                   bool discretize = false, WaitSemaphore wait = {});
+
 /// OccupancyMap::search on points already in a device buffer: `points` holds count x, y, z
 /// floats (12 B each); `results` receives count gpu::LookupResult (16 B each). The caller must
 /// not use either range while the call runs; the call returns when the results are written.

@@ -20,11 +20,14 @@ std::string DepthImage::validate() const {
   } else if (encoding != Encoding::kUint16 && encoding != Encoding::kFloat32) {
     why << "the depth image's encoding " << static_cast<std::uint32_t>(encoding)
         << " is neither kUint16 nor kFloat32";
-  } else if (!std::isfinite(fx) || !std::isfinite(fy) || fx == 0.0f || fy == 0.0f) {
-    why << "the focal lengths fx, fy must be finite and non-zero (got " << fx << ", " << fy << ")";
-  } else if (!std::isfinite(cx) || !std::isfinite(cy)) {
-    why << "the principal point cx, cy must be finite (got " << cx << ", " << cy << ")";
-  } else if (!std::isfinite(depth_scale) || depth_scale <= 0.0f) {
+  } else if (!std::isnormal(fx) || !std::isnormal(fy)) {
+    why << "the focal lengths fx, fy must be finite, non-zero and not subnormal (got " << fx
+        << ", " << fy << ")";
+  } else if (!std::isfinite(cx) || !std::isfinite(cy) ||
+             std::fpclassify(cx) == FP_SUBNORMAL || std::fpclassify(cy) == FP_SUBNORMAL) {
+    why << "the principal point cx, cy must be finite and not subnormal (got " << cx << ", " << cy
+        << ")";
+  } else if (!std::isnormal(depth_scale) || depth_scale < 0.0f) {
     why << "depth_scale must be a finite positive number of depth units per metre (got "
         << depth_scale << ")";
   }
@@ -49,11 +52,12 @@ std::vector<Eigen::Vector3f> unprojectDepthImage(const DepthImage& image, std::s
       } else {
         std::memcpy(&d, bytes + i * sizeof(d), sizeof(d));
       }
-      if (!std::isfinite(d) || d == 0.0f) {
+      // As shaders/unproject.comp: no usable depth when d or z is zero, subnormal or not finite.
+      const float z = std::isnormal(d) ? d / image.depth_scale : 0.0f;
+      if (!std::isnormal(d) || !std::isnormal(z)) {
         ++none;
         continue;
       }
-      const float z = d / image.depth_scale;
       const float du = static_cast<float>(u) - image.cx;
       const float dv = static_cast<float>(v) - image.cy;
       const float xz = du * z;

@@ -302,6 +302,13 @@ void CommandStream::copy(const Buffer& src, const Buffer& dst, std::size_t bytes
   vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
 }
 
+void CommandStream::copyFrom(VkBuffer src, VkDeviceSize src_offset, const Buffer& dst,
+                             std::size_t bytes, std::size_t dst_offset) {
+  if (bytes == 0) return;
+  VkBufferCopy region{src_offset, dst_offset, bytes};
+  vkCmdCopyBuffer(cmd_, src, dst.handle(), 1, &region);
+}
+
 void CommandStream::fill(const Buffer& dst, std::uint32_t value, std::size_t offset,
                          std::size_t bytes) {
   vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, value);
@@ -331,12 +338,32 @@ std::vector<double> CommandStream::timestampsNs() {
   return ns;
 }
 
+void CommandStream::waitBeforeNextSubmit(VkSemaphore semaphore, std::uint64_t value) {
+  wait_semaphore_ = semaphore;
+  wait_value_ = value;
+}
+
 void CommandStream::submitAndWait() {
   OCTOVK_VK(vkEndCommandBuffer(cmd_));
   recording_ = false;
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   submit.commandBufferCount = 1;
   submit.pCommandBuffers = &cmd_;
+  // A caller's semaphore (interop input): every stage of this submission waits for it. The
+  // value is read for a timeline semaphore and ignored for a binary one.
+  const VkPipelineStageFlags wait_stage = VK_PIPELINE_STAGE_ALL_COMMANDS_BIT;
+  VkTimelineSemaphoreSubmitInfo timeline{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+  const VkSemaphore wait = wait_semaphore_;
+  const std::uint64_t wait_value = wait_value_;
+  wait_semaphore_ = VK_NULL_HANDLE;
+  if (wait != VK_NULL_HANDLE) {
+    timeline.waitSemaphoreValueCount = 1;
+    timeline.pWaitSemaphoreValues = &wait_value;
+    submit.pNext = &timeline;
+    submit.waitSemaphoreCount = 1;
+    submit.pWaitSemaphores = &wait;
+    submit.pWaitDstStageMask = &wait_stage;
+  }
   OCTOVK_VK(vkResetFences(device_.handle(), 1, &fence_));
   OCTOVK_VK(vkQueueSubmit(device_.queue(), 1, &submit, fence_));
   OCTOVK_VK(vkWaitForFences(device_.handle(), 1, &fence_, VK_TRUE, UINT64_MAX));
@@ -629,6 +656,8 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   VkPhysicalDeviceVulkan12Features want12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   want12.shaderBufferInt64Atomics = VK_TRUE;
   want12.bufferDeviceAddress = VK_TRUE;
+  // Optional: lets callers hand input over with a timeline semaphore (vulkan_interop.hpp).
+  want12.timelineSemaphore = f12.timelineSemaphore;
   VkPhysicalDeviceFeatures2 want{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   want.pNext = &want12;
   want.features.shaderInt64 = VK_TRUE;

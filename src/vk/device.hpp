@@ -107,12 +107,18 @@ class CommandStream {
   void barrier();
   void copy(const Buffer& src, const Buffer& dst, std::size_t bytes, std::size_t src_offset = 0,
             std::size_t dst_offset = 0);
+  /// A copy from a buffer the caller owns (interop), which must have TRANSFER_SRC usage.
+  void copyFrom(VkBuffer src, VkDeviceSize src_offset, const Buffer& dst, std::size_t bytes,
+                std::size_t dst_offset = 0);
   void fill(const Buffer& dst, std::uint32_t value, std::size_t offset = 0,
             std::size_t bytes = VK_WHOLE_SIZE);
   void update(const Buffer& dst, const void* data, std::size_t bytes, std::size_t offset = 0);
   /// Records a device timestamp once all earlier work is done; returns its index in this
   /// recording. Without timestamp support it records nothing.
   std::uint32_t timestamp();
+  /// The next submission waits for `semaphore` (a timeline semaphore: for `value`; a binary
+  /// one: signalled, and unsignalled by the wait) before any of its commands run.
+  void waitBeforeNextSubmit(VkSemaphore semaphore, std::uint64_t value);
   /// Ends recording, submits and waits for completion.
   void submitAndWait();
   /// Device times in nanoseconds of the timestamps of the last submission (empty if the device
@@ -127,6 +133,8 @@ class CommandStream {
   VkQueryPool queries_ = VK_NULL_HANDLE;
   std::uint32_t query_count_ = 0;
   bool recording_ = false;
+  VkSemaphore wait_semaphore_ = VK_NULL_HANDLE;
+  std::uint64_t wait_value_ = 0;
   static constexpr std::uint32_t kMaxQueries = 64;
 };
 

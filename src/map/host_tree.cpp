@@ -1,0 +1,78 @@
+#include "map/host_tree.hpp"
+
+#include <algorithm>
+
+namespace octovk {
+
+HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool) {
+  HostTree tree;
+  tree.root_exists = pool.root_exists != 0;
+  const std::size_t count = std::min<std::size_t>(std::size_t{pool.bump} * 8, nodes.size());
+  // Device nodes keep a node's existence in the node itself (kFlagLive); the host tree keeps a
+  // parent's child bits.
+  tree.nodes.resize(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint32_t block = nodes[i].link & gpu::kBlockMask;
+    HostTree::Node& n = tree.nodes[i];
+    n.log_odds = nodes[i].log_odds;
+    n.children = gpu::kNoBlock;
+    n.mask = 0;
+    if (block == gpu::kNoChildren || block >= pool.bump ||
+        std::size_t{block} * 8 + 8 > count)
+      continue;
+    n.children = block;
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (nodes[std::size_t{block} * 8 + s].link & gpu::kFlagLive) n.mask |= 1u << s;
+  }
+  // Free blocks keep stale contents; only what hangs from the root is the tree.
+  return tree;
+}
+
+PoolImage poolImageFromTree(const HostTree& tree) {
+  PoolImage image;
+  const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);
+  if (blocks > 0x1FFFFFFFu)
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "upload: the tree has more than 2^32 nodes, more than a map can hold");
+  image.blocks = static_cast<std::uint32_t>(blocks);
+  image.parents.assign(blocks, gpu::kNoBlock);
+  image.nodes.assign(blocks * 8, gpu::Node{0.0f, gpu::kNoChildren});
+  image.root_exists = tree.root_exists;
+  if (tree.root_exists) {
+    if (tree.nodes.empty()) throw Error(ErrorCode::kFormat, "upload: the tree has no root node");
+    // Walk from the root: each node that hangs in the tree exists (kFlagLive) and each child
+    // block records its parent.
+    struct Item {
+      std::uint32_t node, depth;
+    };
+    std::vector<Item> stack{{gpu::kRootNode, 0}};
+    while (!stack.empty()) {
+      const Item it = stack.back();
+      stack.pop_back();
+      ++image.live_nodes;
+      const HostTree::Node& n = tree.nodes[it.node];
+      gpu::Node& g = image.nodes[it.node];
+      g.log_odds = n.log_odds;
+      g.link = gpu::kNoChildren | gpu::kFlagLive;
+      if ((n.mask & gpu::kChildMask) == 0) continue;
+      if (it.depth >= gpu::kTreeDepth)
+        throw Error(ErrorCode::kFormat, "upload: the tree has nodes below depth 16");
+      if (n.children >= blocks || n.children == 0 ||
+          std::size_t{n.children} * 8 + 8 > tree.nodes.size())
+        throw Error(ErrorCode::kFormat, "upload: the tree has a child block outside its nodes");
+      if (image.parents[n.children] != gpu::kNoBlock)
+        throw Error(ErrorCode::kFormat,
+                    "upload: the tree has a child block shared by two nodes (a cycle or a copy)");
+      g.link = n.children | gpu::kFlagLive;
+      image.parents[n.children] = it.node;
+      for (std::uint32_t s = 0; s < 8; ++s)
+        if (n.mask & (1u << s)) stack.push_back({n.children * 8 + s, it.depth + 1});
+    }
+  }
+  // Blocks that nothing points at go onto the free stack.
+  for (std::uint32_t b = 1; b < blocks; ++b)
+    if (image.parents[b] == gpu::kNoBlock) image.free_blocks.push_back(b);
+  return image;
+}
+
+}  // namespace octovk

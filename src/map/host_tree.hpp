@@ -1,0 +1,31 @@
+// The tree between its device form (node pool: nodes with a live flag and a child-block link,
+// block parents, free-block stack) and the host form of HostTree, converted on the host with no
+// device, so it is testable on its own.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "octovk/gpu_types.h"
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+/// The tree that hangs from the root of a downloaded pool (`nodes`: the first pool.bump blocks).
+HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool);
+
+/// A HostTree as the device pool holds it, ready to upload.
+struct PoolImage {
+  std::vector<gpu::Node> nodes;            ///< blocks * 8
+  std::vector<std::uint32_t> parents;      ///< per block, the node it hangs under, or kNoBlock
+  std::vector<std::uint32_t> free_blocks;  ///< blocks nothing points at (block 0 excepted)
+  std::uint32_t blocks = 0;
+  std::uint32_t live_nodes = 0;
+  bool root_exists = false;
+};
+/// Checks `tree` (depth at most 16, child blocks inside it, none shared) and lays it out for the
+/// pool; throws kFormat naming what is wrong.
+PoolImage poolImageFromTree(const HostTree& tree);
+
+}  // namespace octovk

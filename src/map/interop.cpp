@@ -1,0 +1,91 @@
+// Vulkan interop (include/octovk/vulkan_interop.hpp): the one file that hands Vulkan handles
+// out and takes the caller's buffers in.
+#include "map/map_impl.hpp"
+#include "octovk/vulkan_interop.hpp"
+
+namespace octovk {
+
+class InteropAccess {
+ public:
+  static OccupancyMap::Impl& impl(OccupancyMap& map) { return *map.impl_; }
+};
+
+VulkanHandles vulkanHandles(Context& context) {
+  vk::Device& d = context.vulkan();
+  return {d.instance(), d.physical(),    d.handle(),
+          d.queue(),    d.queueFamily(), d.storageOffsetAlignment()};
+}
+
+namespace {
+
+// The caller's range must hold `bytes` from its offset.
+void checkInput(const char* call, const BufferRange& range, std::size_t bytes) {
+  if (range.buffer == VK_NULL_HANDLE)
+    throw Error(ErrorCode::kInvalidArgument, std::string(call) + ": the buffer is VK_NULL_HANDLE");
+  if (range.size != VK_WHOLE_SIZE && range.size < bytes)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string(call) + ": the range holds " + std::to_string(range.size) +
+                    " bytes; the input needs " + std::to_string(bytes));
+}
+
+}  // namespace
+
+ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
+                                   std::uint32_t count, const Eigen::Vector3f& origin_sensor,
+                                   const Pose& T_world_sensor, double max_range_m,
+                                   bool discretize, WaitSemaphore wait) {
+  checkInput("insertPointCloudOnDevice", points_sensor, std::size_t{count} * 3 * sizeof(float));
+  OccupancyMap::Impl::ScanSource source;
+  source.device = points_sensor.buffer;
+  source.device_offset = points_sensor.offset;
+  source.device_points = count;
+  source.wait = wait.semaphore;
+  source.wait_value = wait.value;
+  return InteropAccess::impl(map).insert(source, T_world_sensor.transform(origin_sensor),
+                                         &T_world_sensor, max_range_m, discretize);
+}
+
+ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
+                                   const Pose& T_world_camera, double max_range_m,
+                                   const Eigen::Vector3f& origin_camera, bool discretize,
+                                   WaitSemaphore wait) {
+  DepthImage meta = image;
+  if (meta.pixels == nullptr) meta.pixels = &meta;  // validate() asks for pixels; never read
+  if (std::string why = meta.validate(); !why.empty())
+    throw Error(ErrorCode::kInvalidArgument, "insertDepthImageOnDevice: " + why);
+  const std::size_t bytes = std::size_t{image.width} * image.height *
+                            (image.encoding == DepthImage::Encoding::kUint16 ? 2 : 4);
+  checkInput("insertDepthImageOnDevice", pixels, bytes);
+  OccupancyMap::Impl::ScanSource source;
+  source.depth = &meta;
+  source.device = pixels.buffer;
+  source.device_offset = pixels.offset;
+  source.wait = wait.semaphore;
+  source.wait_value = wait.value;
+  return InteropAccess::impl(map).insert(source, T_world_camera.transform(origin_camera),
+                                         &T_world_camera, max_range_m, discretize);
+}
+
+void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,
+                    BufferRange results) {
+  InteropAccess::impl(map).queryOnDevice(false, points.buffer, points.offset, points.size,
+                                         results.buffer, results.offset, results.size, count);
+}
+
+std::size_t castRaysResultBytes(std::uint32_t count) {
+  // The results, then from the first RayState past them one per ray (recordCastRays).
+  return passes::queryOutputBytes(count, 0);
+}
+
+void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
+                      BufferRange results) {
+  if (results.size != VK_WHOLE_SIZE && results.size < castRaysResultBytes(count))
+    throw Error(ErrorCode::kInvalidArgument,
+                "castRaysOnDevice: the results range holds " + std::to_string(results.size) +
+                    " bytes; castRaysResultBytes(" + std::to_string(count) +
+                    ") = " + std::to_string(castRaysResultBytes(count)) + " are needed");
+  InteropAccess::impl(map).queryOnDevice(true, rays.buffer, rays.offset, rays.size, results.buffer,
+                                         results.offset, results.size, count);
+}
+
+}  // namespace octovk

@@ -1,0 +1,91 @@
+// OccupancyMap::Impl: the map's state (params, buffers, what the last scan left in the sets) and
+// the host-side decisions of each operation. The passes it records are in map/passes/.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "map/map_buffers.hpp"
+#include "map/passes/passes.hpp"
+#include "map/reference.hpp"
+#include "octovk/octovk.hpp"
+#include "vk/device.hpp"
+
+namespace octovk {
+
+class OccupancyMap::Impl {
+ public:
+  Impl(Context& context, const MapParams& params);
+
+  /// What a scan inserts: points, or a depth image (unprojected on the device), from the host
+  /// or from a caller's device buffer (`device`, read once `wait` is signalled).
+  struct ScanSource {
+    std::span<const Eigen::Vector3f> points;
+    const DepthImage* depth = nullptr;  ///< its pixels are ignored when `device` is given
+    std::size_t device_points = 0;      ///< points in `device` (when no depth image)
+    VkBuffer device = VK_NULL_HANDLE;
+    VkDeviceSize device_offset = 0;
+    VkSemaphore wait = VK_NULL_HANDLE;
+    std::uint64_t wait_value = 0;
+    std::size_t count() const {
+      if (depth) return std::size_t{depth->width} * depth->height;
+      return device != VK_NULL_HANDLE ? device_points : points.size();
+    }
+  };
+  /// One scan, then the queries if any.
+  ScanStats insert(const ScanSource& source, const Eigen::Vector3f& origin,
+                   const Pose* pose, double max_range, bool discretize,
+                   const QueryRequest* queries = nullptr, QueryResults* results = nullptr);
+  QueryResults runQueries(const QueryRequest& queries);
+  /// A castRay (rays) or lookup batch between ranges of the caller's buffers (interop).
+  void queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDeviceSize in_size,
+                     VkBuffer out, VkDeviceSize out_offset, VkDeviceSize out_size,
+                     std::uint32_t count);
+  std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                                       bool occupied_only);
+  HostTree download();
+  void upload(const HostTree& tree);
+  std::vector<LeafBoxHost> downloadLeafBoxes();
+  gpu::PoolState readPool();
+  std::size_t deviceBytes() const { return buffers_.deviceBytes(); }
+  std::size_t poolBytes() const { return buffers_.poolBytes(); }
+
+  const MapParams& params() const { return params_; }
+  void setLeafBoxesEveryScan(bool every_scan) { leaf_boxes_every_scan_ = every_scan; }
+  /// Rebuilds the leaf boxes if scans were inserted without rebuilding them.
+  void refreshLeafBoxes();
+
+  vk::Device& device() { return device_; }
+
+ private:
+  /// Where the ray pass reads the scan's input: the upload buffer, after writing the host's
+  /// points or pixels into it, or the caller's buffer.
+  passes::RayKeysInput stage(const ScanSource& source);
+  /// Throws kInvalidArgument naming the first bad input of a scan of `count` points.
+  void checkScan(std::size_t count, const Eigen::Vector3f& origin, const Pose* pose,
+                 double max_range) const;
+  gpu::ScanParams scanParams(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
+                             std::size_t count) const;
+  /// Stage 1 and 2 (ray keys, classify), submitted and waited for, growing the sets and running
+  /// them again until the scan fits. Returns the counters and pool state after classify.
+  void runRayPasses(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
+                    std::size_t count, passes::RayKeysInput input, ScanStats& stats,
+                    gpu::ScanCounters& counters, gpu::PoolState& pool);
+  /// Grows the pool and the touched lists for what classify counted (kOutOfDeviceMemory, map
+  /// unchanged, if it may not).
+  void reserveTree(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+
+  vk::Device& device_;
+  MapParams params_;
+  ref::LogOddsParams logs_;
+  vk::CommandStream stream_;
+  MapBuffers buffers_;
+  passes::Recorder rec_;
+  // The slots the last successful scan filled in the two sets (cleared by the next scan).
+  std::uint32_t filled_bricks_ = 0, filled_endpoints_ = 0;
+  bool leaf_boxes_every_scan_ = false;
+  bool leaf_boxes_dirty_ = false;
+};
+
+}  // namespace octovk

@@ -1,0 +1,18 @@
+// Stage 2, cells against the tree: list_cells.comp (the distinct cells of the cell set) and
+// classify.comp (early abort, existing leaf, nodes to create, new-block prefixes).
+#include "map/passes/passes.hpp"
+
+namespace octovk::passes {
+
+void recordClassify(Recorder& r, bool discretize, std::uint32_t points) {
+  r.stream.timestamp();
+  // The second set now collects the prefixes of nodes that get a block: empty discretize's end
+  // cells out of it first.
+  if (discretize)
+    r.dispatch("clear_sets", points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
+  r.dispatchIndirect("list_cells", offsetof(gpu::ScanCounters, brick_args));
+  r.dispatchIndirect("classify", offsetof(gpu::ScanCounters, cell_args));
+  r.stream.timestamp();
+}
+
+}  // namespace octovk::passes

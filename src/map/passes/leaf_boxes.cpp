@@ -1,0 +1,24 @@
+// Stage 5, the leaf boxes: leaf_boxes.comp over every block, rebuilding the map's leaf-box buffer
+// or compacting the leaves of a box query.
+#include "map/passes/passes.hpp"
+
+namespace octovk::passes {
+
+void recordLeafBoxes(Recorder& r) {
+  r.stream.fill(r.buffers.pool, 0u, offsetof(gpu::PoolState, leaf_count), sizeof(std::uint32_t));
+  r.stream.barrier();
+  r.dispatch("leaf_boxes", r.buffers.poolBlocks(),
+             gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesRebuild});
+  r.stream.timestamp();
+}
+
+void recordLeavesInBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery& box) {
+  MapBuffers& b = r.buffers;
+  r.stream.update(b.params, &sp, sizeof(sp));
+  r.stream.update(b.query_in, &box, sizeof(box));
+  r.stream.fill(b.counters, 0u, offsetof(gpu::ScanCounters, query_results), sizeof(std::uint32_t));
+  r.stream.barrier();
+  r.dispatch("leaf_boxes", b.poolBlocks(), gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesInBox});
+}
+
+}  // namespace octovk::passes

@@ -1,0 +1,89 @@
+// The host half of each stage: one function per stage that records its shaders' dispatches
+// (shaders/<stage>.comp), in pipeline order. None submits or waits; the scan's state machine in
+// map/occupancy_map.cpp decides what runs when.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "map/passes/recorder.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk::passes {
+
+// ---- ray_keys.cpp: points to the cell set ----
+
+/// How a scan's points come in and where the previous scan left the sets.
+struct RayKeysInput {
+  /// Where the points (x, y, z floats) or the depth image's pixels are: the map's upload buffer,
+  /// or a caller's buffer (interop).
+  VkBuffer source = VK_NULL_HANDLE;
+  VkDeviceSize source_offset = 0;
+  std::size_t bytes = 0;
+  bool unproject = false;     ///< a depth image: `camera` is written before its pixels
+  gpu::DepthCamera camera{};
+  bool transform = false;     ///< points in the sensor frame: move them by the pose first
+  bool discretize = false;    ///< insert one ray per distinct end cell (OctoMap's discretize)
+  bool fill_sets = false;     ///< clear the sets whole, else only the previous scan's slots
+  std::uint32_t filled_bricks = 0, filled_endpoints = 0;  ///< the previous scan's slots
+};
+/// Uploads the parameters, fresh counters and the staged points (or depth image), clears the
+/// sets, then unproject, transform, discretize and the ray walk (with its continuations) into
+/// the cell set.
+void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& in);
+
+// ---- classify.cpp: the cells against the tree ----
+
+/// Lists the distinct cells and classifies them (early abort, leaf exists, nodes to create,
+/// new-block prefixes into the second set).
+void recordClassify(Recorder& r, bool discretize, std::uint32_t points);
+
+// ---- tree_update.cpp: the log-odds update ----
+
+/// Creates the blocks classify counted, links them, and updates every active cell's leaf
+/// (`active` cells, the first `descending` of which need nodes created on their path).
+void recordTreeUpdate(Recorder& r, std::uint32_t new_blocks, std::uint32_t active,
+                      std::uint32_t descending);
+
+// ---- prune.cpp ----
+
+/// Inner-node values and pruning, level by level from the deepest, over the touched lists.
+void recordPrune(Recorder& r);
+
+// ---- leaf_boxes.cpp ----
+
+/// Rebuilds the leaf-box buffer (centre, size, log-odds of every leaf) and PoolState::leaf_count.
+void recordLeafBoxes(Recorder& r);
+/// The leaves in `box` (OctoMap's leaf_bbx_iterator) compacted into the query output; their
+/// count in ScanCounters::query_results.
+void recordLeavesInBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery& box);
+
+// ---- queries.cpp: search() and castRay ----
+
+/// The first RayState after `results` results in the query output: castRay's walk states
+/// follow the results there.
+std::uint32_t firstRayState(std::size_t results);
+/// Bytes of query output a batch needs: the results, then the castRay walk states.
+std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups);
+/// Writes the rays, then the lookup points, into the query staging buffer.
+void stageQueries(MapBuffers& buffers, const QueryRequest& q);
+/// Copies the staged batch in, runs it and copies the results to the staging output.
+void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q);
+/// castRay for `rays` queries at the start of the query input; results at the start of the
+/// output, the walks' states from its RayState `first_state` on.
+void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state);
+/// search() for `points` points from float `first_float` of the query input; results from
+/// entry `first_result` of the output.
+void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result,
+                   std::uint32_t first_float);
+/// The results of a batch from the staging output.
+QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q);
+
+// ---- readback.cpp ----
+
+/// Copies the counters and the pool state to the host-visible readback buffer.
+void recordReadback(Recorder& r);
+/// What recordReadback copied, once the submission is done.
+void readBack(const MapBuffers& buffers, gpu::ScanCounters& counters, gpu::PoolState& pool);
+
+}  // namespace octovk::passes

@@ -1,0 +1,109 @@
+// Queries on the map: lookup.comp (OctoMap's search) and cast_ray.comp (OctoMap's castRay), in
+// one batch: the rays, then the lookup points, in the input; their results in the same order in
+// the output, castRay's walk states after them.
+#include <cstring>
+
+#include "map/passes/passes.hpp"
+
+namespace octovk::passes {
+
+std::uint32_t firstRayState(std::size_t results) {
+  return static_cast<std::uint32_t>((results * sizeof(gpu::RayResult) + sizeof(gpu::RayState) - 1) /
+                                    sizeof(gpu::RayState));
+}
+
+std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups) {
+  static_assert(sizeof(gpu::RayResult) == sizeof(gpu::LookupResult));
+  return (firstRayState(rays + lookups) + rays) * sizeof(gpu::RayState);
+}
+
+void stageQueries(MapBuffers& buffers, const QueryRequest& q) {
+  const std::size_t ray_bytes = q.rays.size() * sizeof(gpu::RayQuery);
+  const std::size_t point_bytes = q.lookups.size() * 3 * sizeof(float);
+  buffers.ensureQueries(ray_bytes + point_bytes, queryOutputBytes(q.rays.size(), q.lookups.size()));
+  auto* bytes = static_cast<unsigned char*>(buffers.query_staging_in.mapped());
+  for (std::size_t i = 0; i < q.rays.size(); ++i) {
+    const Ray& ray = q.rays[i];
+    gpu::RayQuery g{};
+    g.max_range = ray.max_range_m;
+    g.origin_x = ray.origin.x();
+    g.origin_y = ray.origin.y();
+    g.origin_z = ray.origin.z();
+    g.direction_x = ray.direction.x();
+    g.direction_y = ray.direction.y();
+    g.direction_z = ray.direction.z();
+    g.ignore_unknown = ray.ignore_unknown ? 1u : 0u;
+    std::memcpy(bytes + i * sizeof(g), &g, sizeof(g));
+  }
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
+  if (point_bytes) std::memcpy(bytes + ray_bytes, q.lookups.data(), point_bytes);
+}
+
+void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q) {
+  MapBuffers& b = r.buffers;
+  const auto rays = static_cast<std::uint32_t>(q.rays.size());
+  const auto points = static_cast<std::uint32_t>(q.lookups.size());
+  const std::size_t in_bytes = rays * sizeof(gpu::RayQuery) + points * 3 * sizeof(float);
+  r.stream.update(b.params, &sp, sizeof(sp));
+  r.stream.copy(b.query_staging_in, b.query_in, in_bytes);
+  r.stream.barrier();
+  if (rays) recordCastRays(r, rays, firstRayState(rays + points));
+  if (points)
+    recordLookups(r, points, rays,
+                  static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float)));
+  r.stream.copy(b.query_out, b.query_staging_out, (rays + points) * sizeof(gpu::RayResult));
+}
+
+void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state) {
+  // Where the driver limits loops (see recordRayKeys) the walk runs in segments of the walk
+  // budget (30000 on llvmpipe); the longest castRay (3 * 65536 steps, each with a search of up
+  // to 17 iterations) then needs 112 continuations, over ever fewer rays. Elsewhere each ray is
+  // walked in one segment.
+  const std::uint32_t budget = r.device.walkBudget();
+  const std::uint32_t rounds = r.device.walkContinuations(3u * 65536u * 17u);
+  // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
+  // walked) and continued by indirect dispatches, which cost next to nothing once empty.
+  // Both lists empty, with whole dispatch arguments: the counters may hold anything here (a map
+  // imported and queried before any scan has never had them reset).
+  static_assert(offsetof(gpu::ScanCounters, walk_args) ==
+                offsetof(gpu::ScanCounters, walk_count) + sizeof(gpu::ScanCounters::walk_count));
+  const gpu::ScanCounters fresh = freshCounters();
+  r.stream.update(r.buffers.counters, &fresh.walk_count,
+                  sizeof(fresh.walk_count) + sizeof(fresh.walk_args),
+                  offsetof(gpu::ScanCounters, walk_count));
+  r.stream.barrier();
+  r.dispatch("cast_ray", rays,
+             gpu::CastRayConstants{
+                 .budget = budget, .ray_count = rays, .resume = 0, .first_state = first_state});
+  r.continuations("cast_ray", rounds, [&](std::uint32_t from, bool) {
+    return gpu::CastRayConstants{
+        .budget = budget, .ray_count = rays, .resume = from + 1, .first_state = first_state};
+  });
+}
+
+void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result,
+                   std::uint32_t first_float) {
+  r.dispatch("lookup", points,
+             gpu::LookupConstants{
+                 .point_count = points, .first_float = first_float, .first_result = first_result});
+}
+
+QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q) {
+  QueryResults out;
+  const auto* bytes = static_cast<const unsigned char*>(buffers.query_staging_out.mapped());
+  out.rays.resize(q.rays.size());
+  for (std::size_t i = 0; i < q.rays.size(); ++i) {
+    gpu::RayResult res;
+    std::memcpy(&res, bytes + i * sizeof(res), sizeof(res));
+    out.rays[i] = {res.hit != 0, Eigen::Vector3f(res.end_x, res.end_y, res.end_z)};
+  }
+  out.lookups.resize(q.lookups.size());
+  for (std::size_t i = 0; i < q.lookups.size(); ++i) {
+    gpu::LookupResult res;
+    std::memcpy(&res, bytes + (q.rays.size() + i) * sizeof(res), sizeof(res));
+    out.lookups[i] = {static_cast<CellState>(res.state), res.log_odds, res.depth};
+  }
+  return out;
+}
+
+}  // namespace octovk::passes

@@ -1,0 +1,63 @@
+// Stage 1, points to cells: clear_sets.comp, unproject.comp (depth images), transform_points.comp,
+// discretize.comp and ray_keys.comp (the walk of each ray into the cell set).
+#include "map/passes/passes.hpp"
+
+#include <algorithm>
+
+namespace octovk::passes {
+
+void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& in) {
+  MapBuffers& b = r.buffers;
+  const gpu::ScanCounters counters = freshCounters();
+  r.stream.timestamp();
+  r.stream.update(b.params, &sp, sizeof(sp));
+  r.stream.update(b.counters, &counters, sizeof(counters));
+  if (in.unproject) {
+    r.stream.update(b.depth, &in.camera, sizeof(in.camera));
+    r.stream.copyFrom(in.source, in.source_offset, b.depth, in.bytes, sizeof(in.camera));
+  } else {
+    r.stream.copyFrom(in.source, in.source_offset, b.points, in.bytes);
+  }
+  if (in.fill_sets) {
+    r.stream.fill(b.hash_keys, 0xFFFFFFFFu);
+    r.stream.fill(b.hash_flags, 0u);
+    r.stream.fill(b.endpoint_keys, 0xFFFFFFFFu);
+  } else {
+    r.stream.barrier();
+    r.dispatch("clear_sets", std::max(in.filled_bricks, in.filled_endpoints),
+               gpu::ClearSetsConstants{.mode = gpu::kClearPrevious,
+                                       .bricks = in.filled_bricks,
+                                       .endpoints = in.filled_endpoints});
+  }
+  r.stream.barrier();
+  r.stream.timestamp();
+  if (in.unproject)
+    r.dispatch("unproject", sp.point_count, gpu::UnprojectConstants{.pixel_count = sp.point_count});
+  if (in.transform)
+    r.dispatch("transform_points", sp.point_count,
+               gpu::TransformPointsConstants{.point_count = sp.point_count});
+  // Where the driver ends an invocation's loops early (the device probe measures it: llvmpipe
+  // after 65535 iterations in total, silently, counted for 8 lanes at once), a walk stops after
+  // its budget of iterations (steps and hash probes; 30000 there) and is continued by more
+  // dispatches, each over the walks left unfinished (3 * 65536 steps reach any border, 24 of
+  // 30000 leave room for the probes). A walk still unfinished after them is reported. Where no
+  // limit was seen, every ray is walked in one go.
+  const std::uint32_t budget = r.device.walkBudget();
+  if (in.discretize)
+    r.dispatch("discretize", sp.point_count,
+               gpu::DiscretizeConstants{.point_count = sp.point_count});
+  r.dispatch("ray_keys", sp.point_count,
+             gpu::RayKeysConstants{
+                 .budget = budget,
+                 .point_count = sp.point_count,
+                 .mode = in.discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
+  const std::uint32_t rounds = r.device.walkContinuations(24u * 30000u);
+  r.continuations("ray_keys", rounds, [&](std::uint32_t from, bool last) {
+    return gpu::RayKeysConstants{.budget = budget,
+                                 .point_count = sp.point_count,
+                                 .mode = last ? gpu::kRayKeysContinueLast : gpu::kRayKeysContinue,
+                                 .from_list = from};
+  });
+}
+
+}  // namespace octovk::passes
