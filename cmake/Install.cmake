@@ -11,6 +11,14 @@ include(CMakePackageConfigHelpers)
 
 set(OCTOVK_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/octovk)
 
+# Shared libraries (-DBUILD_SHARED_LIBS=ON; static is the default): the installed program and
+# liboctovk_octomap find theirs relative to themselves.
+if(BUILD_SHARED_LIBS AND NOT IS_ABSOLUTE ${CMAKE_INSTALL_BINDIR} AND NOT IS_ABSOLUTE ${CMAKE_INSTALL_LIBDIR})
+  file(RELATIVE_PATH octovk_bin_to_lib /${CMAKE_INSTALL_BINDIR} /${CMAKE_INSTALL_LIBDIR})
+  set_target_properties(octovk_cli PROPERTIES INSTALL_RPATH "$ORIGIN/${octovk_bin_to_lib}")
+  set_target_properties(octovk_octomap PROPERTIES INSTALL_RPATH "$ORIGIN")
+endif()
+
 install(TARGETS octovk EXPORT octovkTargets)
 install(TARGETS octovk_octomap EXPORT octovkOctomapTargets)
 install(TARGETS octovk_cli)

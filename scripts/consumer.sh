@@ -90,10 +90,12 @@ fi
 if grep -q "/octomap/" "$work/core.deps"; then
   die "octovk's core headers include OctoMap: $(grep -o '[^ ]*/octomap/[^ ]*' "$work/core.deps" | head -3 | tr '\n' ' ')"
 fi
+# (the rpath matters only for a shared build, -DBUILD_SHARED_LIBS=ON)
+rpath="-Wl,-rpath,$(pkg-config --variable=libdir octovk)"
 # shellcheck disable=SC2086
-g++ -std=c++20 -O1 -o "$work/core_pc" "$src/core_main.cpp" -Wl,--no-as-needed $core_flags
+g++ -std=c++20 -O1 -o "$work/core_pc" "$src/core_main.cpp" -Wl,--no-as-needed "$rpath" $core_flags
 # shellcheck disable=SC2086
-g++ -std=c++20 -O1 -o "$work/octomap_pc" "$src/octomap_main.cpp" $octomap_flags
+g++ -std=c++20 -O1 -o "$work/octomap_pc" "$src/octomap_main.cpp" "$rpath" $octomap_flags
 run "$work/core_pc"
 run "$work/octomap_pc"
 
