@@ -1,17 +1,20 @@
 #!/usr/bin/env bash
 # Installs what is needed, builds, and runs every test (on lavapipe when there is no GPU):
 #   1. the whole suite on the system's Vulkan driver (Debian's lavapipe, Mesa 22.3, without a GPU);
-#   2. the whole suite again on a second driver, lavapipe from Mesa 25 (scripts/lavapipe25.sh),
+#   2. consumer: the installed package used from another project, through find_package and
+#      pkg-config, with the core free of OctoMap (scripts/consumer.sh);
+#   3. the whole suite again on a second driver, lavapipe from Mesa 25 (scripts/lavapipe25.sh),
 #      because results must not depend on one driver's compiler;
-#   3. the whole suite with the Khronos validation layer (core + synchronization validation):
+#   4. the whole suite with the Khronos validation layer (core + synchronization validation):
 #      any validation message fails the test that caused it;
-#   4. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh).
+#   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh).
 # Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
-# Vulkan device fails the Vulkan tests instead of skipping them.
-# OCTOVK_TEST_STEPS (default "system mesa25 validation sanitize") picks steps, e.g. "system".
+# Vulkan device fails the Vulkan tests (and the consumer) instead of skipping them.
+# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize") picks steps, e.g.
+# "system".
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-steps="${OCTOVK_TEST_STEPS:-system mesa25 validation sanitize}"
+steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize}"
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh"
 jobs="$(nproc)"
@@ -34,6 +37,16 @@ run_suite() {  # NAME, then VAR=VALUE words (no spaces) of the environment to ru
 if step system; then
   # With a GPU present this runs on it; on a machine without one, on the system's lavapipe.
   run_suite "system driver"
+fi
+if step consumer; then
+  echo "==== consumer: the installed package from another project ===="
+  t0=$SECONDS
+  if "$root/scripts/consumer.sh" "$root/build"; then
+    echo "==== consumer passed ($((SECONDS - t0)) s) ===="
+  else
+    echo "==== consumer FAILED ($((SECONDS - t0)) s) ====" >&2
+    failed+=("consumer")
+  fi
 fi
 if step mesa25; then
   if "$root/scripts/lavapipe25.sh" "$root/build/mesa25"; then
