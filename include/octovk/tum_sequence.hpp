@@ -66,4 +66,8 @@ struct DepthPng {
 /// or corrupt file is a kIo / kFormat error naming the file.
 DepthPng readDepthPng(const std::string& path);
 
+/// Reads only the header of a PNG depth image, throwing what readDepthPng would for a missing,
+/// unreadable or non-PNG file or a wrong format (not for damage further in).
+void checkDepthPng(const std::string& path);
+
 }  // namespace octovk

@@ -186,8 +186,10 @@ int runConvert(const std::vector<std::string>& args) {
   checkOutputFile(o.output, {".graph"}, ".graph (an OctoMap scan graph)");
 
   const TumSequence sequence = readTumSequence(o.dir);
+  for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
   std::size_t points = 0, no_depth = 0;
   writeFileAtomically(o.output, [&](const std::string& tmp) {
+    StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
     writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
       const TumFrame& frame = sequence.frames[i];
       const DepthPng png = readDepthPng(frame.image_path);

@@ -257,9 +257,11 @@ int runIntegrate(const std::vector<std::string>& args) {
   const auto run_start = Clock::now();
   std::vector<GraphScan> scans;
   std::optional<TumSequence> tum;
-  if (o.tum)
+  if (o.tum) {
     tum = readTumSequence(o.graph_path);
-  else
+    // Every image's format before any work, rather than after minutes of it.
+    for (const TumFrame& frame : tum->frames) checkDepthPng(frame.image_path);
+  } else
     scans = readScanGraph(o.graph_path);
   const std::size_t scan_count = tum ? tum->frames.size() : scans.size();
 

@@ -276,8 +276,11 @@ DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
   return out;
 }
 
-DepthPng readDepthPng(const std::string& path) {
-  PngReader r;
+namespace {
+
+// Opens `path` in `r` and reads its header; throws unless it is a 16-bit grayscale PNG.
+void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width,
+                  png_uint_32* height) {
   r.file = std::fopen(path.c_str(), "rb");
   if (!r.file)
     throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': " + std::strerror(errno));
@@ -291,21 +294,34 @@ DepthPng readDepthPng(const std::string& path) {
   if (!r.png || !r.info)
     throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': libpng is out of memory");
 
-  png_uint_32 width = 0, height = 0;
   int bit_depth = 0, color_type = 0;
-  if (!pngReadHeader(r, &width, &height, &bit_depth, &color_type))
-    throw Error(ErrorCode::kFormat,
-                "depth image '" + path + "' is a corrupt PNG: " + std::string(r.message));
+  if (!pngReadHeader(r, width, height, &bit_depth, &color_type))
+    throw Error(ErrorCode::kFormat, "depth image '" + path +
+                                        "' is a corrupt or truncated PNG (libpng: " +
+                                        std::string(r.message) + ")");
   if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY)
     throw Error(ErrorCode::kFormat, "depth image '" + path + "' is a " +
-                                        std::to_string(bit_depth) + "-bit " +
-                                        colorTypeName(color_type) +
-                                        " PNG; depth images must be 16-bit grayscale PNGs");
-  if (width > 65536 || height > 65536)
-    throw Error(ErrorCode::kFormat, "depth image '" + path + "' is " + std::to_string(width) +
-                                        " x " + std::to_string(height) +
+                                        colorTypeName(color_type) + " PNG of bit depth " +
+                                        std::to_string(bit_depth) +
+                                        "; depth images must be 16-bit grayscale PNGs");
+  if (*width > 65536 || *height > 65536)
+    throw Error(ErrorCode::kFormat, "depth image '" + path + "' is " + std::to_string(*width) +
+                                        " x " + std::to_string(*height) +
                                         " pixels; at most 65536 in each direction");
+}
 
+}  // namespace
+
+void checkDepthPng(const std::string& path) {
+  PngReader r;
+  png_uint_32 width = 0, height = 0;
+  openDepthPng(r, path, &width, &height);
+}
+
+DepthPng readDepthPng(const std::string& path) {
+  PngReader r;
+  png_uint_32 width = 0, height = 0;
+  openDepthPng(r, path, &width, &height);
   DepthPng out;
   out.width = width;
   out.height = height;
@@ -314,8 +330,9 @@ DepthPng readDepthPng(const std::string& path) {
   for (png_uint_32 y = 0; y < height; ++y)
     rows[y] = reinterpret_cast<png_bytep>(out.depths.data() + std::size_t{y} * width);
   if (!pngReadRows(r, rows.data()))
-    throw Error(ErrorCode::kFormat,
-                "depth image '" + path + "' is a corrupt PNG: " + std::string(r.message));
+    throw Error(ErrorCode::kFormat, "depth image '" + path +
+                                        "' is a corrupt or truncated PNG (libpng: " +
+                                        std::string(r.message) + ")");
   return out;
 }
 
