@@ -463,6 +463,9 @@ struct ParityCase {
   bool discretize = false;
 };
 
+// Test names show the case, not its bytes.
+void PrintTo(const ParityCase& c, std::ostream* os) { *os << c.name; }
+
 class TumParity : public ::testing::TestWithParam<ParityCase> {};
 
 // convert -> graph2tree against integrate DIR: both files byte for byte.
