@@ -261,8 +261,9 @@ int runIntegrate(const std::vector<std::string>& args) {
     tum = readTumSequence(o.graph_path);
     // Every image's format before any work, rather than after minutes of it.
     for (const TumFrame& frame : tum->frames) checkDepthPng(frame.image_path);
-  } else
+  } else {
     scans = readScanGraph(o.graph_path);
+  }
   const std::size_t scan_count = tum ? tum->frames.size() : scans.size();
 
   const std::unique_ptr<Context> context_owner = createContext();

@@ -1,7 +1,8 @@
 // OctoMap scan graphs (.graph, ScanGraph::writeBinary). Parsed here rather than with
 // octomap::ScanGraph, which reads a corrupt or truncated file silently as far as it can and
 // prints progress lines on stderr for every scan. Values are converted exactly as OctoMap's
-// readers do: each coordinate is stored as a double and narrowed to float.
+// readers do: each coordinate is stored as a double and narrowed to float. Written through
+// octomap::ScanNode::writeBinary, one scan at a time.
 #include <octomap/ScanGraph.h>
 
 #include <cerrno>
