@@ -13,7 +13,7 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 build="$root/build-asan"
-all_tests="octovk_tests octovk_cli_tests octovk_cli_query_tests octovk_oracle_tests"
+all_tests="octovk_tests octovk_cli_tests octovk_cli_query_tests octovk_oracle_tests octovk_tum_tests"
 executables="${OCTOVK_SANITIZE_TESTS:-$all_tests}"
 read -ra wanted <<<"$executables"
 jobs="$(nproc)"

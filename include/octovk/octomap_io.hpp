@@ -4,6 +4,8 @@
 
 #include <octomap/OcTree.h>
 
+#include <cstddef>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,5 +41,13 @@ std::vector<GraphScan> readScanGraph(const std::string& path);
 /// The sensor origin graph2tree uses for a scan (in the sensor frame), to pass with the pose:
 /// pose.inverse().transform(pose.translation).
 Eigen::Vector3f graph2treeSensorOrigin(const Pose& T_world_sensor);
+
+/// Writes `count` scans as an OctoMap scan graph (.graph): ScanGraph::writeBinary's layout (scan
+/// count, each scan through octomap::ScanNode::writeBinary with id i, no edges), one scan in
+/// memory at a time; `scan(i)` gives scan i. Points and pose are stored as OctoMap's Pointcloud
+/// and Pose6D hold them (floats), so readScanGraph and ScanGraph::readBinary read back exactly
+/// these values. Writes `path` itself (wrap it for an atomic write); kIo if it cannot be written.
+void writeScanGraph(const std::string& path, std::size_t count,
+                    const std::function<GraphScan(std::size_t)>& scan);
 
 }  // namespace octovk

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "octovk/octovk.hpp"
+#include "octovk/tum_sequence.hpp"
 
 namespace octovk::cli {
 
@@ -88,6 +89,10 @@ int runRender(const std::vector<std::string>& args);
 void printExportHelp(std::ostream& out);
 int runExport(const std::vector<std::string>& args);
 
+/// `octovk convert DIR -o SCANS.graph`: a TUM RGB-D folder as an OctoMap scan graph.
+void printConvertHelp(std::ostream& out);
+int runConvert(const std::vector<std::string>& args);
+
 /// The environment and exit-code sections every help text ends with.
 void printEnvironmentAndExitCodes(std::ostream& out);
 
@@ -124,6 +129,24 @@ class StderrSilencer {
  private:
   int saved_ = -1;
 };
+
+// ---- TUM RGB-D folders, shared by integrate and convert (convert.cpp) ----
+
+/// The options that take several values, for ArgReader: --intrinsics FX FY CX CY.
+std::vector<std::pair<std::string, std::string>> cameraMultiValueOptions();
+/// The options that take one value, for ArgReader: --depth-scale.
+std::vector<std::string> cameraValueOptions();
+/// Applies --intrinsics or --depth-scale to `camera` (UsageError for a bad value); false when
+/// `option` is neither.
+bool parseCameraOption(const ParsedOption& option, CameraIntrinsics& camera);
+/// Checks a TUM RGB-D folder before any work: it exists, is a directory and holds depth.txt and
+/// groundtruth.txt. Throws UsageError naming the problem; `usage` is the command's usage line.
+void checkTumFolder(const std::string& dir, const std::string& usage);
+/// The help text of DIR and of the camera options (for integrate and convert).
+void printTumFolderHelp(std::ostream& out);
+void printCameraOptionsHelp(std::ostream& out);
+/// The summary line of a sequence: images listed, used, skipped for want of a pose.
+std::string tumImagesSummary(const TumSequence& sequence);
 
 /// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).
 float occupancyLogOdds(const MapParams& params);

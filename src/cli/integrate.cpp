@@ -1,5 +1,6 @@
-// octovk integrate: every scan of an OctoMap scan graph into one map, written as .bt / .ot files
-// byte-identical to those of OctoMap's graph2tree on the same input and parameters.
+// octovk integrate: every scan of an OctoMap scan graph, or every image of a TUM RGB-D folder, into
+// one map, written as .bt / .ot files byte-identical to those of OctoMap's graph2tree on the same
+// input (for a folder: on `octovk convert`'s graph of it) and parameters.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -11,12 +12,14 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <optional>
 #include <set>
 #include <sstream>
 
 #include "cli.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
+#include "octovk/tum_sequence.hpp"
 
 namespace octovk::cli {
 
@@ -26,7 +29,10 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 struct IntegrateOptions {
-  std::string graph_path;
+  std::string graph_path;  ///< a scan graph, or a TUM RGB-D folder when `tum`
+  bool tum = false;
+  CameraIntrinsics camera;  ///< --intrinsics, --depth-scale (TUM folders only)
+  std::string camera_option;  ///< the first of those given, for the error on a scan graph
   std::vector<std::string> output_paths;
   MapParams params;
   double max_range_m = -1.0;
@@ -40,13 +46,17 @@ double secondsSince(Clock::time_point start) {
 
 IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
   IntegrateOptions o;
-  ArgReader reader(args, {"-o", "--output", "-r", "--resolution", "-m", "--max-range", "--prob-hit",
-                          "--prob-miss", "--clamping-min", "--clamping-max"});
+  std::vector<std::string> value_options = {"-o",          "--output",      "-r",
+                                            "--resolution", "-m",           "--max-range",
+                                            "--prob-hit",   "--prob-miss",  "--clamping-min",
+                                            "--clamping-max"};
+  for (const std::string& name : cameraValueOptions()) value_options.push_back(name);
+  ArgReader reader(args, value_options, cameraMultiValueOptions());
   while (reader.next()) {
     if (!reader.isOption()) {
       if (!o.graph_path.empty())
         throw UsageError("unexpected argument '" + reader.positional() +
-                         "': integrate takes one scan graph (" + o.graph_path +
+                         "': integrate takes one scan graph or folder (" + o.graph_path +
                          "); outputs go after -o");
       o.graph_path = reader.positional();
       continue;
@@ -70,7 +80,9 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
       o.discretize = true;
     else if (opt.name == "-q" || opt.name == "--quiet")
       o.quiet = true;
-    else
+    else if (parseCameraOption(opt, o.camera)) {
+      if (o.camera_option.empty()) o.camera_option = opt.name;
+    } else
       throw UsageError("unknown option '" + opt.name +
                        "' for integrate; see 'octovk integrate --help' for the options");
   }
@@ -79,12 +91,11 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
 
 void checkInput(const std::string& path) {
   if (path.empty())
-    throw UsageError("no scan graph given; usage: octovk integrate SCANS.graph -o MAP.bt");
+    throw UsageError(
+        "no scan graph or folder given; usage: octovk integrate SCANS.graph|DIR -o MAP.bt");
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (!fs::exists(st)) throw UsageError("scan graph '" + path + "' does not exist; check the path");
-  if (fs::is_directory(st))
-    throw UsageError("scan graph '" + path + "' is a directory; give a .graph file");
   std::ifstream probe(path, std::ios_base::binary);
   if (!probe.is_open())
     throw UsageError("cannot read scan graph '" + path + "': " + std::strerror(errno) +
@@ -106,8 +117,18 @@ std::string paramFix(const std::string& why) {
   return "fix " + option + " (see 'octovk integrate --help')";
 }
 
-void validate(const IntegrateOptions& o) {
-  checkInput(o.graph_path);
+void validate(IntegrateOptions& o) {
+  std::error_code ec;
+  o.tum = !o.graph_path.empty() && fs::is_directory(o.graph_path, ec);
+  if (o.tum) {
+    checkTumFolder(o.graph_path, "octovk integrate DIR -o MAP.bt");
+  } else {
+    checkInput(o.graph_path);
+    if (!o.camera_option.empty())
+      throw UsageError(o.camera_option + " applies to a TUM RGB-D folder; scan graph '" +
+                       o.graph_path + "' holds 3D points already: leave " + o.camera_option +
+                       " out");
+  }
   if (o.output_paths.empty()) throw UsageError("no output file; add -o MAP.bt and/or -o MAP.ot");
   std::set<fs::path> seen;
   for (const std::string& path : o.output_paths) {
@@ -175,12 +196,18 @@ void writeOutputs(const OccupancyMap& map, const std::vector<std::string>& paths
 void printIntegrateHelp(std::ostream& out) {
   const MapParams defaults;
   out << "octovk integrate SCANS.graph -o MAP.bt [-o MAP.ot] [options]\n"
+         "octovk integrate DIR -o MAP.bt [-o MAP.ot] [--intrinsics FX FY CX CY]\n"
+         "                 [--depth-scale S] [options]\n"
          "\n"
          "Inserts every scan of an OctoMap scan graph (.graph, as written by log2graph) into one\n"
          "occupancy map on the Vulkan device and writes it. Each scan's points are moved to the\n"
          "world by the scan's pose and cast from the pose's position, exactly as OctoMap's\n"
          "graph2tree does; with the same parameters the files are byte-identical to graph2tree's\n"
          "(-o X.bt writes graph2tree's X.bt, -o X.ot its X.bt.ot).\n"
+         "\n";
+  printTumFolderHelp(out);
+  out << "Each image's points are inserted as one scan cast from the camera's position; the\n"
+         "files are byte-identical to graph2tree's on 'octovk convert DIR -o SCANS.graph'.\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      file to write; repeat for several. The extension picks the\n"
@@ -207,25 +234,37 @@ void printIntegrateHelp(std::ostream& out) {
          "      --discretize       reduce each scan to one point per voxel before ray casting\n"
          "                         (OctoMap's discretize; faster, approximate) (default: off)\n"
          "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
-         "                         or once a run takes longer than a second)\n"
-         "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE'.\n"
+         "                         or once a run takes longer than a second)\n";
+  printCameraOptionsHelp(out);
+  out << "  -h, --help             show this help\n"
+         "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
+         "'--intrinsics=FX,FY,CX,CY').\n"
          "\n"
          "graph2tree equivalents: -r R = -res R, -m M = -m M, --discretize = -discretize,\n"
          "--clamping-min A --clamping-max B = -clamping A B, --prob-miss A --prob-hit B =\n"
          "-sensor A B.\n"
          "\n"
          "Output: the device used, then a summary on stdout (scans, points, skipped points,\n"
-         "insert time, nodes, device memory, files written).\n";
+         "insert time, nodes, device memory, files written; for DIR also the images used and\n"
+         "skipped and the pixels without depth).\n";
 }
 
 int runIntegrate(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printIntegrateHelp)) return kExitOk;
-  const IntegrateOptions o = parseIntegrate(args);
+  IntegrateOptions o = parseIntegrate(args);
   validate(o);
 
   const auto run_start = Clock::now();
-  const std::vector<GraphScan> scans = readScanGraph(o.graph_path);
+  std::vector<GraphScan> scans;
+  std::optional<TumSequence> tum;
+  if (o.tum) {
+    tum = readTumSequence(o.graph_path);
+    // Every image's format before any work, rather than after minutes of it.
+    for (const TumFrame& frame : tum->frames) checkDepthPng(frame.image_path);
+  } else {
+    scans = readScanGraph(o.graph_path);
+  }
+  const std::size_t scan_count = tum ? tum->frames.size() : scans.size();
 
   const std::unique_ptr<Context> context_owner = createContext();
   Context& context = *context_owner;
@@ -233,14 +272,26 @@ int runIntegrate(const std::vector<std::string>& args) {
   std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
 
   OccupancyMap map(context, o.params);
-  Progress progress(scans.size(), !o.quiet);
-  std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0;
+  Progress progress(scan_count, !o.quiet);
+  std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0, pixels = 0, no_depth = 0;
   const auto insert_start = Clock::now();
-  for (std::size_t i = 0; i < scans.size(); ++i) {
-    const GraphScan& scan = scans[i];
-    const ScanStats stats =
-        map.insertPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                             scan.T_world_sensor, o.max_range_m, o.discretize);
+  for (std::size_t i = 0; i < scan_count; ++i) {
+    ScanStats stats;
+    if (tum) {
+      // As graph2tree on convert's graph: the camera-frame points, cast from the pose's position.
+      const TumFrame& frame = tum->frames[i];
+      const DepthPng png = readDepthPng(frame.image_path);
+      stats = map.insertDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
+                                   graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
+      pixels += stats.points;
+      no_depth += stats.skipped_no_depth;
+      stats.points -= stats.skipped_no_depth;
+    } else {
+      const GraphScan& scan = scans[i];
+      stats =
+          map.insertPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
+                               scan.T_world_sensor, o.max_range_m, o.discretize);
+    }
     points += stats.points;
     skipped_nonfinite += stats.skipped_nonfinite;
     skipped_outside += stats.skipped_outside;
@@ -255,10 +306,13 @@ int runIntegrate(const std::vector<std::string>& args) {
   const double total_s = secondsSince(run_start);
 
   const double ms_per_scan =
-      scans.empty() ? 0.0 : insert_s * 1e3 / static_cast<double>(scans.size());
+      scan_count == 0 ? 0.0 : insert_s * 1e3 / static_cast<double>(scan_count);
   std::ostringstream s;
   s << std::fixed;
-  s << "scans:         " << scans.size() << "\n"
+  if (tum)
+    s << tumImagesSummary(*tum) << "pixels:        " << pixels << " (" << no_depth
+      << " without depth, skipped)\n";
+  s << "scans:         " << scan_count << "\n"
     << "points:        " << points << " (" << skipped_nonfinite + skipped_outside
     << " skipped: " << skipped_nonfinite << " non-finite, " << skipped_outside
     << " outside the map)\n"

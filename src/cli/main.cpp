@@ -13,13 +13,14 @@ namespace octovk::cli {
 namespace {
 
 // Commands that exist, for the help and for the error on an unknown one.
-constexpr const char* kCommands = "integrate, info, render, export, devices, help";
+constexpr const char* kCommands = "integrate, convert, info, render, export, devices, help";
 
 void printHelp(std::ostream& out) {
   out << "octovk: OctoMap-compatible occupancy mapping on a Vulkan device\n"
          "\n"
          "Usage:\n"
-         "  octovk integrate SCANS.graph -o MAP.bt [-o MAP.ot] [options]\n"
+         "  octovk integrate SCANS.graph|DIR -o MAP.bt [-o MAP.ot] [options]\n"
+         "  octovk convert DIR -o SCANS.graph [--intrinsics FX FY CX CY] [--depth-scale S]\n"
          "  octovk info MAP.bt|MAP.ot\n"
          "  octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
          "                [--fov DEG] [--z-max Z]\n"
@@ -29,8 +30,9 @@ void printHelp(std::ostream& out) {
          "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
          "\n"
          "Commands:\n"
-         "  integrate   insert a scan graph into a map and write .bt / .ot files, byte-identical\n"
-         "              to OctoMap's graph2tree\n"
+         "  integrate   insert a scan graph, or a TUM RGB-D depth-image folder (DIR), into a map\n"
+         "              and write .bt / .ot files, byte-identical to OctoMap's graph2tree\n"
+         "  convert     write a TUM RGB-D folder as an OctoMap scan graph (.graph)\n"
          "  info        resolution, nodes, leaves (occupied / free), bounds and device memory of\n"
          "              a map file\n"
          "  render      a PNG picture of a map's occupied cells, ray cast on the device\n"
@@ -87,10 +89,12 @@ int runHelp(const std::vector<std::string>& args) {
     printIntegrateHelp(std::cout);
     std::cout << "\n";
     printEnvironmentAndExitCodes(std::cout);
-  } else if (args.front() == "info" || args.front() == "render" || args.front() == "export") {
+  } else if (args.front() == "info" || args.front() == "render" || args.front() == "export" ||
+             args.front() == "convert") {
     const auto print = args.front() == "info"     ? printInfoHelp
                        : args.front() == "render" ? printRenderHelp
-                                                  : printExportHelp;
+                       : args.front() == "export" ? printExportHelp
+                                                  : printConvertHelp;
     print(std::cout);
     std::cout << "\n";
     printEnvironmentAndExitCodes(std::cout);
@@ -112,6 +116,7 @@ int dispatch(const std::vector<std::string>& args) {
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (command == "-h" || command == "--help" || command == "help") return runHelp(rest);
   if (command == "integrate") return runIntegrate(rest);
+  if (command == "convert") return runConvert(rest);
   if (command == "info") return runInfo(rest);
   if (command == "render") return runRender(rest);
   if (command == "export") return runExport(rest);

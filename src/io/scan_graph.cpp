@@ -1,10 +1,15 @@
 // OctoMap scan graphs (.graph, ScanGraph::writeBinary). Parsed here rather than with
 // octomap::ScanGraph, which reads a corrupt or truncated file silently as far as it can and
 // prints progress lines on stderr for every scan. Values are converted exactly as OctoMap's
-// readers do: each coordinate is stored as a double and narrowed to float.
+// readers do: each coordinate is stored as a double and narrowed to float. Written through
+// octomap::ScanNode::writeBinary, one scan at a time.
+#include <octomap/ScanGraph.h>
+
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <limits>
+#include <memory>
 
 #include "octovk/octomap_io.hpp"
 
@@ -110,6 +115,43 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
 
 Eigen::Vector3f graph2treeSensorOrigin(const Pose& T_world_sensor) {
   return T_world_sensor.inverse().transform(T_world_sensor.translation);
+}
+
+void writeScanGraph(const std::string& path, std::size_t count,
+                    const std::function<GraphScan(std::size_t)>& scan) {
+  if (count > std::numeric_limits<std::uint32_t>::max())
+    throw Error(ErrorCode::kInvalidArgument,
+                "writeScanGraph: " + std::to_string(count) + " scans; a .graph holds at most 2^32-1");
+  std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
+  if (!out.is_open())
+    throw Error(ErrorCode::kIo, "cannot write scan graph '" + path + "': " + std::strerror(errno));
+  const auto check = [&] {
+    if (!out) throw Error(ErrorCode::kIo, "cannot write scan graph '" + path + "': write failed");
+  };
+  // ScanGraph::writeBinary: n | node_1 .. node_n | m | edge_1 .. edge_m, counts as uint32.
+  const auto nodes = static_cast<std::uint32_t>(count);
+  out.write(reinterpret_cast<const char*>(&nodes), sizeof(nodes));
+  for (std::size_t i = 0; i < count; ++i) {
+    const GraphScan s = scan(i);
+    if (s.points_sensor.size() > std::numeric_limits<std::uint32_t>::max())
+      throw Error(ErrorCode::kInvalidArgument,
+                  "writeScanGraph: scan " + std::to_string(i) + " holds more than 2^32-1 points");
+    auto cloud = std::make_unique<octomap::Pointcloud>();
+    cloud->reserve(s.points_sensor.size());
+    for (const Eigen::Vector3f& p : s.points_sensor) cloud->push_back(p.x(), p.y(), p.z());
+    const Pose& pose = s.T_world_sensor;
+    const octomath::Pose6D pose6d(
+        octomath::Vector3(pose.translation.x(), pose.translation.y(), pose.translation.z()),
+        octomath::Quaternion(pose.rotation.w(), pose.rotation.x(), pose.rotation.y(),
+                             pose.rotation.z()));
+    const octomap::ScanNode node(cloud.release(), pose6d, static_cast<unsigned int>(i));  // owns it
+    node.writeBinary(out);
+    check();
+  }
+  const std::uint32_t edges = 0;
+  out.write(reinterpret_cast<const char*>(&edges), sizeof(edges));
+  out.close();
+  check();
 }
 
 }  // namespace octovk

@@ -1,0 +1,73 @@
+// Depth-image sequences in the TUM RGB-D layout (https://cvg.cit.tum.de/data/datasets/rgbd-dataset):
+// DIR/depth.txt, DIR/groundtruth.txt and 16-bit grayscale PNG depth images.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+/// Largest gap between an image's timestamp and the ground-truth pose it takes (seconds, TUM's).
+inline constexpr double kTumMaxTimeDifference = 0.02;
+
+/// A pinhole camera and depth scale; the defaults are TUM RGB-D's (the ROS default intrinsics,
+/// depth in 1/5000 m).
+struct CameraIntrinsics {
+  float fx = 525.0f, fy = 525.0f, cx = 319.5f, cy = 239.5f;
+  float depth_scale = 5000.0f;  ///< depth units per metre
+};
+
+/// One image of a sequence that has a ground-truth pose.
+struct TumFrame {
+  double timestamp = 0.0;       ///< of the image (depth.txt)
+  double pose_timestamp = 0.0;  ///< of the ground-truth pose it takes (groundtruth.txt)
+  std::string image_path;       ///< DIR joined with the file name depth.txt gives
+  std::size_t line = 0;         ///< line of depth.txt that lists the image (1-based)
+  /// The camera in the world, as octomath::Pose6D(Vector3(tx, ty, tz), Quaternion(qw, qx, qy,
+  /// qz)) with the values read as float.
+  Pose T_world_camera;
+};
+
+/// What a sequence folder lists: the images that have a pose, in depth.txt's order.
+struct TumSequence {
+  std::string dir;
+  std::vector<TumFrame> frames;
+  std::size_t images_listed = 0;    ///< images listed in depth.txt
+  std::size_t skipped_no_pose = 0;  ///< of those, without a pose within the time difference
+  std::size_t poses = 0;            ///< poses listed in groundtruth.txt
+};
+
+/// Reads DIR/depth.txt (`timestamp filename` per line) and DIR/groundtruth.txt (`timestamp tx ty
+/// tz qx qy qz qw` per line); '#' starts a comment line, blank lines are ignored. Each image
+/// takes the pose with the nearest timestamp (the earlier one on a tie); images with none less
+/// than `max_time_difference_s` away are skipped and counted. Checks that every image taken
+/// exists, but does not read it. Throws Error: kIo for a missing or unreadable file, kFormat for a
+/// malformed line (the message names file and line), a non-unit quaternion, no images, no poses,
+/// or no image with a pose.
+TumSequence readTumSequence(const std::string& dir,
+                            double max_time_difference_s = kTumMaxTimeDifference);
+
+/// A depth image read from a 16-bit grayscale PNG (TUM's format): depths row by row, in host order.
+struct DepthPng {
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+  std::vector<std::uint16_t> depths;
+
+  /// A DepthImage over these depths (valid while this object lives and is unchanged).
+  DepthImage image(const CameraIntrinsics& camera) const;
+};
+
+/// Reads a PNG depth image. Only 16-bit grayscale is accepted: other bit depths and colour types
+/// are refused with a kFormat error naming the file, its bit depth and colour type; an unreadable
+/// or corrupt file is a kIo / kFormat error naming the file.
+DepthPng readDepthPng(const std::string& path);
+
+/// Reads only the header of a PNG depth image, throwing what readDepthPng would for a missing,
+/// unreadable or non-PNG file or a wrong format (not for damage further in).
+void checkDepthPng(const std::string& path);
+
+}  // namespace octovk

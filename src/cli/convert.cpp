@@ -1,0 +1,214 @@
+// octovk convert: a depth-image sequence in the TUM RGB-D layout as an OctoMap scan graph, and the
+// TUM folder handling integrate shares (options, checks, help).
+#include <unistd.h>
+
+#include <cerrno>
+#include <cfloat>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "cli.hpp"
+#include "octovk/octomap_io.hpp"
+#include "octovk/tum_sequence.hpp"
+
+namespace octovk::cli {
+
+namespace fs = std::filesystem;
+
+// ---- shared with integrate ----
+
+std::vector<std::pair<std::string, std::string>> cameraMultiValueOptions() {
+  return {{"--intrinsics", "FX FY CX CY"}};
+}
+
+std::vector<std::string> cameraValueOptions() { return {"--depth-scale"}; }
+
+namespace {
+
+// A float from a double option value, refusing what float cannot hold.
+float toFloat(const ParsedOption& option, double value, const std::string& example) {
+  if (std::abs(value) > double{FLT_MAX})
+    throw UsageError(option.name + " value " + std::to_string(value) +
+                     " is too large for a float; e.g. " + option.name + " " + example);
+  return static_cast<float>(value);
+}
+
+}  // namespace
+
+bool parseCameraOption(const ParsedOption& option, CameraIntrinsics& camera) {
+  if (option.name == "--intrinsics") {
+    const std::string example = "525 525 319.5 239.5";
+    const std::vector<double> v = parseNumbers(option, example);
+    camera.fx = toFloat(option, v[0], example);
+    camera.fy = toFloat(option, v[1], example);
+    camera.cx = toFloat(option, v[2], example);
+    camera.cy = toFloat(option, v[3], example);
+    if (camera.fx == 0.0f || camera.fy == 0.0f)
+      throw UsageError("--intrinsics: the focal lengths FX and FY must not be zero (got " +
+                       option.values[0] + ", " + option.values[1] + "); e.g. --intrinsics " +
+                       example);
+    return true;
+  }
+  if (option.name == "--depth-scale") {
+    camera.depth_scale = toFloat(option, parseNumber(option, "5000"), "5000");
+    if (!(camera.depth_scale > 0.0f))
+      throw UsageError("--depth-scale must be a positive number of depth units per metre (got " +
+                       option.value + "); TUM RGB-D: --depth-scale 5000");
+    return true;
+  }
+  return false;
+}
+
+void checkTumFolder(const std::string& dir, const std::string& usage) {
+  if (dir.empty()) throw UsageError("no input folder given; usage: " + usage);
+  std::error_code ec;
+  const fs::file_status st = fs::status(dir, ec);
+  if (!fs::exists(st)) throw UsageError("input '" + dir + "' does not exist; check the path");
+  if (!fs::is_directory(st))
+    throw UsageError("input '" + dir + "' is not a folder; give a TUM RGB-D folder (with " +
+                     "depth.txt and groundtruth.txt)");
+  for (const char* name : {"depth.txt", "groundtruth.txt"}) {
+    const fs::path file = fs::path(dir) / name;
+    if (!fs::exists(file, ec))
+      throw UsageError("folder '" + dir + "' has no " + name +
+                       ", so it is not a TUM RGB-D sequence; it needs depth.txt ('timestamp "
+                       "filename' lines), groundtruth.txt ('timestamp tx ty tz qx qy qz qw' "
+                       "lines) and the depth images");
+    if (::access(file.c_str(), R_OK) != 0)
+      throw UsageError("cannot read '" + file.string() + "': " + std::strerror(errno) +
+                       "; check its permissions");
+  }
+}
+
+void printTumFolderHelp(std::ostream& out) {
+  out << "DIR is a depth-image sequence in the TUM RGB-D layout:\n"
+         "  DIR/depth.txt        one image per line: 'timestamp filename', the file name\n"
+         "                       relative to DIR (e.g. 'depth/1305031102.160407.png')\n"
+         "  DIR/groundtruth.txt  one camera pose per line: 'timestamp tx ty tz qx qy qz qw'\n"
+         "                       (camera to world; a unit quaternion)\n"
+         "  depth images         16-bit grayscale PNGs; 0 = no depth (skipped); other bit\n"
+         "                       depths and colour PNGs are refused\n"
+         "Lines starting with '#' and blank lines are ignored. Each image takes the pose with\n"
+         "the nearest timestamp; images with none less than 0.02 s away are skipped and counted\n"
+         "('images:' in the summary). Pixel (u, v) with depth d becomes the camera-frame point\n"
+         "z = d / S, x = (u - CX) * z / FX, y = (v - CY) * z / FY (float). Poses are read as\n"
+         "float into octomath::Pose6D(Vector3(tx, ty, tz), Quaternion(qw, qx, qy, qz)).\n";
+}
+
+void printCameraOptionsHelp(std::ostream& out) {
+  out << "      --intrinsics FX FY CX CY\n"
+         "                         pinhole camera of DIR's images in pixels: focal lengths and\n"
+         "                         principal point (default: 525 525 319.5 239.5)\n"
+         "      --depth-scale S    depth units per metre in DIR's images (default: 5000)\n";
+}
+
+std::string tumImagesSummary(const TumSequence& sequence) {
+  std::ostringstream s;
+  s << "images:        " << sequence.frames.size() << " used of " << sequence.images_listed
+    << " in depth.txt (" << sequence.skipped_no_pose
+    << " skipped: no ground-truth pose less than " << kTumMaxTimeDifference << " s away)\n";
+  return s.str();
+}
+
+// ---- octovk convert ----
+
+namespace {
+
+constexpr const char* kConvertUsage = "octovk convert DIR -o SCANS.graph";
+
+struct ConvertOptions {
+  std::string dir;
+  std::string output;
+  CameraIntrinsics camera;
+};
+
+ConvertOptions parseConvert(const std::vector<std::string>& args) {
+  ConvertOptions o;
+  std::vector<std::string> value_options = {"-o", "--output"};
+  for (const std::string& name : cameraValueOptions()) value_options.push_back(name);
+  ArgReader reader(args, value_options, cameraMultiValueOptions());
+  while (reader.next()) {
+    if (!reader.isOption()) {
+      if (!o.dir.empty())
+        throw UsageError("unexpected argument '" + reader.positional() +
+                         "': convert takes one folder (" + o.dir + "); the output goes after -o");
+      o.dir = reader.positional();
+      continue;
+    }
+    const ParsedOption& opt = reader.option();
+    if (opt.name == "-o" || opt.name == "--output") {
+      if (!o.output.empty())
+        throw UsageError("convert writes one scan graph; give -o once (got '" + o.output +
+                         "' and '" + opt.value + "')");
+      o.output = opt.value;
+    } else if (!parseCameraOption(opt, o.camera)) {
+      throw UsageError("unknown option '" + opt.name +
+                       "' for convert; see 'octovk convert --help' for the options");
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
+void printConvertHelp(std::ostream& out) {
+  out << kConvertUsage
+      << " [--intrinsics FX FY CX CY] [--depth-scale S]\n"
+         "\n"
+         "Writes a TUM RGB-D depth-image sequence as an OctoMap scan graph (.graph, as\n"
+         "log2graph writes): one node per image that has a pose, holding its points in the\n"
+         "camera frame and the camera pose. graph2tree on that graph builds the map that\n"
+         "'octovk integrate DIR' builds, byte for byte, with the same options. No Vulkan device\n"
+         "is needed.\n"
+         "\n";
+  printTumFolderHelp(out);
+  out << "\n"
+         "Options:\n"
+         "  -o, --output FILE      the scan graph to write (.graph); written to a temporary\n"
+         "                         file and renamed. Required.\n";
+  printCameraOptionsHelp(out);
+  out << "  -h, --help             show this help\n"
+         "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
+         "'--intrinsics=FX,FY,CX,CY').\n"
+         "\n"
+         "Output: a summary on stdout (images used and skipped, points, pixels without depth,\n"
+         "the file written).\n";
+}
+
+int runConvert(const std::vector<std::string>& args) {
+  if (printHelpIfAsked(args, printConvertHelp)) return kExitOk;
+  const ConvertOptions o = parseConvert(args);
+  checkTumFolder(o.dir, kConvertUsage);
+  if (o.output.empty()) throw UsageError("no output file; add -o SCANS.graph");
+  checkOutputFile(o.output, {".graph"}, ".graph (an OctoMap scan graph)");
+
+  const TumSequence sequence = readTumSequence(o.dir);
+  for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
+  std::size_t points = 0, no_depth = 0;
+  writeFileAtomically(o.output, [&](const std::string& tmp) {
+    StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
+    writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
+      const TumFrame& frame = sequence.frames[i];
+      const DepthPng png = readDepthPng(frame.image_path);
+      GraphScan scan;
+      std::size_t skipped = 0;
+      scan.points_sensor = unprojectDepthImage(png.image(o.camera), &skipped);
+      scan.T_world_sensor = frame.T_world_camera;
+      points += scan.points_sensor.size();
+      no_depth += skipped;
+      return scan;
+    });
+  });
+
+  std::ostringstream s;
+  s << tumImagesSummary(sequence) << "points:        " << points << " (camera frame; " << no_depth
+    << " pixels without depth skipped)\n"
+    << "wrote:         " << o.output << "\n";
+  std::cout << s.str() << std::flush;
+  return kExitOk;
+}
+
+}  // namespace octovk::cli
