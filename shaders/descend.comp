@@ -10,15 +10,14 @@
 #include "common.glsl"
 #include "tree.glsl"
 
-layout(push_constant) uniform PushBlock { DescendConstants pc; };
 
 void main() {
   uint i = invocationIndex();
-  if (i >= pc.cell_count) return;
-  // pc.descending cells that descend at the front of `cells`, the ones whose leaf existed at the
-  // back (see classify).
-  ActiveCell cell =
-      cells[i < pc.descending ? i : params.cell_capacity - 1u - (i - pc.descending)];
+  // The cells that descend at the front of `cells`, the ones whose leaf existed at the back (see
+  // classify); dispatched over both (tree_gate), nothing when the scan is not applied.
+  uint descending = counters.active_cells;
+  if (i >= descending + counters.leaf_cells) return;
+  ActiveCell cell = cells[i < descending ? i : params.cell_capacity - 1u - (i - descending)];
   uvec3 k = cellKey(cell.slot);
   uint n = cell.node;
   uint parent = cell.parent;

@@ -26,7 +26,7 @@ layout(std430, binding = kBindQueryOut) buffer QueryOutBuf {
   TransformPointsConstants probe_transform_points;
   DiscretizeConstants probe_discretize;
   RayKeysConstants probe_ray_keys;
-  DescendConstants probe_descend;
+  UnprojectConstants probe_unproject;
   PruneConstants probe_prune;
   LeafBoxesConstants probe_leaf_boxes;
   LookupConstants probe_lookup;
@@ -133,6 +133,12 @@ void main() {
   counters.brick_args.x = mu(393u);
   counters.brick_args.y = mu(394u);
   counters.brick_args.z = mu(395u);
+  counters.block_args.x = mu(396u);
+  counters.block_args.y = mu(397u);
+  counters.block_args.z = mu(398u);
+  counters.active_args.x = mu(399u);
+  counters.active_args.y = mu(214u);
+  counters.active_args.z = mu(215u);
 
   // PoolState: 600 + field index.
   pool.bump = mu(600u);
@@ -251,10 +257,10 @@ void main() {
   probe_ray_keys.point_count = mu(1141u);
   probe_ray_keys.mode = mu(1142u);
   probe_ray_keys.from_list = mu(1143u);
-  probe_descend.cell_count = mu(1150u);
-  probe_descend.descending = mu(1151u);
-  probe_descend.pad0 = mu(1152u);
-  probe_descend.pad1 = mu(1153u);
+  probe_unproject.pixel_count = mu(1150u);
+  probe_unproject.pad0 = mu(1151u);
+  probe_unproject.pad1 = mu(1152u);
+  probe_unproject.pad2 = mu(1153u);
   probe_prune.level = mu(1160u);
   probe_prune.pad0 = mu(1161u);
   probe_prune.pad1 = mu(1162u);

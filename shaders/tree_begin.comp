@@ -1,10 +1,13 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Creates the root if the map is empty (OccupancyOcTreeBase::updateNode creates it on demand).
+// Creates the root if the map is empty (OccupancyOcTreeBase::updateNode creates it on demand):
+// only for a scan that tree_gate let through and that updates at least one cell.
 #include "common.glsl"
 
 void main() {
   if (invocationIndex() != 0u) return;
+  if ((counters.status & kStatusNotApplied) != 0u) return;
+  if (counters.active_cells + counters.leaf_cells == 0u) return;
   if (pool.root_exists == 0u) {
     nodes[kRootNode] = Node(0.0, kNoChildren | kFlagLive);
     block_parent[0] = kNoBlock;

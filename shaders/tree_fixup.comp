@@ -5,6 +5,7 @@
 
 void main() {
   if (invocationIndex() != 0u) return;
+  if ((counters.status & kStatusNotApplied) != 0u) return;  // see tree_gate
   uint popped = min(counters.new_blocks, pool.free_count);
   pool.free_count -= popped;
   pool.bump += counters.new_blocks - popped;

@@ -91,7 +91,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 384);
+static_assert(sizeof(ScanCounters) == 408);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, brick_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -112,7 +112,10 @@ static_assert(offsetof(ScanCounters, walk_args) == 332);
 static_assert(offsetof(ScanCounters, cell_args) == 356);
 static_assert(offsetof(ScanCounters, brick_args) == 368);
 static_assert(offsetof(ScanCounters, no_depth) == 380);
-static_assert(offsetof(ScanCounters, no_depth) + sizeof(std::uint32_t) == sizeof(ScanCounters));
+static_assert(offsetof(ScanCounters, block_args) == 384);
+static_assert(offsetof(ScanCounters, active_args) == 396);
+static_assert(offsetof(ScanCounters, active_args) + sizeof(DispatchArgs) == sizeof(ScanCounters));
+static_assert(offsetof(ScanCounters, block_args) % 4 == 0);
 
 static_assert(sizeof(DepthCamera) == 32);
 static_assert(offsetof(DepthCamera, fx) == 0);
@@ -220,11 +223,11 @@ static_assert(offsetof(RayKeysConstants, point_count) == 4);
 static_assert(offsetof(RayKeysConstants, mode) == 8);
 static_assert(offsetof(RayKeysConstants, from_list) == 12);
 
-static_assert(sizeof(DescendConstants) == 16);
-static_assert(offsetof(DescendConstants, cell_count) == 0);
-static_assert(offsetof(DescendConstants, descending) == 4);
-static_assert(offsetof(DescendConstants, pad0) == 8);
-static_assert(offsetof(DescendConstants, pad1) == 12);
+static_assert(sizeof(UnprojectConstants) == 16);
+static_assert(offsetof(UnprojectConstants, pixel_count) == 0);
+static_assert(offsetof(UnprojectConstants, pad0) == 4);
+static_assert(offsetof(UnprojectConstants, pad1) == 8);
+static_assert(offsetof(UnprojectConstants, pad2) == 12);
 
 static_assert(sizeof(PruneConstants) == 16);
 static_assert(offsetof(PruneConstants, level) == 0);
@@ -280,7 +283,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(NewBlock), 12u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 384u);
+  EXPECT_EQ(sizeof(ScanCounters), 408u);
   EXPECT_EQ(sizeof(DepthCamera), 32u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
@@ -289,7 +292,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(RayResult), 16u);
   EXPECT_EQ(sizeof(BoxQuery), 32u);
   EXPECT_EQ(sizeof(RayState), 48u);
-  EXPECT_EQ(offsetof(ScanCounters, no_depth) + 4, sizeof(ScanCounters));
+  EXPECT_EQ(offsetof(ScanCounters, active_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
   EXPECT_EQ(offsetof(ScanParams, pad0) + 4, sizeof(ScanParams));
 }
 
@@ -466,6 +469,13 @@ std::vector<Field> probedFields() {
   };
   addDispatchArgs(f, "cell_args", offsetof(ScanCounters, cell_args), 390);
   addDispatchArgs(f, "brick_args", offsetof(ScanCounters, brick_args), 393);
+  addDispatchArgs(f, "block_args", offsetof(ScanCounters, block_args), 396);
+  f.push_back({"ScanCounters::active_args.x", kBindCounters, offsetof(ScanCounters, active_args),
+               U, 399});
+  f.push_back({"ScanCounters::active_args.y", kBindCounters,
+               offsetof(ScanCounters, active_args) + 4, U, 214});
+  f.push_back({"ScanCounters::active_args.z", kBindCounters,
+               offsetof(ScanCounters, active_args) + 8, U, 215});
   for (std::uint32_t w = 0; w < 2; ++w) {
     const std::string at = subscript(w);
     f.push_back({"ScanCounters::walk_count" + at, kBindCounters,
@@ -579,7 +589,7 @@ std::vector<Field> probedFields() {
   OCTOVK_CONSTANTS(f, constants_at, 2, TransformPointsConstants, point_count, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 3, DiscretizeConstants, point_count, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 4, RayKeysConstants, budget, point_count, mode, from_list);
-  OCTOVK_CONSTANTS(f, constants_at, 5, DescendConstants, cell_count, descending, pad0, pad1);
+  OCTOVK_CONSTANTS(f, constants_at, 5, UnprojectConstants, pixel_count, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 6, PruneConstants, level, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 7, LeafBoxesConstants, mode, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 8, LookupConstants, point_count, first_float, first_result,
@@ -663,6 +673,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
                                3u /* cell_args */ + 2u /* ScanParams */ +
                                5u /* brick_args, cell_list, block_parent */ +
                                1u /* no_depth */ + 9u /* DepthCamera, its first word */ +
+                               6u /* block_args, active_args */ +
                                4u * kProbedConstants /* push-constant structs */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());

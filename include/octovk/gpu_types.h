@@ -49,6 +49,11 @@ OCTOVK_CONST uint kStatusHashFull = 1u;
 OCTOVK_CONST uint kStatusPoolFull = 2u;
 OCTOVK_CONST uint kStatusRayCut = 8u;  // a ray walk was stopped by the device's loop limit
 OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of the scan is full
+// Set by tree_gate: the scan was not applied (the map is as before it), because of one of the bits
+// above, or because the pool or the touched lists lack room (the two bits below).
+OCTOVK_CONST uint kStatusNotApplied = 16u;
+OCTOVK_CONST uint kStatusPoolShort = 32u;   // fewer free blocks than new_blocks
+OCTOVK_CONST uint kStatusListsShort = 64u;  // more active cells than params.active_capacity
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
@@ -162,6 +167,8 @@ struct ScanCounters {
   DispatchArgs brick_args;                 // 12B (368) groups over the cell set's bricks
   uint no_depth;  // 4B (380) depth-image pixels with d = 0 or non-finite d (written as NaN
                   //          points, so also counted in skipped_nonfinite)
+  DispatchArgs block_args;   // 12B (384) groups over new_blocks (alloc, link); set by tree_gate
+  DispatchArgs active_args;  // 12B (396) groups over the active cells (descend); set by tree_gate
 };
 
 // Cell states of a point lookup.
@@ -357,13 +364,7 @@ struct RayKeysConstants {
   uint from_list;    // 4B (12) kRayKeysContinue*: the list (0, 1) of walks to continue
 };
 
-// descend. 16 B.
-struct DescendConstants {
-  uint cell_count;  // 4B (0)  active cells
-  uint descending;  // 4B (4)  of which the first ones need nodes created on their path
-  uint pad0;        // 4B (8)
-  uint pad1;        // 4B (12)
-};
+// descend, tree_gate: no constants (the counts are in ScanCounters).
 
 // prune. 16 B.
 struct PruneConstants {

@@ -38,7 +38,8 @@ class MapBuffers {
   void allocateEndpoints(std::uint32_t log2);
   /// The touched lists for `active_capacity` cells.
   void allocateLists(std::size_t active_capacity);
-  /// The pool with `blocks` blocks, keeping the tree when `copy_old` (records and waits).
+  /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
+  /// and waits).
   void allocatePool(std::uint32_t blocks, bool copy_old);
   /// Points, their staging and the walk lists for at least `count` points.
   void ensurePoints(std::size_t count);

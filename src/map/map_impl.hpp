@@ -67,14 +67,11 @@ class OccupancyMap::Impl {
                  double max_range) const;
   gpu::ScanParams scanParams(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
                              std::size_t count) const;
-  /// Stage 1 and 2 (ray keys, classify), submitted and waited for, growing the sets and running
-  /// them again until the scan fits. Returns the counters and pool state after classify.
-  void runRayPasses(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
-                    std::size_t count, passes::RayKeysInput input, ScanStats& stats,
-                    gpu::ScanCounters& counters, gpu::PoolState& pool);
-  /// Grows the pool and the touched lists for what classify counted (kOutOfDeviceMemory, map
-  /// unchanged, if it may not).
-  void reserveTree(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// Grows what a scan the device did not apply found short; throws (map unchanged) where it
+  /// may not grow.
+  void growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// Room in the pool for `blocks` more blocks; `ahead`: for later scans, never an error.
+  void reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead);
 
   vk::Device& device_;
   MapParams params_;

@@ -111,83 +111,66 @@ void OccupancyMap::Impl::checkScan(std::size_t count, const Eigen::Vector3f& ori
                     " (maxComputeWorkGroupCount x 64); split the scan");
 }
 
-void OccupancyMap::Impl::runRayPasses(const Eigen::Vector3f& origin, const Pose* pose,
-                                      double max_range, std::size_t count,
-                                      passes::RayKeysInput input, ScanStats& stats,
-                                      gpu::ScanCounters& counters, gpu::PoolState& pool) {
-  // Until this scan succeeds, the sets' contents are not known to be only its listed slots.
-  input.fill_sets = buffers_.setsNeedFill();
-  input.filled_bricks = filled_bricks_;
-  input.filled_endpoints = filled_endpoints_;
-  buffers_.setSetsNeedFill(true);
-  for (;; input.fill_sets = true) {
-    const gpu::ScanParams sp = scanParams(origin, pose, max_range, count);  // sets may have grown
-    stream_.begin(buffers_.bindings);
-    passes::recordRayKeys(rec_, sp, input);
-    passes::recordClassify(rec_, input.discretize, sp.point_count);
-    passes::recordReadback(rec_);
-    stream_.submitAndWait();
-    ++stats.cell_set_attempts;
-    passes::readBack(buffers_, counters, pool);
-    if (const auto t = stream_.timestampsNs(); t.size() == 4) {
-      stats.device.upload_ms = (t[1] - t[0]) * 1e-6;
-      stats.device.ray_keys_ms = (t[2] - t[1]) * 1e-6;
-      stats.device.classify_ms = (t[3] - t[2]) * 1e-6;
-    }
-    if (counters.status & gpu::kStatusRayCut)
-      throw Error(ErrorCode::kMissingFeature,
-                  "insertPointCloud: a ray crosses more cells than octovk walks on the device '" +
-                      device_.info().name +
-                      "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
-                      "or a max range");
-    if (counters.status & gpu::kStatusHashFull) {
-      if (buffers_.hashLog2() + 2 > kMaxHashLog2)
-        throw Error(ErrorCode::kOutOfDeviceMemory,
-                    "insertPointCloud: a scan touches more than 2^25 bricks of 4x4x4 cells; the "
-                    "map is unchanged. Split the scan");
-      buffers_.allocateHash(buffers_.hashLog2() + 2);
-      continue;
-    }
-    if (counters.status & gpu::kStatusEndpointHashFull) {
-      if (buffers_.endpointLog2() >= 30)
-        throw Error(ErrorCode::kOutOfDeviceMemory,
-                    "insertPointCloud: a scan creates more than 2^29 blocks; split the scan");
-      buffers_.allocateEndpoints(buffers_.endpointLog2() + 2);
-      continue;
-    }
+// Grows what a scan that was not applied found short (throws, map unchanged, where it may not).
+void OccupancyMap::Impl::growForRetry(const gpu::ScanCounters& counters,
+                                      const gpu::PoolState& pool) {
+  const std::uint32_t status = counters.status;
+  if (status & gpu::kStatusRayCut)
+    throw Error(ErrorCode::kMissingFeature,
+                "insertPointCloud: a ray crosses more cells than octovk walks on the device '" +
+                    device_.info().name +
+                    "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
+                    "or a max range");
+  // A full set stopped classify early: its other counts are partial, so only the set grows.
+  if (status & gpu::kStatusHashFull) {
+    if (buffers_.hashLog2() + 2 > kMaxHashLog2)
+      throw Error(ErrorCode::kOutOfDeviceMemory,
+                  "insertPointCloud: a scan touches more than 2^25 bricks of 4x4x4 cells; the "
+                  "map is unchanged. Split the scan");
+    buffers_.allocateHash(buffers_.hashLog2() + 2);
     return;
   }
+  if (status & gpu::kStatusEndpointHashFull) {
+    if (buffers_.endpointLog2() >= 30)
+      throw Error(ErrorCode::kOutOfDeviceMemory,
+                  "insertPointCloud: a scan creates more than 2^29 blocks; split the scan");
+    buffers_.allocateEndpoints(buffers_.endpointLog2() + 2);
+    return;
+  }
+  if (status & gpu::kStatusPoolShort) reservePool(counters.new_blocks, pool, /*ahead=*/false);
+  const std::uint32_t active = counters.active_cells + counters.leaf_cells;
+  if (status & gpu::kStatusListsShort)
+    buffers_.allocateLists(std::size_t{1} << nextPow2Log2(active));
 }
 
-void OccupancyMap::Impl::reserveTree(const gpu::ScanCounters& counters,
-                                     const gpu::PoolState& pool) {
-  // Exactly the blocks the tree passes will take (counted by the classify pass).
-  const std::uint64_t bound = counters.new_blocks;
+// Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for
+// the next scans) a refusal is not an error: the scan that needs the room will report it.
+void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState& pool,
+                                     bool ahead) {
   const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
-  if (bound > available) {
-    const std::uint64_t needed = std::uint64_t{pool.bump} + bound - pool.free_count + 1;
-    const std::uint64_t limit = buffers_.blockLimit();
-    if (needed > limit)
-      throw Error(ErrorCode::kOutOfDeviceMemory,
-                  "insertPointCloud: the scan needs a node pool of " + std::to_string(needed * 8) +
-                      " nodes, over the limit of " + std::to_string(limit * 8) +
-                      " (MapParams::max_nodes or 2^32); the map is unchanged");
-    const std::uint64_t blocks = std::min<std::uint64_t>(
-        limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers_.poolBlocks()} +
-                                                   buffers_.poolBlocks() / 2));
-    try {
-      buffers_.allocatePool(static_cast<std::uint32_t>(blocks), /*copy_old=*/true);
-    } catch (const Error& e) {
-      throw Error(ErrorCode::kOutOfDeviceMemory,
-                  std::string("insertPointCloud: the device has no room to grow the node pool "
-                              "to ") +
-                      std::to_string(blocks * 8) + " nodes; the map is unchanged (" + e.what() +
-                      ")");
-    }
+  if (blocks <= available) return;
+  const std::uint64_t needed = std::uint64_t{pool.bump} + blocks - pool.free_count + 1;
+  const std::uint64_t limit = buffers_.blockLimit();
+  if (needed > limit) {
+    if (ahead) return;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "insertPointCloud: the scan needs a node pool of " + std::to_string(needed * 8) +
+                    " nodes, over the limit of " + std::to_string(limit * 8) +
+                    " (MapParams::max_nodes or 2^32); the map is unchanged");
   }
-  const std::uint32_t active = counters.active_cells + counters.leaf_cells;
-  if (active > buffers_.activeCapacity())
-    buffers_.allocateLists(std::size_t{1} << nextPow2Log2(active));
+  const std::uint64_t target = std::min<std::uint64_t>(
+      limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers_.poolBlocks()} +
+                                                 buffers_.poolBlocks() / 2));
+  try {
+    buffers_.allocatePool(static_cast<std::uint32_t>(target), /*copy_old=*/true);
+  } catch (const Error& e) {
+    if (ahead) return;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                std::string("insertPointCloud: the device has no room to grow the node pool "
+                            "to ") +
+                    std::to_string(target * 8) + " nodes; the map is unchanged (" + e.what() +
+                    ")");
+  }
 }
 
 passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source) {
@@ -226,8 +209,10 @@ passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source) {
   return in;
 }
 
-// A scan: stage 1-2 (ray keys, classify) and a readback, the host's growth decisions, then
-// stage 3-5 (tree update, prune, leaf boxes) and the queries in a second submission.
+// A scan is one submission: every stage, the device deciding between them (tree_gate) whether
+// it fits, then the queries and a readback. The host waits for it once; a scan the device did not
+// apply (a set, the pool or the lists too small) left the map as it was, and runs again after
+// the host grew what was short. After a scan, room for another like it is made ahead.
 ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vector3f& origin,
                                      const Pose* pose, double max_range, bool discretize,
                                      const QueryRequest* queries, QueryResults* results) {
@@ -247,71 +232,73 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
   buffers_.ensurePoints(count);
   // First guess of the cell set's size: 4 brick slots (16 cells) per point (a 320x240 depth view
   // at 0.05 m touches 0.6-1 million cells in about a quarter as many bricks), at most 2^20 brick
-  // slots; it grows (and the ray pass is redone) when a scan needs more, and keeps its size for
-  // the next scans.
+  // slots; it grows (and the scan is redone) when a scan needs more, and keeps its size for the
+  // next scans.
   const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(count * 4), 20);
   if (guess > buffers_.hashLog2()) buffers_.allocateHash(guess);
   passes::RayKeysInput input = stage(source);
   input.transform = pose != nullptr;
   input.discretize = discretize;
+  if (queries) passes::stageQueries(buffers_, *queries);
+  // Until this scan is applied, the sets' contents are not known to be only its listed slots.
+  input.fill_sets = buffers_.setsNeedFill();
+  input.filled_bricks = filled_bricks_;
+  input.filled_endpoints = filled_endpoints_;
+  buffers_.setSetsNeedFill(true);
   // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
   if (source.wait != VK_NULL_HANDLE) stream_.waitBeforeNextSubmit(source.wait, source.wait_value);
   try {
-    runRayPasses(origin, pose, max_range, count, input, stats, counters, pool);
+    for (;; input.fill_sets = true) {
+      const gpu::ScanParams sp = scanParams(origin, pose, max_range, count);  // sizes may grow
+      stream_.begin(buffers_.bindings);
+      passes::recordRayKeys(rec_, sp, input);
+      passes::recordClassify(rec_, discretize, sp.point_count);
+      passes::recordTreeUpdate(rec_);
+      passes::recordPrune(rec_);
+      if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec_);
+      if (queries)
+        passes::recordQueries(rec_, scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0),
+                              *queries);
+      passes::recordReadback(rec_);
+      stream_.submitAndWait();
+      ++stats.cell_set_attempts;
+      passes::readBack(buffers_, counters, pool);
+      if (!(counters.status & gpu::kStatusNotApplied)) break;
+      growForRetry(counters, pool);
+    }
   } catch (...) {
     stream_.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);  // not for some later submission
     throw;
   }
+  if (counters.status & gpu::kStatusPoolFull)
+    throw Error(ErrorCode::kVulkan,
+                "internal error: the node pool ran out during a scan despite its size check; "
+                "please report this with the input");
+  if (const auto t = stream_.timestampsNs(); t.size() >= 6) {
+    stats.device.upload_ms = (t[1] - t[0]) * 1e-6;
+    stats.device.ray_keys_ms = (t[2] - t[1]) * 1e-6;
+    stats.device.classify_ms = (t[3] - t[2]) * 1e-6;
+    stats.device.tree_update_ms = (t[4] - t[3]) * 1e-6;
+    stats.device.prune_ms = (t[5] - t[4]) * 1e-6;
+    if (t.size() >= 7) stats.device.leaf_boxes_ms = (t[6] - t[5]) * 1e-6;
+  }
+  if (queries) *results = passes::collectQueries(buffers_, *queries);
   stats.skipped_no_depth = counters.no_depth;
   stats.skipped_nonfinite = counters.skipped_nonfinite - counters.no_depth;  // NaN points
   stats.skipped_outside = counters.skipped_outside;
   stats.free_cells = counters.free_cells;
   stats.occupied_cells = counters.occupied_cells;
   stats.aborted_cells = counters.aborted;
-
-  // Cells to update: those whose path needs nodes (descending), and those whose leaf exists.
-  const std::uint32_t descending = counters.active_cells;
-  const std::uint32_t active = descending + counters.leaf_cells;
-  if (active > 0) {
-    reserveTree(counters, pool);
-    if (queries) passes::stageQueries(buffers_, *queries);
-    const gpu::ScanParams sp = scanParams(origin, pose, max_range, count);
-    stream_.begin(buffers_.bindings);
-    stream_.update(buffers_.params, &sp, sizeof(sp));
-    stream_.barrier();
-    stream_.timestamp();
-    passes::recordTreeUpdate(rec_, counters.new_blocks, active, descending);
-    passes::recordPrune(rec_);
-    if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec_);
-    leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
-    if (queries) {
-      stream_.barrier();
-      passes::recordQueries(rec_, scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0),
-                            *queries);
-    }
-    passes::recordReadback(rec_);
-    stream_.submitAndWait();
-    if (queries) {
-      *results = passes::collectQueries(buffers_, *queries);
-      queries = nullptr;  // answered
-    }
-    if (const auto t = stream_.timestampsNs(); t.size() >= 3) {
-      stats.device.tree_update_ms = (t[1] - t[0]) * 1e-6;
-      stats.device.prune_ms = (t[2] - t[1]) * 1e-6;
-      if (t.size() >= 4) stats.device.leaf_boxes_ms = (t[3] - t[2]) * 1e-6;
-    }
-    passes::readBack(buffers_, counters, pool);
-    if (counters.status & gpu::kStatusPoolFull)
-      throw Error(ErrorCode::kVulkan,
-                  "internal error: the node pool ran out during a scan despite its size check; "
-                  "please report this with the input");
-  }
+  const std::uint32_t active = counters.active_cells + counters.leaf_cells;
+  if (active > 0) leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
   filled_bricks_ = counters.brick_entries;
   filled_endpoints_ = counters.new_blocks;
   buffers_.setSetsNeedFill(false);
-  // A scan that changed nothing still answers its queries.
-  if (queries) *results = runQueries(*queries);
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+  // Room for another scan like this one, so that the next is not run twice.
+  reservePool(counters.new_blocks, pool, /*ahead=*/true);
+  if (active > buffers_.activeCapacity() / 2)
+    buffers_.allocateLists(std::size_t{1} << nextPow2Log2(std::size_t{active} * 2));
   stats.wall_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;

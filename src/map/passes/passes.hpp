@@ -40,10 +40,10 @@ void recordClassify(Recorder& r, bool discretize, std::uint32_t points);
 
 // ---- tree_update.cpp: the log-odds update ----
 
-/// Creates the blocks classify counted, links them, and updates every active cell's leaf
-/// (`active` cells, the first `descending` of which need nodes created on their path).
-void recordTreeUpdate(Recorder& r, std::uint32_t new_blocks, std::uint32_t active,
-                      std::uint32_t descending);
+/// Decides on the device whether the scan fits (else it leaves the map as it was and marks the
+/// scan kStatusNotApplied), then creates the blocks classify counted, links them, and updates
+/// every active cell's leaf.
+void recordTreeUpdate(Recorder& r);
 
 // ---- prune.cpp ----
 

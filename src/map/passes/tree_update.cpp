@@ -1,20 +1,19 @@
-// Stage 3, the log-odds update: tree_begin.comp, alloc.comp, tree_fixup.comp, link.comp (the
-// blocks classify counted, created and hung in the tree) and descend.comp (each active cell's
-// leaf updated, nodes created on the way where needed).
+// Stage 3, the log-odds update: tree_gate.comp (does the scan fit: sets the dispatch arguments
+// below, or none and marks the scan not applied), tree_begin.comp, alloc.comp, tree_fixup.comp,
+// link.comp (the blocks classify counted, created and hung in the tree) and descend.comp (each
+// active cell's leaf updated, nodes created on the way where needed). All sizes come from the
+// device's counters: the host records this without having seen classify's results.
 #include "map/passes/passes.hpp"
 
 namespace octovk::passes {
 
-void recordTreeUpdate(Recorder& r, std::uint32_t new_blocks, std::uint32_t active,
-                      std::uint32_t descending) {
+void recordTreeUpdate(Recorder& r) {
+  r.dispatch("tree_gate", 1);
   r.dispatch("tree_begin", 1);
-  if (new_blocks > 0) {
-    r.dispatch("alloc", new_blocks);
-    r.dispatch("tree_fixup", 1);
-    r.dispatch("link", new_blocks);
-  }
-  r.dispatch("descend", active,
-             gpu::DescendConstants{.cell_count = active, .descending = descending});
+  r.dispatchIndirect("alloc", offsetof(gpu::ScanCounters, block_args));
+  r.dispatch("tree_fixup", 1);
+  r.dispatchIndirect("link", offsetof(gpu::ScanCounters, block_args));
+  r.dispatchIndirect("descend", offsetof(gpu::ScanCounters, active_args));
   r.stream.timestamp();
 }
 
