@@ -8,6 +8,7 @@
 #include <limits>
 #include <random>
 #include <thread>
+#include <unistd.h>
 
 #include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
@@ -212,6 +213,87 @@ TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
   EXPECT_THROW(insertPointCloudOnDevice(on_device, small, 2, origin, pose), Error);
   EXPECT_EQ(on_device.nodeCount(), nodes);
   vkDestroySemaphore(vk.device, ready, nullptr);
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// The hand-over path a CUDA or PyTorch producer uses: memory allocated exportable on octovk's
+// device (opaque fd), its fd exported, the points written into it, the scan read from it. Where
+// the device lacks VK_KHR_external_memory_fd, octovk must say so (the flag) rather than claim it.
+TEST(Interop, ExportableMemoryHandsPointsOver) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const VulkanHandles vk = vulkanHandles(ctx);
+  std::uint32_t count = 0;
+  vkEnumerateDeviceExtensionProperties(vk.physical_device, nullptr, &count, nullptr);
+  std::vector<VkExtensionProperties> extensions(count);
+  vkEnumerateDeviceExtensionProperties(vk.physical_device, nullptr, &count, extensions.data());
+  bool listed = false;
+  for (const auto& e : extensions)
+    listed = listed || std::string(e.extensionName) == VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME;
+  ASSERT_EQ(vk.external_memory_fd, listed);
+  if (!listed) return;  // asserted above: octovk reports the device cannot export memory
+
+  MapParams params;
+  params.resolution = 0.1;
+  OccupancyMap from_fd_memory(ctx, params), from_host(ctx, params);
+  std::mt19937 rng(5);
+  const auto points = test::randomScan(rng, Eigen::Vector3f::Zero(), 1500, 4.0f);
+  const VkDeviceSize bytes = points.size() * sizeof(Eigen::Vector3f);
+
+  VkExternalMemoryBufferCreateInfo external{VK_STRUCTURE_TYPE_EXTERNAL_MEMORY_BUFFER_CREATE_INFO};
+  external.handleTypes = VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT;
+  VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  info.pNext = &external;
+  info.size = bytes;
+  info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+  VkBuffer buffer = VK_NULL_HANDLE;
+  ASSERT_EQ(vkCreateBuffer(vk.device, &info, nullptr, &buffer), VK_SUCCESS);
+  VkMemoryRequirements req;
+  vkGetBufferMemoryRequirements(vk.device, buffer, &req);
+  VkPhysicalDeviceMemoryProperties props;
+  vkGetPhysicalDeviceMemoryProperties(vk.physical_device, &props);
+  const VkMemoryPropertyFlags want =
+      VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  std::uint32_t type = 0;
+  while (type < props.memoryTypeCount && !((req.memoryTypeBits & (1u << type)) &&
+                                           (props.memoryTypes[type].propertyFlags & want) == want))
+    ++type;
+  ASSERT_LT(type, props.memoryTypeCount);
+  VkExportMemoryAllocateInfo export_info{VK_STRUCTURE_TYPE_EXPORT_MEMORY_ALLOCATE_INFO};
+  export_info.handleTypes = VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT;
+  VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  alloc.pNext = &export_info;
+  alloc.allocationSize = req.size;
+  alloc.memoryTypeIndex = type;
+  VkDeviceMemory memory = VK_NULL_HANDLE;
+  ASSERT_EQ(vkAllocateMemory(vk.device, &alloc, nullptr, &memory), VK_SUCCESS);
+  ASSERT_EQ(vkBindBufferMemory(vk.device, buffer, memory, 0), VK_SUCCESS);
+  auto get_fd = reinterpret_cast<PFN_vkGetMemoryFdKHR>(
+      vkGetDeviceProcAddr(vk.device, "vkGetMemoryFdKHR"));
+  ASSERT_NE(get_fd, nullptr) << "VK_KHR_external_memory_fd reported but not enabled";
+  VkMemoryGetFdInfoKHR fd_info{VK_STRUCTURE_TYPE_MEMORY_GET_FD_INFO_KHR};
+  fd_info.memory = memory;
+  fd_info.handleType = VK_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD_BIT;
+  int fd = -1;
+  ASSERT_EQ(get_fd(vk.device, &fd_info, &fd), VK_SUCCESS);
+  EXPECT_GE(fd, 0);  // what a CUDA producer would import (cudaImportExternalMemory)
+  void* mapped = nullptr;
+  ASSERT_EQ(vkMapMemory(vk.device, memory, 0, VK_WHOLE_SIZE, 0, &mapped), VK_SUCCESS);
+  std::memcpy(mapped, points.data(), bytes);
+  vkUnmapMemory(vk.device, memory);
+
+  insertPointCloudOnDevice(from_fd_memory, {buffer, 0, bytes},
+                           static_cast<std::uint32_t>(points.size()), Eigen::Vector3f::Zero(),
+                           Pose{});
+  from_host.insertPointCloud(points, Eigen::Vector3f::Zero(), Pose{});
+  EXPECT_TRUE(test::sameTree(*toOcTree(from_host), *toOcTree(from_fd_memory)));
+  if (fd >= 0) close(fd);
+  vkDestroyBuffer(vk.device, buffer, nullptr);
+  vkFreeMemory(vk.device, memory, nullptr);
 }
 
 }  // namespace

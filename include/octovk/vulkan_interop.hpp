@@ -22,6 +22,10 @@ struct VulkanHandles {
   std::uint32_t queue_family = 0;
   /// Offsets of BufferRanges must be multiples of this (minStorageBufferOffsetAlignment).
   VkDeviceSize offset_alignment = 1;
+  /// VK_KHR_external_memory_fd / VK_KHR_external_semaphore_fd are enabled (where the device has
+  /// them): memory and semaphores can be exported to CUDA or another API by file descriptor.
+  bool external_memory_fd = false;
+  bool external_semaphore_fd = false;
 };
 
 VulkanHandles vulkanHandles(Context& context);

@@ -12,8 +12,11 @@ class InteropAccess {
 
 VulkanHandles vulkanHandles(Context& context) {
   vk::Device& d = context.vulkan();
-  return {d.instance(), d.physical(),    d.handle(),
-          d.queue(),    d.queueFamily(), d.storageOffsetAlignment()};
+  VulkanHandles h{d.instance(), d.physical(),    d.handle(),
+                  d.queue(),    d.queueFamily(), d.storageOffsetAlignment()};
+  h.external_memory_fd = d.hasExtension(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
+  h.external_semaphore_fd = d.hasExtension(VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME);
+  return h;
 }
 
 namespace {

@@ -662,10 +662,26 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   want.pNext = &want12;
   want.features.shaderInt64 = VK_TRUE;
   want.features.shaderFloat64 = VK_TRUE;
+  // Optional: memory and semaphores shared with other APIs (CUDA, another Vulkan device) by
+  // POSIX file descriptor, for callers that hand input over on the device (vulkan_interop.hpp).
+  std::uint32_t extension_count = 0;
+  vkEnumerateDeviceExtensionProperties(dev->physical_, nullptr, &extension_count, nullptr);
+  std::vector<VkExtensionProperties> available(extension_count);
+  vkEnumerateDeviceExtensionProperties(dev->physical_, nullptr, &extension_count, available.data());
+  std::vector<const char*> extensions;
+  for (const char* name :
+       {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME, VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME})
+    for (const VkExtensionProperties& e : available)
+      if (std::string_view(e.extensionName) == name) {
+        extensions.push_back(name);
+        dev->extensions_.emplace_back(name);
+      }
   VkDeviceCreateInfo dinfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
   dinfo.pNext = &want;
   dinfo.queueCreateInfoCount = 1;
   dinfo.pQueueCreateInfos = &qinfo;
+  dinfo.enabledExtensionCount = static_cast<std::uint32_t>(extensions.size());
+  dinfo.ppEnabledExtensionNames = extensions.data();
   try {
     OCTOVK_VK(vkCreateDevice(dev->physical_, &dinfo, nullptr, &dev->device_));
     vkGetDeviceQueue(dev->device_, dev->queue_family_, 0, &dev->queue_);

@@ -164,6 +164,12 @@ class Device {
   /// maxComputeWorkGroupCount[0]: the most workgroups an indirect dispatch may ask for.
   std::uint32_t maxGroupsX() const noexcept { return max_groups_x_; }
   VkInstance instance() const noexcept { return instance_; }
+  /// Whether an optional device extension (external memory / semaphore by fd) was enabled.
+  bool hasExtension(std::string_view name) const noexcept {
+    for (const std::string& e : extensions_)
+      if (e == name) return true;
+    return false;
+  }
   VkPhysicalDevice physical() const noexcept { return physical_; }
 
   /// Loop iterations after which the driver ends an invocation's loops (llvmpipe: 65535, counted
@@ -211,6 +217,7 @@ class Device {
   std::uint32_t loop_limit_ = 0;
   std::uint64_t max_binding_bytes_ = 1u << 27;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
+  std::vector<std::string> extensions_;  // optional device extensions enabled
 };
 
 }  // namespace octovk::vk
