@@ -570,6 +570,29 @@ TEST(IoHostile, MessagesFromReadMapFileNameTheFile) {
   EXPECT_NE(message.find("announces 0 nodes"), std::string::npos) << message;
 }
 
+TEST(IoHostile, StoredInputsAreRefused) {
+  // tests/data/hostile/: inputs that once broke a reader (see its README).
+  const fs::path dir = fs::path(OCTOVK_SHARED_DATA_DIR) / "hostile";
+  std::size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".bt" && ext != ".ot" && ext != ".graph") continue;
+    ++files;
+    const std::string name = entry.path().filename().string();
+    const std::string bytes = fileBytes(entry.path().string());
+    const std::string message = expectError(
+        [&] {
+          if (ext == ".graph")
+            (void)io::parseScanGraph(bytes, name);
+          else
+            (void)io::parseTreeFile(bytes, ext == ".bt", name);
+        },
+        ErrorCode::kFormat, name.c_str());
+    EXPECT_NE(message.find(name), std::string::npos) << message;
+  }
+  EXPECT_GE(files, 1u) << "no stored inputs in " << dir;
+}
+
 // ---- hostile scan graphs ----
 
 std::string u32Bytes(std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); }
