@@ -39,7 +39,7 @@ class Fault {
   Error operator()(const std::string& why) const {
     return Error(ErrorCode::kFormat, "'" + name_ + "' is not a valid OctoMap " +
                                          (binary_ ? ".bt" : ".ot") + " file: " + why +
-                                         "; the file is damaged, truncated or of another kind "
+                                         "; the file is corrupt, truncated or of another kind "
                                          "(write it again with OctoMap or octovk)");
   }
 
