@@ -593,6 +593,27 @@ TEST(IoHostile, StoredInputsAreRefused) {
   EXPECT_GE(files, 1u) << "no stored inputs in " << dir;
 }
 
+TEST(IoHostile, DevicesNamedLikeInputsAreRefusedAtOnce) {
+  // A link named like a map or graph to a device that never ends (/dev/zero).
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
+  for (const char* name : {"zero.bt", "zero.ot", "zero.graph"}) {
+    const std::string link = tmpPath(name);
+    fs::remove(link);
+    fs::create_symlink("/dev/zero", link);
+    const std::string message = expectError(
+        [&] {
+          if (fs::path(link).extension() == ".graph")
+            (void)readScanGraph(link);
+          else
+            (void)readMapFile(ctx, link);
+        },
+        ErrorCode::kIo, name);
+    EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+    fs::remove(link);
+  }
+}
+
 // ---- hostile scan graphs ----
 
 std::string u32Bytes(std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); }

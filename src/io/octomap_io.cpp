@@ -140,15 +140,16 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +
                                                  ext + "'; use a .bt or .ot file");
-  std::error_code dir_ec;
-  if (std::filesystem::is_directory(path, dir_ec))
-    throw Error(ErrorCode::kIo, "cannot read '" + path + "': it is a directory; give a map file");
+  // A directory, or a device or pipe (a link to /dev/zero would be read without end).
+  std::error_code ec;
+  if (const auto st = std::filesystem::status(path, ec);
+      std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+    throw Error(ErrorCode::kIo, "cannot read '" + path + "': it is not a regular file; give a map file");
   std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + std::strerror(errno));
   std::string bytes;
   {
-    std::error_code ec;
     const std::uintmax_t size = std::filesystem::file_size(path, ec);
     if (!ec) bytes.reserve(static_cast<std::size_t>(size));
     bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());

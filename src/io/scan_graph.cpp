@@ -113,9 +113,10 @@ std::vector<GraphScan> parseScanGraph(std::string_view bytes, const std::string&
 }  // namespace io
 
 std::vector<GraphScan> readScanGraph(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': it is a directory");
+  std::error_code ec;  // not a directory, device or pipe (a link to /dev/zero never ends)
+  if (const auto st = std::filesystem::status(path, ec);
+      std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': it is not a regular file");
   std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + std::strerror(errno));
