@@ -484,10 +484,10 @@ TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
     std::vector<std::string> args;
     std::string output;
   };
-  for (const Case& c : {Case{{"export", map, "-o", scratch / "cells.ply"}, scratch / "cells.ply"},
-                        Case{{"render", map, "-o", scratch / "view.png"}, scratch / "view.png"},
-                        Case{{"integrate", kSphericalGraph, "-q", "-o", scratch / "out.bt"},
-                             scratch / "out.bt"}}) {
+  for (const Case& c :
+       {Case{{"export", map, "-o", scratch / "cells.ply"}, scratch / "cells.ply"},
+        Case{{"render", map, "-o", scratch / "view.png"}, scratch / "view.png"},
+        Case{{"integrate", kSphericalGraph, "-q", "-o", scratch / "out.bt"}, scratch / "out.bt"}}) {
     SCOPED_TRACE(c.args.front());
     const RunResult r = runWithTinyFileLimit(c.args, scratch);
     EXPECT_EQ(r.exit_code, 1) << r.err;

@@ -383,8 +383,8 @@ std::string withHeaderLine(const std::string& file, const std::string& key,
 void expectRefused(const std::string& bytes, bool binary, const std::string& why,
                    const std::string& what) {
   const std::string name = binary ? "hostile.bt" : "hostile.ot";
-  const std::string message = expectError(
-      [&] { (void)io::parseTreeFile(bytes, binary, name); }, ErrorCode::kFormat, what.c_str());
+  const std::string message = expectError([&] { (void)io::parseTreeFile(bytes, binary, name); },
+                                          ErrorCode::kFormat, what.c_str());
   EXPECT_NE(message.find("'" + name + "'"), std::string::npos) << what << ": " << message;
   EXPECT_NE(message.find(why), std::string::npos)
       << what << ": expected '" << why << "' in: " << message;
@@ -470,7 +470,8 @@ TEST(IoHostile, EveryTruncationOfTheDataSectionIsRefused) {
 TEST(IoHostile, DeepNestingAndChildlessInnerNodesAreRefused) {
   const TreeFiles& f = sphericalFiles();
   const std::string bt_header = f.bt.substr(0, f.bt_data), ot_header = f.ot.substr(0, f.ot_data);
-  // A .bt header and 200 KB of 0xff: OctoMap's readBinaryNode overflowed the stack (~87,000 frames).
+  // A .bt header and 200 KB of 0xff: OctoMap's readBinaryNode overflowed the stack (~87,000
+  // frames).
   expectRefused(bt_header + std::string(200000, '\xff'), true, "deeper than a tree's 16 levels",
                 ".bt + 200 KB of 0xff");
   // .ot records with one child each, 17 deep (a node below the leaves) and 300,000 deep.
@@ -500,8 +501,8 @@ TEST(IoHostile, HeaderSizeMustMatchTheData) {
     expectRefused(withHeaderLine(bytes, "size", more), binary, "the data holds", "size + 1");
     for (const char* bad : {"size -1", "size 1e3", "size 18446744073709551616", "size 5 5"})
       expectRefused(withHeaderLine(bytes, "size", bad), binary, "size", bad);
-    expectRefused(withHeaderLine(bytes, "size", more) + withHeaderLine(bytes, "size", more),
-                  binary, "bytes follow", "two files in one");
+    expectRefused(withHeaderLine(bytes, "size", more) + withHeaderLine(bytes, "size", more), binary,
+                  "bytes follow", "two files in one");
   }
 }
 
@@ -548,9 +549,9 @@ TEST(IoHostile, OtLogOddsMustBeFinite) {
   // NaN log-odds were counted as free and written as "nan" into PLY files.
   const TreeFiles& f = sphericalFiles();
   const std::size_t records = (f.ot.size() - f.ot_data) / 5;
-  for (const float v : {std::numeric_limits<float>::quiet_NaN(),
-                        std::numeric_limits<float>::infinity(),
-                        -std::numeric_limits<float>::infinity()}) {
+  for (const float v :
+       {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
+        -std::numeric_limits<float>::infinity()}) {
     for (const std::size_t record : {std::size_t{0}, records / 2, records - 1}) {
       std::string bytes = f.ot;
       std::memcpy(bytes.data() + f.ot_data + 5 * record, &v, sizeof v);
@@ -624,9 +625,8 @@ TEST(IoHostile, GraphCountsBeyondTheBytesAreRefusedBeforeAllocating) {
   // 4 billion scans in 8 bytes, and 4 billion points in the first scan.
   for (const std::string& bytes : {u32Bytes(0xFFFFFFFFu) + u32Bytes(0),
                                    u32Bytes(1) + u32Bytes(0xFFFFFFFFu) + graph.substr(8)}) {
-    const std::string message =
-        expectError([&] { (void)io::parseScanGraph(bytes, "huge.graph"); }, ErrorCode::kFormat,
-                    "huge count");
+    const std::string message = expectError([&] { (void)io::parseScanGraph(bytes, "huge.graph"); },
+                                            ErrorCode::kFormat, "huge count");
     EXPECT_NE(message.find("'huge.graph'"), std::string::npos) << message;
     EXPECT_NE(message.find("more than"), std::string::npos) << message;
   }
@@ -655,11 +655,11 @@ TEST(IoHostile, GraphPosesMustBeFinitePointsMayBeNaN) {
   ASSERT_EQ(scans[0].points_sensor.size(), 2u);
   EXPECT_TRUE(std::isnan(scans[0].points_sensor[0].x()));
   EXPECT_EQ(scans[0].T_world_sensor.translation.x(), 0.5f);
-  for (const double bad : {std::numeric_limits<double>::quiet_NaN(),
-                           std::numeric_limits<double>::infinity(), 1e300}) {
-    const std::string message = expectError(
-        [&] { (void)io::parseScanGraph(graph(bad), "bad_pose.graph"); }, ErrorCode::kFormat,
-        "non-finite pose");
+  for (const double bad :
+       {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(), 1e300}) {
+    const std::string message =
+        expectError([&] { (void)io::parseScanGraph(graph(bad), "bad_pose.graph"); },
+                    ErrorCode::kFormat, "non-finite pose");
     EXPECT_NE(message.find("pose is not finite"), std::string::npos) << message;
   }
 }

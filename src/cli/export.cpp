@@ -245,9 +245,8 @@ int runExport(const std::vector<std::string>& args) {
   comment << "octovk export of " << o.map_path << " (resolution " << resolution
           << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, colour by "
           << (o.coloring == Coloring::kHeight ? "height" : "occupancy");
-  output.commit([&](const std::string& temporary) {
-    writePly(temporary, cells, colours, comment.str());
-  });
+  output.commit(
+      [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
   const double write_s = secondsSince(write_start);
 
   std::ostringstream s;

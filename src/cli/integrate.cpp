@@ -156,7 +156,8 @@ class Progress {
 
 // Writes every output (claimed before the work); if one fails, the ones this run already wrote
 // are removed, so that a failed run leaves no output behind.
-void writeOutputs(const OccupancyMap& map, const std::vector<std::unique_ptr<OutputFile>>& outputs) {
+void writeOutputs(const OccupancyMap& map,
+                  const std::vector<std::unique_ptr<OutputFile>>& outputs) {
   StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
   std::vector<std::string> written;
   try {

@@ -144,17 +144,18 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
   std::error_code ec;
   if (const auto st = std::filesystem::status(path, ec);
       std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
-    throw Error(ErrorCode::kIo, "cannot read '" + path + "': it is not a regular file; give a map file");
+    throw Error(ErrorCode::kIo,
+                "cannot read '" + path + "': it is not a regular file; give a map file");
   std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + std::strerror(errno));
-  std::string bytes;
-  {
-    const std::uintmax_t size = std::filesystem::file_size(path, ec);
-    if (!ec) bytes.reserve(static_cast<std::size_t>(size));
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    if (in.bad()) throw Error(ErrorCode::kIo, "cannot read '" + path + "': read error");
-  }
+  // The file once, in one buffer of its size.
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + ec.message());
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw Error(ErrorCode::kIo,
+                "cannot read '" + path + "': read error (did it change while read?)");
   // Checked before OctoMap reads it (see tree_file.cpp), then the bytes are gone.
   const std::unique_ptr<octomap::OcTree> tree = io::parseTreeFile(bytes, ext == ".bt", path);
   bytes = std::string();

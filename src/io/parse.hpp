@@ -17,10 +17,10 @@ namespace octovk::io {
 
 /// What octovk reads from the text header of a .bt / .ot file.
 struct TreeHeader {
-  std::string id;            ///< the tree type ("OcTree")
-  std::uint64_t size = 0;    ///< the node count the header announces
-  double resolution = 0.0;   ///< metres
-  std::size_t data_at = 0;   ///< the offset of the first byte after the "data" line
+  std::string id;           ///< the tree type ("OcTree")
+  std::uint64_t size = 0;   ///< the node count the header announces
+  double resolution = 0.0;  ///< metres
+  std::size_t data_at = 0;  ///< the offset of the first byte after the "data" line
 };
 
 /// Reads and checks the header of a .bt (`binary`) or .ot file: the first line OctoMap writes,

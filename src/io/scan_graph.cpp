@@ -76,7 +76,8 @@ std::vector<GraphScan> parseScanGraph(std::string_view bytes, const std::string&
     const std::string scan = "scan " + std::to_string(i);
     const std::uint32_t points = in.u32(scan + " point count");
     if (std::uint64_t{points} * kVectorBytes + kPoseBytes + 4 > in.remaining())
-      throw in.bad(scan + " claims " + std::to_string(points) + " points, more than the file holds");
+      throw in.bad(scan + " claims " + std::to_string(points) +
+                   " points, more than the file holds");
     GraphScan out;
     out.points_sensor.reserve(points);
     for (std::uint32_t p = 0; p < points; ++p) {
@@ -98,7 +99,8 @@ std::vector<GraphScan> parseScanGraph(std::string_view bytes, const std::string&
     in.u32(scan + " id");
     // A scan is cast from its pose: a pose that is not a number has no origin to cast from.
     for (const float v : {tx, ty, tz, qu, qx, qy, qz})
-      if (!std::isfinite(v)) throw in.bad(scan + "'s pose is not finite (" + std::to_string(v) + ")");
+      if (!std::isfinite(v))
+        throw in.bad(scan + "'s pose is not finite (" + std::to_string(v) + ")");
     out.T_world_sensor.translation = {tx, ty, tz};
     out.T_world_sensor.rotation = Eigen::Quaternionf(qu, qx, qy, qz);
     scans.push_back(std::move(out));
@@ -120,8 +122,11 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
   std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + std::strerror(errno));
-  const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  if (in.bad()) throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': read failed");
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + ec.message());
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': read failed");
   return io::parseScanGraph(bytes, path);
 }
 

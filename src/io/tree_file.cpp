@@ -222,7 +222,8 @@ std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool bina
     record(last.depth + 1);
   }
   if (at != data.size())
-    throw bad(std::to_string(data.size() - at) + " bytes follow the tree's last node record (at byte " +
+    throw bad(std::to_string(data.size() - at) +
+              " bytes follow the tree's last node record (at byte " +
               std::to_string(h.data_at + at) + ")");
   if (nodes != h.size)
     throw bad("its header announces " + std::to_string(h.size) + " nodes, the data holds " +
