@@ -712,6 +712,58 @@ TEST(TumBadInput, BadCameraOptions) {
                  2, {"--intrinsics", "TUM RGB-D folder"}, scratch);
 }
 
+// ---- outputs: created before any work (exit 2 naming the user's path), never left half-written ----
+
+// An output whose directory exists and is writable, so that only creating the file fails: a file
+// name longer than any file system allows.
+std::string uncreatableOutput(const Scratch& scratch, const std::string& ext) {
+  return scratch / (std::string(300, 'n') + ext);
+}
+
+TEST(TumOutputs, UncreatableOutputIsExit2BeforeTheFolderIsRead) {
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  // A folder that fails while being read (exit 1): that error must not come first.
+  replaceLine(seq.dir / "depth.txt", 5, "yesterday depth/a.png");
+  expectRejected({"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, 1,
+                 {"depth.txt' line 5"}, scratch);
+  for (const auto& [command, ext] :
+       std::vector<std::pair<std::string, std::string>>{{"convert", ".graph"},
+                                                        {"integrate", ".bt"}}) {
+    SCOPED_TRACE(command);
+    const std::string output = uncreatableOutput(scratch, ext);
+    const std::vector<std::string> args = {command, seq.dir.string(), "-o", output};
+    expectRejected(args, 2, {"cannot write '" + output + "'", "nothing was done"}, scratch);
+    const RunResult r = runOctovk(args, scratch.dir());
+    EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("depth.txt"), std::string::npos) << r.err;
+  }
+}
+
+TEST(TumOutputs, ConvertWriteFailureNamesTheUsersPathAndLeavesNothing) {
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  const std::string graph = scratch / "scans.graph";
+  // No file may grow past 512 bytes (SIGXFSZ ignored, so the write fails instead): the graph of
+  // the sequence is far larger, so writing it fails after the images are read.
+  const RunResult r = runShell("trap '' XFSZ; ulimit -f 1; " + quote(OCTOVK_CLI) + " convert " +
+                                   quote(seq.dir.string()) + " -o " + quote(graph),
+                               scratch.dir());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("'" + graph + "'"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(graph));
+  for (const auto& entry : fs::directory_iterator(scratch.dir()))
+    EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos)
+        << "left behind: " << entry.path();
+  // Without the limit the same command works and writes more than the limit allowed.
+  const RunResult ok = runOctovk({"convert", seq.dir.string(), "-o", graph}, scratch.dir());
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_GT(fs::file_size(graph), 512u);
+}
+
 // ---- help ----
 
 TEST(TumHelp, HelpDocumentsFoldersAndOptions) {
