@@ -1,20 +1,21 @@
 #!/usr/bin/env bash
-# Fuzzes octovk's file readers with clang's libFuzzer: builds octovk_fuzz_{bt,ot,graph}
-# (tests/fuzz/, -fsanitize=fuzzer,address,undefined) into build-fuzz/ with clang, then runs each for
-# OCTOVK_FUZZ_SECONDS (default 60) from the seed corpus tests/fuzz/corpus/FORMAT/ with
-# -rss_limit_mb=2048 (also the cap on one allocation) and -timeout=10. Fails on any crash,
-# sanitizer report, hang (an input over 10 s) or allocation over the cap; the input that caused it
-# is kept as build-fuzz/artifacts/FORMAT-crash-*, -timeout-*, -oom-* (add it to the regression
-# tests in tests/io_test.cpp). Inputs the fuzzer found interesting go to build-fuzz/corpus/FORMAT/,
+# Fuzzes octovk's file readers with clang's libFuzzer: builds
+# octovk_fuzz_{bt,ot,graph,tum_lists,depth_png} (tests/fuzz/, -fsanitize=fuzzer,address,undefined)
+# into build-fuzz/ with clang, then runs each for OCTOVK_FUZZ_SECONDS (default 60) from the seed
+# corpus tests/fuzz/corpus/FORMAT/ with -rss_limit_mb=2048 (also the cap on one allocation) and
+# -timeout=10. Fails on any crash, sanitizer report, hang (an input over 10 s) or allocation over
+# the cap; the input that caused it is kept as build-fuzz/artifacts/FORMAT-crash-*, -timeout-*,
+# -oom-* (add it to the regression tests in tests/io_test.cpp, or tests/tum_test.cpp for
+# tum_lists and depth_png). Inputs the fuzzer found interesting go to build-fuzz/corpus/FORMAT/,
 # never into the repository. Prints how many inputs each target ran.
 # Installs clang and its libFuzzer runtime (Debian: clang, libclang-rt-N-dev) when missing.
-# Usage: scripts/fuzz.sh [FORMAT...]   (default: bt ot graph)
+# Usage: scripts/fuzz.sh [FORMAT...]   (default: bt ot graph tum_lists depth_png)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 build="$root/build-fuzz"
 seconds="${OCTOVK_FUZZ_SECONDS:-60}"
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(bt ot graph)
+[ ${#formats[@]} -gt 0 ] || formats=(bt ot graph tum_lists depth_png)
 
 install() {
   local sudo=""

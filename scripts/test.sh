@@ -8,8 +8,8 @@
 #   4. the whole suite with the Khronos validation layer (core + synchronization validation):
 #      any validation message fails the test that caused it;
 #   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh);
-#   6. the .bt / .ot / .graph readers under libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each
-#      (scripts/fuzz.sh).
+#   6. the .bt / .ot / .graph readers and the TUM RGB-D lists and PNG depth-image reader under
+#      libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each (scripts/fuzz.sh).
 # Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
 # Vulkan device fails the Vulkan tests (and the consumer) instead of skipping them.
 # OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize fuzz") picks steps, e.g.
