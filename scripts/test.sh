@@ -7,14 +7,16 @@
 #      because results must not depend on one driver's compiler;
 #   4. the whole suite with the Khronos validation layer (core + synchronization validation):
 #      any validation message fails the test that caused it;
-#   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh).
+#   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh);
+#   6. the .bt / .ot / .graph readers and the TUM RGB-D lists and PNG depth-image reader under
+#      libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each (scripts/fuzz.sh).
 # Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
 # Vulkan device fails the Vulkan tests (and the consumer) instead of skipping them.
-# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize") picks steps, e.g.
+# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize fuzz") picks steps, e.g.
 # "system".
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize}"
+steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize fuzz}"
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh"
 jobs="$(nproc)"
@@ -69,6 +71,14 @@ if step sanitize; then
     echo "==== tests: sanitizers passed ===="
   else
     failed+=("sanitizers")
+  fi
+fi
+if step fuzz; then
+  echo "==== tests: fuzzing the file readers ===="
+  if "$root/scripts/fuzz.sh"; then
+    echo "==== tests: fuzzing passed ===="
+  else
+    failed+=("fuzzing")
   fi
 fi
 

@@ -395,6 +395,160 @@ TEST(cliBadInput, NoCommand) {
   expectRejected({}, 2, "integrate", scratch);
 }
 
+// ---- outputs that cannot be created: exit 2 before any work, messages name the user's path ----
+
+// A small .bt map written by OctoMap: a 20 x 20 grid of occupied cells above free ones.
+std::string writeSmallMap(const Scratch& scratch) {
+  octomap::OcTree tree(0.1);
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) {
+      const float x = 0.1f * static_cast<float>(i), y = 0.1f * static_cast<float>(j);
+      tree.updateNode(octomap::point3d(x, y, 0.05f * static_cast<float>(i % 5)), true);
+      tree.updateNode(octomap::point3d(x, y, -0.5f), false);
+    }
+  const std::string path = scratch / "small.bt";
+  EXPECT_TRUE(tree.writeBinary(path));
+  return path;
+}
+
+// Output paths whose directory exists and passes access(W_OK), so that only creating the file
+// shows they cannot be written: a file name longer than any file system allows and, as root
+// (as the tests run under CI), a file in /proc.
+std::vector<std::string> uncreatableOutputs(const Scratch& scratch, const std::string& ext) {
+  std::vector<std::string> paths = {scratch / (std::string(300, 'n') + ext)};
+  if (fs::is_directory("/proc/self")) paths.push_back("/proc/octovk-cli-test" + ext);
+  return paths;
+}
+
+// `args` with an uncreatable output must exit 2 naming it (not a temporary name) before any work:
+// the inputs given are corrupt, so any reading would have failed first with exit 1.
+void expectOutputRefusedFirst(const std::vector<std::string>& args, const std::string& output,
+                              const Scratch& scratch) {
+  std::vector<std::string> with_output = args;
+  with_output.insert(with_output.end(), {"-o", output});
+  SCOPED_TRACE(args.front() + " -o " + output.substr(0, 60));
+  expectRejected(with_output, 2, "cannot write '" + output + "'", scratch);
+  const RunResult r = runOctovk(with_output, scratch.dir());
+  EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+  std::error_code ec;  // a name too long is an error here too
+  EXPECT_FALSE(fs::exists(output, ec));
+}
+
+TEST(cliOutputs, UncreatableOutputIsExit2BeforeAnyWork) {
+  Scratch scratch, inputs("cli-inputs");  // the inputs apart: scratch must hold no map after
+  const std::string graph = inputs / "corrupt.graph";
+  std::ofstream(graph, std::ios_base::binary) << "not a scan graph at all";
+  const std::string map = writeSmallMap(inputs);
+  const std::string corrupt_map = inputs / "corrupt.bt";
+  {
+    std::string bytes = readFile(map);
+    const std::size_t size_at = bytes.find("\nsize ");
+    ASSERT_NE(size_at, std::string::npos);
+    bytes.replace(size_at + 1, bytes.find('\n', size_at + 1) - size_at - 1, "size 0");
+    std::ofstream(corrupt_map, std::ios_base::binary) << bytes;
+  }
+  // The corrupt inputs alone fail while working (exit 1): their error must not come first.
+  expectRejected({"integrate", graph, "-o", scratch / "map.bt"}, 1, graph, scratch);
+  expectRejected({"render", corrupt_map, "-o", scratch / "view.png"}, 1, corrupt_map, scratch);
+  for (const std::string& out : uncreatableOutputs(scratch, ".bt"))
+    expectOutputRefusedFirst({"integrate", graph}, out, scratch);
+  // The second of two outputs: the first is neither written nor left as a temporary file.
+  for (const std::string& out : uncreatableOutputs(scratch, ".ot"))
+    expectOutputRefusedFirst({"integrate", graph, "-o", scratch / "first.bt"}, out, scratch);
+  EXPECT_FALSE(fs::exists(scratch / "first.bt"));
+  for (const std::string& out : uncreatableOutputs(scratch, ".png"))
+    expectOutputRefusedFirst({"render", corrupt_map}, out, scratch);
+  for (const std::string& out : uncreatableOutputs(scratch, ".ply"))
+    expectOutputRefusedFirst({"export", corrupt_map}, out, scratch);
+  // With a good input too: nothing printed, no device opened.
+  for (const std::string& out : uncreatableOutputs(scratch, ".png"))
+    expectOutputRefusedFirst({"render", map}, out, scratch);
+  for (const std::string& out : uncreatableOutputs(scratch, ".ply"))
+    expectOutputRefusedFirst({"export", map}, out, scratch);
+}
+
+// Runs octovk with `args` while no file may grow past 512 bytes (ulimit -f 1; SIGXFSZ ignored so
+// that the write fails instead): the write of the output fails after the work.
+RunResult runWithTinyFileLimit(const std::vector<std::string>& args, const Scratch& scratch) {
+  std::string command = "trap '' XFSZ; ulimit -f 1; " + quote(OCTOVK_CLI);
+  for (const std::string& a : args) command += ' ' + quote(a);
+  return runShell(command, scratch.dir());
+}
+
+TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const std::string map = writeSmallMap(scratch);
+  struct Case {
+    std::vector<std::string> args;
+    std::string output;
+  };
+  for (const Case& c :
+       {Case{{"export", map, "-o", scratch / "cells.ply"}, scratch / "cells.ply"},
+        Case{{"render", map, "-o", scratch / "view.png"}, scratch / "view.png"},
+        Case{{"integrate", kSphericalGraph, "-q", "-o", scratch / "out.bt"}, scratch / "out.bt"}}) {
+    SCOPED_TRACE(c.args.front());
+    const RunResult r = runWithTinyFileLimit(c.args, scratch);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("'" + c.output + "'"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(c.output));
+    for (const auto& entry : fs::directory_iterator(scratch.dir()))
+      EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos)
+          << "left behind: " << entry.path();
+  }
+  // Without the limit the same commands work.
+  const RunResult ok = runOctovk({"export", map, "-o", scratch / "cells.ply"}, scratch.dir());
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_GT(fs::file_size(scratch / "cells.ply"), 512u);
+}
+
+TEST(cliOutputs, ReadingErrorsNameTheFileAndTheFault) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const std::string map = writeSmallMap(scratch);
+  const std::string bytes = readFile(map);
+  const auto variant = [&](const std::string& name, const std::string& from,
+                           const std::string& to) {
+    std::string edited = bytes;
+    const std::size_t at = edited.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    edited.replace(at, from.size(), to);
+    const std::string path = scratch / name;
+    std::ofstream(path, std::ios_base::binary) << edited;
+    return path;
+  };
+  const std::string color = variant("color.bt", "id OcTree", "id ColorOcTree");
+  const std::string two_res = variant("two_res.bt", "res 0.1", "res 0.2 0.3");
+  const std::string deep = scratch / "deep.bt";
+  std::ofstream(deep, std::ios_base::binary)
+      << bytes.substr(0, bytes.find("\ndata\n") + 6) << std::string(200000, '\xff');
+  for (const auto& [path, fault] : std::vector<std::pair<std::string, std::string>>{
+           {color, "'ColorOcTree', not a plain OcTree"},
+           {two_res, "must be 'res' and one value"},
+           {deep, "deeper than a tree's 16 levels"}}) {
+    for (const std::vector<std::string>& args :
+         {std::vector<std::string>{"info", path}, {"export", path, "-o", scratch / "c.ply"}}) {
+      const RunResult r = runOctovk(args, scratch.dir());
+      EXPECT_EQ(r.exit_code, 1) << r.err;
+      EXPECT_NE(r.err.find("'" + path + "'"), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find(fault), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(scratch / "c.ply"));
+    }
+  }
+}
+
+TEST(cliOutputs, HelpDescribesExitCode2ForUncreatableOutputs) {
+  Scratch scratch;
+  const RunResult r = runOctovk({"export", "--help"}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("output file that cannot be created"), std::string::npos) << r.out;
+}
+
 // ---- help and devices ----
 
 void expectFullIntegrateHelp(const std::string& text) {

@@ -6,7 +6,9 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 
+#include "io/parse.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -343,6 +345,323 @@ TEST(Io, NodeRecordsNestedDeeperThanSixteenLevelsAreRefused) {
   const std::string path = tmpPath("deep.bt");
   test::writeBytes(path, bt.substr(0, bt_data) + std::string(200000, '\xff'));
   expectError([&] { readMapFile(ctx, path); }, ErrorCode::kFormat, ".bt header + 200 KB of 0xff");
+}
+
+// ---- hostile files (issue 11): refused by octovk's check before OctoMap's reader sees them ----
+// Each case is generated from a valid file as the fuzzing of issue 11 found it (one inserted byte,
+// a truncated data section, header edits, NaN log-odds); the check runs on bytes, without Vulkan.
+
+struct TreeFiles {
+  std::string bt, ot;
+  std::size_t bt_data, ot_data;  // where the node data starts
+};
+
+const TreeFiles& sphericalFiles() {
+  static const TreeFiles files = [] {
+    octomap::OcTree tree = sphericalTree(0.1);
+    std::stringstream ot, bt;
+    EXPECT_TRUE(tree.write(ot));
+    EXPECT_TRUE(tree.writeBinary(bt));
+    TreeFiles f{bt.str(), ot.str(), 0, 0};
+    f.bt_data = f.bt.find("\ndata\n") + 6;
+    f.ot_data = f.ot.find("\ndata\n") + 6;
+    return f;
+  }();
+  return files;
+}
+
+// The file with the header line that starts with `key` replaced by `line` (removed if empty).
+std::string withHeaderLine(const std::string& file, const std::string& key,
+                           const std::string& line) {
+  const std::size_t at = file.find("\n" + key);
+  EXPECT_NE(at, std::string::npos) << key;
+  const std::size_t end = file.find('\n', at + 1);
+  return file.substr(0, at + 1) + (line.empty() ? "" : line + "\n") + file.substr(end + 1);
+}
+
+// parseTreeFile must refuse `bytes` with kFormat, naming the file and mentioning `why`.
+void expectRefused(const std::string& bytes, bool binary, const std::string& why,
+                   const std::string& what) {
+  const std::string name = binary ? "hostile.bt" : "hostile.ot";
+  const std::string message = expectError([&] { (void)io::parseTreeFile(bytes, binary, name); },
+                                          ErrorCode::kFormat, what.c_str());
+  EXPECT_NE(message.find("'" + name + "'"), std::string::npos) << what << ": " << message;
+  EXPECT_NE(message.find(why), std::string::npos)
+      << what << ": expected '" << why << "' in: " << message;
+}
+
+TEST(IoHostile, ValidFilesReadAsOctoMapReadsThem) {
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    const std::string& bytes = binary ? f.bt : f.ot;
+    const std::unique_ptr<octomap::OcTree> ours = io::parseTreeFile(bytes, binary, "valid");
+    std::stringstream in(bytes);
+    std::unique_ptr<octomap::OcTree> theirs;
+    if (binary) {
+      theirs = std::make_unique<octomap::OcTree>(0.1);
+      ASSERT_TRUE(theirs->readBinary(in));
+    } else {
+      std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(in));
+      ASSERT_TRUE(dynamic_cast<octomap::OcTree*>(read.get()));
+      theirs.reset(static_cast<octomap::OcTree*>(read.release()));
+    }
+    EXPECT_GT(ours->size(), 1000u);
+    EXPECT_TRUE(sameTree(*theirs, *ours)) << (binary ? ".bt" : ".ot");
+    // More comment and blank lines, CR LF line ends and spaces are a header OctoMap reads alike.
+    std::string edited = withHeaderLine(bytes, "res", "\n# a comment\r\n  res   0.1 \r");
+    edited = withHeaderLine(edited, "id", "id OcTree\r");
+    EXPECT_TRUE(sameTree(*theirs, *io::parseTreeFile(edited, binary, "edited")));
+  }
+}
+
+TEST(IoHostile, EmptyTreesAsOctoMapWritesThemLoad) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  octomap::OcTree empty(0.05);
+  std::stringstream ot, bt;
+  ASSERT_TRUE(empty.write(ot));
+  ASSERT_TRUE(empty.writeBinary(bt));
+  ASSERT_NE(ot.str().find("\nsize 0\n"), std::string::npos);  // and no byte after "data\n"
+  const std::string bt_path = tmpPath("empty_octomap.bt"), ot_path = tmpPath("empty_octomap.ot");
+  test::writeBytes(bt_path, bt.str());
+  test::writeBytes(ot_path, ot.str());
+  for (const std::string& path : {bt_path, ot_path}) {
+    OccupancyMap map = readMapFile(ctx, path);
+    EXPECT_EQ(map.nodeCount(), 0u) << path;
+    EXPECT_EQ(map.params().resolution, 0.05) << path;
+  }
+}
+
+TEST(IoHostile, OneInsertedByteAnywhereIsRefused) {
+  // The issue's .ot that grew memory without bound: the record sizes (5 bytes .ot, 2 bytes .bt)
+  // can no longer add up to the data section, whatever the byte and wherever it goes.
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    const std::string& bytes = binary ? f.bt : f.ot;
+    const std::size_t data = binary ? f.bt_data : f.ot_data;
+    for (std::size_t i = 0; i < 40; ++i) {
+      const std::size_t at = data + (bytes.size() - data) * i / 39;
+      for (const char c : {'\0', '\x01', '\xff'}) {
+        std::string damaged = bytes;
+        damaged.insert(at, 1, c);
+        SCOPED_TRACE(std::string(binary ? ".bt" : ".ot") + " with a byte inserted at " +
+                     std::to_string(at));
+        expectError([&] { (void)io::parseTreeFile(damaged, binary, "x"); }, ErrorCode::kFormat,
+                    "inserted byte");
+      }
+    }
+  }
+}
+
+TEST(IoHostile, EveryTruncationOfTheDataSectionIsRefused) {
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    const std::string& bytes = binary ? f.bt : f.ot;
+    const std::size_t data = binary ? f.bt_data : f.ot_data;
+    for (std::size_t keep = data; keep < bytes.size(); keep += 1 + (bytes.size() - data) / 500) {
+      SCOPED_TRACE(std::string(binary ? ".bt" : ".ot") + " cut to " + std::to_string(keep));
+      expectError([&] { (void)io::parseTreeFile(bytes.substr(0, keep), binary, "x"); },
+                  ErrorCode::kFormat, "truncated");
+    }
+    expectRefused(bytes.substr(0, data), binary, "data section is empty", "no data");
+    expectRefused(bytes.substr(0, bytes.size() - 1), binary, "past the end", "last byte cut");
+  }
+}
+
+TEST(IoHostile, DeepNestingAndChildlessInnerNodesAreRefused) {
+  const TreeFiles& f = sphericalFiles();
+  const std::string bt_header = f.bt.substr(0, f.bt_data), ot_header = f.ot.substr(0, f.ot_data);
+  // A .bt header and 200 KB of 0xff: OctoMap's readBinaryNode overflowed the stack (~87,000
+  // frames).
+  expectRefused(bt_header + std::string(200000, '\xff'), true, "deeper than a tree's 16 levels",
+                ".bt + 200 KB of 0xff");
+  // .ot records with one child each, 17 deep (a node below the leaves) and 300,000 deep.
+  for (std::size_t levels : {17u, 300000u}) {
+    std::string data;
+    for (std::size_t i = 0; i < levels; ++i) data += std::string(4, '\0') + '\x01';
+    expectRefused(ot_header + data, false, "deeper than a tree's 16 levels",
+                  ".ot " + std::to_string(levels) + " deep");
+  }
+  // .bt: the root's child 0 is an inner node (11) whose record lists no child: OctoMap would give
+  // it the log-odds of no child, -FLT_MAX.
+  expectRefused(withHeaderLine(bt_header, "size", "size 2") + std::string("\x03\x00\x00\x00", 4),
+                true, "inner node without children", "childless inner node");
+}
+
+TEST(IoHostile, HeaderSizeMustMatchTheData) {
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    const std::string& bytes = binary ? f.bt : f.ot;
+    SCOPED_TRACE(binary ? ".bt" : ".ot");
+    // size 0 with data: OctoMap read nothing and reported success.
+    expectRefused(withHeaderLine(bytes, "size", "size 0"), binary, "announces 0 nodes", "size 0");
+    // No size line: OctoMap took size 0 and ignored the data.
+    expectRefused(withHeaderLine(bytes, "size", ""), binary, "no 'size' line", "no size");
+    const std::unique_ptr<octomap::OcTree> tree = io::parseTreeFile(bytes, binary, "valid");
+    const std::string more = "size " + std::to_string(tree->size() + 1);
+    expectRefused(withHeaderLine(bytes, "size", more), binary, "the data holds", "size + 1");
+    for (const char* bad : {"size -1", "size 1e3", "size 18446744073709551616", "size 5 5"})
+      expectRefused(withHeaderLine(bytes, "size", bad), binary, "size", bad);
+    expectRefused(withHeaderLine(bytes, "size", more) + withHeaderLine(bytes, "size", more), binary,
+                  "bytes follow", "two files in one");
+  }
+}
+
+TEST(IoHostile, TreeTypeMustBeExactlyOcTree) {
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    const std::string& bytes = binary ? f.bt : f.ot;
+    SCOPED_TRACE(binary ? ".bt" : ".ot");
+    // OctoMap's readBinary ignores the id, so a ColorOcTree .bt read as an OcTree.
+    for (const char* id : {"ColorOcTree", "Foo", "OcTreeStamped", "octree"})
+      expectRefused(withHeaderLine(bytes, "id", std::string("id ") + id), binary,
+                    std::string("'") + id + "', not a plain OcTree", id);
+    expectRefused(withHeaderLine(bytes, "id", "id"), binary, "one value", "empty id");
+    expectRefused(withHeaderLine(bytes, "id", ""), binary, "no 'id' line", "no id line");
+    expectRefused(withHeaderLine(bytes, "id", "id OcTree extra"), binary, "one value", "two ids");
+    expectRefused(withHeaderLine(bytes, "id", "id OcTree\nid OcTree"), binary, "twice", "id twice");
+  }
+}
+
+TEST(IoHostile, ResolutionMustBeOneFinitePositiveNumber) {
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    const std::string& bytes = binary ? f.bt : f.ot;
+    SCOPED_TRACE(binary ? ".bt" : ".ot");
+    // OctoMap read "res 0.2 0.3" as 0.2 and skipped the 0.3 as an unknown keyword.
+    expectRefused(withHeaderLine(bytes, "res", "res 0.2 0.3"), binary, "one value", "two values");
+    for (const char* res : {"res 0", "res -0.1", "res nan", "res inf", "res -inf", "res 0.1abc",
+                            "res abc", "res 1e-300", "res 1e300"})
+      expectRefused(withHeaderLine(bytes, "res", res), binary, "resolution", res);
+    expectRefused(withHeaderLine(bytes, "res", ""), binary, "no 'res' line", "no res");
+    expectRefused(withHeaderLine(bytes, "res", "res 0.1\nres 0.1"), binary, "twice", "res twice");
+    expectRefused(withHeaderLine(bytes, "res", "resolution 0.1"), binary, "unknown header line",
+                  "unknown keyword");
+    expectRefused(withHeaderLine(bytes, "data", "data more"), binary, "just 'data'", "data x");
+    expectRefused(bytes.substr(0, bytes.find("\ndata\n")), binary, "no 'data' line", "no data");
+  }
+  expectRefused("", true, "empty", "empty .bt");
+  expectRefused("", false, "empty", "empty .ot");
+  expectRefused(sphericalFiles().ot, true, "name it .ot", ".ot named .bt");
+  expectRefused(sphericalFiles().bt, false, "name it .bt", ".bt named .ot");
+}
+
+TEST(IoHostile, OtLogOddsMustBeFinite) {
+  // NaN log-odds were counted as free and written as "nan" into PLY files.
+  const TreeFiles& f = sphericalFiles();
+  const std::size_t records = (f.ot.size() - f.ot_data) / 5;
+  for (const float v :
+       {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
+        -std::numeric_limits<float>::infinity()}) {
+    for (const std::size_t record : {std::size_t{0}, records / 2, records - 1}) {
+      std::string bytes = f.ot;
+      std::memcpy(bytes.data() + f.ot_data + 5 * record, &v, sizeof v);
+      expectRefused(bytes, false, "not a finite number",
+                    std::to_string(v) + " in record " + std::to_string(record));
+    }
+  }
+}
+
+TEST(IoHostile, MessagesFromReadMapFileNameTheFile) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const std::string path = tmpPath("size_zero.bt");
+  test::writeBytes(path, withHeaderLine(sphericalFiles().bt, "size", "size 0"));
+  const std::string message =
+      expectError([&] { readMapFile(ctx, path); }, ErrorCode::kFormat, "size 0 .bt");
+  EXPECT_NE(message.find(path), std::string::npos) << message;
+  EXPECT_NE(message.find("announces 0 nodes"), std::string::npos) << message;
+}
+
+TEST(IoHostile, StoredInputsAreRefused) {
+  // tests/data/hostile/: inputs that once broke a reader (see its README).
+  const fs::path dir = fs::path(OCTOVK_SHARED_DATA_DIR) / "hostile";
+  std::size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string ext = entry.path().extension().string();
+    if (ext != ".bt" && ext != ".ot" && ext != ".graph") continue;
+    ++files;
+    const std::string name = entry.path().filename().string();
+    const std::string bytes = fileBytes(entry.path().string());
+    const std::string message = expectError(
+        [&] {
+          if (ext == ".graph")
+            (void)io::parseScanGraph(bytes, name);
+          else
+            (void)io::parseTreeFile(bytes, ext == ".bt", name);
+        },
+        ErrorCode::kFormat, name.c_str());
+    EXPECT_NE(message.find(name), std::string::npos) << message;
+  }
+  EXPECT_GE(files, 1u) << "no stored inputs in " << dir;
+}
+
+TEST(IoHostile, DevicesNamedLikeInputsAreRefusedAtOnce) {
+  // A link named like a map or graph to a device that never ends (/dev/zero).
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  if (!fs::exists("/dev/zero")) GTEST_SKIP() << "no /dev/zero";
+  for (const char* name : {"zero.bt", "zero.ot", "zero.graph"}) {
+    const std::string link = tmpPath(name);
+    fs::remove(link);
+    fs::create_symlink("/dev/zero", link);
+    const std::string message = expectError(
+        [&] {
+          if (fs::path(link).extension() == ".graph")
+            (void)readScanGraph(link);
+          else
+            (void)readMapFile(ctx, link);
+        },
+        ErrorCode::kIo, name);
+    EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
+    fs::remove(link);
+  }
+}
+
+// ---- hostile scan graphs ----
+
+std::string u32Bytes(std::uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); }
+
+TEST(IoHostile, GraphCountsBeyondTheBytesAreRefusedBeforeAllocating) {
+  const std::string graph = fileBytes(kSpherical);
+  ASSERT_GT(graph.size(), 1000u);
+  // 4 billion scans in 8 bytes, and 4 billion points in the first scan.
+  for (const std::string& bytes : {u32Bytes(0xFFFFFFFFu) + u32Bytes(0),
+                                   u32Bytes(1) + u32Bytes(0xFFFFFFFFu) + graph.substr(8)}) {
+    const std::string message = expectError([&] { (void)io::parseScanGraph(bytes, "huge.graph"); },
+                                            ErrorCode::kFormat, "huge count");
+    EXPECT_NE(message.find("'huge.graph'"), std::string::npos) << message;
+    EXPECT_NE(message.find("more than"), std::string::npos) << message;
+  }
+  // Every truncation of a real graph.
+  for (std::size_t keep = 0; keep < graph.size(); keep += 1 + graph.size() / 300)
+    expectError([&] { (void)io::parseScanGraph(graph.substr(0, keep), "cut.graph"); },
+                ErrorCode::kFormat, ("graph cut to " + std::to_string(keep)).c_str());
+  EXPECT_FALSE(io::parseScanGraph(graph, "whole.graph").empty());
+}
+
+TEST(IoHostile, GraphPosesMustBeFinitePointsMayBeNaN) {
+  // One scan: a NaN point and a regular one, then the pose.
+  const auto vec = [](double x, double y, double z) {
+    std::string s = u32Bytes(3);
+    for (double v : {x, y, z}) s.append(reinterpret_cast<const char*>(&v), 8);
+    return s;
+  };
+  const auto graph = [&](double tx) {
+    std::string pose = vec(tx, 0, 0) + u32Bytes(4);
+    for (double v : {1.0, 0.0, 0.0, 0.0}) pose.append(reinterpret_cast<const char*>(&v), 8);
+    return u32Bytes(1) + u32Bytes(2) + vec(std::numeric_limits<double>::quiet_NaN(), 0, 0) +
+           vec(1, 2, 3) + pose + u32Bytes(0) + u32Bytes(0);
+  };
+  const std::vector<GraphScan> scans = io::parseScanGraph(graph(0.5), "nan_point.graph");
+  ASSERT_EQ(scans.size(), 1u);
+  ASSERT_EQ(scans[0].points_sensor.size(), 2u);
+  EXPECT_TRUE(std::isnan(scans[0].points_sensor[0].x()));
+  EXPECT_EQ(scans[0].T_world_sensor.translation.x(), 0.5f);
+  for (const double bad :
+       {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(), 1e300}) {
+    const std::string message =
+        expectError([&] { (void)io::parseScanGraph(graph(bad), "bad_pose.graph"); },
+                    ErrorCode::kFormat, "non-finite pose");
+    EXPECT_NE(message.find("pose is not finite"), std::string::npos) << message;
+  }
 }
 
 TEST(Io, MissingFileAndUnknownExtension) {

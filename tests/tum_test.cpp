@@ -7,6 +7,7 @@
 #include <octomap/OcTree.h>
 #include <octomap/ScanGraph.h>
 #include <png.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <array>
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "cli_support.hpp"
+#include "io/tum_parse.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/tum_sequence.hpp"
 #include "test_support.hpp"
@@ -371,6 +373,112 @@ TEST(TumReader, RefusesOtherPngFormats) {
   }
 }
 
+// A copy of the PNG `bytes` whose header (IHDR, the first chunk) announces `width` x `height`,
+// its checksum recomputed: only the pixel data that follows gives it away.
+std::string withHeaderSize(std::string bytes, std::uint32_t width, std::uint32_t height) {
+  EXPECT_EQ(bytes.substr(12, 4), "IHDR");
+  for (int i = 0; i < 4; ++i) {
+    bytes[16 + i] = static_cast<char>(width >> (24 - 8 * i));
+    bytes[20 + i] = static_cast<char>(height >> (24 - 8 * i));
+  }
+  const uLong crc = ::crc32(0L, reinterpret_cast<const Bytef*>(bytes.data() + 12), 4 + 13);
+  for (int i = 0; i < 4; ++i) bytes[29 + i] = static_cast<char>(crc >> (24 - 8 * i));
+  return bytes;
+}
+
+// The message of the kFormat error `read` throws ("" and a failure when it throws none).
+template <class Read>
+std::string formatError(Read read) {
+  try {
+    read();
+  } catch (const octovk::Error& e) {
+    EXPECT_EQ(e.code(), octovk::ErrorCode::kFormat) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "accepted";
+  return "";
+}
+
+TEST(TumReader, RefusesAPngAnnouncingMorePixelsThanItsBytesHold) {
+  // A PNG of under 100 bytes claiming 65536 x 65536 16-bit pixels used to be given an 8 GiB
+  // buffer before libpng found its data cut short (seen while writing fuzz_depth_png): now the
+  // header is refused, since deflate cannot shrink 8 GiB into 100 bytes.
+  Scratch scratch("tum");
+  const fs::path small = scratch.dir() / "small.png";
+  writeDepthPng(small, 4, 3, std::vector<std::uint16_t>(12, 5000));
+  const std::string huge = withHeaderSize(readFile(small), 65536, 65536);
+  const fs::path path = scratch.dir() / "huge.png";
+  std::ofstream(path, std::ios_base::binary) << huge;
+  for (const std::string& why :
+       {formatError([&] { octovk::readDepthPng(path.string()); }),
+        formatError([&] { octovk::checkDepthPng(path.string()); }),
+        formatError([&] { octovk::io::decodeDepthPng(huge, path.string()); })}) {
+    EXPECT_NE(why.find("'" + path.string() + "'"), std::string::npos) << why;
+    EXPECT_NE(why.find("65536 x 65536"), std::string::npos) << why;
+    EXPECT_NE(why.find("corrupt or truncated"), std::string::npos) << why;
+  }
+  // A large image of one depth compresses about as far as deflate can, and is still read.
+  const fs::path flat = scratch.dir() / "flat.png";
+  writeDepthPng(flat, 2000, 1000, std::vector<std::uint16_t>(2000 * 1000, 0));
+  EXPECT_LT(fs::file_size(flat), 2u * 2000 * 1000 / 100) << "not the compression this test needs";
+  const octovk::DepthPng read = octovk::readDepthPng(flat.string());
+  EXPECT_EQ(read.depths, std::vector<std::uint16_t>(2000 * 1000, 0));
+}
+
+TEST(TumReader, BytesInReadersMatchTheFileReaders) {
+  // io::parseGroundTruth + io::associateDepthList and io::decodeDepthPng (the fuzz targets'
+  // entry points) give what readTumSequence and readDepthPng give on the files.
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  const octovk::TumSequence files = octovk::readTumSequence(seq.dir.string());
+  const octovk::io::TumListNames names{seq.dir.string(), (seq.dir / "depth.txt").string(),
+                                       (seq.dir / "groundtruth.txt").string()};
+  std::vector<std::string> taken;
+  const octovk::TumSequence bytes = octovk::io::associateDepthList(
+      readFile(seq.dir / "depth.txt"),
+      octovk::io::parseGroundTruth(readFile(seq.dir / "groundtruth.txt"), names.groundtruth),
+      names, octovk::kTumMaxTimeDifference,
+      [&](const octovk::TumFrame& frame) { taken.push_back(frame.image_path); });
+  EXPECT_EQ(bytes.dir, files.dir);
+  EXPECT_EQ(bytes.images_listed, files.images_listed);
+  EXPECT_EQ(bytes.skipped_no_pose, files.skipped_no_pose);
+  EXPECT_EQ(bytes.poses, files.poses);
+  ASSERT_EQ(bytes.frames.size(), files.frames.size());
+  ASSERT_EQ(taken.size(), files.frames.size());
+  for (std::size_t i = 0; i < files.frames.size(); ++i) {
+    EXPECT_EQ(bytes.frames[i].image_path, files.frames[i].image_path);
+    EXPECT_EQ(taken[i], files.frames[i].image_path);
+    EXPECT_EQ(bytes.frames[i].line, files.frames[i].line);
+    EXPECT_EQ(bytes.frames[i].timestamp, files.frames[i].timestamp);
+    EXPECT_EQ(bytes.frames[i].pose_timestamp, files.frames[i].pose_timestamp);
+    EXPECT_EQ(bytes.frames[i].T_world_camera.translation,
+              files.frames[i].T_world_camera.translation);
+    EXPECT_EQ(bytes.frames[i].T_world_camera.rotation.coeffs(),
+              files.frames[i].T_world_camera.rotation.coeffs());
+    const octovk::DepthPng from_file = octovk::readDepthPng(files.frames[i].image_path);
+    const octovk::DepthPng from_bytes =
+        octovk::io::decodeDepthPng(readFile(files.frames[i].image_path), "image");
+    EXPECT_EQ(from_bytes.width, from_file.width);
+    EXPECT_EQ(from_bytes.height, from_file.height);
+    EXPECT_EQ(from_bytes.depths, from_file.depths);
+  }
+  // Lines end at '\n' whether or not the last has one, '\r' before it is dropped.
+  const std::vector<octovk::io::GroundTruthPose> poses = octovk::io::parseGroundTruth(
+      "# c\r\n\r\n1.5 1 2 3 0 0 0 1\r\n\t2.5\t4 5 6 0 0 0 1", "gt");
+  ASSERT_EQ(poses.size(), 2u);
+  EXPECT_EQ(poses[1].timestamp, 2.5);
+  EXPECT_EQ(poses[1].pose.translation, Eigen::Vector3f(4, 5, 6));
+  // A malformed line names the caller's name for the file and the line.
+  const std::string why =
+      formatError([] { octovk::io::parseGroundTruth("# c\n\n1 2 3\n", "my-gt.txt"); });
+  EXPECT_NE(why.find("'my-gt.txt' line 3"), std::string::npos) << why;
+  // Nothing at all is a format error, not a crash.
+  EXPECT_NE(formatError([] { octovk::io::decodeDepthPng({}, "empty.png"); }).find("not a PNG"),
+            std::string::npos);
+  EXPECT_NE(formatError([] { octovk::io::parseGroundTruth({}, "gt"); }).find("no poses"),
+            std::string::npos);
+}
+
 // ---- the library: a depth image is the point cloud of its pixels ----
 
 TEST(TumLibrary, DepthImageEqualsItsPointsAndOctomap) {
@@ -667,6 +775,23 @@ TEST(TumBadInput, GarbageLineInDepthTxt) {
   expectBothRejected(seq.dir, 1, {"depth.txt' line 5", "'yesterday'"}, scratch);
 }
 
+TEST(TumBadInput, AbsoluteImageName) {
+  // Joined with the folder, an absolute name dropped it (found by fuzz_tum_lists): any file on the
+  // machine could be read as a depth image. depth.txt names images relative to the folder.
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  const std::string absolute = (seq.dir / seq.image_files[0]).string();
+  replaceLine(seq.dir / "depth.txt", 5, "1305031102.2 " + absolute);
+  expectBothRejected(seq.dir, 1, {"depth.txt' line 5", "'" + absolute + "' is absolute"},
+                     scratch);
+  try {
+    octovk::readTumSequence(seq.dir.string());
+    ADD_FAILURE() << "an absolute image name was accepted";
+  } catch (const octovk::Error& e) {
+    EXPECT_EQ(e.code(), octovk::ErrorCode::kFormat) << e.what();
+  }
+}
+
 TEST(TumBadInput, GarbageLineInGroundTruth) {
   Scratch scratch("tum");
   const Sequence seq = makeSequence(scratch.dir() / "seq");
@@ -710,6 +835,58 @@ TEST(TumBadInput, BadCameraOptions) {
   const std::string graph = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
   expectRejected({"integrate", graph, "-o", scratch / "m.bt", "--intrinsics", "1", "1", "1", "1"},
                  2, {"--intrinsics", "TUM RGB-D folder"}, scratch);
+}
+
+// ---- outputs: created before any work (exit 2 naming the path), never left half-written ----
+
+// An output whose directory exists and is writable, so that only creating the file fails: a file
+// name longer than any file system allows.
+std::string uncreatableOutput(const Scratch& scratch, const std::string& ext) {
+  return scratch / (std::string(300, 'n') + ext);
+}
+
+TEST(TumOutputs, UncreatableOutputIsExit2BeforeTheFolderIsRead) {
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  // A folder that fails while being read (exit 1): that error must not come first.
+  replaceLine(seq.dir / "depth.txt", 5, "yesterday depth/a.png");
+  expectRejected({"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, 1,
+                 {"depth.txt' line 5"}, scratch);
+  for (const auto& [command, ext] :
+       std::vector<std::pair<std::string, std::string>>{{"convert", ".graph"},
+                                                        {"integrate", ".bt"}}) {
+    SCOPED_TRACE(command);
+    const std::string output = uncreatableOutput(scratch, ext);
+    const std::vector<std::string> args = {command, seq.dir.string(), "-o", output};
+    expectRejected(args, 2, {"cannot write '" + output + "'", "nothing was done"}, scratch);
+    const RunResult r = runOctovk(args, scratch.dir());
+    EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("depth.txt"), std::string::npos) << r.err;
+  }
+}
+
+TEST(TumOutputs, ConvertWriteFailureNamesTheUsersPathAndLeavesNothing) {
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  const std::string graph = scratch / "scans.graph";
+  // No file may grow past 512 bytes (SIGXFSZ ignored, so the write fails instead): the graph of
+  // the sequence is far larger, so writing it fails after the images are read.
+  const RunResult r = runShell("trap '' XFSZ; ulimit -f 1; " + quote(OCTOVK_CLI) + " convert " +
+                                   quote(seq.dir.string()) + " -o " + quote(graph),
+                               scratch.dir());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("'" + graph + "'"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(graph));
+  for (const auto& entry : fs::directory_iterator(scratch.dir()))
+    EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos)
+        << "left behind: " << entry.path();
+  // Without the limit the same command works and writes more than the limit allowed.
+  const RunResult ok = runOctovk({"convert", seq.dir.string(), "-o", graph}, scratch.dir());
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_GT(fs::file_size(graph), 512u);
 }
 
 // ---- help ----

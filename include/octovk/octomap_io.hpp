@@ -26,7 +26,9 @@ void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree);
 void writeMapFile(const OccupancyMap& map, const std::string& path);
 
 /// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and, for .ot,
-/// its sensor model.
+/// its sensor model. The file is checked before OctoMap's reader sees it (header fields, tree type
+/// OcTree, at most 16 levels, node count, finite log-odds), so a damaged or hostile file is a
+/// kFormat error naming the file and the fault, at a cost in time and memory linear in its size.
 OccupancyMap readMapFile(Context& context, const std::string& path);
 
 /// One scan of a scan graph: points in the sensor frame, and the sensor pose in the world.
@@ -35,7 +37,9 @@ struct GraphScan {
   Pose T_world_sensor;
 };
 
-/// Reads an OctoMap ScanGraph binary file (.graph); a corrupt or truncated file is a kFormat error.
+/// Reads an OctoMap ScanGraph binary file (.graph); a corrupt or truncated file, a count beyond the
+/// bytes the file holds, or a non-finite pose is a kFormat error naming the file. Points may be
+/// NaN (the mapper skips them).
 std::vector<GraphScan> readScanGraph(const std::string& path);
 
 /// The sensor origin graph2tree uses for a scan (in the sensor frame), to pass with the pose:

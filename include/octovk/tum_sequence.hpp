@@ -41,13 +41,13 @@ struct TumSequence {
   std::size_t poses = 0;            ///< poses listed in groundtruth.txt
 };
 
-/// Reads DIR/depth.txt (`timestamp filename` per line) and DIR/groundtruth.txt (`timestamp tx ty
-/// tz qx qy qz qw` per line); '#' starts a comment line, blank lines are ignored. Each image
-/// takes the pose with the nearest timestamp (the earlier one on a tie); images with none less
-/// than `max_time_difference_s` away are skipped and counted. Checks that every image taken
-/// exists, but does not read it. Throws Error: kIo for a missing or unreadable file, kFormat for a
-/// malformed line (the message names file and line), a non-unit quaternion, no images, no poses,
-/// or no image with a pose.
+/// Reads DIR/depth.txt (`timestamp filename` per line, the file name relative to DIR) and
+/// DIR/groundtruth.txt (`timestamp tx ty tz qx qy qz qw` per line); '#' starts a comment line,
+/// blank lines are ignored. Each image takes the pose with the nearest timestamp (the earlier one
+/// on a tie); images with none less than `max_time_difference_s` away are skipped and counted.
+/// Checks that every image taken exists, but does not read it. Throws Error: kIo for a missing or
+/// unreadable file, kFormat for a malformed line (the message names file and line; an absolute
+/// image name is one), a non-unit quaternion, no images, no poses, or no image with a pose.
 TumSequence readTumSequence(const std::string& dir,
                             double max_time_difference_s = kTumMaxTimeDifference);
 
@@ -63,7 +63,9 @@ struct DepthPng {
 
 /// Reads a PNG depth image. Only 16-bit grayscale is accepted: other bit depths and colour types
 /// are refused with a kFormat error naming the file, its bit depth and colour type; an unreadable
-/// or corrupt file is a kIo / kFormat error naming the file.
+/// or corrupt file is a kIo / kFormat error naming the file. A header announcing more pixels than
+/// the file's bytes can hold (deflate shrinks at most 1032:1) is refused as corrupt before any
+/// pixel memory is allocated.
 DepthPng readDepthPng(const std::string& path);
 
 /// Reads only the header of a PNG depth image, throwing what readDepthPng would for a missing,

@@ -135,8 +135,9 @@ void printEnvironmentAndExitCodes(std::ostream& out) {
          "  0  success\n"
          "  1  failure while working: corrupt or truncated input, Vulkan or device error,\n"
          "     a file could not be written; no output file is left behind\n"
-         "  2  usage error: unknown command or option, missing or bad value, missing input,\n"
-         "     output in a directory that does not exist or cannot be written; nothing is done\n"
+         "  2  usage error: unknown command or option, missing or bad value, missing input, an\n"
+         "     output file that cannot be created (each is created before any work); nothing\n"
+         "     is done\n"
          "Errors are one line on stderr starting with 'octovk: error: '.\n";
 }
 
@@ -180,20 +181,55 @@ void checkOutputFile(const std::string& path, const std::vector<std::string>& ex
                      "': " + std::strerror(errno) + "; choose a writable directory");
 }
 
+namespace {
+
+// `message` with every mention of `from` replaced by `to`.
+std::string replaced(std::string message, const std::string& from, const std::string& to) {
+  for (std::size_t at = message.find(from); at != std::string::npos;
+       at = message.find(from, at + to.size()))
+    message.replace(at, from.size(), to);
+  return message;
+}
+
+}  // namespace
+
+OutputFile::OutputFile(std::string path)
+    : path_(std::move(path)),
+      temporary_(path_ + ".tmp-" + std::to_string(::getpid()) +
+                 fs::path(path_).extension().string()) {
+  int fd = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  if (fd < 0 && errno == EEXIST) {  // left by a killed run that had the same process id
+    ::unlink(temporary_.c_str());
+    fd = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+  }
+  if (fd < 0)
+    throw UsageError("cannot write '" + path_ + "': " + std::strerror(errno) +
+                     "; choose another output path (nothing was done)");
+  ::close(fd);
+}
+
+OutputFile::~OutputFile() {
+  if (!committed_) ::unlink(temporary_.c_str());
+}
+
+void OutputFile::commit(const std::function<void(const std::string&)>& write) {
+  try {
+    write(temporary_);
+  } catch (const Error& e) {
+    ::unlink(temporary_.c_str());
+    throw Error(e.code(), replaced(e.what(), temporary_, path_));
+  }
+  if (std::rename(temporary_.c_str(), path_.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    ::unlink(temporary_.c_str());
+    throw Error(ErrorCode::kIo, "cannot write '" + path_ + "': " + why);
+  }
+  committed_ = true;
+}
+
 void writeFileAtomically(const std::string& path,
                          const std::function<void(const std::string&)>& write) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  try {
-    write(tmp);
-  } catch (...) {
-    std::remove(tmp.c_str());
-    throw;
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::remove(tmp.c_str());
-    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + why);
-  }
+  OutputFile(path).commit(write);
 }
 
 std::unique_ptr<Context> createContext() {

@@ -107,8 +107,29 @@ void checkMapInput(const std::string& path, const std::string& usage);
 void checkOutputFile(const std::string& path, const std::vector<std::string>& extensions,
                      const std::string& formats);
 
-/// Writes `path` through `write(temporary_path)` and renames the result into place, so that a
-/// failure (an exception from `write`, or the rename) leaves neither file behind.
+/// An output file claimed before any work. The constructor creates its temporary file beside it
+/// (PATH.tmp-PID.EXT, same extension, so format-by-extension writers accept it): an output that
+/// cannot be created is a UsageError (exit 2) naming PATH before anything is read or computed.
+/// commit() writes the temporary through `write(temporary_path)` and renames it onto PATH; a
+/// failure leaves neither file, and its message names PATH, never the temporary. The destructor
+/// removes the temporary when commit() did not run or failed.
+class OutputFile {
+ public:
+  explicit OutputFile(std::string path);
+  ~OutputFile();
+  OutputFile(const OutputFile&) = delete;
+  OutputFile& operator=(const OutputFile&) = delete;
+
+  const std::string& path() const noexcept { return path_; }
+  void commit(const std::function<void(const std::string&)>& write);
+
+ private:
+  std::string path_;
+  std::string temporary_;
+  bool committed_ = false;
+};
+
+/// OutputFile(path).commit(write): for an output that needs no claim before the work.
 void writeFileAtomically(const std::string& path,
                          const std::function<void(const std::string&)>& write);
 

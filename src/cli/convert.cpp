@@ -167,8 +167,8 @@ void printConvertHelp(std::ostream& out) {
   printTumFolderHelp(out);
   out << "\n"
          "Options:\n"
-         "  -o, --output FILE      the scan graph to write (.graph); written to a temporary\n"
-         "                         file and renamed. Required.\n";
+         "  -o, --output FILE      the scan graph to write (.graph); created before any work,\n"
+         "                         written to a temporary file beside it and renamed. Required.\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
@@ -184,11 +184,12 @@ int runConvert(const std::vector<std::string>& args) {
   checkTumFolder(o.dir, kConvertUsage);
   if (o.output.empty()) throw UsageError("no output file; add -o SCANS.graph");
   checkOutputFile(o.output, {".graph"}, ".graph (an OctoMap scan graph)");
+  OutputFile output(o.output);  // created now: an unwritable path is found before any work
 
   const TumSequence sequence = readTumSequence(o.dir);
   for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
   std::size_t points = 0, no_depth = 0;
-  writeFileAtomically(o.output, [&](const std::string& tmp) {
+  output.commit([&](const std::string& tmp) {
     StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
     writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
       const TumFrame& frame = sequence.frames[i];

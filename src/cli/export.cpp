@@ -197,6 +197,7 @@ void printExportHelp(std::ostream& out) {
 int runExport(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printExportHelp)) return kExitOk;
   const ExportOptions o = parseExport(args);
+  OutputFile output(o.output_path);  // created now: an unwritable path is found before any work
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
@@ -244,8 +245,8 @@ int runExport(const std::vector<std::string>& args) {
   comment << "octovk export of " << o.map_path << " (resolution " << resolution
           << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, colour by "
           << (o.coloring == Coloring::kHeight ? "height" : "occupancy");
-  writeFileAtomically(
-      o.output_path, [&](const std::string& tmp) { writePly(tmp, cells, colours, comment.str()); });
+  output.commit(
+      [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
   const double write_s = secondsSince(write_start);
 
   std::ostringstream s;

@@ -175,15 +175,16 @@ class Progress {
   bool printed_ = false;
 };
 
-// Writes every output; if one fails, the ones this run already wrote are removed, so that a
-// failed run leaves no output behind.
-void writeOutputs(const OccupancyMap& map, const std::vector<std::string>& paths) {
+// Writes every output (claimed before the work); if one fails, the ones this run already wrote
+// are removed, so that a failed run leaves no output behind.
+void writeOutputs(const OccupancyMap& map,
+                  const std::vector<std::unique_ptr<OutputFile>>& outputs) {
   StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
   std::vector<std::string> written;
   try {
-    for (const std::string& path : paths) {
-      writeMapFile(map, path);
-      written.push_back(path);
+    for (const std::unique_ptr<OutputFile>& output : outputs) {
+      output->commit([&](const std::string& temporary) { writeMapFile(map, temporary); });
+      written.push_back(output->path());
     }
   } catch (...) {
     for (const std::string& path : written) std::remove(path.c_str());
@@ -253,6 +254,10 @@ int runIntegrate(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printIntegrateHelp)) return kExitOk;
   IntegrateOptions o = parseIntegrate(args);
   validate(o);
+  // Every output is created now, so an unwritable one is found before any work.
+  std::vector<std::unique_ptr<OutputFile>> outputs;
+  for (const std::string& path : o.output_paths)
+    outputs.push_back(std::make_unique<OutputFile>(path));
 
   const auto run_start = Clock::now();
   std::vector<GraphScan> scans;
@@ -302,7 +307,7 @@ int runIntegrate(const std::vector<std::string>& args) {
   const std::size_t device_bytes = map.deviceBytes();
   const std::size_t pool_bytes = map.poolBytes();
 
-  writeOutputs(map, o.output_paths);
+  writeOutputs(map, outputs);
   const double total_s = secondsSince(run_start);
 
   const double ms_per_scan =

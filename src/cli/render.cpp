@@ -327,6 +327,7 @@ void printRenderHelp(std::ostream& out) {
 int runRender(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printRenderHelp)) return kExitOk;
   const RenderOptions o = parseRender(args);
+  OutputFile output(o.output_path);  // created now: an unwritable path is found before any work
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
@@ -465,7 +466,7 @@ int runRender(const std::vector<std::string>& args) {
       image.set(x, y, mix(scale(base, light_f), haze, 0.4 * far));
     }
   }
-  writeFileAtomically(o.output_path, [&](const std::string& tmp) { writePng(image, tmp); });
+  output.commit([&](const std::string& temporary) { writePng(image, temporary); });
   const double shade_s = secondsSince(shade_start);
 
   const double fov_h_deg = 2.0 * std::atan(camera.tan_half_h) * 180.0 / M_PI;

@@ -1,7 +1,6 @@
 // The map as an octomap::OcTree and OctoMap's .bt / .ot files.
 #include "octovk/octomap_io.hpp"
 
-#include <octomap/AbstractOcTree.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -14,6 +13,7 @@
 #include <iterator>
 #include <vector>
 
+#include "io/parse.hpp"
 #include "map/reference.hpp"
 
 namespace octovk {
@@ -31,62 +31,6 @@ class TreeBuilder : public octomap::OcTree {
     return root;
   }
 };
-
-// OctoMap's own header reader (protected in AbstractOcTree).
-struct HeaderReader : octomap::AbstractOcTree {
-  using octomap::AbstractOcTree::readHeader;
-};
-
-// OctoMap reads a tree's node records recursively, trusting every child flag, without checking
-// the stream: past the end of a truncated file it tests a flag byte it never read (uninitialized;
-// AddressSanitizer saw it recurse until the stack overflowed), and a corrupt file can nest deeper
-// than a tree's 16 levels. So the header is read as OctoMap reads it, and the node records after
-// it are walked here first, without recursion: true if they hold one whole tree OctoMap can read.
-// .bt (binary): a record per inner node, 2 bytes of 2 bits per child (11: an inner child, whose
-// record follows). .ot: a record per node, its float log-odds and a byte with a bit per child.
-bool treeDataIsWhole(std::istream& in, bool binary) {
-  std::string line, id;
-  unsigned size = 0;
-  double res = 0.0;
-  std::getline(in, line);  // the file type, checked by the caller
-  if (!HeaderReader::readHeader(in, id, size, res)) return false;
-  if (!binary && id != "OcTree") return false;  // another node type, another record
-  if (size == 0) return true;                   // OctoMap reads no record
-  const std::string data{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  struct Open {
-    unsigned depth;
-    unsigned children;  // a bit per child whose record is still to come
-  };
-  std::vector<Open> open;
-  std::size_t at = 0;
-  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(data[i]); };
-  const auto record = [&](unsigned depth) {
-    if (binary) {  // only inner nodes have one, and they lie above depth 16
-      if (depth >= 16 || data.size() - at < 2) return false;
-      unsigned inner = 0;
-      for (unsigned i = 0; i < 8; ++i)
-        if (((byte(at + i / 4) >> (2 * (i % 4))) & 3u) == 3u) inner |= 1u << i;
-      open.push_back({depth, inner});
-      at += 2;
-    } else {
-      const std::size_t bytes = sizeof(float) + 1;
-      if (data.size() - at < bytes || (depth == 16 && byte(at + bytes - 1) != 0)) return false;
-      open.push_back({depth, byte(at + bytes - 1)});
-      at += bytes;
-    }
-    return true;
-  };
-  if (!record(0)) return false;
-  while (!open.empty()) {
-    if (open.back().children == 0) {
-      open.pop_back();
-      continue;
-    }
-    open.back().children &= open.back().children - 1;  // the lowest child's record is next
-    if (!record(open.back().depth + 1)) return false;
-  }
-  return true;
-}
 
 std::string extensionOf(const std::string& path) {
   return std::filesystem::path(path).extension().string();
@@ -196,60 +140,25 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +
                                                  ext + "'; use a .bt or .ot file");
+  // A directory, or a device or pipe (a link to /dev/zero would be read without end).
+  std::error_code ec;
+  if (const auto st = std::filesystem::status(path, ec);
+      std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+    throw Error(ErrorCode::kIo,
+                "cannot read '" + path + "': it is not a regular file; give a map file");
   std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + std::strerror(errno));
-  std::string first_line;
-  std::getline(in, first_line);
-  in.seekg(0);
-  std::unique_ptr<octomap::OcTree> tree;
-  if (ext == ".bt") {
-    if (first_line.rfind("# Octomap OcTree binary file", 0) != 0)
-      throw Error(ErrorCode::kFormat,
-                  "'" + path + "' is not an OctoMap binary tree (.bt): bad header");
-    if (!treeDataIsWhole(in, true))
-      throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated .bt file");
-    in.clear();
-    in.seekg(0);
-    tree = std::make_unique<octomap::OcTree>(0.1);
-    if (!tree->readBinary(in) || tree->getResolution() <= 0.0)
-      throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated .bt file");
-  } else {
-    if (first_line.rfind("# Octomap OcTree file", 0) != 0)
-      throw Error(ErrorCode::kFormat, "'" + path + "' is not an OctoMap tree (.ot): bad header");
-    // The header's node count: OctoMap's reader does not compare it with what it read.
-    std::size_t header_size = 0;
-    bool has_size = false;
-    for (std::string line; std::getline(in, line) && line.rfind("data", 0) != 0;) {
-      if (line.rfind("size ", 0) == 0) {
-        header_size = std::strtoull(line.c_str() + 5, nullptr, 10);
-        has_size = true;
-      }
-    }
-    in.clear();
-    in.seekg(0);
-    if (!treeDataIsWhole(in, false))
-      throw Error(ErrorCode::kFormat, "'" + path +
-                                          "' is a truncated or corrupt .ot file, or holds another "
-                                          "tree type than OcTree");
-    in.clear();
-    in.seekg(0);
-    std::unique_ptr<octomap::AbstractOcTree> abstract(octomap::AbstractOcTree::read(in));
-    auto* as_tree = dynamic_cast<octomap::OcTree*>(abstract.get());
-    if (!as_tree)
-      throw Error(ErrorCode::kFormat,
-                  "'" + path + "' is a corrupt .ot file or holds another tree type than OcTree");
-    abstract.release();
-    tree.reset(as_tree);
-    if (in.fail() || !has_size || tree->size() != header_size)
-      throw Error(ErrorCode::kFormat, "'" + path +
-                                          "' is a truncated or corrupt .ot file: its header "
-                                          "announces " +
-                                          std::to_string(header_size) + " nodes, the data holds " +
-                                          std::to_string(tree->size()));
-  }
-  if (in.bad())
-    throw Error(ErrorCode::kFormat, "'" + path + "' is a corrupt or truncated OctoMap file");
+  // The file once, in one buffer of its size.
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + ec.message());
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw Error(ErrorCode::kIo,
+                "cannot read '" + path + "': read error (did it change while read?)");
+  // Checked before OctoMap reads it (see tree_file.cpp), then the bytes are gone.
+  const std::unique_ptr<octomap::OcTree> tree = io::parseTreeFile(bytes, ext == ".bt", path);
+  bytes = std::string();
   MapParams params;
   params.resolution = tree->getResolution();
   OccupancyMap map(context, params);

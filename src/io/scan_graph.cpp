@@ -6,11 +6,15 @@
 #include <octomap/ScanGraph.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <memory>
 
+#include "io/parse.hpp"
 #include "octovk/octomap_io.hpp"
 
 namespace octovk {
@@ -25,8 +29,7 @@ constexpr std::uint64_t kEdgeBytes = 4 + 4 + kPoseBytes + 8;
 
 class GraphReader {
  public:
-  GraphReader(const std::string& path, std::vector<char> bytes)
-      : path_(path), bytes_(std::move(bytes)) {}
+  GraphReader(const std::string& path, std::string_view bytes) : path_(path), bytes_(bytes) {}
 
   std::uint32_t u32(const std::string& what) {
     need(4, what);
@@ -46,7 +49,7 @@ class GraphReader {
     if (u32(what) != expected) throw bad("bad " + what + " record");
   }
   void need(std::uint64_t n, const std::string& what) const {
-    if (at_ + n > bytes_.size()) throw bad("truncated in the " + what);
+    if (n > bytes_.size() - at_) throw bad("truncated in the " + what);
   }
   std::uint64_t remaining() const { return bytes_.size() - at_; }
   Error bad(const std::string& why) const {
@@ -55,34 +58,31 @@ class GraphReader {
 
  private:
   std::string path_;
-  std::vector<char> bytes_;
+  std::string_view bytes_;
   std::uint64_t at_ = 0;
 };
 
-std::vector<char> readAll(const std::string& path) {
-  std::ifstream in(path, std::ios_base::binary | std::ios_base::ate);
-  if (!in.is_open())
-    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + std::strerror(errno));
-  const std::streamoff size = in.tellg();
-  std::vector<char> bytes(static_cast<std::size_t>(size));
-  in.seekg(0);
-  if (size > 0 && !in.read(bytes.data(), size))
-    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': read failed");
-  return bytes;
-}
-
 }  // namespace
 
-std::vector<GraphScan> readScanGraph(const std::string& path) {
-  GraphReader in(path, readAll(path));
+namespace io {
+
+std::vector<GraphScan> parseScanGraph(std::string_view bytes, const std::string& path) {
+  GraphReader in(path, bytes);
   if (in.remaining() < 8) throw in.bad("file is shorter than a graph header");
   const std::uint32_t count = in.u32("scan count");
+  // Each scan takes at least its point count, pose and id; then the edge count follows.
+  constexpr std::uint64_t kMinScanBytes = 4 + kPoseBytes + 4;
+  if (std::uint64_t{count} * kMinScanBytes + 4 > in.remaining())
+    throw in.bad("it claims " + std::to_string(count) + " scans, more than its " +
+                 std::to_string(bytes.size()) + " bytes can hold");
   std::vector<GraphScan> scans;
+  scans.reserve(count);
   for (std::uint32_t i = 0; i < count; ++i) {
     const std::string scan = "scan " + std::to_string(i);
     const std::uint32_t points = in.u32(scan + " point count");
     if (std::uint64_t{points} * kVectorBytes + kPoseBytes + 4 > in.remaining())
-      throw in.bad(scan + " claims " + std::to_string(points) + " points, more than the file holds");
+      throw in.bad(scan + " claims " + std::to_string(points) +
+                   " points, more than the file holds");
     GraphScan out;
     out.points_sensor.reserve(points);
     for (std::uint32_t p = 0; p < points; ++p) {
@@ -90,7 +90,7 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
       const float x = in.narrowed(scan + " point");
       const float y = in.narrowed(scan + " point");
       const float z = in.narrowed(scan + " point");
-      out.points_sensor.emplace_back(x, y, z);
+      out.points_sensor.emplace_back(x, y, z);  // NaN allowed: the mapper skips it, as OctoMap
     }
     in.marker(3, scan + " pose translation");
     const float tx = in.narrowed(scan + " pose");
@@ -102,6 +102,10 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
     const float qy = in.narrowed(scan + " pose");
     const float qz = in.narrowed(scan + " pose");
     in.u32(scan + " id");
+    // A scan is cast from its pose: a pose that is not a number has no origin to cast from.
+    for (const float v : {tx, ty, tz, qu, qx, qy, qz})
+      if (!std::isfinite(v))
+        throw in.bad(scan + "'s pose is not finite (" + std::to_string(v) + ")");
     out.T_world_sensor.translation = {tx, ty, tz};
     out.T_world_sensor.rotation = Eigen::Quaternionf(qu, qx, qy, qz);
     scans.push_back(std::move(out));
@@ -111,6 +115,24 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
     throw in.bad("its length does not match its " + std::to_string(count) + " scans and " +
                  std::to_string(edges) + " edges");
   return scans;
+}
+
+}  // namespace io
+
+std::vector<GraphScan> readScanGraph(const std::string& path) {
+  std::error_code ec;  // not a directory, device or pipe (a link to /dev/zero never ends)
+  if (const auto st = std::filesystem::status(path, ec);
+      std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': it is not a regular file");
+  std::ifstream in(path, std::ios_base::binary);
+  if (!in.is_open())
+    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + std::strerror(errno));
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + ec.message());
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': read failed");
+  return io::parseScanGraph(bytes, path);
 }
 
 Eigen::Vector3f graph2treeSensorOrigin(const Pose& T_world_sensor) {

@@ -2,6 +2,8 @@
 // images read with libpng. Numbers are parsed with std::from_chars (locale-independent, correctly
 // rounded): timestamps as double, poses as float, so that a pose is exactly the float values
 // OctoMap's Pose6D would hold.
+#include "octovk/tum_sequence.hpp"
+
 #include <png.h>
 
 #include <algorithm>
@@ -10,14 +12,16 @@
 #include <charconv>
 #include <cmath>
 #include <csetjmp>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string_view>
 #include <system_error>
 
-#include "octovk/tum_sequence.hpp"
+#include "io/tum_parse.hpp"
 
 namespace octovk {
 
@@ -33,9 +37,37 @@ struct Line {
   std::string text;
 };
 
-// The data lines of a TUM text file: '#' comment lines and blank lines dropped, fields split on
-// spaces and tabs, a trailing '\r' (a file from Windows) ignored.
-std::vector<Line> readDataLines(const fs::path& path) {
+// The data lines of a TUM text file's contents: '#' comment lines and blank lines dropped, fields
+// split on spaces and tabs, a trailing '\r' (a file from Windows) ignored. Lines end at '\n' (the
+// last may lack it), as std::getline reads them.
+std::vector<Line> splitDataLines(std::string_view bytes) {
+  std::vector<Line> lines;
+  std::size_t number = 0;
+  for (std::size_t at = 0; at < bytes.size();) {
+    const std::size_t newline = bytes.find('\n', at);
+    const std::size_t line_end = newline == std::string_view::npos ? bytes.size() : newline;
+    std::string text(bytes.substr(at, line_end - at));
+    at = line_end == bytes.size() ? bytes.size() : line_end + 1;
+    ++number;
+    if (!text.empty() && text.back() == '\r') text.pop_back();
+    const std::size_t first = text.find_first_not_of(" \t");
+    if (first == std::string::npos || text[first] == '#') continue;
+    Line line;
+    line.number = number;
+    for (std::size_t field = first; field < text.size();) {
+      const std::size_t field_end = std::min(text.find_first_of(" \t", field), text.size());
+      line.fields.push_back(text.substr(field, field_end - field));
+      field = text.find_first_not_of(" \t", field_end);
+      if (field == std::string::npos) break;
+    }
+    line.text = std::move(text);
+    lines.push_back(std::move(line));
+  }
+  return lines;
+}
+
+// The whole of a TUM text file, in one buffer of its size; kIo errors name it.
+std::string readTextFile(const fs::path& path) {
   std::error_code ec;
   if (!fs::exists(path, ec))
     throw Error(ErrorCode::kIo, "'" + path.string() +
@@ -43,83 +75,32 @@ std::vector<Line> readDataLines(const fs::path& path) {
                                     "groundtruth.txt and the depth images");
   if (!fs::is_regular_file(path, ec))
     throw Error(ErrorCode::kIo, "'" + path.string() + "' is not a regular file");
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': " + std::strerror(errno) +
                                     "; check its permissions");
-  std::vector<Line> lines;
-  std::string text;
-  for (std::size_t number = 1; std::getline(in, text); ++number) {
-    if (!text.empty() && text.back() == '\r') text.pop_back();
-    const std::size_t first = text.find_first_not_of(" \t");
-    if (first == std::string::npos || text[first] == '#') continue;
-    Line line;
-    line.number = number;
-    line.text = text;
-    for (std::size_t at = first; at < text.size();) {
-      const std::size_t end = std::min(text.find_first_of(" \t", at), text.size());
-      line.fields.push_back(text.substr(at, end - at));
-      at = text.find_first_not_of(" \t", end);
-      if (at == std::string::npos) break;
-    }
-    lines.push_back(std::move(line));
-  }
-  if (in.bad()) throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': read failed");
-  return lines;
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': " + ec.message());
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
+    throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': read failed");
+  return bytes;
 }
 
-Error badLine(const fs::path& path, const Line& line, const std::string& why) {
+Error badLine(const std::string& path, const Line& line, const std::string& why) {
   std::string shown = line.text.size() > 80 ? line.text.substr(0, 77) + "..." : line.text;
-  return Error(ErrorCode::kFormat, "'" + path.string() + "' line " + std::to_string(line.number) +
-                                       ": " + why + " (the line is '" + shown + "')");
+  return Error(ErrorCode::kFormat, "'" + path + "' line " + std::to_string(line.number) + ": " +
+                                       why + " (the line is '" + shown + "')");
 }
 
 template <class T>
-T parseField(const fs::path& path, const Line& line, std::size_t i, const char* what) {
+T parseField(const std::string& path, const Line& line, std::size_t i, const char* what) {
   const std::string& text = line.fields[i];
   T value{};
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (ec != std::errc() || end != text.data() + text.size() || !std::isfinite(value))
     throw badLine(path, line, std::string(what) + " '" + text + "' is not a finite number");
   return value;
-}
-
-struct GroundTruthPose {
-  double timestamp;
-  Pose pose;
-};
-
-std::vector<GroundTruthPose> readGroundTruth(const fs::path& path) {
-  std::vector<GroundTruthPose> poses;
-  for (const Line& line : readDataLines(path)) {
-    if (line.fields.size() != 8)
-      throw badLine(path, line,
-                    "expected 8 values 'timestamp tx ty tz qx qy qz qw', found " +
-                        std::to_string(line.fields.size()));
-    GroundTruthPose p;
-    p.timestamp = parseField<double>(path, line, 0, "the timestamp");
-    float v[7];
-    static const char* const kNames[7] = {"tx", "ty", "tz", "qx", "qy", "qz", "qw"};
-    for (std::size_t i = 0; i < 7; ++i) v[i] = parseField<float>(path, line, i + 1, kNames[i]);
-    // A rotation far from unit length scales the points: a broken or misordered file.
-    const double norm = std::sqrt(double{v[3]} * v[3] + double{v[4]} * v[4] +
-                                  double{v[5]} * v[5] + double{v[6]} * v[6]);
-    if (std::abs(norm - 1.0) > 0.01) {
-      std::ostringstream why;
-      why << "the rotation (qx qy qz qw) has norm " << norm
-          << ", not 1; the columns must be 'timestamp tx ty tz qx qy qz qw' with a unit quaternion";
-      throw badLine(path, line, why.str());
-    }
-    // octomath::Pose6D(Vector3(tx, ty, tz), Quaternion(qw, qx, qy, qz)), unnormalised as there.
-    p.pose.translation = {v[0], v[1], v[2]};
-    p.pose.rotation = Eigen::Quaternionf(v[6], v[3], v[4], v[5]);
-    poses.push_back(p);
-  }
-  if (poses.empty())
-    throw Error(ErrorCode::kFormat, "'" + path.string() +
-                                        "' lists no poses (only comments or blank lines); it "
-                                        "needs lines 'timestamp tx ty tz qx qy qz qw'");
-  return poses;
 }
 
 std::string seconds(double t) {
@@ -133,15 +114,28 @@ std::string seconds(double t) {
 
 // libpng reports errors by longjmp. The functions that call setjmp hold no object with a
 // destructor, and nothing with one lives between them and libpng, so the jump skips no cleanup.
+// The bytes come from a file (readDepthPng, checkDepthPng) or from memory (io::decodeDepthPng).
 struct PngReader {
   png_structp png = nullptr;
   png_infop info = nullptr;
   std::FILE* file = nullptr;
+  std::string_view memory;  // when file is null: the bytes, read from `memory_at`
+  std::size_t memory_at = 0;
+  std::uint64_t source_size = 0;  // bytes in the file or in memory; 0 when unknown
   char message[256] = {};
 
   ~PngReader() {
     if (png) png_destroy_read_struct(&png, info ? &info : nullptr, nullptr);
     if (file) std::fclose(file);
+  }
+
+  // Up to `length` bytes into `out`; how many were read.
+  std::size_t read(unsigned char* out, std::size_t length) {
+    if (file) return std::fread(out, 1, length, file);
+    const std::size_t n = std::min(length, memory.size() - memory_at);
+    if (n > 0) std::memcpy(out, memory.data() + memory_at, n);  // memory.data() may be null
+    memory_at += n;
+    return n;
   }
 };
 
@@ -153,11 +147,21 @@ void pngError(png_structp png, png_const_charp message) {
 
 void pngWarning(png_structp, png_const_charp) {}  // warnings change nothing read here
 
+// libpng's read callback; a short read is an error, as in libpng's own file reader.
+void pngRead(png_structp png, png_bytep out, png_size_t length) {
+  auto* reader = static_cast<PngReader*>(png_get_io_ptr(png));
+  if (reader->read(out, length) != length) png_error(png, "Read Error");
+}
+
 bool pngReadHeader(PngReader& r, png_uint_32* width, png_uint_32* height, int* bit_depth,
                    int* color_type) {
   if (setjmp(png_jmpbuf(r.png))) return false;
-  png_init_io(r.png, r.file);
+  png_set_read_fn(r.png, &r, pngRead);
   png_set_sig_bytes(r.png, 8);
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+  // Fuzz builds only (tests/fuzz/): damaged checksums pass, so mutated chunks reach the decoder.
+  png_set_crc_action(r.png, PNG_CRC_QUIET_USE, PNG_CRC_QUIET_USE);
+#endif
   png_read_info(r.png, r.info);
   int interlace = 0;
   png_get_IHDR(r.png, r.info, width, height, bit_depth, color_type, &interlace, nullptr, nullptr);
@@ -186,30 +190,70 @@ const char* colorTypeName(int color_type) {
 
 }  // namespace
 
-TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
-  const fs::path root(dir);
-  std::error_code ec;
-  if (!fs::is_directory(root, ec))
-    throw Error(ErrorCode::kIo, "'" + dir + "' is not a directory; give a TUM RGB-D folder "
-                                            "(with depth.txt and groundtruth.txt)");
-  TumSequence sequence;
-  sequence.dir = dir;
+namespace io {
 
-  const fs::path gt_path = root / "groundtruth.txt";
-  std::vector<GroundTruthPose> poses = readGroundTruth(gt_path);
+std::vector<GroundTruthPose> parseGroundTruth(std::string_view text, const std::string& path) {
+  std::vector<GroundTruthPose> poses;
+  for (const Line& line : splitDataLines(text)) {
+    if (line.fields.size() != 8)
+      throw badLine(path, line,
+                    "expected 8 values 'timestamp tx ty tz qx qy qz qw', found " +
+                        std::to_string(line.fields.size()));
+    GroundTruthPose p;
+    p.timestamp = parseField<double>(path, line, 0, "the timestamp");
+    float v[7];
+    static const char* const kNames[7] = {"tx", "ty", "tz", "qx", "qy", "qz", "qw"};
+    for (std::size_t i = 0; i < 7; ++i) v[i] = parseField<float>(path, line, i + 1, kNames[i]);
+    // A rotation far from unit length scales the points: a broken or misordered file.
+    const double norm = std::sqrt(double{v[3]} * v[3] + double{v[4]} * v[4] +
+                                  double{v[5]} * v[5] + double{v[6]} * v[6]);
+    if (std::abs(norm - 1.0) > 0.01) {
+      std::ostringstream why;
+      why << "the rotation (qx qy qz qw) has norm " << norm
+          << ", not 1; the columns must be 'timestamp tx ty tz qx qy qz qw' with a unit quaternion";
+      throw badLine(path, line, why.str());
+    }
+    // octomath::Pose6D(Vector3(tx, ty, tz), Quaternion(qw, qx, qy, qz)), unnormalised as there.
+    p.pose.translation = {v[0], v[1], v[2]};
+    p.pose.rotation = Eigen::Quaternionf(v[6], v[3], v[4], v[5]);
+    poses.push_back(p);
+  }
+  if (poses.empty())
+    throw Error(ErrorCode::kFormat, "'" + path +
+                                        "' lists no poses (only comments or blank lines); it "
+                                        "needs lines 'timestamp tx ty tz qx qy qz qw'");
+  return poses;
+}
+
+TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPose> poses,
+                               const TumListNames& names, double max_time_difference_s,
+                               const std::function<void(const TumFrame&)>& frame_taken) {
+  const fs::path root(names.dir);
+  const std::string& depth_path = names.depth;
+  TumSequence sequence;
+  sequence.dir = names.dir;
   sequence.poses = poses.size();
+  if (poses.empty())
+    throw Error(ErrorCode::kFormat, "'" + names.groundtruth +
+                                        "' lists no poses (only comments or blank lines); it "
+                                        "needs lines 'timestamp tx ty tz qx qy qz qw'");
   std::stable_sort(poses.begin(), poses.end(), [](const auto& a, const auto& b) {
     return a.timestamp < b.timestamp;
   });
 
-  const fs::path depth_path = root / "depth.txt";
-  const std::vector<Line> lines = readDataLines(depth_path);
+  const std::vector<Line> lines = splitDataLines(text);
   for (const Line& line : lines) {
     if (line.fields.size() != 2)
       throw badLine(depth_path, line,
                     "expected 2 fields 'timestamp filename', found " +
                         std::to_string(line.fields.size()));
     const double t = parseField<double>(depth_path, line, 0, "the timestamp");
+    // Joined with an absolute name, the folder would be dropped: the image read from anywhere.
+    if (fs::path(line.fields[1]).is_absolute())
+      throw badLine(depth_path, line,
+                    "the file name '" + line.fields[1] +
+                        "' is absolute; depth.txt names images relative to the folder (e.g. "
+                        "'depth/1305031102.160407.png')");
     ++sequence.images_listed;
     // The nearest pose: the first at or after t, or the one before it (the earlier on a tie).
     const auto after = std::lower_bound(
@@ -229,18 +273,12 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
     frame.image_path = (root / line.fields[1]).string();
     frame.line = line.number;
     frame.T_world_camera = nearest->pose;
-    if (!fs::is_regular_file(frame.image_path, ec))
-      throw Error(ErrorCode::kIo,
-                  "'" + depth_path.string() + "' line " + std::to_string(line.number) +
-                      ": depth image '" + frame.image_path +
-                      (fs::exists(frame.image_path, ec) ? "' is not a regular file"
-                                                        : "' does not exist") +
-                      "; check the folder is complete");
+    if (frame_taken) frame_taken(frame);
     sequence.frames.push_back(std::move(frame));
   }
   if (sequence.images_listed == 0)
     throw Error(ErrorCode::kFormat,
-                "'" + depth_path.string() +
+                "'" + depth_path +
                     "' lists no images (only comments or blank lines); it needs lines "
                     "'timestamp filename'");
   if (sequence.frames.empty()) {
@@ -253,13 +291,41 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
       any = true;
     }
     throw Error(ErrorCode::kFormat,
-                "no image of '" + depth_path.string() + "' has a ground-truth pose less than " +
+                "no image of '" + depth_path + "' has a ground-truth pose less than " +
                     seconds(max_time_difference_s) + " s away (images " + seconds(first) + " to " +
                     seconds(last) + " s, poses " + seconds(poses.front().timestamp) + " to " +
                     seconds(poses.back().timestamp) +
                     " s); check that groundtruth.txt belongs to this sequence");
   }
   return sequence;
+}
+
+}  // namespace io
+
+TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
+  const fs::path root(dir);
+  std::error_code ec;
+  if (!fs::is_directory(root, ec))
+    throw Error(ErrorCode::kIo, "'" + dir + "' is not a directory; give a TUM RGB-D folder "
+                                            "(with depth.txt and groundtruth.txt)");
+  io::TumListNames names;
+  names.dir = dir;
+  names.groundtruth = (root / "groundtruth.txt").string();
+  names.depth = (root / "depth.txt").string();
+  std::vector<io::GroundTruthPose> poses =
+      io::parseGroundTruth(readTextFile(names.groundtruth), names.groundtruth);
+  return io::associateDepthList(
+      readTextFile(names.depth), std::move(poses), names, max_time_difference_s,
+      [&](const TumFrame& frame) {
+        std::error_code exists_ec;
+        if (!fs::is_regular_file(frame.image_path, exists_ec))
+          throw Error(ErrorCode::kIo,
+                      "'" + names.depth + "' line " + std::to_string(frame.line) +
+                          ": depth image '" + frame.image_path +
+                          (fs::exists(frame.image_path, exists_ec) ? "' is not a regular file"
+                                                                   : "' does not exist") +
+                          "; check the folder is complete");
+      });
 }
 
 DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
@@ -278,14 +344,12 @@ DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
 
 namespace {
 
-// Opens `path` in `r` and reads its header; throws unless it is a 16-bit grayscale PNG.
-void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width,
-                  png_uint_32* height) {
-  r.file = std::fopen(path.c_str(), "rb");
-  if (!r.file)
-    throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': " + std::strerror(errno));
+// Reads the header of the PNG in `r` (its source set); throws unless it is a 16-bit grayscale PNG
+// whose pixels its bytes can hold.
+void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* width,
+                        png_uint_32* height) {
   unsigned char signature[8];
-  if (std::fread(signature, 1, 8, r.file) != 8 || png_sig_cmp(signature, 0, 8) != 0)
+  if (r.read(signature, 8) != 8 || png_sig_cmp(signature, 0, 8) != 0)
     throw Error(ErrorCode::kFormat, "depth image '" + path +
                                         "' is not a PNG file; depth images must be 16-bit "
                                         "grayscale PNGs");
@@ -308,6 +372,46 @@ void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width,
     throw Error(ErrorCode::kFormat, "depth image '" + path + "' is " + std::to_string(*width) +
                                         " x " + std::to_string(*height) +
                                         " pixels; at most 65536 in each direction");
+  // The pixels' bytes as deflate's input: a filter byte and two bytes a pixel per row (interlaced
+  // images need more). Deflate shrinks data at most 1032-fold, so a file too small to hold them is
+  // cut short or damaged: refused before its pixels are allocated (a few kB of file could
+  // otherwise claim 8 GiB).
+  const std::uint64_t raw = std::uint64_t{*height} * (1 + 2 * std::uint64_t{*width});
+  if (r.source_size > 0 && raw > io::kDeflateMaxRatio * r.source_size)
+    throw Error(ErrorCode::kFormat,
+                "depth image '" + path + "' is a corrupt or truncated PNG: its header announces " +
+                    std::to_string(*width) + " x " + std::to_string(*height) +
+                    " pixels, more than its " + std::to_string(r.source_size) +
+                    " bytes can hold");
+}
+
+// Opens the file `path` in `r` and reads its header (see readDepthPngHeader).
+void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width,
+                  png_uint_32* height) {
+  r.file = std::fopen(path.c_str(), "rb");
+  if (!r.file)
+    throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': " + std::strerror(errno));
+  std::error_code ec;
+  if (fs::is_regular_file(path, ec)) r.source_size = fs::file_size(path, ec);
+  if (ec) r.source_size = 0;
+  readDepthPngHeader(r, path, width, height);
+}
+
+// Reads the pixels of the PNG in `r`, whose header has been read.
+DepthPng readDepthPngPixels(PngReader& r, const std::string& path, png_uint_32 width,
+                            png_uint_32 height) {
+  DepthPng out;
+  out.width = width;
+  out.height = height;
+  out.depths.resize(std::size_t{width} * height);
+  std::vector<png_bytep> rows(height);
+  for (png_uint_32 y = 0; y < height; ++y)
+    rows[y] = reinterpret_cast<png_bytep>(out.depths.data() + std::size_t{y} * width);
+  if (!pngReadRows(r, rows.data()))
+    throw Error(ErrorCode::kFormat, "depth image '" + path +
+                                        "' is a corrupt or truncated PNG (libpng: " +
+                                        std::string(r.message) + ")");
+  return out;
 }
 
 }  // namespace
@@ -322,18 +426,16 @@ DepthPng readDepthPng(const std::string& path) {
   PngReader r;
   png_uint_32 width = 0, height = 0;
   openDepthPng(r, path, &width, &height);
-  DepthPng out;
-  out.width = width;
-  out.height = height;
-  out.depths.resize(std::size_t{width} * height);
-  std::vector<png_bytep> rows(height);
-  for (png_uint_32 y = 0; y < height; ++y)
-    rows[y] = reinterpret_cast<png_bytep>(out.depths.data() + std::size_t{y} * width);
-  if (!pngReadRows(r, rows.data()))
-    throw Error(ErrorCode::kFormat, "depth image '" + path +
-                                        "' is a corrupt or truncated PNG (libpng: " +
-                                        std::string(r.message) + ")");
-  return out;
+  return readDepthPngPixels(r, path, width, height);
+}
+
+DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
+  PngReader r;
+  r.memory = bytes;
+  r.source_size = bytes.size();
+  png_uint_32 width = 0, height = 0;
+  readDepthPngHeader(r, name, &width, &height);
+  return readDepthPngPixels(r, name, width, height);
 }
 
 }  // namespace octovk

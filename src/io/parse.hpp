@@ -1,0 +1,45 @@
+// The checked readers behind readMapFile and readScanGraph: bytes in, a tree or scans out, or an
+// Error (kFormat) that names the file and what is wrong in it. No Vulkan, no file system: the unit
+// tests and the fuzz targets (tests/fuzz/) call them on bytes directly.
+#pragma once
+
+#include <octomap/OcTree.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "octovk/octomap_io.hpp"
+
+namespace octovk::io {
+
+/// What octovk reads from the text header of a .bt / .ot file.
+struct TreeHeader {
+  std::string id;           ///< the tree type ("OcTree")
+  std::uint64_t size = 0;   ///< the node count the header announces
+  double resolution = 0.0;  ///< metres
+  std::size_t data_at = 0;  ///< the offset of the first byte after the "data" line
+};
+
+/// Reads and checks the header of a .bt (`binary`) or .ot file: the first line OctoMap writes,
+/// then only comment lines (first word starting with '#'), blank lines and exactly one each of
+/// "id OcTree", "size N", "res R" (R finite, positive and a resolution a map can have), ending
+/// with a "data" line. Throws Error(kFormat) naming `name` otherwise.
+TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::string& name);
+
+/// Checks a whole .bt (`binary`) or .ot file and reads its node records with OctoMap's reader.
+/// Before OctoMap sees them, the records are walked without recursion: at most 16 levels below
+/// the root, every record within the bytes, .ot log-odds finite, no inner node without children,
+/// the node count equal to the header's size, no byte after the last record. Time and memory are
+/// proportional to the file's size. Throws Error(kFormat) naming `name` and the fault.
+std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
+                                               const std::string& name);
+
+/// Reads an OctoMap ScanGraph binary file's bytes (see readScanGraph). Every count is checked
+/// against the bytes left before anything is allocated for it; poses must be finite (points may
+/// be NaN: the mapper skips those, as OctoMap does). Throws Error(kFormat) naming `name`.
+std::vector<GraphScan> parseScanGraph(std::string_view bytes, const std::string& name);
+
+}  // namespace octovk::io

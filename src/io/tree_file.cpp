@@ -1,0 +1,246 @@
+// .bt / .ot files checked before OctoMap reads them. OctoMap's readers trust their input: they read
+// node records recursively, following every child flag, without looking at the stream (past the
+// end of a truncated file they test flags they never read; a damaged file nests until the stack
+// overflows or memory runs out), and they ignore a header's size of 0, a missing size, a tree type
+// they can read as another, or a second value on the res line. So octovk parses the header itself
+// and walks the records without recursion first; OctoMap's data reader only sees a data section
+// that holds exactly one whole tree of at most 16 levels with the announced node count.
+#include <octomap/OcTree.h>
+
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <istream>
+#include <streambuf>
+#include <vector>
+
+#include "io/parse.hpp"
+
+namespace octovk::io {
+
+namespace {
+
+constexpr unsigned kTreeDepth = 16;  // OctoMap's keys: leaves lie 16 levels below the root
+constexpr std::string_view kFullHeader = "# Octomap OcTree file";
+constexpr std::string_view kBinaryHeader = "# Octomap OcTree binary file";
+
+// A file's text for a message: at most 40 characters, anything unprintable as '?'.
+std::string shown(std::string_view text) {
+  std::string out;
+  for (char c : text.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
+  if (text.size() > 40) out += "...";
+  return out;
+}
+
+class Fault {
+ public:
+  Fault(const std::string& name, bool binary) : name_(name), binary_(binary) {}
+  Error operator()(const std::string& why) const {
+    return Error(ErrorCode::kFormat, "'" + name_ + "' is not a valid OctoMap " +
+                                         (binary_ ? ".bt" : ".ot") + " file: " + why +
+                                         "; the file is corrupt, truncated or of another kind "
+                                         "(write it again with OctoMap or octovk)");
+  }
+
+ private:
+  const std::string& name_;
+  bool binary_;
+};
+
+// The whitespace-separated words of a header line (as OctoMap's `>>` splits them); at most 3,
+// which is one more than any header line may hold.
+std::vector<std::string_view> words(std::string_view line) {
+  std::vector<std::string_view> out;
+  const auto space = [](char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f';
+  };
+  std::size_t i = 0;
+  while (i < line.size() && out.size() < 3) {
+    while (i < line.size() && space(line[i])) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !space(line[i])) ++i;
+    if (i > start) out.push_back(line.substr(start, i - start));
+  }
+  return out;
+}
+
+// The bytes of a data section as a stream for OctoMap's reader, without a copy.
+class ViewBuffer : public std::streambuf {
+ public:
+  explicit ViewBuffer(std::string_view bytes) {
+    char* begin = const_cast<char*>(bytes.data());  // only read
+    setg(begin, begin, begin + bytes.size());
+  }
+  std::size_t consumed() const { return static_cast<std::size_t>(gptr() - eback()); }
+};
+
+}  // namespace
+
+TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::string& name) {
+  const Fault bad(name, binary);
+  const std::string_view magic = binary ? kBinaryHeader : kFullHeader;
+  std::size_t at = 0;
+  // The next line without its '\n'; `at` moves past the '\n' (or to the end).
+  const auto next_line = [&]() {
+    const std::size_t end = std::min(bytes.find('\n', at), bytes.size());
+    const std::string_view line = bytes.substr(at, end - at);
+    at = std::min(end + 1, bytes.size());
+    return line;
+  };
+  if (bytes.empty()) throw bad("it is empty");
+  const std::string_view first = next_line();
+  if (first.substr(0, magic.size()) != magic) {
+    if (binary && first.substr(0, kFullHeader.size()) == kFullHeader)
+      throw bad("it holds a full tree (its first line is '" + std::string(kFullHeader) +
+                "'); name it .ot");
+    if (!binary && first.substr(0, kBinaryHeader.size()) == kBinaryHeader)
+      throw bad("it holds a binary tree (its first line is '" + std::string(kBinaryHeader) +
+                "'); name it .bt");
+    throw bad("its first line is '" + shown(first) + "', not '" + std::string(magic) + "'");
+  }
+  TreeHeader h;
+  bool has_id = false, has_size = false, has_res = false, has_data = false;
+  while (at < bytes.size() && !has_data) {
+    const std::size_t line_at = at;
+    const std::string_view line = next_line();
+    const std::vector<std::string_view> w = words(line);
+    if (w.empty() || w[0].front() == '#') continue;  // blank or comment
+    const std::string key(w[0]);
+    const auto one_value = [&](bool& seen) {
+      if (seen) throw bad("the header gives '" + key + "' twice");
+      seen = true;
+      if (w.size() != 2)
+        throw bad("the header line '" + shown(line) + "' must be '" + key + "' and one value");
+      return w[1];
+    };
+    if (key == "id") {
+      h.id = std::string(one_value(has_id));
+    } else if (key == "size") {
+      const std::string_view v = one_value(has_size);
+      const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), h.size);
+      if (ec != std::errc() || end != v.data() + v.size())
+        throw bad("the header's size '" + shown(v) + "' is not a node count");
+    } else if (key == "res") {
+      const std::string_view v = one_value(has_res);
+      const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), h.resolution);
+      if (ec != std::errc() || end != v.data() + v.size() || !std::isfinite(h.resolution) ||
+          h.resolution <= 0.0)
+        throw bad("the header's resolution '" + shown(v) + "' is not a positive number of metres");
+      MapParams params;
+      params.resolution = h.resolution;
+      if (const std::string why = params.validate(); !why.empty()) throw bad("the header's " + why);
+    } else if (key == "data") {
+      if (w.size() != 1) throw bad("the header line '" + shown(line) + "' must be just 'data'");
+      has_data = true;
+    } else {
+      throw bad("unknown header line '" + shown(line) + "' at byte " + std::to_string(line_at) +
+                " (a header holds comments and id, size, res and data lines)");
+    }
+  }
+  if (!has_data) throw bad("its header has no 'data' line (truncated?)");
+  if (!has_id) throw bad("its header has no 'id' line");
+  if (h.id != "OcTree")
+    throw bad("it holds a tree of type '" + shown(h.id) +
+              "', not a plain OcTree; octovk reads OcTree maps only");
+  if (!has_size) throw bad("its header has no 'size' line, so its node data cannot be checked");
+  if (!has_res) throw bad("its header has no 'res' line");
+  h.data_at = at;
+  return h;
+}
+
+std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
+                                               const std::string& name) {
+  const Fault bad(name, binary);
+  const TreeHeader h = parseTreeHeader(bytes, binary, name);
+  const std::string_view data = bytes.substr(h.data_at);
+  auto tree = std::make_unique<octomap::OcTree>(h.resolution);
+  if (h.size == 0) {  // what OctoMap writes for an empty tree: no record
+    if (!data.empty())
+      throw bad("its header announces 0 nodes, but " + std::to_string(data.size()) +
+                " bytes of node data follow");
+    return tree;
+  }
+  if (data.empty())
+    throw bad("its header announces " + std::to_string(h.size) +
+              " nodes, but the data section is empty (truncated?)");
+
+  // The walk: a stack of the nodes whose child records are still to come (at most 17).
+  struct Open {
+    unsigned depth;
+    unsigned children;  // a bit per child whose record is still to come
+  };
+  std::array<Open, kTreeDepth + 1> open{};
+  std::size_t top = 0;
+  std::size_t at = 0;
+  std::uint64_t nodes = binary ? 1 : 0;  // .bt: records list children; the root has none
+  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(data[i]); };
+  const auto where = [&](unsigned depth) {
+    return "the node record at byte " + std::to_string(h.data_at + at) + " (depth " +
+           std::to_string(depth) + ")";
+  };
+  const auto record = [&](unsigned depth) {
+    if (binary) {  // 2 bits per child: 00 none, 01 occupied leaf, 10 free leaf, 11 inner node
+      if (data.size() - at < 2) throw bad(where(depth) + " runs past the end of the file");
+      unsigned inner = 0, children = 0;
+      for (unsigned i = 0; i < 8; ++i) {
+        const unsigned pair = (byte(at + i / 4) >> (2 * (i % 4))) & 3u;
+        if (pair != 0) ++children;
+        if (pair == 3) inner |= 1u << i;
+      }
+      if (depth > 0 && children == 0)
+        throw bad(where(depth) + " is an inner node without children");
+      if (inner != 0 && depth + 1 >= kTreeDepth)
+        throw bad(where(depth) + " has inner children, deeper than a tree's 16 levels");
+      nodes += children;
+      open[top++] = {depth, inner};
+      at += 2;
+    } else {  // a float log-odds, then a byte with a bit per child whose record follows
+      if (data.size() - at < sizeof(float) + 1)
+        throw bad(where(depth) + " runs past the end of the file");
+      float log_odds;
+      std::memcpy(&log_odds, data.data() + at, sizeof(float));
+      if (!std::isfinite(log_odds))
+        throw bad(where(depth) + " has log-odds " + std::to_string(log_odds) +
+                  ", not a finite number");
+      const unsigned mask = byte(at + sizeof(float));
+      if (mask != 0 && depth >= kTreeDepth)
+        throw bad(where(depth) + " has children, deeper than a tree's 16 levels");
+      ++nodes;
+      open[top++] = {depth, mask};
+      at += sizeof(float) + 1;
+    }
+  };
+  record(0);
+  while (top > 0) {
+    Open& last = open[top - 1];
+    if (last.children == 0) {
+      --top;
+      continue;
+    }
+    last.children &= last.children - 1;  // the lowest child's record is next
+    record(last.depth + 1);
+  }
+  if (at != data.size())
+    throw bad(std::to_string(data.size() - at) +
+              " bytes follow the tree's last node record (at byte " +
+              std::to_string(h.data_at + at) + ")");
+  if (nodes != h.size)
+    throw bad("its header announces " + std::to_string(h.size) + " nodes, the data holds " +
+              std::to_string(nodes));
+
+  // A whole tree OctoMap can read: now OctoMap reads it.
+  ViewBuffer buffer(data);
+  std::istream in(&buffer);
+  if (binary)
+    tree->readBinaryData(in);
+  else
+    tree->readData(in);
+  if (in.fail() || buffer.consumed() != data.size() || tree->size() != h.size)
+    throw bad("OctoMap read " + std::to_string(tree->size()) + " nodes from " +
+              std::to_string(buffer.consumed()) + " bytes, where the check found " +
+              std::to_string(nodes) + " in " + std::to_string(data.size()));
+  return tree;
+}
+
+}  // namespace octovk::io

@@ -1,0 +1,138 @@
+// Writes the fuzz targets' seed corpus into DIR/{bt,ot,graph,tum_lists,depth_png}/: tiny maps and
+// graphs with OctoMap's own writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt)
+// and tiny 16-bit PNGs with libpng. Usage: octovk_fuzz_corpus DIR (tests/fuzz/corpus holds its
+// output).
+#include <octomap/OcTree.h>
+#include <octomap/ScanGraph.h>
+#include <png.h>
+
+#include <cmath>
+#include <csetjmp>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace {
+
+// A few occupied and free voxels near the origin: a small tree with nodes on all 16 levels.
+octomap::OcTree tinyTree(double resolution, int cells) {
+  octomap::OcTree tree(resolution);
+  for (int i = 0; i < cells; ++i) {
+    const float x = static_cast<float>(resolution * (i % 3));
+    const float y = static_cast<float>(resolution * (i / 3));
+    tree.updateNode(octomap::point3d(x, y, 0.5f), true);
+    tree.updateNode(octomap::point3d(x, y, 0.0f), false);
+  }
+  tree.updateNode(octomap::point3d(-1.0f, 2.0f, -0.5f), true);
+  return tree;
+}
+
+bool write(const std::string& path, const auto& writer) {
+  std::ofstream out(path, std::ios_base::binary);
+  writer(out);
+  out.close();
+  if (!out) std::cerr << "octovk_fuzz_corpus: cannot write " << path << "\n";
+  return static_cast<bool>(out);
+}
+
+// A PNG of `width` x `height` pixels of `bit_depth` (8 or 16) and `color_type`, written with
+// libpng from `rows` (16-bit samples big-endian, as PNG stores them). Only plain data lives in this
+// frame, so libpng's longjmp skips no destructor.
+bool writePng(const char* path, png_uint_32 width, png_uint_32 height, int bit_depth,
+              int color_type, int interlace, png_bytepp rows) {
+  std::FILE* file = std::fopen(path, "wb");
+  if (!file) return false;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  if (!png || !info || setjmp(png_jmpbuf(png))) {
+    if (png) png_destroy_write_struct(&png, info ? &info : nullptr);
+    std::fclose(file);
+    return false;
+  }
+  png_init_io(png, file);
+  png_set_IHDR(png, info, width, height, bit_depth, color_type, interlace,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  png_write_image(png, rows);
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return std::fclose(file) == 0;
+}
+
+// A grayscale depth image of `width` x `height` pixels, 16-bit unless `bit_depth` is 8.
+bool writeDepthPng(const std::string& path, png_uint_32 width, png_uint_32 height, int interlace,
+                   int bit_depth = 16) {
+  const std::size_t bytes_per_sample = bit_depth == 16 ? 2 : 1;
+  std::vector<unsigned char> data(std::size_t{width} * height * bytes_per_sample);
+  for (std::size_t i = 0; i < data.size(); ++i)
+    data[i] = static_cast<unsigned char>(i % 2 == 0 ? 0x13 + i : 0x88);  // 0x1388 = 5000: 1 m
+  std::vector<png_bytep> rows(height);
+  for (png_uint_32 y = 0; y < height; ++y)
+    rows[y] = data.data() + std::size_t{y} * width * bytes_per_sample;
+  const bool ok =
+      writePng(path.c_str(), width, height, bit_depth, PNG_COLOR_TYPE_GRAY, interlace, rows.data());
+  if (!ok) std::cerr << "octovk_fuzz_corpus: cannot write " << path << "\n";
+  return ok;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::cerr << "usage: octovk_fuzz_corpus DIR (writes DIR/bt, DIR/ot, DIR/graph)\n";
+    return 2;
+  }
+  const std::string dir = argv[1];
+  bool ok = true;
+  octomap::OcTree small = tinyTree(0.1, 6);
+  octomap::OcTree empty(0.05);
+  ok &= write(dir + "/ot/small.ot", [&](std::ostream& s) { small.write(s); });
+  ok &= write(dir + "/ot/empty.ot", [&](std::ostream& s) { empty.write(s); });
+  octomap::OcTree coarse = tinyTree(0.2, 2);
+  ok &= write(dir + "/ot/coarse.ot", [&](std::ostream& s) { coarse.write(s); });
+  ok &= write(dir + "/bt/small.bt", [&](std::ostream& s) { small.writeBinary(s); });
+  ok &= write(dir + "/bt/empty.bt", [&](std::ostream& s) { empty.writeBinary(s); });
+  ok &= write(dir + "/bt/coarse.bt", [&](std::ostream& s) { coarse.writeBinary(s); });
+
+  // Two scans of four points (one NaN: legal, the mapper skips it) and an edge between them.
+  octomap::ScanGraph graph;
+  for (int n = 0; n < 2; ++n) {
+    auto* cloud = new octomap::Pointcloud();
+    for (int i = 0; i < 4; ++i)
+      cloud->push_back(1.0f + 0.1f * static_cast<float>(i), 0.2f * static_cast<float>(n), 0.3f);
+    if (n == 1) cloud->push_back(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f);
+    graph.addNode(cloud, octomath::Pose6D(0.5f * static_cast<float>(n), 0.0f, 0.1f, 0.0f, 0.0f,
+                                          0.3f * static_cast<float>(n)));
+  }
+  graph.addEdge(0, 1);
+  ok &= write(dir + "/graph/two_scans.graph", [&](std::ostream& s) { graph.writeBinary(s); });
+  octomap::ScanGraph none;
+  ok &= write(dir + "/graph/empty.graph", [&](std::ostream& s) { none.writeBinary(s); });
+
+  // TUM RGB-D lists: groundtruth.txt, a NUL byte, depth.txt (see fuzz_tum_lists.cpp).
+  const std::string groundtruth =
+      "# ground truth trajectory\n# timestamp tx ty tz qx qy qz qw\n"
+      "1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n"
+      "1305031102.1858 1.3303 0.6256 1.6464 0.6579 0.6161 -0.2932 -0.3189\n"
+      "1305031102.2758 1.3160 0.6254 1.6302 0.6609 0.6199 -0.2893 -0.3086\n";
+  const std::string depth =
+      "# depth maps\n# timestamp filename\n1305031102.160407 depth/1305031102.160407.png\n"
+      "\n1305031102.194330 depth/1305031102.194330.png\n"
+      "1305031102.226738 depth/1305031102.226738.png\n";
+  ok &= write(dir + "/tum_lists/three_images.txt",
+              [&](std::ostream& s) { s << groundtruth << '\0' << depth; });
+  ok &= write(dir + "/tum_lists/crlf_one_image.txt", [&](std::ostream& s) {
+    s << "1.0\t0 0 0 0 0 0 1\r\n2.0 1 2 3 0 0 0.7071 0.7071\r\n"
+      << '\0' << "1.01 a.png\r\n5 b.png\r\n";
+  });
+
+  // Depth images: 16-bit grayscale (plain and interlaced) and an 8-bit one, which is refused.
+  ok &= writeDepthPng(dir + "/depth_png/gray16_3x2.png", 3, 2, PNG_INTERLACE_NONE);
+  ok &= writeDepthPng(dir + "/depth_png/gray16_adam7_5x4.png", 5, 4, PNG_INTERLACE_ADAM7);
+  ok &= writeDepthPng(dir + "/depth_png/gray8_2x2.png", 2, 2, PNG_INTERLACE_NONE, 8);
+  return ok ? 0 : 1;
+}
