@@ -122,6 +122,42 @@ TEST(MemoryBudget, CellSetOverCapKeepsTheMap) {
   EXPECT_LE(map.deviceBytes(), cap);
 }
 
+// A scan with more points than the cap leaves room for (points, their staging, ray walks), from
+// a point cloud and from a depth image: refused before anything runs; smaller scans still work.
+TEST(MemoryBudget, PointsOverCapKeepTheMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const double res = 0.1;
+  const auto scan = sphere(1.0f, 500, Eigen::Vector3f::Zero());
+  const auto more = sphere(1.1f, 800, Eigen::Vector3f(0.1f, 0, 0));
+  std::size_t after_scans = 0;
+  {
+    OccupancyMap probe(ctx, test::withResolution(res));
+    probe.insertPointCloud(scan, Eigen::Vector3f::Zero());
+    probe.insertPointCloud(more, Eigen::Vector3f(0.1f, 0, 0));
+    after_scans = probe.deviceBytes();
+  }
+  const std::size_t cap = after_scans + (256 << 10);
+  OccupancyMap map(ctx, capped(res, cap));
+  octomap::OcTree oracle = test::makeOracle(map.params());
+  ASSERT_TRUE(test::insertBoth(map, oracle, scan, Eigen::Vector3f::Zero(), -1.0, false));
+  const std::size_t nodes = map.nodeCount();
+
+  const auto many = sphere(1.5f, 20000, Eigen::Vector3f::Zero());  // 120 B per point
+  expectCapRefusal([&] { map.insertPointCloud(many, Eigen::Vector3f::Zero()); }, "points");
+  std::vector<std::uint16_t> pixels(640 * 480, 5000);  // a wall 1 m away
+  DepthImage image;
+  image.width = 640;
+  image.height = 480;
+  image.pixels = pixels.data();
+  expectCapRefusal([&] { map.insertDepthImage(image, Pose{}); }, "points");
+  EXPECT_EQ(map.nodeCount(), nodes);
+  EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
+  EXPECT_LE(map.deviceBytes(), cap);
+
+  ASSERT_TRUE(test::insertBoth(map, oracle, more, Eigen::Vector3f(0.1f, 0, 0), -1.0, false));
+  EXPECT_LE(map.deviceBytes(), cap);
+}
+
 // The same scan geometry twice, the second 20 m away (a whole number of bricks): the scratch it
 // needs is the first's, the pool must double, and the cap leaves no room for that.
 TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
