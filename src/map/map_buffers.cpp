@@ -242,6 +242,7 @@ void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old, std::uint32_t
     stream_.copy(nodes, new_nodes, nodes.size());
     stream_.copy(block_parents, parents, block_parents.size());
     stream_.copy(free_stack, stack, free_stack.size());
+    stream_.copy(leaf_boxes, leaves, leaf_boxes.size());  // as they were: a rebuild may not follow
     stream_.update(pool, &blocks, sizeof(blocks), offsetof(gpu::PoolState, capacity));
     stream_.submitAndWait();
   }

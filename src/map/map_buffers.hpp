@@ -74,9 +74,9 @@ class MapBuffers {
   void allocateEndpoints(std::uint32_t log2);
   /// The touched lists for `active_capacity` cells.
   void allocateLists(std::size_t active_capacity);
-  /// The pool with `blocks` blocks, keeping the tree when `copy_old` (records and waits). When
-  /// `blocks` exceeds the cap but `min_blocks` (if given) fits, the pool gets the most blocks
-  /// that fit instead.
+  /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
+  /// and waits). When `blocks` exceeds the cap but `min_blocks` (if given) fits, the pool gets
+  /// the most blocks that fit instead.
   void allocatePool(std::uint32_t blocks, bool copy_old, std::uint32_t min_blocks = 0);
   /// Points, their staging and the walk lists for at least `count` points.
   void ensurePoints(std::size_t count);
