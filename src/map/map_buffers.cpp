@@ -220,7 +220,12 @@ void MapBuffers::allocateLists(std::size_t active_capacity) {
   rebind();
 }
 
-void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old, std::uint32_t min_blocks) {
+void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old) {
+  allocatePoolAtLeast(blocks, 0, copy_old);
+}
+
+void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks,
+                                     bool copy_old) {
   const std::size_t held =
       nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size();
   if (min_blocks > 0 && min_blocks < blocks && !fits(held, std::size_t{blocks} * kBlockBytes)) {

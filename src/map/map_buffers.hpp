@@ -75,9 +75,8 @@ class MapBuffers {
   /// The touched lists for `active_capacity` cells.
   void allocateLists(std::size_t active_capacity);
   /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
-  /// and waits). When `blocks` exceeds the cap but `min_blocks` (if given) fits, the pool gets
-  /// the most blocks that fit instead.
-  void allocatePool(std::uint32_t blocks, bool copy_old, std::uint32_t min_blocks = 0);
+  /// and waits).
+  void allocatePool(std::uint32_t blocks, bool copy_old);
   /// Points, their staging and the walk lists for at least `count` points.
   void ensurePoints(std::size_t count);
   /// The depth-image buffer (DepthCamera + pixels) of at least `bytes`, and upload staging as
@@ -85,6 +84,9 @@ class MapBuffers {
   void ensureDepth(std::size_t bytes);
   /// Query input/output (and their staging) of at least these sizes.
   void ensureQueries(std::size_t in_bytes, std::size_t out_bytes);
+  /// allocatePool, but when `blocks` exceeds the cap and `min_blocks` fits, the pool gets the
+  /// most blocks that fit instead (growth headroom cut to the cap, never below the need).
+  void allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks, bool copy_old);
   /// Per-scan scratch (cell sets, lists, points, walks, depth image, upload staging) back to
   /// the constructor's sizes; the next scan grows it again. The sets are then cleared whole.
   void releaseScratch();

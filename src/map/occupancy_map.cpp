@@ -172,8 +172,8 @@ void OccupancyMap::Impl::reserveTree(const gpu::ScanCounters& counters,
         limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers_.poolBlocks()} +
                                                    buffers_.poolBlocks() / 2));
     try {
-      buffers_.allocatePool(static_cast<std::uint32_t>(blocks), /*copy_old=*/true,
-                            static_cast<std::uint32_t>(needed));
+      buffers_.allocatePoolAtLeast(static_cast<std::uint32_t>(blocks),
+                                   static_cast<std::uint32_t>(needed), /*copy_old=*/true);
     } catch (const BudgetError&) {
       throw;  // names the cap
     } catch (const Error& e) {
@@ -424,7 +424,8 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   const std::uint32_t capacity = std::min<std::uint32_t>(
       buffers_.blockLimit(), std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
   if (capacity > buffers_.poolBlocks())
-    buffers_.allocatePool(capacity, /*copy_old=*/false, std::max<std::uint32_t>(image.blocks, 2));
+    buffers_.allocatePoolAtLeast(capacity, std::max<std::uint32_t>(image.blocks, 2),
+                                 /*copy_old=*/false);
   gpu::PoolState pool{};
   pool.bump = image.blocks;
   pool.capacity = buffers_.poolBlocks();
