@@ -158,12 +158,14 @@ TEST(MemoryBudget, PointsOverCapKeepTheMap) {
   EXPECT_LE(map.deviceBytes(), cap);
 }
 
-// The same scan geometry twice, the second 20 m away (a whole number of bricks): the scratch it
-// needs is the first's, the pool must double, and the cap leaves no room for that.
+// The same scan geometry again and again, 20 m apart (a whole number of bricks): each needs the
+// first one's scratch and as many new blocks again, so within a cap a little above what the first
+// scan left (room ahead included, where the map reserves it), the pool soon may not grow. That
+// scan is refused, the map keeps its nodes, and a smaller scan still fits.
 TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const double res = 0.1;
-  const Eigen::Vector3f a(0, 0, 0), b(20.0f, 0, 0);
+  const Eigen::Vector3f a(0, 0, 0);
   const auto first = sphere(3.0f, 3000, a);
   std::size_t after_first = 0, pool_after_first = 0;
   {
@@ -177,18 +179,38 @@ TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
   octomap::OcTree oracle = test::makeOracle(map.params());
   ASSERT_TRUE(test::insertBoth(map, oracle, first, a, -1.0, false));
   EXPECT_EQ(map.deviceBytes(), after_first);
-  const std::size_t nodes = map.nodeCount();
 
-  const auto second = sphere(3.0f, 3000, b);
-  expectCapRefusal([&] { map.insertPointCloud(second, b); }, "node pool");
-  EXPECT_EQ(map.nodeCount(), nodes);
-  EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
-  EXPECT_LE(map.deviceBytes(), cap);
-  EXPECT_EQ(map.poolBytes(), pool_after_first);
+  bool refused = false;
+  Eigen::Vector3f last = a;
+  for (int k = 1; k <= 4 && !refused; ++k) {
+    const Eigen::Vector3f at(20.0f * static_cast<float>(k), 0, 0);
+    const auto scan = sphere(3.0f, 3000, at);
+    const std::size_t nodes = map.nodeCount();
+    const std::size_t pool_bytes = map.poolBytes();
+    try {
+      map.insertPointCloud(scan, at);
+    } catch (const Error& e) {
+      refused = true;
+      EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
+      const std::string msg = e.what();
+      for (const char* part : {"max_device_bytes", "node pool", "unchanged"})
+        EXPECT_NE(msg.find(part), std::string::npos) << msg;
+      EXPECT_EQ(map.nodeCount(), nodes);
+      EXPECT_EQ(map.poolBytes(), pool_bytes);
+      EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
+      EXPECT_LE(map.deviceBytes(), cap);
+      break;
+    }
+    oracle.insertPointCloud(test::toPointcloud(scan), test::toPoint(at));
+    EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map))) << "scan " << k;
+    EXPECT_LE(map.deviceBytes(), cap) << "scan " << k;
+    last = at;
+  }
+  ASSERT_TRUE(refused) << "no scan outgrew the capped pool";
 
-  // A smaller scan at the new place fits the pool that is left.
-  const auto small = sphere(0.5f, 200, b);
-  ASSERT_TRUE(test::insertBoth(map, oracle, small, b, -1.0, false));
+  // A smaller scan at the last place the map took fits the pool that is left.
+  const auto small = sphere(0.5f, 200, last);
+  ASSERT_TRUE(test::insertBoth(map, oracle, small, last, -1.0, false));
   EXPECT_LE(map.deviceBytes(), cap);
 }
 
