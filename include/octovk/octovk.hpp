@@ -65,6 +65,17 @@ struct MapParams {
   /// Most nodes the device pool may hold; 0 = as many as the device's memory allows. A scan that
   /// would need more throws kOutOfDeviceMemory and leaves the map as it was.
   std::size_t max_nodes = 0;
+  /// Most bytes the map may hold on the device, all its buffers together: the node pool, the
+  /// leaf boxes, the per-scan scratch (cell sets, lists, points, ray walks, depth image, upload
+  /// staging) and the query buffers; 0 = no cap. It bounds what the map holds between calls
+  /// (OccupancyMap::deviceBytes() never exceeds it); while a buffer is replaced by a larger one
+  /// both exist for a moment, so the peak during a growth can be higher. A scan or query batch
+  /// that would need more throws kOutOfDeviceMemory and leaves the map as it was; the map keeps
+  /// working. At least minDeviceBytes().
+  std::size_t max_device_bytes = 0;
+
+  /// Device bytes an empty map with these parameters holds: the smallest max_device_bytes.
+  std::size_t minDeviceBytes() const;
 
   /// Empty when valid, else a sentence naming the bad value.
   std::string validate() const;
@@ -292,11 +303,32 @@ class OccupancyMap {
 
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;
-  /// Device bytes held by this map's buffers.
+  /// Device bytes held by this map's buffers (staging included): what
+  /// MapParams::max_device_bytes caps.
   std::size_t deviceBytes() const;
   /// Of those, the node pool (nodes, block records, free-block stack, at their capacity); the
-  /// rest is per-scan scratch sized by the largest scan, query buffers and the leaf boxes.
+  /// rest is per-scan scratch, query buffers and the leaf boxes (deviceBytesByUse()).
   std::size_t poolBytes() const;
+  /// deviceBytes() by use.
+  struct DeviceBytes {
+    std::size_t pool = 0;        ///< nodes, block records, free-block stack (poolBytes())
+    std::size_t leaf_boxes = 0;  ///< a leaf box per pool slot
+    /// Per-scan scratch: cell sets, touched lists, points and their upload staging, ray walks,
+    /// depth image, counters. Sized by the largest scan since it was last released (trim(), or
+    /// automatically after an outsized scan).
+    std::size_t scratch = 0;
+    std::size_t queries = 0;  ///< query input and output, with their staging
+    std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+  };
+  DeviceBytes deviceBytesByUse() const;
+  /// deviceBytesByUse().scratch.
+  std::size_t scratchBytes() const;
+  /// Releases the per-scan scratch and the query buffers back to an empty map's sizes (the
+  /// node pool and the leaf boxes stay). The next scan or query grows them again; results do
+  /// not change. A scan also releases the scratch by itself when an outsized scan grew it: when
+  /// the largest scan since the last release had more than 4 times the points of the median of
+  /// the last 8 scans, and the scratch holds more than 4 MiB.
+  void trim();
   /// Leaves of the map (rebuilding the leaf boxes first if they are out of date).
   std::size_t leafCount() const;
 

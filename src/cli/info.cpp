@@ -64,7 +64,10 @@ void printInfoHelp(std::ostream& out) {
          "                  with the volume they cover\n"
          "  bounds          min and max corner of all leaf cells (centre -/+ half the edge)\n"
          "  occupied bounds the same for the occupied leaves only\n"
-         "  device memory   bytes the map holds on the device\n"
+         "  device memory   bytes the map holds on the device, and of those the node\n"
+         "                  pool, the leaf boxes, the scan scratch and the query buffers\n"
+         "                  (scratch and queries are at an empty map's sizes: info runs\n"
+         "                  no scan)\n"
          "and the device used and the time taken.\n"
          "\n"
          "Options:\n"
@@ -127,9 +130,15 @@ int runInfo(const std::vector<std::string>& args) {
   s << line;
   s << "bounds:          " << describe(all) << "\n"
     << "occupied bounds: " << describe(occupied_bounds) << "\n";
-  std::snprintf(line, sizeof(line), "device memory:   %.1f MiB (node pool %.1f MiB)\n",
-                static_cast<double>(map.deviceBytes()) / (1024.0 * 1024.0),
-                static_cast<double>(map.poolBytes()) / (1024.0 * 1024.0));
+  const OccupancyMap::DeviceBytes bytes = map.deviceBytesByUse();
+  constexpr double kMiB = 1024.0 * 1024.0;
+  std::snprintf(line, sizeof(line),
+                "device memory:   %.1f MiB (node pool %.1f MiB, leaf boxes %.1f MiB, scan "
+                "scratch %.1f MiB, query buffers %.1f MiB)\n",
+                static_cast<double>(bytes.total()) / kMiB, static_cast<double>(bytes.pool) / kMiB,
+                static_cast<double>(bytes.leaf_boxes) / kMiB,
+                static_cast<double>(bytes.scratch) / kMiB,
+                static_cast<double>(bytes.queries) / kMiB);
   s << line;
   std::snprintf(line, sizeof(line),
                 "time:            %.3f s (reading and upload %.3f s, counting %.3f s)\n",

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cstddef>
+#include <cstdio>
+#include <string>
+#include <vector>
 
 namespace octovk {
 
@@ -21,69 +24,220 @@ gpu::ScanCounters freshCounters() {
   return c;
 }
 
-MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit)
-    : bindings(device), device_(device), stream_(stream), block_limit_(block_limit) {
+// Sizes of the buffers, shared by the growth, the cap's checks and initialBytes().
+namespace {
+
+constexpr std::size_t kInitialActive = 1024;
+constexpr std::size_t kSmallBuffer = 16;  // points, walks, upload, depth before the first scan
+constexpr std::size_t kSmallQuery = 64;   // each query buffer and its staging
+
+std::size_t hashBytes(std::uint32_t log2) {
+  const std::size_t cap = std::size_t{1} << log2;
+  const std::size_t cells = cap * kCellsPerBrickSlot;
+  return cap * sizeof(std::uint64_t) + cap * gpu::kBrickFlagWords * sizeof(std::uint32_t) +
+         cells * sizeof(std::uint32_t) + cells * sizeof(gpu::ActiveCell);
+}
+std::size_t endpointBytes(std::uint32_t log2) {
+  return (std::size_t{1} << log2) * (sizeof(std::uint64_t) + sizeof(gpu::NewBlock));
+}
+std::size_t slotBytes(std::uint32_t hash_log2, std::uint32_t endpoint_log2) {
+  return ((std::size_t{1} << hash_log2) + (std::size_t{1} << endpoint_log2)) *
+         sizeof(std::uint32_t);
+}
+std::size_t listBytes(std::size_t active) {
+  return active * gpu::kTreeDepth * sizeof(std::uint32_t);
+}
+// Nodes, block parents, free stack and leaf boxes of one block.
+constexpr std::size_t kBlockBytes =
+    8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
+constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + 2 * sizeof(gpu::ScanCounters) +
+                                    2 * sizeof(gpu::PoolState);  // params, counters, pool, readback
+std::size_t pointBytes(std::size_t count) {
+  return count * 3 * sizeof(float) * 2 + 2 * count * sizeof(gpu::WalkState);  // + staging, walks
+}
+
+std::string mib(std::size_t bytes) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%zu bytes (%.1f MiB)", bytes,
+                static_cast<double>(bytes) / (1024.0 * 1024.0));
+  return text;
+}
+
+}  // namespace
+
+std::uint32_t poolBlockLimit(std::size_t max_nodes) {
+  constexpr std::uint64_t kMax = 0x1FFFFFFFu;  // 2^32 nodes
+  if (max_nodes == 0) return kMax;
+  return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(max_nodes / 8, 2, kMax));
+}
+
+std::size_t MapBuffers::initialBytes(std::uint32_t block_limit) {
+  return kFixedBytes + 4 * kSmallQuery + 4 * kSmallBuffer + hashBytes(kInitialHashLog2) +
+         endpointBytes(kInitialHashLog2) + slotBytes(kInitialHashLog2, kInitialHashLog2) +
+         listBytes(kInitialActive) +
+         std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} * kBlockBytes;
+}
+
+MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit,
+                       std::size_t max_bytes)
+    : bindings(device), device_(device), stream_(stream), block_limit_(block_limit),
+      max_bytes_(max_bytes) {
+  // MapParams::validate refuses a cap below initialBytes(); the checks below hold it anyway.
   params = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
   counters = vk::Buffer(device_, sizeof(gpu::ScanCounters), false);
   pool = vk::Buffer(device_, sizeof(gpu::PoolState), false);
   readback = vk::Buffer(device_, sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState), true);
-  ensureQueries(64, 64);
-  points = vk::Buffer(device_, 16, false);
-  walks = vk::Buffer(device_, 16, false);
-  upload = vk::Buffer(device_, 16, true);
-  depth = vk::Buffer(device_, 16, false);
-  allocateEndpoints(kInitialHashLog2);
-  allocateHash(kInitialHashLog2);
-  allocateLists(1024);
+  ensureQueries(kSmallQuery, kSmallQuery);
+  points = vk::Buffer(device_, kSmallBuffer, false);
+  walks = vk::Buffer(device_, kSmallBuffer, false);
+  upload = vk::Buffer(device_, kSmallBuffer, true);
+  depth = vk::Buffer(device_, kSmallBuffer, false);
+  allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
+  allocateLists(kInitialActive);
   allocatePool(std::min<std::uint32_t>(kInitialBlocks, block_limit_), /*copy_old=*/false);
   resetPool();
 }
 
-void MapBuffers::allocateHash(std::uint32_t log2) {
-  const std::size_t cap = std::size_t{1} << log2;
-  const std::size_t cell_cap = cap * kCellsPerBrickSlot;
-  vk::Buffer keys(device_, cap * sizeof(std::uint64_t), false);
-  vk::Buffer flags(device_, cap * gpu::kBrickFlagWords * sizeof(std::uint32_t), false);
-  vk::Buffer list(device_, cell_cap * sizeof(std::uint32_t), false);
-  vk::Buffer active(device_, cell_cap * sizeof(gpu::ActiveCell), false);
-  hash_keys = std::move(keys);
-  hash_flags = std::move(flags);
-  cell_list = std::move(list);
-  cells = std::move(active);
-  hash_log2_ = log2;
-  // The second set holds about as many entries as the first (end cells, or new-block prefixes).
-  if (endpoint_keys.valid() && endpoint_log2_ < log2) allocateEndpoints(log2);
-  allocateSlots();
+BufferBytes MapBuffers::bytesByUse() const {
+  BufferBytes b;
+  b.pool = poolBytes();
+  b.leaf_boxes = leaf_boxes.size();
+  b.queries = query_in.size() + query_out.size() + query_staging_in.size() +
+              query_staging_out.size();
+  for (const vk::Buffer* x :
+       {&params, &counters, &pool, &readback, &points, &upload, &walks, &depth, &hash_keys,
+        &hash_flags, &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
+    b.scratch += x->size();
+  return b;
 }
 
-void MapBuffers::allocateEndpoints(std::uint32_t log2) {
-  vk::Buffer keys(device_, (std::size_t{1} << log2) * sizeof(std::uint64_t), false);
-  vk::Buffer blocks(device_, (std::size_t{1} << log2) * sizeof(gpu::NewBlock), false);
-  endpoint_keys = std::move(keys);
-  prefix_blocks = std::move(blocks);
-  endpoint_log2_ = log2;
-  allocateSlots();
+bool MapBuffers::fits(std::size_t freed, std::size_t added) const {
+  return max_bytes_ == 0 || deviceBytes() - freed + added <= max_bytes_;
 }
 
-// The slot lists cover both sets; new sets start unfilled and are cleared whole once.
-void MapBuffers::allocateSlots() {
-  const std::size_t entries = (std::size_t{1} << hash_log2_) + (std::size_t{1} << endpoint_log2_);
-  if (slots.size() < entries * sizeof(std::uint32_t)) {
-    vk::Buffer s(device_, entries * sizeof(std::uint32_t), false);
-    slots = std::move(s);
+void MapBuffers::checkBudget(std::size_t freed, std::size_t added, const std::string& what) const {
+  if (fits(freed, added)) return;
+  const BufferBytes b = bytesByUse();
+  throw BudgetError(
+      "the map's device-memory cap (MapParams::max_device_bytes = " + mib(max_bytes_) +
+      ") does not allow " + what + ": the map would hold " + mib(b.total() - freed + added) +
+      "; it holds " + mib(b.total()) + " (node pool " + mib(b.pool) + ", leaf boxes " +
+      mib(b.leaf_boxes) + ", scan scratch " + mib(b.scratch) + ", query buffers " +
+      mib(b.queries) + "); the map is unchanged. Raise max_device_bytes, split the scan or the "
+      "query batch into smaller ones, or call OccupancyMap::trim() to release scratch");
+}
+
+void MapBuffers::setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots,
+                           std::size_t& freed, std::size_t& added) const {
+  freed = added = 0;
+  if (!hash_keys.valid() || hash_log2 != hash_log2_) {
+    freed += hash_keys.size() + hash_flags.size() + cell_list.size() + cells.size();
+    added += hashBytes(hash_log2);
   }
+  if (!endpoint_keys.valid() || endpoint_log2 != endpoint_log2_) {
+    freed += endpoint_keys.size() + prefix_blocks.size();
+    added += endpointBytes(endpoint_log2);
+  }
+  const std::size_t s = slotBytes(hash_log2, endpoint_log2);
+  if (slots.size() < s || (exact_slots && slots.size() != s)) {
+    freed += slots.size();
+    added += s;
+  }
+}
+
+void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_log2,
+                              bool exact_slots) {
+  std::size_t freed = 0, added = 0;
+  setsDelta(hash_log2, endpoint_log2, exact_slots, freed, added);
+  checkBudget(freed, added,
+              "growing the scan's cell sets to 2^" + std::to_string(hash_log2) + " and 2^" +
+                  std::to_string(endpoint_log2) + " slots");
+  const bool new_hash = !hash_keys.valid() || hash_log2 != hash_log2_;
+  const bool new_endpoints = !endpoint_keys.valid() || endpoint_log2 != endpoint_log2_;
+  const std::size_t slot_bytes = slotBytes(hash_log2, endpoint_log2);
+  const bool new_slots = slots.size() < slot_bytes || (exact_slots && slots.size() != slot_bytes);
+  vk::Buffer keys, flags, list, active, end_keys, blocks, s;
+  if (new_hash) {
+    const std::size_t cap = std::size_t{1} << hash_log2;
+    const std::size_t cell_cap = cap * kCellsPerBrickSlot;
+    keys = vk::Buffer(device_, cap * sizeof(std::uint64_t), false);
+    flags = vk::Buffer(device_, cap * gpu::kBrickFlagWords * sizeof(std::uint32_t), false);
+    list = vk::Buffer(device_, cell_cap * sizeof(std::uint32_t), false);
+    active = vk::Buffer(device_, cell_cap * sizeof(gpu::ActiveCell), false);
+  }
+  if (new_endpoints) {
+    end_keys = vk::Buffer(device_, (std::size_t{1} << endpoint_log2) * sizeof(std::uint64_t), false);
+    blocks = vk::Buffer(device_, (std::size_t{1} << endpoint_log2) * sizeof(gpu::NewBlock), false);
+  }
+  if (new_slots) s = vk::Buffer(device_, slot_bytes, false);
+  // All made: nothing below throws.
+  if (new_hash) {
+    hash_keys = std::move(keys);
+    hash_flags = std::move(flags);
+    cell_list = std::move(list);
+    cells = std::move(active);
+    hash_log2_ = hash_log2;
+  }
+  if (new_endpoints) {
+    endpoint_keys = std::move(end_keys);
+    prefix_blocks = std::move(blocks);
+    endpoint_log2_ = endpoint_log2;
+  }
+  if (new_slots) slots = std::move(s);
+  // New sets start unfilled and are cleared whole once.
   sets_need_fill_ = true;
   rebind();
 }
 
+// The second set holds about as many entries as the first (end cells, or new-block prefixes).
+void MapBuffers::allocateHash(std::uint32_t log2) {
+  allocateSets(log2, std::max(endpoint_log2_, log2), /*exact_slots=*/false);
+}
+
+// Under a cap the guess may take at most half of it, so that it does not crowd out what the
+// scan needs for sure (lists, pool); the ray pass grows the sets on demand beyond that.
+void MapBuffers::growHashToward(std::uint32_t log2) {
+  for (; log2 > hash_log2_; --log2) {
+    std::size_t freed = 0, added = 0;
+    setsDelta(log2, std::max(endpoint_log2_, log2), false, freed, added);
+    if (max_bytes_ == 0 || deviceBytes() - freed + added <= max_bytes_ / 2) {
+      allocateHash(log2);
+      return;
+    }
+  }
+}
+
+void MapBuffers::allocateEndpoints(std::uint32_t log2) {
+  allocateSets(hash_log2_, log2, /*exact_slots=*/false);
+}
+
 void MapBuffers::allocateLists(std::size_t active_capacity) {
-  vk::Buffer t(device_, active_capacity * gpu::kTreeDepth * sizeof(std::uint32_t), false);
+  checkBudget(touched.size(), listBytes(active_capacity),
+              "growing the scan's touched lists to " + std::to_string(active_capacity) + " cells");
+  vk::Buffer t(device_, listBytes(active_capacity), false);
   touched = std::move(t);
   active_capacity_ = active_capacity;
   rebind();
 }
 
 void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old) {
+  allocatePoolAtLeast(blocks, 0, copy_old);
+}
+
+void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks,
+                                     bool copy_old) {
+  const std::size_t held =
+      nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size();
+  if (min_blocks > 0 && min_blocks < blocks && !fits(held, std::size_t{blocks} * kBlockBytes)) {
+    // The most blocks the cap leaves room for, if that is enough.
+    const std::size_t others = deviceBytes() - held;
+    const std::size_t room = max_bytes_ > others ? (max_bytes_ - others) / kBlockBytes : 0;
+    if (room >= min_blocks) blocks = static_cast<std::uint32_t>(std::min<std::size_t>(room, blocks));
+  }
+  checkBudget(held, std::size_t{blocks} * kBlockBytes,
+              "growing the node pool to " + std::to_string(std::size_t{blocks} * 8) +
+                  " nodes (with their leaf boxes, " + std::to_string(kBlockBytes) +
+                  " bytes per block of 8)");
   vk::Buffer new_nodes(device_, std::size_t{blocks} * 8 * sizeof(gpu::Node), false);
   vk::Buffer parents(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
   vk::Buffer stack(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
@@ -105,6 +259,48 @@ void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old) {
   rebind();
 }
 
+void MapBuffers::releaseScratch() {
+  // Smaller buffers: these fit whatever the cap.
+  allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
+  if (active_capacity_ != kInitialActive) allocateLists(kInitialActive);
+  if (point_capacity_ > 0 || upload.size() != kSmallBuffer || depth.size() != kSmallBuffer) {
+    vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);
+    vk::Buffer u(device_, kSmallBuffer, true), d(device_, kSmallBuffer, false);
+    points = std::move(p);
+    walks = std::move(w);
+    upload = std::move(u);
+    depth = std::move(d);
+    point_capacity_ = 0;
+    rebind();
+  }
+  scratch_peak_points_ = 0;
+}
+
+void MapBuffers::releaseQueries() {
+  if (query_in.size() == kSmallQuery && query_out.size() == kSmallQuery &&
+      query_staging_in.size() == kSmallQuery && query_staging_out.size() == kSmallQuery)
+    return;
+  vk::Buffer in(device_, kSmallQuery, false), staging_in(device_, kSmallQuery, true);
+  vk::Buffer out(device_, kSmallQuery, false), staging_out(device_, kSmallQuery, true);
+  query_in = std::move(in);
+  query_staging_in = std::move(staging_in);
+  query_out = std::move(out);
+  query_staging_out = std::move(staging_out);
+  rebind();
+}
+
+void MapBuffers::noteScan(std::size_t points) {
+  if (scan_points_.size() == kScanHistory) scan_points_.erase(scan_points_.begin());
+  scan_points_.push_back(points);
+  scratch_peak_points_ = std::max(scratch_peak_points_, points);
+  std::vector<std::size_t> sorted = scan_points_;
+  std::sort(sorted.begin(), sorted.end());
+  const std::size_t median = sorted[(sorted.size() - 1) / 2];  // the lower one of an even count
+  if (scratch_peak_points_ > kOutsizedFactor * median &&
+      bytesByUse().scratch > kAutoReleaseBytes)
+    releaseScratch();
+}
+
 void MapBuffers::resetPool() {
   gpu::PoolState state{};
   state.bump = 1;  // block 0 is the root's
@@ -118,7 +314,12 @@ void MapBuffers::resetPool() {
 
 void MapBuffers::ensurePoints(std::size_t count) {
   if (count <= point_capacity_) return;
-  const std::size_t cap = std::max(count, point_capacity_ * 2);
+  const std::size_t held = points.size() + upload.size() + walks.size();
+  std::size_t cap = std::max(count, point_capacity_ * 2);
+  if (!fits(held, pointBytes(cap))) cap = count;  // no headroom where the cap allows none
+  checkBudget(held, pointBytes(cap),
+              "taking a scan of " + std::to_string(count) + " points (" +
+                  std::to_string(pointBytes(1)) + " bytes per point: points, staging, walks)");
   vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
   vk::Buffer staging(device_, cap * 3 * sizeof(float), true);
   vk::Buffer walk_lists(device_, 2 * cap * sizeof(gpu::WalkState), false);
@@ -130,31 +331,47 @@ void MapBuffers::ensurePoints(std::size_t count) {
 }
 
 void MapBuffers::ensureDepth(std::size_t bytes) {
-  if (depth.size() < bytes) {
-    vk::Buffer image(device_, std::max(bytes, depth.size() * 2), false);
-    depth = std::move(image);
-  }
-  if (upload.size() < bytes) {
-    vk::Buffer staging(device_, bytes, true);
-    upload = std::move(staging);
-  }
+  const bool grow_depth = depth.size() < bytes, grow_upload = upload.size() < bytes;
+  std::size_t depth_bytes = grow_depth ? std::max(bytes, depth.size() * 2) : depth.size();
+  const std::size_t freed = (grow_depth ? depth.size() : 0) + (grow_upload ? upload.size() : 0);
+  const std::size_t upload_add = grow_upload ? bytes : 0;
+  if (grow_depth && !fits(freed, depth_bytes + upload_add)) depth_bytes = bytes;
+  checkBudget(freed, (grow_depth ? depth_bytes : 0) + upload_add,
+              "taking a depth image of " + std::to_string(bytes) +
+                  " bytes (device copy and upload staging)");
+  vk::Buffer image, staging;
+  if (grow_depth) image = vk::Buffer(device_, depth_bytes, false);
+  if (grow_upload) staging = vk::Buffer(device_, bytes, true);
+  if (grow_depth) depth = std::move(image);
+  if (grow_upload) upload = std::move(staging);
   rebind();
 }
 
 void MapBuffers::ensureQueries(std::size_t in_bytes, std::size_t out_bytes) {
-  in_bytes = std::max<std::size_t>(in_bytes, 64);
-  out_bytes = std::max<std::size_t>(out_bytes, 64);
-  if (query_in.size() < in_bytes) {
-    vk::Buffer device_in(device_, in_bytes, false);
-    vk::Buffer staging(device_, in_bytes, true);
-    query_in = std::move(device_in);
-    query_staging_in = std::move(staging);
+  in_bytes = std::max<std::size_t>(in_bytes, kSmallQuery);
+  out_bytes = std::max<std::size_t>(out_bytes, kSmallQuery);
+  const bool grow_in = query_in.size() < in_bytes, grow_out = query_out.size() < out_bytes;
+  checkBudget((grow_in ? query_in.size() + query_staging_in.size() : 0) +
+                  (grow_out ? query_out.size() + query_staging_out.size() : 0),
+              (grow_in ? 2 * in_bytes : 0) + (grow_out ? 2 * out_bytes : 0),
+              "growing the query buffers to " + std::to_string(in_bytes) + " bytes in and " +
+                  std::to_string(out_bytes) + " bytes out (each with its staging)");
+  vk::Buffer device_in, staging_in, device_out, staging_out;
+  if (grow_in) {
+    device_in = vk::Buffer(device_, in_bytes, false);
+    staging_in = vk::Buffer(device_, in_bytes, true);
   }
-  if (query_out.size() < out_bytes) {
-    vk::Buffer device_out(device_, out_bytes, false);
-    vk::Buffer staging(device_, out_bytes, true);
+  if (grow_out) {
+    device_out = vk::Buffer(device_, out_bytes, false);
+    staging_out = vk::Buffer(device_, out_bytes, true);
+  }
+  if (grow_in) {
+    query_in = std::move(device_in);
+    query_staging_in = std::move(staging_in);
+  }
+  if (grow_out) {
     query_out = std::move(device_out);
-    query_staging_out = std::move(staging);
+    query_staging_out = std::move(staging_out);
   }
   rebind();
 }
@@ -169,16 +386,6 @@ void MapBuffers::rebind() {
       &touched,    &prefix_blocks, &leaf_boxes, &endpoint_keys, &query_in,
       &query_out,  &walks,    &slots,         &cell_list,  &depth};
   bindings.update(buffers);
-}
-
-std::size_t MapBuffers::deviceBytes() const {
-  std::size_t total = 0;
-  for (const vk::Buffer* b :
-       {&params, &counters, &pool, &points, &hash_keys, &hash_flags, &cells, &endpoint_keys,
-        &touched, &prefix_blocks, &nodes, &block_parents, &free_stack, &leaf_boxes, &query_in,
-        &query_out, &walks, &slots, &cell_list, &depth})
-    total += b->size();
-  return total;
 }
 
 }  // namespace octovk

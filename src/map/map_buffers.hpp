@@ -5,6 +5,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 #include "octovk/gpu_types.h"
 #include "vk/device.hpp"
@@ -25,15 +27,49 @@ std::uint32_t nextPow2Log2(std::size_t n);
 /// Counters as a scan starts them: zero, with whole (x, 1, 1) dispatch arguments.
 gpu::ScanCounters freshCounters();
 
+/// Most blocks the pool may have for MapParams::max_nodes (0: 2^32 nodes).
+std::uint32_t poolBlockLimit(std::size_t max_nodes);
+
+/// A growth refused by the map's device-memory cap (MapParams::max_device_bytes): nothing was
+/// allocated or changed. Its own type so that callers which reword allocation failures keep
+/// this message, which names the cap.
+class BudgetError : public Error {
+ public:
+  explicit BudgetError(const std::string& message)
+      : Error(ErrorCode::kOutOfDeviceMemory, message) {}
+};
+
+/// The map's device bytes by use (OccupancyMap::DeviceBytes).
+struct BufferBytes {
+  std::size_t pool = 0, leaf_boxes = 0, scratch = 0, queries = 0;
+  std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+};
+
+// The device-memory cap (MapParams::max_device_bytes) is on the bytes the map's buffers hold
+// between calls: every growth checks, before allocating, that the buffers held after it (the
+// replaced ones freed) stay within the cap, else throws BudgetError with nothing changed. While a
+// buffer is replaced the old and the new one exist together for a moment (the new one is made
+// first, so that a failure leaves the map as it was); that transient peak, and the staging of
+// an explicit download()/upload(), are not counted.
 class MapBuffers {
  public:
-  /// Allocates the initial buffers; `block_limit` caps the pool (MapParams::max_nodes).
-  MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit);
+  /// Allocates the initial buffers; `block_limit` caps the pool (MapParams::max_nodes),
+  /// `max_bytes` all buffers (MapParams::max_device_bytes, 0: no cap; at least initialBytes()).
+  MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit,
+             std::size_t max_bytes = 0);
 
-  // Growth. Each makes all new buffers before dropping an old one, so a failed allocation
-  // leaves the map as it was, then rebinds.
-  /// The cell set: 2^log2 brick slots and 4 cell-list entries per slot.
+  /// Bytes of the buffers the constructor makes: the least a map with this pool limit holds.
+  static std::size_t initialBytes(std::uint32_t block_limit);
+
+  // Growth. Each checks the cap first (BudgetError, nothing changed), makes all new buffers
+  // before dropping an old one, so a failed allocation leaves the map as it was, then rebinds.
+  /// The cell set: 2^log2 brick slots and 4 cell-list entries per slot (and the second set at
+  /// least as large).
   void allocateHash(std::uint32_t log2);
+  /// The cell set grown towards 2^log2 slots, as far as the map then holds at most half the
+  /// cap (a first guess of a scan's size: never throws for the cap; the scan grows the set
+  /// further if it needs to).
+  void growHashToward(std::uint32_t log2);
   /// The second set (end cells, then new-block prefixes): 2^log2 entries.
   void allocateEndpoints(std::uint32_t log2);
   /// The touched lists for `active_capacity` cells.
@@ -48,6 +84,24 @@ class MapBuffers {
   void ensureDepth(std::size_t bytes);
   /// Query input/output (and their staging) of at least these sizes.
   void ensureQueries(std::size_t in_bytes, std::size_t out_bytes);
+  /// allocatePool, but when `blocks` exceeds the cap and `min_blocks` fits, the pool gets the
+  /// most blocks that fit instead (growth headroom cut to the cap, never below the need).
+  void allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks, bool copy_old);
+  /// Per-scan scratch (cell sets, lists, points, walks, depth image, upload staging) back to
+  /// the constructor's sizes; the next scan grows it again. The sets are then cleared whole.
+  void releaseScratch();
+  /// The query buffers (and their staging) back to the constructor's sizes.
+  void releaseQueries();
+  /// After each successful scan of `points` points: releases the scratch when it was grown by
+  /// an outsized scan, i.e. when the largest scan since the scratch was last released had more
+  /// than kOutsizedFactor times the points of the median of the last kScanHistory scans (this
+  /// one included), and the scratch holds more than kAutoReleaseBytes. Deterministic: it
+  /// depends only on the sequence of point counts.
+  void noteScan(std::size_t points);
+  static constexpr std::size_t kScanHistory = 8;
+  static constexpr std::size_t kOutsizedFactor = 4;
+  static constexpr std::size_t kAutoReleaseBytes = std::size_t{4} << 20;
+
   /// An empty tree in the pool and fresh counters (records and waits).
   void resetPool();
   /// Points every binding at its buffer (after a buffer is replaced, or after interop swapped
@@ -65,10 +119,13 @@ class MapBuffers {
   bool setsNeedFill() const noexcept { return sets_need_fill_; }
   void setSetsNeedFill(bool v) noexcept { sets_need_fill_ = v; }
 
-  std::size_t deviceBytes() const;
+  /// Every buffer of the map, staging included: what the cap limits.
+  std::size_t deviceBytes() const { return bytesByUse().total(); }
   std::size_t poolBytes() const {
     return nodes.size() + block_parents.size() + free_stack.size();
   }
+  BufferBytes bytesByUse() const;
+  std::size_t maxBytes() const noexcept { return max_bytes_; }
 
   vk::BindingSet bindings;
   vk::Buffer params, counters, pool, readback, points, upload;
@@ -82,11 +139,22 @@ class MapBuffers {
   vk::Buffer depth;  // a depth image: gpu::DepthCamera, then its pixels
 
  private:
-  void allocateSlots();
+  /// (Re)makes the sets whose size differs from 2^hash_log2 / 2^endpoint_log2 and the slot
+  /// lists (grown when short; resized exactly when `exact_slots`).
+  void allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots);
+  /// Bytes freed and added by allocateSets with these arguments.
+  void setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots,
+                 std::size_t& freed, std::size_t& added) const;
+  bool fits(std::size_t freed, std::size_t added) const;
+  /// Throws BudgetError naming `what` unless the growth fits the cap.
+  void checkBudget(std::size_t freed, std::size_t added, const std::string& what) const;
 
   vk::Device& device_;
   vk::CommandStream& stream_;
   std::uint32_t block_limit_;
+  std::size_t max_bytes_ = 0;
+  std::vector<std::size_t> scan_points_;  // the last kScanHistory scans, oldest first
+  std::size_t scratch_peak_points_ = 0;   // largest scan since the scratch was last released
   bool sets_need_fill_ = true;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;

@@ -16,6 +16,7 @@ namespace octovk {
 
 class OccupancyMap::Impl {
  public:
+  using DeviceBytes = OccupancyMap::DeviceBytes;
   Impl(Context& context, const MapParams& params);
 
   /// What a scan inserts: points, or a depth image (unprojected on the device), from the host
@@ -50,6 +51,9 @@ class OccupancyMap::Impl {
   gpu::PoolState readPool();
   std::size_t deviceBytes() const { return buffers_.deviceBytes(); }
   std::size_t poolBytes() const { return buffers_.poolBytes(); }
+  DeviceBytes deviceBytesByUse() const;
+  /// Releases the per-scan scratch and the query buffers (OccupancyMap::trim).
+  void trim();
 
   const MapParams& params() const { return params_; }
   void setLeafBoxesEveryScan(bool every_scan) { leaf_boxes_every_scan_ = every_scan; }

@@ -20,11 +20,7 @@ const MapParams& validated(const MapParams& params) {
 }
 
 // Most blocks the pool may have (MapParams::max_nodes, and 2^32 nodes).
-std::uint32_t blockLimit(const MapParams& params) {
-  constexpr std::uint64_t kMax = 0x1FFFFFFFu;
-  if (params.max_nodes == 0) return kMax;
-  return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(params.max_nodes / 8, 2, kMax));
-}
+std::uint32_t blockLimit(const MapParams& params) { return poolBlockLimit(params.max_nodes); }
 
 }  // namespace
 
@@ -33,7 +29,7 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       params_(validated(params)),
       logs_(ref::LogOddsParams::from(params)),
       stream_(device_),
-      buffers_(device_, stream_, blockLimit(params)),
+      buffers_(device_, stream_, blockLimit(params), params.max_device_bytes),
       rec_(device_, stream_, buffers_) {}
 
 gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, const Pose* pose,
@@ -162,7 +158,11 @@ void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState&
       limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers_.poolBlocks()} +
                                                  buffers_.poolBlocks() / 2));
   try {
-    buffers_.allocatePool(static_cast<std::uint32_t>(target), /*copy_old=*/true);
+    buffers_.allocatePoolAtLeast(static_cast<std::uint32_t>(target),
+                                 static_cast<std::uint32_t>(needed), /*copy_old=*/true);
+  } catch (const BudgetError&) {
+    if (ahead) return;
+    throw;  // names the cap
   } catch (const Error& e) {
     if (ahead) return;
     throw Error(ErrorCode::kOutOfDeviceMemory,
@@ -235,7 +235,7 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
   // slots; it grows (and the scan is redone) when a scan needs more, and keeps its size for the
   // next scans.
   const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(count * 4), 20);
-  if (guess > buffers_.hashLog2()) buffers_.allocateHash(guess);
+  buffers_.growHashToward(guess);  // as far as MapParams::max_device_bytes allows
   passes::RayKeysInput input = stage(source);
   input.transform = pose != nullptr;
   input.discretize = discretize;
@@ -297,8 +297,14 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
   // Room for another scan like this one, so that the next is not run twice.
   reservePool(counters.new_blocks, pool, /*ahead=*/true);
-  if (active > buffers_.activeCapacity() / 2)
-    buffers_.allocateLists(std::size_t{1} << nextPow2Log2(std::size_t{active} * 2));
+  if (active > buffers_.activeCapacity() / 2) {
+    try {
+      buffers_.allocateLists(std::size_t{1} << nextPow2Log2(std::size_t{active} * 2));
+    } catch (const BudgetError&) {
+      // ahead of need: the cap leaves no room, and the scan that needs it will say so
+    }
+  }
+  buffers_.noteScan(count);  // may release scratch an outsized scan grew
   stats.wall_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;
@@ -410,7 +416,9 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   const PoolImage image = poolImageFromTree(tree);
   const std::uint32_t capacity = std::min<std::uint32_t>(
       buffers_.blockLimit(), std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
-  if (capacity > buffers_.poolBlocks()) buffers_.allocatePool(capacity, /*copy_old=*/false);
+  if (capacity > buffers_.poolBlocks())
+    buffers_.allocatePoolAtLeast(capacity, std::max<std::uint32_t>(image.blocks, 2),
+                                 /*copy_old=*/false);
   gpu::PoolState pool{};
   pool.bump = image.blocks;
   pool.capacity = buffers_.poolBlocks();
@@ -437,6 +445,16 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   passes::recordLeafBoxes(rec_);
   stream_.submitAndWait();
   leaf_boxes_dirty_ = false;
+}
+
+OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
+  const BufferBytes b = buffers_.bytesByUse();
+  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
+}
+
+void OccupancyMap::Impl::trim() {
+  buffers_.releaseScratch();
+  buffers_.releaseQueries();
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
@@ -527,6 +545,14 @@ void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
 std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
 
 std::size_t OccupancyMap::poolBytes() const { return impl_->poolBytes(); }
+
+OccupancyMap::DeviceBytes OccupancyMap::deviceBytesByUse() const {
+  return impl_->deviceBytesByUse();
+}
+
+std::size_t OccupancyMap::scratchBytes() const { return impl_->deviceBytesByUse().scratch; }
+
+void OccupancyMap::trim() { impl_->trim(); }
 
 HostTree OccupancyMap::download() const { return impl_->download(); }
 

@@ -1,6 +1,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "map/map_buffers.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk {
@@ -8,6 +9,10 @@ namespace octovk {
 namespace {
 bool inOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
 }  // namespace
+
+std::size_t MapParams::minDeviceBytes() const {
+  return MapBuffers::initialBytes(poolBlockLimit(max_nodes));
+}
 
 std::string MapParams::validate() const {
   std::ostringstream why;
@@ -25,6 +30,10 @@ std::string MapParams::validate() const {
         << ", " << clamping_max << ")";
   } else if (!inOpenUnit(occupancy_threshold)) {
     why << "occupancy_threshold must lie in (0, 1) (got " << occupancy_threshold << ")";
+  } else if (max_device_bytes != 0 && max_device_bytes < minDeviceBytes()) {
+    why << "max_device_bytes " << max_device_bytes << " is less than an empty map holds on the "
+        << "device: at least " << minDeviceBytes() << " bytes (MapParams::minDeviceBytes()); "
+        << "raise it, or use 0 for no cap";
   }
   return why.str();
 }
