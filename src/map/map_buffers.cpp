@@ -1,5 +1,7 @@
 #include "map/map_buffers.hpp"
 
+#include "map/buffer_sizes.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cstddef>
@@ -24,37 +26,9 @@ gpu::ScanCounters freshCounters() {
   return c;
 }
 
-// Sizes of the buffers, shared by the growth, the cap's checks and initialBytes().
+using namespace sizes;
+
 namespace {
-
-constexpr std::size_t kInitialActive = 1024;
-constexpr std::size_t kSmallBuffer = 16;  // points, walks, upload, depth before the first scan
-constexpr std::size_t kSmallQuery = 64;   // each query buffer and its staging
-
-std::size_t hashBytes(std::uint32_t log2) {
-  const std::size_t cap = std::size_t{1} << log2;
-  const std::size_t cells = cap * kCellsPerBrickSlot;
-  return cap * sizeof(std::uint64_t) + cap * gpu::kBrickFlagWords * sizeof(std::uint32_t) +
-         cells * sizeof(std::uint32_t) + cells * sizeof(gpu::ActiveCell);
-}
-std::size_t endpointBytes(std::uint32_t log2) {
-  return (std::size_t{1} << log2) * (sizeof(std::uint64_t) + sizeof(gpu::NewBlock));
-}
-std::size_t slotBytes(std::uint32_t hash_log2, std::uint32_t endpoint_log2) {
-  return ((std::size_t{1} << hash_log2) + (std::size_t{1} << endpoint_log2)) *
-         sizeof(std::uint32_t);
-}
-std::size_t listBytes(std::size_t active) {
-  return active * gpu::kTreeDepth * sizeof(std::uint32_t);
-}
-// Nodes, block parents, free stack and leaf boxes of one block.
-constexpr std::size_t kBlockBytes =
-    8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
-constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + 2 * sizeof(gpu::ScanCounters) +
-                                    2 * sizeof(gpu::PoolState);  // params, counters, pool, readback
-std::size_t pointBytes(std::size_t count) {
-  return count * 3 * sizeof(float) * 2 + 2 * count * sizeof(gpu::WalkState);  // + staging, walks
-}
 
 std::string mib(std::size_t bytes) {
   char text[64];
@@ -64,19 +38,6 @@ std::string mib(std::size_t bytes) {
 }
 
 }  // namespace
-
-std::uint32_t poolBlockLimit(std::size_t max_nodes) {
-  constexpr std::uint64_t kMax = 0x1FFFFFFFu;  // 2^32 nodes
-  if (max_nodes == 0) return kMax;
-  return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(max_nodes / 8, 2, kMax));
-}
-
-std::size_t MapBuffers::initialBytes(std::uint32_t block_limit) {
-  return kFixedBytes + 4 * kSmallQuery + 4 * kSmallBuffer + hashBytes(kInitialHashLog2) +
-         endpointBytes(kInitialHashLog2) + slotBytes(kInitialHashLog2, kInitialHashLog2) +
-         listBytes(kInitialActive) +
-         std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} * kBlockBytes;
-}
 
 MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit,
                        std::size_t max_bytes)

@@ -1,0 +1,43 @@
+// Bytes of the map's buffers by size parameter: shared by MapBuffers' growth, the device-memory
+// cap's checks and MapParams::minDeviceBytes(). Plain arithmetic, no Vulkan (the file readers'
+// fuzzers link buffer_sizes.cpp without a device).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "map/map_buffers.hpp"
+#include "octovk/gpu_types.h"
+
+namespace octovk::sizes {
+
+constexpr std::size_t kInitialActive = 1024;
+constexpr std::size_t kSmallBuffer = 16;  // points, walks, upload, depth before the first scan
+constexpr std::size_t kSmallQuery = 64;   // each query buffer and its staging
+
+inline std::size_t hashBytes(std::uint32_t log2) {
+  const std::size_t cap = std::size_t{1} << log2;
+  const std::size_t cells = cap * kCellsPerBrickSlot;
+  return cap * sizeof(std::uint64_t) + cap * gpu::kBrickFlagWords * sizeof(std::uint32_t) +
+         cells * sizeof(std::uint32_t) + cells * sizeof(gpu::ActiveCell);
+}
+inline std::size_t endpointBytes(std::uint32_t log2) {
+  return (std::size_t{1} << log2) * (sizeof(std::uint64_t) + sizeof(gpu::NewBlock));
+}
+inline std::size_t slotBytes(std::uint32_t hash_log2, std::uint32_t endpoint_log2) {
+  return ((std::size_t{1} << hash_log2) + (std::size_t{1} << endpoint_log2)) *
+         sizeof(std::uint32_t);
+}
+inline std::size_t listBytes(std::size_t active) {
+  return active * gpu::kTreeDepth * sizeof(std::uint32_t);
+}
+// Nodes, block parents, free stack and leaf boxes of one block.
+constexpr std::size_t kBlockBytes =
+    8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
+constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + 2 * sizeof(gpu::ScanCounters) +
+                                    2 * sizeof(gpu::PoolState);  // params, counters, pool, readback
+inline std::size_t pointBytes(std::size_t count) {
+  return count * 3 * sizeof(float) * 2 + 2 * count * sizeof(gpu::WalkState);  // + staging, walks
+}
+
+}  // namespace octovk::sizes
