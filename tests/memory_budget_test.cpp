@@ -14,16 +14,7 @@
 namespace octovk {
 namespace {
 
-std::vector<Eigen::Vector3f> sphere(float radius, int n, const Eigen::Vector3f& centre) {
-  std::vector<Eigen::Vector3f> pts;
-  for (int i = 0; i < n; ++i) {
-    const float z = -1.0f + 2.0f * (static_cast<float>(i) + 0.5f) / static_cast<float>(n);
-    const float r = std::sqrt(1.0f - z * z);
-    const float phi = 2.39996323f * static_cast<float>(i);
-    pts.push_back(centre + radius * Eigen::Vector3f(r * std::cos(phi), r * std::sin(phi), z));
-  }
-  return pts;
-}
+using test::sphere;
 
 MapParams capped(double resolution, std::size_t cap) {
   MapParams p = test::withResolution(resolution);

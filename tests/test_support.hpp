@@ -165,6 +165,7 @@ inline octomap::OcTree makeOracle(const MapParams& p) {
 #include <octomap/math/Pose6D.h>
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstdint>
 #include <cstring>
@@ -302,6 +303,18 @@ inline std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::V
     if (d.norm() < 1e-3f) continue;
     d.normalize();
     pts.push_back(origin + d * r(rng));
+  }
+  return pts;
+}
+
+/// `n` points spread evenly over a sphere (a Fibonacci lattice), for scans of a known shape.
+inline std::vector<Eigen::Vector3f> sphere(float radius, int n, const Eigen::Vector3f& centre) {
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < n; ++i) {
+    const float z = -1.0f + 2.0f * (static_cast<float>(i) + 0.5f) / static_cast<float>(n);
+    const float r = std::sqrt(1.0f - z * z);
+    const float phi = 2.39996323f * static_cast<float>(i);
+    pts.push_back(centre + radius * Eigen::Vector3f(r * std::cos(phi), r * std::sin(phi), z));
   }
   return pts;
 }

@@ -27,6 +27,7 @@
 #include "io/tum_parse.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/tum_sequence.hpp"
+#include "png_writer.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -38,6 +39,7 @@ using octovk::test::runOctovk;
 using octovk::test::RunResult;
 using octovk::test::runShell;
 using octovk::test::Scratch;
+using octovk::test::writePngRows;
 
 bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK) == 0; }
 
@@ -50,27 +52,6 @@ bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK)
 
 // ---- PNG files, written with libpng's full API (big-endian samples built here, no swap) ----
 
-// Only plain data lives in this frame, so libpng's longjmp skips no destructor.
-bool writePngRows(const char* path, png_uint_32 width, png_uint_32 height, int bit_depth,
-                  int color_type, int interlace, png_bytepp rows) {
-  std::FILE* file = std::fopen(path, "wb");
-  if (!file) return false;
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-  png_infop info = png ? png_create_info_struct(png) : nullptr;
-  if (!png || !info || setjmp(png_jmpbuf(png))) {
-    if (png) png_destroy_write_struct(&png, info ? &info : nullptr);
-    std::fclose(file);
-    return false;
-  }
-  png_init_io(png, file);
-  png_set_IHDR(png, info, width, height, bit_depth, color_type, interlace,
-               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-  png_write_info(png, info);
-  png_write_image(png, rows);
-  png_write_end(png, nullptr);
-  png_destroy_write_struct(&png, &info);
-  return std::fclose(file) == 0;
-}
 
 // `samples` per pixel (1 gray, 3 RGB), each `bit_depth` bits; 16-bit values stored big-endian.
 void writePng(const fs::path& path, std::uint32_t width, std::uint32_t height, int bit_depth,

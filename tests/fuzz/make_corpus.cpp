@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "png_writer.hpp"
+
 namespace {
 
 // A few occupied and free voxels near the origin: a small tree with nodes on all 16 levels.
@@ -39,29 +41,6 @@ bool write(const std::string& path, const auto& writer) {
   return static_cast<bool>(out);
 }
 
-// A PNG of `width` x `height` pixels of `bit_depth` (8 or 16) and `color_type`, written with
-// libpng from `rows` (16-bit samples big-endian, as PNG stores them). Only plain data lives in this
-// frame, so libpng's longjmp skips no destructor.
-bool writePng(const char* path, png_uint_32 width, png_uint_32 height, int bit_depth,
-              int color_type, int interlace, png_bytepp rows) {
-  std::FILE* file = std::fopen(path, "wb");
-  if (!file) return false;
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
-  png_infop info = png ? png_create_info_struct(png) : nullptr;
-  if (!png || !info || setjmp(png_jmpbuf(png))) {
-    if (png) png_destroy_write_struct(&png, info ? &info : nullptr);
-    std::fclose(file);
-    return false;
-  }
-  png_init_io(png, file);
-  png_set_IHDR(png, info, width, height, bit_depth, color_type, interlace,
-               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-  png_write_info(png, info);
-  png_write_image(png, rows);
-  png_write_end(png, nullptr);
-  png_destroy_write_struct(&png, &info);
-  return std::fclose(file) == 0;
-}
 
 // A grayscale depth image of `width` x `height` pixels, 16-bit unless `bit_depth` is 8.
 bool writeDepthPng(const std::string& path, png_uint_32 width, png_uint_32 height, int interlace,
@@ -74,7 +53,8 @@ bool writeDepthPng(const std::string& path, png_uint_32 width, png_uint_32 heigh
   for (png_uint_32 y = 0; y < height; ++y)
     rows[y] = data.data() + std::size_t{y} * width * bytes_per_sample;
   const bool ok =
-      writePng(path.c_str(), width, height, bit_depth, PNG_COLOR_TYPE_GRAY, interlace, rows.data());
+      octovk::test::writePngRows(path.c_str(), width, height, bit_depth, PNG_COLOR_TYPE_GRAY,
+                                 interlace, rows.data());
   if (!ok) std::cerr << "octovk_fuzz_corpus: cannot write " << path << "\n";
   return ok;
 }
