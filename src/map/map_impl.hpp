@@ -71,6 +71,10 @@ class OccupancyMap::Impl {
                  double max_range) const;
   gpu::ScanParams scanParams(const Eigen::Vector3f& origin, const Pose* pose, double max_range,
                              std::size_t count) const;
+  /// The parameters of a pass that is not a scan (queries, uploads): the map's, no scan.
+  gpu::ScanParams queryParams() const {
+    return scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+  }
   /// Grows what a scan the device did not apply found short; throws (map unchanged) where it
   /// may not grow.
   void growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool);

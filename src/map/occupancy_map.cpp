@@ -257,8 +257,7 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
       passes::recordPrune(rec_);
       if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec_);
       if (queries)
-        passes::recordQueries(rec_, scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0),
-                              *queries);
+        passes::recordQueries(rec_, queryParams(), *queries);
       passes::recordReadback(rec_);
       stream_.submitAndWait();
       ++stats.cell_set_attempts;
@@ -327,7 +326,7 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
   buffers_.bindings.updateRange(gpu::kBindQueryIn, in, in_offset, in_size);
   buffers_.bindings.updateRange(gpu::kBindQueryOut, out, out_offset, out_size);
   try {
-    const gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+    const gpu::ScanParams sp = queryParams();
     stream_.begin(buffers_.bindings);
     stream_.update(buffers_.params, &sp, sizeof(sp));
     stream_.barrier();
@@ -356,7 +355,7 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
                     " (maxComputeWorkGroupCount x 64); split the batch");
   passes::stageQueries(buffers_, q);
   stream_.begin(buffers_.bindings);
-  passes::recordQueries(rec_, scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0), q);
+  passes::recordQueries(rec_, queryParams(), q);
   stream_.submitAndWait();
   return passes::collectQueries(buffers_, q);
 }
@@ -376,7 +375,7 @@ std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eig
   box.occupied_only = occupied_only ? 1u : 0u;
   buffers_.ensureQueries(sizeof(box), std::size_t{buffers_.poolBlocks()} * 8 * sizeof(gpu::LeafBox));
   stream_.begin(buffers_.bindings);
-  passes::recordLeavesInBox(rec_, scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0), box);
+  passes::recordLeavesInBox(rec_, queryParams(), box);
   passes::recordReadback(rec_);
   stream_.submitAndWait();
   gpu::ScanCounters counters;
@@ -434,7 +433,7 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   std::memcpy(bytes, image.nodes.data(), node_bytes);
   std::memcpy(bytes + node_bytes, image.parents.data(), meta_bytes);
   if (free_bytes) std::memcpy(bytes + node_bytes + meta_bytes, image.free_blocks.data(), free_bytes);
-  const gpu::ScanParams sp = scanParams(Eigen::Vector3f::Zero(), nullptr, -1.0, 0);
+  const gpu::ScanParams sp = queryParams();
   stream_.begin(buffers_.bindings);
   stream_.update(buffers_.params, &sp, sizeof(sp));
   stream_.update(buffers_.pool, &pool, sizeof(pool));
