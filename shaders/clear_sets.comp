@@ -1,8 +1,10 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Empties the slots the sets' last use filled (listed in `slots`), so that each scan starts with
-// empty sets without clearing whole tables.
-// kClearPrevious: the previous scan's pc.bricks bricks and pc.endpoints second-set entries.
+// Empties the slots a scan filled in the sets (listed in `slots`), so that the next scan starts
+// with empty sets without clearing whole tables. Counts come from the counters, so the host
+// records this without knowing them:
+// kClearScan: at the scan's end (indirect over clear_args), its brick_entries bricks and its
+//             new_blocks second-set entries, whether or not the scan was applied.
 // kClearEndCells: this scan's end cells of discretize, before classify reuses the second set.
 #include "common.glsl"
 
@@ -14,10 +16,10 @@ void main() {
     if (i < counters.endpoint_entries) endpoint_keys[slots[params.hash_capacity + i]] = kEmptyKey;
     return;
   }
-  if (i < pc.bricks) {
+  if (i < counters.brick_entries) {
     uint s = slots[i];
     hash_keys[s] = kEmptyKey;
     for (uint w = 0u; w < kBrickFlagWords; ++w) hash_flags[s * kBrickFlagWords + w] = 0u;
   }
-  if (i < pc.endpoints) endpoint_keys[slots[params.hash_capacity + i]] = kEmptyKey;
+  if (i < counters.new_blocks) endpoint_keys[slots[params.hash_capacity + i]] = kEmptyKey;
 }

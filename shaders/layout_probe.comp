@@ -139,12 +139,15 @@ void main() {
   counters.active_args.x = mu(399u);
   counters.active_args.y = mu(214u);
   counters.active_args.z = mu(215u);
+  counters.clear_args.x = mu(216u);
+  counters.clear_args.y = mu(217u);
+  counters.clear_args.z = mu(218u);
 
   // PoolState: 600 + field index.
   pool.bump = mu(600u);
   pool.capacity = mu(601u);
   pool.free_count = mu(602u);
-  pool.pad1 = mu(603u);
+  pool.halted = mu(603u);
   pool.root_exists = mu(604u);
   pool.leaf_count = mu(605u);
   pool.live_nodes = mu(606u);
@@ -242,9 +245,9 @@ void main() {
   // The passes' push-constant structs: 1100 + 10 * struct (in gpu_types.h's order) + field.
   probe_no_constants = NoConstants(mu(1100u), mu(1101u), mu(1102u), mu(1103u));
   probe_clear_sets.mode = mu(1110u);
-  probe_clear_sets.bricks = mu(1111u);
-  probe_clear_sets.endpoints = mu(1112u);
-  probe_clear_sets.pad0 = mu(1113u);
+  probe_clear_sets.pad0 = mu(1111u);
+  probe_clear_sets.pad1 = mu(1112u);
+  probe_clear_sets.pad2 = mu(1113u);
   probe_transform_points.point_count = mu(1120u);
   probe_transform_points.pad0 = mu(1121u);
   probe_transform_points.pad1 = mu(1122u);

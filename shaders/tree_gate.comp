@@ -2,11 +2,14 @@
 #extension GL_GOOGLE_include_directive : require
 // Between classify and the tree passes, one invocation: does the scan fit? It does when no set
 // overflowed and no walk was cut, the pool has a free block for each of classify's new blocks,
-// and the touched lists have room for the active cells. Then the dispatch arguments of alloc,
-// link and descend cover those counts; else they are zero, the scan is marked not applied, and
-// tree_begin and tree_fixup do nothing either: the map stays as it was before the scan, and the
-// host, reading the status, grows what was short and runs the scan again. The host never has to
-// look between the passes.
+// the touched lists have room for the active cells, and no earlier scan was refused since the
+// host last looked (PoolState::halted). Then the dispatch arguments of alloc, link and descend
+// cover those counts; else they are zero, the scan is marked not applied, the pool halted, and
+// tree_begin and tree_fixup do nothing either: the map stays as it was before the scan, and so
+// it stays through every scan queued behind it. The host, reading the status at its next
+// synchronisation, grows what was short and runs the refused scans again, in order. The host
+// never has to look between the passes, nor between scans.
+// Also sets clear_args, over the slots this scan filled in the sets (cleared at its end).
 #include "common.glsl"
 
 void setArgs(uint items, inout DispatchArgs args) {
@@ -20,17 +23,20 @@ void main() {
   if (invocationIndex() != 0u) return;
   uint status = counters.status;
   uint active_count = counters.active_cells + counters.leaf_cells;
+  if (pool.halted != 0u) status |= kStatusHalted;
   if (counters.new_blocks > pool.capacity - pool.bump + pool.free_count)
     status |= kStatusPoolShort;
   if (active_count > params.active_capacity) status |= kStatusListsShort;
   if ((status & (kStatusHashFull | kStatusEndpointHashFull | kStatusRayCut | kStatusPoolShort |
-                 kStatusListsShort)) != 0u) {
+                 kStatusListsShort | kStatusHalted)) != 0u) {
     status |= kStatusNotApplied;
+    pool.halted = 1u;
     setArgs(0u, counters.block_args);
     setArgs(0u, counters.active_args);
   } else {
     setArgs(counters.new_blocks, counters.block_args);
     setArgs(active_count, counters.active_args);
   }
+  setArgs(max(counters.brick_entries, counters.new_blocks), counters.clear_args);
   counters.status = status;
 }

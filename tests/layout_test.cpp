@@ -37,7 +37,7 @@ static_assert(sizeof(PoolState) == 32);
 static_assert(offsetof(PoolState, bump) == 0);
 static_assert(offsetof(PoolState, capacity) == 4);
 static_assert(offsetof(PoolState, free_count) == 8);
-static_assert(offsetof(PoolState, pad1) == 12);
+static_assert(offsetof(PoolState, halted) == 12);
 static_assert(offsetof(PoolState, root_exists) == 16);
 static_assert(offsetof(PoolState, leaf_count) == 20);
 static_assert(offsetof(PoolState, live_nodes) == 24);
@@ -91,7 +91,7 @@ static_assert(offsetof(DispatchArgs, z) == 8);
 static_assert(sizeof(DispatchArgs) == sizeof(VkDispatchIndirectCommand));
 
 static_assert(kLevelCount == 17);
-static_assert(sizeof(ScanCounters) == 408);
+static_assert(sizeof(ScanCounters) == 420);
 static_assert(offsetof(ScanCounters, status) == 0);
 static_assert(offsetof(ScanCounters, brick_entries) == 4);
 static_assert(offsetof(ScanCounters, endpoint_entries) == 8);
@@ -114,7 +114,8 @@ static_assert(offsetof(ScanCounters, brick_args) == 368);
 static_assert(offsetof(ScanCounters, no_depth) == 380);
 static_assert(offsetof(ScanCounters, block_args) == 384);
 static_assert(offsetof(ScanCounters, active_args) == 396);
-static_assert(offsetof(ScanCounters, active_args) + sizeof(DispatchArgs) == sizeof(ScanCounters));
+static_assert(offsetof(ScanCounters, clear_args) == 408);
+static_assert(offsetof(ScanCounters, clear_args) + sizeof(DispatchArgs) == sizeof(ScanCounters));
 static_assert(offsetof(ScanCounters, block_args) % 4 == 0);
 
 static_assert(sizeof(DepthCamera) == 32);
@@ -201,9 +202,9 @@ static_assert(offsetof(NoConstants, pad3) == 12);
 
 static_assert(sizeof(ClearSetsConstants) == 16);
 static_assert(offsetof(ClearSetsConstants, mode) == 0);
-static_assert(offsetof(ClearSetsConstants, bricks) == 4);
-static_assert(offsetof(ClearSetsConstants, endpoints) == 8);
-static_assert(offsetof(ClearSetsConstants, pad0) == 12);
+static_assert(offsetof(ClearSetsConstants, pad0) == 4);
+static_assert(offsetof(ClearSetsConstants, pad1) == 8);
+static_assert(offsetof(ClearSetsConstants, pad2) == 12);
 
 static_assert(sizeof(TransformPointsConstants) == 16);
 static_assert(offsetof(TransformPointsConstants, point_count) == 0);
@@ -283,7 +284,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(ActiveCell), 16u);
   EXPECT_EQ(sizeof(NewBlock), 12u);
   EXPECT_EQ(sizeof(DispatchArgs), 12u);
-  EXPECT_EQ(sizeof(ScanCounters), 408u);
+  EXPECT_EQ(sizeof(ScanCounters), 420u);
   EXPECT_EQ(sizeof(DepthCamera), 32u);
   EXPECT_EQ(sizeof(WalkState), 48u);
   EXPECT_EQ(sizeof(PassConstants), 16u);
@@ -292,7 +293,7 @@ TEST(Layout, HostSizesAndOffsets) {
   EXPECT_EQ(sizeof(RayResult), 16u);
   EXPECT_EQ(sizeof(BoxQuery), 32u);
   EXPECT_EQ(sizeof(RayState), 48u);
-  EXPECT_EQ(offsetof(ScanCounters, active_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
+  EXPECT_EQ(offsetof(ScanCounters, clear_args) + sizeof(DispatchArgs), sizeof(ScanCounters));
   EXPECT_EQ(offsetof(ScanParams, pad0) + 4, sizeof(ScanParams));
 }
 
@@ -423,7 +424,7 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindPool, PoolState, bump, U, 600),
       OCTOVK_FIELD(kBindPool, PoolState, capacity, U, 601),
       OCTOVK_FIELD(kBindPool, PoolState, free_count, U, 602),
-      OCTOVK_FIELD(kBindPool, PoolState, pad1, U, 603),
+      OCTOVK_FIELD(kBindPool, PoolState, halted, U, 603),
       OCTOVK_FIELD(kBindPool, PoolState, root_exists, U, 604),
       OCTOVK_FIELD(kBindPool, PoolState, leaf_count, U, 605),
       OCTOVK_FIELD(kBindPool, PoolState, live_nodes, U, 606),
@@ -470,6 +471,7 @@ std::vector<Field> probedFields() {
   addDispatchArgs(f, "cell_args", offsetof(ScanCounters, cell_args), 390);
   addDispatchArgs(f, "brick_args", offsetof(ScanCounters, brick_args), 393);
   addDispatchArgs(f, "block_args", offsetof(ScanCounters, block_args), 396);
+  addDispatchArgs(f, "clear_args", offsetof(ScanCounters, clear_args), 216);
   f.push_back({"ScanCounters::active_args.x", kBindCounters, offsetof(ScanCounters, active_args),
                U, 399});
   f.push_back({"ScanCounters::active_args.y", kBindCounters,
@@ -585,7 +587,7 @@ std::vector<Field> probedFields() {
   // Every pass's push-constant struct, after the RayResults in the probe's output view.
   const std::size_t constants_at = ray_results_at + 2 * sizeof(RayResult);
   OCTOVK_CONSTANTS(f, constants_at, 0, NoConstants, pad0, pad1, pad2, pad3);
-  OCTOVK_CONSTANTS(f, constants_at, 1, ClearSetsConstants, mode, bricks, endpoints, pad0);
+  OCTOVK_CONSTANTS(f, constants_at, 1, ClearSetsConstants, mode, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 2, TransformPointsConstants, point_count, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 3, DiscretizeConstants, point_count, pad0, pad1, pad2);
   OCTOVK_CONSTANTS(f, constants_at, 4, RayKeysConstants, budget, point_count, mode, from_list);
@@ -673,7 +675,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
                                3u /* cell_args */ + 2u /* ScanParams */ +
                                5u /* brick_args, cell_list, block_parent */ +
                                1u /* no_depth */ + 9u /* DepthCamera, its first word */ +
-                               6u /* block_args, active_args */ +
+                               9u /* block_args, active_args, clear_args */ +
                                4u * kProbedConstants /* push-constant structs */);
   for (const Field& f : fields) {
     const auto* bytes = static_cast<const unsigned char*>(buffers[f.binding].mapped());

@@ -54,6 +54,9 @@ OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of
 OCTOVK_CONST uint kStatusNotApplied = 16u;
 OCTOVK_CONST uint kStatusPoolShort = 32u;   // fewer free blocks than new_blocks
 OCTOVK_CONST uint kStatusListsShort = 64u;  // more active cells than params.active_capacity
+// Not applied because an earlier scan was not (PoolState::halted): scans queued behind a refused
+// one leave the map alone until the host has grown what was short and replays them in order.
+OCTOVK_CONST uint kStatusHalted = 128u;
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
@@ -80,7 +83,8 @@ struct PoolState {
   uint bump;         // 4B (0)  next never-used block
   uint capacity;     // 4B (4)  blocks in the pool
   uint free_count;   // 4B (8)  entries on the free-block stack
-  uint pad1;         // 4B (12)
+  uint halted;       // 4B (12) 1 from a scan tree_gate refused until the host clears it: every
+                     //         later scan is refused too (kStatusHalted)
   uint root_exists;  // 4B (16)
   uint leaf_count;   // 4B (20) entries written to the leaf-box buffer by the last rebuild
   uint live_nodes;   // 4B (24) nodes in the tree (maintained by the passes)
@@ -143,7 +147,7 @@ struct DispatchArgs {
 };
 
 // Counters of one scan, reset at its start. The host reads this struct back once per scan
-// (with the PoolState right after it, at byte 380). 380 B.
+// (with the PoolState right after it, in the readback region of its frame). 420 B.
 struct ScanCounters {
   uint status;             // 4B (0)   kStatus* bits
   uint brick_entries;      // 4B (4)   distinct bricks in the cell set
@@ -169,6 +173,8 @@ struct ScanCounters {
                   //          points, so also counted in skipped_nonfinite)
   DispatchArgs block_args;   // 12B (384) groups over new_blocks (alloc, link); set by tree_gate
   DispatchArgs active_args;  // 12B (396) groups over the active cells (descend); set by tree_gate
+  DispatchArgs clear_args;   // 12B (408) groups over max(brick_entries, new_blocks): the slots
+                             //           clear_sets empties at the scan's end; set by tree_gate
 };
 
 // Cell states of a point lookup.
@@ -319,13 +325,13 @@ struct NoConstants {
 };
 
 // clear_sets. 16 B.
-OCTOVK_CONST uint kClearPrevious = 0u;  // the slots the previous scan filled in both sets
+OCTOVK_CONST uint kClearScan = 0u;      // at a scan's end, the slots it filled in both sets
 OCTOVK_CONST uint kClearEndCells = 1u;  // discretize's end cells, before classify reuses the set
 struct ClearSetsConstants {
-  uint mode;       // 4B (0)  kClearPrevious / kClearEndCells
-  uint bricks;     // 4B (4)  kClearPrevious: bricks the previous scan filled in the cell set
-  uint endpoints;  // 4B (8)  kClearPrevious: entries it filled in the second set
-  uint pad0;       // 4B (12)
+  uint mode;  // 4B (0)  kClearScan / kClearEndCells
+  uint pad0;  // 4B (4)
+  uint pad1;  // 4B (8)
+  uint pad2;  // 4B (12)
 };
 
 // transform_points. 16 B.

@@ -160,8 +160,13 @@ struct StageTimes {
   }
 };
 
-/// What one insertPointCloud did.
+/// A scan submitted with OccupancyMap::submitPointCloud / submitDepthImage: 1, 2, 3, ... in
+/// submission order (the blocking calls take one too).
+using ScanTicket = std::uint64_t;
+
+/// What one insertPointCloud (or one submitted scan) did.
 struct ScanStats {
+  ScanTicket ticket = 0;              ///< the scan's place in the map's order
   std::size_t points = 0;             ///< points given (for a depth image: its pixels)
   std::size_t skipped_nonfinite = 0;  ///< NaN or infinite coordinates: nothing inserted
   std::size_t skipped_outside = 0;    ///< ray or end cell outside the map: nothing inserted
@@ -170,8 +175,13 @@ struct ScanStats {
   std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
   std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
   std::size_t nodes = 0;              ///< nodes in the tree after the scan
-  std::size_t cell_set_attempts = 0;  ///< ray passes run (more than 1 when the cell set grew)
-  double wall_ms = 0.0;               ///< host wall time of the call
+  /// Times the scan was run: more than 1 when the device refused it (a set, the pool or the
+  /// lists too small, or an earlier scan in flight refused) and it ran again after growth.
+  std::size_t cell_set_attempts = 0;
+  /// Host wall time of the call: the whole blocking call; for a submitted scan, the time
+  /// submit*() took (staging its input and recording; waits for a busy frame or growth
+  /// included).
+  double wall_ms = 0.0;
   StageTimes device;                  ///< device time per stage (of the final attempt)
 };
 
@@ -279,6 +289,46 @@ class OccupancyMap {
                              double max_range_m = -1.0,
                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
                              bool discretize = false);
+
+  // ---- streaming: scans submitted back to back, no host wait per scan ----
+  //
+  // submit*() stages the input (points or pixels copied into one of 3 staging buffers), records
+  // the scan and submits it, and returns without waiting; the device decides on its own whether
+  // the scan fits. The host waits only when all 3 frames are in flight (the oldest one then), or
+  // when buffers must grow. A scan that did not fit leaves the map as it was, and so do the
+  // scans behind it; at the next synchronisation (flush(), or any call that reads or changes
+  // the map: queries, download, nodeCount, insertPointCloud, ...) the library grows what was
+  // short and runs them again in order. The map after any sequence of submits equals the map of
+  // the same scans inserted one by one with the blocking calls, and OctoMap's.
+  // Errors a scan's input shows are thrown by submit*() (nothing submitted); an error found on
+  // the device (a pool over MapParams::max_nodes, the memory cap, ...) is thrown by the
+  // synchronisation that finds it: the map then holds every scan before the failing one, and
+  // it and the scans submitted after it are not inserted (the message names its ticket).
+
+  /// insertPointCloud(points_world, origin_world, ...), submitted without waiting. The points
+  /// are copied before it returns: the span may be reused at once.
+  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_world,
+                              const Eigen::Vector3f& origin_world, double max_range_m = -1.0,
+                              bool discretize = false);
+  /// insertPointCloud(points_sensor, origin_sensor, T_world_sensor, ...), without waiting.
+  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
+                              double max_range_m = -1.0, bool discretize = false);
+  /// insertDepthImage(...), without waiting. The pixels are copied before it returns.
+  ScanTicket submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                              double max_range_m = -1.0,
+                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
+                              bool discretize = false);
+  /// Waits until every submitted scan is in the map (running refused ones again); throws as
+  /// described above.
+  void flush();
+  /// Whether scan `ticket` is in the map; does not wait (takes the results already there).
+  bool finished(ScanTicket ticket);
+  /// Statistics of the submitted scans known to be in the map since the last call, in ticket
+  /// order (the newest 4096 are kept); does not wait. Blocking calls return their own instead.
+  std::vector<ScanStats> takeScanStats();
+  /// Submitted scans not yet known to be in the map.
+  std::size_t scansInFlight() const noexcept;
 
   /// One leaf: centre, edge length, log-odds.
   struct LeafBoxHost {

@@ -14,7 +14,7 @@ std::uint32_t poolBlockLimit(std::size_t max_nodes) {
 }
 
 std::size_t MapBuffers::initialBytes(std::uint32_t block_limit) {
-  return kFixedBytes + 4 * kSmallQuery + 4 * kSmallBuffer + hashBytes(kInitialHashLog2) +
+  return kFixedBytes + 4 * kSmallQuery + (3 + kFramesInFlight) * kSmallBuffer + hashBytes(kInitialHashLog2) +
          endpointBytes(kInitialHashLog2) + slotBytes(kInitialHashLog2, kInitialHashLog2) +
          listBytes(kInitialActive) +
          std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} * kBlockBytes;

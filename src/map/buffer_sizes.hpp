@@ -34,10 +34,12 @@ inline std::size_t listBytes(std::size_t active) {
 // Nodes, block parents, free stack and leaf boxes of one block.
 constexpr std::size_t kBlockBytes =
     8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
-constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + 2 * sizeof(gpu::ScanCounters) +
-                                    2 * sizeof(gpu::PoolState);  // params, counters, pool, readback
+// Params, counters, pool, and a readback region per frame.
+constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + sizeof(gpu::ScanCounters) +
+                                    sizeof(gpu::PoolState) + kFramesInFlight * kReadbackBytes;
+// Points on the device, their staging in each frame, the walks.
 inline std::size_t pointBytes(std::size_t count) {
-  return count * 3 * sizeof(float) * 2 + 2 * count * sizeof(gpu::WalkState);  // + staging, walks
+  return count * 3 * sizeof(float) * (1 + kFramesInFlight) + 2 * count * sizeof(gpu::WalkState);
 }
 
 }  // namespace octovk::sizes

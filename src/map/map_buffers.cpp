@@ -23,6 +23,9 @@ gpu::ScanCounters freshCounters() {
   for (auto& a : c.walk_args) a = {0, 1, 1};
   c.cell_args = {0, 1, 1};
   c.brick_args = {0, 1, 1};
+  c.block_args = {0, 1, 1};
+  c.active_args = {0, 1, 1};
+  c.clear_args = {0, 1, 1};
   return c;
 }
 
@@ -47,11 +50,12 @@ MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint3
   params = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
   counters = vk::Buffer(device_, sizeof(gpu::ScanCounters), false);
   pool = vk::Buffer(device_, sizeof(gpu::PoolState), false);
-  readback = vk::Buffer(device_, sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState), true);
+  readback = vk::Buffer(device_, kFramesInFlight * kReadbackBytes, true);
   ensureQueries(kSmallQuery, kSmallQuery);
   points = vk::Buffer(device_, kSmallBuffer, false);
   walks = vk::Buffer(device_, kSmallBuffer, false);
-  upload = vk::Buffer(device_, kSmallBuffer, true);
+  uploads.resize(kFramesInFlight);
+  for (vk::Buffer& u : uploads) u = vk::Buffer(device_, kSmallBuffer, true);
   depth = vk::Buffer(device_, kSmallBuffer, false);
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
   allocateLists(kInitialActive);
@@ -66,9 +70,10 @@ BufferBytes MapBuffers::bytesByUse() const {
   b.queries = query_in.size() + query_out.size() + query_staging_in.size() +
               query_staging_out.size();
   for (const vk::Buffer* x :
-       {&params, &counters, &pool, &readback, &points, &upload, &walks, &depth, &hash_keys,
+       {&params, &counters, &pool, &readback, &points, &walks, &depth, &hash_keys,
         &hash_flags, &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
     b.scratch += x->size();
+  b.scratch += uploadBytes();
   return b;
 }
 
@@ -224,12 +229,15 @@ void MapBuffers::releaseScratch() {
   // Smaller buffers: these fit whatever the cap.
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
   if (active_capacity_ != kInitialActive) allocateLists(kInitialActive);
-  if (point_capacity_ > 0 || upload.size() != kSmallBuffer || depth.size() != kSmallBuffer) {
+  if (point_capacity_ > 0 || uploadBytes() != kFramesInFlight * kSmallBuffer ||
+      depth.size() != kSmallBuffer) {
     vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);
-    vk::Buffer u(device_, kSmallBuffer, true), d(device_, kSmallBuffer, false);
+    vk::Buffer d(device_, kSmallBuffer, false);
+    std::vector<vk::Buffer> u(kFramesInFlight);
+    for (vk::Buffer& x : u) x = vk::Buffer(device_, kSmallBuffer, true);
     points = std::move(p);
     walks = std::move(w);
-    upload = std::move(u);
+    uploads = std::move(u);
     depth = std::move(d);
     point_capacity_ = 0;
     rebind();
@@ -250,16 +258,15 @@ void MapBuffers::releaseQueries() {
   rebind();
 }
 
-void MapBuffers::noteScan(std::size_t points) {
+bool MapBuffers::noteScan(std::size_t points) {
   if (scan_points_.size() == kScanHistory) scan_points_.erase(scan_points_.begin());
   scan_points_.push_back(points);
   scratch_peak_points_ = std::max(scratch_peak_points_, points);
   std::vector<std::size_t> sorted = scan_points_;
   std::sort(sorted.begin(), sorted.end());
   const std::size_t median = sorted[(sorted.size() - 1) / 2];  // the lower one of an even count
-  if (scratch_peak_points_ > kOutsizedFactor * median &&
-      bytesByUse().scratch > kAutoReleaseBytes)
-    releaseScratch();
+  return scratch_peak_points_ > kOutsizedFactor * median &&
+         bytesByUse().scratch > kAutoReleaseBytes;
 }
 
 void MapBuffers::resetPool() {
@@ -275,36 +282,41 @@ void MapBuffers::resetPool() {
 
 void MapBuffers::ensurePoints(std::size_t count) {
   if (count <= point_capacity_) return;
-  const std::size_t held = points.size() + upload.size() + walks.size();
+  const std::size_t held = points.size() + uploadBytes() + walks.size();
   std::size_t cap = std::max(count, point_capacity_ * 2);
   if (!fits(held, pointBytes(cap))) cap = count;  // no headroom where the cap allows none
   checkBudget(held, pointBytes(cap),
               "taking a scan of " + std::to_string(count) + " points (" +
                   std::to_string(pointBytes(1)) + " bytes per point: points, staging, walks)");
   vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
-  vk::Buffer staging(device_, cap * 3 * sizeof(float), true);
+  std::vector<vk::Buffer> staging(kFramesInFlight);
+  for (vk::Buffer& x : staging) x = vk::Buffer(device_, cap * 3 * sizeof(float), true);
   vk::Buffer walk_lists(device_, 2 * cap * sizeof(gpu::WalkState), false);
   points = std::move(device_points);
-  upload = std::move(staging);
+  uploads = std::move(staging);
   walks = std::move(walk_lists);
   point_capacity_ = cap;
   rebind();
 }
 
 void MapBuffers::ensureDepth(std::size_t bytes) {
-  const bool grow_depth = depth.size() < bytes, grow_upload = upload.size() < bytes;
+  const bool grow_depth = depth.size() < bytes, grow_upload = uploads[0].size() < bytes;
   std::size_t depth_bytes = grow_depth ? std::max(bytes, depth.size() * 2) : depth.size();
-  const std::size_t freed = (grow_depth ? depth.size() : 0) + (grow_upload ? upload.size() : 0);
-  const std::size_t upload_add = grow_upload ? bytes : 0;
+  const std::size_t freed = (grow_depth ? depth.size() : 0) + (grow_upload ? uploadBytes() : 0);
+  const std::size_t upload_add = grow_upload ? kFramesInFlight * bytes : 0;
   if (grow_depth && !fits(freed, depth_bytes + upload_add)) depth_bytes = bytes;
   checkBudget(freed, (grow_depth ? depth_bytes : 0) + upload_add,
               "taking a depth image of " + std::to_string(bytes) +
                   " bytes (device copy and upload staging)");
-  vk::Buffer image, staging;
+  vk::Buffer image;
+  std::vector<vk::Buffer> staging;
   if (grow_depth) image = vk::Buffer(device_, depth_bytes, false);
-  if (grow_upload) staging = vk::Buffer(device_, bytes, true);
+  if (grow_upload) {
+    staging.resize(kFramesInFlight);
+    for (vk::Buffer& x : staging) x = vk::Buffer(device_, bytes, true);
+  }
   if (grow_depth) depth = std::move(image);
-  if (grow_upload) upload = std::move(staging);
+  if (grow_upload) uploads = std::move(staging);
   rebind();
 }
 

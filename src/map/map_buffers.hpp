@@ -20,6 +20,11 @@ inline constexpr std::uint32_t kCellsPerBrickSlot = 4;
 inline constexpr std::uint32_t kMaxHashLog2 = 26;
 inline constexpr std::uint32_t kInitialBlocks = 1024;
 inline constexpr std::uint32_t kInitialHashLog2 = 12;
+// Scans the map keeps in flight (submitted, not yet waited for): each has its command buffer,
+// its upload staging and its readback region.
+inline constexpr std::uint32_t kFramesInFlight = 3;
+// A frame's readback region: the scan's counters, then the pool state.
+inline constexpr std::size_t kReadbackBytes = sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState);
 
 /// Smallest log2 with 2^log2 >= n.
 std::uint32_t nextPow2Log2(std::size_t n);
@@ -77,10 +82,10 @@ class MapBuffers {
   /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
   /// and waits).
   void allocatePool(std::uint32_t blocks, bool copy_old);
-  /// Points, their staging and the walk lists for at least `count` points.
+  /// Points, their staging (one per frame) and the walk lists for at least `count` points.
   void ensurePoints(std::size_t count);
-  /// The depth-image buffer (DepthCamera + pixels) of at least `bytes`, and upload staging as
-  /// large.
+  /// The depth-image buffer (DepthCamera + pixels) of at least `bytes`, and each frame's upload
+  /// staging as large.
   void ensureDepth(std::size_t bytes);
   /// Query input/output (and their staging) of at least these sizes.
   void ensureQueries(std::size_t in_bytes, std::size_t out_bytes);
@@ -92,12 +97,12 @@ class MapBuffers {
   void releaseScratch();
   /// The query buffers (and their staging) back to the constructor's sizes.
   void releaseQueries();
-  /// After each successful scan of `points` points: releases the scratch when it was grown by
-  /// an outsized scan, i.e. when the largest scan since the scratch was last released had more
-  /// than kOutsizedFactor times the points of the median of the last kScanHistory scans (this
-  /// one included), and the scratch holds more than kAutoReleaseBytes. Deterministic: it
-  /// depends only on the sequence of point counts.
-  void noteScan(std::size_t points);
+  /// After each successful scan of `points` points: whether to release the scratch (once no
+  /// scan is in flight), because an outsized scan grew it, i.e. the largest scan since the
+  /// scratch was last released had more than kOutsizedFactor times the points of the median of
+  /// the last kScanHistory scans (this one included), and the scratch holds more than
+  /// kAutoReleaseBytes. Deterministic: it depends only on the sequence of point counts.
+  bool noteScan(std::size_t points);
   static constexpr std::size_t kScanHistory = 8;
   static constexpr std::size_t kOutsizedFactor = 4;
   static constexpr std::size_t kAutoReleaseBytes = std::size_t{4} << 20;
@@ -126,9 +131,20 @@ class MapBuffers {
   }
   BufferBytes bytesByUse() const;
   std::size_t maxBytes() const noexcept { return max_bytes_; }
+  /// The upload staging of all frames.
+  std::size_t uploadBytes() const {
+    std::size_t n = 0;
+    for (const vk::Buffer& u : uploads) n += u.size();
+    return n;
+  }
 
   vk::BindingSet bindings;
-  vk::Buffer params, counters, pool, readback, points, upload;
+  vk::Buffer params, counters, pool, points;
+  vk::Buffer readback;  // host-visible: kReadbackBytes per frame
+  /// Host-visible staging of each frame's scan input (points or pixels): written by the host
+  /// while earlier scans run, kept until the scan is known to be applied (a refused scan is run
+  /// again from it).
+  std::vector<vk::Buffer> uploads;
   vk::Buffer hash_keys, hash_flags, cell_list, cells, endpoint_keys;
   vk::Buffer touched;
   vk::Buffer prefix_blocks;  // gpu::NewBlock per slot of the second set

@@ -2,7 +2,10 @@
 // the host-side decisions of each operation. The passes it records are in map/passes/.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <deque>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -18,6 +21,7 @@ class OccupancyMap::Impl {
  public:
   using DeviceBytes = OccupancyMap::DeviceBytes;
   Impl(Context& context, const MapParams& params);
+  ~Impl();  // waits for the scans in flight (their results are dropped)
 
   /// What a scan inserts: points, or a depth image (unprojected on the device), from the host
   /// or from a caller's device buffer (`device`, read once `wait` is signalled).
@@ -34,10 +38,25 @@ class OccupancyMap::Impl {
       return device != VK_NULL_HANDLE ? device_points : points.size();
     }
   };
-  /// One scan, then the queries if any.
+  /// One scan, then the queries if any, waited for: submit() and flush(), the scan's errors
+  /// thrown with the map as before it.
   ScanStats insert(const ScanSource& source, const Eigen::Vector3f& origin,
                    const Pose* pose, double max_range, bool discretize,
                    const QueryRequest* queries = nullptr, QueryResults* results = nullptr);
+  /// Records and submits a scan without waiting for it (the host's points or pixels are copied
+  /// into the frame's staging first); returns its ticket. Waits only where a frame is still
+  /// busy or buffers must grow.
+  std::uint64_t submit(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
+                       double max_range, bool discretize);
+  /// Waits for every submitted scan; a scan the device refused (and the ones behind it) run
+  /// again after the host grew what was short. Throws where a scan cannot be inserted: the
+  /// map then holds every scan before it, and it and the later ones are dropped.
+  void flush();
+  /// Statistics of the scans known to be in the map, in order, not taken before.
+  std::vector<ScanStats> takeStats();
+  /// Whether scan `ticket` is in the map (polls, does not wait).
+  bool finished(std::uint64_t ticket);
+  std::size_t scansInFlight() const { return pending_.size(); }
   QueryResults runQueries(const QueryRequest& queries);
   /// A castRay (rays) or lookup batch between ranges of the caller's buffers (interop).
   void queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDeviceSize in_size,
@@ -63,9 +82,47 @@ class OccupancyMap::Impl {
   vk::Device& device() { return device_; }
 
  private:
-  /// Where the ray pass reads the scan's input: the upload buffer, after writing the host's
-  /// points or pixels into it, or the caller's buffer.
-  passes::RayKeysInput stage(const ScanSource& source);
+  /// A scan submitted and not yet known to be in the map: what it needs to run again.
+  struct PendingScan {
+    std::uint64_t ticket = 0;
+    std::uint64_t serial = 0;  ///< its last submission
+    std::uint32_t frame = 0;   ///< that submission's frame (readback region, timestamps)
+    std::uint32_t staging_frame = 0;  ///< whose upload staging holds its input
+    bool host_input = true;           ///< input in uploads[staging_frame], else a caller's buffer
+    passes::RayKeysInput input;
+    Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+    std::optional<Pose> pose;
+    double max_range = -1.0;
+    std::size_t count = 0;
+    bool blocking = false;  ///< the blocking call's scan (which waits for it)
+    const QueryRequest* queries = nullptr;  // the blocking call's
+    QueryResults* results = nullptr;
+    ScanStats stats;
+  };
+  /// Where the ray pass reads the scan's input: frame `frame`'s upload staging, after writing
+  /// the host's points or pixels into it, or the caller's buffer.
+  passes::RayKeysInput stage(const ScanSource& source, std::uint32_t frame);
+  /// Grows what the next scan of `count` points (`depth_bytes` of depth image) needs, and what
+  /// recent scans asked for ahead, waiting for the scans in flight first if anything grows.
+  void prepareBuffers(std::size_t count, std::size_t depth_bytes);
+  /// submit(); `blocking`: the blocking call's scan, whose `queries` (staged here) run right
+  /// after it in its submission.
+  std::uint64_t enqueue(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
+                        double max_range, bool discretize, bool blocking,
+                        const QueryRequest* queries, QueryResults* results);
+  /// What the results of recent scans asked for ahead (pool and list room, releasing the
+  /// scratch after an outsized scan); nothing may be in flight.
+  void growAhead();
+  /// Records and submits scan `p` (its queries, if any, after it).
+  void record(PendingScan& p);
+  /// Waits for the oldest scan in flight and takes its result; a refused one is run again with
+  /// everything behind it (recover).
+  void confirmOldest();
+  /// Takes the result of the oldest scan in flight, which has completed: false if the device
+  /// refused it.
+  bool takeResult(PendingScan& p, const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// The oldest scan was refused: waits for all, grows, runs them again in order, each waited.
+  void recover(gpu::ScanCounters counters, gpu::PoolState pool);
   /// Throws kInvalidArgument naming the first bad input of a scan of `count` points.
   void checkScan(std::size_t count, const Eigen::Vector3f& origin, const Pose* pose,
                  double max_range) const;
@@ -87,8 +144,18 @@ class OccupancyMap::Impl {
   vk::CommandStream stream_;
   MapBuffers buffers_;
   passes::Recorder rec_;
-  // The slots the last successful scan filled in the two sets (cleared by the next scan).
-  std::uint32_t filled_bricks_ = 0, filled_endpoints_ = 0;
+  std::deque<PendingScan> pending_;  // submitted, in order
+  std::deque<ScanStats> finished_stats_;  // in the map, not taken yet (the newest kKeptStats)
+  static constexpr std::size_t kKeptStats = 4096;
+  std::uint64_t next_ticket_ = 1;
+  std::size_t last_nodes_ = 0;       // nodes after the last scan taken
+  // A scan was refused since the last submission: the next one clears PoolState::halted.
+  bool resume_ = false;
+  // Growth asked for by the results of recent scans, done at the next submit (after waiting).
+  std::uint64_t ahead_blocks_ = 0;
+  std::size_t ahead_active_ = 0;
+  bool release_scratch_ = false;
+  std::uint32_t hash_guess_tried_ = 0;  // the largest first guess of the cell set tried
   bool leaf_boxes_every_scan_ = false;
   bool leaf_boxes_dirty_ = false;
 };

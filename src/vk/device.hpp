@@ -89,14 +89,19 @@ class BindingSet {
   VkDescriptorSet set_ = VK_NULL_HANDLE;
 };
 
-/// Records passes into one command buffer, submits it and waits.
+/// Records passes into command buffers and submits them in order on the device's queue. With
+/// `frames` > 1 a submission need not be waited for: the next recording uses the next of
+/// `frames` command buffers (each with its fence and timestamp range), waiting only when that
+/// one's earlier submission is still running. Every recording starts with a full barrier, so a
+/// submission sees everything earlier submissions wrote.
 class CommandStream {
  public:
-  explicit CommandStream(Device& device);
-  ~CommandStream();
+  explicit CommandStream(Device& device, std::uint32_t frames = 1);
+  ~CommandStream();  // waits for every submission
   CommandStream(const CommandStream&) = delete;
   CommandStream& operator=(const CommandStream&) = delete;
 
+  /// Starts recording into frame nextFrame(), after waiting for its previous submission.
   void begin(const BindingSet& bindings);
   void dispatch(const Pass& pass, std::uint32_t groups, const void* constants,
                 std::uint32_t constants_bytes);
@@ -119,23 +124,51 @@ class CommandStream {
   /// The next submission waits for `semaphore` (a timeline semaphore: for `value`; a binary
   /// one: signalled, and unsignalled by the wait) before any of its commands run.
   void waitBeforeNextSubmit(VkSemaphore semaphore, std::uint64_t value);
+  /// Ends recording and submits; returns the submission's serial (1, 2, ... in order).
+  std::uint64_t submit();
+  /// Waits until submission `serial` (and so every earlier one) has completed.
+  void wait(std::uint64_t serial);
+  /// Whether submission `serial` has completed (does not wait).
+  bool finished(std::uint64_t serial);
+  /// Waits for every submission.
+  void waitIdle();
   /// Ends recording, submits and waits for completion.
-  void submitAndWait();
-  /// Device times in nanoseconds of the timestamps of the last submission (empty if the device
-  /// has no timestamps).
-  std::vector<double> timestampsNs();
+  void submitAndWait() { wait(submit()); }
+
+  std::uint32_t frames() const noexcept { return static_cast<std::uint32_t>(frames_.size()); }
+  /// The frame the next begin() records into.
+  std::uint32_t nextFrame() const noexcept {
+    return static_cast<std::uint32_t>(submitted_ % frames_.size());
+  }
+  /// The frame being recorded (or last recorded).
+  std::uint32_t frame() const noexcept { return current_; }
+  std::uint64_t lastSerial() const noexcept { return submitted_; }
+  /// Device times in nanoseconds of the timestamps of frame `frame`'s last submission, once it
+  /// has completed (empty if the device has no timestamps).
+  std::vector<double> timestampsNs(std::uint32_t frame);
+  /// Of the last submission.
+  std::vector<double> timestampsNs() { return timestampsNs(current_); }
 
  private:
+  struct Frame {
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    VkFence fence = VK_NULL_HANDLE;
+    std::uint64_t serial = 0;  // of its last submission (0: none)
+    std::uint32_t query_count = 0;
+    bool done = false;         // its fence was seen signalled
+  };
+  VkCommandBuffer cmd() const { return frames_[current_].cmd; }
+  void waitFrame(Frame& f);
   Device& device_;
   VkCommandPool pool_ = VK_NULL_HANDLE;
-  VkCommandBuffer cmd_ = VK_NULL_HANDLE;
-  VkFence fence_ = VK_NULL_HANDLE;
+  std::vector<Frame> frames_;
+  std::uint32_t current_ = 0;
+  std::uint64_t submitted_ = 0;  // serial of the last submission
   VkQueryPool queries_ = VK_NULL_HANDLE;
-  std::uint32_t query_count_ = 0;
   bool recording_ = false;
   VkSemaphore wait_semaphore_ = VK_NULL_HANDLE;
   std::uint64_t wait_value_ = 0;
-  static constexpr std::uint32_t kMaxQueries = 64;
+  static constexpr std::uint32_t kMaxQueries = 64;  // per frame
 };
 
 /// Instance, physical device, logical device, queue and the shared pipeline layout.

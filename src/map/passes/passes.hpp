@@ -24,13 +24,17 @@ struct RayKeysInput {
   gpu::DepthCamera camera{};
   bool transform = false;     ///< points in the sensor frame: move them by the pose first
   bool discretize = false;    ///< insert one ray per distinct end cell (OctoMap's discretize)
-  bool fill_sets = false;     ///< clear the sets whole, else only the previous scan's slots
-  std::uint32_t filled_bricks = 0, filled_endpoints = 0;  ///< the previous scan's slots
+  /// Empty the sets whole first (new buffers); else they are empty already (each scan empties
+  /// the slots it filled at its end, recordClearSets).
+  bool fill_sets = false;
+  bool resume = false;  ///< clear PoolState::halted first: the host has handled a refused scan
 };
-/// Uploads the parameters, fresh counters and the staged points (or depth image), clears the
-/// sets, then unproject, transform, discretize and the ray walk (with its continuations) into
-/// the cell set.
+/// Uploads the parameters, fresh counters and the staged points (or depth image), then
+/// unproject, transform, discretize and the ray walk (with its continuations) into the cell set.
 void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& in);
+/// At a scan's end: empties the slots it filled in both sets (counts from its counters, so it
+/// needs no host decision and works whether or not the scan was applied).
+void recordClearSets(Recorder& r);
 
 // ---- classify.cpp: the cells against the tree ----
 
@@ -81,9 +85,10 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q);
 
 // ---- readback.cpp ----
 
-/// Copies the counters and the pool state to the host-visible readback buffer.
+/// Copies the counters and the pool state to the recording frame's readback region.
 void recordReadback(Recorder& r);
-/// What recordReadback copied, once the submission is done.
-void readBack(const MapBuffers& buffers, gpu::ScanCounters& counters, gpu::PoolState& pool);
+/// What recordReadback copied in frame `frame`, once that submission is done.
+void readBack(const MapBuffers& buffers, std::uint32_t frame, gpu::ScanCounters& counters,
+              gpu::PoolState& pool);
 
 }  // namespace octovk::passes

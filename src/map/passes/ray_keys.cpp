@@ -1,4 +1,4 @@
-// Stage 1, points to cells: clear_sets.comp, unproject.comp (depth images), transform_points.comp,
+// Stage 1, points to cells: clear_sets.comp (at the scan's end), unproject.comp (depth images), transform_points.comp,
 // discretize.comp and ray_keys.comp (the walk of each ray into the cell set).
 #include "map/passes/passes.hpp"
 
@@ -22,13 +22,8 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
     r.stream.fill(b.hash_keys, 0xFFFFFFFFu);
     r.stream.fill(b.hash_flags, 0u);
     r.stream.fill(b.endpoint_keys, 0xFFFFFFFFu);
-  } else {
-    r.stream.barrier();
-    r.dispatch("clear_sets", std::max(in.filled_bricks, in.filled_endpoints),
-               gpu::ClearSetsConstants{.mode = gpu::kClearPrevious,
-                                       .bricks = in.filled_bricks,
-                                       .endpoints = in.filled_endpoints});
   }
+  if (in.resume) r.stream.fill(b.pool, 0u, offsetof(gpu::PoolState, halted), 4);
   r.stream.barrier();
   r.stream.timestamp();
   if (in.unproject)
@@ -58,6 +53,11 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
                                  .mode = last ? gpu::kRayKeysContinueLast : gpu::kRayKeysContinue,
                                  .from_list = from};
   });
+}
+
+void recordClearSets(Recorder& r) {
+  r.dispatchIndirect("clear_sets", offsetof(gpu::ScanCounters, clear_args),
+                     gpu::ClearSetsConstants{.mode = gpu::kClearScan});
 }
 
 }  // namespace octovk::passes

@@ -1,0 +1,426 @@
+// The scan state machine: scans submitted back to back without waiting (each one submission,
+// the device deciding whether it fits, tree_gate), their results taken when their frame is
+// needed again or at a synchronisation, and the rare scan the device refused run again, in
+// order, with everything behind it, once the host has grown what was short. The blocking
+// insert is a submit and a flush.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <utility>
+
+#include "map/map_impl.hpp"
+#include "octovk/gpu_types.h"
+
+namespace octovk {
+
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+}  // namespace
+
+// ---- checks and growth ----------------------------------------------------------------------
+
+void OccupancyMap::Impl::checkScan(std::size_t count, const Eigen::Vector3f& origin,
+                                   const Pose* pose, double max_range) const {
+  if (!origin.allFinite())
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: the sensor origin is not finite (NaN or inf); pass the "
+                "sensor position in metres");
+  if (pose && (!pose->translation.allFinite() || !pose->rotation.coeffs().allFinite()))
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: the sensor pose is not finite (NaN or inf)");
+  if (std::isnan(max_range))
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: max_range is NaN; use a negative value for unlimited range");
+  // Lists of points and cells are walked by indirect dispatches of one group per 64 entries.
+  const std::size_t max_items =
+      std::min<std::size_t>(0x7FFFFFFFu, std::size_t{device_.maxGroupsX()} * gpu::kWorkgroupSize);
+  if (count > max_items)
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: " + std::to_string(count) + " points in one scan; the device '" +
+                    device_.info().name + "' takes at most " + std::to_string(max_items) +
+                    " (maxComputeWorkGroupCount x 64); split the scan");
+}
+
+// Grows what a scan that was not applied found short (throws, map unchanged, where it may not).
+void OccupancyMap::Impl::growForRetry(const gpu::ScanCounters& counters,
+                                      const gpu::PoolState& pool) {
+  const std::uint32_t status = counters.status;
+  if (status & gpu::kStatusRayCut)
+    throw Error(ErrorCode::kMissingFeature,
+                "insertPointCloud: a ray crosses more cells than octovk walks on the device '" +
+                    device_.info().name +
+                    "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
+                    "or a max range");
+  // A full set stopped classify early: its other counts are partial, so only the set grows.
+  if (status & gpu::kStatusHashFull) {
+    if (buffers_.hashLog2() + 2 > kMaxHashLog2)
+      throw Error(ErrorCode::kOutOfDeviceMemory,
+                  "insertPointCloud: a scan touches more than 2^25 bricks of 4x4x4 cells; the "
+                  "map is unchanged. Split the scan");
+    buffers_.allocateHash(buffers_.hashLog2() + 2);
+    return;
+  }
+  if (status & gpu::kStatusEndpointHashFull) {
+    if (buffers_.endpointLog2() >= 30)
+      throw Error(ErrorCode::kOutOfDeviceMemory,
+                  "insertPointCloud: a scan creates more than 2^29 blocks; split the scan");
+    buffers_.allocateEndpoints(buffers_.endpointLog2() + 2);
+    return;
+  }
+  if (status & gpu::kStatusPoolShort) reservePool(counters.new_blocks, pool, /*ahead=*/false);
+  const std::uint32_t active = counters.active_cells + counters.leaf_cells;
+  if (status & gpu::kStatusListsShort)
+    buffers_.allocateLists(std::size_t{1} << nextPow2Log2(active));
+}
+
+// Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for
+// the next scans) a refusal is not an error: the scan that needs the room will report it.
+void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState& pool,
+                                     bool ahead) {
+  const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
+  if (blocks <= available) return;
+  const std::uint64_t needed = std::uint64_t{pool.bump} + blocks - pool.free_count + 1;
+  const std::uint64_t limit = buffers_.blockLimit();
+  if (needed > limit) {
+    if (ahead) return;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "insertPointCloud: the scan needs a node pool of " + std::to_string(needed * 8) +
+                    " nodes, over the limit of " + std::to_string(limit * 8) +
+                    " (MapParams::max_nodes or 2^32); the map is unchanged");
+  }
+  const std::uint64_t target = std::min<std::uint64_t>(
+      limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers_.poolBlocks()} +
+                                                 buffers_.poolBlocks() / 2));
+  try {
+    buffers_.allocatePoolAtLeast(static_cast<std::uint32_t>(target),
+                                 static_cast<std::uint32_t>(needed), /*copy_old=*/true);
+  } catch (const BudgetError&) {
+    if (ahead) return;
+    throw;  // names the cap
+  } catch (const Error& e) {
+    if (ahead) return;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                std::string("insertPointCloud: the device has no room to grow the node pool "
+                            "to ") +
+                    std::to_string(target * 8) + " nodes; the map is unchanged (" + e.what() +
+                    ")");
+  }
+}
+
+
+passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source, std::uint32_t frame) {
+  vk::Buffer& upload = buffers_.uploads[frame];
+  passes::RayKeysInput in;
+  in.source = upload.handle();
+  if (!source.depth) {
+    static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
+    in.bytes = source.count() * sizeof(Eigen::Vector3f);
+    if (source.device != VK_NULL_HANDLE) {
+      in.source = source.device;
+      in.source_offset = source.device_offset;
+    } else {
+      std::memcpy(upload.mapped(), source.points.data(), in.bytes);
+    }
+    return in;
+  }
+  const DepthImage& image = *source.depth;
+  const bool u16 = image.encoding == DepthImage::Encoding::kUint16;
+  in.unproject = true;
+  in.camera = {image.fx,    image.fy,     image.cx,
+               image.cy,    image.depth_scale, image.width,
+               image.height, u16 ? gpu::kDepthUint16 : gpu::kDepthFloat32};
+  const std::size_t pixel_bytes = source.count() * (u16 ? 2 : 4);
+  in.bytes = (pixel_bytes + 3) & ~std::size_t{3};  // whole words: the shader reads words
+  if (source.device != VK_NULL_HANDLE) {
+    in.source = source.device;
+    in.source_offset = source.device_offset;
+    in.bytes = pixel_bytes;  // the caller's range may end there; the last half word is unused
+  } else {
+    auto* bytes = static_cast<unsigned char*>(upload.mapped());
+    std::memcpy(bytes, image.pixels, pixel_bytes);
+    std::memset(bytes + pixel_bytes, 0, in.bytes - pixel_bytes);
+  }
+  return in;
+}
+
+static std::size_t depthBytesOf(const OccupancyMap::Impl::ScanSource& source) {
+  if (!source.depth) return 0;
+  const std::size_t pixel_bytes =
+      source.count() * (source.depth->encoding == DepthImage::Encoding::kUint16 ? 2 : 4);
+  return sizeof(gpu::DepthCamera) + ((pixel_bytes + 3) & ~std::size_t{3});
+}
+
+void OccupancyMap::Impl::growAhead() {
+  if (ahead_blocks_ > 0) {
+    const std::uint64_t blocks = std::exchange(ahead_blocks_, 0);
+    reservePool(blocks, readPool(), /*ahead=*/true);
+  }
+  if (ahead_active_ > 0) {
+    const std::size_t active = std::exchange(ahead_active_, 0);
+    if (active > buffers_.activeCapacity()) {
+      try {
+        buffers_.allocateLists(std::size_t{1} << nextPow2Log2(active));
+      } catch (const BudgetError&) {
+        // ahead of need: the cap leaves no room, and the scan that needs it will say so
+      }
+    }
+  }
+  if (release_scratch_) {
+    release_scratch_ = false;
+    buffers_.releaseScratch();
+    hash_guess_tried_ = 0;
+  }
+}
+
+void OccupancyMap::Impl::prepareBuffers(std::size_t count, std::size_t depth_bytes) {
+  // First guess of the cell set's size: 4 brick slots (16 cells) per point (a 320x240 depth view
+  // at 0.05 m touches 0.6-1 million cells in about a quarter as many bricks), at most 2^20 brick
+  // slots; it grows (and the scan is redone) when a scan needs more, and keeps its size for the
+  // next scans.
+  const std::uint32_t guess = std::min<std::uint32_t>(nextPow2Log2(count * 4), 20);
+  const bool grow = count > buffers_.pointCapacity() || depth_bytes > buffers_.depth.size() ||
+                    depth_bytes > buffers_.uploads[0].size() || guess > hash_guess_tried_ ||
+                    ahead_blocks_ > 0 || ahead_active_ > 0 || release_scratch_;
+  if (!grow) return;
+  // Buffers are replaced (and rebound) only while no scan is in flight.
+  flush();
+  growAhead();
+  buffers_.ensurePoints(count);
+  if (depth_bytes > 0) buffers_.ensureDepth(depth_bytes);
+  if (guess > hash_guess_tried_) {
+    buffers_.growHashToward(guess);  // as far as MapParams::max_device_bytes allows
+    hash_guess_tried_ = guess;
+  }
+}
+
+// ---- one scan ---------------------------------------------------------------------------------
+
+void OccupancyMap::Impl::record(PendingScan& p) {
+  const gpu::ScanParams sp =
+      scanParams(p.origin, p.pose ? &*p.pose : nullptr, p.max_range, p.count);  // sizes may grow
+  passes::RayKeysInput input = p.input;
+  if (p.host_input) input.source = buffers_.uploads[p.staging_frame].handle();
+  input.fill_sets = buffers_.setsNeedFill();  // new sets; else the last scan emptied them
+  input.resume = resume_;
+  stream_.begin(buffers_.bindings);
+  passes::recordRayKeys(rec_, sp, input);
+  passes::recordClassify(rec_, input.discretize, sp.point_count);
+  passes::recordTreeUpdate(rec_);
+  passes::recordPrune(rec_);
+  if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec_);
+  if (p.queries) passes::recordQueries(rec_, queryParams(), *p.queries);
+  passes::recordClearSets(rec_);
+  passes::recordReadback(rec_);
+  p.serial = stream_.submit();
+  p.frame = stream_.frame();
+  ++p.stats.cell_set_attempts;
+  buffers_.setSetsNeedFill(false);
+  resume_ = false;
+  leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
+}
+
+std::uint64_t OccupancyMap::Impl::submit(const ScanSource& source, const Eigen::Vector3f& origin,
+                                         const Pose* pose, double max_range, bool discretize) {
+  return enqueue(source, origin, pose, max_range, discretize, false, nullptr, nullptr);
+}
+
+std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen::Vector3f& origin,
+                                          const Pose* pose, double max_range, bool discretize,
+                                          bool blocking, const QueryRequest* queries,
+                                          QueryResults* results) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t count = source.count();
+  checkScan(count, origin, pose, max_range);
+  PendingScan p;
+  p.ticket = next_ticket_++;
+  p.stats.ticket = p.ticket;
+  p.stats.points = count;
+  p.blocking = blocking;
+  if (count > 0) {
+    prepareBuffers(count, depthBytesOf(source));
+    if (queries) passes::stageQueries(buffers_, *queries);  // after the growth: nothing in flight
+    // The frame this scan records into must have no scan of ours in flight.
+    while (pending_.size() >= stream_.frames()) confirmOldest();
+    p.staging_frame = stream_.nextFrame();
+    p.host_input = source.device == VK_NULL_HANDLE;
+    p.input = stage(source, p.staging_frame);
+    p.input.transform = pose != nullptr;
+    p.input.discretize = discretize;
+    p.origin = origin;
+    if (pose) p.pose = *pose;
+    p.max_range = max_range;
+    p.count = count;
+    p.queries = queries;
+    p.results = results;
+    // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
+    if (source.wait != VK_NULL_HANDLE)
+      stream_.waitBeforeNextSubmit(source.wait, source.wait_value);
+    try {
+      record(p);
+    } catch (...) {
+      stream_.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);  // not for some later submission
+      throw;
+    }
+  }
+  p.stats.wall_ms = msSince(start);
+  const std::uint64_t ticket = p.ticket;
+  pending_.push_back(std::move(p));
+  // Results already there are taken without waiting (statistics early, growth ahead asked for).
+  while (!pending_.empty() && stream_.finished(pending_.front().serial)) confirmOldest();
+  return ticket;
+}
+
+bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
+                                    const gpu::PoolState& pool) {
+  if (counters.status & gpu::kStatusNotApplied) return false;
+  if (counters.status & gpu::kStatusPoolFull)
+    throw Error(ErrorCode::kVulkan,
+                "internal error: the node pool ran out during a scan despite its size check; "
+                "please report this with the input");
+  ScanStats& stats = p.stats;
+  if (const auto t = stream_.timestampsNs(p.frame); t.size() >= 6) {
+    stats.device.upload_ms = (t[1] - t[0]) * 1e-6;
+    stats.device.ray_keys_ms = (t[2] - t[1]) * 1e-6;
+    stats.device.classify_ms = (t[3] - t[2]) * 1e-6;
+    stats.device.tree_update_ms = (t[4] - t[3]) * 1e-6;
+    stats.device.prune_ms = (t[5] - t[4]) * 1e-6;
+    if (t.size() >= 7 && leaf_boxes_every_scan_) stats.device.leaf_boxes_ms = (t[6] - t[5]) * 1e-6;
+  }
+  if (p.queries) *p.results = passes::collectQueries(buffers_, *p.queries);
+  stats.skipped_no_depth = counters.no_depth;
+  stats.skipped_nonfinite = counters.skipped_nonfinite - counters.no_depth;  // NaN points
+  stats.skipped_outside = counters.skipped_outside;
+  stats.free_cells = counters.free_cells;
+  stats.occupied_cells = counters.occupied_cells;
+  stats.aborted_cells = counters.aborted;
+  stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+  last_nodes_ = stats.nodes;
+  finished_stats_.push_back(stats);
+  if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
+  // Room ahead for two more scans like this one (the next ones, in flight or to come), so that
+  // they are not run twice; grown at the next submit (or at the end of a blocking call).
+  const std::uint64_t room = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
+  const std::uint64_t want = std::uint64_t{counters.new_blocks} * 2;
+  if (want > room) ahead_blocks_ = std::max(ahead_blocks_, want);
+  const std::size_t active = std::size_t{counters.active_cells} + counters.leaf_cells;
+  if (active > buffers_.activeCapacity() / 2) ahead_active_ = std::max(ahead_active_, active * 2);
+  if (buffers_.noteScan(p.count)) release_scratch_ = true;  // released once none is in flight
+  return true;
+}
+
+void OccupancyMap::Impl::confirmOldest() {
+  PendingScan& p = pending_.front();
+  if (p.count == 0) {  // an empty scan: in the map once the scans before it are
+    p.stats.nodes = last_nodes_;
+    finished_stats_.push_back(p.stats);
+    if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
+    pending_.pop_front();
+    return;
+  }
+  stream_.wait(p.serial);
+  gpu::ScanCounters counters{};
+  gpu::PoolState pool{};
+  passes::readBack(buffers_, p.frame, counters, pool);
+  if (!takeResult(p, counters, pool)) return recover(counters, pool);
+  pending_.pop_front();
+}
+
+void OccupancyMap::Impl::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
+  // Every scan behind the refused one was refused too (halted): the map is as before it.
+  stream_.waitIdle();
+  resume_ = true;
+  try {
+    for (bool first = true; !pending_.empty(); first = false) {
+      PendingScan& p = pending_.front();
+      if (p.count == 0) {
+        confirmOldest();
+        continue;
+      }
+      if (!first) {
+        record(p);
+        stream_.wait(p.serial);
+        passes::readBack(buffers_, p.frame, counters, pool);
+      }
+      while (!takeResult(p, counters, pool)) {
+        resume_ = true;
+        growForRetry(counters, pool);
+        record(p);
+        stream_.wait(p.serial);
+        passes::readBack(buffers_, p.frame, counters, pool);
+      }
+      pending_.pop_front();
+    }
+  } catch (const Error& e) {
+    // The map holds every scan before the one that failed; it and the later ones are dropped.
+    const std::uint64_t failed = pending_.empty() ? 0 : pending_.front().ticket;
+    const std::size_t dropped = pending_.size();
+    const bool alone = dropped == 1 && pending_.front().blocking;
+    pending_.clear();
+    resume_ = true;
+    if (alone) throw;  // the blocking call's own scan: its message says the map is unchanged
+    throw Error(e.code(), std::string(e.what()) + " [scan " + std::to_string(failed) +
+                              " was not inserted, nor the " + std::to_string(dropped - 1) +
+                              " submitted after it; the map holds every scan before it]");
+  } catch (...) {
+    pending_.clear();
+    resume_ = true;
+    throw;
+  }
+}
+
+void OccupancyMap::Impl::flush() {
+  while (!pending_.empty()) confirmOldest();
+}
+
+std::vector<ScanStats> OccupancyMap::Impl::takeStats() {
+  while (!pending_.empty() && pending_.front().serial != 0 &&
+         stream_.finished(pending_.front().serial))
+    confirmOldest();
+  std::vector<ScanStats> out(finished_stats_.begin(), finished_stats_.end());
+  finished_stats_.clear();
+  return out;
+}
+
+bool OccupancyMap::Impl::finished(std::uint64_t ticket) {
+  while (!pending_.empty() && pending_.front().ticket <= ticket &&
+         stream_.finished(pending_.front().serial))
+    confirmOldest();
+  return ticket < next_ticket_ && (pending_.empty() || pending_.front().ticket > ticket);
+}
+
+// The blocking call: the same path, waited for. Its errors leave the map as before the scan.
+ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vector3f& origin,
+                                     const Pose* pose, double max_range, bool discretize,
+                                     const QueryRequest* queries, QueryResults* results) {
+  const auto start = std::chrono::steady_clock::now();
+  flush();
+  if (source.count() == 0) {
+    checkScan(0, origin, pose, max_range);
+    ScanStats stats;
+    stats.ticket = next_ticket_++;
+    if (queries) *results = runQueries(*queries);
+    const gpu::PoolState pool = readPool();
+    stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+    stats.wall_ms = msSince(start);
+    return stats;
+  }
+  const std::uint64_t ticket =
+      enqueue(source, origin, pose, max_range, discretize, true, queries, results);
+  flush();
+  growAhead();  // the blocking call leaves the map ready for the next scan, as before it
+  // Its statistics are the call's result, not left for takeStats().
+  auto it = std::find_if(finished_stats_.begin(), finished_stats_.end(),
+                         [&](const ScanStats& s) { return s.ticket == ticket; });
+  ScanStats stats = *it;
+  finished_stats_.erase(it);
+  stats.wall_ms = msSince(start);
+  return stats;
+}
+
+}  // namespace octovk
