@@ -271,8 +271,10 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
   p.stats.wall_ms = msSince(start);
   const std::uint64_t ticket = p.ticket;
   pending_.push_back(std::move(p));
-  // Results already there are taken without waiting (statistics early, growth ahead asked for).
-  while (!pending_.empty() && stream_.finished(pending_.front().serial)) confirmOldest();
+  // Results already there are taken without waiting (statistics early, growth ahead asked for);
+  // never this scan's own: a scan refused on the device is then always noticed after the scan
+  // submitted next, which the device refused too (halted) and which runs again with it.
+  while (pending_.size() > 1 && stream_.finished(pending_.front().serial)) confirmOldest();
   return ticket;
 }
 
