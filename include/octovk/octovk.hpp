@@ -329,6 +329,14 @@ class OccupancyMap {
   std::vector<ScanStats> takeScanStats();
   /// Submitted scans not yet known to be in the map.
   std::size_t scansInFlight() const noexcept;
+  /// Device submissions this map made, and the times the host waited for one still running
+  /// (for a free frame, for results, before growing), since the map was made: for measuring
+  /// how much of a stream the host spends waiting.
+  struct SyncCounts {
+    std::uint64_t submissions = 0;
+    std::uint64_t host_waits = 0;
+  };
+  SyncCounts syncCounts() const noexcept;
 
   /// One leaf: centre, edge length, log-odds.
   struct LeafBoxHost {

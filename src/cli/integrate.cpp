@@ -279,29 +279,38 @@ int runIntegrate(const std::vector<std::string>& args) {
   OccupancyMap map(context, o.params);
   Progress progress(scan_count, !o.quiet);
   std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0, pixels = 0, no_depth = 0;
+  // Scans are submitted back to back (the next one is read and staged while the device runs
+  // the last ones); their statistics are gathered as they come in.
+  auto account = [&](const std::vector<ScanStats>& finished) {
+    for (ScanStats stats : finished) {
+      if (tum) {
+        pixels += stats.points;
+        no_depth += stats.skipped_no_depth;
+        stats.points -= stats.skipped_no_depth;
+      }
+      points += stats.points;
+      skipped_nonfinite += stats.skipped_nonfinite;
+      skipped_outside += stats.skipped_outside;
+    }
+  };
   const auto insert_start = Clock::now();
   for (std::size_t i = 0; i < scan_count; ++i) {
-    ScanStats stats;
     if (tum) {
       // As graph2tree on convert's graph: the camera-frame points, cast from the pose's position.
       const TumFrame& frame = tum->frames[i];
       const DepthPng png = readDepthPng(frame.image_path);
-      stats = map.insertDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
-                                   graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
-      pixels += stats.points;
-      no_depth += stats.skipped_no_depth;
-      stats.points -= stats.skipped_no_depth;
+      map.submitDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
+                           graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
     } else {
       const GraphScan& scan = scans[i];
-      stats =
-          map.insertPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                               scan.T_world_sensor, o.max_range_m, o.discretize);
+      map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
+                           scan.T_world_sensor, o.max_range_m, o.discretize);
     }
-    points += stats.points;
-    skipped_nonfinite += stats.skipped_nonfinite;
-    skipped_outside += stats.skipped_outside;
+    if (i % 256 == 255) account(map.takeScanStats());
     progress.update(i + 1);
   }
+  map.flush();
+  account(map.takeScanStats());
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();

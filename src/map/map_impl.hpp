@@ -57,6 +57,9 @@ class OccupancyMap::Impl {
   /// Whether scan `ticket` is in the map (polls, does not wait).
   bool finished(std::uint64_t ticket);
   std::size_t scansInFlight() const { return pending_.size(); }
+  OccupancyMap::SyncCounts syncCounts() const {
+    return {stream_.submissions(), stream_.blockingWaits()};
+  }
   QueryResults runQueries(const QueryRequest& queries);
   /// A castRay (rays) or lookup batch between ranges of the caller's buffers (interop).
   void queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDeviceSize in_size,

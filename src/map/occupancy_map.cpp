@@ -337,6 +337,8 @@ std::vector<ScanStats> OccupancyMap::takeScanStats() { return impl_->takeStats()
 
 std::size_t OccupancyMap::scansInFlight() const noexcept { return impl_->scansInFlight(); }
 
+OccupancyMap::SyncCounts OccupancyMap::syncCounts() const noexcept { return impl_->syncCounts(); }
+
 std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points) const {
   return impl_->runQueries({points, {}}).lookups;
 }

@@ -149,6 +149,45 @@ passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source, std::ui
   return in;
 }
 
+// An upper bound of the DDA steps of the scan's longest ray (each axis crosses at most
+// |d| / resolution + 1 cell borders): from the host's points or pixels, or unbounded for a
+// caller's device buffer. Ray lengths do not change with the pose (a rotation and a translation
+// of both ends), so they are measured in the frame the input is given in.
+static double worstSteps(const OccupancyMap::Impl::ScanSource& source,
+                         const Eigen::Vector3f& origin_world, const Pose* pose, double max_range,
+                         double resolution) {
+  if (source.device != VK_NULL_HANDLE) return HUGE_VAL;
+  const Eigen::Vector3f origin = pose ? pose->inverse().transform(origin_world) : origin_world;
+  double longest = 0.0;  // metres
+  if (source.depth) {
+    const DepthImage& im = *source.depth;
+    double z_max = 0.0;
+    const std::size_t n = std::size_t{im.width} * im.height;
+    if (im.encoding == DepthImage::Encoding::kUint16) {
+      const auto* d = static_cast<const std::uint16_t*>(im.pixels);
+      std::uint16_t m = 0;
+      for (std::size_t i = 0; i < n; ++i) m = std::max(m, d[i]);
+      z_max = m / static_cast<double>(im.depth_scale);
+    } else {
+      const auto* d = static_cast<const float*>(im.pixels);
+      float m = 0.0f;
+      for (std::size_t i = 0; i < n; ++i)
+        if (std::isfinite(d[i])) m = std::max(m, std::fabs(d[i]));
+      z_max = m / static_cast<double>(std::fabs(im.depth_scale));
+    }
+    const double cx = im.cx, cy = im.cy;
+    const double u = std::max(std::fabs(cx), std::fabs(im.width - 1.0 - cx)) / std::fabs(im.fx);
+    const double v = std::max(std::fabs(cy), std::fabs(im.height - 1.0 - cy)) / std::fabs(im.fy);
+    longest = z_max * std::sqrt(1.0 + u * u + v * v) + origin.norm();
+  } else {
+    for (const Eigen::Vector3f& p : source.points)
+      if (p.allFinite()) longest = std::max(longest, static_cast<double>((p - origin).norm()));
+  }
+  if (max_range > 0) longest = std::min(longest, max_range);
+  // Float rounding of the ends, a discretized end cell's centre: a cell more at each end.
+  return 1.8 * (longest / resolution + 2.0) + 3.0;
+}
+
 static std::size_t depthBytesOf(const OccupancyMap::Impl::ScanSource& source) {
   if (!source.depth) return 0;
   const std::size_t pixel_bytes =
@@ -252,6 +291,8 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
     p.input = stage(source, p.staging_frame);
     p.input.transform = pose != nullptr;
     p.input.discretize = discretize;
+    p.input.walk_rounds = passes::walkRounds(
+        device_, worstSteps(source, origin, pose, max_range, params_.resolution));
     p.origin = origin;
     if (pose) p.pose = *pose;
     p.max_range = max_range;
@@ -351,6 +392,12 @@ void OccupancyMap::Impl::recover(gpu::ScanCounters counters, gpu::PoolState pool
       }
       while (!takeResult(p, counters, pool)) {
         resume_ = true;
+        // A walk outran the rounds estimated for its length (the set's probes): every round.
+        const std::uint32_t full = passes::fullWalkRounds(device_);
+        if ((counters.status & gpu::kStatusRayCut) && p.input.walk_rounds < full) {
+          p.input.walk_rounds = full;
+          counters.status &= ~gpu::kStatusRayCut;
+        }
         growForRetry(counters, pool);
         record(p);
         stream_.wait(p.serial);

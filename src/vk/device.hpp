@@ -143,6 +143,10 @@ class CommandStream {
   /// The frame being recorded (or last recorded).
   std::uint32_t frame() const noexcept { return current_; }
   std::uint64_t lastSerial() const noexcept { return submitted_; }
+  /// Submissions so far, and the waits that found their submission still running (the host
+  /// blocked).
+  std::uint64_t submissions() const noexcept { return submitted_; }
+  std::uint64_t blockingWaits() const noexcept { return blocking_waits_; }
   /// Device times in nanoseconds of the timestamps of frame `frame`'s last submission, once it
   /// has completed (empty if the device has no timestamps).
   std::vector<double> timestampsNs(std::uint32_t frame);
@@ -164,6 +168,7 @@ class CommandStream {
   std::vector<Frame> frames_;
   std::uint32_t current_ = 0;
   std::uint64_t submitted_ = 0;  // serial of the last submission
+  std::uint64_t blocking_waits_ = 0;
   VkQueryPool queries_ = VK_NULL_HANDLE;
   bool recording_ = false;
   VkSemaphore wait_semaphore_ = VK_NULL_HANDLE;

@@ -28,7 +28,16 @@ struct RayKeysInput {
   /// the slots it filled at its end, recordClearSets).
   bool fill_sets = false;
   bool resume = false;  ///< clear PoolState::halted first: the host has handled a refused scan
+  /// Continuation dispatches of the ray walk where the device limits loops (walkRounds()).
+  std::uint32_t walk_rounds = 0;
 };
+/// The continuation rounds a walk of at most `steps` DDA steps needs where the device limits
+/// loops: at least 1 (the last one reports a walk still unfinished), at most fullWalkRounds();
+/// 0 where loops are not limited. Counts 4 loop iterations per step (the step and the cell
+/// set's probes; a scan whose probes outrun that is run again with fullWalkRounds()).
+std::uint32_t walkRounds(const vk::Device& device, double steps);
+/// Rounds that cover any ray (3 * 65536 steps with room for the probes).
+std::uint32_t fullWalkRounds(const vk::Device& device);
 /// Uploads the parameters, fresh counters and the staged points (or depth image), then
 /// unproject, transform, discretize and the ray walk (with its continuations) into the cell set.
 void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& in);

@@ -46,13 +46,26 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
                  .budget = budget,
                  .point_count = sp.point_count,
                  .mode = in.discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
-  const std::uint32_t rounds = r.device.walkContinuations(24u * 30000u);
+  const std::uint32_t rounds = in.walk_rounds;
   r.continuations("ray_keys", rounds, [&](std::uint32_t from, bool last) {
     return gpu::RayKeysConstants{.budget = budget,
                                  .point_count = sp.point_count,
                                  .mode = last ? gpu::kRayKeysContinueLast : gpu::kRayKeysContinue,
                                  .from_list = from};
   });
+}
+
+std::uint32_t fullWalkRounds(const vk::Device& device) {
+  return device.walkContinuations(24u * 30000u);
+}
+
+std::uint32_t walkRounds(const vk::Device& device, double steps) {
+  const std::uint32_t full = fullWalkRounds(device);
+  if (full == 0) return 0;
+  const double iterations = 4.0 * steps;
+  if (!(iterations < 24.0 * 30000.0)) return full;  // also NaN
+  return std::clamp<std::uint32_t>(device.walkContinuations(static_cast<std::uint64_t>(iterations)),
+                                   1u, full);
 }
 
 void recordClearSets(Recorder& r) {
