@@ -86,7 +86,7 @@ const uint kSeqIterations = 160u;  // iterations one sequence may take (about 4 
 // Budget a jump may need: five or six sequences and a little.
 const int kJumpBudget = int(6u * kSeqIterations) + 8;
 // Regions smaller than 2^kJumpMinShift cells a side are walked cell by cell.
-const uint kJumpMinShift = 5u;
+const uint kJumpMinShift = 7u;
 
 int biasedExponent(double x) { return int(unpackDouble2x32(x).y >> 20u); }  // sign bit included
 
