@@ -36,6 +36,12 @@ double max_range_sq;
 double t_safe;
 bool ignore_unknown;
 int budget;
+// What one iteration of a jump costs in `budget`. Where the driver limits loops (llvmpipe of Mesa
+// 22.3), it counts iterations for a SIMD batch as a whole: the lanes' jumps, taken at different
+// steps, add up in the batch's count while each lane's budget sees only its own. Charging a jump
+// iteration for a whole batch of 8 lanes keeps the batch's jump iterations within the budget of
+// one lane, as its steps are. Where loops are not limited (pc.budget 0x7FFFFFFF), 1.
+int jump_charge = 1;
 
 const double kDoubleMax = 1.7976931348623157e308lf;
 
@@ -126,7 +132,7 @@ bool advanceAxis(inout double s, double d, uint max_steps, double limit, bool in
   double a = 0.0lf, b = 0.0lf;  // the two values before s, when `history` real additions led to s
   uint history = 0u;
   for (uint it = 0u; it < kSeqIterations; ++it) {
-    --budget;
+    budget -= jump_charge;
     if (taken == max_steps || !comesBefore(s, limit, inclusive)) return true;
     int e = biasedExponent(a);
     if (history >= 2u && a > 0.0lf && e > 0 && e < 0x7FE && biasedExponent(b) == e) {
@@ -169,7 +175,7 @@ void jumpAcrossRegion() {
   jump_tried = true;
   uint shift = cached_shift;
   if (shift >= 32u || shift < kJumpMinShift) return;
-  if (budget < kJumpBudget) return;
+  if (budget < kJumpBudget * jump_charge) return;
   // Steps each axis can take without leaving the region's key box.
   uint room[3];
   for (int a = 0; a < 3; ++a) {
@@ -356,6 +362,7 @@ bool walk(uint i) {
 void main() {
   uint i = invocationIndex();
   budget = int(pc.budget);
+  jump_charge = pc.budget >= 0x7FFFFFFFu ? 1 : 8;
   if (pc.resume != 0u) {  // continue the walks listed in list pc.resume - 1
     uint from = pc.resume - 1u;
     if (i >= counters.walk_count[from]) return;
