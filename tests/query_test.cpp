@@ -331,6 +331,128 @@ TEST(RayCastingScenarios, BadQueriesHaveDefinedResults) {
   EXPECT_EQ(looked[1].state, CellState::kUnknown);
 }
 
+// A map of large nodes, where castRay crosses whole free or unknown nodes at once: two free
+// cubes of 64^3 cells (pruned into two nodes), a few occupied cells and an occupied wall in one
+// (which splits it into nodes of every size), everything else unknown up to the map's border.
+octomap::OcTree largeNodeMap(double resolution) {
+  octomap::OcTree tree(resolution);
+  const int lo = 32768 - 64;
+  for (int x = lo; x < 32768 + 64; ++x)
+    for (int y = lo; y < 32768; ++y)
+      for (int z = lo; z < 32768; ++z)
+        tree.updateNode(octomap::OcTreeKey(static_cast<octomap::key_type>(x),
+                                           static_cast<octomap::key_type>(y),
+                                           static_cast<octomap::key_type>(z)),
+                        false);
+  for (const auto& [x, y, z] : {std::tuple{32770, 32740, 32750}, std::tuple{32800, 32710, 32766},
+                                std::tuple{32831, 32767, 32704}, std::tuple{32790, 32750, 32720}})
+    tree.updateNode(octomap::OcTreeKey(static_cast<octomap::key_type>(x),
+                                       static_cast<octomap::key_type>(y),
+                                       static_cast<octomap::key_type>(z)),
+                    true);
+  for (int y = lo + 16; y < 32768 - 16; ++y)  // an occupied wall on the block's +x face
+    for (int z = lo + 16; z < 32768 - 16; ++z)
+      tree.updateNode(octomap::OcTreeKey(32768 + 63, static_cast<octomap::key_type>(y),
+                                         static_cast<octomap::key_type>(z)),
+                      true);
+  return tree;
+}
+
+std::vector<Ray> largeNodeRays(double resolution, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const float r = static_cast<float>(resolution);
+  const float inside_x = 64 * r, inside_yz = 32 * r;  // half extents of the free block
+  const Eigen::Vector3f centre(0.0f, -inside_yz, -inside_yz);
+  const std::vector<Eigen::Vector3f> dirs = {
+      {1, 0, 0},    {-1, 0, 0},     {0, 1, 0},   {0, -1, 0},     {0, 0, 1},    {0, 0, -1},
+      {1, 1, 0},    {-1, 1, 0},     {1, 1, 1},   {-1, -1, 1},    {1, -1, -1},  {1, 2, 3},
+      {1, 1e-6f, 0}, {-1e-7f, 1, 1e-7f}, {3, 1, 0}, {1e-30f, 1e-30f, 0}, {1e30f, -2e30f, 1e29f}};
+  std::vector<Ray> rays;
+  for (int i = 0; i < 1800; ++i) {
+    Ray ray;
+    ray.ignore_unknown = (i / 3) % 2 == 0;
+    switch (i % 6) {
+      case 0:  // inside the free block, any direction
+        ray.origin = centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng),
+                                              inside_yz * u(rng));
+        ray.direction = {u(rng), u(rng), u(rng)};
+        break;
+      case 1:  // from a cell corner, along axes, face and space diagonals (ties of tMax)
+        ray.origin = {r * std::round(40 * u(rng)), r * std::round(-32 + 30 * u(rng)),
+                      r * std::round(-32 + 30 * u(rng))};
+        ray.direction = dirs[static_cast<std::size_t>(i / 6) % dirs.size()];
+        break;
+      case 2:  // from a cell centre, max range at or next to a cell centre's distance
+      {
+        const int k = 1 + static_cast<int>(std::abs(u(rng)) * 120);
+        const int axis = (i / 6) % 3;
+        ray.origin = {r * (std::round(20 * u(rng)) + 0.5f), -r * (std::round(30 + 20 * u(rng)) + 0.5f),
+                      -r * (std::round(30 + 20 * u(rng)) + 0.5f)};
+        ray.direction = Eigen::Vector3f::Unit(axis) * (u(rng) < 0 ? -1.0f : 1.0f);
+        if (i % 12 == 2) ray.direction += Eigen::Vector3f(0.0f, 1e-3f * u(rng), 1e-3f * u(rng));
+        const double d = static_cast<double>(static_cast<float>(k) * r);
+        const int pick = (i / 18) % 3;
+        ray.max_range_m = pick == 0 ? d : pick == 1 ? std::nextafter(d, 0.0) : std::nextafter(d, 1e9);
+        break;
+      }
+      case 3:  // far out in unknown space: to the map's border when unknown is ignored
+      {
+        const float span = static_cast<float>(32000 * resolution);
+        ray.origin = {span * u(rng), span * u(rng), span * u(rng)};
+        ray.direction = i % 12 == 3 ? dirs[static_cast<std::size_t>(i / 12) % dirs.size()]
+                                    : Eigen::Vector3f(u(rng), u(rng), u(rng));
+        if (i % 24 == 9) ray.max_range_m = 1000.0 * std::abs(u(rng)) * resolution;
+        break;
+      }
+      case 4:  // from the free block outward through unknown space, with a long max range
+        ray.origin = centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng),
+                                              inside_yz * u(rng));
+        ray.direction = {u(rng), u(rng), 0.2f * u(rng)};
+        ray.max_range_m = 2000.0 * resolution * std::abs(u(rng));
+        break;
+      default:  // through the block from unknown space, aimed at it
+      {
+        const Eigen::Vector3f from = centre + Eigen::Vector3f(300 * r * u(rng), 300 * r * u(rng),
+                                                              300 * r * u(rng));
+        ray.origin = from;
+        ray.direction = centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng),
+                                                 inside_yz * u(rng)) - from;
+        if (i % 12 == 5) ray.max_range_m = 400.0 * r * std::abs(u(rng));
+        break;
+      }
+    }
+    if (ray.direction.squaredNorm() == 0.0f) ray.direction = Eigen::Vector3f::UnitX();
+    rays.push_back(ray);
+  }
+  return rays;
+}
+
+// Rays that spend most of their walk inside large free or unknown nodes, with max ranges and
+// map borders inside them, at resolutions whose cell sizes are not powers of two.
+TEST(RayCastingScenarios, AcrossLargeNodesEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (const double resolution : {0.1, 0.05, 0.37}) {
+    SCOPED_TRACE(resolution);
+    octomap::OcTree tree = largeNodeMap(resolution);
+    MapParams params;
+    params.resolution = resolution;
+    OccupancyMap map(ctx, params);
+    fromOcTree(map, tree);
+    const auto rays = largeNodeRays(resolution, 31);
+    const auto got = map.castRays(rays);
+    ASSERT_EQ(got.size(), rays.size());
+    EXPECT_TRUE(sameAsOctoMap(tree, rays, got));
+    std::size_t hits = 0, far = 0;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      hits += got[i].hit;
+      far += (got[i].end - rays[i].origin).norm() > 1000 * resolution;
+    }
+    EXPECT_GT(hits, got.size() / 50);
+    EXPECT_GT(far, got.size() / 10);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Maps, Queries,
                          ::testing::Values(std::make_tuple(0.1, 1u), std::make_tuple(0.05, 2u),
                                            std::make_tuple(0.2, 3u)));
