@@ -9,6 +9,9 @@ layout(push_constant) uniform PushBlock { DiscretizeConstants pc; };
 
 void main() {
   uint i = invocationIndex();
+  // Behind a scan the device refused (PoolState::halted, set by an earlier submission), tree_gate
+  // refuses this scan too and the host runs it again later: its cells are not needed now.
+  if (pool.halted != 0u) return;
   if (i >= pc.point_count) return;
   vec3 p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
   if (!finiteBits(p)) {

@@ -138,6 +138,9 @@ void continueWalk(uint i) {
 void main() {
   uint i = invocationIndex();
   budget = int(pc.budget);
+  // Behind a scan the device refused (PoolState::halted, set by an earlier submission), tree_gate
+  // refuses this scan too and the host runs it again later: its cells are not needed now.
+  if (pool.halted != 0u) return;
   if (pc.mode == kRayKeysContinue || pc.mode == kRayKeysContinueLast) {
     continueWalk(i);
     flushMarks();

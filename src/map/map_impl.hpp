@@ -114,8 +114,10 @@ class OccupancyMap::Impl {
                         double max_range, bool discretize, bool blocking,
                         const QueryRequest* queries, QueryResults* results);
   /// What the results of recent scans asked for ahead (pool and list room, releasing the
-  /// scratch after an outsized scan); nothing may be in flight.
-  void growAhead();
+  /// scratch after an outsized scan); nothing may be in flight. `pool`: the pool's state if
+  /// known (else it is read); `release`: also release the scratch if asked for (not while
+  /// refused scans wait in their staging to run again).
+  void growAhead(const gpu::PoolState* pool = nullptr, bool release = true);
   /// Records and submits scan `p` (its queries, if any, after it).
   void record(PendingScan& p);
   /// Waits for the oldest scan in flight and takes its result; a refused one is run again with

@@ -195,10 +195,10 @@ static std::size_t depthBytesOf(const OccupancyMap::Impl::ScanSource& source) {
   return sizeof(gpu::DepthCamera) + ((pixel_bytes + 3) & ~std::size_t{3});
 }
 
-void OccupancyMap::Impl::growAhead() {
+void OccupancyMap::Impl::growAhead(const gpu::PoolState* pool, bool release) {
   if (ahead_blocks_ > 0) {
     const std::uint64_t blocks = std::exchange(ahead_blocks_, 0);
-    reservePool(blocks, readPool(), /*ahead=*/true);
+    reservePool(blocks, pool ? *pool : readPool(), /*ahead=*/true);
   }
   if (ahead_active_ > 0) {
     const std::size_t active = std::exchange(ahead_active_, 0);
@@ -210,7 +210,7 @@ void OccupancyMap::Impl::growAhead() {
       }
     }
   }
-  if (release_scratch_) {
+  if (release && release_scratch_) {
     release_scratch_ = false;
     buffers_.releaseScratch();
     hash_guess_tried_ = 0;
@@ -346,10 +346,13 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   last_nodes_ = stats.nodes;
   finished_stats_.push_back(stats);
   if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
-  // Room ahead for two more scans like this one (the next ones, in flight or to come), so that
-  // they are not run twice; grown at the next submit (or at the end of a blocking call).
+  // Room ahead for more scans like this one, so that they are not run twice: after a blocking
+  // call, for the next one; after a submitted scan, for as many as may be in flight when the
+  // growth is next possible (the submits behind it were recorded before its result was seen).
+  // Grown at the next submit (or at the end of the blocking call).
+  const std::uint64_t scans_ahead = p.blocking ? 1 : stream_.frames();
   const std::uint64_t room = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
-  const std::uint64_t want = std::uint64_t{counters.new_blocks} * 2;
+  const std::uint64_t want = std::uint64_t{counters.new_blocks} * scans_ahead;
   if (want > room) ahead_blocks_ = std::max(ahead_blocks_, want);
   const std::size_t active = std::size_t{counters.active_cells} + counters.leaf_cells;
   if (active > buffers_.activeCapacity() / 2) ahead_active_ = std::max(ahead_active_, active * 2);
@@ -386,6 +389,9 @@ void OccupancyMap::Impl::recover(gpu::ScanCounters counters, gpu::PoolState pool
         continue;
       }
       if (!first) {
+        // What the scans run again so far asked for (`pool`: the last one's state, the current
+        // one); the scratch stays: it holds the inputs of the scans still to run.
+        growAhead(&pool, /*release=*/false);
         record(p);
         stream_.wait(p.serial);
         passes::readBack(buffers_, p.frame, counters, pool);
