@@ -277,8 +277,6 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
   const std::size_t count = source.count();
   checkScan(count, origin, pose, max_range);
   PendingScan p;
-  p.ticket = next_ticket_++;
-  p.stats.ticket = p.ticket;
   p.stats.points = count;
   p.blocking = blocking;
   if (count > 0) {
@@ -299,6 +297,7 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
     p.count = count;
     p.queries = queries;
     p.results = results;
+    p.ticket = p.stats.ticket = next_ticket_++;  // nothing above submitted anything
     // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
     if (source.wait != VK_NULL_HANDLE)
       stream_.waitBeforeNextSubmit(source.wait, source.wait_value);
@@ -309,6 +308,7 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
       throw;
     }
   }
+  if (count == 0) p.ticket = p.stats.ticket = next_ticket_++;
   p.stats.wall_ms = msSince(start);
   const std::uint64_t ticket = p.ticket;
   pending_.push_back(std::move(p));
@@ -434,9 +434,7 @@ void OccupancyMap::Impl::flush() {
 }
 
 std::vector<ScanStats> OccupancyMap::Impl::takeStats() {
-  while (!pending_.empty() && pending_.front().serial != 0 &&
-         stream_.finished(pending_.front().serial))
-    confirmOldest();
+  while (!pending_.empty() && stream_.finished(pending_.front().serial)) confirmOldest();
   std::vector<ScanStats> out(finished_stats_.begin(), finished_stats_.end());
   finished_stats_.clear();
   return out;
