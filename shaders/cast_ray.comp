@@ -383,6 +383,8 @@ void main() {
     return;
   }
 
+  // Until the walk finishes (this dispatch or a continuation) the result says so.
+  ray_results[i].hit = kRayUnfinished;
   // Start: where OctoMap leaves `end` untouched, it is the origin.
   if (!coordToKeyChecked(q.origin_x, key[0]) || !coordToKeyChecked(q.origin_y, key[1]) ||
       !coordToKeyChecked(q.origin_z, key[2])) {

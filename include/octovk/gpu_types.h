@@ -203,6 +203,10 @@ struct RayQuery {
   uint pad0;            // 4B (36)
 };
 
+// RayResult::hit of a castRay whose walk did not finish within the continuations the host
+// recorded (a driver that limits loops, and a pathological ray): never left as stale memory.
+OCTOVK_CONST uint kRayUnfinished = 0xFFFFFFFFu;
+
 // Result of one castRay. 16 B.
 struct RayResult {
   uint hit;     // 4B (0)  1: an occupied cell was hit (castRay returned true)

@@ -74,7 +74,8 @@ std::size_t castRaysResultBytes(std::uint32_t count);
 
 /// OccupancyMap::castRays on rays already in a device buffer: `rays` holds count gpu::RayQuery
 /// (40 B each); `results` (castRaysResultBytes(count) bytes) receives count gpu::RayResult
-/// (16 B each) at its start.
+/// (16 B each) at its start. A ray the device could not finish (a driver that limits loops and a
+/// pathological ray; OccupancyMap::castRays throws for it) has hit = gpu::kRayUnfinished.
 void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
                       BufferRange results);
 

@@ -95,6 +95,11 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q) {
   for (std::size_t i = 0; i < q.rays.size(); ++i) {
     gpu::RayResult res;
     std::memcpy(&res, bytes + i * sizeof(res), sizeof(res));
+    if (res.hit == gpu::kRayUnfinished)
+      throw Error(ErrorCode::kMissingFeature,
+                  "castRays: ray " + std::to_string(i) +
+                      " crosses more cells than octovk walks in one batch on this device (its "
+                      "loop limit); give it a max range, or split long rays");
     out.rays[i] = {res.hit != 0, Eigen::Vector3f(res.end_x, res.end_y, res.end_z)};
   }
   out.lookups.resize(q.lookups.size());
