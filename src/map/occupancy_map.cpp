@@ -30,7 +30,9 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       logs_(ref::LogOddsParams::from(params)),
       stream_(device_),
       buffers_(device_, stream_, blockLimit(params), params.max_device_bytes),
-      rec_(device_, stream_, buffers_) {}
+      rec_(device_, stream_, buffers_) {
+  cast_ray_backend_ = chooseCastRayBackend(device_, params_);
+}
 
 gpu::ScanParams OccupancyMap::Impl::scanParams(const Eigen::Vector3f& origin, const Pose* pose,
                                                double max_range, std::size_t count) const {
@@ -81,6 +83,7 @@ void OccupancyMap::Impl::refreshLeafBoxes() {
   passes::recordLeafBoxes(rec_);
   stream_.submitAndWait();
   leaf_boxes_dirty_ = false;
+  ++tree_version_;
 }
 
 // ---- one scan --------------------------------------------------------------------------------
@@ -290,6 +293,7 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
   stats.aborted_cells = counters.aborted;
   const std::uint32_t active = counters.active_cells + counters.leaf_cells;
   if (active > 0) leaf_boxes_dirty_ = !leaf_boxes_every_scan_;
+  if (active > 0) ++tree_version_;  // the ray scene is rebuilt before the next castRays
   filled_bricks_ = counters.brick_entries;
   filled_endpoints_ = counters.new_blocks;
   buffers_.setSetsNeedFill(false);
@@ -322,6 +326,7 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
                 "query on device: buffer offsets must be multiples of " + std::to_string(align) +
                     " (minStorageBufferOffsetAlignment)");
   if (count == 0) return;
+  const VkDeviceAddress ray_scene = rays ? rayScene() : 0;
   // The map's own query buffers are swapped for the caller's ranges for this one submission.
   buffers_.bindings.updateRange(gpu::kBindQueryIn, in, in_offset, in_size);
   buffers_.bindings.updateRange(gpu::kBindQueryOut, out, out_offset, out_size);
@@ -330,7 +335,9 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
     stream_.begin(buffers_.bindings);
     stream_.update(buffers_.params, &sp, sizeof(sp));
     stream_.barrier();
-    if (rays)
+    if (rays && ray_scene)
+      passes::recordCastRaysRt(rec_, count, ray_scene);
+    else if (rays)
       passes::recordCastRays(rec_, count, passes::firstRayState(count));
     else
       passes::recordLookups(rec_, count, 0, 0);
@@ -353,9 +360,10 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
                 "castRays: " + std::to_string(q.rays.size()) + " rays in one batch; the device '" +
                     device_.info().name + "' takes at most " + std::to_string(max_rays) +
                     " (maxComputeWorkGroupCount x 64); split the batch");
+  const VkDeviceAddress ray_scene = q.rays.empty() ? 0 : rayScene();
   passes::stageQueries(buffers_, q);
   stream_.begin(buffers_.bindings);
-  passes::recordQueries(rec_, queryParams(), q);
+  passes::recordQueries(rec_, queryParams(), q, ray_scene);
   stream_.submitAndWait();
   return passes::collectQueries(buffers_, q);
 }
@@ -448,12 +456,17 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
   const BufferBytes b = buffers_.bytesByUse();
-  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
+  const std::size_t scene = ray_scene_ ? ray_scene_->deviceBytes() : 0;
+  return {.pool = b.pool,
+          .leaf_boxes = b.leaf_boxes,
+          .scratch = b.scratch,
+          .queries = b.queries + scene};
 }
 
 void OccupancyMap::Impl::trim() {
   buffers_.releaseScratch();
   buffers_.releaseQueries();
+  ray_scene_.reset();
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
@@ -542,6 +555,8 @@ void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
 }
 
 std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
+
+OccupancyMap::CastRayInfo OccupancyMap::castRayInfo() const { return impl_->castRayInfo(); }
 
 std::size_t OccupancyMap::poolBytes() const { return impl_->poolBytes(); }
 

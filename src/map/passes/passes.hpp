@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "map/passes/recorder.hpp"
+#include "vk/accel.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk::passes {
@@ -67,8 +68,10 @@ std::uint32_t firstRayState(std::size_t results);
 std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups);
 /// Writes the rays, then the lookup points, into the query staging buffer.
 void stageQueries(MapBuffers& buffers, const QueryRequest& q);
-/// Copies the staged batch in, runs it and copies the results to the staging output.
-void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q);
+/// Copies the staged batch in, runs it and copies the results to the staging output. castRay
+/// goes through the ray-tracing scene whose boxes are at `ray_scene` when it is not 0.
+void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
+                   VkDeviceAddress ray_scene = 0);
 /// castRay for `rays` queries at the start of the query input; results at the start of the
 /// output, the walks' states from its RayState `first_state` on.
 void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state);
@@ -78,6 +81,22 @@ void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result
                    std::uint32_t first_float);
 /// The results of a batch from the staging output.
 QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q);
+
+// ---- accel.cpp: castRay's ray-tracing backend ----
+
+/// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
+/// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
+/// leaf-box buffer, which must be current, and the unknown regions of the pool), and copies the
+/// header with the counts to `readback`.
+void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header, const vk::Buffer& readback);
+/// Builds `scene` over the boxes `header` counts (as recordAccelBoxes left them) and writes the
+/// top-level structure's address into the header.
+void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header);
+/// castRay for `rays` queries at the start of the query input through the scene whose boxes
+/// buffer is at `boxes`; results at the start of the output.
+void recordCastRaysRt(Recorder& r, std::uint32_t rays, VkDeviceAddress boxes);
 
 // ---- readback.cpp ----
 

@@ -39,7 +39,8 @@ void stageQueries(MapBuffers& buffers, const QueryRequest& q) {
   if (point_bytes) std::memcpy(bytes + ray_bytes, q.lookups.data(), point_bytes);
 }
 
-void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q) {
+void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
+                   VkDeviceAddress ray_scene) {
   MapBuffers& b = r.buffers;
   const auto rays = static_cast<std::uint32_t>(q.rays.size());
   const auto points = static_cast<std::uint32_t>(q.lookups.size());
@@ -47,7 +48,10 @@ void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q
   r.stream.update(b.params, &sp, sizeof(sp));
   r.stream.copy(b.query_staging_in, b.query_in, in_bytes);
   r.stream.barrier();
-  if (rays) recordCastRays(r, rays, firstRayState(rays + points));
+  if (rays && ray_scene)
+    recordCastRaysRt(r, rays, ray_scene);
+  else if (rays)
+    recordCastRays(r, rays, firstRayState(rays + points));
   if (points)
     recordLookups(r, points, rays,
                   static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float)));
