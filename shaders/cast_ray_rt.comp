@@ -10,11 +10,15 @@
 // entry parameter is free (or unknown with ignore_unknown), inside the map and within the max
 // range once those limits are also kept. The walk jumps there exactly (castRayJumpTo: the same
 // tMax bits as stepping), then steps with tree lookups, exactly as OctoMap does, until it ends
-// or has passed the box; then the next box is traced.
+// or has passed the box; then the next box is traced. Inside a node a lookup found free (or
+// unknown, when ignored), the walk jumps to the node's exit the same way. Where unknown space
+// ends the ray, the first OCTOVK_RT_WALK_FIRST steps come before any trace.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
 #include "cast_ray_walk.glsl"
+// Steps of the walk before the first trace where unknown space ends the ray (see main).
+#define OCTOVK_RT_WALK_FIRST 64
 
 layout(push_constant) uniform PushBlock { CastRayRtConstants pc; };
 
@@ -87,6 +91,56 @@ bool nearestBox(AccelRef scene, CastRayWalk w, uint mask, double t_from, out dou
 
 void finish(uint i, uint hit, vec3 end) { ray_results[i] = RayResult(hit, end.x, end.y, end.z); }
 
+// The ray parameter where the walk leaves the node the cache holds (a free node, or an unknown
+// region when unknown space is ignored): every cell the walk enters before it lies in that node
+// and gets the same answer, so the walk may jump there (less the slack). 0 for a finest cell.
+double nodeExit(CastRayWalk w, CellCache c) {
+  if (c.shift == 0u || c.shift >= 32u) return 0.0lf;
+  double size = params.resolution * double(1u << c.shift);
+  double t = 1.0e300lf;
+  for (int a = 0; a < 3; ++a) {
+    if (w.step[a] == 0) continue;
+    double lo = double(int(c.prefix[a] << c.shift) - 32768) * params.resolution;
+    double face = w.step[a] > 0 ? lo + size : lo;
+    t = min(t, (face - double(w.org[a])) / double(w.dir[a]));
+  }
+  return t;
+}
+
+// One step of OctoMap's walk and what the new cell says: true when the ray has its result
+// (written). The range test runs only for cells entered from t_range on (see main).
+bool stepOnce(uint i, inout CastRayWalk w, inout CellCache cache, bool ignore_unknown,
+              double t_range) {
+  int dim = castRayNextAxis(w);
+  if (castRayAtBorder(w, dim)) {
+    finish(i, 0u, castRayCellCentre(w.key));  // the map's border
+    return true;
+  }
+  double entry = w.t_max[dim];
+  castRayStep(w, dim);
+  if (entry >= t_range) {
+    vec3 e = castRayCellCentre(w.key);
+    if (castRayBeyondRange(w, e)) {
+      finish(i, 0u, e);
+      return true;
+    }
+  }
+  uint searched;
+  uint state = castRayCellState(w.key, cache, searched);
+  if (state == kCellOccupied || (state == kCellUnknown && !ignore_unknown)) {
+    finish(i, state == kCellOccupied ? 1u : 0u, castRayCellCentre(w.key));
+    return true;
+  }
+  return false;
+}
+
+// Jumps the walk to the exit of the node the cache holds (less the slack, and not past t_limit).
+void jumpThroughNode(inout CastRayWalk w, CellCache cache, double t_limit, double dir_len) {
+  double through = min(nodeExit(w, cache), t_limit);
+  through -= slack(through, w.org, dir_len);
+  if (through > castRayMinTMax(w)) castRayJumpTo(w, through);
+}
+
 void main() {
   uint i = invocationIndex();
   if (i >= pc.ray_count) return;
@@ -126,7 +180,9 @@ void main() {
   double dir_len = length(dvec3(w.dir));
 
   // Where the walk must be stepped cell by cell whatever the boxes say: near the map's border
-  // (the walk stops there) and near the max range (the first cell beyond it ends the walk).
+  // (the walk stops there) and near the max range (the first cell beyond it ends the walk). A
+  // cell entered before t_range has its centre within the max range (its centre is within
+  // sqrt(3)/2 cells of the ray), so OctoMap's range test is only run beyond.
   double t_limit = 1.0e300lf;
   const double kHalfExtent = double(kTreeMaxVal) * params.resolution;
   for (int a = 0; a < 3; ++a) {
@@ -134,14 +190,25 @@ void main() {
     double bound = w.step[a] > 0 ? kHalfExtent : -kHalfExtent;
     t_limit = min(t_limit, (bound - double(w.org[a])) / double(w.dir[a]) - params.resolution);
   }
+  double t_range = 1.0e300lf;
   if (w.max_range_set) {
     double range = sqrt(w.max_range_sq);
-    t_limit = min(t_limit, (range - 2.0lf * params.resolution - range * (1.0lf / 65536.0lf)) /
-                               (dir_len * (1.0lf + 1.0lf / 65536.0lf)));
+    t_range = (range - 2.0lf * params.resolution - range * (1.0lf / 65536.0lf)) /
+              (dir_len * (1.0lf + 1.0lf / 65536.0lf));
+    t_limit = min(t_limit, t_range);
   }
   uint mask = kAccelMaskOccupied | (ignore_unknown ? 0u : kAccelMaskUnknown);
 
-  double t_from = 0.0lf;
+  // Where unknown space ends the ray, it usually ends within a few cells (at the edge of what
+  // a sensor saw), and stepping those (through free nodes at once) is cheaper than tracing
+  // against the many small unknown boxes there: the first kWalkFirst cells are stepped before
+  // any trace.
+  for (int n = 0; !ignore_unknown && n < OCTOVK_RT_WALK_FIRST; ++n) {
+    if (stepOnce(i, w, cache, ignore_unknown, t_range)) return;
+    jumpThroughNode(w, cache, t_limit, dir_len);
+  }
+
+  double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
   for (;;) {
     double t_enter, t_exit;
     bool found = nearestBox(scene, w, mask, t_from, t_enter, t_exit);
@@ -151,29 +218,10 @@ void main() {
     // Beyond the box's exit (and its slack) the next box is traced; without one the walk runs
     // to its end (border or max range, both near).
     double t_leave = found ? t_exit + 2.0lf * slack(t_exit, w.org, dir_len) : 1.0e300lf;
-    for (;;) {
-      int dim = castRayNextAxis(w);
-      if (castRayAtBorder(w, dim)) {
-        finish(i, 0u, castRayCellCentre(w.key));  // the map's border
-        return;
-      }
-      castRayStep(w, dim);
-      vec3 e = castRayCellCentre(w.key);
-      if (castRayBeyondRange(w, e)) {
-        finish(i, 0u, e);
-        return;
-      }
-      uint state = castRayCellState(w.key, cache, searched);
-      if (state == kCellOccupied) {
-        finish(i, 1u, e);
-        return;
-      }
-      if (state == kCellUnknown && !ignore_unknown) {
-        finish(i, 0u, e);
-        return;
-      }
-      if (castRayMinTMax(w) > t_leave) break;
-    }
+    do {
+      if (stepOnce(i, w, cache, ignore_unknown, t_range)) return;
+      jumpThroughNode(w, cache, t_limit, dir_len);
+    } while (castRayMinTMax(w) <= t_leave);
     t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
   }
 }

@@ -59,16 +59,14 @@ VkDeviceAddress OccupancyMap::Impl::rayScene() {
   RayScene& scene = *ray_scene_;
   if (scene.version == tree_version_) return scene.boxes.address();
 
-  // Room for every leaf slot (occupied ones) and 8 unknown children per block; at least one
-  // box each, for the inactive box of an empty geometry.
+  // Room for every leaf slot (occupied ones) and 8 unknown children per block, twice (sorted and
+  // unsorted); at least one box each, for the inactive box of an empty geometry.
   gpu::AccelHeader header{};
   header.occupied_capacity = static_cast<std::uint32_t>(
       std::max<std::size_t>(buffers_.leaf_boxes.size() / sizeof(gpu::LeafBox), 1));
   header.unknown_capacity =
       static_cast<std::uint32_t>(std::max<std::size_t>(std::size_t{buffers_.poolBlocks()} * 8, 1));
-  const std::size_t bytes =
-      sizeof(gpu::AccelHeader) +
-      (std::size_t{header.occupied_capacity} + header.unknown_capacity) * sizeof(gpu::AccelBox);
+  const std::size_t bytes = passes::accelBoxesBytes(header);
   if (!scene.boxes.valid() || scene.boxes.size() < bytes) {
     scene.boxes = vk::Buffer();
     scene.boxes = vk::Buffer(device_, bytes + bytes / 4, /*host_visible=*/false,

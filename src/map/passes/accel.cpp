@@ -2,21 +2,48 @@
 // built over (on the device, from the leaf-box buffer and the pool), the structure is built from
 // them on the device, and cast_ray_rt.comp answers castRay through it.
 #include <cstring>
+#include <limits>
 
 #include "map/passes/passes.hpp"
 
+static_assert(sizeof(octovk::gpu::AccelBox) == sizeof(VkAabbPositionsKHR),
+              "the build reads AccelBoxes as VkAabbPositionsKHR");
+
 namespace octovk::passes {
+
+std::size_t accelBoxesBytes(const gpu::AccelHeader& header) {
+  const std::size_t boxes = std::size_t{header.occupied_capacity} + header.unknown_capacity;
+  return sizeof(gpu::AccelHeader) + 2 * boxes * sizeof(gpu::AccelBox) + accelSortBytes();
+}
+
+std::size_t accelSortBytes() {
+  return (2 * std::size_t{gpu::kAccelBuckets} + 2 * std::size_t{gpu::kAccelChunks}) *
+         sizeof(std::uint32_t);
+}
 
 void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header, const vk::Buffer& readback) {
+  gpu::AccelHeader fresh = header;
+  fresh.occupied_count = fresh.unknown_count = 0;
+  fresh.lo_x = fresh.lo_y = fresh.lo_z = 0xFFFFFFFFu;  // the extent, shrunk by atomics
+  fresh.hi_x = fresh.hi_y = fresh.hi_z = 0;
   r.stream.update(r.buffers.params, &sp, sizeof(sp));
-  r.stream.update(boxes, &header, sizeof(header));
+  r.stream.update(boxes, &fresh, sizeof(fresh));
+  const std::size_t sort_at = accelBoxesBytes(header) - accelSortBytes();
+  r.stream.fill(boxes, 0u, sort_at, accelSortBytes());
   r.stream.barrier();
-  r.dispatch("accel_boxes", header.occupied_capacity,
-             gpu::AccelBoxesConstants{.boxes = boxes.address(),
-                                      .mode = gpu::kAccelBoxesOccupied});
-  r.dispatch("accel_boxes", r.buffers.poolBlocks(),
-             gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = gpu::kAccelBoxesUnknown});
+  const auto pass = [&](std::uint32_t mode, std::size_t items) {
+    r.dispatch("accel_boxes", items,
+               gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
+  };
+  // The boxes, unsorted; then the counting sort along the Morton curve into their places.
+  pass(gpu::kAccelBoxesOccupied, header.occupied_capacity);
+  pass(gpu::kAccelBoxesUnknown, r.buffers.poolBlocks());
+  const std::size_t all = std::size_t{header.occupied_capacity} + header.unknown_capacity;
+  pass(gpu::kAccelBoxesCount, all);
+  pass(gpu::kAccelBoxesChunks, 2 * gpu::kAccelChunks);
+  pass(gpu::kAccelBoxesOffsets, 2 * gpu::kAccelChunks);
+  pass(gpu::kAccelBoxesScatter, all);
   r.stream.copy(boxes, readback, sizeof(gpu::AccelHeader));
 }
 

@@ -84,10 +84,14 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q);
 
 // ---- accel.cpp: castRay's ray-tracing backend ----
 
+/// Bytes of the boxes buffer for the capacities in `header` (its layout: gpu::AccelHeader).
+std::size_t accelBoxesBytes(const gpu::AccelHeader& header);
+/// Of which the counting sort's counters and chunk sums, at its end.
+std::size_t accelSortBytes();
 /// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
 /// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
-/// leaf-box buffer, which must be current, and the unknown regions of the pool), and copies the
-/// header with the counts to `readback`.
+/// leaf-box buffer, which must be current, and the unknown regions of the pool), sorted along a
+/// Morton curve, and copies the header with the counts to `readback`.
 void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header, const vk::Buffer& readback);
 /// Builds `scene` over the boxes `header` counts (as recordAccelBoxes left them) and writes the
