@@ -155,23 +155,62 @@ void castRayJumpTo(inout CastRayWalk w, double t) {
 }
 
 // A tree lookup whose answer is kept for every later cell inside the same node (a large free
-// node, or an unknown region): keys whose bits above `shift` equal `prefix`.
+// node, or an unknown region): keys whose bits above `shift` equal `prefix`. The nodes of the
+// last search's path are kept too, so that the next search starts where the two keys' paths
+// part instead of at the root.
 struct CellCache {
   uvec3 prefix;
   uint shift;  // 32: nothing cached
   uint state;
+  uvec3 key;        // the key last searched
+  uint path_depth;  // path[0 .. path_depth] are the nodes on its path (0: none)
+  uint path[kTreeDepth + 1u];
 };
 
-CellCache castRayEmptyCache() { return CellCache(uvec3(0u), 32u, kCellUnknown); }
+CellCache castRayEmptyCache() {
+  CellCache c;
+  c.prefix = uvec3(0u);
+  c.shift = 32u;
+  c.state = kCellUnknown;
+  c.key = uvec3(0u);
+  c.path_depth = 0u;
+  c.path[0] = kRootNode;
+  return c;
+}
 
 // kCellUnknown / kCellFree / kCellOccupied of the cell k (OctoMap's search, isNodeOccupied).
-// `searched` gets the depth of the search (0 when the cache answered), for walk budgets.
+// `searched` gets the levels descended (0 when the cache answered), for walk budgets.
 uint castRayCellState(uvec3 k, inout CellCache c, out uint searched) {
   searched = 0u;
   if (c.shift < 32u && (k >> c.shift) == c.prefix) return c.state;
-  uint node, depth;
-  bool found = searchNode(k, node, depth);
-  searched = depth + 1u;
+  if (pool.root_exists == 0u) {
+    c.prefix = uvec3(0u);  // nothing is known anywhere: the whole map is unknown
+    c.shift = kTreeDepth;
+    c.state = kCellUnknown;
+    return kCellUnknown;
+  }
+  // The node at depth d covers the keys sharing their top d bits: resume from the deepest node
+  // of the last path that k shares.
+  uvec3 diff = k ^ c.key;
+  uint differ = diff.x | diff.y | diff.z;
+  uint common_depth = differ == 0u ? kTreeDepth : kTreeDepth - 1u - uint(findMSB(differ));
+  uint depth = min(common_depth, c.path_depth);
+  uint node = c.path[depth];
+  bool found = true;
+  for (; depth < kTreeDepth; ++depth) {
+    uint block = childBlock(node);
+    if (block == kNoChildren) break;  // a leaf (search() finds it)
+    uint child = block * 8u + childIndex(k, depth);
+    if ((linkOf(child) & kFlagLive) == 0u) {  // a node with other children but not this one
+      found = false;
+      break;
+    }
+    node = child;
+    c.path[depth + 1u] = child;
+    ++searched;
+  }
+  c.key = k;
+  c.path_depth = depth;
   // Found: the node at `depth` covers the keys sharing its prefix. Not found: the missing child
   // one level below the deepest node covers them.
   uint covered = found ? depth : depth + 1u;

@@ -68,7 +68,11 @@ void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
 }
 
 void recordCastRaysRt(Recorder& r, std::uint32_t rays, VkDeviceAddress boxes) {
-  r.dispatch("cast_ray_rt", rays, gpu::CastRayRtConstants{.boxes = boxes, .ray_count = rays});
+  // Each pass answers its own rays (those that stop at unknown space, those that ignore it);
+  // they write different results, so no barrier is needed between them beyond the recorder's.
+  const gpu::CastRayRtConstants pc{.boxes = boxes, .ray_count = rays};
+  r.dispatch("cast_ray_jump", rays, pc);
+  r.dispatch("cast_ray_rt", rays, pc);
 }
 
 }  // namespace octovk::passes
