@@ -429,11 +429,12 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
                 grouped(static_cast<double>(t.count)).c_str(), t.om_ms * 1e-3, t.vk_ms * 1e-3,
                 grouped(t.omPerSecond()).c_str(), grouped(t.vkPerSecond()).c_str(),
                 t.om_ms / t.vk_ms, t.mismatches, t.answers.c_str());
-  std::printf("\ncastRay by backend (octovk's default here: %s):\n\n"
-              "| query | OctoMap s | walk s | OctoMap / walk | walk mismatches | ray tracing s | "
-              "OctoMap / ray tracing | ray-tracing mismatches |\n"
-              "| --- | --: | --: | --: | --: | --: | --: | --: |\n",
-              auto_rt ? "ray tracing" : "walk");
+  std::printf(
+      "\ncastRay by backend (octovk's default here: %s):\n\n"
+      "| query | OctoMap s | walk s | OctoMap / walk | walk mismatches | ray tracing s | "
+      "OctoMap / ray tracing | ray-tracing mismatches |\n"
+      "| --- | --: | --: | --: | --: | --: | --: | --: |\n",
+      auto_rt ? "ray tracing" : "walk");
   for (const QueryTiming& t : rows) {
     if (t.walk_ms <= 0) continue;
     if (t.rt_ms > 0)

@@ -146,6 +146,7 @@ void jumpThroughNode(inout CastRayWalk w, CellCache cache, double t_limit, doubl
 void main() {
   uint i = invocationIndex();
   if (i >= pc.ray_count) return;
+  i += pc.first_ray;
   RayQuery q = rays[i];
   bool ignore_unknown = q.ignore_unknown != 0u;
 #ifdef OCTOVK_CAST_RAY_TRACE

@@ -87,7 +87,8 @@ static_assert(sizeof(AccelBox) == 24 && offsetof(AccelBox, min_x) == 0 &&
 static_assert(sizeof(AccelBoxesConstants) == 16 && offsetof(AccelBoxesConstants, boxes) == 0 &&
               offsetof(AccelBoxesConstants, mode) == 8);
 static_assert(sizeof(CastRayRtConstants) == 16 && offsetof(CastRayRtConstants, boxes) == 0 &&
-              offsetof(CastRayRtConstants, ray_count) == 8);
+              offsetof(CastRayRtConstants, ray_count) == 8 &&
+              offsetof(CastRayRtConstants, first_ray) == 12);
 static_assert(kAccelBuckets % kAccelChunks == 0);
 
 static_assert(sizeof(NewBlock) == 12);

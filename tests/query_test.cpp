@@ -130,8 +130,7 @@ const char* backendName(CastRayBackend backend) {
 #define OCTOVK_REQUIRE_BACKEND(ctx, backend) \
   if ((backend) == CastRayBackend::kRayTracing) OCTOVK_REQUIRE_RAY_QUERY(ctx)
 
-class CastRays
-    : public ::testing::TestWithParam<std::tuple<double, unsigned, CastRayBackend>> {};
+class CastRays : public ::testing::TestWithParam<std::tuple<double, unsigned, CastRayBackend>> {};
 
 TEST_P(CastRays, EqualOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -389,8 +388,7 @@ TEST_P(RayCastingScenarios, CornersEdgesAndLongRays) {
       for (int sx : {-1, 1})
         for (int sy : {-1, 1})
           for (int sz : {-1, 0, 1})
-            rays.push_back({{0.0f, 0.0f, 0.0f},
-                            {float(sx), float(sy), float(sz)}, range, ignore});
+            rays.push_back({{0.0f, 0.0f, 0.0f}, {float(sx), float(sy), float(sz)}, range, ignore});
       // Along cell edges and faces, in each axis direction.
       for (int a = 0; a < 3; ++a)
         for (float s : {-1.0f, 1.0f}) {
@@ -404,7 +402,8 @@ TEST_P(RayCastingScenarios, CornersEdgesAndLongRays) {
         rays.push_back({o, -o, range, ignore});
         rays.push_back({o, -o + Eigen::Vector3f(0.3f, 0.2f, 0.0f), range, ignore});
       }
-      for (const auto& d : sphereDirections(12)) rays.push_back({{0.05f, 0.02f, 0.0f}, d, range, ignore});
+      for (const auto& d : sphereDirections(12))
+        rays.push_back({{0.05f, 0.02f, 0.0f}, d, range, ignore});
     }
   const auto got = b.map->castRays(rays);
   EXPECT_TRUE(sameAsOctoMap(b.oracle(), rays, got));

@@ -459,8 +459,8 @@ struct AccelBoxesConstants {
 // cast_ray_rt. 16 B.
 struct CastRayRtConstants {
   uint64_t boxes;  // 8B (0)  device address of the AccelHeader
-  uint ray_count;  // 4B (8)
-  uint pad0;       // 4B (12)
+  uint ray_count;  // 4B (8)  rays this dispatch walks,
+  uint first_ray;  // 4B (12) from this one on
 };
 
 // device_probe. 16 B.

@@ -73,9 +73,8 @@ int runDevices(const std::vector<std::string>& args) {
   for (const DeviceInfo& d : devices) {
     std::printf("%u: %s (%s), %.1f GiB device-local memory, %s\n", d.index, d.name.c_str(),
                 d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
-                d.ray_query ? (d.ray_tracing_pipeline
-                                   ? "ray queries and ray-tracing pipelines"
-                                   : "ray queries")
+                d.ray_query ? (d.ray_tracing_pipeline ? "ray queries and ray-tracing pipelines"
+                                                      : "ray queries")
                             : "no ray tracing");
   }
   // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.

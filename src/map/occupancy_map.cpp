@@ -336,7 +336,7 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
     stream_.update(buffers_.params, &sp, sizeof(sp));
     stream_.barrier();
     if (rays && ray_scene)
-      passes::recordCastRaysRt(rec_, count, ray_scene);
+      passes::recordCastRaysRt(rec_, ray_scene, {0, count}, {0, count});
     else if (rays)
       passes::recordCastRays(rec_, count, passes::firstRayState(count));
     else
@@ -361,11 +361,14 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
                     device_.info().name + "' takes at most " + std::to_string(max_rays) +
                     " (maxComputeWorkGroupCount x 64); split the batch");
   const VkDeviceAddress ray_scene = q.rays.empty() ? 0 : rayScene();
-  passes::stageQueries(buffers_, q);
+  std::uint32_t stop_rays = 0;
+  const std::vector<std::uint32_t> order =
+      ray_scene ? passes::rayOrderByKind(q.rays, stop_rays) : std::vector<std::uint32_t>{};
+  passes::stageQueries(buffers_, q, order);
   stream_.begin(buffers_.bindings);
-  passes::recordQueries(rec_, queryParams(), q, ray_scene);
+  passes::recordQueries(rec_, queryParams(), q, ray_scene, stop_rays);
   stream_.submitAndWait();
-  return passes::collectQueries(buffers_, q);
+  return passes::collectQueries(buffers_, q, order);
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eigen::Vector3f& min,

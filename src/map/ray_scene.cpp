@@ -17,16 +17,16 @@ CastRayBackend OccupancyMap::Impl::chooseCastRayBackend(const vk::Device& device
   if (params.cast_ray_backend == CastRayBackend::kWalk) return CastRayBackend::kWalk;
   if (params.cast_ray_backend == CastRayBackend::kAuto)
     return ray_query && loops && uncapped ? CastRayBackend::kRayTracing : CastRayBackend::kWalk;
-  const std::string name = "MapParams::cast_ray_backend is kRayTracing, but device '" +
-                           device.info().name + "'";
+  const std::string name =
+      "MapParams::cast_ray_backend is kRayTracing, but device '" + device.info().name + "'";
   if (!ray_query)
-    throw Error(ErrorCode::kMissingFeature,
-                name +
-                    (device.info().ray_query
-                         ? " was opened with ContextOptions::enable_ray_query = false"
-                         : " has no ray queries (VK_KHR_acceleration_structure and "
-                           "VK_KHR_ray_query)") +
-                    "; use CastRayBackend::kAuto or kWalk");
+    throw Error(
+        ErrorCode::kMissingFeature,
+        name +
+            (device.info().ray_query ? " was opened with ContextOptions::enable_ray_query = false"
+                                     : " has no ray queries (VK_KHR_acceleration_structure and "
+                                       "VK_KHR_ray_query)") +
+            "; use CastRayBackend::kAuto or kWalk");
   if (!loops)
     throw Error(ErrorCode::kMissingFeature,
                 name + " ends shader loops after " + std::to_string(device.loopLimit()) +

@@ -23,9 +23,7 @@ struct RayScene {
   std::uint64_t version = ~std::uint64_t{0};
   OccupancyMap::CastRayInfo info;
 
-  std::size_t deviceBytes() const {
-    return boxes.size() + accel.deviceBytes() + readback.size();
-  }
+  std::size_t deviceBytes() const { return boxes.size() + accel.deviceBytes() + readback.size(); }
 };
 
 }  // namespace octovk

@@ -189,7 +189,8 @@ void BoxScene::recordBuild(CommandStream& stream, std::span<const BoxGeometry> g
   // The structures, read by ray queries in later compute passes.
   memoryBarrier(cmd, VK_PIPELINE_STAGE_ACCELERATION_STRUCTURE_BUILD_BIT_KHR,
                 VK_ACCESS_ACCELERATION_STRUCTURE_WRITE_BIT_KHR,
-                VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR);
+                VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                VK_ACCESS_ACCELERATION_STRUCTURE_READ_BIT_KHR);
 }
 
 std::size_t BoxScene::deviceBytes() const noexcept {

@@ -63,8 +63,7 @@ void check(VkResult r, const char* call, const char* file, int line) {
 Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible)
     : Buffer(device, bytes, host_visible, 0) {}
 
-Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible,
-               VkBufferUsageFlags extra_usage)
+Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsageFlags extra_usage)
     : device_(&device) {
   bytes_ = std::max<std::size_t>(bytes, 16);
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};

@@ -59,20 +59,35 @@ void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const gpu::AccelBox inactive{nan, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
   for (const vk::BoxGeometry& g : geometries)
-    if (g.count == 0)
-      r.stream.update(boxes, &inactive, sizeof(inactive), g.data - boxes.address());
+    if (g.count == 0) r.stream.update(boxes, &inactive, sizeof(inactive), g.data - boxes.address());
   scene.recordBuild(r.stream, geometries);
   const VkDeviceAddress tlas = scene.tlasAddress();
   r.stream.update(boxes, &tlas, sizeof(tlas), offsetof(gpu::AccelHeader, tlas));
   r.stream.barrier();
 }
 
-void recordCastRaysRt(Recorder& r, std::uint32_t rays, VkDeviceAddress boxes) {
-  // Each pass answers its own rays (those that stop at unknown space, those that ignore it);
-  // they write different results, so no barrier is needed between them beyond the recorder's.
-  const gpu::CastRayRtConstants pc{.boxes = boxes, .ray_count = rays};
-  r.dispatch("cast_ray_jump", rays, pc);
-  r.dispatch("cast_ray_rt", rays, pc);
+std::vector<std::uint32_t> rayOrderByKind(std::span<const Ray> rays, std::uint32_t& stop_rays) {
+  std::vector<std::uint32_t> order;
+  order.reserve(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    if (!rays[i].ignore_unknown) order.push_back(static_cast<std::uint32_t>(i));
+  stop_rays = static_cast<std::uint32_t>(order.size());
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    if (rays[i].ignore_unknown) order.push_back(static_cast<std::uint32_t>(i));
+  return order;
+}
+
+void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore) {
+  // On lavapipe an invocation of the ray-query pass costs more than the whole walk of a ray
+  // that stops at unknown space, even when it returns at once: each pass gets its own range.
+  if (stop.count)
+    r.dispatch(
+        "cast_ray_jump", stop.count,
+        gpu::CastRayRtConstants{.boxes = boxes, .ray_count = stop.count, .first_ray = stop.first});
+  if (ignore.count)
+    r.dispatch("cast_ray_rt", ignore.count,
+               gpu::CastRayRtConstants{
+                   .boxes = boxes, .ray_count = ignore.count, .first_ray = ignore.first});
 }
 
 }  // namespace octovk::passes
