@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <functional>
+#include <memory>
 #include <numbers>
 #include <span>
 #include <string>
@@ -113,7 +114,11 @@ struct QueryTiming {
   std::string label;
   std::size_t count = 0;
   double om_ms = 0.0;
-  double vk_ms = 0.0;
+  double vk_ms = 0.0;  ///< octovk as a map gets it by default (CastRayBackend::kAuto)
+  // castRay: each backend (0 when not run).
+  double walk_ms = 0.0;
+  double rt_ms = 0.0;
+  std::size_t walk_mismatches = 0, rt_mismatches = 0;
   std::size_t mismatches = 0;
   std::vector<std::string> first_mismatches;  ///< the first few, spelled out
   std::string answers;                        ///< what the answers were, in words
@@ -217,6 +222,14 @@ void writeJson(JsonWriter& json, const QueryTiming& t) {
       .field("octomap_over_octovk", t.vk_ms > 0 ? t.om_ms / t.vk_ms : 0.0)
       .field("mismatches", t.mismatches)
       .field("answers", t.answers);
+  if (t.walk_ms > 0)
+    json.field("walk_wall_ms", t.walk_ms)
+        .field("octomap_over_walk", t.om_ms / t.walk_ms)
+        .field("walk_mismatches", t.walk_mismatches);
+  if (t.rt_ms > 0)
+    json.field("ray_tracing_wall_ms", t.rt_ms)
+        .field("octomap_over_ray_tracing", t.om_ms / t.rt_ms)
+        .field("ray_tracing_mismatches", t.rt_mismatches);
   json.key("first_mismatches").beginArray();
   for (const std::string& m : t.first_mismatches) json.value(m);
   json.endArray();
@@ -234,6 +247,7 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
   octomap::OcTree tree(kResolution);
   MapParams params;
   params.resolution = kResolution;
+  params.cast_ray_backend = CastRayBackend::kWalk;
   OccupancyMap map(context, params);
   map.setLeafBoxesEveryScan(o.leaf_boxes_every_scan);
   for (std::size_t i = 0; i < views.size(); ++i) {
@@ -310,13 +324,54 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
     json.endObject();
   }
 
-  json.key("cast_ray").beginArray();
+  // castRay on both backends: the walk on `map`, ray tracing on a copy of it (uploaded from its
+  // download: the same tree) where the device has ray queries. The default (kAuto) is one of them.
+  const bool has_rt = context.device().ray_query_enabled;
+  MapParams auto_params = params;
+  auto_params.cast_ray_backend = CastRayBackend::kAuto;
+  const bool auto_rt =
+      OccupancyMap(context, auto_params).castRayInfo().backend == CastRayBackend::kRayTracing;
+  std::unique_ptr<OccupancyMap> rt_map;
+  if (has_rt) {
+    MapParams rt_params = params;
+    rt_params.cast_ray_backend = CastRayBackend::kRayTracing;
+    rt_map = std::make_unique<OccupancyMap>(context, rt_params);
+    rt_map->upload(map.download());
+  }
   {
-    // Sizes the query buffers for the ray batch at next to no cost: every ray ends at once.
+    // Sizes the query buffers for the ray batch at next to no cost: every ray ends at once. On
+    // the ray-tracing map this first call also builds the acceleration structure: timed.
     std::vector<Ray> short_rays = rays;
     for (Ray& r : short_rays) r.max_range_m = 1e-3;
     map.castRays(short_rays);
+    if (rt_map) {
+      const auto start = Clock::now();
+      rt_map->castRays(short_rays);
+      const double wall_ms = msSince(start);
+      const OccupancyMap::CastRayInfo info = rt_map->castRayInfo();
+      std::printf(
+          "\nRay-tracing backend: acceleration structure over %s occupied-leaf boxes and %s "
+          "unknown-region boxes, built on the device in %.1f ms (boxes %.1f ms, BLAS + TLAS "
+          "%.1f ms; device timestamps), %.1f MiB; first castRays call %.1f ms wall.\n",
+          grouped(static_cast<double>(info.occupied_boxes)).c_str(),
+          grouped(static_cast<double>(info.unknown_boxes)).c_str(), info.last_build_ms,
+          info.last_boxes_ms, info.last_build_ms - info.last_boxes_ms,
+          static_cast<double>(info.device_bytes) / (1 << 20), wall_ms);
+      json.key("accel_build").beginObject();
+      json.field("device_ms", info.last_build_ms)
+          .field("boxes_ms", info.last_boxes_ms)
+          .field("structures_ms", info.last_build_ms - info.last_boxes_ms)
+          .field("occupied_boxes", info.occupied_boxes)
+          .field("unknown_boxes", info.unknown_boxes)
+          .field("device_bytes", info.device_bytes)
+          .field("first_call_wall_ms", wall_ms);
+      json.endObject();
+    } else {
+      std::printf("\nRay-tracing backend: not run (the device has no ray queries).\n");
+    }
   }
+  json.field("default_cast_ray_backend", auto_rt ? "ray_tracing" : "walk");
+  json.key("cast_ray").beginArray();
   for (const double max_range : {10.0, -1.0}) {
     for (const bool ignore_unknown : {false, true}) {
       std::fprintf(stderr, "queries: %zu rays, max range %s, ignore_unknown %s\n", ray_count,
@@ -336,6 +391,26 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
           o.repeat, t, [&] { return octomapCastRays(tree, rays); },
           [&] { return map.castRays(rays); }, om, vk);
       compareRays(rays, om, vk, t);
+      t.walk_ms = t.vk_ms;
+      t.walk_mismatches = t.mismatches;
+      if (rt_map) {
+        std::vector<double> rt_ms;
+        std::vector<RayHit> rt;
+        for (int rep = 0; rep < o.repeat; ++rep) {
+          const auto start = Clock::now();
+          rt = rt_map->castRays(rays);
+          rt_ms.push_back(msSince(start));
+        }
+        t.rt_ms = median(rt_ms);
+        QueryTiming check;
+        compareRays(rays, om, rt, check);
+        t.rt_mismatches = check.mismatches;
+        for (const std::string& m : check.first_mismatches)
+          if (t.first_mismatches.size() < 2 * kShownMismatches)
+            t.first_mismatches.push_back("ray tracing: " + m);
+        t.mismatches += check.mismatches;
+        if (auto_rt) t.vk_ms = t.rt_ms;
+      }
       rows.push_back(t);
       json.newline().beginObject();
       json.field("max_range_m", max_range).field("ignore_unknown", ignore_unknown);
@@ -354,10 +429,26 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
                 grouped(static_cast<double>(t.count)).c_str(), t.om_ms * 1e-3, t.vk_ms * 1e-3,
                 grouped(t.omPerSecond()).c_str(), grouped(t.vkPerSecond()).c_str(),
                 t.om_ms / t.vk_ms, t.mismatches, t.answers.c_str());
+  std::printf(
+      "\ncastRay by backend (octovk's default here: %s):\n\n"
+      "| query | OctoMap s | walk s | OctoMap / walk | walk mismatches | ray tracing s | "
+      "OctoMap / ray tracing | ray-tracing mismatches |\n"
+      "| --- | --: | --: | --: | --: | --: | --: | --: |\n",
+      auto_rt ? "ray tracing" : "walk");
+  for (const QueryTiming& t : rows) {
+    if (t.walk_ms <= 0) continue;
+    if (t.rt_ms > 0)
+      std::printf("| %s | %.3f | %.3f | %.2fx | %zu | %.3f | %.2fx | %zu |\n", t.label.c_str(),
+                  t.om_ms * 1e-3, t.walk_ms * 1e-3, t.om_ms / t.walk_ms, t.walk_mismatches,
+                  t.rt_ms * 1e-3, t.om_ms / t.rt_ms, t.rt_mismatches);
+    else
+      std::printf("| %s | %.3f | %.3f | %.2fx | %zu | not run | | |\n", t.label.c_str(),
+                  t.om_ms * 1e-3, t.walk_ms * 1e-3, t.om_ms / t.walk_ms, t.walk_mismatches);
+  }
   std::size_t total_mismatches = 0;
   for (const QueryTiming& t : rows) total_mismatches += t.mismatches;
   std::printf("\nAnswers that differ from OctoMap's: %zu of %zu%s\n", total_mismatches,
-              lookup_count + 4 * ray_count,
+              lookup_count + (rt_map ? 8 : 4) * ray_count,
               total_mismatches ? " (MISMATCH: first ones below)" : ".");
   for (const QueryTiming& t : rows)
     for (const std::string& m : t.first_mismatches)

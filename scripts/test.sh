@@ -4,7 +4,9 @@
 #   2. consumer: the installed package used from another project, through find_package and
 #      pkg-config, with the core free of OctoMap (scripts/consumer.sh);
 #   3. the whole suite again on a second driver, lavapipe from Mesa 25 (scripts/lavapipe25.sh),
-#      because results must not depend on one driver's compiler;
+#      because results must not depend on one driver's compiler; it has ray queries, so the
+#      tests of castRay's ray-tracing backend must run there (they skip on Mesa 22.3), and run
+#      again under the validation layer;
 #   4. the whole suite with the Khronos validation layer (core + synchronization validation):
 #      any validation message fails the test that caused it;
 #   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh);
@@ -24,11 +26,13 @@ failed=()
 
 step() { case " $steps " in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 run_suite() {  # NAME, then VAR=VALUE words (no spaces) of the environment to run ctest in
+  # ($ctest_select: extra ctest arguments that pick tests, e.g. -R REGEX)
   local name="$1"
   shift
   echo "==== tests: $name ===="
   local t0=$SECONDS
-  if (cd "$root/build" && env "$@" ctest --output-on-failure -j "$jobs"); then
+  # shellcheck disable=SC2086  # ctest_select is split into words on purpose
+  if (cd "$root/build" && env "$@" ctest --output-on-failure -j "$jobs" ${ctest_select:-}); then
     echo "==== tests: $name passed ($((SECONDS - t0)) s) ===="
   else
     echo "==== tests: $name FAILED ($((SECONDS - t0)) s) ====" >&2
@@ -53,10 +57,19 @@ fi
 if step mesa25; then
   if "$root/scripts/lavapipe25.sh" "$root/build/mesa25"; then
     # env.sh sets VK_DRIVER_FILES, LD_LIBRARY_PATH and OCTOVK_EXPECT_DRIVER (the tests fail if
-    # the device they get is not that driver).
+    # the device they get is not that driver). This lavapipe has ray queries: the tests of
+    # castRay's ray-tracing backend must run here, not skip (OCTOVK_EXPECT_RAY_QUERY).
     # shellcheck source=/dev/null
-    run_suite "Mesa 25 lavapipe" $(source "$root/build/mesa25/env.sh" && echo \
+    mesa25_env=$(source "$root/build/mesa25/env.sh" && echo \
       "VK_DRIVER_FILES=$VK_DRIVER_FILES LD_LIBRARY_PATH=$LD_LIBRARY_PATH OCTOVK_EXPECT_DRIVER=$OCTOVK_EXPECT_DRIVER")
+    # shellcheck disable=SC2086
+    run_suite "Mesa 25 lavapipe" $mesa25_env OCTOVK_EXPECT_RAY_QUERY=1
+    # The validation step runs on the system driver, which has no ray tracing: the ray-tracing
+    # tests run under the validation layer here.
+    # shellcheck disable=SC2086
+    ctest_select="-R RayTracing|RayCastingScenarios|CastRays" run_suite \
+      "Mesa 25 lavapipe, ray tracing under the validation layer" $mesa25_env \
+      OCTOVK_EXPECT_RAY_QUERY=1 OCTOVK_VALIDATION=1
   else
     echo "==== tests: Mesa 25 lavapipe UNAVAILABLE: the second driver could not be fetched ====" >&2
     failed+=("Mesa 25 lavapipe (unavailable)")

@@ -9,6 +9,7 @@
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
+#include "block_key.glsl"
 
 layout(push_constant) uniform PushBlock { LeafBoxesConstants pc; };
 
@@ -54,16 +55,8 @@ void main() {
   }
   uint parent = block_parent[b];
   if (parent == kNoBlock) return;
-  // The parent's key and depth, from the slots of the nodes above it: the node at depth d is
-  // child (its slot) of the node above, which sets bit 16 - d of the key.
-  uvec3 up_bits = uvec3(0u);
-  uint depth = 0u;
-  for (uint n = parent; n != kRootNode && depth < kTreeDepth; n = block_parent[n / 8u]) {
-    uint s = n % 8u;
-    up_bits |= uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << depth;
-    ++depth;
-  }
-  uvec3 parent_key = depth == 0u ? uvec3(0u) : up_bits << (kTreeDepth - depth);
+  uint depth;
+  uvec3 parent_key = parentKeyOfBlock(parent, depth);
   uint bit = 15u - depth;
   for (uint s = 0u; s < 8u; ++s) {
     Node child = nodes[b * 8u + s];

@@ -72,6 +72,25 @@ static_assert(offsetof(ScanParams, pad1) == 108);
 static_assert(offsetof(ScanParams, cell_capacity) == 112);
 static_assert(offsetof(ScanParams, pad0) == 116);
 
+static_assert(sizeof(AccelHeader) == 64);
+static_assert(offsetof(AccelHeader, tlas) == 0);
+static_assert(offsetof(AccelHeader, occupied_count) == 8);
+static_assert(offsetof(AccelHeader, unknown_count) == 12);
+static_assert(offsetof(AccelHeader, occupied_capacity) == 16);
+static_assert(offsetof(AccelHeader, unknown_capacity) == 20);
+static_assert(offsetof(AccelHeader, lo_x) == 24);
+static_assert(offsetof(AccelHeader, hi_x) == 36);
+static_assert(offsetof(AccelHeader, pad3) == 60);
+// AccelBox is what the acceleration-structure build reads: VkAabbPositionsKHR.
+static_assert(sizeof(AccelBox) == 24 && offsetof(AccelBox, min_x) == 0 &&
+              offsetof(AccelBox, max_x) == 12 && offsetof(AccelBox, max_z) == 20);
+static_assert(sizeof(AccelBoxesConstants) == 16 && offsetof(AccelBoxesConstants, boxes) == 0 &&
+              offsetof(AccelBoxesConstants, mode) == 8);
+static_assert(sizeof(CastRayRtConstants) == 16 && offsetof(CastRayRtConstants, boxes) == 0 &&
+              offsetof(CastRayRtConstants, ray_count) == 8 &&
+              offsetof(CastRayRtConstants, first_ray) == 12);
+static_assert(kAccelBuckets % kAccelChunks == 0);
+
 static_assert(sizeof(NewBlock) == 12);
 static_assert(offsetof(NewBlock, node) == 0);
 static_assert(offsetof(NewBlock, source) == 4);

@@ -18,10 +18,12 @@ struct Built {
 };
 
 // A map from a few random scans in a room-sized region, the same in both.
-Built buildMap(Context& ctx, double resolution, unsigned seed) {
+Built buildMap(Context& ctx, double resolution, unsigned seed,
+               CastRayBackend backend = CastRayBackend::kWalk) {
   Built b;
   MapParams params;
   params.resolution = resolution;
+  params.cast_ray_backend = backend;
   b.map = std::make_unique<OccupancyMap>(ctx, params);
   b.tree = std::make_unique<octomap::OcTree>(resolution);  // OctoMap's defaults, as params
   std::mt19937 rng(seed);
@@ -112,10 +114,30 @@ TEST_P(Queries, LookupsEqualOctoMapSearch) {
   EXPECT_GT(known, pts.size() / 10);  // the test looks at mapped space, not only unknown
 }
 
-TEST_P(Queries, CastRayEqualsOctoMap) {
+const char* backendName(CastRayBackend backend) {
+  switch (backend) {
+    case CastRayBackend::kWalk:
+      return "Walk";
+    case CastRayBackend::kRayTracing:
+      return "RayTracing";
+    default:
+      return "Auto";
+  }
+}
+
+// castRay on each backend; the ray-tracing one where the device has ray queries (see
+// OCTOVK_REQUIRE_RAY_QUERY: skipped with the reason elsewhere, failed where expected).
+#define OCTOVK_REQUIRE_BACKEND(ctx, backend) \
+  if ((backend) == CastRayBackend::kRayTracing) OCTOVK_REQUIRE_RAY_QUERY(ctx)
+
+class CastRays : public ::testing::TestWithParam<std::tuple<double, unsigned, CastRayBackend>> {};
+
+TEST_P(CastRays, EqualOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  const auto [resolution, seed] = GetParam();
-  Built b = buildMap(ctx, resolution, seed);
+  const auto [resolution, seed, backend] = GetParam();
+  OCTOVK_REQUIRE_BACKEND(ctx, backend);
+  Built b = buildMap(ctx, resolution, seed, backend);
+  EXPECT_EQ(b.map->castRayInfo().backend, backend);
   std::mt19937 rng(seed + 200);
   const auto rays = randomRays(rng, resolution, 3000);
   const auto got = b.map->castRays(rays);
@@ -137,6 +159,16 @@ TEST_P(Queries, CastRayEqualsOctoMap) {
   EXPECT_GT(hits, rays.size() / 10);
   EXPECT_LT(hits, rays.size());
 }
+
+INSTANTIATE_TEST_SUITE_P(
+    Maps, CastRays,
+    ::testing::Combine(::testing::Values(0.1, 0.05, 0.2), ::testing::Values(1u, 2u),
+                       ::testing::Values(CastRayBackend::kWalk, CastRayBackend::kRayTracing)),
+    [](const auto& info) {
+      return std::string(backendName(std::get<2>(info.param))) + "_res" +
+             std::to_string(static_cast<int>(std::get<0>(info.param) * 100)) + "_seed" +
+             std::to_string(std::get<1>(info.param));
+    });
 
 TEST_P(Queries, LeavesInBoxEqualOctoMapIterator) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -229,10 +261,15 @@ std::vector<Eigen::Vector3f> sphereDirections(int n) {
   return ::testing::AssertionSuccess();
 }
 
-TEST(RayCastingScenarios, SphereOfRadius2FromItsCentre) {
+class RayCastingScenarios : public ::testing::TestWithParam<CastRayBackend> {};
+
+TEST_P(RayCastingScenarios, SphereOfRadius2FromItsCentre) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
+  const CastRayBackend backend = GetParam();
+  OCTOVK_REQUIRE_BACKEND(ctx, backend);
   MapParams params;
   params.resolution = 0.05;
+  params.cast_ray_backend = backend;
   OccupancyMap map(ctx, params);
   octomap::OcTree tree(0.05);
   const Eigen::Vector3f origin(0.01f, 0.01f, 0.02f);
@@ -257,8 +294,10 @@ TEST(RayCastingScenarios, SphereOfRadius2FromItsCentre) {
   EXPECT_NEAR(mean / static_cast<double>(rays.size()), 2.0, 0.05);
 }
 
-TEST(RayCastingScenarios, CubeWithAnOccupiedWallAndAFloor) {
+TEST_P(RayCastingScenarios, CubeWithAnOccupiedWallAndAFloor) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
+  const CastRayBackend backend = GetParam();
+  OCTOVK_REQUIRE_BACKEND(ctx, backend);
   const double res = 0.1;
   const float half = static_cast<float>(res / 2);
   octomap::OcTree tree(res);
@@ -275,6 +314,7 @@ TEST(RayCastingScenarios, CubeWithAnOccupiedWallAndAFloor) {
     tree.updateNode(octomap::point3d(fx, half, -half), true);
   MapParams params;
   params.resolution = res;
+  params.cast_ray_backend = backend;
   OccupancyMap map(ctx, params);
   fromOcTree(map, tree);
 
@@ -307,9 +347,11 @@ TEST(RayCastingScenarios, CubeWithAnOccupiedWallAndAFloor) {
   EXPECT_EQ(at_end[1].state, CellState::kUnknown);
 }
 
-TEST(RayCastingScenarios, BadQueriesHaveDefinedResults) {
+TEST_P(RayCastingScenarios, BadQueriesHaveDefinedResults) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  Built b = buildMap(ctx, 0.1, 11);
+  const CastRayBackend backend = GetParam();
+  OCTOVK_REQUIRE_BACKEND(ctx, backend);
+  Built b = buildMap(ctx, 0.1, 11, backend);
   const float nan = std::nanf("");
   std::vector<Ray> rays = {
       {{nan, 0, 0}, {1, 0, 0}, -1.0, false},   // NaN origin
@@ -452,6 +494,142 @@ TEST(RayCastingScenarios, AcrossLargeNodesEqualOctoMap) {
     EXPECT_GT(far, got.size() / 10);
   }
 }
+
+
+// Rays through cell corners and along cell edges (ties between the axes' tMax at every step),
+// from outside the mapped region, to the map's border and to the max range, on every side.
+TEST_P(RayCastingScenarios, CornersEdgesAndLongRays) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const CastRayBackend backend = GetParam();
+  OCTOVK_REQUIRE_BACKEND(ctx, backend);
+  Built b = buildMap(ctx, 0.1, 5, backend);
+  const float r = 0.1f;
+  std::vector<Ray> rays;
+  for (bool ignore : {false, true})
+    for (double range : {-1.0, 0.75, 4.0, 300.0}) {
+      // From a cell corner along the space diagonals and face diagonals: ties at every step.
+      for (int sx : {-1, 1})
+        for (int sy : {-1, 1})
+          for (int sz : {-1, 0, 1})
+            rays.push_back({{0.0f, 0.0f, 0.0f}, {float(sx), float(sy), float(sz)}, range, ignore});
+      // Along cell edges and faces, in each axis direction.
+      for (int a = 0; a < 3; ++a)
+        for (float s : {-1.0f, 1.0f}) {
+          rays.push_back({{r, -r, 0.0f}, Eigen::Vector3f::Unit(a) * s, range, ignore});
+          rays.push_back({{0.5f * r, r, 0.5f * r}, Eigen::Vector3f::Unit(a) * s, range, ignore});
+        }
+      // From far outside the mapped region, towards it and past it.
+      for (const Eigen::Vector3f& o :
+           {Eigen::Vector3f(-30.0f, 0.05f, 0.05f), Eigen::Vector3f(7.0f, -9.0f, 3.0f),
+            Eigen::Vector3f(0.0f, 0.0f, -50.0f)}) {
+        rays.push_back({o, -o, range, ignore});
+        rays.push_back({o, -o + Eigen::Vector3f(0.3f, 0.2f, 0.0f), range, ignore});
+      }
+      for (const auto& d : sphereDirections(12))
+        rays.push_back({{0.05f, 0.02f, 0.0f}, d, range, ignore});
+    }
+  const auto got = b.map->castRays(rays);
+  EXPECT_TRUE(sameAsOctoMap(b.oracle(), rays, got));
+}
+
+// The ray-tracing backend builds its acceleration structure lazily, from the leaf boxes, after
+// scans changed them, and answers on the updated map; an empty map has no boxes at all.
+TEST(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  MapParams params;
+  params.resolution = 0.1;
+  params.cast_ray_backend = CastRayBackend::kRayTracing;
+  OccupancyMap map(ctx, params);
+  octomap::OcTree tree(0.1);
+  const Eigen::Vector3f origin(0.0f, 0.0f, 0.05f);
+  std::vector<Ray> rays;
+  for (const auto& d : sphereDirections(16)) {
+    rays.push_back({origin, d, -1.0, false});
+    rays.push_back({origin, d, -1.0, true});
+    rays.push_back({origin, d, 2.5, true});
+  }
+  // Empty: nothing to trace (zero boxes in both structures).
+  auto got = map.castRays(rays);
+  EXPECT_TRUE(sameAsOctoMap(tree, rays, got));
+  EXPECT_EQ(map.castRayInfo().builds, 1u);
+  EXPECT_EQ(map.castRayInfo().occupied_boxes, 0u);
+  EXPECT_EQ(map.castRayInfo().unknown_boxes, 0u);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  for (int scan = 0; scan < 3; ++scan) {
+    std::vector<Eigen::Vector3f> pts;
+    for (int i = 0; i < 600; ++i) {
+      Eigen::Vector3f d(u(rng), u(rng), 0.5f * u(rng));
+      if (d.norm() < 1e-3f) continue;
+      pts.push_back(origin + d.normalized() * (1.0f + 0.3f * static_cast<float>(scan)));
+    }
+    map.insertPointCloud(pts, origin);
+    tree.insertPointCloud(test::toPointcloud(pts),
+                          octomap::point3d(origin.x(), origin.y(), origin.z()));
+    got = map.castRays(rays);
+    EXPECT_TRUE(sameAsOctoMap(tree, rays, got)) << "after scan " << scan;
+    const OccupancyMap::CastRayInfo info = map.castRayInfo();
+    EXPECT_EQ(info.backend, CastRayBackend::kRayTracing);
+    EXPECT_EQ(info.builds, static_cast<std::size_t>(scan) + 2);
+    std::size_t occupied = 0;
+    for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+      occupied += tree.isNodeOccupied(*it);
+    EXPECT_EQ(info.occupied_boxes, occupied);
+    EXPECT_GT(info.unknown_boxes, 0u);
+    EXPECT_GT(info.device_bytes, 0u);
+    EXPECT_GE(info.last_build_ms, info.last_boxes_ms);
+  }
+  // No change: no rebuild.
+  got = map.castRays(rays);
+  EXPECT_EQ(map.castRayInfo().builds, 4u);
+  // trim() drops the structure; the next castRays builds it again.
+  map.trim();
+  EXPECT_EQ(map.castRayInfo().device_bytes, 0u);
+  got = map.castRays(rays);
+  EXPECT_TRUE(sameAsOctoMap(tree, rays, got));
+}
+
+// A device without ray queries (or a Context that does not enable them) falls back to the walk
+// under kAuto, and refuses kRayTracing with the reason; so does a map under a memory cap.
+TEST(RayTracingBackend, FallsBackToTheWalkWithoutRayQueries) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ContextOptions options;
+  options.enable_ray_query = false;
+  auto plain = Context::create(options);
+  ASSERT_TRUE(plain) << plain.error().what();
+  Context& no_rt = *plain.value();
+  EXPECT_FALSE(no_rt.device().ray_query_enabled);
+  MapParams params;
+  params.resolution = 0.1;
+  for (Context* c : {&ctx, &no_rt}) {
+    OccupancyMap map(*c, params);
+    const bool rt = c->device().ray_query_enabled;
+    EXPECT_EQ(map.castRayInfo().backend, rt ? CastRayBackend::kRayTracing : CastRayBackend::kWalk)
+        << c->device().name;
+    if (!rt) {
+      params.cast_ray_backend = CastRayBackend::kRayTracing;
+      try {
+        OccupancyMap refused(*c, params);
+        ADD_FAILURE() << "kRayTracing accepted without ray queries";
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ErrorCode::kMissingFeature);
+        EXPECT_NE(std::string(e.what()).find("kWalk"), std::string::npos) << e.what();
+      }
+      params.cast_ray_backend = CastRayBackend::kAuto;
+    }
+  }
+  params.max_device_bytes = 64u << 20;
+  EXPECT_EQ(OccupancyMap(ctx, params).castRayInfo().backend, CastRayBackend::kWalk);
+  if (ctx.device().ray_query_enabled) {
+    params.cast_ray_backend = CastRayBackend::kRayTracing;
+    EXPECT_THROW(OccupancyMap(ctx, params), Error);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, RayCastingScenarios,
+                         ::testing::Values(CastRayBackend::kWalk, CastRayBackend::kRayTracing),
+                         [](const auto& info) { return std::string(backendName(info.param)); });
 
 INSTANTIATE_TEST_SUITE_P(Maps, Queries,
                          ::testing::Values(std::make_tuple(0.1, 1u), std::make_tuple(0.05, 2u),

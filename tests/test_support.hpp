@@ -60,6 +60,30 @@ inline bool runningInCi() {
 
 namespace octovk::test {
 
+/// Whether this run must have ray queries (OCTOVK_EXPECT_RAY_QUERY set and not "0"; the Mesa 25
+/// lavapipe step of scripts/test.sh sets it): then a device without them fails the tests of the
+/// ray-tracing backend instead of skipping them.
+inline bool rayQueryExpected() {
+  const char* v = std::getenv("OCTOVK_EXPECT_RAY_QUERY");
+  return v && *v && std::string(v) != "0";
+}
+
+}  // namespace octovk::test
+
+/// Skips a test of castRay's ray-tracing backend, with the reason, on a device without ray
+/// queries; fails it there when the run expects them (OCTOVK_EXPECT_RAY_QUERY).
+#define OCTOVK_REQUIRE_RAY_QUERY(ctx)                                                          \
+  if (!(ctx).device().ray_query_enabled) {                                                     \
+    if (::octovk::test::rayQueryExpected())                                                    \
+      FAIL() << "OCTOVK_EXPECT_RAY_QUERY is set but device '" << (ctx).device().name << "' ("  \
+             << (ctx).device().driver << ") has no ray queries enabled";                       \
+    GTEST_SKIP() << "device '" << (ctx).device().name << "' (" << (ctx).device().driver       \
+                 << ") has no VK_KHR_acceleration_structure + VK_KHR_ray_query: the "         \
+                 << "ray-tracing backend is not tested here (Mesa 25 lavapipe has them)";      \
+  }
+
+namespace octovk::test {
+
 inline std::string otBytes(const octomap::OcTree& tree) {
   std::stringstream s;
   tree.write(s);

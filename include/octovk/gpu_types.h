@@ -8,6 +8,7 @@
 #include <cstdint>
 namespace octovk::gpu {
 using uint = std::uint32_t;
+using uint64_t = std::uint64_t;
 #define OCTOVK_CONST static constexpr
 #else
 #define OCTOVK_CONST const
@@ -408,6 +409,68 @@ struct CastRayConstants {
   uint ray_count;    // 4B (4)
   uint resume;       // 4B (8)  0: start every ray; 1 + l: continue the walks listed in list l
   uint first_state;  // 4B (12) the RayState (element of the query output) of ray 0
+};
+
+// The ray-tracing backend of castRay (cast_ray_rt.comp): the boxes an acceleration structure is
+// built over, in one buffer reached by device address: this header, then the AABBs of the
+// occupied leaves (from the leaf-box buffer), then those of the unknown regions (the missing
+// children of the tree's inner nodes), each enlarged by a margin so that the hardware's float
+// test cannot miss a box that OctoMap's walk enters. Both lists are sorted along a Morton curve
+// (a counting sort on kAccelBuckets cells of the boxes' extent), because a builder may keep the
+// order it is given (lavapipe's pairs neighbours in the array). After the sorted lists: the same
+// lists unsorted, as accel_boxes writes them, then the sort's bucket counters (kAccelBuckets per
+// list) and the sums of their chunks (kAccelChunks per list). 64 B.
+OCTOVK_CONST uint kAccelBucketBits = 7u;  // per axis
+OCTOVK_CONST uint kAccelBuckets = 1u << (3u * kAccelBucketBits);
+OCTOVK_CONST uint kAccelChunks = 2048u;  // the scan of a list's counters: chunks of this many
+struct AccelHeader {
+  uint64_t tlas;            // 8B (0)  device address of the top-level acceleration structure
+  uint occupied_count;      // 4B (8)  boxes of occupied leaves (written by accel_boxes)
+  uint unknown_count;       // 4B (12) boxes of unknown regions (written by accel_boxes)
+  uint occupied_capacity;   // 4B (16) room for occupied boxes; the unknown ones follow
+  uint unknown_capacity;    // 4B (20)
+  uint lo_x;                // 4B (24) smallest cell key of the small boxes' centres (sort range)
+  uint lo_y;                // 4B (28)
+  uint lo_z;                // 4B (32)
+  uint hi_x;                // 4B (36) largest
+  uint hi_y;                // 4B (40)
+  uint hi_z;                // 4B (44)
+  uint pad0;                // 4B (48)
+  uint pad1;                // 4B (52)
+  uint pad2;                // 4B (56)
+  uint pad3;                // 4B (60)
+};
+// One box, as VkAabbPositionsKHR (the acceleration-structure build reads it). 24 B.
+struct AccelBox {
+  float min_x;  // 4B (0)  NaN: an inactive box (the build skips it)
+  float min_y;  // 4B (4)
+  float min_z;  // 4B (8)
+  float max_x;  // 4B (12)
+  float max_y;  // 4B (16)
+  float max_z;  // 4B (20)
+};
+// The instance masks of the two bottom-level structures in the TLAS.
+OCTOVK_CONST uint kAccelMaskOccupied = 1u;
+OCTOVK_CONST uint kAccelMaskUnknown = 2u;
+
+// accel_boxes. 16 B.
+OCTOVK_CONST uint kAccelBoxesOccupied = 0u;  // one invocation per leaf-box slot
+OCTOVK_CONST uint kAccelBoxesUnknown = 1u;   // one invocation per pool block
+OCTOVK_CONST uint kAccelBoxesCount = 2u;     // per unsorted box: count it in its bucket
+OCTOVK_CONST uint kAccelBoxesChunks = 3u;    // per chunk of buckets: its sum
+OCTOVK_CONST uint kAccelBoxesOffsets = 4u;   // per chunk: the buckets' first places
+OCTOVK_CONST uint kAccelBoxesScatter = 5u;   // per unsorted box: into its bucket's place
+struct AccelBoxesConstants {
+  uint64_t boxes;  // 8B (0)  device address of the AccelHeader
+  uint mode;       // 4B (8)  kAccelBoxes*
+  uint pad0;       // 4B (12)
+};
+
+// cast_ray_rt. 16 B.
+struct CastRayRtConstants {
+  uint64_t boxes;  // 8B (0)  device address of the AccelHeader
+  uint ray_count;  // 4B (8)  rays this dispatch walks,
+  uint first_ray;  // 4B (12) from this one on
 };
 
 // device_probe. 16 B.

@@ -55,6 +55,20 @@ class Result {
 };
 
 /// The sensor model and grid, with OctoMap's defaults.
+/// How castRay is answered on the device (MapParams::cast_ray_backend). Both give OctoMap's
+/// answers bit for bit.
+enum class CastRayBackend : std::uint32_t {
+  /// The ray-tracing backend where the device has ray queries, loops without a driver limit and
+  /// no device-memory cap is set; else the walk (docs/benchmarks.md: which is faster where).
+  kAuto = 0,
+  /// A compute shader steps through every cell along the ray, as OctoMap does.
+  kWalk = 1,
+  /// Ray queries against an acceleration structure over the map's occupied and unknown boxes
+  /// find where the walk can end; the walk jumps there exactly and decides with OctoMap's steps.
+  /// Needs VK_KHR_acceleration_structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled).
+  kRayTracing = 2,
+};
+
 struct MapParams {
   double resolution = 0.1;
   double prob_hit = 0.7;
@@ -73,6 +87,10 @@ struct MapParams {
   /// that would need more throws kOutOfDeviceMemory and leaves the map as it was; the map keeps
   /// working. At least minDeviceBytes().
   std::size_t max_device_bytes = 0;
+  /// castRay's backend. kRayTracing on a device without ray queries (or with a loop limit, or
+  /// with max_device_bytes set: the acceleration structure is not under the cap) makes the
+  /// map's constructor throw kMissingFeature / kInvalidArgument.
+  CastRayBackend cast_ray_backend = CastRayBackend::kAuto;
 
   /// Device bytes an empty map with these parameters holds: the smallest max_device_bytes.
   std::size_t minDeviceBytes() const;
@@ -108,6 +126,9 @@ struct ContextOptions {
   /// For tests: treat the device's maxStorageBufferRange as at most this many bytes (0: the
   /// device's own), to check that no binding depends on a large range.
   std::uint64_t max_binding_bytes = 0;
+  /// Enable ray queries (VK_KHR_acceleration_structure + VK_KHR_ray_query) where the device has
+  /// them, for castRay's ray-tracing backend. false: never (the compute walk only).
+  bool enable_ray_query = true;
 };
 
 /// Validation messages received by every Context of this process so far.
@@ -120,6 +141,14 @@ struct DeviceInfo {
   std::string driver;  ///< driver name and version, e.g. "llvmpipe: Mesa 25.0.7 (LLVM 15.0.6)"
   std::uint32_t index = 0;
   std::uint64_t memory_bytes = 0;
+  /// The device offers ray queries against acceleration structures (VK_KHR_acceleration_structure
+  /// and VK_KHR_ray_query with their features): castRay can use its ray-tracing backend.
+  bool ray_query = false;
+  /// It also offers ray-tracing pipelines (VK_KHR_ray_tracing_pipeline); octovk does not need them.
+  bool ray_tracing_pipeline = false;
+  /// Ray queries are enabled on this Context's device (Context::device() only; false in
+  /// listDevices()).
+  bool ray_query_enabled = false;
 };
 
 namespace vk {
@@ -379,6 +408,18 @@ class OccupancyMap {
     std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
   };
   DeviceBytes deviceBytesByUse() const;
+
+  /// castRay's backend on this map and what its acceleration structure cost (ray tracing only).
+  struct CastRayInfo {
+    CastRayBackend backend = CastRayBackend::kWalk;  ///< kWalk or kRayTracing, as castRays runs
+    std::size_t builds = 0;          ///< acceleration-structure builds so far (lazily, by castRays)
+    double last_build_ms = 0.0;      ///< device time of the last: the boxes, then the structures
+    double last_boxes_ms = 0.0;      ///< of which the boxes (leaf boxes if stale, accel_boxes)
+    std::size_t occupied_boxes = 0;  ///< boxes of the last build: occupied leaves
+    std::size_t unknown_boxes = 0;   ///< and unknown regions
+    std::size_t device_bytes = 0;    ///< boxes, structures, scratch (in deviceBytesByUse().queries)
+  };
+  CastRayInfo castRayInfo() const;
   /// deviceBytesByUse().scratch.
   std::size_t scratchBytes() const;
   /// Releases the per-scan scratch and the query buffers back to an empty map's sizes (the

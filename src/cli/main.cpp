@@ -51,8 +51,8 @@ void printHelp(std::ostream& out) {
 void printDevicesHelp(std::ostream& out) {
   out << "octovk devices\n"
          "\n"
-         "Lists the Vulkan devices (index, name, type, device-local memory) and the one octovk\n"
-         "would use now, which OCTOVK_DEVICE changes.\n"
+         "Lists the Vulkan devices (index, name, type, device-local memory, ray tracing) and the\n"
+         "one octovk would use now, which OCTOVK_DEVICE changes, with castRay's backend there.\n"
          "\n";
   printEnvironmentAndExitCodes(out);
 }
@@ -71,14 +71,22 @@ int runDevices(const std::vector<std::string>& args) {
                 "no Vulkan device found: install Mesa's CPU driver (apt-get install "
                 "mesa-vulkan-drivers) or a GPU driver, and check 'vulkaninfo --summary'");
   for (const DeviceInfo& d : devices) {
-    std::printf("%u: %s (%s), %.1f GiB device-local memory\n", d.index, d.name.c_str(),
-                d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0));
+    std::printf("%u: %s (%s), %.1f GiB device-local memory, %s\n", d.index, d.name.c_str(),
+                d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
+                d.ray_query ? (d.ray_tracing_pipeline ? "ray queries and ray-tracing pipelines"
+                                                      : "ray queries")
+                            : "no ray tracing");
   }
   // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.
   Result<std::unique_ptr<Context>> context = Context::create();
   if (!context) throw context.error();
-  std::printf("selected: %u: %s\n", context.value()->device().index,
-              context.value()->device().name.c_str());
+  const DeviceInfo& selected = context.value()->device();
+  // What a map with the default MapParams uses for castRay (render, the library's default).
+  const OccupancyMap probe(*context.value(), MapParams{});
+  std::printf("selected: %u: %s; castRay: %s\n", selected.index, selected.name.c_str(),
+              probe.castRayInfo().backend == CastRayBackend::kRayTracing
+                  ? "ray tracing (VK_KHR_acceleration_structure + VK_KHR_ray_query)"
+                  : "compute walk");
   return kExitOk;
 }
 

@@ -6,11 +6,13 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "map/map_buffers.hpp"
 #include "map/passes/passes.hpp"
+#include "map/ray_scene.hpp"
 #include "map/reference.hpp"
 #include "octovk/octovk.hpp"
 #include "vk/device.hpp"
@@ -71,7 +73,9 @@ class OccupancyMap::Impl {
   void upload(const HostTree& tree);
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
-  std::size_t deviceBytes() const { return buffers_.deviceBytes(); }
+  std::size_t deviceBytes() const {
+    return buffers_.deviceBytes() + (ray_scene_ ? ray_scene_->deviceBytes() : 0);
+  }
   std::size_t poolBytes() const { return buffers_.poolBytes(); }
   DeviceBytes deviceBytesByUse() const;
   /// Releases the per-scan scratch and the query buffers (OccupancyMap::trim).
@@ -83,6 +87,21 @@ class OccupancyMap::Impl {
   void refreshLeafBoxes();
 
   vk::Device& device() { return device_; }
+
+  /// castRay's backend on this map (kWalk or kRayTracing) and its build statistics.
+  OccupancyMap::CastRayInfo castRayInfo() const;
+
+ private:
+  // ---- castRay's ray-tracing backend (map/ray_scene.cpp) ----
+  /// Resolves MapParams::cast_ray_backend on this device; throws when kRayTracing cannot run.
+  static CastRayBackend chooseCastRayBackend(const vk::Device& device, const MapParams& params);
+  /// Brings the acceleration structure up to the tree (lazily: when the tree changed since it
+  /// was built) and returns the address of its boxes buffer for cast_ray_rt; 0 with the walk.
+  VkDeviceAddress rayScene();
+  CastRayBackend cast_ray_backend_ = CastRayBackend::kWalk;
+  std::unique_ptr<RayScene> ray_scene_;
+  /// Counts the changes of the tree (scans that updated cells, uploads), for the ray scene.
+  std::uint64_t tree_version_ = 0;
 
  private:
   /// A scan submitted and not yet known to be in the map: what it needs to run again.

@@ -30,7 +30,9 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       logs_(ref::LogOddsParams::from(params)),
       stream_(device_, kFramesInFlight),
       buffers_(device_, stream_, blockLimit(params), params.max_device_bytes),
-      rec_(device_, stream_, buffers_) {}
+      rec_(device_, stream_, buffers_) {
+  cast_ray_backend_ = chooseCastRayBackend(device_, params_);
+}
 
 OccupancyMap::Impl::~Impl() {
   try {
@@ -91,6 +93,7 @@ void OccupancyMap::Impl::refreshLeafBoxes() {
   passes::recordLeafBoxes(rec_);
   stream_.submitAndWait();
   leaf_boxes_dirty_ = false;
+  ++tree_version_;
 }
 
 // ---- queries ---------------------------------------------------------------------------------
@@ -107,6 +110,7 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
                 "query on device: buffer offsets must be multiples of " + std::to_string(align) +
                     " (minStorageBufferOffsetAlignment)");
   if (count == 0) return;
+  const VkDeviceAddress ray_scene = rays ? rayScene() : 0;
   // The map's own query buffers are swapped for the caller's ranges for this one submission.
   buffers_.bindings.updateRange(gpu::kBindQueryIn, in, in_offset, in_size);
   buffers_.bindings.updateRange(gpu::kBindQueryOut, out, out_offset, out_size);
@@ -115,7 +119,9 @@ void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_o
     stream_.begin(buffers_.bindings);
     stream_.update(buffers_.params, &sp, sizeof(sp));
     stream_.barrier();
-    if (rays)
+    if (rays && ray_scene)
+      passes::recordCastRaysRt(rec_, ray_scene, {0, count}, {0, count});
+    else if (rays)
       passes::recordCastRays(rec_, count, passes::firstRayState(count));
     else
       passes::recordLookups(rec_, count, 0, 0);
@@ -139,11 +145,15 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
                 "castRays: " + std::to_string(q.rays.size()) + " rays in one batch; the device '" +
                     device_.info().name + "' takes at most " + std::to_string(max_rays) +
                     " (maxComputeWorkGroupCount x 64); split the batch");
-  passes::stageQueries(buffers_, q);
+  const VkDeviceAddress ray_scene = q.rays.empty() ? 0 : rayScene();
+  std::uint32_t stop_rays = 0;
+  const std::vector<std::uint32_t> order =
+      ray_scene ? passes::rayOrderByKind(q.rays, stop_rays) : std::vector<std::uint32_t>{};
+  passes::stageQueries(buffers_, q, order);
   stream_.begin(buffers_.bindings);
-  passes::recordQueries(rec_, queryParams(), q);
+  passes::recordQueries(rec_, queryParams(), q, ray_scene, stop_rays);
   stream_.submitAndWait();
-  return passes::collectQueries(buffers_, q);
+  return passes::collectQueries(buffers_, q, order);
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eigen::Vector3f& min,
@@ -237,7 +247,11 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
   const BufferBytes b = buffers_.bytesByUse();
-  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
+  const std::size_t scene = ray_scene_ ? ray_scene_->deviceBytes() : 0;
+  return {.pool = b.pool,
+          .leaf_boxes = b.leaf_boxes,
+          .scratch = b.scratch,
+          .queries = b.queries + scene};
 }
 
 void OccupancyMap::Impl::trim() {
@@ -245,6 +259,7 @@ void OccupancyMap::Impl::trim() {
   buffers_.releaseScratch();
   buffers_.releaseQueries();
   hash_guess_tried_ = 0;
+  ray_scene_.reset();
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
@@ -368,6 +383,8 @@ void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
 }
 
 std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
+
+OccupancyMap::CastRayInfo OccupancyMap::castRayInfo() const { return impl_->castRayInfo(); }
 
 std::size_t OccupancyMap::poolBytes() const { return impl_->poolBytes(); }
 

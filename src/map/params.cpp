@@ -30,6 +30,10 @@ std::string MapParams::validate() const {
         << ", " << clamping_max << ")";
   } else if (!inOpenUnit(occupancy_threshold)) {
     why << "occupancy_threshold must lie in (0, 1) (got " << occupancy_threshold << ")";
+  } else if (static_cast<std::uint32_t>(cast_ray_backend) >
+             static_cast<std::uint32_t>(CastRayBackend::kRayTracing)) {
+    why << "cast_ray_backend " << static_cast<std::uint32_t>(cast_ray_backend)
+        << " is not a CastRayBackend (kAuto, kWalk, kRayTracing)";
   } else if (max_device_bytes != 0 && max_device_bytes < minDeviceBytes()) {
     why << "max_device_bytes " << max_device_bytes << " is less than an empty map holds on the "
         << "device: at least " << minDeviceBytes() << " bytes (MapParams::minDeviceBytes()); "

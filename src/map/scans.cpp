@@ -344,6 +344,8 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   stats.aborted_cells = counters.aborted;
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
   last_nodes_ = stats.nodes;
+  if (counters.active_cells + counters.leaf_cells > 0)
+    ++tree_version_;  // the ray scene is rebuilt before the next castRays
   finished_stats_.push_back(stats);
   if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
   // Room ahead for more scans like this one, so that they are not run twice: after a blocking

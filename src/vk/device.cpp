@@ -60,13 +60,17 @@ void check(VkResult r, const char* call, const char* file, int line) {
 // ---------------------------------------------------------------------------------------------
 // Buffer
 
-Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible) : device_(&device) {
+Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible)
+    : Buffer(device, bytes, host_visible, 0) {}
+
+Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsageFlags extra_usage)
+    : device_(&device) {
   bytes_ = std::max<std::size_t>(bytes, 16);
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = bytes_;
   info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
                VK_BUFFER_USAGE_TRANSFER_DST_BIT | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT |
-               VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT;
+               VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT | extra_usage;
   info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
   OCTOVK_VK(vkCreateBuffer(device.handle(), &info, nullptr, &buffer_));
   try {
@@ -546,6 +550,60 @@ std::vector<VkPhysicalDevice> physicalDevices(VkInstance instance) {
   return devices;
 }
 
+bool hasDeviceExtension(const std::vector<VkExtensionProperties>& available, const char* name) {
+  for (const VkExtensionProperties& e : available)
+    if (std::string_view(e.extensionName) == name) return true;
+  return false;
+}
+
+std::vector<VkExtensionProperties> deviceExtensions(VkPhysicalDevice pd) {
+  std::uint32_t n = 0;
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, nullptr);
+  std::vector<VkExtensionProperties> available(n);
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, available.data());
+  available.resize(n);
+  return available;
+}
+
+// Ray queries need VK_KHR_acceleration_structure (which needs VK_KHR_deferred_host_operations;
+// its other dependencies, descriptor indexing, buffer device address and SPIR-V 1.4, are core in
+// Vulkan 1.2) and VK_KHR_ray_query, with the features of both. Ray-tracing pipelines are only
+// reported: a ray query in a compute shader needs no shader binding table and shares the
+// compute passes' pipeline layout and bindings.
+struct RayTracingSupport {
+  bool ray_query = false;
+  bool pipeline = false;
+};
+RayTracingSupport rayTracingSupport(VkPhysicalDevice pd) {
+  VkPhysicalDeviceProperties props;
+  vkGetPhysicalDeviceProperties(pd, &props);
+  if (props.apiVersion < VK_API_VERSION_1_2) return {};
+  const auto available = deviceExtensions(pd);
+  const bool as = hasDeviceExtension(available, VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME) &&
+                  hasDeviceExtension(available, VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME);
+  const bool rq = as && hasDeviceExtension(available, VK_KHR_RAY_QUERY_EXTENSION_NAME);
+  const bool rtp = as && hasDeviceExtension(available, VK_KHR_RAY_TRACING_PIPELINE_EXTENSION_NAME);
+  if (!rq && !rtp) return {};
+  VkPhysicalDeviceAccelerationStructureFeaturesKHR asf{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+  VkPhysicalDeviceRayQueryFeaturesKHR rqf{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_QUERY_FEATURES_KHR};
+  VkPhysicalDeviceRayTracingPipelineFeaturesKHR rtf{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+  VkPhysicalDeviceFeatures2 f2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2.pNext = &asf;
+  if (rq) {
+    rqf.pNext = f2.pNext;
+    f2.pNext = &rqf;
+  }
+  if (rtp) {
+    rtf.pNext = f2.pNext;
+    f2.pNext = &rtf;
+  }
+  vkGetPhysicalDeviceFeatures2(pd, &f2);
+  return {.ray_query = rq && asf.accelerationStructure && rqf.rayQuery,
+          .pipeline = rtp && asf.accelerationStructure && rtf.rayTracingPipeline};
+}
+
 DeviceInfo describe(VkPhysicalDevice pd, std::uint32_t index) {
   VkPhysicalDeviceProperties props;
   vkGetPhysicalDeviceProperties(pd, &props);
@@ -565,6 +623,9 @@ DeviceInfo describe(VkPhysicalDevice pd, std::uint32_t index) {
   for (std::uint32_t i = 0; i < mem.memoryHeapCount; ++i)
     if (mem.memoryHeaps[i].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
       info.memory_bytes = std::max<std::uint64_t>(info.memory_bytes, mem.memoryHeaps[i].size);
+  const RayTracingSupport rt = rayTracingSupport(pd);
+  info.ray_query = rt.ray_query;
+  info.ray_tracing_pipeline = rt.pipeline;
   return info;
 }
 
@@ -721,18 +782,32 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   want.features.shaderFloat64 = VK_TRUE;
   // Optional: memory and semaphores shared with other APIs (CUDA, another Vulkan device) by
   // POSIX file descriptor, for callers that hand input over on the device (vulkan_interop.hpp).
-  std::uint32_t extension_count = 0;
-  vkEnumerateDeviceExtensionProperties(dev->physical_, nullptr, &extension_count, nullptr);
-  std::vector<VkExtensionProperties> available(extension_count);
-  vkEnumerateDeviceExtensionProperties(dev->physical_, nullptr, &extension_count, available.data());
+  const std::vector<VkExtensionProperties> available = deviceExtensions(dev->physical_);
   std::vector<const char*> extensions;
   for (const char* name :
        {VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME, VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME})
-    for (const VkExtensionProperties& e : available)
-      if (std::string_view(e.extensionName) == name) {
-        extensions.push_back(name);
-        dev->extensions_.emplace_back(name);
-      }
+    if (hasDeviceExtension(available, name)) {
+      extensions.push_back(name);
+      dev->extensions_.emplace_back(name);
+    }
+  // Optional: ray queries for castRay's ray-tracing backend (see rayTracingSupport).
+  VkPhysicalDeviceAccelerationStructureFeaturesKHR want_as{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+  VkPhysicalDeviceRayQueryFeaturesKHR want_rq{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_QUERY_FEATURES_KHR};
+  const bool ray_query = options.enable_ray_query && dev->info_.ray_query;
+  if (ray_query) {
+    for (const char* name :
+         {VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME,
+          VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME, VK_KHR_RAY_QUERY_EXTENSION_NAME}) {
+      extensions.push_back(name);
+      dev->extensions_.emplace_back(name);
+    }
+    want_as.accelerationStructure = VK_TRUE;
+    want_rq.rayQuery = VK_TRUE;
+    want_rq.pNext = &want_as;
+    want12.pNext = &want_rq;
+  }
   VkDeviceCreateInfo dinfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
   dinfo.pNext = &want;
   dinfo.queueCreateInfoCount = 1;
@@ -742,6 +817,34 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   try {
     OCTOVK_VK(vkCreateDevice(dev->physical_, &dinfo, nullptr, &dev->device_));
     vkGetDeviceQueue(dev->device_, dev->queue_family_, 0, &dev->queue_);
+    if (ray_query) {
+      auto api = std::make_unique<RayQueryApi>();
+      const auto load = [&](const char* name) { return vkGetDeviceProcAddr(dev->device_, name); };
+      api->create = reinterpret_cast<PFN_vkCreateAccelerationStructureKHR>(
+          load("vkCreateAccelerationStructureKHR"));
+      api->destroy = reinterpret_cast<PFN_vkDestroyAccelerationStructureKHR>(
+          load("vkDestroyAccelerationStructureKHR"));
+      api->buildSizes = reinterpret_cast<PFN_vkGetAccelerationStructureBuildSizesKHR>(
+          load("vkGetAccelerationStructureBuildSizesKHR"));
+      api->cmdBuild = reinterpret_cast<PFN_vkCmdBuildAccelerationStructuresKHR>(
+          load("vkCmdBuildAccelerationStructuresKHR"));
+      api->address = reinterpret_cast<PFN_vkGetAccelerationStructureDeviceAddressKHR>(
+          load("vkGetAccelerationStructureDeviceAddressKHR"));
+      VkPhysicalDeviceAccelerationStructurePropertiesKHR asp{
+          VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_PROPERTIES_KHR};
+      VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+      props2.pNext = &asp;
+      vkGetPhysicalDeviceProperties2(dev->physical_, &props2);
+      api->scratch_alignment =
+          std::max<VkDeviceSize>(asp.minAccelerationStructureScratchOffsetAlignment, 1);
+      if (!api->create || !api->destroy || !api->buildSizes || !api->cmdBuild || !api->address)
+        return Error(ErrorCode::kVulkan, "device '" + dev->info_.name +
+                                             "' enabled VK_KHR_acceleration_structure but lacks "
+                                             "its entry points; create the Context with "
+                                             "ContextOptions::enable_ray_query = false");
+      dev->ray_query_ = std::move(api);
+      dev->info_.ray_query_enabled = true;
+    }
     vkGetPhysicalDeviceMemoryProperties(dev->physical_, &dev->memory_);
 
     // The map's bindings, then the address table (kBindAddresses).

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -29,6 +30,9 @@ class Buffer {
  public:
   Buffer() = default;
   Buffer(Device& device, std::size_t bytes, bool host_visible);
+  /// With usages beyond the storage/transfer/indirect/address set every buffer has (the
+  /// acceleration-structure ones: only on a device with ray queries enabled).
+  Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsageFlags extra_usage);
   ~Buffer();
   Buffer(Buffer&& other) noexcept;
   Buffer& operator=(Buffer&& other) noexcept;
@@ -152,6 +156,8 @@ class CommandStream {
   std::vector<double> timestampsNs(std::uint32_t frame);
   /// Of the last submission.
   std::vector<double> timestampsNs() { return timestampsNs(current_); }
+  /// The command buffer being recorded, for the recorders of this folder (vk/accel.cpp).
+  VkCommandBuffer commandBuffer() const noexcept { return frames_[current_].cmd; }
 
  private:
   struct Frame {
@@ -202,6 +208,19 @@ class Device {
   /// maxComputeWorkGroupCount[0]: the most workgroups an indirect dispatch may ask for.
   std::uint32_t maxGroupsX() const noexcept { return max_groups_x_; }
   VkInstance instance() const noexcept { return instance_; }
+  /// Ray queries against acceleration structures (VK_KHR_acceleration_structure and
+  /// VK_KHR_ray_query, with their features) are enabled on this device.
+  bool rayQuery() const noexcept { return ray_query_ != nullptr; }
+  /// The acceleration-structure entry points and limits; only when rayQuery().
+  struct RayQueryApi {
+    PFN_vkCreateAccelerationStructureKHR create = nullptr;
+    PFN_vkDestroyAccelerationStructureKHR destroy = nullptr;
+    PFN_vkGetAccelerationStructureBuildSizesKHR buildSizes = nullptr;
+    PFN_vkCmdBuildAccelerationStructuresKHR cmdBuild = nullptr;
+    PFN_vkGetAccelerationStructureDeviceAddressKHR address = nullptr;
+    VkDeviceSize scratch_alignment = 1;  ///< minAccelerationStructureScratchOffsetAlignment
+  };
+  const RayQueryApi& rayQueryApi() const noexcept { return *ray_query_; }
   /// Whether an optional device extension (external memory / semaphore by fd) was enabled.
   bool hasExtension(std::string_view name) const noexcept {
     for (const std::string& e : extensions_)
@@ -256,6 +275,7 @@ class Device {
   std::uint64_t max_binding_bytes_ = 1u << 27;
   std::deque<Pass> passes_;  // deque: references to passes stay valid
   std::vector<std::string> extensions_;  // optional device extensions enabled
+  std::unique_ptr<RayQueryApi> ray_query_;  // set when ray queries are enabled
 };
 
 }  // namespace octovk::vk

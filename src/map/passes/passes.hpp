@@ -4,9 +4,11 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "map/passes/recorder.hpp"
+#include "vk/accel.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk::passes {
@@ -78,10 +80,15 @@ void recordLeavesInBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQue
 std::uint32_t firstRayState(std::size_t results);
 /// Bytes of query output a batch needs: the results, then the castRay walk states.
 std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups);
-/// Writes the rays, then the lookup points, into the query staging buffer.
-void stageQueries(MapBuffers& buffers, const QueryRequest& q);
-/// Copies the staged batch in, runs it and copies the results to the staging output.
-void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q);
+/// Writes the rays (in `ray_order` where given: staged ray s is q.rays[ray_order[s]]), then the
+/// lookup points, into the query staging buffer.
+void stageQueries(MapBuffers& buffers, const QueryRequest& q,
+                  std::span<const std::uint32_t> ray_order = {});
+/// Copies the staged batch in, runs it and copies the results to the staging output. castRay
+/// goes through the ray-tracing scene whose boxes are at `ray_scene` when it is not 0, with the
+/// rays staged in rayOrderByKind's order (`stop_rays` of the first kind).
+void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
+                   VkDeviceAddress ray_scene = 0, std::uint32_t stop_rays = 0);
 /// castRay for `rays` queries at the start of the query input; results at the start of the
 /// output, the walks' states from its RayState `first_state` on.
 void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state);
@@ -89,8 +96,38 @@ void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state);
 /// entry `first_result` of the output.
 void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result,
                    std::uint32_t first_float);
-/// The results of a batch from the staging output.
-QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q);
+/// The results of a batch from the staging output (rays staged in `ray_order`, if given).
+QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
+                            std::span<const std::uint32_t> ray_order = {});
+
+// ---- accel.cpp: castRay's ray-tracing backend ----
+
+/// Bytes of the boxes buffer for the capacities in `header` (its layout: gpu::AccelHeader).
+std::size_t accelBoxesBytes(const gpu::AccelHeader& header);
+/// Of which the counting sort's counters and chunk sums, at its end.
+std::size_t accelSortBytes();
+/// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
+/// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
+/// leaf-box buffer, which must be current, and the unknown regions of the pool), sorted along a
+/// Morton curve, and copies the header with the counts to `readback`.
+void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header, const vk::Buffer& readback);
+/// Builds `scene` over the boxes `header` counts (as recordAccelBoxes left them) and writes the
+/// top-level structure's address into the header.
+void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header);
+/// The rays that stop at unknown space, then those that ignore it (ray indices), and how many
+/// of the first kind: the ray-tracing backend answers the two kinds with two passes, each over
+/// its own range of the batch (stageQueries / collectQueries take the order).
+std::vector<std::uint32_t> rayOrderByKind(std::span<const Ray> rays, std::uint32_t& stop_rays);
+/// castRay through the scene whose boxes buffer is at `boxes`, for the rays of the query input:
+/// cast_ray_jump over `stop` (first ray, count) and cast_ray_rt over `ignore`; each pass also
+/// skips the rays of the other kind, so both ranges may be the whole batch. Results go to the
+/// rays' own places in the output.
+struct RayRange {
+  std::uint32_t first = 0, count = 0;
+};
+void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore);
 
 // ---- readback.cpp ----
 

@@ -17,13 +17,14 @@ std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups) {
   return (firstRayState(rays + lookups) + rays) * sizeof(gpu::RayState);
 }
 
-void stageQueries(MapBuffers& buffers, const QueryRequest& q) {
+void stageQueries(MapBuffers& buffers, const QueryRequest& q,
+                  std::span<const std::uint32_t> ray_order) {
   const std::size_t ray_bytes = q.rays.size() * sizeof(gpu::RayQuery);
   const std::size_t point_bytes = q.lookups.size() * 3 * sizeof(float);
   buffers.ensureQueries(ray_bytes + point_bytes, queryOutputBytes(q.rays.size(), q.lookups.size()));
   auto* bytes = static_cast<unsigned char*>(buffers.query_staging_in.mapped());
   for (std::size_t i = 0; i < q.rays.size(); ++i) {
-    const Ray& ray = q.rays[i];
+    const Ray& ray = q.rays[ray_order.empty() ? i : ray_order[i]];
     gpu::RayQuery g{};
     g.max_range = ray.max_range_m;
     g.origin_x = ray.origin.x();
@@ -39,7 +40,8 @@ void stageQueries(MapBuffers& buffers, const QueryRequest& q) {
   if (point_bytes) std::memcpy(bytes + ray_bytes, q.lookups.data(), point_bytes);
 }
 
-void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q) {
+void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
+                   VkDeviceAddress ray_scene, std::uint32_t stop_rays) {
   MapBuffers& b = r.buffers;
   const auto rays = static_cast<std::uint32_t>(q.rays.size());
   const auto points = static_cast<std::uint32_t>(q.lookups.size());
@@ -47,7 +49,11 @@ void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q
   r.stream.update(b.params, &sp, sizeof(sp));
   r.stream.copy(b.query_staging_in, b.query_in, in_bytes);
   r.stream.barrier();
-  if (rays) recordCastRays(r, rays, firstRayState(rays + points));
+  if (rays && ray_scene) {
+    recordCastRaysRt(r, ray_scene, {0, stop_rays}, {stop_rays, rays - stop_rays});
+  } else if (rays) {
+    recordCastRays(r, rays, firstRayState(rays + points));
+  }
   if (points)
     recordLookups(r, points, rays,
                   static_cast<std::uint32_t>(rays * sizeof(gpu::RayQuery) / sizeof(float)));
@@ -88,7 +94,8 @@ void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result
                  .point_count = points, .first_float = first_float, .first_result = first_result});
 }
 
-QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q) {
+QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
+                            std::span<const std::uint32_t> ray_order) {
   QueryResults out;
   const auto* bytes = static_cast<const unsigned char*>(buffers.query_staging_out.mapped());
   out.rays.resize(q.rays.size());
@@ -97,10 +104,11 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q) {
     std::memcpy(&res, bytes + i * sizeof(res), sizeof(res));
     if (res.hit == gpu::kRayUnfinished)
       throw Error(ErrorCode::kMissingFeature,
-                  "castRays: ray " + std::to_string(i) +
+                  "castRays: ray " + std::to_string(ray_order.empty() ? i : ray_order[i]) +
                       " crosses more cells than octovk walks in one batch on this device (its "
                       "loop limit); give it a max range, or split long rays");
-    out.rays[i] = {res.hit != 0, Eigen::Vector3f(res.end_x, res.end_y, res.end_z)};
+    out.rays[ray_order.empty() ? i : ray_order[i]] = {
+        res.hit != 0, Eigen::Vector3f(res.end_x, res.end_y, res.end_z)};
   }
   out.lookups.resize(q.lookups.size());
   for (std::size_t i = 0; i < q.lookups.size(); ++i) {

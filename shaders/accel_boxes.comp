@@ -1,0 +1,161 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// The boxes the ray-tracing backend of castRay (cast_ray_rt.comp) traces against, into the
+// AccelHeader's buffer (layout: gpu_types.h), each enlarged by a quarter cell (and a relative
+// margin for the float arithmetic far from the origin) so that the acceleration structure's
+// float test cannot miss a box that OctoMap's walk enters, then sorted along a Morton curve:
+// kAccelBoxesOccupied: the occupied leaves of the leaf-box buffer (leaf_boxes.comp's rebuild),
+//                      unsorted, with the extent of the small boxes' centres.
+// kAccelBoxesUnknown:  the unknown regions, i.e. every missing child of a node that has
+//                      children (a block's slots that are not live), one invocation per block.
+// kAccelBoxesCount, kAccelBoxesChunks, kAccelBoxesOffsets, kAccelBoxesScatter: a counting sort
+//                      of both lists on kAccelBuckets Morton cells of that extent.
+// No node is written in this pass: links are read plainly (see linkOf).
+#define OCTOVK_NODES_READ_ONLY
+#include "common.glsl"
+#include "block_key.glsl"
+
+layout(push_constant) uniform PushBlock { AccelBoxesConstants pc; };
+
+layout(buffer_reference, std430, buffer_reference_align = 8) buffer AccelRef {
+  AccelHeader header;
+  AccelBox boxes[];
+};
+layout(buffer_reference, std430, buffer_reference_align = 4) buffer UintsRef { uint v[]; };
+
+const uint kSmallBox = 64u;  // boxes of at most this many cells set the sort's extent
+
+uint capacityOf(AccelRef s, uint list) {
+  return list == 0u ? s.header.occupied_capacity : s.header.unknown_capacity;
+}
+uint countOf(AccelRef s, uint list) {
+  return list == 0u ? s.header.occupied_count : s.header.unknown_count;
+}
+uint sortedBase(AccelRef s, uint list) { return list == 0u ? 0u : s.header.occupied_capacity; }
+uint unsortedBase(AccelRef s, uint list) {
+  return s.header.occupied_capacity + s.header.unknown_capacity + sortedBase(s, list);
+}
+UintsRef bucketCounters(AccelRef s) {
+  uint64_t boxes = 2ul * uint64_t(s.header.occupied_capacity + s.header.unknown_capacity);
+  return UintsRef(pc.boxes + 64ul + boxes * 24ul);
+}
+// The chunk sums follow the counters of both lists.
+uint chunkSum(uint list, uint c) { return 2u * kAccelBuckets + list * kAccelChunks + c; }
+
+float margin(vec3 centre, float size) {
+  float m = max(abs(centre.x), max(abs(centre.y), abs(centre.z))) + size;
+  return float(params.resolution) * 0.25 + m * (1.0 / 65536.0);
+}
+
+// The cell key of a coordinate, clamped to the map.
+uvec3 clampedKey(vec3 c) {
+  dvec3 k = floor(params.resolution_factor * dvec3(c)) + 32768.0lf;
+  return uvec3(clamp(k, dvec3(0.0lf), dvec3(65535.0lf)));
+}
+
+void append(AccelRef s, uint list, vec3 lo, vec3 hi, double size) {
+  vec3 c = 0.5 * (lo + hi);
+  float m = margin(c, float(size));
+  uint at = list == 0u ? atomicAdd(s.header.occupied_count, 1u)
+                      : atomicAdd(s.header.unknown_count, 1u);
+  s.boxes[unsortedBase(s, list) + at] =
+      AccelBox(lo.x - m, lo.y - m, lo.z - m, hi.x + m, hi.y + m, hi.z + m);
+  if (size <= double(kSmallBox) * params.resolution) {
+    uvec3 k = clampedKey(c);
+    atomicMin(s.header.lo_x, k.x);
+    atomicMin(s.header.lo_y, k.y);
+    atomicMin(s.header.lo_z, k.z);
+    atomicMax(s.header.hi_x, k.x);
+    atomicMax(s.header.hi_y, k.y);
+    atomicMax(s.header.hi_z, k.z);
+  }
+}
+
+uint spreadBits(uint v) {  // bits 0..6 of v to bits 0, 3, 6, ..., 18
+  uint r = 0u;
+  for (uint b = 0u; b < kAccelBucketBits; ++b) r |= ((v >> b) & 1u) << (3u * b);
+  return r;
+}
+
+// The Morton cell of box b's centre within the small boxes' extent (larger boxes are clamped).
+uint bucketOf(AccelRef s, AccelBox b) {
+  uvec3 lo = uvec3(s.header.lo_x, s.header.lo_y, s.header.lo_z);
+  uvec3 hi = uvec3(s.header.hi_x, s.header.hi_y, s.header.hi_z);
+  if (any(greaterThan(lo, hi))) {  // no small box: the whole map
+    lo = uvec3(0u);
+    hi = uvec3(65535u);
+  }
+  uint extent = max(hi.x - lo.x, max(hi.y - lo.y, hi.z - lo.z));
+  uint shift = 0u;
+  while ((extent >> shift) >= (1u << kAccelBucketBits)) ++shift;
+  uvec3 k = clampedKey(0.5 * vec3(b.min_x + b.max_x, b.min_y + b.max_y, b.min_z + b.max_z));
+  uvec3 q = min((max(k, lo) - lo) >> shift, uvec3((1u << kAccelBucketBits) - 1u));
+  return spreadBits(q.x) | (spreadBits(q.y) << 1) | (spreadBits(q.z) << 2);
+}
+
+void main() {
+  uint i = invocationIndex();
+  AccelRef s = AccelRef(pc.boxes);
+  if (pc.mode == kAccelBoxesOccupied) {
+    if (i >= pool.leaf_count) return;
+    LeafBox leaf = leaf_boxes[i];
+    if (leaf.log_odds < params.occupancy_log) return;
+    vec3 c = vec3(leaf.center_x, leaf.center_y, leaf.center_z);
+    float half_size = leaf.size * 0.5;
+    append(s, 0u, c - half_size, c + half_size, double(leaf.size));
+    return;
+  }
+  if (pc.mode == kAccelBoxesUnknown) {
+    // Block 0 holds only the root (an empty map needs no box: castRay stops at its origin's
+    // cell, or, ignoring unknown space, meets nothing).
+    if (i >= pool.bump || i == 0u) return;
+    uint parent = block_parent[i];
+    if (parent == kNoBlock) return;
+    uint depth;
+    uvec3 parent_key = parentKeyOfBlock(parent, depth);
+    uint bit = 15u - depth;
+    double size = params.resolution * double(1u << bit);
+    for (uint slot = 0u; slot < 8u; ++slot) {
+      if ((nodes[i * 8u + slot].link & kFlagLive) != 0u) continue;
+      uvec3 key = parent_key | (uvec3(slot & 1u, (slot >> 1) & 1u, (slot >> 2) & 1u) << bit);
+      // The region's lower corner, (key - 32768) * resolution, exact in double.
+      dvec3 lo = dvec3(ivec3(key) - ivec3(32768)) * params.resolution;
+      append(s, 1u, vec3(lo), vec3(lo + size), size);
+    }
+    return;
+  }
+  if (pc.mode == kAccelBoxesChunks || pc.mode == kAccelBoxesOffsets) {
+    if (i >= 2u * kAccelChunks) return;
+    uint list = i / kAccelChunks, c = i % kAccelChunks;
+    UintsRef n = bucketCounters(s);
+    const uint per_chunk = kAccelBuckets / kAccelChunks;
+    uint first = list * kAccelBuckets + c * per_chunk;
+    if (pc.mode == kAccelBoxesChunks) {
+      uint sum = 0u;
+      for (uint b = 0u; b < per_chunk; ++b) sum += n.v[first + b];
+      n.v[chunkSum(list, c)] = sum;
+      return;
+    }
+    uint offset = 0u;
+    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(list, p)];
+    for (uint b = 0u; b < per_chunk; ++b) {
+      uint count = n.v[first + b];
+      n.v[first + b] = offset;
+      offset += count;
+    }
+    return;
+  }
+  // kAccelBoxesCount, kAccelBoxesScatter: one invocation per unsorted box of both lists.
+  uint list = i < s.header.occupied_capacity ? 0u : 1u;
+  uint j = i - sortedBase(s, list);
+  if (list == 1u && j >= s.header.unknown_capacity) return;
+  if (j >= countOf(s, list)) return;
+  AccelBox b = s.boxes[unsortedBase(s, list) + j];
+  uint at = list * kAccelBuckets + bucketOf(s, b);
+  UintsRef n = bucketCounters(s);
+  if (pc.mode == kAccelBoxesCount) {
+    atomicAdd(n.v[at], 1u);
+    return;
+  }
+  s.boxes[sortedBase(s, list) + atomicAdd(n.v[at], 1u)] = b;
+}

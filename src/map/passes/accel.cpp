@@ -1,0 +1,93 @@
+// castRay's ray-tracing backend: accel_boxes.comp writes the boxes an acceleration structure is
+// built over (on the device, from the leaf-box buffer and the pool), the structure is built from
+// them on the device, and cast_ray_rt.comp answers castRay through it.
+#include <cstring>
+#include <limits>
+
+#include "map/passes/passes.hpp"
+
+static_assert(sizeof(octovk::gpu::AccelBox) == sizeof(VkAabbPositionsKHR),
+              "the build reads AccelBoxes as VkAabbPositionsKHR");
+
+namespace octovk::passes {
+
+std::size_t accelBoxesBytes(const gpu::AccelHeader& header) {
+  const std::size_t boxes = std::size_t{header.occupied_capacity} + header.unknown_capacity;
+  return sizeof(gpu::AccelHeader) + 2 * boxes * sizeof(gpu::AccelBox) + accelSortBytes();
+}
+
+std::size_t accelSortBytes() {
+  return (2 * std::size_t{gpu::kAccelBuckets} + 2 * std::size_t{gpu::kAccelChunks}) *
+         sizeof(std::uint32_t);
+}
+
+void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header, const vk::Buffer& readback) {
+  gpu::AccelHeader fresh = header;
+  fresh.occupied_count = fresh.unknown_count = 0;
+  fresh.lo_x = fresh.lo_y = fresh.lo_z = 0xFFFFFFFFu;  // the extent, shrunk by atomics
+  fresh.hi_x = fresh.hi_y = fresh.hi_z = 0;
+  r.stream.update(r.buffers.params, &sp, sizeof(sp));
+  r.stream.update(boxes, &fresh, sizeof(fresh));
+  const std::size_t sort_at = accelBoxesBytes(header) - accelSortBytes();
+  r.stream.fill(boxes, 0u, sort_at, accelSortBytes());
+  r.stream.barrier();
+  const auto pass = [&](std::uint32_t mode, std::size_t items) {
+    r.dispatch("accel_boxes", items,
+               gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
+  };
+  // The boxes, unsorted; then the counting sort along the Morton curve into their places.
+  pass(gpu::kAccelBoxesOccupied, header.occupied_capacity);
+  pass(gpu::kAccelBoxesUnknown, r.buffers.poolBlocks());
+  const std::size_t all = std::size_t{header.occupied_capacity} + header.unknown_capacity;
+  pass(gpu::kAccelBoxesCount, all);
+  pass(gpu::kAccelBoxesChunks, 2 * gpu::kAccelChunks);
+  pass(gpu::kAccelBoxesOffsets, 2 * gpu::kAccelChunks);
+  pass(gpu::kAccelBoxesScatter, all);
+  r.stream.copy(boxes, readback, sizeof(gpu::AccelHeader));
+}
+
+void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header) {
+  const VkDeviceAddress first = boxes.address() + sizeof(gpu::AccelHeader);
+  const vk::BoxGeometry geometries[] = {
+      {.data = first, .count = header.occupied_count, .mask = gpu::kAccelMaskOccupied},
+      {.data = first + std::uint64_t{header.occupied_capacity} * sizeof(gpu::AccelBox),
+       .count = header.unknown_count,
+       .mask = gpu::kAccelMaskUnknown}};
+  // An empty geometry is built from one inactive box (min x NaN), which the build skips.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const gpu::AccelBox inactive{nan, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+  for (const vk::BoxGeometry& g : geometries)
+    if (g.count == 0) r.stream.update(boxes, &inactive, sizeof(inactive), g.data - boxes.address());
+  scene.recordBuild(r.stream, geometries);
+  const VkDeviceAddress tlas = scene.tlasAddress();
+  r.stream.update(boxes, &tlas, sizeof(tlas), offsetof(gpu::AccelHeader, tlas));
+  r.stream.barrier();
+}
+
+std::vector<std::uint32_t> rayOrderByKind(std::span<const Ray> rays, std::uint32_t& stop_rays) {
+  std::vector<std::uint32_t> order;
+  order.reserve(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    if (!rays[i].ignore_unknown) order.push_back(static_cast<std::uint32_t>(i));
+  stop_rays = static_cast<std::uint32_t>(order.size());
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    if (rays[i].ignore_unknown) order.push_back(static_cast<std::uint32_t>(i));
+  return order;
+}
+
+void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore) {
+  // On lavapipe an invocation of the ray-query pass costs more than the whole walk of a ray
+  // that stops at unknown space, even when it returns at once: each pass gets its own range.
+  if (stop.count)
+    r.dispatch(
+        "cast_ray_jump", stop.count,
+        gpu::CastRayRtConstants{.boxes = boxes, .ray_count = stop.count, .first_ray = stop.first});
+  if (ignore.count)
+    r.dispatch("cast_ray_rt", ignore.count,
+               gpu::CastRayRtConstants{
+                   .boxes = boxes, .ray_count = ignore.count, .first_ray = ignore.first});
+}
+
+}  // namespace octovk::passes

@@ -1,0 +1,102 @@
+// castRay's ray-tracing backend on a map: which backend runs, and the lazy rebuild of the
+// acceleration structure after the tree changed (two submissions: the boxes and their count,
+// then the build over exactly that many boxes; no box leaves the device).
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include "map/map_impl.hpp"
+
+namespace octovk {
+
+CastRayBackend OccupancyMap::Impl::chooseCastRayBackend(const vk::Device& device,
+                                                        const MapParams& params) {
+  const bool ray_query = device.rayQuery();
+  const bool loops = device.loopLimit() == 0;
+  const bool uncapped = params.max_device_bytes == 0;
+  if (params.cast_ray_backend == CastRayBackend::kWalk) return CastRayBackend::kWalk;
+  if (params.cast_ray_backend == CastRayBackend::kAuto)
+    return ray_query && loops && uncapped ? CastRayBackend::kRayTracing : CastRayBackend::kWalk;
+  const std::string name =
+      "MapParams::cast_ray_backend is kRayTracing, but device '" + device.info().name + "'";
+  if (!ray_query)
+    throw Error(
+        ErrorCode::kMissingFeature,
+        name +
+            (device.info().ray_query ? " was opened with ContextOptions::enable_ray_query = false"
+                                     : " has no ray queries (VK_KHR_acceleration_structure and "
+                                       "VK_KHR_ray_query)") +
+            "; use CastRayBackend::kAuto or kWalk");
+  if (!loops)
+    throw Error(ErrorCode::kMissingFeature,
+                name + " ends shader loops after " + std::to_string(device.loopLimit()) +
+                    " iterations and the ray-tracing castRay is not resumable; use "
+                    "CastRayBackend::kAuto or kWalk");
+  if (!uncapped)
+    throw Error(ErrorCode::kInvalidArgument,
+                "MapParams::cast_ray_backend is kRayTracing together with max_device_bytes: the "
+                "acceleration structure is not held under the cap; use CastRayBackend::kWalk or "
+                "max_device_bytes = 0");
+  return CastRayBackend::kRayTracing;
+}
+
+OccupancyMap::CastRayInfo OccupancyMap::Impl::castRayInfo() const {
+  OccupancyMap::CastRayInfo info = ray_scene_ ? ray_scene_->info : OccupancyMap::CastRayInfo{};
+  info.backend = cast_ray_backend_;
+  info.device_bytes = ray_scene_ ? ray_scene_->deviceBytes() : 0;
+  return info;
+}
+
+namespace {
+double spanMs(const std::vector<double>& ns) {
+  return ns.size() >= 2 ? (ns.back() - ns.front()) * 1e-6 : 0.0;
+}
+}  // namespace
+
+VkDeviceAddress OccupancyMap::Impl::rayScene() {
+  if (cast_ray_backend_ != CastRayBackend::kRayTracing) return 0;
+  if (!ray_scene_) ray_scene_ = std::make_unique<RayScene>(device_);
+  RayScene& scene = *ray_scene_;
+  if (scene.version == tree_version_) return scene.boxes.address();
+
+  // Room for every leaf slot (occupied ones) and 8 unknown children per block, twice (sorted and
+  // unsorted); at least one box each, for the inactive box of an empty geometry.
+  gpu::AccelHeader header{};
+  header.occupied_capacity = static_cast<std::uint32_t>(
+      std::max<std::size_t>(buffers_.leaf_boxes.size() / sizeof(gpu::LeafBox), 1));
+  header.unknown_capacity =
+      static_cast<std::uint32_t>(std::max<std::size_t>(std::size_t{buffers_.poolBlocks()} * 8, 1));
+  const std::size_t bytes = passes::accelBoxesBytes(header);
+  if (!scene.boxes.valid() || scene.boxes.size() < bytes) {
+    scene.boxes = vk::Buffer();
+    scene.boxes = vk::Buffer(device_, bytes + bytes / 4, /*host_visible=*/false,
+                             VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+  }
+
+  stream_.begin(buffers_.bindings);
+  stream_.timestamp();
+  if (leaf_boxes_dirty_) passes::recordLeafBoxes(rec_);
+  passes::recordAccelBoxes(rec_, queryParams(), scene.boxes, header, scene.readback);
+  stream_.timestamp();
+  stream_.submitAndWait();
+  leaf_boxes_dirty_ = false;
+  const double boxes_ms = spanMs(stream_.timestampsNs());
+  std::memcpy(&header, scene.readback.mapped(), sizeof(header));
+
+  stream_.begin(buffers_.bindings);
+  stream_.timestamp();
+  passes::recordAccelBuild(rec_, scene.accel, scene.boxes, header);
+  stream_.timestamp();
+  stream_.submitAndWait();
+  const double build_ms = spanMs(stream_.timestampsNs());
+
+  scene.version = tree_version_;
+  scene.info.builds += 1;
+  scene.info.last_boxes_ms = boxes_ms;
+  scene.info.last_build_ms = boxes_ms + build_ms;
+  scene.info.occupied_boxes = header.occupied_count;
+  scene.info.unknown_boxes = header.unknown_count;
+  return scene.boxes.address();
+}
+
+}  // namespace octovk

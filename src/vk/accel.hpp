@@ -1,0 +1,75 @@
+// Acceleration structures over axis-aligned boxes (VK_KHR_acceleration_structure), built on the
+// device from box arrays that passes wrote, for ray queries in compute shaders (VK_KHR_ray_query).
+// Only on a device with vk::Device::rayQuery().
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "vk/device.hpp"
+
+namespace octovk::vk {
+
+/// One acceleration structure and the buffer that holds it; one owner.
+class AccelerationStructure {
+ public:
+  AccelerationStructure() = default;
+  AccelerationStructure(Device& device, VkAccelerationStructureTypeKHR type, VkDeviceSize bytes);
+  ~AccelerationStructure();
+  AccelerationStructure(AccelerationStructure&& other) noexcept;
+  AccelerationStructure& operator=(AccelerationStructure&& other) noexcept;
+  AccelerationStructure(const AccelerationStructure&) = delete;
+  AccelerationStructure& operator=(const AccelerationStructure&) = delete;
+
+  VkAccelerationStructureKHR handle() const noexcept { return handle_; }
+  VkDeviceAddress address() const noexcept { return address_; }
+  VkDeviceSize size() const noexcept { return storage_.size(); }
+
+ private:
+  void release() noexcept;
+  Device* device_ = nullptr;
+  Buffer storage_;
+  VkAccelerationStructureKHR handle_ = VK_NULL_HANDLE;
+  VkDeviceAddress address_ = 0;
+};
+
+/// Boxes for one bottom-level structure: `count` VkAabbPositionsKHR (24 B each, stride 24) at
+/// device address `data` (8-byte aligned), the instance's `mask` for ray queries' cull masks.
+/// A box whose min x is NaN is inactive. `count` may be 0 (the build then gets one inactive box,
+/// written by the caller at `data`, see recordBuild).
+struct BoxGeometry {
+  VkDeviceAddress data = 0;
+  std::uint32_t count = 0;
+  std::uint32_t mask = 0xFF;
+};
+
+/// One bottom-level structure per box array and a top-level one with one instance of each
+/// (identity transform, instance custom index = the array's index), built on the device. Owns
+/// the structures, the instance buffer and the build scratch; grows them as needed.
+class BoxScene {
+ public:
+  explicit BoxScene(Device& device) : device_(&device) {}
+
+  /// Records the builds into `stream` (after a barrier that makes earlier shader and transfer
+  /// writes of the boxes visible to the build) and a barrier that makes the structures visible
+  /// to later compute shaders' ray queries. Allocates before recording, so call it while the
+  /// device does not use the scene. A geometry with count 0 is built from one box at its `data`,
+  /// which must then hold an inactive box.
+  void recordBuild(CommandStream& stream, std::span<const BoxGeometry> geometries);
+  /// Device address of the top-level structure (0 before the first build).
+  VkDeviceAddress tlasAddress() const noexcept { return tlas_.address(); }
+  /// Device bytes held: structures, instances, scratch.
+  std::size_t deviceBytes() const noexcept;
+  /// Frees everything (the next build allocates again).
+  void release() noexcept;
+
+ private:
+  Device* device_;
+  std::vector<AccelerationStructure> blas_;
+  AccelerationStructure tlas_;
+  Buffer instances_;
+  Buffer scratch_;
+};
+
+}  // namespace octovk::vk
