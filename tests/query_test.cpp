@@ -583,11 +583,27 @@ TEST(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
   // No change: no rebuild.
   got = map.castRays(rays);
   EXPECT_EQ(map.castRayInfo().builds, 4u);
+  // Reading the leaves changes nothing: no rebuild.
+  EXPECT_GT(map.leafCount(), 0u);
+  got = map.castRays(rays);
+  EXPECT_EQ(map.castRayInfo().builds, 4u);
   // trim() drops the structure; the next castRays builds it again.
   map.trim();
   EXPECT_EQ(map.castRayInfo().device_bytes, 0u);
   got = map.castRays(rays);
   EXPECT_TRUE(sameAsOctoMap(tree, rays, got));
+  EXPECT_EQ(map.castRayInfo().builds, 1u);  // counted since the last trim()
+  // Another tree uploaded: the structure follows it.
+  octomap::OcTree other(0.1);
+  std::vector<Eigen::Vector3f> wall;
+  for (int i = 0; i < 400; ++i)
+    wall.emplace_back(0.8f, -1.0f + 0.005f * static_cast<float>(i), 0.05f);
+  other.insertPointCloud(test::toPointcloud(wall),
+                         octomap::point3d(origin.x(), origin.y(), origin.z()));
+  fromOcTree(map, other);
+  got = map.castRays(rays);
+  EXPECT_TRUE(sameAsOctoMap(other, rays, got)) << "after an upload";
+  EXPECT_EQ(map.castRayInfo().builds, 2u);
 }
 
 // A device without ray queries (or a Context that does not enable them) falls back to the walk

@@ -412,7 +412,7 @@ class OccupancyMap {
   /// castRay's backend on this map and what its acceleration structure cost (ray tracing only).
   struct CastRayInfo {
     CastRayBackend backend = CastRayBackend::kWalk;  ///< kWalk or kRayTracing, as castRays runs
-    std::size_t builds = 0;          ///< acceleration-structure builds so far (lazily, by castRays)
+    std::size_t builds = 0;  ///< acceleration-structure builds (lazily, by castRays) since trim()
     double last_build_ms = 0.0;      ///< device time of the last: the boxes, then the structures
     double last_boxes_ms = 0.0;      ///< of which the boxes (leaf boxes if stale, accel_boxes)
     std::size_t occupied_boxes = 0;  ///< boxes of the last build: occupied leaves

@@ -93,7 +93,6 @@ void OccupancyMap::Impl::refreshLeafBoxes() {
   passes::recordLeafBoxes(rec_);
   stream_.submitAndWait();
   leaf_boxes_dirty_ = false;
-  ++tree_version_;
 }
 
 // ---- queries ---------------------------------------------------------------------------------
@@ -243,6 +242,7 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   passes::recordLeafBoxes(rec_);
   stream_.submitAndWait();
   leaf_boxes_dirty_ = false;
+  ++tree_version_;  // a new tree: the ray scene is rebuilt before the next castRays
 }
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
