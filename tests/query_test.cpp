@@ -472,13 +472,16 @@ std::vector<Ray> largeNodeRays(double resolution, unsigned seed) {
 
 // Rays that spend most of their walk inside large free or unknown nodes, with max ranges and
 // map borders inside them, at resolutions whose cell sizes are not powers of two.
-TEST(RayCastingScenarios, AcrossLargeNodesEqualOctoMap) {
+TEST_P(RayCastingScenarios, AcrossLargeNodesEqualOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
+  const CastRayBackend backend = GetParam();
+  OCTOVK_REQUIRE_BACKEND(ctx, backend);
   for (const double resolution : {0.1, 0.05, 0.37}) {
     SCOPED_TRACE(resolution);
     octomap::OcTree tree = largeNodeMap(resolution);
     MapParams params;
     params.resolution = resolution;
+    params.cast_ray_backend = backend;
     OccupancyMap map(ctx, params);
     fromOcTree(map, tree);
     const auto rays = largeNodeRays(resolution, 31);
