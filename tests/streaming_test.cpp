@@ -199,7 +199,9 @@ TEST(Streaming, QueriesSeeEverySubmittedScan) {
     const CellState want = !n ? CellState::kUnknown
                               : (oracle.isNodeOccupied(n) ? CellState::kOccupied : CellState::kFree);
     ASSERT_EQ(found[i].state, want) << i;
-    if (n) ASSERT_EQ(test::floatBits(found[i].log_odds), test::floatBits(n->getLogOdds())) << i;
+    if (n) {
+      ASSERT_EQ(test::floatBits(found[i].log_odds), test::floatBits(n->getLogOdds())) << i;
+    }
   }
   EXPECT_EQ(map.scansInFlight(), 0u);
 }

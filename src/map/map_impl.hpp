@@ -145,6 +145,8 @@ class OccupancyMap::Impl {
   /// Takes the result of the oldest scan in flight, which has completed: false if the device
   /// refused it.
   bool takeResult(PendingScan& p, const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// Queues a finished scan's statistics for takeStats() (the newest kKeptStats).
+  void keepStats(const ScanStats& stats);
   /// The oldest scan was refused: waits for all, grows, runs them again in order, each waited.
   void recover(gpu::ScanCounters counters, gpu::PoolState pool);
   /// Throws kInvalidArgument naming the first bad input of a scan of `count` points.

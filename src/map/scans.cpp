@@ -21,6 +21,13 @@ double msSince(std::chrono::steady_clock::time_point start) {
       .count();
 }
 
+// A depth image's pixel bytes, and those rounded up to whole words (the shader reads words):
+// what `stage` copies and what `prepareBuffers` makes room for.
+std::size_t pixelBytes(const OccupancyMap::Impl::ScanSource& source) {
+  return source.count() * (source.depth->encoding == DepthImage::Encoding::kUint16 ? 2 : 4);
+}
+std::size_t wholeWords(std::size_t bytes) { return (bytes + 3) & ~std::size_t{3}; }
+
 }  // namespace
 
 // ---- checks and growth ----------------------------------------------------------------------
@@ -135,8 +142,8 @@ passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source, std::ui
   in.camera = {image.fx,    image.fy,     image.cx,
                image.cy,    image.depth_scale, image.width,
                image.height, u16 ? gpu::kDepthUint16 : gpu::kDepthFloat32};
-  const std::size_t pixel_bytes = source.count() * (u16 ? 2 : 4);
-  in.bytes = (pixel_bytes + 3) & ~std::size_t{3};  // whole words: the shader reads words
+  const std::size_t pixel_bytes = pixelBytes(source);
+  in.bytes = wholeWords(pixel_bytes);
   if (source.device != VK_NULL_HANDLE) {
     in.source = source.device;
     in.source_offset = source.device_offset;
@@ -190,9 +197,7 @@ static double worstSteps(const OccupancyMap::Impl::ScanSource& source,
 
 static std::size_t depthBytesOf(const OccupancyMap::Impl::ScanSource& source) {
   if (!source.depth) return 0;
-  const std::size_t pixel_bytes =
-      source.count() * (source.depth->encoding == DepthImage::Encoding::kUint16 ? 2 : 4);
-  return sizeof(gpu::DepthCamera) + ((pixel_bytes + 3) & ~std::size_t{3});
+  return sizeof(gpu::DepthCamera) + wholeWords(pixelBytes(source));
 }
 
 void OccupancyMap::Impl::growAhead(const gpu::PoolState* pool, bool release) {
@@ -297,7 +302,6 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
     p.count = count;
     p.queries = queries;
     p.results = results;
-    p.ticket = p.stats.ticket = next_ticket_++;  // nothing above submitted anything
     // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
     if (source.wait != VK_NULL_HANDLE)
       stream_.waitBeforeNextSubmit(source.wait, source.wait_value);
@@ -308,7 +312,7 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
       throw;
     }
   }
-  if (count == 0) p.ticket = p.stats.ticket = next_ticket_++;
+  p.ticket = p.stats.ticket = next_ticket_++;  // only for a scan submitted (or empty)
   p.stats.wall_ms = msSince(start);
   const std::uint64_t ticket = p.ticket;
   pending_.push_back(std::move(p));
@@ -346,8 +350,7 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   last_nodes_ = stats.nodes;
   if (counters.active_cells + counters.leaf_cells > 0)
     ++tree_version_;  // the ray scene is rebuilt before the next castRays
-  finished_stats_.push_back(stats);
-  if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
+  keepStats(stats);
   // Room ahead for more scans like this one, so that they are not run twice: after a blocking
   // call, for the next one; after a submitted scan, for as many as may be in flight when the
   // growth is next possible (the submits behind it were recorded before its result was seen).
@@ -362,12 +365,16 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   return true;
 }
 
+void OccupancyMap::Impl::keepStats(const ScanStats& stats) {
+  finished_stats_.push_back(stats);
+  if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
+}
+
 void OccupancyMap::Impl::confirmOldest() {
   PendingScan& p = pending_.front();
   if (p.count == 0) {  // an empty scan: in the map once the scans before it are
     p.stats.nodes = last_nodes_;
-    finished_stats_.push_back(p.stats);
-    if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
+    keepStats(p.stats);
     pending_.pop_front();
     return;
   }

@@ -146,7 +146,6 @@ class CommandStream {
   }
   /// The frame being recorded (or last recorded).
   std::uint32_t frame() const noexcept { return current_; }
-  std::uint64_t lastSerial() const noexcept { return submitted_; }
   /// Submissions so far, and the waits that found their submission still running (the host
   /// blocked).
   std::uint64_t submissions() const noexcept { return submitted_; }
