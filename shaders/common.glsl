@@ -184,7 +184,8 @@ uint brickCellIndex(uvec3 k) { return (k.x & 3u) | ((k.y & 3u) << 2) | ((k.z & 3
 // Notes cell k of the current brick as marked (stored by flushMarks).
 void noteMark(uvec3 k) {
   uint index = brickCellIndex(k);
-  marked_bits[index >> 5] |= 1u << (index & 31u);
+  uint bit = 1u << (index & 31u);
+  marked_bits |= index < 32u ? uvec2(bit, 0u) : uvec2(0u, bit);  // no dynamic index (see walk)
 }
 
 // Stores the pending marks of the current brick: one atomicOr per brick a ray crosses, not one

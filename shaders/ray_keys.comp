@@ -18,10 +18,12 @@ layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 int budget;
 uvec3 key_end;
 float len;
-int step[3];
-double t_max[3];
-double t_delta[3];
-uint cur[3];
+// Vectors, not arrays: the walk picks its axis with selects, never by a dynamic index (which
+// llvmpipe lowers to per-lane memory accesses).
+ivec3 step;
+dvec3 t_max;
+dvec3 t_delta;
+uvec3 cur;
 
 // Direction, length, steps and tDelta of the ray o -> e (and tMax when starting), as
 // computeRayKeys computes them.
@@ -64,18 +66,18 @@ bool walk() {
     uvec3 c;
     while (budget - probes_spent > 0) {
       --budget;
-      int dim;
-      if (t_max[0] < t_max[1])
-        dim = t_max[0] < t_max[2] ? 0 : 2;
-      else
-        dim = t_max[1] < t_max[2] ? 1 : 2;
-      cur[dim] = uint(int(cur[dim]) + step[dim]) & 0xFFFFu;
-      t_max[dim] += t_delta[dim];
-      if (cur[0] == key_end.x && cur[1] == key_end.y && cur[2] == key_end.z) return true;
-      double m01 = t_max[1] < t_max[0] ? t_max[1] : t_max[0];
-      double dist = t_max[2] < m01 ? t_max[2] : m01;
+      // The axis of the smallest tMax, ties to the later axis.
+      bool x_first = t_max.x < t_max.y ? t_max.x < t_max.z : false;
+      bool y_first = t_max.x < t_max.y ? false : t_max.y < t_max.z;
+      bvec3 axis = bvec3(x_first, y_first, !x_first && !y_first);
+      cur = mix(cur, uvec3(ivec3(cur) + step) & uvec3(0xFFFFu), axis);
+      precise dvec3 advanced = t_max + t_delta;
+      t_max = mix(t_max, advanced, axis);
+      if (cur == key_end) return true;
+      double m01 = t_max.y < t_max.x ? t_max.y : t_max.x;
+      double dist = t_max.z < m01 ? t_max.z : m01;
       if (dist > double(len)) return true;
-      c = uvec3(cur[0], cur[1], cur[2]);
+      c = cur;
       if ((c >> 2) != marked_brick) {
         entered = true;
         break;
@@ -93,12 +95,14 @@ void save(uint list, vec3 e) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
   walks[list * params.point_count + at] =
-      WalkState(t_max[0], t_max[1], t_max[2], e.x, e.y, e.z, cur[0] | (cur[1] << 16), cur[2], 0u);
+      WalkState(t_max[0], t_max[1], t_max[2], e.x, e.y, e.z, cur.x | (cur.y << 16), cur.z, 0u);
 }
 
 // OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
-// False when an end lies outside the map (no free cells).
-bool insertRay(vec3 o, vec3 e) {
+// Its start: false when an end lies outside the map (no free cells); `walking` when cells are
+// left to walk after the origin's (origin and end in one cell: none).
+bool startRay(vec3 o, vec3 e, out bool walking) {
+  walking = false;
   uvec3 ko;
   if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
       !coordToKeyChecked(o.z, ko.z))
@@ -108,54 +112,42 @@ bool insertRay(vec3 o, vec3 e) {
     return false;
   if (ko == key_end) return true;
   markCell(ko, false);
-  cur = uint[3](ko.x, ko.y, ko.z);
-  setUp(o, e, true);
-  if (!walk()) save(0u, e);
+  cur = ko;
+  walking = true;
   return true;
 }
 
 vec3 scanOrigin() { return vec3(params.origin_x, params.origin_y, params.origin_z); }
 
-void continueWalk(uint i) {
+// A walk saved by an earlier round: its end and DDA state.
+bool resumeWalk(uint i, out vec3 e) {
+  e = vec3(0.0);
   uint from = pc.from_list;
-  if (i >= counters.walk_count[from]) return;
+  if (i >= counters.walk_count[from]) return false;
   WalkState w = walks[from * params.point_count + i];
-  vec3 e = vec3(w.end_x, w.end_y, w.end_z);
-  vec3 o = scanOrigin();
+  e = vec3(w.end_x, w.end_y, w.end_z);
   coordToKeyChecked(e.x, key_end.x);
   coordToKeyChecked(e.y, key_end.y);
   coordToKeyChecked(e.z, key_end.z);
-  t_max = double[3](w.t_max_x, w.t_max_y, w.t_max_z);
-  cur = uint[3](w.key_xy & 0xFFFFu, w.key_xy >> 16, w.key_z);
-  setUp(o, e, false);
-  if (walk()) return;
-  // After the last continuation a walk still unfinished is an error, not a silently shortened
-  // ray.
-  if (pc.mode == kRayKeysContinueLast) atomicOr(counters.status, kStatusRayCut);
-  else save(1u - from, e);
+  t_max = dvec3(w.t_max_x, w.t_max_y, w.t_max_z);
+  cur = uvec3(w.key_xy & 0xFFFFu, w.key_xy >> 16, w.key_z);
+  return true;
 }
 
-void main() {
-  uint i = invocationIndex();
-  budget = int(pc.budget);
-  // Behind a scan the device refused (PoolState::halted, set by an earlier submission), tree_gate
-  // refuses this scan too and the host runs it again later: its cells are not needed now.
-  if (pool.halted != 0u) return;
-  if (pc.mode == kRayKeysContinue || pc.mode == kRayKeysContinueLast) {
-    continueWalk(i);
-    flushMarks();
-    return;
-  }
+// A new ray: point i's (or end cell i's) occupied cell, and the start of its walk. The end of
+// the walk goes to `e`.
+bool startPoint(uint i, out vec3 e) {
+  e = vec3(0.0);
   vec3 p;
   if (pc.mode == kRayKeysPoints) {
-    if (i >= pc.point_count) return;
+    if (i >= pc.point_count) return false;
     p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
     if (!finiteBits(p)) {
       atomicAdd(counters.skipped_nonfinite, 1u);
-      return;
+      return false;
     }
   } else {
-    if (i >= counters.endpoint_entries) return;
+    if (i >= counters.endpoint_entries) return false;
     uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
     p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
   }
@@ -165,14 +157,15 @@ void main() {
   precise float dy = p.y - o.y;
   precise float dz = p.z - o.z;
   double dist = normOf(dx, dy, dz);
-  if (params.max_range < 0.0lf || dist <= params.max_range) {
+  bool within = params.max_range < 0.0lf || dist <= params.max_range;
+  e = p;
+  if (within) {
     uvec3 k;
     if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
         coordToKeyChecked(p.z, k.z)) {
       markCell(k, true);
       inserted = true;
     }
-    inserted = insertRay(o, p) || inserted;
   } else {
     // Point3d::normalized() then origin + direction * (float) maxrange.
     if (dist > 0.0lf) {
@@ -185,8 +178,34 @@ void main() {
     precise float ex = o.x + dx * range;
     precise float ey = o.y + dy * range;
     precise float ez = o.z + dz * range;
-    inserted = insertRay(o, vec3(ex, ey, ez));
+    e = vec3(ex, ey, ez);
   }
+  bool walking;
+  inserted = startRay(o, e, walking) || inserted;
   if (!inserted) atomicAdd(counters.skipped_outside, 1u);
+  return walking;
+}
+
+// Each piece of the walk (set-up, steps, set probes) appears once in this shader, whatever the
+// mode: llvmpipe (Mesa 22.3) runs the code of every branch for a group of lanes, masked, even
+// when no lane takes it, so a second copy of the walk costs every ray that copy's time.
+void main() {
+  uint i = invocationIndex();
+  budget = int(pc.budget);
+  // Behind a scan the device refused (PoolState::halted, set by an earlier submission), tree_gate
+  // refuses this scan too and the host runs it again later: its cells are not needed now.
+  if (pool.halted != 0u) return;
+  bool resumed = pc.mode == kRayKeysContinue || pc.mode == kRayKeysContinueLast;
+  vec3 e;
+  bool walking = resumed ? resumeWalk(i, e) : startPoint(i, e);
+  if (walking) {
+    setUp(scanOrigin(), e, !resumed);
+    if (!walk()) {
+      // After the last continuation a walk still unfinished is an error, not a silently
+      // shortened ray.
+      if (pc.mode == kRayKeysContinueLast) atomicOr(counters.status, kStatusRayCut);
+      else save(resumed ? 1u - pc.from_list : 0u, e);
+    }
+  }
   flushMarks();
 }
