@@ -1,5 +1,6 @@
-// Stage 2, cells against the tree: list_cells.comp (the distinct cells of the cell set) and
-// classify.comp (early abort, existing leaf, nodes to create, new-block prefixes).
+// Stage 2, cells against the tree: list_cells.comp (the distinct cells of the cell set),
+// classify.comp (early abort, existing leaf or descent) and classify_blocks.comp (over the cells
+// that descend: nodes to create, new-block prefixes).
 #include "map/passes/passes.hpp"
 
 namespace octovk::passes {
@@ -12,6 +13,7 @@ void recordClassify(Recorder& r, bool discretize, std::uint32_t points) {
     r.dispatch("clear_sets", points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
   r.dispatchIndirect("list_cells", offsetof(gpu::ScanCounters, brick_args));
   r.dispatchIndirect("classify", offsetof(gpu::ScanCounters, cell_args));
+  r.dispatchIndirect("classify_blocks", offsetof(gpu::ScanCounters, active_args));
   r.stream.timestamp();
 }
 
