@@ -16,9 +16,8 @@ void main() {
   if ((OCTOVK_LOAD(counters.status) & kStatusHashFull) != 0u) return;
   if (i >= counters.cell_entries) return;
   uint slot = cell_list[i];
-  bool occupied = cellOccupied(slot);
-  if (occupied) atomicAdd(counters.occupied_cells, 1u);
-  else atomicAdd(counters.free_cells, 1u);
+  // list_cells counted the free and occupied cells per brick, tree_gate the aborted ones: one
+  // atomic per cell less each (per lane and masked on llvmpipe).
   float update = cellUpdate(slot);
   uvec3 k = cellKey(slot);
 
@@ -38,7 +37,6 @@ void main() {
   float value = nodes[n].log_odds;
   if (found && ((update >= 0.0 && value >= params.clamp_max_log) ||
                 (update <= 0.0 && value <= params.clamp_min_log))) {
-    atomicAdd(counters.aborted, 1u);
     return;
   }
   // The descent starts at the deepest existing node (the root, created by tree_begin, if none).

@@ -23,6 +23,11 @@ void main() {
     return;
   }
   if (count != 0u) OCTOVK_COVER_LIST(counters.cell_args, end);
+  // The brick's occupied cells (their bits are a subset of the touched ones) and free cells.
+  uint occupied = uint(bitCount(hash_flags[slot * kBrickFlagWords + 2u]) +
+                       bitCount(hash_flags[slot * kBrickFlagWords + 3u]));
+  if (occupied != 0u) atomicAdd(counters.occupied_cells, occupied);
+  if (count != occupied) atomicAdd(counters.free_cells, count - occupied);
 
   // The shared part of search(), on the tree as it was before the scan, to the brick's depth.
   uvec3 k = unpackKey(hash_keys[slot]) << 2;

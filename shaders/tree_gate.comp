@@ -9,7 +9,8 @@
 // it stays through every scan queued behind it. The host, reading the status at its next
 // synchronisation, grows what was short and runs the refused scans again, in order. The host
 // never has to look between the passes, nor between scans.
-// Also sets clear_args, over the slots this scan filled in the sets (cleared at its end).
+// Also sets clear_args, over the slots this scan filled in the sets (cleared at its end), and
+// the count of early-aborted cells.
 #include "common.glsl"
 
 void setArgs(uint items, inout DispatchArgs args) {
@@ -23,6 +24,9 @@ void main() {
   if (invocationIndex() != 0u) return;
   uint status = counters.status;
   uint active_count = counters.active_cells + counters.leaf_cells;
+  // Every listed cell that classify did not drop at the early abort is active (at the front of
+  // `cells`) or has its leaf (at the back).
+  counters.aborted = counters.free_cells + counters.occupied_cells - active_count;
   if (pool.halted != 0u) status |= kStatusHalted;
   if (counters.new_blocks > pool.capacity - pool.bump + pool.free_count)
     status |= kStatusPoolShort;

@@ -190,15 +190,17 @@ TEST_P(RepeatedScans, ClampEarlyAbortPruneAndExpand) {
   const float res = static_cast<float>(c.resolution);
   const Eigen::Vector3f origin(0.5f * res, 0.5f * res, 0.5f * res);
   const auto wall = wallScan(origin, res, 16 * res, 8 * res);
-  std::size_t aborted = 0;
+  std::size_t aborted = 0, listed = 0;
   for (int rep = 0; rep < 16; ++rep) {
     ScanStats stats;
     ASSERT_TRUE(insertBoth(map, oracle, wall, origin, c.max_range, c.discretize, &stats))
         << "repetition " << rep;
     aborted = stats.aborted_cells;
+    listed = stats.free_cells + stats.occupied_cells;
   }
   // After 16 identical scans every touched cell sits at a clamping bound: all are aborted.
   EXPECT_GT(aborted, 0u);
+  EXPECT_EQ(aborted, listed);
   std::size_t pruned_free = 0, clamped_occupied = 0;
   for (auto it = oracle.begin_leafs(), end = oracle.end_leafs(); it != end; ++it) {
     if (it.getDepth() < 16 && it->getLogOdds() == oracle.getClampingThresMinLog()) ++pruned_free;
