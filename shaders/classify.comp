@@ -35,8 +35,9 @@ void main() {
       searchDown(k, kTreeDepth, n, parent, depth) == kSearchMissing)
     found = false;
   float value = nodes[n].log_odds;
-  if (found && ((update >= 0.0 && value >= params.clamp_max_log) ||
-                (update <= 0.0 && value <= params.clamp_min_log))) {
+  // list_cells dropped the cells it found aborted already; the test stays (same tree, same
+  // answer), so that what classify lists never depends on it.
+  if (found && earlyAbort(update, value)) {
     return;
   }
   // The descent starts at the deepest existing node (the root, created by tree_begin, if none).

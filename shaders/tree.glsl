@@ -17,6 +17,13 @@ float cellUpdate(uint id) {
   return cellOccupied(id) ? params.prob_hit_log : params.prob_miss_log;
 }
 
+// OctoMap's early abort in updateNode: the node search() found (`value` its log-odds) is
+// already at the clamping bound in the update's direction, so nothing changes.
+bool earlyAbort(float update, float value) {
+  return (update >= 0.0 && value >= params.clamp_max_log) ||
+         (update <= 0.0 && value <= params.clamp_min_log);
+}
+
 // Appends item to a per-level list and keeps its indirect dispatch arguments in step.
 void appendTouched(uint level, uint node) {
   uint at = atomicAdd(counters.touched_count[level], 1u);
