@@ -8,8 +8,16 @@
 //                      unsorted, with the extent of the small boxes' centres.
 // kAccelBoxesUnknown:  the unknown regions, i.e. every missing child of a node that has
 //                      children (a block's slots that are not live), one invocation per block.
+// kAccelBoxesScan:     for scans through ray tracing (scan_rays_rt.comp), one invocation per
+//                      block, all into list 0 (a scan traces both kinds): every leaf above
+//                      clamp_min_log (occupied, or free and not clamped: a free update could
+//                      change it) and the unknown regions as kAccelBoxesUnknown finds them; a
+//                      leaf clamped free gets no box. A block's slots give at most 8 boxes.
 // kAccelBoxesCount, kAccelBoxesChunks, kAccelBoxesOffsets, kAccelBoxesScatter: a counting sort
 //                      of both lists on kAccelBuckets Morton cells of that extent.
+// kAccelBoxesTail:     the sorted lists' slots after their counts made inactive (min x NaN), so
+//                      that a build over the whole capacity, recorded before the counts are
+//                      known, sees exactly the boxes.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
@@ -122,6 +130,45 @@ void main() {
       dvec3 lo = dvec3(ivec3(key) - ivec3(32768)) * params.resolution;
       append(s, 1u, vec3(lo), vec3(lo + size), size);
     }
+    return;
+  }
+  if (pc.mode == kAccelBoxesScan) {
+    if (i >= pool.bump) return;
+    if (i == 0u) {  // block 0 holds only the root: a box when it is a leaf (the whole map)
+      if (pool.root_exists != 0u && (nodes[kRootNode].link & kBlockMask) == kNoChildren &&
+          !(nodes[kRootNode].log_odds <= params.clamp_min_log)) {
+        double size = params.resolution * 65536.0lf;
+        vec3 lo = vec3(-0.5lf * size);
+        append(s, 0u, lo, -lo, size);
+      }
+      return;
+    }
+    uint parent = block_parent[i];
+    if (parent == kNoBlock) return;
+    uint depth;
+    uvec3 parent_key = parentKeyOfBlock(parent, depth);
+    uint bit = 15u - depth;
+    double size = params.resolution * double(1u << bit);
+    for (uint slot = 0u; slot < 8u; ++slot) {
+      Node child = nodes[i * 8u + slot];
+      bool live = (child.link & kFlagLive) != 0u;
+      // classify's early abort for a free update: the leaf search() finds is at clamp_min_log.
+      if (live && ((child.link & kBlockMask) != kNoChildren ||
+                   child.log_odds <= params.clamp_min_log))
+        continue;
+      uvec3 key = parent_key | (uvec3(slot & 1u, (slot >> 1) & 1u, (slot >> 2) & 1u) << bit);
+      dvec3 lo = dvec3(ivec3(key) - ivec3(32768)) * params.resolution;
+      append(s, 0u, vec3(lo), vec3(lo + size), size);
+    }
+    return;
+  }
+  if (pc.mode == kAccelBoxesTail) {
+    uint list = i < s.header.occupied_capacity ? 0u : 1u;
+    uint j = i - sortedBase(s, list);
+    if (list == 1u && j >= s.header.unknown_capacity) return;
+    if (j < countOf(s, list)) return;
+    s.boxes[sortedBase(s, list) + j] =
+        AccelBox(uintBitsToFloat(0x7FC00000u), 0.0, 0.0, 0.0, 0.0, 0.0);
     return;
   }
   if (pc.mode == kAccelBoxesChunks || pc.mode == kAccelBoxesOffsets) {

@@ -90,6 +90,9 @@ static_assert(sizeof(CastRayRtConstants) == 16 && offsetof(CastRayRtConstants, b
               offsetof(CastRayRtConstants, ray_count) == 8 &&
               offsetof(CastRayRtConstants, first_ray) == 12);
 static_assert(kAccelBuckets % kAccelChunks == 0);
+static_assert(sizeof(ScanRaysRtConstants) == 16 && offsetof(ScanRaysRtConstants, boxes) == 0 &&
+              offsetof(ScanRaysRtConstants, point_count) == 8 &&
+              offsetof(ScanRaysRtConstants, mode) == 12);
 
 static_assert(sizeof(NewBlock) == 12);
 static_assert(offsetof(NewBlock, node) == 0);

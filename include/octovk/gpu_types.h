@@ -520,6 +520,22 @@ OCTOVK_CONST uint kAddressedBindings =
     (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
     (1u << kBindDepth);
 
+// Scans through ray tracing (MapParams::scan_rays = kRayTracing; scan_rays_rt.comp). Its boxes
+// are written by accel_boxes in two more modes into a boxes buffer of the same layout
+// (AccelHeader, sorted lists, unsorted lists, sort counters): list 0 holds every leaf a free
+// update could change (log-odds above clamp_min_log: occupied leaves and free leaves not yet
+// clamped) and the unknown regions, list 1 nothing; leaves clamped free get no box (a free
+// update there is a no-op, OctoMap's early abort). Both lists are built at their capacity, the
+// tails inactive.
+OCTOVK_CONST uint kAccelBoxesScan = 6u;  // one invocation per pool block: both lists
+OCTOVK_CONST uint kAccelBoxesTail = 7u;  // per box slot of both lists: inactive after the count
+// scan_rays_rt. 16 B.
+struct ScanRaysRtConstants {
+  uint64_t boxes;    // 8B (0)  device address of the AccelHeader
+  uint point_count;  // 4B (8)  kRayKeysPoints: points of the scan
+  uint mode;         // 4B (12) kRayKeysPoints or kRayKeysEndCells (discretize)
+};
+
 #ifdef __cplusplus
 }  // namespace octovk::gpu
 #undef OCTOVK_CONST

@@ -1,0 +1,75 @@
+// Tracing a walk's ray through the boxes accel_boxes.comp writes (castRay's ray-tracing backend,
+// cast_ray_rt.glsl, and scans through ray tracing, scan_rays_rt.comp): the boxes buffer's view,
+// the slack on ray parameters, the exact slab test of one box, and (with OCTOVK_RAY_QUERY) the
+// ray query for the nearest box. Needs common.glsl and cast_ray_walk.glsl.
+#ifndef OCTOVK_ACCEL_TRACE_GLSL
+#define OCTOVK_ACCEL_TRACE_GLSL
+
+layout(buffer_reference, std430, buffer_reference_align = 8) buffer AccelRef {
+  AccelHeader header;
+  AccelBox boxes[];
+};
+
+// Slack on ray parameters: the hardware's float test and our own rounding, far below the boxes'
+// enlargement (a quarter cell, see accel_boxes.comp).
+double slack(double t, vec3 org, double dir_len) {
+  float m = max(abs(org.x), max(abs(org.y), abs(org.z)));
+  return (params.resolution * 0.125lf + (abs(t) * dir_len + double(m)) * (1.0lf / 65536.0lf)) /
+         dir_len;
+}
+
+// Parameter interval of the ray in box b (slab test in double); false when it misses.
+bool boxInterval(AccelBox b, CastRayWalk w, out double t_in, out double t_out) {
+  t_in = -1.0e300lf;
+  t_out = 1.0e300lf;
+  float lo[3] = float[3](b.min_x, b.min_y, b.min_z);
+  float hi[3] = float[3](b.max_x, b.max_y, b.max_z);
+  for (int a = 0; a < 3; ++a) {
+    double o = double(w.org[a]);
+    if (w.dir[a] == 0.0) {
+      if (o < double(lo[a]) || o > double(hi[a])) return false;
+      continue;
+    }
+    double inv = 1.0lf / double(w.dir[a]);
+    double t0 = (double(lo[a]) - o) * inv;
+    double t1 = (double(hi[a]) - o) * inv;
+    t_in = max(t_in, min(t0, t1));
+    t_out = min(t_out, max(t0, t1));
+  }
+  return t_in <= t_out;
+}
+
+#ifdef OCTOVK_RAY_QUERY
+// The nearest box (of the masks) whose interval reaches past t_from and starts before t_to: its
+// entry (at least t_from) and exit. False when there is none.
+bool nearestBox(AccelRef scene, CastRayWalk w, uint mask, double t_from, float t_to,
+                out double t_enter, out double t_exit) {
+  rayQueryEXT rq;
+  float t_min = float(max(t_from, 0.0lf));
+  rayQueryInitializeEXT(rq, accelerationStructureEXT(scene.header.tlas), gl_RayFlagsNoneEXT,
+                        mask, w.org, t_min, w.dir, t_to);
+  bool found = false;
+  t_enter = 1.0e300lf;
+  t_exit = 1.0e300lf;
+  uint unknown_first = scene.header.occupied_capacity;
+  while (rayQueryProceedEXT(rq)) {
+    if (rayQueryGetIntersectionTypeEXT(rq, false) != gl_RayQueryCandidateIntersectionAABBEXT)
+      continue;
+    uint index = rayQueryGetIntersectionPrimitiveIndexEXT(rq, false);
+    if (rayQueryGetIntersectionInstanceCustomIndexEXT(rq, false) != 0) index += unknown_first;
+    double t_in, t_out;
+    if (!boxInterval(scene.boxes[index], w, t_in, t_out) || t_out < t_from) continue;
+    t_in = max(t_in, t_from);
+    if (t_in > double(t_to) || (found && t_in >= t_enter)) continue;
+    found = true;
+    t_enter = t_in;
+    t_exit = t_out;
+    // Commit it so that the traversal skips farther boxes: monotone rounding keeps the hit
+    // parameters non-increasing.
+    rayQueryGenerateIntersectionEXT(rq, min(max(t_min, float(t_in)), t_to));
+  }
+  return found;
+}
+#endif
+
+#endif  // OCTOVK_ACCEL_TRACE_GLSL
