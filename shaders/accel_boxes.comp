@@ -15,9 +15,9 @@
 //                      leaf clamped free gets no box. A block's slots give at most 8 boxes.
 // kAccelBoxesCount, kAccelBoxesChunks, kAccelBoxesOffsets, kAccelBoxesScatter: a counting sort
 //                      of both lists on kAccelBuckets Morton cells of that extent.
-// kAccelBoxesTail:     the sorted lists' slots after their counts made inactive (min x NaN), so
-//                      that a build over the whole capacity, recorded before the counts are
-//                      known, sees exactly the boxes.
+// kAccelBoxesTail:     the sorted lists' slots after their counts filled with an empty box
+//                      outside the map, so that a build over the whole capacity, recorded
+//                      before the counts are known, finds nothing more where rays go.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
@@ -167,8 +167,11 @@ void main() {
     uint j = i - sortedBase(s, list);
     if (list == 1u && j >= s.header.unknown_capacity) return;
     if (j < countOf(s, list)) return;
-    s.boxes[sortedBase(s, list) + j] =
-        AccelBox(uintBitsToFloat(0x7FC00000u), 0.0, 0.0, 0.0, 0.0, 0.0);
+    // Not the spec's inactive box (min x NaN): lavapipe copies it into its BVH, whose bounds
+    // then turn NaN (MIN2(a, NaN) is NaN) and every ray misses. A point two cells outside the
+    // map's lower corner instead: no ray of a scan (between two points of the map) comes near.
+    float far = float(-(double(kTreeMaxVal) + 2.0lf) * params.resolution);
+    s.boxes[sortedBase(s, list) + j] = AccelBox(far, far, far, far, far, far);
     return;
   }
   if (pc.mode == kAccelBoxesChunks || pc.mode == kAccelBoxesOffsets) {
