@@ -8,10 +8,12 @@
 // The boxes (accel_boxes.comp, kAccelBoxesScan) cover every other cell of the map: leaves above
 // clamp_min_log and unknown regions, each enlarged by a quarter cell. Per ray a ray query finds
 // the nearest box; the walk jumps exactly (castRayJumpTo: the same tMax bits as stepping) to
-// just before it, then steps OctoMap's DDA through it, marking each cell, and traces again past
-// its exit. Every cell marked is one computeRayKeys visits (the walk is OctoMap's, jumps
-// included); every cell it visits that lies in a box is marked (no box starts before a jump's
-// target). The end cell is marked occupied from the point, as ray_keys does.
+// just before it, then steps OctoMap's DDA, marking each cell whose node is not clamped free
+// (a tree lookup, cached per node), and traces again from the first clamped-free cell past the
+// box's entry. Every cell marked is one computeRayKeys visits (the walk is OctoMap's, jumps
+// included); every cell it visits that a free update changes is marked (no box starts before a
+// jump's target; stepped cells are looked up). The end cell is marked occupied from the point,
+// as ray_keys does.
 //
 // The per-point checks (non-finite points, max range, keys outside the map, discretize's end
 // cells) mirror ray_keys.comp's main() line for line. Runs only where loops have no driver
@@ -61,23 +63,33 @@ void setUp(vec3 o, vec3 e) {
   }
 }
 
-// One step of computeRayKeys: true when the ray is done (the end cell, past the length, or a
-// full set: the scan is then redone with a larger one); else the new cell is marked free.
-bool stepCell() {
+// One step of computeRayKeys: true when the ray is done (the end cell, or past the length).
+bool advance() {
   int dim = castRayNextAxis(w);
   w.key[dim] = uint(int(w.key[dim]) + w.step[dim]) & 0xFFFFu;
   precise double t = w.t_max[dim] + w.t_delta[dim];
   w.t_max[dim] = t;
   if (w.key == key_end) return true;
-  if (castRayMinTMax(w) > double(len)) return true;
-  return !markCell(w.key, false);
+  return castRayMinTMax(w) > double(len);
 }
 
-// The walk from the origin's cell (marked by the caller) to the end, through the boxes.
+// Whether a free update of cell k is a no-op: search() finds a node at clamp_min_log
+// (classify's early abort). The cache answers for every cell of the node it last found.
+bool clampedFree(uvec3 k, inout CellCache cache) {
+  uint searched;
+  return castRayCellState(k, cache, searched) != kCellUnknown &&
+         cache.log_odds <= params.clamp_min_log;
+}
+
+// The walk from the origin's cell (marked by the caller) to the end. A ray query finds the
+// nearest box; the walk jumps exactly to just before it, then steps, marking every cell a free
+// update can change, until it steps into a cell clamped free past the box's entry: then the
+// next box is traced from there. Neighbouring boxes cost one ray query together, not one each.
 void walkTraced() {
+  CellCache cache = castRayEmptyCache();
   if (pool.root_exists == 0u) {  // an empty map is unknown everywhere: every cell is updated
-    while (!stepCell()) {
-    }
+    while (!advance())
+      if (!markCell(w.key, false)) return;  // a full set: the scan is redone with a larger one
     return;
   }
   AccelRef scene = AccelRef(pc.boxes);
@@ -89,23 +101,27 @@ void walkTraced() {
                    (dir_len * (1.0lf + 1.0lf / 65536.0lf));
   // Boxes beyond the end do not matter.
   float t_to = float((double(len) + 2.0lf * params.resolution) / dir_len);
-  double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
   for (;;) {
-    double t_enter = 1.0e300lf, t_exit = 1.0e300lf;
+    double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
+    double t_enter = 1.0e300lf, t_exit;
     bool found = t_from < double(t_to) &&
                  nearestBox(scene, w, kAccelMaskOccupied | kAccelMaskUnknown, t_from, t_to,
                             t_enter, t_exit);
-    double target = min(found ? t_enter : 1.0e300lf, t_limit);
+    double target = min(t_enter, t_limit);
     target -= slack(target, w.org, dir_len);
     // The cells the jump passes lie in no box (clamped free): their updates are no-ops. The
     // cell it lands in is entered before the target: in no box either.
     if (target > castRayMinTMax(w)) castRayJumpTo(w, target);
-    // Through the box (and its slack) cell by cell; without one, to the end (near).
-    double t_leave = found ? t_exit + 2.0lf * slack(t_exit, w.org, dir_len) : 1.0e300lf;
-    do {
-      if (stepCell()) return;
-    } while (castRayMinTMax(w) <= t_leave);
-    t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
+    // A clamped-free cell before the box's entry (and its slack) is still on the way in.
+    double t_in = found ? t_enter + 2.0lf * slack(t_enter, w.org, dir_len) : 1.0e300lf;
+    for (;;) {
+      if (advance()) return;
+      if (!clampedFree(w.key, cache)) {
+        if (!markCell(w.key, false)) return;  // a full set: the scan is redone
+      } else if (castRayMinTMax(w) > t_in) {
+        break;
+      }
+    }
   }
 }
 
