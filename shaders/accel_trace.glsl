@@ -39,11 +39,34 @@ bool boxInterval(AccelBox b, CastRayWalk w, out double t_in, out double t_out) {
   return t_in <= t_out;
 }
 
+// Whether box b, less its enlargement (accel_boxes.comp's margin(), estimated from the
+// enlarged box: a hair larger), holds the centre of the walk's cell on every axis the walk never
+// steps along. The walk stays in that cell's slab there, so a box that misses it never holds a
+// cell of the walk, however near the line runs (a ray along a cell border grazes the enlarged
+// boxes of the next layer: a planar scan at z = 0 runs along the border of two layers).
+bool holdsFixedAxes(AccelBox b, CastRayWalk w) {
+  vec3 lo = vec3(b.min_x, b.min_y, b.min_z);
+  vec3 hi = vec3(b.max_x, b.max_y, b.max_z);
+  vec3 c = 0.5 * (lo + hi);
+  vec3 extent = hi - lo;
+  double m = params.resolution * 0.25lf +
+             double(max(abs(c.x), max(abs(c.y), abs(c.z))) +
+                    max(extent.x, max(extent.y, extent.z))) *
+                 (1.0lf / 65536.0lf);
+  for (int a = 0; a < 3; ++a) {
+    if (w.step[a] != 0) continue;
+    double centre = keyToCoord(w.key[a]);
+    if (double(lo[a]) + m > centre || double(hi[a]) - m < centre) return false;
+  }
+  return true;
+}
+
 #ifdef OCTOVK_RAY_QUERY
 // The nearest box (of the masks) whose interval reaches past t_from and starts before t_to: its
-// entry (at least t_from) and exit. False when there is none.
+// entry (at least t_from) and exit. False when there is none. `fixed_axes`: only boxes that
+// hold the walk's cell on the axes it never steps along (holdsFixedAxes).
 bool nearestBox(AccelRef scene, CastRayWalk w, uint mask, double t_from, float t_to,
-                out double t_enter, out double t_exit) {
+                bool fixed_axes, out double t_enter, out double t_exit) {
   rayQueryEXT rq;
   float t_min = float(max(t_from, 0.0lf));
   rayQueryInitializeEXT(rq, accelerationStructureEXT(scene.header.tlas), gl_RayFlagsNoneEXT,
@@ -58,7 +81,9 @@ bool nearestBox(AccelRef scene, CastRayWalk w, uint mask, double t_from, float t
     uint index = rayQueryGetIntersectionPrimitiveIndexEXT(rq, false);
     if (rayQueryGetIntersectionInstanceCustomIndexEXT(rq, false) != 0) index += unknown_first;
     double t_in, t_out;
-    if (!boxInterval(scene.boxes[index], w, t_in, t_out) || t_out < t_from) continue;
+    AccelBox b = scene.boxes[index];
+    if (!boxInterval(b, w, t_in, t_out) || t_out < t_from) continue;
+    if (fixed_axes && !holdsFixedAxes(b, w)) continue;
     t_in = max(t_in, t_from);
     if (t_in > double(t_to) || (found && t_in >= t_enter)) continue;
     found = true;

@@ -153,7 +153,7 @@ void main() {
   double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
   for (;;) {
     double t_enter, t_exit;
-    bool found = nearestBox(scene, w, mask, t_from, 3.0e38, t_enter, t_exit);
+    bool found = nearestBox(scene, w, mask, t_from, 3.0e38, false, t_enter, t_exit);
     double target = min(found ? t_enter : 1.0e300lf, t_limit);
     target -= slack(target, w.org, dir_len);
     if (target > castRayMinTMax(w)) castRayJumpTo(w, target);

@@ -106,7 +106,7 @@ void walkTraced() {
     double t_enter = 1.0e300lf, t_exit;
     bool found = t_from < double(t_to) &&
                  nearestBox(scene, w, kAccelMaskOccupied | kAccelMaskUnknown, t_from, t_to,
-                            t_enter, t_exit);
+                            /*fixed_axes=*/true, t_enter, t_exit);
     double target = min(t_enter, t_limit);
     target -= slack(target, w.org, dir_len);
     // The cells the jump passes lie in no box (clamped free): their updates are no-ops. The
