@@ -526,9 +526,9 @@ OCTOVK_CONST uint kAddressedBindings =
 // update could change (log-odds above clamp_min_log: occupied leaves and free leaves not yet
 // clamped) and the unknown regions, list 1 nothing; leaves clamped free get no box (a free
 // update there is a no-op, OctoMap's early abort). Both lists are built at their capacity, the
-// tails inactive.
+// slots after their counts empty boxes outside the map (kAccelBoxesTail).
 OCTOVK_CONST uint kAccelBoxesScan = 6u;  // one invocation per pool block: both lists
-OCTOVK_CONST uint kAccelBoxesTail = 7u;  // per box slot of both lists: inactive after the count
+OCTOVK_CONST uint kAccelBoxesTail = 7u;  // per box slot of both lists: after the count, empty
 // scan_rays_rt. 16 B.
 struct ScanRaysRtConstants {
   uint64_t boxes;    // 8B (0)  device address of the AccelHeader
