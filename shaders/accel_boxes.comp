@@ -14,7 +14,9 @@
 //                      change it) and the unknown regions as kAccelBoxesUnknown finds them; a
 //                      leaf clamped free gets no box. A block's slots give at most 8 boxes.
 // kAccelBoxesCount, kAccelBoxesChunks, kAccelBoxesOffsets, kAccelBoxesScatter: a counting sort
-//                      of both lists on kAccelBuckets Morton cells of that extent.
+//                      of both lists on 2^(3 bucket_bits) Morton cells of that extent (the
+//                      header's bucket_bits: kAccelBucketBits for castRay, fewer for a scan,
+//                      whose fixed cost of clearing and summing the buckets counts per scan).
 // kAccelBoxesTail:     the sorted lists' slots after their counts filled with an empty box
 //                      outside the map, so that a build over the whole capacity, recorded
 //                      before the counts are known, finds nothing more where rays go.
@@ -48,7 +50,11 @@ UintsRef bucketCounters(AccelRef s) {
   return UintsRef(pc.boxes + 64ul + boxes * 24ul);
 }
 // The chunk sums follow the counters of both lists.
-uint chunkSum(uint list, uint c) { return 2u * kAccelBuckets + list * kAccelChunks + c; }
+// The sort's buckets per list: 2^(3 * bucket_bits) (the header's; at most kAccelBuckets).
+uint bucketsOf(AccelRef s) { return 1u << (3u * s.header.bucket_bits); }
+uint chunkSum(AccelRef s, uint list, uint c) {
+  return 2u * bucketsOf(s) + list * kAccelChunks + c;
+}
 
 float margin(vec3 centre, float size) {
   float m = max(abs(centre.x), max(abs(centre.y), abs(centre.z))) + size;
@@ -79,9 +85,9 @@ void append(AccelRef s, uint list, vec3 lo, vec3 hi, double size) {
   }
 }
 
-uint spreadBits(uint v) {  // bits 0..6 of v to bits 0, 3, 6, ..., 18
+uint spreadBits(uint v, uint bits) {  // bits 0..bits-1 of v to bits 0, 3, 6, ...
   uint r = 0u;
-  for (uint b = 0u; b < kAccelBucketBits; ++b) r |= ((v >> b) & 1u) << (3u * b);
+  for (uint b = 0u; b < bits; ++b) r |= ((v >> b) & 1u) << (3u * b);
   return r;
 }
 
@@ -95,10 +101,11 @@ uint bucketOf(AccelRef s, AccelBox b) {
   }
   uint extent = max(hi.x - lo.x, max(hi.y - lo.y, hi.z - lo.z));
   uint shift = 0u;
-  while ((extent >> shift) >= (1u << kAccelBucketBits)) ++shift;
+  uint bits = s.header.bucket_bits;
+  while ((extent >> shift) >= (1u << bits)) ++shift;
   uvec3 k = clampedKey(0.5 * vec3(b.min_x + b.max_x, b.min_y + b.max_y, b.min_z + b.max_z));
-  uvec3 q = min((max(k, lo) - lo) >> shift, uvec3((1u << kAccelBucketBits) - 1u));
-  return spreadBits(q.x) | (spreadBits(q.y) << 1) | (spreadBits(q.z) << 2);
+  uvec3 q = min((max(k, lo) - lo) >> shift, uvec3((1u << bits) - 1u));
+  return spreadBits(q.x, bits) | (spreadBits(q.y, bits) << 1) | (spreadBits(q.z, bits) << 2);
 }
 
 void main() {
@@ -178,16 +185,16 @@ void main() {
     if (i >= 2u * kAccelChunks) return;
     uint list = i / kAccelChunks, c = i % kAccelChunks;
     UintsRef n = bucketCounters(s);
-    const uint per_chunk = kAccelBuckets / kAccelChunks;
-    uint first = list * kAccelBuckets + c * per_chunk;
+    const uint per_chunk = bucketsOf(s) / kAccelChunks;
+    uint first = list * bucketsOf(s) + c * per_chunk;
     if (pc.mode == kAccelBoxesChunks) {
       uint sum = 0u;
       for (uint b = 0u; b < per_chunk; ++b) sum += n.v[first + b];
-      n.v[chunkSum(list, c)] = sum;
+      n.v[chunkSum(s, list, c)] = sum;
       return;
     }
     uint offset = 0u;
-    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(list, p)];
+    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(s, list, p)];
     for (uint b = 0u; b < per_chunk; ++b) {
       uint count = n.v[first + b];
       n.v[first + b] = offset;
@@ -201,7 +208,7 @@ void main() {
   if (list == 1u && j >= s.header.unknown_capacity) return;
   if (j >= countOf(s, list)) return;
   AccelBox b = s.boxes[unsortedBase(s, list) + j];
-  uint at = list * kAccelBuckets + bucketOf(s, b);
+  uint at = list * bucketsOf(s) + bucketOf(s, b);
   UintsRef n = bucketCounters(s);
   if (pc.mode == kAccelBoxesCount) {
     atomicAdd(n.v[at], 1u);

@@ -435,7 +435,7 @@ struct AccelHeader {
   uint hi_x;                // 4B (36) largest
   uint hi_y;                // 4B (40)
   uint hi_z;                // 4B (44)
-  uint pad0;                // 4B (48)
+  uint bucket_bits;         // 4B (48) the sort's Morton bits per axis, 4..kAccelBucketBits
   uint pad1;                // 4B (52)
   uint pad2;                // 4B (56)
   uint pad3;                // 4B (60)

@@ -109,6 +109,8 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header);
 /// Of which the counting sort's counters and chunk sums, at its end.
 std::size_t accelSortBytes();
+/// The part of them a sort on 2^(3 bucket_bits) buckets per list uses (from the same start).
+std::size_t accelSortBytes(std::uint32_t bucket_bits);
 /// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
 /// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
 /// leaf-box buffer, which must be current, and the unknown regions of the pool), sorted along a
