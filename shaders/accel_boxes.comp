@@ -56,9 +56,13 @@ uint chunkSum(AccelRef s, uint list, uint c) {
   return 2u * bucketsOf(s) + list * kAccelChunks + c;
 }
 
+// A quarter cell for castRay's boxes; a 64th for a scan's (kAccelBoxesScan), whose walk looks
+// every cell up anyway: near surfaces a ray grazes many boxes it never enters, each a ray query,
+// and the hardware's float error is still a thousandth of that.
 float margin(vec3 centre, float size) {
   float m = max(abs(centre.x), max(abs(centre.y), abs(centre.z))) + size;
-  return float(params.resolution) * 0.25 + m * (1.0 / 65536.0);
+  float part = pc.mode == kAccelBoxesScan ? 1.0 / 64.0 : 0.25;
+  return float(params.resolution) * part + m * (1.0 / 65536.0);
 }
 
 // The cell key of a coordinate, clamped to the map.

@@ -112,13 +112,19 @@ void walkTraced() {
     // The cells the jump passes lie in no box (clamped free): their updates are no-ops. The
     // cell it lands in is entered before the target: in no box either.
     if (target > castRayMinTMax(w)) castRayJumpTo(w, target);
-    // A clamped-free cell before the box's entry (and its slack) is still on the way in.
+    // A clamped-free cell before the box's entry (and its slack) is still on the way in. Past
+    // it, a run of kRetraceAfter clamped-free cells ends the stretch: near surfaces, where
+    // clamped cells and cells not clamped yet alternate, a ray query per clamped cell costs
+    // more than stepping a few cells (on lavapipe a query costs tens of steps).
+    const uint kRetraceAfter = 8u;
     double t_in = found ? t_enter + 2.0lf * slack(t_enter, w.org, dir_len) : 1.0e300lf;
+    uint clamped_run = 0u;
     for (;;) {
       if (advance()) return;
       if (!clampedFree(w.key, cache)) {
+        clamped_run = 0u;
         if (!markCell(w.key, false)) return;  // a full set: the scan is redone
-      } else if (castRayMinTMax(w) > t_in) {
+      } else if (castRayMinTMax(w) > t_in && ++clamped_run >= kRetraceAfter) {
         break;
       }
     }
