@@ -78,13 +78,13 @@ TEST_P(RtScanOracle, SameTreeAfterEveryScanWhileRaysCrossClampedFreeSpace) {
   EXPECT_GT(skipped_later, 1000u);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    MaxRangeAndDiscretize, RtScanOracle,
-    ::testing::Combine(::testing::Values(-1.0, 1.7), ::testing::Bool()),
-    [](const auto& info) {
-      return std::string(std::get<0>(info.param) < 0 ? "NoMaxRange" : "MaxRange") +
-             (std::get<1>(info.param) ? "Discretize" : "");
-    });
+INSTANTIATE_TEST_SUITE_P(MaxRangeAndDiscretize, RtScanOracle,
+                         ::testing::Combine(::testing::Values(-1.0, 1.7), ::testing::Bool()),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param) < 0 ? "NoMaxRange"
+                                                                          : "MaxRange") +
+                                  (std::get<1>(info.param) ? "Discretize" : "");
+                         });
 
 // Rays along the axes, the face and space diagonals, from an origin on a cell corner and from
 // one on a cell edge, scan after scan (the first scans clamp the rays' cells free, the later
@@ -93,8 +93,8 @@ TEST(RtScan, RaysAlongAxesAndThroughCorners) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   OCTOVK_REQUIRE_RAY_QUERY(ctx);
   const MapParams params = rtParams(0.1);
-  for (const Eigen::Vector3f& origin : {Eigen::Vector3f(0.0f, 0.0f, 0.0f),
-                                       Eigen::Vector3f(0.2f, 0.3f, 0.05f)}) {
+  for (const Eigen::Vector3f& origin :
+       {Eigen::Vector3f(0.0f, 0.0f, 0.0f), Eigen::Vector3f(0.2f, 0.3f, 0.05f)}) {
     OccupancyMap map(ctx, params);
     octomap::OcTree oracle = test::makeOracle(params);
     for (int scan = 0; scan < 9; ++scan) {
@@ -134,8 +134,8 @@ TEST(RtScan, NonFinitePointsAndPointsOutsideTheMap) {
     const bool outside_sensor = scan == 5;
     const Eigen::Vector3f origin =
         outside_sensor ? Eigen::Vector3f(4000.0f, 0.0f, 0.0f) : Eigen::Vector3f(0.05f, 0.1f, 0.0f);
-    std::vector<Eigen::Vector3f> finite = roomScan(rng, Eigen::Vector3f(0.05f, 0.1f, 0.0f), 800,
-                                                   2.0f);
+    std::vector<Eigen::Vector3f> finite =
+        roomScan(rng, Eigen::Vector3f(0.05f, 0.1f, 0.0f), 800, 2.0f);
     finite.emplace_back(5000.0f, 0.0f, 0.0f);
     finite.emplace_back(0.0f, -3300.0f, 1.0f);
     std::vector<Eigen::Vector3f> pts = finite;
@@ -226,9 +226,8 @@ std::string writeRoomGraph(const test::Scratch& dir) {
     scan.points_sensor = roomScan(rng, Eigen::Vector3f::Zero(), 1000, 2.5f);
     scan.T_world_sensor.translation =
         Eigen::Vector3f(0.1f * static_cast<float>(i % 3), 0.05f, 0.3f);
-    scan.T_world_sensor.rotation =
-        Eigen::Quaternionf(Eigen::AngleAxisf(0.2f * static_cast<float>(i),
-                                             Eigen::Vector3f::UnitZ()));
+    scan.T_world_sensor.rotation = Eigen::Quaternionf(
+        Eigen::AngleAxisf(0.2f * static_cast<float>(i), Eigen::Vector3f::UnitZ()));
     return scan;
   });
   return path;
@@ -246,8 +245,8 @@ TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
                         dir.dir());
     ASSERT_EQ(walk.exit_code, 0) << walk.err;
     const test::RunResult rt =
-        test::runOctovk({"integrate", graph, "-o", dir / "rt.bt", "-o", dir / "rt.ot", "-r",
-                         "0.05", "-m", max_range, "-q", "--rays", "rt"},
+        test::runOctovk({"integrate", graph, "-o", dir / "rt.bt", "-o", dir / "rt.ot", "-r", "0.05",
+                         "-m", max_range, "-q", "--rays", "rt"},
                         dir.dir());
     ASSERT_EQ(rt.exit_code, 0) << rt.err;
     EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "walk.bt")) << "-m " << max_range;
@@ -256,10 +255,10 @@ TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
       if (test::runningInCi()) ADD_FAILURE() << "graph2tree missing under CI";
       continue;
     }
-    const test::RunResult g2t = test::runShell(
-        test::quote(OCTOVK_GRAPH2TREE) + " -i " + test::quote(graph) + " -o " +
-            test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
-        dir.dir());
+    const test::RunResult g2t =
+        test::runShell(test::quote(OCTOVK_GRAPH2TREE) + " -i " + test::quote(graph) + " -o " +
+                           test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
+                       dir.dir());
     ASSERT_EQ(g2t.exit_code, 0) << g2t.err;
     EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "g2t.bt")) << "-m " << max_range;
     EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "g2t.bt.ot"))
@@ -277,14 +276,14 @@ TEST(RtScanCli, RaysOptionHelpAndErrors) {
   EXPECT_NE(help.out.find("--rays walk|rt"), std::string::npos) << help.out;
   EXPECT_NE(help.out.find("(default: walk)"), std::string::npos) << help.out;
   const std::string graph = writeRoomGraph(dir);
-  const test::RunResult bad = test::runOctovk(
-      {"integrate", graph, "-o", dir / "x.bt", "--rays", "bvh"}, dir.dir());
+  const test::RunResult bad =
+      test::runOctovk({"integrate", graph, "-o", dir / "x.bt", "--rays", "bvh"}, dir.dir());
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("--rays walk"), std::string::npos) << bad.err;
   EXPECT_FALSE(test::fs::exists(dir / "x.bt"));
   if (!ctx.device().ray_query_enabled) {
-    const test::RunResult refused = test::runOctovk(
-        {"integrate", graph, "-o", dir / "y.bt", "--rays", "rt", "-q"}, dir.dir());
+    const test::RunResult refused =
+        test::runOctovk({"integrate", graph, "-o", dir / "y.bt", "--rays", "rt", "-q"}, dir.dir());
     EXPECT_NE(refused.exit_code, 0);
     EXPECT_NE(refused.err.find("no ray queries"), std::string::npos) << refused.err;
     EXPECT_FALSE(test::fs::exists(dir / "y.bt"));

@@ -15,9 +15,8 @@ static_assert((1u << (3 * kScanBucketBits)) % gpu::kAccelChunks == 0 &&
 gpu::AccelHeader scanSceneHeader(const MapBuffers& buffers) {
   gpu::AccelHeader header{};
   // Every box in the first list: a leaf or an unknown region per slot, and the root. The second
-  // list stays empty (one inactive box).
-  header.occupied_capacity =
-      static_cast<std::uint32_t>(std::size_t{buffers.poolBlocks()} * 8 + 1);
+  // list stays empty (one empty box outside the map, kAccelBoxesTail).
+  header.occupied_capacity = static_cast<std::uint32_t>(std::size_t{buffers.poolBlocks()} * 8 + 1);
   header.unknown_capacity = 1;
   return header;
 }
@@ -65,11 +64,11 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
 
 void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, bool discretize) {
   // With discretize, one invocation per point covers the distinct end cells (at most as many).
-  r.dispatch("scan_rays_rt", points,
-             gpu::ScanRaysRtConstants{
-                 .boxes = boxes,
-                 .point_count = points,
-                 .mode = discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
+  r.dispatch(
+      "scan_rays_rt", points,
+      gpu::ScanRaysRtConstants{.boxes = boxes,
+                               .point_count = points,
+                               .mode = discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
 }
 
 }  // namespace octovk::passes
