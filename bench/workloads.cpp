@@ -42,8 +42,11 @@ MapParams paramsFor(double resolution) {
   return p;
 }
 
-OccupancyMap makeMap(Context& context, const BenchOptions& o, double resolution) {
-  OccupancyMap map(context, paramsFor(resolution));
+OccupancyMap makeMap(Context& context, const BenchOptions& o, double resolution,
+                     ScanRays rays = ScanRays::kWalk) {
+  MapParams params = paramsFor(resolution);
+  params.scan_rays = rays;
+  OccupancyMap map(context, params);
   map.setLeafBoxesEveryScan(o.leaf_boxes_every_scan);
   return map;
 }
@@ -242,6 +245,147 @@ void progress(const char* format, auto... args) {
 
 // ---- paper: six 320x240 views of the synthetic building ------------------------------------
 
+namespace {
+
+// The paper's views again with ScanRays::kRayTracing (fresh maps; OctoMap in the same run), per
+// view the structure's boxes and build, the rays traced through it, and the rest, beside the
+// walk's `walk` (median per view). Every map checked against OctoMap's after the last view.
+void runPaperRt(Context& context, const BenchOptions& o, double res,
+                const std::vector<SensorPose>& views,
+                const std::vector<std::vector<Eigen::Vector3f>>& clouds,
+                const std::vector<std::string>& labels, const std::vector<ScanTiming>& walk,
+                JsonWriter& json) {
+  std::vector<std::vector<ScanStats>> runs;
+  std::vector<std::vector<double>> om_ms;
+  bool equal = true;
+  for (int rep = 0; rep < o.repeat; ++rep) {
+    octomap::OcTree tree(res);
+    OccupancyMap map = makeMap(context, o, res, ScanRays::kRayTracing);
+    std::vector<ScanStats> run;
+    std::vector<double> om;
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      progress("paper rt %g m, run %d/%d: view %zu/%zu\n", res, rep + 1, o.repeat, i + 1,
+               views.size());
+      const Eigen::Vector3f origin = views[i].position.cast<float>();
+      const ScanTiming t = measureWorldScan(tree, map, clouds[i], origin, -1.0, false);
+      run.push_back(t.vk);
+      om.push_back(t.om_insert_ms);
+      equal = equal && t.vk.nodes == t.om_nodes;
+    }
+    equal = equal && *toOcTree(map) == tree;
+    runs.push_back(run);
+    om_ms.push_back(om);
+  }
+  const auto med = [&](std::size_t view, const std::function<double(const ScanStats&)>& get) {
+    std::vector<double> v;
+    for (const auto& run : runs) v.push_back(get(run[view]));
+    return median(v);
+  };
+  std::printf(
+      "\n### paper, resolution %g m: scans through ray tracing (ScanRays::kRayTracing) beside the "
+      "walk\n\nPer view, ms (median of %d run(s), fresh maps): OctoMap insertPointCloud in the same "
+      "run; octovk wall time; device time of the walk's ray stage, and of the traced scan's "
+      "boxes, structure build, ray shooting (trace + DDA through the boxes) and the rest of the "
+      "scan. Maps %s OctoMap's.\n\n"
+      "| view | OctoMap ms | walk wall ms | walk ray_keys ms | rt wall ms | rt boxes ms | "
+      "rt build ms | rt trace ms | rt rest ms | free cells walk / rt |\n"
+      "| --- | --: | --: | --: | --: | --: | --: | --: | --: | --: |\n",
+      res, o.repeat, equal ? "equal to" : "DIFFER FROM");
+  json.beginObject().field("equals_octomap", equal).key("views").beginArray();
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    std::vector<double> om;
+    for (const auto& run : om_ms) om.push_back(run[i]);
+    const double wall = med(i, [](const ScanStats& s) { return s.wall_ms; });
+    const double boxes = med(i, [](const ScanStats& s) { return s.device.scan_boxes_ms; });
+    const double build = med(i, [](const ScanStats& s) { return s.device.scan_build_ms; });
+    const double trace = med(i, [](const ScanStats& s) { return s.device.scan_trace_ms; });
+    const double rest = med(i, [](const ScanStats& s) {
+      return s.device.total() - s.device.scan_boxes_ms - s.device.scan_build_ms -
+             s.device.scan_trace_ms;
+    });
+    const ScanStats& first = runs.front()[i];
+    std::printf("| %s | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %zu / %zu |\n",
+                labels[i].c_str(), median(om), walk[i].vk.wall_ms,
+                walk[i].vk.device.ray_keys_ms, wall, boxes, build, trace, rest,
+                walk[i].vk.free_cells, first.free_cells);
+    json.beginObject()
+        .field("view", labels[i])
+        .field("octomap_insert_ms", median(om))
+        .field("walk_wall_ms", walk[i].vk.wall_ms)
+        .field("walk_ray_keys_ms", walk[i].vk.device.ray_keys_ms)
+        .field("rt_wall_ms", wall)
+        .field("rt_boxes_ms", boxes)
+        .field("rt_build_ms", build)
+        .field("rt_trace_ms", trace)
+        .field("rt_rest_ms", rest)
+        .field("walk_free_cells", walk[i].vk.free_cells)
+        .field("rt_free_cells", first.free_cells)
+        .endObject();
+  }
+  json.endArray();
+
+  // Revisits: the six views inserted six times over into fresh maps (a sensor that stays in the
+  // building), walk and ray tracing side by side with OctoMap; the last pass, per view, when the
+  // free space seen is clamped and the traced rays jump over it.
+  constexpr int kPasses = 6;
+  octomap::OcTree tree(res);
+  OccupancyMap walk_map = makeMap(context, o, res, ScanRays::kWalk);
+  OccupancyMap rt_map = makeMap(context, o, res, ScanRays::kRayTracing);
+  std::vector<ScanStats> walk_last, rt_last;
+  std::vector<double> om_last;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      progress("paper rt %g m, revisits: pass %d/%d, view %zu/%zu\n", res, pass + 1, kPasses,
+               i + 1, views.size());
+      const Eigen::Vector3f origin = views[i].position.cast<float>();
+      const ScanTiming t = measureWorldScan(tree, rt_map, clouds[i], origin, -1.0, false);
+      const ScanStats w = walk_map.insertPointCloud(clouds[i], origin, -1.0);
+      if (pass + 1 == kPasses) {
+        rt_last.push_back(t.vk);
+        walk_last.push_back(w);
+        om_last.push_back(t.om_insert_ms);
+      }
+    }
+  }
+  const bool revisit_equal = *toOcTree(rt_map) == tree && *toOcTree(walk_map) == tree;
+  std::printf(
+      "\nRevisits (the six views %d times over, fresh maps, one run): pass %d per view, ms. Maps "
+      "%s OctoMap's.\n\n"
+      "| view | OctoMap ms | walk wall ms | walk ray_keys + classify ms | rt wall ms | rt boxes "
+      "ms | rt build ms | rt trace ms | rt classify ms | free cells walk / rt |\n"
+      "| --- | --: | --: | --: | --: | --: | --: | --: | --: | --: |\n",
+      kPasses, kPasses, revisit_equal ? "equal to" : "DIFFER FROM");
+  json.key("revisits").beginObject().field("passes", kPasses);
+  json.field("equals_octomap", revisit_equal).key("last_pass").beginArray();
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    const StageTimes& wd = walk_last[i].device;
+    const StageTimes& rd = rt_last[i].device;
+    std::printf("| %s | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %zu / %zu |\n",
+                labels[i].c_str(), om_last[i], walk_last[i].wall_ms,
+                wd.ray_keys_ms + wd.classify_ms, rt_last[i].wall_ms, rd.scan_boxes_ms,
+                rd.scan_build_ms, rd.scan_trace_ms, rd.classify_ms, walk_last[i].free_cells,
+                rt_last[i].free_cells);
+    json.beginObject()
+        .field("view", labels[i])
+        .field("octomap_insert_ms", om_last[i])
+        .field("walk_wall_ms", walk_last[i].wall_ms)
+        .field("walk_ray_keys_ms", wd.ray_keys_ms)
+        .field("walk_classify_ms", wd.classify_ms)
+        .field("rt_wall_ms", rt_last[i].wall_ms)
+        .field("rt_boxes_ms", rd.scan_boxes_ms)
+        .field("rt_build_ms", rd.scan_build_ms)
+        .field("rt_trace_ms", rd.scan_trace_ms)
+        .field("rt_classify_ms", rd.classify_ms)
+        .field("walk_free_cells", walk_last[i].free_cells)
+        .field("rt_free_cells", rt_last[i].free_cells)
+        .endObject();
+  }
+  json.endArray().endObject();
+  json.endObject();
+}
+
+}  // namespace
+
 void runPaper(Context& context, const BenchOptions& o, JsonWriter& json) {
   const std::vector<double> resolutions = resolutionsFor(o, {0.1, 0.05, 0.02}, {0.1, 0.05});
   const Building building;
@@ -354,6 +498,10 @@ void runPaper(Context& context, const BenchOptions& o, JsonWriter& json) {
     json.field("cell_set_mismatches", cellMismatches(scans));
     json.key("memory");
     writeJson(json, memory);
+    if (context.device().ray_query_enabled) {
+      json.key("rt_scans");
+      runPaperRt(context, o, res, views, clouds, labels, scans, json);
+    }
     json.endObject();
   }
   json.endArray();
@@ -477,6 +625,7 @@ namespace {
 struct Stream {
   std::unique_ptr<OccupancyMap> map;
   double wall_s = 0, submit_ms = 0;
+  double boxes_ms = 0, build_ms = 0, trace_ms = 0, device_ms = 0;  // sums over the scans
   std::uint64_t submissions = 0, waits = 0;
   std::size_t reruns = 0;
 };
@@ -484,15 +633,19 @@ struct Stream {
 // Every scan of `graph` submitted back to back into a fresh map, then one flush: the wall time
 // of the whole, the host's time in submit, and the map's submissions and host waits.
 Stream streamGraph(Context& context, const BenchOptions& o, double res,
-                   const std::vector<GraphScan>& graph) {
+                   const std::vector<GraphScan>& graph, ScanRays rays = ScanRays::kWalk) {
   Stream s;
-  s.map = std::make_unique<OccupancyMap>(makeMap(context, o, res));
+  s.map = std::make_unique<OccupancyMap>(makeMap(context, o, res, rays));
   const OccupancyMap::SyncCounts before = s.map->syncCounts();
   const auto start = Clock::now();
   auto take = [&] {
     for (const ScanStats& st : s.map->takeScanStats()) {
       s.submit_ms += st.wall_ms;
       s.reruns += st.cell_set_attempts > 1;
+      s.boxes_ms += st.device.scan_boxes_ms;
+      s.build_ms += st.device.scan_build_ms;
+      s.trace_ms += st.device.scan_trace_ms;
+      s.device_ms += st.device.total();
     }
   };
   for (std::size_t i = 0; i < graph.size(); ++i) {
@@ -631,7 +784,7 @@ void runFr079(Context& context, const BenchOptions& o, JsonWriter& json) {
     json.field("host_waits_per_scan", static_cast<double>(stream.waits) / graph.size());
     json.field("scans_run_again", stream.reruns);
     json.field("equals_octomap", same);
-    json.endObject().endObject();
+    json.endObject();
     std::printf(
         "\nStreamed (submitted back to back, fresh map): %.2f s, %.0f scans/s, %.2f M rays/s; "
         "host %.3f ms per submit; %.2f submissions and %.2f host waits per scan; %zu scans run "
@@ -640,6 +793,28 @@ void runFr079(Context& context, const BenchOptions& o, JsonWriter& json) {
         stream.submit_ms / graph.size(), static_cast<double>(stream.submissions) / graph.size(),
         static_cast<double>(stream.waits) / graph.size(), stream.reruns,
         same ? "equals" : "DIFFERS FROM", om_total * 1e-3, om_total * 1e-3 / stream.wall_s);
+    if (context.device().ray_query_enabled) {
+      // The same stream with ScanRays::kRayTracing: per scan, the structure (boxes and build)
+      // and the rays traced through it, in the scan's own submission.
+      const Stream rt = streamGraph(context, o, res, graph, ScanRays::kRayTracing);
+      const bool rt_same = rt.map && *toOcTree(*rt.map) == tree;
+      const double n = static_cast<double>(graph.size());
+      json.key("streamed_rt").beginObject();
+      json.field("wall_total_s", rt.wall_s).field("scans_per_s", n / rt.wall_s);
+      json.field("boxes_ms_per_scan", rt.boxes_ms / n).field("build_ms_per_scan", rt.build_ms / n);
+      json.field("trace_ms_per_scan", rt.trace_ms / n);
+      json.field("rest_ms_per_scan", (rt.device_ms - rt.boxes_ms - rt.build_ms - rt.trace_ms) / n);
+      json.field("equals_octomap", rt_same);
+      json.endObject();
+      std::printf(
+          "\nStreamed with ScanRays::kRayTracing (fresh map): %.2f s, %.0f scans/s; per scan "
+          "%.2f ms boxes, %.2f ms structure build, %.2f ms ray shooting, %.2f ms the rest "
+          "(device); map %s OctoMap's. Walk streamed: %.2f s; OctoMap insertPointCloud %.2f s.\n",
+          rt.wall_s, n / rt.wall_s, rt.boxes_ms / n, rt.build_ms / n, rt.trace_ms / n,
+          (rt.device_ms - rt.boxes_ms - rt.build_ms - rt.trace_ms) / n,
+          rt_same ? "equals" : "DIFFERS FROM", stream.wall_s, om_total * 1e-3);
+    }
+    json.endObject();
   }
   json.endArray().endObject();
 

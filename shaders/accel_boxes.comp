@@ -8,8 +8,18 @@
 //                      unsorted, with the extent of the small boxes' centres.
 // kAccelBoxesUnknown:  the unknown regions, i.e. every missing child of a node that has
 //                      children (a block's slots that are not live), one invocation per block.
+// kAccelBoxesScan:     for scans through ray tracing (scan_rays_rt.comp), one invocation per
+//                      block, all into list 0 (a scan traces both kinds): every leaf above
+//                      clamp_min_log (occupied, or free and not clamped: a free update could
+//                      change it) and the unknown regions as kAccelBoxesUnknown finds them; a
+//                      leaf clamped free gets no box. A block's slots give at most 8 boxes.
 // kAccelBoxesCount, kAccelBoxesChunks, kAccelBoxesOffsets, kAccelBoxesScatter: a counting sort
-//                      of both lists on kAccelBuckets Morton cells of that extent.
+//                      of both lists on 2^(3 bucket_bits) Morton cells of that extent (the
+//                      header's bucket_bits: kAccelBucketBits for castRay, fewer for a scan,
+//                      whose fixed cost of clearing and summing the buckets counts per scan).
+// kAccelBoxesTail:     the sorted lists' slots after their counts filled with an empty box
+//                      outside the map, so that a build over the whole capacity, recorded
+//                      before the counts are known, finds nothing more where rays go.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
@@ -40,11 +50,19 @@ UintsRef bucketCounters(AccelRef s) {
   return UintsRef(pc.boxes + 64ul + boxes * 24ul);
 }
 // The chunk sums follow the counters of both lists.
-uint chunkSum(uint list, uint c) { return 2u * kAccelBuckets + list * kAccelChunks + c; }
+// The sort's buckets per list: 2^(3 * bucket_bits) (the header's; at most kAccelBuckets).
+uint bucketsOf(AccelRef s) { return 1u << (3u * s.header.bucket_bits); }
+uint chunkSum(AccelRef s, uint list, uint c) {
+  return 2u * bucketsOf(s) + list * kAccelChunks + c;
+}
 
+// A quarter cell for castRay's boxes; a 64th for a scan's (kAccelBoxesScan), whose walk looks
+// every cell up anyway: near surfaces a ray grazes many boxes it never enters, each a ray query,
+// and the hardware's float error is still a thousandth of that.
 float margin(vec3 centre, float size) {
   float m = max(abs(centre.x), max(abs(centre.y), abs(centre.z))) + size;
-  return float(params.resolution) * 0.25 + m * (1.0 / 65536.0);
+  float part = pc.mode == kAccelBoxesScan ? 1.0 / 64.0 : 0.25;
+  return float(params.resolution) * part + m * (1.0 / 65536.0);
 }
 
 // The cell key of a coordinate, clamped to the map.
@@ -71,9 +89,9 @@ void append(AccelRef s, uint list, vec3 lo, vec3 hi, double size) {
   }
 }
 
-uint spreadBits(uint v) {  // bits 0..6 of v to bits 0, 3, 6, ..., 18
+uint spreadBits(uint v, uint bits) {  // bits 0..bits-1 of v to bits 0, 3, 6, ...
   uint r = 0u;
-  for (uint b = 0u; b < kAccelBucketBits; ++b) r |= ((v >> b) & 1u) << (3u * b);
+  for (uint b = 0u; b < bits; ++b) r |= ((v >> b) & 1u) << (3u * b);
   return r;
 }
 
@@ -87,10 +105,11 @@ uint bucketOf(AccelRef s, AccelBox b) {
   }
   uint extent = max(hi.x - lo.x, max(hi.y - lo.y, hi.z - lo.z));
   uint shift = 0u;
-  while ((extent >> shift) >= (1u << kAccelBucketBits)) ++shift;
+  uint bits = s.header.bucket_bits;
+  while ((extent >> shift) >= (1u << bits)) ++shift;
   uvec3 k = clampedKey(0.5 * vec3(b.min_x + b.max_x, b.min_y + b.max_y, b.min_z + b.max_z));
-  uvec3 q = min((max(k, lo) - lo) >> shift, uvec3((1u << kAccelBucketBits) - 1u));
-  return spreadBits(q.x) | (spreadBits(q.y) << 1) | (spreadBits(q.z) << 2);
+  uvec3 q = min((max(k, lo) - lo) >> shift, uvec3((1u << bits) - 1u));
+  return spreadBits(q.x, bits) | (spreadBits(q.y, bits) << 1) | (spreadBits(q.z, bits) << 2);
 }
 
 void main() {
@@ -124,20 +143,62 @@ void main() {
     }
     return;
   }
+  if (pc.mode == kAccelBoxesScan) {
+    if (i >= pool.bump) return;
+    if (i == 0u) {  // block 0 holds only the root: a box when it is a leaf (the whole map)
+      if (pool.root_exists != 0u && (nodes[kRootNode].link & kBlockMask) == kNoChildren &&
+          !(nodes[kRootNode].log_odds <= params.clamp_min_log)) {
+        double size = params.resolution * 65536.0lf;
+        vec3 lo = vec3(-0.5lf * size);
+        append(s, 0u, lo, -lo, size);
+      }
+      return;
+    }
+    uint parent = block_parent[i];
+    if (parent == kNoBlock) return;
+    uint depth;
+    uvec3 parent_key = parentKeyOfBlock(parent, depth);
+    uint bit = 15u - depth;
+    double size = params.resolution * double(1u << bit);
+    for (uint slot = 0u; slot < 8u; ++slot) {
+      Node child = nodes[i * 8u + slot];
+      bool live = (child.link & kFlagLive) != 0u;
+      // classify's early abort for a free update: the leaf search() finds is at clamp_min_log.
+      if (live && ((child.link & kBlockMask) != kNoChildren ||
+                   child.log_odds <= params.clamp_min_log))
+        continue;
+      uvec3 key = parent_key | (uvec3(slot & 1u, (slot >> 1) & 1u, (slot >> 2) & 1u) << bit);
+      dvec3 lo = dvec3(ivec3(key) - ivec3(32768)) * params.resolution;
+      append(s, 0u, vec3(lo), vec3(lo + size), size);
+    }
+    return;
+  }
+  if (pc.mode == kAccelBoxesTail) {
+    uint list = i < s.header.occupied_capacity ? 0u : 1u;
+    uint j = i - sortedBase(s, list);
+    if (list == 1u && j >= s.header.unknown_capacity) return;
+    if (j < countOf(s, list)) return;
+    // Not the spec's inactive box (min x NaN): lavapipe copies it into its BVH, whose bounds
+    // then turn NaN (MIN2(a, NaN) is NaN) and every ray misses. A point two cells outside the
+    // map's lower corner instead: no ray of a scan (between two points of the map) comes near.
+    float far = float(-(double(kTreeMaxVal) + 2.0lf) * params.resolution);
+    s.boxes[sortedBase(s, list) + j] = AccelBox(far, far, far, far, far, far);
+    return;
+  }
   if (pc.mode == kAccelBoxesChunks || pc.mode == kAccelBoxesOffsets) {
     if (i >= 2u * kAccelChunks) return;
     uint list = i / kAccelChunks, c = i % kAccelChunks;
     UintsRef n = bucketCounters(s);
-    const uint per_chunk = kAccelBuckets / kAccelChunks;
-    uint first = list * kAccelBuckets + c * per_chunk;
+    const uint per_chunk = bucketsOf(s) / kAccelChunks;
+    uint first = list * bucketsOf(s) + c * per_chunk;
     if (pc.mode == kAccelBoxesChunks) {
       uint sum = 0u;
       for (uint b = 0u; b < per_chunk; ++b) sum += n.v[first + b];
-      n.v[chunkSum(list, c)] = sum;
+      n.v[chunkSum(s, list, c)] = sum;
       return;
     }
     uint offset = 0u;
-    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(list, p)];
+    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(s, list, p)];
     for (uint b = 0u; b < per_chunk; ++b) {
       uint count = n.v[first + b];
       n.v[first + b] = offset;
@@ -151,7 +212,7 @@ void main() {
   if (list == 1u && j >= s.header.unknown_capacity) return;
   if (j >= countOf(s, list)) return;
   AccelBox b = s.boxes[unsortedBase(s, list) + j];
-  uint at = list * kAccelBuckets + bucketOf(s, b);
+  uint at = list * bucketsOf(s) + bucketOf(s, b);
   UintsRef n = bucketCounters(s);
   if (pc.mode == kAccelBoxesCount) {
     atomicAdd(n.v[at], 1u);

@@ -17,79 +17,15 @@
 #define OCTOVK_NODES_READ_ONLY
 #include "common.glsl"
 #include "cast_ray_walk.glsl"
+#ifdef OCTOVK_CAST_RAY_TRACE
+#define OCTOVK_RAY_QUERY
+#endif
+#include "accel_trace.glsl"
 
 layout(push_constant) uniform PushBlock { CastRayRtConstants pc; };
 
 layout(std430, binding = kBindQueryIn) buffer QueryInBuf { RayQuery rays[]; };
 layout(std430, binding = kBindQueryOut) buffer QueryOutBuf { RayResult ray_results[]; };
-layout(buffer_reference, std430, buffer_reference_align = 8) buffer AccelRef {
-  AccelHeader header;
-  AccelBox boxes[];
-};
-
-// Slack on ray parameters: the hardware's float test and our own rounding, far below the boxes'
-// enlargement (a quarter cell, see accel_boxes.comp).
-double slack(double t, vec3 org, double dir_len) {
-  float m = max(abs(org.x), max(abs(org.y), abs(org.z)));
-  return (params.resolution * 0.125lf + (abs(t) * dir_len + double(m)) * (1.0lf / 65536.0lf)) /
-         dir_len;
-}
-
-// Parameter interval of the ray in box b (slab test in double); false when it misses.
-bool boxInterval(AccelBox b, CastRayWalk w, out double t_in, out double t_out) {
-  t_in = -1.0e300lf;
-  t_out = 1.0e300lf;
-  float lo[3] = float[3](b.min_x, b.min_y, b.min_z);
-  float hi[3] = float[3](b.max_x, b.max_y, b.max_z);
-  for (int a = 0; a < 3; ++a) {
-    double o = double(w.org[a]);
-    if (w.dir[a] == 0.0) {
-      if (o < double(lo[a]) || o > double(hi[a])) return false;
-      continue;
-    }
-    double inv = 1.0lf / double(w.dir[a]);
-    double t0 = (double(lo[a]) - o) * inv;
-    double t1 = (double(hi[a]) - o) * inv;
-    t_in = max(t_in, min(t0, t1));
-    t_out = min(t_out, max(t0, t1));
-  }
-  return t_in <= t_out;
-}
-
-#ifdef OCTOVK_CAST_RAY_TRACE
-// The nearest box (of the masks) whose interval reaches past t_from: its entry (at least
-// t_from) and exit. False when there is none.
-bool nearestBox(AccelRef scene, CastRayWalk w, uint mask, double t_from, out double t_enter,
-                out double t_exit) {
-  rayQueryEXT rq;
-  float t_min = float(max(t_from, 0.0lf));
-  rayQueryInitializeEXT(rq, accelerationStructureEXT(scene.header.tlas), gl_RayFlagsNoneEXT,
-                        mask, w.org, t_min, w.dir, 3.0e38);
-  bool found = false;
-  t_enter = 1.0e300lf;
-  t_exit = 1.0e300lf;
-  uint unknown_first = scene.header.occupied_capacity;
-  while (rayQueryProceedEXT(rq)) {
-    if (rayQueryGetIntersectionTypeEXT(rq, false) != gl_RayQueryCandidateIntersectionAABBEXT)
-      continue;
-    uint index = rayQueryGetIntersectionPrimitiveIndexEXT(rq, false);
-    if (rayQueryGetIntersectionInstanceCustomIndexEXT(rq, false) != 0) index += unknown_first;
-    double t_in, t_out;
-    if (!boxInterval(scene.boxes[index], w, t_in, t_out) || t_out < t_from) continue;
-    t_in = max(t_in, t_from);
-    if (found && t_in >= t_enter) continue;
-    found = true;
-    t_enter = t_in;
-    t_exit = t_out;
-    // Commit it so that the traversal skips farther boxes: monotone rounding keeps the hit
-    // parameters non-increasing.
-    rayQueryGenerateIntersectionEXT(rq, max(t_min, float(t_in)));
-  }
-  return found;
-}
-
-#endif
-
 void finish(uint i, uint hit, vec3 end) { ray_results[i] = RayResult(hit, end.x, end.y, end.z); }
 
 // The ray parameter where the walk leaves the node the cache holds (a free node, or an unknown
@@ -217,7 +153,7 @@ void main() {
   double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
   for (;;) {
     double t_enter, t_exit;
-    bool found = nearestBox(scene, w, mask, t_from, t_enter, t_exit);
+    bool found = nearestBox(scene, w, mask, t_from, 3.0e38, false, t_enter, t_exit);
     double target = min(found ? t_enter : 1.0e300lf, t_limit);
     target -= slack(target, w.org, dir_len);
     if (target > castRayMinTMax(w)) castRayJumpTo(w, target);

@@ -162,6 +162,7 @@ struct CellCache {
   uvec3 prefix;
   uint shift;  // 32: nothing cached
   uint state;
+  float log_odds;   // the found node's (kCellFree, kCellOccupied)
   uvec3 key;        // the key last searched
   uint path_depth;  // path[0 .. path_depth] are the nodes on its path (0: none)
   uint path[kTreeDepth + 1u];
@@ -172,6 +173,7 @@ CellCache castRayEmptyCache() {
   c.prefix = uvec3(0u);
   c.shift = 32u;
   c.state = kCellUnknown;
+  c.log_odds = 0.0;
   c.key = uvec3(0u);
   c.path_depth = 0u;
   c.path[0] = kRootNode;
@@ -216,8 +218,9 @@ uint castRayCellState(uvec3 k, inout CellCache c, out uint searched) {
   uint covered = found ? depth : depth + 1u;
   c.shift = kTreeDepth - covered;
   c.prefix = k >> c.shift;
+  c.log_odds = found ? nodes[node].log_odds : 0.0;
   c.state = !found ? kCellUnknown
-                   : (nodes[node].log_odds >= params.occupancy_log ? kCellOccupied : kCellFree);
+                   : (c.log_odds >= params.occupancy_log ? kCellOccupied : kCellFree);
   return c.state;
 }
 

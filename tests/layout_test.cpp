@@ -80,6 +80,7 @@ static_assert(offsetof(AccelHeader, occupied_capacity) == 16);
 static_assert(offsetof(AccelHeader, unknown_capacity) == 20);
 static_assert(offsetof(AccelHeader, lo_x) == 24);
 static_assert(offsetof(AccelHeader, hi_x) == 36);
+static_assert(offsetof(AccelHeader, bucket_bits) == 48);
 static_assert(offsetof(AccelHeader, pad3) == 60);
 // AccelBox is what the acceleration-structure build reads: VkAabbPositionsKHR.
 static_assert(sizeof(AccelBox) == 24 && offsetof(AccelBox, min_x) == 0 &&
@@ -90,6 +91,9 @@ static_assert(sizeof(CastRayRtConstants) == 16 && offsetof(CastRayRtConstants, b
               offsetof(CastRayRtConstants, ray_count) == 8 &&
               offsetof(CastRayRtConstants, first_ray) == 12);
 static_assert(kAccelBuckets % kAccelChunks == 0);
+static_assert(sizeof(ScanRaysRtConstants) == 16 && offsetof(ScanRaysRtConstants, boxes) == 0 &&
+              offsetof(ScanRaysRtConstants, point_count) == 8 &&
+              offsetof(ScanRaysRtConstants, mode) == 12);
 
 static_assert(sizeof(NewBlock) == 12);
 static_assert(offsetof(NewBlock, node) == 0);

@@ -435,7 +435,7 @@ struct AccelHeader {
   uint hi_x;                // 4B (36) largest
   uint hi_y;                // 4B (40)
   uint hi_z;                // 4B (44)
-  uint pad0;                // 4B (48)
+  uint bucket_bits;         // 4B (48) the sort's Morton bits per axis, 4..kAccelBucketBits
   uint pad1;                // 4B (52)
   uint pad2;                // 4B (56)
   uint pad3;                // 4B (60)
@@ -519,6 +519,22 @@ OCTOVK_CONST uint kAddressedBindings =
     (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
     (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
     (1u << kBindDepth);
+
+// Scans through ray tracing (MapParams::scan_rays = kRayTracing; scan_rays_rt.comp). Its boxes
+// are written by accel_boxes in two more modes into a boxes buffer of the same layout
+// (AccelHeader, sorted lists, unsorted lists, sort counters): list 0 holds every leaf a free
+// update could change (log-odds above clamp_min_log: occupied leaves and free leaves not yet
+// clamped) and the unknown regions, list 1 nothing; leaves clamped free get no box (a free
+// update there is a no-op, OctoMap's early abort). Both lists are built at their capacity, the
+// slots after their counts empty boxes outside the map (kAccelBoxesTail).
+OCTOVK_CONST uint kAccelBoxesScan = 6u;  // one invocation per pool block: both lists
+OCTOVK_CONST uint kAccelBoxesTail = 7u;  // per box slot of both lists: after the count, empty
+// scan_rays_rt. 16 B.
+struct ScanRaysRtConstants {
+  uint64_t boxes;    // 8B (0)  device address of the AccelHeader
+  uint point_count;  // 4B (8)  kRayKeysPoints: points of the scan
+  uint mode;         // 4B (12) kRayKeysPoints or kRayKeysEndCells (discretize)
+};
 
 #ifdef __cplusplus
 }  // namespace octovk::gpu

@@ -69,6 +69,20 @@ enum class CastRayBackend : std::uint32_t {
   kRayTracing = 2,
 };
 
+/// How a scan's rays find their cells (MapParams::scan_rays). Both give OctoMap's map bit for bit.
+enum class ScanRays : std::uint32_t {
+  /// A compute shader steps OctoMap's DDA (computeRayKeys) through every cell of every ray.
+  kWalk = 0,
+  /// The paper's way: ray queries against an acceleration structure over the boxes a free
+  /// update can change (occupied leaves, free leaves not yet clamped, unknown space), built on
+  /// the device in each scan's own submission; OctoMap's DDA steps only through the boxes a ray
+  /// crosses and jumps exactly over leaves already clamped free, whose free updates OctoMap
+  /// aborts (ScanStats::free_cells then leaves those cells out). Needs VK_KHR_acceleration_
+  /// structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled) and loops without a driver
+  /// limit.
+  kRayTracing = 1,
+};
+
 struct MapParams {
   double resolution = 0.1;
   double prob_hit = 0.7;
@@ -91,6 +105,10 @@ struct MapParams {
   /// with max_device_bytes set: the acceleration structure is not under the cap) makes the
   /// map's constructor throw kMissingFeature / kInvalidArgument.
   CastRayBackend cast_ray_backend = CastRayBackend::kAuto;
+  /// How scans find their cells. kRayTracing on a device without ray queries (or with a loop
+  /// limit, or with max_device_bytes set: the acceleration structure is not under the cap)
+  /// makes the map's constructor throw kMissingFeature / kInvalidArgument.
+  ScanRays scan_rays = ScanRays::kWalk;
 
   /// Device bytes an empty map with these parameters holds: the smallest max_device_bytes.
   std::size_t minDeviceBytes() const;
@@ -184,6 +202,11 @@ struct StageTimes {
   double tree_update_ms = 0;  ///< create, expand, log-odds update
   double prune_ms = 0;        ///< prune and inner-node values
   double leaf_boxes_ms = 0;   ///< leaf-box rebuild
+  /// With ScanRays::kRayTracing, the parts of ray_keys_ms (not added again by total()): the
+  /// boxes of the scan's acceleration structure, its build, and the rays traced through it.
+  double scan_boxes_ms = 0;
+  double scan_build_ms = 0;
+  double scan_trace_ms = 0;
   double total() const {
     return upload_ms + ray_keys_ms + classify_ms + tree_update_ms + prune_ms + leaf_boxes_ms;
   }
@@ -200,7 +223,11 @@ struct ScanStats {
   std::size_t skipped_nonfinite = 0;  ///< NaN or infinite coordinates: nothing inserted
   std::size_t skipped_outside = 0;    ///< ray or end cell outside the map: nothing inserted
   std::size_t skipped_no_depth = 0;   ///< depth-image pixels with no depth (d = 0, non-finite)
-  std::size_t free_cells = 0;         ///< distinct cells updated as free (before early abort)
+  /// Distinct cells updated as free (before early abort). With ScanRays::kRayTracing the cells
+  /// whose leaf is already clamped free are mostly not counted (the rays jump over them: their
+  /// updates are no-ops), so this is lower than OctoMap's computeUpdate count; the map is the
+  /// same.
+  std::size_t free_cells = 0;
   std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
   std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
   std::size_t nodes = 0;              ///< nodes in the tree after the scan

@@ -49,7 +49,7 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
   std::vector<std::string> value_options = {"-o",          "--output",      "-r",
                                             "--resolution", "-m",           "--max-range",
                                             "--prob-hit",   "--prob-miss",  "--clamping-min",
-                                            "--clamping-max"};
+                                            "--clamping-max", "--rays"};
   for (const std::string& name : cameraValueOptions()) value_options.push_back(name);
   ArgReader reader(args, value_options, cameraMultiValueOptions());
   while (reader.next()) {
@@ -78,6 +78,15 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
       o.params.clamping_max = parseNumber(opt, "0.971");
     else if (opt.name == "--discretize")
       o.discretize = true;
+    else if (opt.name == "--rays") {
+      if (opt.value == "walk")
+        o.params.scan_rays = ScanRays::kWalk;
+      else if (opt.value == "rt")
+        o.params.scan_rays = ScanRays::kRayTracing;
+      else
+        throw UsageError("--rays " + opt.value + ": use --rays walk (the compute walk) or --rays rt "
+                         "(ray tracing)");
+    }
     else if (opt.name == "-q" || opt.name == "--quiet")
       o.quiet = true;
     else if (parseCameraOption(opt, o.camera)) {
@@ -234,6 +243,13 @@ void printIntegrateHelp(std::ostream& out) {
       << ")\n"
          "      --discretize       reduce each scan to one point per voxel before ray casting\n"
          "                         (OctoMap's discretize; faster, approximate) (default: off)\n"
+         "      --rays walk|rt     how each scan finds its cells: walk = a compute shader steps\n"
+         "                         every ray cell by cell; rt = ray queries against an\n"
+         "                         acceleration structure over the boxes a scan can change,\n"
+         "                         built on the device before each scan, stepping only through\n"
+         "                         them (needs a device with ray queries, e.g. Mesa 25's\n"
+         "                         lavapipe, and no loop limit; refused elsewhere). The map is\n"
+         "                         the same either way (default: walk)\n"
          "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
          "                         or once a run takes longer than a second)\n";
   printCameraOptionsHelp(out);

@@ -74,7 +74,8 @@ class OccupancyMap::Impl {
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
   std::size_t deviceBytes() const {
-    return buffers_.deviceBytes() + (ray_scene_ ? ray_scene_->deviceBytes() : 0);
+    return buffers_.deviceBytes() + (ray_scene_ ? ray_scene_->deviceBytes() : 0) +
+           (scan_scene_ ? scan_scene_->deviceBytes() : 0);
   }
   std::size_t poolBytes() const { return buffers_.poolBytes(); }
   DeviceBytes deviceBytesByUse() const;
@@ -102,6 +103,16 @@ class OccupancyMap::Impl {
   std::unique_ptr<RayScene> ray_scene_;
   /// Counts the changes of the tree (scans that updated cells, uploads), for the ray scene.
   std::uint64_t tree_version_ = 0;
+
+  // ---- scans through ray tracing (map/ray_scene.cpp, passes/scan_rays_rt.cpp) ----
+  /// Resolves MapParams::scan_rays on this device; throws when kRayTracing cannot run.
+  static ScanRays chooseScanRays(const vk::Device& device, const MapParams& params);
+  /// The scans' scene with its boxes buffer sized for the pool as it is now; when that changes
+  /// (the pool grew), waits for the scans in flight first, which use the scene.
+  RayScene& scanScene();
+  ScanRays scan_rays_ = ScanRays::kWalk;
+  std::unique_ptr<RayScene> scan_scene_;  ///< its own, not castRay's: other boxes
+  gpu::AccelHeader scan_header_{};        ///< the capacities scan_scene_ is built for
 
  private:
   /// A scan submitted and not yet known to be in the map: what it needs to run again.

@@ -32,6 +32,7 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       buffers_(device_, stream_, blockLimit(params), params.max_device_bytes),
       rec_(device_, stream_, buffers_) {
   cast_ray_backend_ = chooseCastRayBackend(device_, params_);
+  scan_rays_ = chooseScanRays(device_, params_);
 }
 
 OccupancyMap::Impl::~Impl() {
@@ -247,7 +248,8 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
   const BufferBytes b = buffers_.bytesByUse();
-  const std::size_t scene = ray_scene_ ? ray_scene_->deviceBytes() : 0;
+  const std::size_t scene = (ray_scene_ ? ray_scene_->deviceBytes() : 0) +
+                            (scan_scene_ ? scan_scene_->deviceBytes() : 0);
   return {.pool = b.pool,
           .leaf_boxes = b.leaf_boxes,
           .scratch = b.scratch,
@@ -260,6 +262,8 @@ void OccupancyMap::Impl::trim() {
   buffers_.releaseQueries();
   hash_guess_tried_ = 0;
   ray_scene_.reset();
+  scan_scene_.reset();
+  scan_header_ = {};
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {

@@ -34,6 +34,10 @@ std::string MapParams::validate() const {
              static_cast<std::uint32_t>(CastRayBackend::kRayTracing)) {
     why << "cast_ray_backend " << static_cast<std::uint32_t>(cast_ray_backend)
         << " is not a CastRayBackend (kAuto, kWalk, kRayTracing)";
+  } else if (static_cast<std::uint32_t>(scan_rays) >
+             static_cast<std::uint32_t>(ScanRays::kRayTracing)) {
+    why << "scan_rays " << static_cast<std::uint32_t>(scan_rays)
+        << " is not a ScanRays (kWalk, kRayTracing)";
   } else if (max_device_bytes != 0 && max_device_bytes < minDeviceBytes()) {
     why << "max_device_bytes " << max_device_bytes << " is less than an empty map holds on the "
         << "device: at least " << minDeviceBytes() << " bytes (MapParams::minDeviceBytes()); "

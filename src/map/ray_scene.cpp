@@ -40,6 +40,49 @@ CastRayBackend OccupancyMap::Impl::chooseCastRayBackend(const vk::Device& device
   return CastRayBackend::kRayTracing;
 }
 
+ScanRays OccupancyMap::Impl::chooseScanRays(const vk::Device& device, const MapParams& params) {
+  if (params.scan_rays == ScanRays::kWalk) return ScanRays::kWalk;
+  const std::string name =
+      "MapParams::scan_rays is kRayTracing, but device '" + device.info().name + "'";
+  if (!device.rayQuery())
+    throw Error(
+        ErrorCode::kMissingFeature,
+        name +
+            (device.info().ray_query ? " was opened with ContextOptions::enable_ray_query = false"
+                                     : " has no ray queries (VK_KHR_acceleration_structure and "
+                                       "VK_KHR_ray_query; Mesa's lavapipe has them from Mesa 25)") +
+            "; use ScanRays::kWalk (octovk integrate --rays walk)");
+  if (device.loopLimit() != 0)
+    throw Error(ErrorCode::kMissingFeature,
+                name + " ends shader loops after " + std::to_string(device.loopLimit()) +
+                    " iterations and the traced scan is not resumable; use ScanRays::kWalk "
+                    "(octovk integrate --rays walk)");
+  if (params.max_device_bytes != 0)
+    throw Error(ErrorCode::kInvalidArgument,
+                "MapParams::scan_rays is kRayTracing together with max_device_bytes: the scans' "
+                "acceleration structure is not held under the cap; use ScanRays::kWalk or "
+                "max_device_bytes = 0");
+  return ScanRays::kRayTracing;
+}
+
+RayScene& OccupancyMap::Impl::scanScene() {
+  if (!scan_scene_) scan_scene_ = std::make_unique<RayScene>(device_);
+  RayScene& scene = *scan_scene_;
+  const gpu::AccelHeader header = passes::scanSceneHeader(buffers_);
+  if (scene.boxes.valid() && header.occupied_capacity == scan_header_.occupied_capacity &&
+      header.unknown_capacity == scan_header_.unknown_capacity)
+    return scene;  // the same capacities: the build reuses every structure and buffer
+  stream_.waitIdle();  // the scans in flight build and trace the scene being replaced
+  const std::size_t bytes = passes::accelBoxesBytes(header);
+  if (!scene.boxes.valid() || scene.boxes.size() < bytes) {
+    scene.boxes = vk::Buffer();
+    scene.boxes = vk::Buffer(device_, bytes + bytes / 4, /*host_visible=*/false,
+                             VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
+  }
+  scan_header_ = header;
+  return scene;
+}
+
 OccupancyMap::CastRayInfo OccupancyMap::Impl::castRayInfo() const {
   OccupancyMap::CastRayInfo info = ray_scene_ ? ray_scene_->info : OccupancyMap::CastRayInfo{};
   info.backend = cast_ray_backend_;

@@ -252,8 +252,14 @@ void OccupancyMap::Impl::record(PendingScan& p) {
   if (p.host_input) input.source = buffers_.uploads[p.staging_frame].handle();
   input.fill_sets = buffers_.setsNeedFill();  // new sets; else the last scan emptied them
   input.resume = resume_;
+  input.trace = scan_rays_ == ScanRays::kRayTracing;
+  RayScene* scene = input.trace ? &scanScene() : nullptr;  // before recording: it may wait
   stream_.begin(buffers_.bindings);
   passes::recordRayKeys(rec_, sp, input);
+  if (scene) {
+    passes::recordScanScene(rec_, scene->accel, scene->boxes, scan_header_);
+    passes::recordScanRaysRt(rec_, scene->boxes.address(), sp.point_count, input.discretize);
+  }
   passes::recordClassify(rec_, input.discretize, sp.point_count);
   passes::recordTreeUpdate(rec_);
   passes::recordPrune(rec_);
@@ -331,7 +337,16 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
                 "internal error: the node pool ran out during a scan despite its size check; "
                 "please report this with the input");
   ScanStats& stats = p.stats;
-  if (const auto t = stream_.timestampsNs(p.frame); t.size() >= 6) {
+  std::vector<double> t = stream_.timestampsNs(p.frame);
+  if (scan_rays_ == ScanRays::kRayTracing && t.size() >= 9) {
+    // recordScanScene's three timestamps follow the input stages: the boxes, the build, then
+    // the trace up to classify's first timestamp.
+    stats.device.scan_boxes_ms = (t[3] - t[2]) * 1e-6;
+    stats.device.scan_build_ms = (t[4] - t[3]) * 1e-6;
+    stats.device.scan_trace_ms = (t[5] - t[4]) * 1e-6;
+    t.erase(t.begin() + 2, t.begin() + 5);
+  }
+  if (t.size() >= 6) {
     stats.device.upload_ms = (t[1] - t[0]) * 1e-6;
     stats.device.ray_keys_ms = (t[2] - t[1]) * 1e-6;
     stats.device.classify_ms = (t[3] - t[2]) * 1e-6;

@@ -16,9 +16,11 @@ std::size_t accelBoxesBytes(const gpu::AccelHeader& header) {
   return sizeof(gpu::AccelHeader) + 2 * boxes * sizeof(gpu::AccelBox) + accelSortBytes();
 }
 
-std::size_t accelSortBytes() {
-  return (2 * std::size_t{gpu::kAccelBuckets} + 2 * std::size_t{gpu::kAccelChunks}) *
-         sizeof(std::uint32_t);
+std::size_t accelSortBytes() { return accelSortBytes(gpu::kAccelBucketBits); }
+
+std::size_t accelSortBytes(std::uint32_t bucket_bits) {
+  const std::size_t buckets = std::size_t{1} << (3 * bucket_bits);
+  return (2 * buckets + 2 * std::size_t{gpu::kAccelChunks}) * sizeof(std::uint32_t);
 }
 
 void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
@@ -27,6 +29,7 @@ void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& 
   fresh.occupied_count = fresh.unknown_count = 0;
   fresh.lo_x = fresh.lo_y = fresh.lo_z = 0xFFFFFFFFu;  // the extent, shrunk by atomics
   fresh.hi_x = fresh.hi_y = fresh.hi_z = 0;
+  fresh.bucket_bits = gpu::kAccelBucketBits;
   r.stream.update(r.buffers.params, &sp, sizeof(sp));
   r.stream.update(boxes, &fresh, sizeof(fresh));
   const std::size_t sort_at = accelBoxesBytes(header) - accelSortBytes();

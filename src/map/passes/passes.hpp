@@ -32,6 +32,9 @@ struct RayKeysInput {
   bool resume = false;  ///< clear PoolState::halted first: the host has handled a refused scan
   /// Continuation dispatches of the ray walk where the device limits loops (walkRounds()).
   std::uint32_t walk_rounds = 0;
+  /// The rays are traced (ScanRays::kRayTracing, recordScanRaysRt) instead of walked: stop
+  /// after the input stages (upload, unproject, transform, discretize).
+  bool trace = false;
 };
 /// The continuation rounds a walk of at most `steps` DDA steps needs where the device limits
 /// loops: at least 1 (the last one reports a walk still unfinished), at most fullWalkRounds();
@@ -106,6 +109,8 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header);
 /// Of which the counting sort's counters and chunk sums, at its end.
 std::size_t accelSortBytes();
+/// The part of them a sort on 2^(3 bucket_bits) buckets per list uses (from the same start).
+std::size_t accelSortBytes(std::uint32_t bucket_bits);
 /// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
 /// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
 /// leaf-box buffer, which must be current, and the unknown regions of the pool), sorted along a
@@ -128,6 +133,21 @@ struct RayRange {
   std::uint32_t first = 0, count = 0;
 };
 void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore);
+
+// ---- scan_rays_rt.cpp: scans through ray tracing ----
+
+/// The capacities of a scan's boxes buffer for the map's pool: a box per slot (a leaf or an
+/// unknown region) and the root, all in the first list.
+gpu::AccelHeader scanSceneHeader(const MapBuffers& buffers);
+/// Writes the boxes of the tree as the device holds it when this runs (accel_boxes.comp,
+/// kAccelBoxesScan: leaves above clamp_min_log, unknown regions; sorted; the tails inactive)
+/// into `boxes` and builds `scene` over both lists at their capacities, so that nothing of the
+/// tree's state is needed on the host; then the top-level structure's address into the header.
+/// `params` must hold the map's parameters. Three timestamps: start, boxes done, build done.
+void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
+                     const gpu::AccelHeader& header);
+/// scan_rays_rt over the scan's points (or discretize's distinct end cells), into the cell set.
+void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, bool discretize);
 
 // ---- readback.cpp ----
 

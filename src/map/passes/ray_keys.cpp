@@ -41,6 +41,7 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
   if (in.discretize)
     r.dispatch("discretize", sp.point_count,
                gpu::DiscretizeConstants{.point_count = sp.point_count});
+  if (in.trace) return;  // scan_rays_rt.cpp traces the rays instead
   r.dispatch("ray_keys", sp.point_count,
              gpu::RayKeysConstants{
                  .budget = budget,

@@ -1,0 +1,198 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_ray_query : require
+// Scans through ray tracing (MapParams::scan_rays = kRayTracing): the cells of OctoMap's
+// computeRayKeys for every point (kRayKeysPoints) or distinct end cell (kRayKeysEndCells), as
+// ray_keys.comp marks them, except cells whose leaf is clamped free: a free update there is a
+// no-op (updateNode's early abort), so those cells may be left out of the cell set exactly.
+// The boxes (accel_boxes.comp, kAccelBoxesScan) cover every other cell of the map: leaves above
+// clamp_min_log and unknown regions, each enlarged by a quarter cell. Per ray a ray query finds
+// the nearest box; the walk jumps exactly (castRayJumpTo: the same tMax bits as stepping) to
+// just before it, then steps OctoMap's DDA, marking each cell whose node is not clamped free
+// (a tree lookup, cached per node), and traces again from the first clamped-free cell past the
+// box's entry. Every cell marked is one computeRayKeys visits (the walk is OctoMap's, jumps
+// included); every cell it visits that a free update changes is marked (no box starts before a
+// jump's target; stepped cells are looked up). The end cell is marked occupied from the point,
+// as ray_keys does.
+//
+// The per-point checks (non-finite points, max range, keys outside the map, discretize's end
+// cells) mirror ray_keys.comp's main() line for line. Runs only where loops have no driver
+// limit (the host refuses it elsewhere), so every ray is walked in one go.
+#define OCTOVK_NODES_READ_ONLY
+#define OCTOVK_RAY_QUERY
+#include "common.glsl"
+#include "cast_ray_walk.glsl"
+#include "accel_trace.glsl"
+
+layout(push_constant) uniform PushBlock { ScanRaysRtConstants pc; };
+
+CastRayWalk w;
+uvec3 key_end;
+float len;
+
+// Direction, length, steps, tDelta and tMax of the ray o -> e from w.key, as computeRayKeys
+// computes them (as ray_keys.comp's setUp; the half step is rounded to float there, unlike
+// castRay's).
+void setUp(vec3 o, vec3 e) {
+  precise float dir[3];
+  dir[0] = e.x - o.x;
+  dir[1] = e.y - o.y;
+  dir[2] = e.z - o.z;
+  len = toFloat(normOf(dir[0], dir[1], dir[2]));
+  dir[0] = divFloat(dir[0], len);
+  dir[1] = divFloat(dir[1], len);
+  dir[2] = divFloat(dir[2], len);
+  w.org = o;
+  w.dir = vec3(dir[0], dir[1], dir[2]);
+  w.max_range_set = false;
+  w.max_range_sq = 0.0lf;
+  const double kDoubleMax = 1.7976931348623157e308lf;
+  for (int i = 0; i < 3; ++i) {
+    w.step[i] = dir[i] > 0.0 ? 1 : (dir[i] < 0.0 ? -1 : 0);
+    if (w.step[i] != 0) {
+      w.t_delta[i] = params.resolution / double(abs(dir[i]));
+      precise double border = keyToCoord(w.key[i]);
+      precise double half_step = double(w.step[i]) * params.resolution * 0.5lf;
+      border += roundedToFloat(half_step);
+      w.t_max[i] = (border - double(o[i])) / double(dir[i]);
+    } else {
+      w.dir[i] = 0.0;  // -0.0: the traced line is the walk's
+      w.t_delta[i] = kDoubleMax;
+      w.t_max[i] = kDoubleMax;
+    }
+  }
+}
+
+// One step of computeRayKeys: true when the ray is done (the end cell, or past the length).
+bool advance() {
+  int dim = castRayNextAxis(w);
+  w.key[dim] = uint(int(w.key[dim]) + w.step[dim]) & 0xFFFFu;
+  precise double t = w.t_max[dim] + w.t_delta[dim];
+  w.t_max[dim] = t;
+  if (w.key == key_end) return true;
+  return castRayMinTMax(w) > double(len);
+}
+
+// Whether a free update of cell k is a no-op: search() finds a node at clamp_min_log
+// (classify's early abort). The cache answers for every cell of the node it last found.
+bool clampedFree(uvec3 k, inout CellCache cache) {
+  uint searched;
+  return castRayCellState(k, cache, searched) != kCellUnknown &&
+         cache.log_odds <= params.clamp_min_log;
+}
+
+// The walk from the origin's cell (marked by the caller) to the end. A ray query finds the
+// nearest box; the walk jumps exactly to just before it, then steps, marking every cell a free
+// update can change, until it steps into a cell clamped free past the box's entry: then the
+// next box is traced from there. Neighbouring boxes cost one ray query together, not one each.
+void walkTraced() {
+  CellCache cache = castRayEmptyCache();
+  if (pool.root_exists == 0u) {  // an empty map is unknown everywhere: every cell is updated
+    while (!advance())
+      if (!markCell(w.key, false)) return;  // a full set: the scan is redone with a larger one
+    return;
+  }
+  AccelRef scene = AccelRef(pc.boxes);
+  double dir_len = length(dvec3(w.dir));
+  // Jumps stop two cells short of the end, so that no jump passes the end cell or the cell where
+  // OctoMap's length test ends the walk (a cell entered before t_limit is left before the
+  // length); the last cells are stepped.
+  double t_limit = (double(len) - 2.0lf * params.resolution - double(len) * (1.0lf / 65536.0lf)) /
+                   (dir_len * (1.0lf + 1.0lf / 65536.0lf));
+  // Boxes beyond the end do not matter.
+  float t_to = float((double(len) + 2.0lf * params.resolution) / dir_len);
+  for (;;) {
+    double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
+    double t_enter = 1.0e300lf, t_exit;
+    bool found = t_from < double(t_to) &&
+                 nearestBox(scene, w, kAccelMaskOccupied | kAccelMaskUnknown, t_from, t_to,
+                            /*fixed_axes=*/true, t_enter, t_exit);
+    double target = min(t_enter, t_limit);
+    target -= slack(target, w.org, dir_len);
+    // The cells the jump passes lie in no box (clamped free): their updates are no-ops. The
+    // cell it lands in is entered before the target: in no box either.
+    if (target > castRayMinTMax(w)) castRayJumpTo(w, target);
+    // A clamped-free cell before the box's entry (and its slack) is still on the way in. Past
+    // it, a run of kRetraceAfter clamped-free cells ends the stretch: near surfaces, where
+    // clamped cells and cells not clamped yet alternate, a ray query per clamped cell costs
+    // more than stepping a few cells (on lavapipe a query costs tens of steps).
+    const uint kRetraceAfter = 8u;
+    double t_in = found ? t_enter + 2.0lf * slack(t_enter, w.org, dir_len) : 1.0e300lf;
+    uint clamped_run = 0u;
+    for (;;) {
+      if (advance()) return;
+      if (!clampedFree(w.key, cache)) {
+        clamped_run = 0u;
+        if (!markCell(w.key, false)) return;  // a full set: the scan is redone
+      } else if (castRayMinTMax(w) > t_in && ++clamped_run >= kRetraceAfter) {
+        break;
+      }
+    }
+  }
+}
+
+// ray_keys.comp's insertRay: false when an end lies outside the map (no free cells).
+bool traceRay(vec3 o, vec3 e) {
+  uvec3 ko;
+  if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
+      !coordToKeyChecked(o.z, ko.z))
+    return false;
+  if (!coordToKeyChecked(e.x, key_end.x) || !coordToKeyChecked(e.y, key_end.y) ||
+      !coordToKeyChecked(e.z, key_end.z))
+    return false;
+  if (ko == key_end) return true;
+  markCell(ko, false);
+  w.key = ko;
+  setUp(o, e);
+  walkTraced();
+  return true;
+}
+
+void main() {
+  uint i = invocationIndex();
+  // Behind a scan the device refused (PoolState::halted), tree_gate refuses this scan too.
+  if (pool.halted != 0u) return;
+  vec3 p;
+  if (pc.mode == kRayKeysPoints) {
+    if (i >= pc.point_count) return;
+    p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
+    if (!finiteBits(p)) {
+      atomicAdd(counters.skipped_nonfinite, 1u);
+      return;
+    }
+  } else {
+    if (i >= counters.endpoint_entries) return;
+    uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
+    p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
+  }
+  vec3 o = vec3(params.origin_x, params.origin_y, params.origin_z);
+  bool inserted = false;
+  precise float dx = p.x - o.x;
+  precise float dy = p.y - o.y;
+  precise float dz = p.z - o.z;
+  double dist = normOf(dx, dy, dz);
+  if (params.max_range < 0.0lf || dist <= params.max_range) {
+    uvec3 k;
+    if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
+        coordToKeyChecked(p.z, k.z)) {
+      markCell(k, true);
+      inserted = true;
+    }
+    inserted = traceRay(o, p) || inserted;
+  } else {
+    // Point3d::normalized() then origin + direction * (float) maxrange.
+    if (dist > 0.0lf) {
+      float l = toFloat(dist);
+      dx = divFloat(dx, l);
+      dy = divFloat(dy, l);
+      dz = divFloat(dz, l);
+    }
+    float range = toFloat(params.max_range);
+    precise float ex = o.x + dx * range;
+    precise float ey = o.y + dy * range;
+    precise float ez = o.z + dz * range;
+    inserted = traceRay(o, vec3(ex, ey, ez));
+  }
+  if (!inserted) atomicAdd(counters.skipped_outside, 1u);
+  flushMarks();
+}

@@ -1,0 +1,294 @@
+// Scans through ray tracing (MapParams::scan_rays = kRayTracing, `octovk integrate --rays rt`)
+// against OctoMap: the same tree, node by node and log-odds bits included, after every scan,
+// while later scans cross regions that earlier ones clamped free (which the traced rays jump
+// over); max range on and off, discretize on and off, rays along axes and through cell corners,
+// points outside the map and NaN; the program's files byte-identical to --rays walk and to
+// graph2tree; a device without ray queries refusing it.
+//
+// On a device without ray queries the tests of the traced path are skipped with the reason, and
+// fail where the run expects ray queries (OCTOVK_EXPECT_RAY_QUERY, the Mesa 25 step of CI).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "cli_support.hpp"
+#include "octovk/octomap_io.hpp"
+#include "octovk/octovk.hpp"
+#include "test_support.hpp"
+
+namespace octovk {
+namespace {
+
+MapParams rtParams(double resolution) {
+  MapParams params = test::withResolution(resolution);
+  params.scan_rays = ScanRays::kRayTracing;
+  return params;
+}
+
+// A scan that keeps its origin near `centre` and reaches walls at about `radius`: repeated, it
+// clamps the space between free (5 misses from 0 reach clamping_min), so later scans cross
+// clamped-free leaves, partly pruned into large nodes, next to free leaves not clamped yet.
+std::vector<Eigen::Vector3f> roomScan(std::mt19937& rng, const Eigen::Vector3f& origin,
+                                      std::size_t n, float radius) {
+  std::vector<Eigen::Vector3f> pts = test::randomScan(rng, origin, n, radius);
+  // Points on the room's walls (x = +-radius), so occupied cells recur scan after scan.
+  std::uniform_real_distribution<float> u(-0.6f * radius, 0.6f * radius);
+  for (std::size_t i = 0; i < n / 4; ++i)
+    pts.emplace_back(i % 2 ? radius : -radius, u(rng), u(rng));
+  return pts;
+}
+
+// ---- the traced path against OctoMap, after every scan ----
+
+class RtScanOracle : public ::testing::TestWithParam<std::tuple<double, bool>> {};
+
+TEST_P(RtScanOracle, SameTreeAfterEveryScanWhileRaysCrossClampedFreeSpace) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const auto [max_range, discretize] = GetParam();
+  const MapParams params = rtParams(0.1);
+  OccupancyMap map(ctx, params);
+  MapParams walk_params = params;
+  walk_params.scan_rays = ScanRays::kWalk;
+  OccupancyMap walk(ctx, walk_params);  // OctoMap's free-cell counts, to see the skipping
+  octomap::OcTree oracle = test::makeOracle(params);
+  std::mt19937 rng(17);
+  std::size_t skipped_later = 0;
+  for (int scan = 0; scan < 12; ++scan) {
+    const Eigen::Vector3f origin(0.05f + 0.03f * static_cast<float>(scan % 3),
+                                 -0.02f * static_cast<float>(scan % 4), 0.01f);
+    const auto pts = roomScan(rng, origin, 1500, 2.5f);
+    ScanStats rt;
+    ASSERT_TRUE(test::insertBoth(map, oracle, pts, origin, max_range, discretize, &rt))
+        << "scan " << scan;
+    const ScanStats w = walk.insertPointCloud(pts, origin, max_range, discretize);
+    EXPECT_EQ(rt.occupied_cells, w.occupied_cells) << "scan " << scan;
+    EXPECT_EQ(rt.skipped_outside, w.skipped_outside);
+    EXPECT_EQ(rt.skipped_nonfinite, w.skipped_nonfinite);
+    EXPECT_LE(rt.free_cells, w.free_cells) << "scan " << scan;
+    EXPECT_GT(rt.device.scan_build_ms + rt.device.scan_trace_ms, 0.0);
+    if (scan >= 6) skipped_later += w.free_cells - rt.free_cells;
+  }
+  // The later scans crossed clamped-free leaves and left their cells out.
+  EXPECT_GT(skipped_later, 1000u);
+}
+
+INSTANTIATE_TEST_SUITE_P(MaxRangeAndDiscretize, RtScanOracle,
+                         ::testing::Combine(::testing::Values(-1.0, 1.7), ::testing::Bool()),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param) < 0 ? "NoMaxRange"
+                                                                          : "MaxRange") +
+                                  (std::get<1>(info.param) ? "Discretize" : "");
+                         });
+
+// Rays along the axes, the face and space diagonals, from an origin on a cell corner and from
+// one on a cell edge, scan after scan (the first scans clamp the rays' cells free, the later
+// ones, longer and shorter, cross them and end inside them).
+TEST(RtScan, RaysAlongAxesAndThroughCorners) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const MapParams params = rtParams(0.1);
+  for (const Eigen::Vector3f& origin :
+       {Eigen::Vector3f(0.0f, 0.0f, 0.0f), Eigen::Vector3f(0.2f, 0.3f, 0.05f)}) {
+    OccupancyMap map(ctx, params);
+    octomap::OcTree oracle = test::makeOracle(params);
+    for (int scan = 0; scan < 9; ++scan) {
+      const float length = 1.0f + 0.35f * static_cast<float>(scan % 4);
+      std::vector<Eigen::Vector3f> pts;
+      for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dz = -1; dz <= 1; ++dz) {
+            if (!dx && !dy && !dz) continue;
+            const Eigen::Vector3f d(static_cast<float>(dx), static_cast<float>(dy),
+                                    static_cast<float>(dz));
+            pts.push_back(origin + d.normalized() * length);
+            pts.push_back(origin + d * length * 0.5f);  // corners of cells on the diagonals
+          }
+      ASSERT_TRUE(test::insertBoth(map, oracle, pts, origin, scan % 3 == 2 ? 1.2 : -1.0, false))
+          << "origin (" << origin.transpose() << ") scan " << scan;
+    }
+  }
+}
+
+// NaN and infinite points are skipped and counted as the walk does; points outside the map give
+// no occupied cell and rays reaching them no free cells; a sensor outside the map gives nothing.
+// OctoMap gets the finite points.
+TEST(RtScan, NonFinitePointsAndPointsOutsideTheMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const MapParams params = rtParams(0.1);  // the map spans +-3276.8 m
+  OccupancyMap map(ctx, params);
+  MapParams walk_params = params;
+  walk_params.scan_rays = ScanRays::kWalk;
+  OccupancyMap walk(ctx, walk_params);
+  octomap::OcTree oracle = test::makeOracle(params);
+  std::mt19937 rng(5);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (int scan = 0; scan < 8; ++scan) {
+    const bool outside_sensor = scan == 5;
+    const Eigen::Vector3f origin =
+        outside_sensor ? Eigen::Vector3f(4000.0f, 0.0f, 0.0f) : Eigen::Vector3f(0.05f, 0.1f, 0.0f);
+    std::vector<Eigen::Vector3f> finite =
+        roomScan(rng, Eigen::Vector3f(0.05f, 0.1f, 0.0f), 800, 2.0f);
+    finite.emplace_back(5000.0f, 0.0f, 0.0f);
+    finite.emplace_back(0.0f, -3300.0f, 1.0f);
+    std::vector<Eigen::Vector3f> pts = finite;
+    pts.emplace_back(nan, 0.0f, 0.0f);
+    pts.emplace_back(1.0f, inf, 0.0f);
+    pts.emplace_back(0.5f, 0.5f, -inf);
+    oracle.insertPointCloud(test::toPointcloud(finite), test::toPoint(origin), -1.0, false, false);
+    const ScanStats rt = map.insertPointCloud(pts, origin, -1.0, false);
+    const ScanStats w = walk.insertPointCloud(pts, origin, -1.0, false);
+    EXPECT_EQ(rt.skipped_nonfinite, 3u);
+    EXPECT_EQ(rt.skipped_nonfinite, w.skipped_nonfinite);
+    EXPECT_EQ(rt.skipped_outside, w.skipped_outside);
+    EXPECT_GE(rt.skipped_outside, 2u);  // the two points outside the map
+    auto ours = toOcTree(map);
+    ASSERT_TRUE(test::sameTree(oracle, *ours)) << "scan " << scan;
+  }
+}
+
+// Scans submitted back to back (three in flight): each builds its structure in its own
+// submission from the tree the earlier ones left, and the node pool grows on the way.
+TEST(RtScan, StreamedScansMatchOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const MapParams params = rtParams(0.05);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = test::makeOracle(params);
+  std::mt19937 rng(23);
+  for (int scan = 0; scan < 16; ++scan) {
+    const Eigen::Vector3f origin(0.4f * static_cast<float>(scan / 4), 0.02f, 0.03f);
+    const auto pts = roomScan(rng, origin, 1200, 2.0f);
+    oracle.insertPointCloud(test::toPointcloud(pts), test::toPoint(origin), 3.0, false, false);
+    map.submitPointCloud(pts, origin, 3.0, false);
+  }
+  map.flush();
+  const auto stats = map.takeScanStats();
+  ASSERT_EQ(stats.size(), 16u);
+  EXPECT_EQ(stats.back().nodes, oracle.size());
+  auto ours = toOcTree(map);
+  EXPECT_TRUE(test::sameTree(oracle, *ours));
+}
+
+// ---- refusal ----
+
+// Without ray queries (a device that has none, or a Context that does not enable them) the
+// traced scans are refused when the map is made, naming the cause and the fix; so is a map
+// under a memory cap. The walk stays the default.
+TEST(RtScan, RefusedWithoutRayQueries) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  EXPECT_EQ(MapParams{}.scan_rays, ScanRays::kWalk);
+  ContextOptions options;
+  options.enable_ray_query = false;
+  auto plain = Context::create(options);
+  ASSERT_TRUE(plain) << plain.error().what();
+  Context& no_rt = *plain.value();
+  ASSERT_FALSE(no_rt.device().ray_query_enabled);
+  const MapParams params = rtParams(0.1);
+  for (Context* c : {&ctx, &no_rt}) {
+    if (c->device().ray_query_enabled) continue;
+    try {
+      OccupancyMap refused(*c, params);
+      ADD_FAILURE() << "ScanRays::kRayTracing accepted without ray queries";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kMissingFeature);
+      const std::string what = e.what();
+      EXPECT_NE(what.find("scan_rays"), std::string::npos) << what;
+      EXPECT_NE(what.find("ScanRays::kWalk"), std::string::npos) << what;
+      EXPECT_NE(what.find("--rays walk"), std::string::npos) << what;
+    }
+  }
+  MapParams capped = params;
+  capped.max_device_bytes = 64u << 20;
+  EXPECT_THROW(OccupancyMap(ctx, capped), Error);
+  MapParams bad = params;
+  bad.scan_rays = static_cast<ScanRays>(7);
+  EXPECT_NE(bad.validate().find("scan_rays"), std::string::npos);
+}
+
+// ---- the program ----
+
+// A small scan graph: a sensor turning and moving through a room, scans repeated so that later
+// ones cross space clamped free.
+std::string writeRoomGraph(const test::Scratch& dir) {
+  const std::string path = dir / "room.graph";
+  test::QuietCout quiet;  // OctoMap's writer reports every scan
+  writeScanGraph(path, 10, [](std::size_t i) {
+    std::mt19937 rng(static_cast<unsigned>(100 + i));
+    GraphScan scan;
+    scan.points_sensor = roomScan(rng, Eigen::Vector3f::Zero(), 1000, 2.5f);
+    scan.T_world_sensor.translation =
+        Eigen::Vector3f(0.1f * static_cast<float>(i % 3), 0.05f, 0.3f);
+    scan.T_world_sensor.rotation = Eigen::Quaternionf(
+        Eigen::AngleAxisf(0.2f * static_cast<float>(i), Eigen::Vector3f::UnitZ()));
+    return scan;
+  });
+  return path;
+}
+
+TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  test::Scratch dir("rt_scan");
+  const std::string graph = writeRoomGraph(dir);
+  for (const std::string max_range : {"-1", "2"}) {
+    const test::RunResult walk =
+        test::runOctovk({"integrate", graph, "-o", dir / "walk.bt", "-o", dir / "walk.ot", "-r",
+                         "0.05", "-m", max_range, "-q", "--rays", "walk"},
+                        dir.dir());
+    ASSERT_EQ(walk.exit_code, 0) << walk.err;
+    const test::RunResult rt =
+        test::runOctovk({"integrate", graph, "-o", dir / "rt.bt", "-o", dir / "rt.ot", "-r", "0.05",
+                         "-m", max_range, "-q", "--rays", "rt"},
+                        dir.dir());
+    ASSERT_EQ(rt.exit_code, 0) << rt.err;
+    EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "walk.bt")) << "-m " << max_range;
+    EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "walk.ot")) << "-m " << max_range;
+    if (std::string(OCTOVK_GRAPH2TREE).empty()) {
+      if (test::runningInCi()) ADD_FAILURE() << "graph2tree missing under CI";
+      continue;
+    }
+    const test::RunResult g2t =
+        test::runShell(test::quote(OCTOVK_GRAPH2TREE) + " -i " + test::quote(graph) + " -o " +
+                           test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
+                       dir.dir());
+    ASSERT_EQ(g2t.exit_code, 0) << g2t.err;
+    EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "g2t.bt")) << "-m " << max_range;
+    EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "g2t.bt.ot"))
+        << "-m " << max_range;
+  }
+}
+
+// --help tells of --rays; a bad value is a usage error; without ray queries --rays rt fails with
+// the library's reason and leaves no file.
+TEST(RtScanCli, RaysOptionHelpAndErrors) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  test::Scratch dir("rt_scan");
+  const test::RunResult help = test::runOctovk({"integrate", "--help"}, dir.dir());
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_NE(help.out.find("--rays walk|rt"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("(default: walk)"), std::string::npos) << help.out;
+  const std::string graph = writeRoomGraph(dir);
+  const test::RunResult bad =
+      test::runOctovk({"integrate", graph, "-o", dir / "x.bt", "--rays", "bvh"}, dir.dir());
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--rays walk"), std::string::npos) << bad.err;
+  EXPECT_FALSE(test::fs::exists(dir / "x.bt"));
+  if (!ctx.device().ray_query_enabled) {
+    const test::RunResult refused =
+        test::runOctovk({"integrate", graph, "-o", dir / "y.bt", "--rays", "rt", "-q"}, dir.dir());
+    EXPECT_NE(refused.exit_code, 0);
+    EXPECT_NE(refused.err.find("no ray queries"), std::string::npos) << refused.err;
+    EXPECT_FALSE(test::fs::exists(dir / "y.bt"));
+  }
+}
+
+}  // namespace
+}  // namespace octovk
