@@ -65,9 +65,9 @@ if step mesa25; then
     # shellcheck disable=SC2086
     run_suite "Mesa 25 lavapipe" $mesa25_env OCTOVK_EXPECT_RAY_QUERY=1
     # The validation step runs on the system driver, which has no ray tracing: the ray-tracing
-    # tests run under the validation layer here.
+    # tests (castRay and scans through ray tracing) run under the validation layer here.
     # shellcheck disable=SC2086
-    ctest_select="-R RayTracing|RayCastingScenarios|CastRays" run_suite \
+    ctest_select="-R RayTracing|RayCastingScenarios|CastRays|RtScan" run_suite \
       "Mesa 25 lavapipe, ray tracing under the validation layer" $mesa25_env \
       OCTOVK_EXPECT_RAY_QUERY=1 OCTOVK_VALIDATION=1
   else
