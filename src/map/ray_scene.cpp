@@ -9,41 +9,14 @@
 
 namespace octovk {
 
-CastRayBackend OccupancyMap::Impl::chooseCastRayBackend(const vk::Device& device,
-                                                        const MapParams& params) {
-  const bool ray_query = device.rayQuery();
-  const bool loops = device.loopLimit() == 0;
-  const bool uncapped = params.max_device_bytes == 0;
-  if (params.cast_ray_backend == CastRayBackend::kWalk) return CastRayBackend::kWalk;
-  if (params.cast_ray_backend == CastRayBackend::kAuto)
-    return ray_query && loops && uncapped ? CastRayBackend::kRayTracing : CastRayBackend::kWalk;
-  const std::string name =
-      "MapParams::cast_ray_backend is kRayTracing, but device '" + device.info().name + "'";
-  if (!ray_query)
-    throw Error(
-        ErrorCode::kMissingFeature,
-        name +
-            (device.info().ray_query ? " was opened with ContextOptions::enable_ray_query = false"
-                                     : " has no ray queries (VK_KHR_acceleration_structure and "
-                                       "VK_KHR_ray_query)") +
-            "; use CastRayBackend::kAuto or kWalk");
-  if (!loops)
-    throw Error(ErrorCode::kMissingFeature,
-                name + " ends shader loops after " + std::to_string(device.loopLimit()) +
-                    " iterations and the ray-tracing castRay is not resumable; use "
-                    "CastRayBackend::kAuto or kWalk");
-  if (!uncapped)
-    throw Error(ErrorCode::kInvalidArgument,
-                "MapParams::cast_ray_backend is kRayTracing together with max_device_bytes: the "
-                "acceleration structure is not held under the cap; use CastRayBackend::kWalk or "
-                "max_device_bytes = 0");
-  return CastRayBackend::kRayTracing;
-}
+namespace {
 
-ScanRays OccupancyMap::Impl::chooseScanRays(const vk::Device& device, const MapParams& params) {
-  if (params.scan_rays == ScanRays::kWalk) return ScanRays::kWalk;
-  const std::string name =
-      "MapParams::scan_rays is kRayTracing, but device '" + device.info().name + "'";
+// The ray-tracing passes (castRay's and the scans') need ray queries, loops without a driver
+// limit (they are not resumable) and no memory cap (the acceleration structure is not counted
+// under it): throws naming `option` and the way out, `remedy`, when one of them is missing.
+void requireRayTracing(const vk::Device& device, const MapParams& params, const std::string& option,
+                       const std::string& remedy) {
+  const std::string name = option + " is kRayTracing, but device '" + device.info().name + "'";
   if (!device.rayQuery())
     throw Error(
         ErrorCode::kMissingFeature,
@@ -51,17 +24,37 @@ ScanRays OccupancyMap::Impl::chooseScanRays(const vk::Device& device, const MapP
             (device.info().ray_query ? " was opened with ContextOptions::enable_ray_query = false"
                                      : " has no ray queries (VK_KHR_acceleration_structure and "
                                        "VK_KHR_ray_query; Mesa's lavapipe has them from Mesa 25)") +
-            "; use ScanRays::kWalk (octovk integrate --rays walk)");
+            "; use " + remedy);
   if (device.loopLimit() != 0)
     throw Error(ErrorCode::kMissingFeature,
                 name + " ends shader loops after " + std::to_string(device.loopLimit()) +
-                    " iterations and the traced scan is not resumable; use ScanRays::kWalk "
-                    "(octovk integrate --rays walk)");
+                    " iterations and the ray-tracing passes are not resumable; use " + remedy);
   if (params.max_device_bytes != 0)
     throw Error(ErrorCode::kInvalidArgument,
-                "MapParams::scan_rays is kRayTracing together with max_device_bytes: the scans' "
-                "acceleration structure is not held under the cap; use ScanRays::kWalk or "
-                "max_device_bytes = 0");
+                option +
+                    " is kRayTracing together with max_device_bytes: the acceleration "
+                    "structure is not held under the cap; use " +
+                    remedy + ", or max_device_bytes = 0");
+}
+
+}  // namespace
+
+CastRayBackend OccupancyMap::Impl::chooseCastRayBackend(const vk::Device& device,
+                                                        const MapParams& params) {
+  if (params.cast_ray_backend == CastRayBackend::kWalk) return CastRayBackend::kWalk;
+  if (params.cast_ray_backend == CastRayBackend::kAuto)
+    return device.rayQuery() && device.loopLimit() == 0 && params.max_device_bytes == 0
+               ? CastRayBackend::kRayTracing
+               : CastRayBackend::kWalk;
+  requireRayTracing(device, params, "MapParams::cast_ray_backend",
+                    "CastRayBackend::kAuto or kWalk");
+  return CastRayBackend::kRayTracing;
+}
+
+ScanRays OccupancyMap::Impl::chooseScanRays(const vk::Device& device, const MapParams& params) {
+  if (params.scan_rays == ScanRays::kWalk) return ScanRays::kWalk;
+  requireRayTracing(device, params, "MapParams::scan_rays",
+                    "ScanRays::kWalk (octovk integrate --rays walk)");
   return ScanRays::kRayTracing;
 }
 
@@ -71,7 +64,7 @@ RayScene& OccupancyMap::Impl::scanScene() {
   const gpu::AccelHeader header = passes::scanSceneHeader(buffers_);
   if (scene.boxes.valid() && header.occupied_capacity == scan_header_.occupied_capacity &&
       header.unknown_capacity == scan_header_.unknown_capacity)
-    return scene;  // the same capacities: the build reuses every structure and buffer
+    return scene;      // the same capacities: the build reuses every structure and buffer
   stream_.waitIdle();  // the scans in flight build and trace the scene being replaced
   const std::size_t bytes = passes::accelBoxesBytes(header);
   if (!scene.boxes.valid() || scene.boxes.size() < bytes) {

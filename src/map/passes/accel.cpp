@@ -50,14 +50,20 @@ void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& 
   r.stream.copy(boxes, readback, sizeof(gpu::AccelHeader));
 }
 
+std::array<vk::BoxGeometry, 2> boxGeometries(const vk::Buffer& boxes,
+                                             const gpu::AccelHeader& header, std::uint32_t occupied,
+                                             std::uint32_t unknown) {
+  const VkDeviceAddress first = boxes.address() + sizeof(gpu::AccelHeader);
+  return {vk::BoxGeometry{.data = first, .count = occupied, .mask = gpu::kAccelMaskOccupied},
+          vk::BoxGeometry{
+              .data = first + std::uint64_t{header.occupied_capacity} * sizeof(gpu::AccelBox),
+              .count = unknown,
+              .mask = gpu::kAccelMaskUnknown}};
+}
+
 void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header) {
-  const VkDeviceAddress first = boxes.address() + sizeof(gpu::AccelHeader);
-  const vk::BoxGeometry geometries[] = {
-      {.data = first, .count = header.occupied_count, .mask = gpu::kAccelMaskOccupied},
-      {.data = first + std::uint64_t{header.occupied_capacity} * sizeof(gpu::AccelBox),
-       .count = header.unknown_count,
-       .mask = gpu::kAccelMaskUnknown}};
+  const auto geometries = boxGeometries(boxes, header, header.occupied_count, header.unknown_count);
   // An empty geometry is built from one inactive box (min x NaN), which the build skips.
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const gpu::AccelBox inactive{nan, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};

@@ -3,6 +3,7 @@
 // map/occupancy_map.cpp decides what runs when.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -104,6 +105,12 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
                             std::span<const std::uint32_t> ray_order = {});
 
 // ---- accel.cpp: castRay's ray-tracing backend ----
+
+/// The two geometries of a box buffer (occupied boxes, then unknown ones at the occupied
+/// capacity), with `occupied` and `unknown` boxes built.
+std::array<vk::BoxGeometry, 2> boxGeometries(const vk::Buffer& boxes,
+                                             const gpu::AccelHeader& header,
+                                             std::uint32_t occupied, std::uint32_t unknown);
 
 /// Bytes of the boxes buffer for the capacities in `header` (its layout: gpu::AccelHeader).
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header);

@@ -49,12 +49,8 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   pass(gpu::kAccelBoxesTail, all);
   r.stream.timestamp();
   // Both lists at their capacities: the counts stay on the device.
-  const VkDeviceAddress first = boxes.address() + sizeof(gpu::AccelHeader);
-  const vk::BoxGeometry geometries[] = {
-      {.data = first, .count = header.occupied_capacity, .mask = gpu::kAccelMaskOccupied},
-      {.data = first + std::uint64_t{header.occupied_capacity} * sizeof(gpu::AccelBox),
-       .count = header.unknown_capacity,
-       .mask = gpu::kAccelMaskUnknown}};
+  const auto geometries =
+      boxGeometries(boxes, header, header.occupied_capacity, header.unknown_capacity);
   scene.recordBuild(r.stream, geometries);
   const VkDeviceAddress tlas = scene.tlasAddress();
   r.stream.update(boxes, &tlas, sizeof(tlas), offsetof(gpu::AccelHeader, tlas));
