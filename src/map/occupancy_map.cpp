@@ -147,8 +147,7 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
                     " (maxComputeWorkGroupCount x 64); split the batch");
   const VkDeviceAddress ray_scene = q.rays.empty() ? 0 : rayScene();
   std::uint32_t stop_rays = 0;
-  const std::vector<std::uint32_t> order =
-      ray_scene ? passes::rayOrderByKind(q.rays, stop_rays) : std::vector<std::uint32_t>{};
+  const std::vector<std::uint32_t> order = passes::rayOrder(q.rays, params_.resolution, stop_rays);
   passes::stageQueries(buffers_, q, order);
   stream_.begin(buffers_.bindings);
   passes::recordQueries(rec_, queryParams(), q, ray_scene, stop_rays);

@@ -75,17 +75,6 @@ void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   r.stream.barrier();
 }
 
-std::vector<std::uint32_t> rayOrderByKind(std::span<const Ray> rays, std::uint32_t& stop_rays) {
-  std::vector<std::uint32_t> order;
-  order.reserve(rays.size());
-  for (std::size_t i = 0; i < rays.size(); ++i)
-    if (!rays[i].ignore_unknown) order.push_back(static_cast<std::uint32_t>(i));
-  stop_rays = static_cast<std::uint32_t>(order.size());
-  for (std::size_t i = 0; i < rays.size(); ++i)
-    if (rays[i].ignore_unknown) order.push_back(static_cast<std::uint32_t>(i));
-  return order;
-}
-
 void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore) {
   // On lavapipe an invocation of the ray-query pass costs more than the whole walk of a ray
   // that stops at unknown space, even when it returns at once: each pass gets its own range.

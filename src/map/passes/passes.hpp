@@ -88,9 +88,17 @@ std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups);
 /// lookup points, into the query staging buffer.
 void stageQueries(MapBuffers& buffers, const QueryRequest& q,
                   std::span<const std::uint32_t> ray_order = {});
+/// The order castRay's rays are staged in (ray indices) and how many stop at unknown space: those
+/// rays first, then the ones that ignore it (the ray-tracing backend answers the two kinds with
+/// two passes, each over its own range), and within each kind rays from nearby origins in nearby
+/// directions next to each other, so that neighbouring invocations walk alike (a group of lanes
+/// takes as long as its longest walk). stageQueries / collectQueries take the order; the answers
+/// do not depend on it.
+std::vector<std::uint32_t> rayOrder(std::span<const Ray> rays, double resolution,
+                                    std::uint32_t& stop_rays);
 /// Copies the staged batch in, runs it and copies the results to the staging output. castRay
 /// goes through the ray-tracing scene whose boxes are at `ray_scene` when it is not 0, with the
-/// rays staged in rayOrderByKind's order (`stop_rays` of the first kind).
+/// rays staged in rayOrder's order (`stop_rays` of the first kind).
 void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
                    VkDeviceAddress ray_scene = 0, std::uint32_t stop_rays = 0);
 /// castRay for `rays` queries at the start of the query input; results at the start of the
@@ -128,10 +136,6 @@ void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& 
 /// top-level structure's address into the header.
 void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header);
-/// The rays that stop at unknown space, then those that ignore it (ray indices), and how many
-/// of the first kind: the ray-tracing backend answers the two kinds with two passes, each over
-/// its own range of the batch (stageQueries / collectQueries take the order).
-std::vector<std::uint32_t> rayOrderByKind(std::span<const Ray> rays, std::uint32_t& stop_rays);
 /// castRay through the scene whose boxes buffer is at `boxes`, for the rays of the query input:
 /// cast_ray_jump over `stop` (first ray, count) and cast_ray_rt over `ignore`; each pass also
 /// skips the rays of the other kind, so both ranges may be the whole batch. Results go to the

@@ -1,7 +1,10 @@
 // Queries on the map: lookup.comp (OctoMap's search) and cast_ray.comp (OctoMap's castRay), in
 // one batch: the rays, then the lookup points, in the input; their results in the same order in
 // the output, castRay's walk states after them.
+#include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <utility>
 
 #include "map/passes/passes.hpp"
 
@@ -15,6 +18,90 @@ std::uint32_t firstRayState(std::size_t results) {
 std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups) {
   static_assert(sizeof(gpu::RayResult) == sizeof(gpu::LookupResult));
   return (firstRayState(rays + lookups) + rays) * sizeof(gpu::RayState);
+}
+
+namespace {
+
+// v (any double, NaN included) as an integer in [0, 2^bits): clamped, NaN to 0.
+std::uint64_t quantise(double v, unsigned bits) {
+  const double top = static_cast<double>((1u << bits) - 1u);
+  if (!(v > 0.0)) return 0;
+  return v >= top ? static_cast<std::uint64_t>(top) : static_cast<std::uint64_t>(v);
+}
+
+// The bits of a (below 2^bits) spread to every `stride`-th bit: one coordinate of a Morton code.
+std::uint64_t spread(std::uint64_t a, unsigned bits, unsigned stride) {
+  std::uint64_t out = 0;
+  for (unsigned i = 0; i < bits; ++i) out |= ((a >> i) & 1u) << (i * stride);
+  return out;
+}
+
+constexpr unsigned kOriginBits = 10;     // per axis, in blocks of 64 cells around the map's centre
+constexpr unsigned kDirectionBits = 11;  // per coordinate of the octahedral map of the direction
+
+// Where a ray sorts: its kind (bit 52), its origin's block along a Morton curve (bits 22..51),
+// its direction on the octahedral map along a Morton curve (bits 0..21).
+std::uint64_t rayKey(const Ray& ray, double resolution) {
+  const double block = resolution * 64.0;
+  const double centre = static_cast<double>(1u << (kOriginBits - 1));
+  std::uint64_t origin = 0;
+  for (unsigned a = 0; a < 3; ++a)
+    origin |= spread(quantise(ray.origin[a] / block + centre, kOriginBits), kOriginBits, 3) << a;
+  // The octahedral map: the direction onto |x| + |y| + |z| = 1, the lower half folded out.
+  const double x = ray.direction.x(), y = ray.direction.y(), z = ray.direction.z();
+  const double l1 = std::abs(x) + std::abs(y) + std::abs(z);
+  double u = 0.0, v = 0.0;
+  if (l1 > 0.0 && std::isfinite(l1)) {
+    u = x / l1;
+    v = y / l1;
+    if (z < 0.0) {
+      const double fu = (1.0 - std::abs(v)) * (u >= 0.0 ? 1.0 : -1.0);
+      v = (1.0 - std::abs(u)) * (v >= 0.0 ? 1.0 : -1.0);
+      u = fu;
+    }
+  }
+  const double scale = static_cast<double>(1u << (kDirectionBits - 1));
+  const std::uint64_t direction = spread(quantise((u + 1.0) * scale, kDirectionBits),
+                                         kDirectionBits, 2) |
+                                  spread(quantise((v + 1.0) * scale, kDirectionBits),
+                                         kDirectionBits, 2)
+                                      << 1;
+  const std::uint64_t kind = ray.ignore_unknown ? 1u : 0u;
+  return kind << (3 * kOriginBits + 2 * kDirectionBits) |
+         origin << (2 * kDirectionBits) | direction;
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> rayOrder(std::span<const Ray> rays, double resolution,
+                                    std::uint32_t& stop_rays) {
+  // A stable LSD radix sort of (key, index) on 11-bit digits; a digit all keys share is skipped.
+  struct Entry {
+    std::uint64_t key;
+    std::uint32_t index;
+  };
+  std::vector<Entry> a(rays.size()), b(rays.size());
+  stop_rays = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    a[i] = {rayKey(rays[i], resolution), static_cast<std::uint32_t>(i)};
+    stop_rays += rays[i].ignore_unknown ? 0u : 1u;
+  }
+  constexpr unsigned kDigit = 11;
+  constexpr unsigned kKeyBits = 3 * kOriginBits + 2 * kDirectionBits + 1;
+  std::vector<std::uint32_t> count(std::size_t{1} << kDigit);
+  for (unsigned shift = 0; shift < kKeyBits; shift += kDigit) {
+    std::fill(count.begin(), count.end(), 0u);
+    for (const Entry& e : a) ++count[(e.key >> shift) & ((1u << kDigit) - 1u)];
+    if (std::any_of(count.begin(), count.end(), [&](std::uint32_t c) { return c == a.size(); }))
+      continue;  // one digit for all: this pass would not move anything
+    std::uint32_t sum = 0;
+    for (std::uint32_t& c : count) sum += std::exchange(c, sum);
+    for (const Entry& e : a) b[count[(e.key >> shift) & ((1u << kDigit) - 1u)]++] = e;
+    a.swap(b);
+  }
+  std::vector<std::uint32_t> order(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) order[i] = a[i].index;
+  return order;
 }
 
 void stageQueries(MapBuffers& buffers, const QueryRequest& q,
