@@ -41,7 +41,9 @@ TEST(HostTree, PoolImageAndBackGiveTheSameTree) {
   for (std::uint32_t n : {0u, 8u + 1u, 8u + 6u, 3u * 8u, 3u * 8u + 7u}) {
     EXPECT_EQ(back.nodes[n].log_odds, tree.nodes[n].log_odds) << "node " << n;
     EXPECT_EQ(back.nodes[n].mask, tree.nodes[n].mask) << "node " << n;
-    if (tree.nodes[n].mask) EXPECT_EQ(back.nodes[n].children, tree.nodes[n].children);
+    if (tree.nodes[n].mask) {
+      EXPECT_EQ(back.nodes[n].children, tree.nodes[n].children) << "node " << n;
+    }
   }
 }
 
