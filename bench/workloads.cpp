@@ -485,14 +485,15 @@ void runPaper(Context& context, const BenchOptions& o, JsonWriter& json) {
     const double streamed_median = median(streamed_s);
     json.key("streamed").beginObject();
     json.field("wall_s", streamed_median).field("rays_per_s", view_rays / streamed_median);
-    json.field("views_per_s", views.size() / streamed_median);
+    const double view_count = static_cast<double>(views.size());
+    json.field("views_per_s", view_count / streamed_median);
     json.field("submissions", streamed_submissions).field("host_waits", streamed_waits);
     json.field("node_count_equals_octomap", streamed_equal);
     json.endObject();
     std::printf(
         "Six views submitted back to back (fresh map, one flush): %.3f s, %.3g Mrays/s, %.1f "
         "views/s; %llu submissions, %llu host waits; node count %s OctoMap's.\n",
-        streamed_median, view_rays / streamed_median * 1e-6, views.size() / streamed_median,
+        streamed_median, view_rays / streamed_median * 1e-6, view_count / streamed_median,
         static_cast<unsigned long long>(streamed_submissions),
         static_cast<unsigned long long>(streamed_waits), streamed_equal ? "equals" : "DIFFERS FROM");
     json.field("cell_set_mismatches", cellMismatches(scans));
@@ -776,12 +777,13 @@ void runFr079(Context& context, const BenchOptions& o, JsonWriter& json) {
     // as `octovk integrate` does: no host wait per scan but for a free frame.
     const Stream stream = streamGraph(context, o, res, graph);
     const bool same = stream.map && *toOcTree(*stream.map) == tree;
+    const double scan_count = static_cast<double>(graph.size());
     json.key("streamed").beginObject();
-    json.field("wall_total_s", stream.wall_s).field("scans_per_s", graph.size() / stream.wall_s);
+    json.field("wall_total_s", stream.wall_s).field("scans_per_s", scan_count / stream.wall_s);
     json.field("rays_per_s", static_cast<double>(total_points) / stream.wall_s);
-    json.field("host_submit_ms_per_scan", stream.submit_ms / graph.size());
-    json.field("submissions_per_scan", static_cast<double>(stream.submissions) / graph.size());
-    json.field("host_waits_per_scan", static_cast<double>(stream.waits) / graph.size());
+    json.field("host_submit_ms_per_scan", stream.submit_ms / scan_count);
+    json.field("submissions_per_scan", static_cast<double>(stream.submissions) / scan_count);
+    json.field("host_waits_per_scan", static_cast<double>(stream.waits) / scan_count);
     json.field("scans_run_again", stream.reruns);
     json.field("equals_octomap", same);
     json.endObject();
@@ -789,9 +791,10 @@ void runFr079(Context& context, const BenchOptions& o, JsonWriter& json) {
         "\nStreamed (submitted back to back, fresh map): %.2f s, %.0f scans/s, %.2f M rays/s; "
         "host %.3f ms per submit; %.2f submissions and %.2f host waits per scan; %zu scans run "
         "again; map %s OctoMap's. OctoMap insertPointCloud %.2f s: %.2fx.\n",
-        stream.wall_s, graph.size() / stream.wall_s, total_points / stream.wall_s * 1e-6,
-        stream.submit_ms / graph.size(), static_cast<double>(stream.submissions) / graph.size(),
-        static_cast<double>(stream.waits) / graph.size(), stream.reruns,
+        stream.wall_s, scan_count / stream.wall_s,
+        static_cast<double>(total_points) / stream.wall_s * 1e-6,
+        stream.submit_ms / scan_count, static_cast<double>(stream.submissions) / scan_count,
+        static_cast<double>(stream.waits) / scan_count, stream.reruns,
         same ? "equals" : "DIFFERS FROM", om_total * 1e-3, om_total * 1e-3 / stream.wall_s);
     if (context.device().ray_query_enabled) {
       // The same stream with ScanRays::kRayTracing: per scan, the structure (boxes and build)
