@@ -10,53 +10,14 @@
 #include <thread>
 #include <unistd.h>
 
+#include "caller_buffer.hpp"
 #include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
 namespace {
 
-// A host-visible storage buffer made with the Vulkan API alone.
-class CallerBuffer {
- public:
-  CallerBuffer(const VulkanHandles& vk, VkDeviceSize bytes) : device_(vk.device) {
-    VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
-    info.size = bytes;
-    info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
-    EXPECT_EQ(vkCreateBuffer(device_, &info, nullptr, &buffer_), VK_SUCCESS);
-    VkMemoryRequirements req;
-    vkGetBufferMemoryRequirements(device_, buffer_, &req);
-    VkPhysicalDeviceMemoryProperties props;
-    vkGetPhysicalDeviceMemoryProperties(vk.physical_device, &props);
-    const VkMemoryPropertyFlags want =
-        VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
-    std::uint32_t type = 0;
-    while (type < props.memoryTypeCount &&
-           !((req.memoryTypeBits & (1u << type)) &&
-             (props.memoryTypes[type].propertyFlags & want) == want))
-      ++type;
-    VkMemoryAllocateInfo alloc{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
-    alloc.allocationSize = req.size;
-    alloc.memoryTypeIndex = type;
-    EXPECT_EQ(vkAllocateMemory(device_, &alloc, nullptr, &memory_), VK_SUCCESS);
-    vkBindBufferMemory(device_, buffer_, memory_, 0);
-    vkMapMemory(device_, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_);
-  }
-  ~CallerBuffer() {
-    vkDestroyBuffer(device_, buffer_, nullptr);
-    vkFreeMemory(device_, memory_, nullptr);
-  }
-  CallerBuffer(const CallerBuffer&) = delete;
-  CallerBuffer& operator=(const CallerBuffer&) = delete;
-  BufferRange range() const { return {buffer_, 0, VK_WHOLE_SIZE}; }
-  void* data() const { return mapped_; }
-
- private:
-  VkDevice device_;
-  VkBuffer buffer_ = VK_NULL_HANDLE;
-  VkDeviceMemory memory_ = VK_NULL_HANDLE;
-  void* mapped_ = nullptr;
-};
+using test::CallerBuffer;
 
 TEST(Interop, QueriesOnCallerBuffersEqualTheHostApi) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -136,6 +97,8 @@ TEST(Interop, QueriesOnCallerBuffersEqualTheHostApi) {
 
 namespace octovk {
 namespace {
+
+using test::CallerBuffer;
 
 // Scans whose input already lives in a caller's buffer: the same map as the host overloads, and
 // octovk reads the buffer only once the caller's timeline semaphore says it is ready.

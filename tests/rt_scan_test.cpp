@@ -10,15 +10,18 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <string>
 #include <tuple>
 #include <vector>
 
+#include "caller_buffer.hpp"
 #include "cli_support.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
+#include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -175,6 +178,100 @@ TEST(RtScan, StreamedScansMatchOctoMap) {
   EXPECT_EQ(stats.back().nodes, oracle.size());
   auto ours = toOcTree(map);
   EXPECT_TRUE(test::sameTree(oracle, *ours));
+}
+
+// The other ways a scan comes in take the same traced path after their own first passes: depth
+// images unprojected on the device (uint16 and float), and points and pixels in a caller's
+// Vulkan buffer. Repeated from nearby poses in one room, so the later ones cross clamped-free
+// space; after every scan the tree equals OctoMap's for the same points (the depth images'
+// points as unprojectDepthImage gives them, which the depth-image tests hold to the formula).
+TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const MapParams params = rtParams(0.05);
+  OccupancyMap map(ctx, params);
+  MapParams walk_params = params;
+  walk_params.scan_rays = ScanRays::kWalk;
+  OccupancyMap walk(ctx, walk_params);  // OctoMap's free-cell counts, to see the skipping
+  octomap::OcTree oracle = test::makeOracle(params);
+  const VulkanHandles vk = vulkanHandles(ctx);
+  ASSERT_NE(vk.device, VK_NULL_HANDLE);
+
+  DepthImage cam;
+  cam.width = 48;
+  cam.height = 36;
+  cam.fx = cam.fy = 40.0f;
+  cam.cx = 23.5f;
+  cam.cy = 17.5f;
+  // The depth of a box-shaped room (walls at x = +-1.6, y = +-1.1, z = 2.8 in the camera frame),
+  // in metres, with a hole every 13th pixel.
+  std::vector<float> metres(std::size_t{cam.width} * cam.height);
+  for (std::uint32_t v = 0; v < cam.height; ++v)
+    for (std::uint32_t u = 0; u < cam.width; ++u) {
+      const float dx = std::abs((static_cast<float>(u) - cam.cx) / cam.fx);
+      const float dy = std::abs((static_cast<float>(v) - cam.cy) / cam.fy);
+      float z = 2.8f;
+      if (dx > 1e-6f) z = std::min(z, 1.6f / dx);
+      if (dy > 1e-6f) z = std::min(z, 1.1f / dy);
+      const std::size_t i = std::size_t{v} * cam.width + u;
+      metres[i] = i % 13 == 0 ? 0.0f : z + 0.003f * static_cast<float>(i % 7);
+    }
+  std::vector<std::uint16_t> raw(metres.size());
+  for (std::size_t i = 0; i < metres.size(); ++i)
+    raw[i] = static_cast<std::uint16_t>(std::lround(metres[i] * 1000.0f));
+  test::CallerBuffer pixel_buffer(vk, raw.size() * sizeof(std::uint16_t));
+  std::memcpy(pixel_buffer.data(), raw.data(), raw.size() * sizeof(std::uint16_t));
+  std::mt19937 rng(29);
+  const std::vector<Eigen::Vector3f> cloud =
+      roomScan(rng, Eigen::Vector3f::Zero(), 1500, 2.0f);
+  test::CallerBuffer point_buffer(vk, cloud.size() * sizeof(Eigen::Vector3f));
+  std::memcpy(point_buffer.data(), cloud.data(), cloud.size() * sizeof(Eigen::Vector3f));
+
+  std::size_t skipped_later = 0;
+  for (int scan = 0; scan < 12; ++scan) {
+    Pose pose;
+    pose.rotation = Eigen::AngleAxisf(0.05f * static_cast<float>(scan % 5), Eigen::Vector3f::UnitY());
+    pose.translation = Eigen::Vector3f(0.02f * static_cast<float>(scan % 3), 0.01f, -0.03f);
+    const double max_range = scan % 4 == 3 ? 2.2 : -1.0;
+    std::vector<Eigen::Vector3f> points;
+    ScanStats stats;
+    switch (scan % 3) {
+      case 0:  // float metres from host memory
+        cam.encoding = DepthImage::Encoding::kFloat32;
+        cam.depth_scale = 1.0f;
+        cam.pixels = metres.data();
+        points = unprojectDepthImage(cam);
+        stats = map.insertDepthImage(cam, pose, max_range);
+        break;
+      case 1:  // uint16 millimetres from a caller's buffer
+        cam.encoding = DepthImage::Encoding::kUint16;
+        cam.depth_scale = 1000.0f;
+        cam.pixels = raw.data();
+        points = unprojectDepthImage(cam);
+        cam.pixels = nullptr;
+        stats = insertDepthImageOnDevice(map, pixel_buffer.range(), cam, pose, max_range,
+                                         Eigen::Vector3f::Zero(), false, {});
+        break;
+      default:  // points from a caller's buffer
+        points = cloud;
+        stats = insertPointCloudOnDevice(map, point_buffer.range(),
+                                         static_cast<std::uint32_t>(cloud.size()),
+                                         Eigen::Vector3f::Zero(), pose, max_range, false, {});
+        break;
+    }
+    oracle.insertPointCloud(test::toPointcloud(points), test::toPoint(Eigen::Vector3f::Zero()),
+                            test::toPose6D(pose), max_range, false, false);
+    EXPECT_GT(stats.device.scan_build_ms + stats.device.scan_trace_ms, 0.0) << "scan " << scan;
+    EXPECT_EQ(stats.nodes, oracle.size()) << "scan " << scan;
+    auto ours = toOcTree(map);
+    ASSERT_TRUE(test::sameTree(oracle, *ours)) << "scan " << scan;
+    const ScanStats w = walk.insertPointCloud(points, Eigen::Vector3f::Zero(), pose, max_range);
+    EXPECT_EQ(stats.occupied_cells, w.occupied_cells) << "scan " << scan;
+    EXPECT_LE(stats.free_cells, w.free_cells) << "scan " << scan;
+    if (scan >= 6) skipped_later += w.free_cells - stats.free_cells;
+  }
+  // The later scans crossed clamped-free space and left its cells out.
+  EXPECT_GT(skipped_later, 1000u);
 }
 
 // ---- refusal ----
