@@ -610,7 +610,8 @@ TEST(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
 }
 
 // A device without ray queries (or a Context that does not enable them) falls back to the walk
-// under kAuto, and refuses kRayTracing with the reason; so does a map under a memory cap.
+// under kAuto, and refuses kRayTracing with the reason. A memory cap does not change the choice
+// (the structure is checked against it at each build: RayTracingBackend.UnderAMemoryCap).
 TEST(RayTracingBackend, FallsBackToTheWalkWithoutRayQueries) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   ContextOptions options;
@@ -639,10 +640,100 @@ TEST(RayTracingBackend, FallsBackToTheWalkWithoutRayQueries) {
     }
   }
   params.max_device_bytes = 64u << 20;
-  EXPECT_EQ(OccupancyMap(ctx, params).castRayInfo().backend, CastRayBackend::kWalk);
-  if (ctx.device().ray_query_enabled) {
-    params.cast_ray_backend = CastRayBackend::kRayTracing;
-    EXPECT_THROW(OccupancyMap(ctx, params), Error);
+  EXPECT_EQ(OccupancyMap(ctx, params).castRayInfo().backend,
+            ctx.device().ray_query_enabled ? CastRayBackend::kRayTracing : CastRayBackend::kWalk);
+}
+
+// Under MapParams::max_device_bytes the acceleration structure counts with the query buffers:
+// where it fits, castRays traces and the map stays within the cap; where it does not, kAuto
+// answers with the walk (the same answers, counted in cap_fallbacks) and kRayTracing throws
+// kOutOfDeviceMemory naming the cap, with the map unchanged. A scan releases the structure first,
+// so its growth never loses room to it. Caps are derived from what uncapped maps measure.
+TEST(RayTracingBackend, UnderAMemoryCap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const Eigen::Vector3f origin(0.0f, 0.0f, 0.05f);
+  std::mt19937 rng(41);
+  const auto scan = test::randomScan(rng, origin, 3000, 2.0f);
+  const auto more = test::randomScan(rng, origin, 3000, 2.5f);
+  std::vector<Ray> rays;
+  for (const auto& d : sphereDirections(24)) {
+    rays.push_back({origin, d, -1.0, false});
+    rays.push_back({origin, d, 3.0, true});
+  }
+  MapParams params;
+  params.resolution = 0.1;
+  // What the map holds after the scans and one castRays call, with each backend.
+  std::size_t walk_bytes = 0, rt_bytes = 0;
+  for (const CastRayBackend backend : {CastRayBackend::kWalk, CastRayBackend::kRayTracing}) {
+    MapParams p = params;
+    p.cast_ray_backend = backend;
+    OccupancyMap probe(ctx, p);
+    probe.insertPointCloud(scan, origin);
+    probe.insertPointCloud(more, origin);
+    (void)probe.castRays(rays);
+    (backend == CastRayBackend::kWalk ? walk_bytes : rt_bytes) = probe.deviceBytes();
+  }
+  ASSERT_GT(rt_bytes, walk_bytes + (1u << 20)) << "the structure should take room";
+  octomap::OcTree tree(0.1);
+  tree.insertPointCloud(test::toPointcloud(scan), test::toPoint(origin));
+
+  // Room for the structure: it is built, and counted.
+  params.max_device_bytes = rt_bytes + (rt_bytes - walk_bytes);
+  {
+    OccupancyMap map(ctx, params);
+    map.insertPointCloud(scan, origin);
+    EXPECT_TRUE(sameAsOctoMap(tree, rays, map.castRays(rays)));
+    const OccupancyMap::CastRayInfo info = map.castRayInfo();
+    EXPECT_EQ(info.builds, 1u);
+    EXPECT_EQ(info.cap_fallbacks, 0u);
+    EXPECT_GT(info.device_bytes, 0u);
+    EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+    EXPECT_EQ(map.deviceBytesByUse().total(), map.deviceBytes());
+    // A scan drops it; the next castRays builds it again.
+    map.insertPointCloud(more, origin);
+    EXPECT_EQ(map.castRayInfo().device_bytes, 0u);
+    octomap::OcTree both = tree;
+    both.insertPointCloud(test::toPointcloud(more), test::toPoint(origin));
+    EXPECT_TRUE(sameAsOctoMap(both, rays, map.castRays(rays)));
+    EXPECT_EQ(map.castRayInfo().builds, 1u);  // a fresh scene counts from one
+    EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+  }
+
+  // No room for it: kAuto answers with the walk, kRayTracing refuses and keeps the map.
+  params.max_device_bytes = walk_bytes + (rt_bytes - walk_bytes) / 8;
+  {
+    OccupancyMap map(ctx, params);
+    map.insertPointCloud(scan, origin);
+    EXPECT_TRUE(sameAsOctoMap(tree, rays, map.castRays(rays)));
+    const OccupancyMap::CastRayInfo info = map.castRayInfo();
+    EXPECT_EQ(info.backend, CastRayBackend::kRayTracing);
+    EXPECT_EQ(info.cap_fallbacks, 1u);
+    EXPECT_EQ(info.builds, 0u);
+    EXPECT_EQ(info.device_bytes, 0u);
+    EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+  }
+  params.cast_ray_backend = CastRayBackend::kRayTracing;
+  {
+    OccupancyMap map(ctx, params);
+    map.insertPointCloud(scan, origin);
+    const std::size_t nodes = map.nodeCount();
+    try {
+      (void)map.castRays(rays);
+      ADD_FAILURE() << "a structure beyond max_device_bytes was built";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory);
+      const std::string what = e.what();
+      for (const char* part : {"max_device_bytes", "acceleration structure", "unchanged", "kAuto"})
+        EXPECT_NE(what.find(part), std::string::npos) << what;
+    }
+    EXPECT_EQ(map.nodeCount(), nodes);
+    EXPECT_EQ(map.castRayInfo().device_bytes, 0u);
+    EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+    EXPECT_TRUE(test::sameTree(tree, *toOcTree(map)));
+    // The map keeps working: the next scan goes in.
+    map.insertPointCloud(more, origin);
+    EXPECT_GT(map.nodeCount(), 0u);
   }
 }
 

@@ -101,9 +101,11 @@ struct MapParams {
   /// that would need more throws kOutOfDeviceMemory and leaves the map as it was; the map keeps
   /// working. At least minDeviceBytes().
   std::size_t max_device_bytes = 0;
-  /// castRay's backend. kRayTracing on a device without ray queries (or with a loop limit, or
-  /// with max_device_bytes set: the acceleration structure is not under the cap) makes the
-  /// map's constructor throw kMissingFeature / kInvalidArgument.
+  /// castRay's backend. kRayTracing on a device without ray queries (or with a loop limit)
+  /// makes the map's constructor throw kMissingFeature. The acceleration structure counts under
+  /// max_device_bytes (with the query buffers): where it would not fit, a castRays call with
+  /// kAuto answers with the walk (the same answers; CastRayInfo::cap_fallbacks), with
+  /// kRayTracing it throws kOutOfDeviceMemory and the map stays as it was.
   CastRayBackend cast_ray_backend = CastRayBackend::kAuto;
   /// How scans find their cells. kRayTracing on a device without ray queries (or with a loop
   /// limit, or with max_device_bytes set: the acceleration structure is not under the cap)
@@ -445,6 +447,9 @@ class OccupancyMap {
     std::size_t occupied_boxes = 0;  ///< boxes of the last build: occupied leaves
     std::size_t unknown_boxes = 0;   ///< and unknown regions
     std::size_t device_bytes = 0;    ///< boxes, structures, scratch (in deviceBytesByUse().queries)
+    /// castRays calls answered by the walk because, under MapParams::max_device_bytes, the
+    /// structure would not have fitted (kAuto only; kRayTracing throws kOutOfDeviceMemory).
+    std::size_t cap_fallbacks = 0;
   };
   CastRayInfo castRayInfo() const;
   /// deviceBytesByUse().scratch.

@@ -68,7 +68,7 @@ BufferBytes MapBuffers::bytesByUse() const {
   b.pool = poolBytes();
   b.leaf_boxes = leaf_boxes.size();
   b.queries = query_in.size() + query_out.size() + query_staging_in.size() +
-              query_staging_out.size();
+              query_staging_out.size() + scene_bytes_;
   for (const vk::Buffer* x :
        {&params, &counters, &pool, &readback, &points, &walks, &depth, &hash_keys,
         &hash_flags, &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
@@ -89,7 +89,8 @@ void MapBuffers::checkBudget(std::size_t freed, std::size_t added, const std::st
       ") does not allow " + what + ": the map would hold " + mib(b.total() - freed + added) +
       "; it holds " + mib(b.total()) + " (node pool " + mib(b.pool) + ", leaf boxes " +
       mib(b.leaf_boxes) + ", scan scratch " + mib(b.scratch) + ", query buffers " +
-      mib(b.queries) + "); the map is unchanged. Raise max_device_bytes, split the scan or the "
+      mib(b.queries - scene_bytes_) + ", acceleration structures " + mib(scene_bytes_) +
+      "); the map is unchanged. Raise max_device_bytes, split the scan or the "
       "query batch into smaller ones, or call OccupancyMap::trim() to release scratch");
 }
 

@@ -124,7 +124,17 @@ class MapBuffers {
   bool setsNeedFill() const noexcept { return sets_need_fill_; }
   void setSetsNeedFill(bool v) noexcept { sets_need_fill_ = v; }
 
-  /// Every buffer of the map, staging included: what the cap limits.
+  /// Bytes the map holds outside these buffers: castRay's and the traced scans' box buffers and
+  /// acceleration structures (RayScene). Counted with the query buffers, under the cap; the
+  /// map sets it whenever a scene grows or is dropped.
+  void setSceneBytes(std::size_t bytes) noexcept { scene_bytes_ = bytes; }
+  std::size_t sceneBytes() const noexcept { return scene_bytes_; }
+  /// Whether the map may hold `added` more bytes once `freed` are released (no cap: always).
+  bool fits(std::size_t freed, std::size_t added) const;
+  /// Throws BudgetError naming `what` unless the growth fits the cap.
+  void checkBudget(std::size_t freed, std::size_t added, const std::string& what) const;
+
+  /// Every buffer of the map, staging included, and the scenes: what the cap limits.
   std::size_t deviceBytes() const { return bytesByUse().total(); }
   std::size_t poolBytes() const {
     return nodes.size() + block_parents.size() + free_stack.size();
@@ -161,14 +171,12 @@ class MapBuffers {
   /// Bytes freed and added by allocateSets with these arguments.
   void setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots,
                  std::size_t& freed, std::size_t& added) const;
-  bool fits(std::size_t freed, std::size_t added) const;
-  /// Throws BudgetError naming `what` unless the growth fits the cap.
-  void checkBudget(std::size_t freed, std::size_t added, const std::string& what) const;
 
   vk::Device& device_;
   vk::CommandStream& stream_;
   std::uint32_t block_limit_;
   std::size_t max_bytes_ = 0;
+  std::size_t scene_bytes_ = 0;
   std::vector<std::size_t> scan_points_;  // the last kScanHistory scans, oldest first
   std::size_t scratch_peak_points_ = 0;   // largest scan since the scratch was last released
   bool sets_need_fill_ = true;

@@ -73,10 +73,8 @@ class OccupancyMap::Impl {
   void upload(const HostTree& tree);
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
-  std::size_t deviceBytes() const {
-    return buffers_.deviceBytes() + (ray_scene_ ? ray_scene_->deviceBytes() : 0) +
-           (scan_scene_ ? scan_scene_->deviceBytes() : 0);
-  }
+  /// Every buffer and both scenes (MapBuffers counts the scenes, see noteSceneBytes).
+  std::size_t deviceBytes() const { return buffers_.deviceBytes(); }
   std::size_t poolBytes() const { return buffers_.poolBytes(); }
   DeviceBytes deviceBytesByUse() const;
   /// Releases the per-scan scratch and the query buffers (OccupancyMap::trim).
@@ -98,9 +96,23 @@ class OccupancyMap::Impl {
   static CastRayBackend chooseCastRayBackend(const vk::Device& device, const MapParams& params);
   /// Brings the acceleration structure up to the tree (lazily: when the tree changed since it
   /// was built) and returns the address of its boxes buffer for cast_ray_rt; 0 with the walk.
+  /// Under MapParams::max_device_bytes a structure that would not fit is not built: with
+  /// kAuto the scene is dropped and 0 returned (the walk answers, CastRayInfo::cap_fallbacks
+  /// counts it); with kRayTracing BudgetError, the map unchanged.
   VkDeviceAddress rayScene();
+  /// Whether castRay's scene may hold `bytes` in place of what it holds now under the cap; if
+  /// not, drops the scene, then with kRayTracing throws BudgetError naming `what`, with kAuto
+  /// counts a fallback and returns false.
+  bool rayScenefits(std::size_t bytes, const std::string& what);
+  /// Tells the buffers' cap accounting what the two scenes hold (after either changes).
+  void noteSceneBytes();
+  /// Under a cap, drops castRay's scene (no castRay uses it after its call returns), so that a
+  /// scan's or an upload's growth never loses room to a structure the change makes stale anyway.
+  void releaseRaySceneUnderCap();
   CastRayBackend cast_ray_backend_ = CastRayBackend::kWalk;
   std::unique_ptr<RayScene> ray_scene_;
+  /// castRays calls the walk answered because the structure did not fit under the cap (kAuto).
+  std::size_t cap_fallbacks_ = 0;
   /// Counts the changes of the tree (scans that updated cells, uploads), for the ray scene.
   std::uint64_t tree_version_ = 0;
 

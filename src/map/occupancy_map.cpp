@@ -211,6 +211,7 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
                     std::to_string(buffers_.blockLimit() * 8ull) +
                     " (MapParams::max_nodes or 2^32); the map is unchanged");
   const PoolImage image = poolImageFromTree(tree);
+  releaseRaySceneUnderCap();
   const std::uint32_t capacity = std::min<std::uint32_t>(
       buffers_.blockLimit(), std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
   if (capacity > buffers_.poolBlocks())
@@ -246,13 +247,8 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
 }
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
-  const BufferBytes b = buffers_.bytesByUse();
-  const std::size_t scene = (ray_scene_ ? ray_scene_->deviceBytes() : 0) +
-                            (scan_scene_ ? scan_scene_->deviceBytes() : 0);
-  return {.pool = b.pool,
-          .leaf_boxes = b.leaf_boxes,
-          .scratch = b.scratch,
-          .queries = b.queries + scene};
+  const BufferBytes b = buffers_.bytesByUse();  // the scenes are in b.queries
+  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
 }
 
 void OccupancyMap::Impl::trim() {
@@ -263,6 +259,7 @@ void OccupancyMap::Impl::trim() {
   ray_scene_.reset();
   scan_scene_.reset();
   scan_header_ = {};
+  noteSceneBytes();
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {

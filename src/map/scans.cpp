@@ -258,6 +258,7 @@ void OccupancyMap::Impl::record(PendingScan& p) {
   passes::recordRayKeys(rec_, sp, input);
   if (scene) {
     passes::recordScanScene(rec_, scene->accel, scene->boxes, scan_header_);
+    noteSceneBytes();  // the build allocated before recording
     passes::recordScanRaysRt(rec_, scene->boxes.address(), sp.point_count, input.discretize);
   }
   passes::recordClassify(rec_, input.discretize, sp.point_count);
@@ -291,6 +292,7 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
   p.stats.points = count;
   p.blocking = blocking;
   if (count > 0) {
+    releaseRaySceneUnderCap();  // the scan's growth comes first; castRays builds it again
     prepareBuffers(count, depthBytesOf(source));
     if (queries) passes::stageQueries(buffers_, *queries);  // after the growth: nothing in flight
     // The frame this scan records into must have no scan of ours in flight.

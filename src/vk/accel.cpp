@@ -67,82 +67,141 @@ void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccess
   vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &b, 0, nullptr, 0, nullptr);
 }
 
+// Whether a structure of `bytes` is kept: one exists and is large enough.
+bool keeps(const AccelerationStructure& as, VkDeviceSize bytes) {
+  return as.handle() != VK_NULL_HANDLE && as.size() >= bytes;
+}
+// What a structure made for `bytes` gets: a quarter more, for the next builds.
+VkDeviceSize withHeadroom(VkDeviceSize bytes) { return bytes + bytes / 4; }
+
 // A structure of at least `bytes`, kept while it is large enough.
 void ensureStructure(Device& device, AccelerationStructure& as, VkAccelerationStructureTypeKHR type,
                      VkDeviceSize bytes) {
-  if (as.handle() != VK_NULL_HANDLE && as.size() >= bytes) return;
+  if (keeps(as, bytes)) return;
   as = AccelerationStructure();
-  as = AccelerationStructure(device, type, bytes + bytes / 4);
+  as = AccelerationStructure(device, type, withHeadroom(bytes));
 }
+
+// The geometry and build info of a bottom-level structure over `g` (pGeometries left unset:
+// the caller points it at its own copy of `geo`).
+void bottomLevel(const BoxGeometry& g, VkAccelerationStructureGeometryKHR& geo,
+                 VkAccelerationStructureBuildGeometryInfoKHR& build) {
+  geo = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+  geo.geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;
+  geo.geometry.aabbs = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_AABBS_DATA_KHR};
+  geo.geometry.aabbs.data.deviceAddress = g.data;
+  geo.geometry.aabbs.stride = sizeof(VkAabbPositionsKHR);
+  geo.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;
+  build = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+  build.type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
+  build.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
+  build.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
+  build.geometryCount = 1;
+}
+
+// The same for the top-level structure over the instances.
+void topLevel(VkAccelerationStructureGeometryKHR& geo,
+              VkAccelerationStructureBuildGeometryInfoKHR& build) {
+  geo = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
+  geo.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
+  geo.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
+  geo.geometry.instances.arrayOfPointers = VK_FALSE;
+  geo.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;
+  build = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
+  build.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
+  build.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
+  build.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
+  build.geometryCount = 1;
+}
+
+// A geometry of count 0 is built from one (inactive) box.
+std::uint32_t boxCount(const BoxGeometry& g) { return std::max<std::uint32_t>(g.count, 1); }
 
 }  // namespace
 
-void BoxScene::recordBuild(CommandStream& stream, std::span<const BoxGeometry> geometries) {
+BoxScene::Sizes BoxScene::sizes(std::span<const BoxGeometry> geometries) const {
   const Device::RayQueryApi& api = device_->rayQueryApi();
   const VkDevice dev = device_->handle();
-  const std::size_t n = geometries.size();
   const VkDeviceSize align = api.scratch_alignment;
-
-  // Sizes: one bottom-level structure per array (its own scratch region, so the builds need no
-  // barrier between them), then the top-level one (reusing the scratch after a barrier).
-  std::vector<VkAccelerationStructureGeometryKHR> geo(n);
-  std::vector<VkAccelerationStructureBuildGeometryInfoKHR> build(n);
-  std::vector<VkAccelerationStructureBuildRangeInfoKHR> range(n);
-  std::vector<VkDeviceSize> scratch_offset(n);
-  VkDeviceSize scratch_bytes = 0;
-  blas_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    geo[i] = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
-    geo[i].geometryType = VK_GEOMETRY_TYPE_AABBS_KHR;
-    geo[i].geometry.aabbs = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_AABBS_DATA_KHR};
-    geo[i].geometry.aabbs.data.deviceAddress = geometries[i].data;
-    geo[i].geometry.aabbs.stride = sizeof(VkAabbPositionsKHR);
-    geo[i].flags = VK_GEOMETRY_OPAQUE_BIT_KHR;
-    build[i] = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
-    build[i].type = VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR;
-    build[i].flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
-    build[i].mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
-    build[i].geometryCount = 1;
-    build[i].pGeometries = &geo[i];
-    const std::uint32_t count = std::max<std::uint32_t>(geometries[i].count, 1);
-    range[i] = {count, 0, 0, 0};
+  Sizes out;
+  // One bottom-level structure per array, each with its own scratch region (so the builds need
+  // no barrier between them), then the top-level one (reusing the scratch after a barrier).
+  for (const BoxGeometry& g : geometries) {
+    VkAccelerationStructureGeometryKHR geo;
+    VkAccelerationStructureBuildGeometryInfoKHR build;
+    bottomLevel(g, geo, build);
+    build.pGeometries = &geo;
+    const std::uint32_t count = boxCount(g);
     VkAccelerationStructureBuildSizesInfoKHR sizes{
         VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
-    api.buildSizes(dev, VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &build[i], &count, &sizes);
-    ensureStructure(*device_, blas_[i], VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
-                    sizes.accelerationStructureSize);
-    scratch_offset[i] = scratch_bytes;
-    scratch_bytes = alignUp(scratch_bytes + sizes.buildScratchSize, align);
+    api.buildSizes(dev, VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &build, &count, &sizes);
+    out.blas.push_back(sizes.accelerationStructureSize);
+    out.scratch_offset.push_back(out.scratch);
+    out.scratch = alignUp(out.scratch + sizes.buildScratchSize, align);
   }
-
-  VkAccelerationStructureGeometryKHR tgeo{VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_KHR};
-  tgeo.geometryType = VK_GEOMETRY_TYPE_INSTANCES_KHR;
-  tgeo.geometry.instances = {VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_GEOMETRY_INSTANCES_DATA_KHR};
-  tgeo.geometry.instances.arrayOfPointers = VK_FALSE;
-  tgeo.flags = VK_GEOMETRY_OPAQUE_BIT_KHR;
-  VkAccelerationStructureBuildGeometryInfoKHR tbuild{
-      VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_GEOMETRY_INFO_KHR};
-  tbuild.type = VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR;
-  tbuild.flags = VK_BUILD_ACCELERATION_STRUCTURE_PREFER_FAST_TRACE_BIT_KHR;
-  tbuild.mode = VK_BUILD_ACCELERATION_STRUCTURE_MODE_BUILD_KHR;
-  tbuild.geometryCount = 1;
+  VkAccelerationStructureGeometryKHR tgeo;
+  VkAccelerationStructureBuildGeometryInfoKHR tbuild;
+  topLevel(tgeo, tbuild);
   tbuild.pGeometries = &tgeo;
-  const auto instance_count = static_cast<std::uint32_t>(n);
+  const auto instance_count = static_cast<std::uint32_t>(geometries.size());
   VkAccelerationStructureBuildSizesInfoKHR tsizes{
       VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_BUILD_SIZES_INFO_KHR};
   api.buildSizes(dev, VK_ACCELERATION_STRUCTURE_BUILD_TYPE_DEVICE_KHR, &tbuild, &instance_count,
                  &tsizes);
-  ensureStructure(*device_, tlas_, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR,
-                  tsizes.accelerationStructureSize);
-  scratch_bytes = std::max(scratch_bytes, alignUp(tsizes.buildScratchSize, align));
+  out.tlas = tsizes.accelerationStructureSize;
+  out.scratch = std::max(out.scratch, alignUp(tsizes.buildScratchSize, align));
+  out.instances = geometries.size() * sizeof(VkAccelerationStructureInstanceKHR);
+  return out;
+}
+
+std::size_t BoxScene::bytesAfterBuild(std::span<const BoxGeometry> geometries) const {
+  const Sizes need = sizes(geometries);
+  const VkDeviceSize align = device_->rayQueryApi().scratch_alignment;
+  std::size_t bytes = 0;
+  for (std::size_t i = 0; i < need.blas.size(); ++i)
+    bytes += i < blas_.size() && keeps(blas_[i], need.blas[i]) ? blas_[i].size()
+                                                               : withHeadroom(need.blas[i]);
+  bytes += keeps(tlas_, need.tlas) ? tlas_.size() : withHeadroom(need.tlas);
+  bytes += scratch_.valid() && scratch_.size() >= need.scratch + align
+               ? scratch_.size()
+               : need.scratch + need.scratch / 4 + align;
+  bytes += instances_.valid() && instances_.size() >= need.instances ? instances_.size()
+                                                                     : need.instances;
+  return bytes;
+}
+
+void BoxScene::recordBuild(CommandStream& stream, std::span<const BoxGeometry> geometries) {
+  const Device::RayQueryApi& api = device_->rayQueryApi();
+  const std::size_t n = geometries.size();
+  const VkDeviceSize align = api.scratch_alignment;
+  const Sizes need = sizes(geometries);
+
+  std::vector<VkAccelerationStructureGeometryKHR> geo(n);
+  std::vector<VkAccelerationStructureBuildGeometryInfoKHR> build(n);
+  std::vector<VkAccelerationStructureBuildRangeInfoKHR> range(n);
+  blas_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    bottomLevel(geometries[i], geo[i], build[i]);
+    build[i].pGeometries = &geo[i];
+    range[i] = {boxCount(geometries[i]), 0, 0, 0};
+    ensureStructure(*device_, blas_[i], VK_ACCELERATION_STRUCTURE_TYPE_BOTTOM_LEVEL_KHR,
+                    need.blas[i]);
+  }
+  VkAccelerationStructureGeometryKHR tgeo;
+  VkAccelerationStructureBuildGeometryInfoKHR tbuild;
+  topLevel(tgeo, tbuild);
+  tbuild.pGeometries = &tgeo;
+  const auto instance_count = static_cast<std::uint32_t>(n);
+  ensureStructure(*device_, tlas_, VK_ACCELERATION_STRUCTURE_TYPE_TOP_LEVEL_KHR, need.tlas);
 
   // Room for aligning the scratch's device address too.
+  const VkDeviceSize scratch_bytes = need.scratch;
   if (!scratch_.valid() || scratch_.size() < scratch_bytes + align) {
     scratch_ = Buffer();
     scratch_ = Buffer(*device_, scratch_bytes + scratch_bytes / 4 + align, false);
   }
   const VkDeviceAddress scratch = alignUp(scratch_.address(), align);
-  const std::size_t instance_bytes = n * sizeof(VkAccelerationStructureInstanceKHR);
+  const std::size_t instance_bytes = need.instances;
   if (!instances_.valid() || instances_.size() < instance_bytes)
     instances_ = Buffer(*device_, instance_bytes, false,
                         VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
@@ -170,7 +229,7 @@ void BoxScene::recordBuild(CommandStream& stream, std::span<const BoxGeometry> g
   std::vector<const VkAccelerationStructureBuildRangeInfoKHR*> ranges(n);
   for (std::size_t i = 0; i < n; ++i) {
     build[i].dstAccelerationStructure = blas_[i].handle();
-    build[i].scratchData.deviceAddress = scratch + scratch_offset[i];
+    build[i].scratchData.deviceAddress = scratch + need.scratch_offset[i];
     ranges[i] = &range[i];
   }
   if (n) api.cmdBuild(cmd, static_cast<std::uint32_t>(n), build.data(), ranges.data());

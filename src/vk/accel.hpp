@@ -57,6 +57,10 @@ class BoxScene {
   /// device does not use the scene. A geometry with count 0 is built from one box at its `data`,
   /// which must then hold an inactive box.
   void recordBuild(CommandStream& stream, std::span<const BoxGeometry> geometries);
+  /// Device bytes the scene would hold after recordBuild(geometries): the structures and buffers
+  /// it keeps (large enough) and the ones it would make (with their headroom); for a memory cap
+  /// checked before the build. Allocates nothing.
+  std::size_t bytesAfterBuild(std::span<const BoxGeometry> geometries) const;
   /// Device address of the top-level structure (0 before the first build).
   VkDeviceAddress tlasAddress() const noexcept { return tlas_.address(); }
   /// Device bytes held: structures, instances, scratch.
@@ -65,6 +69,15 @@ class BoxScene {
   void release() noexcept;
 
  private:
+  /// What a build over some geometries needs: each bottom-level structure, the top-level one,
+  /// the scratch (the bottom-level builds' regions side by side, aligned) and the instances.
+  struct Sizes {
+    std::vector<VkDeviceSize> blas;
+    std::vector<VkDeviceSize> scratch_offset;
+    VkDeviceSize tlas = 0, scratch = 0, instances = 0;
+  };
+  Sizes sizes(std::span<const BoxGeometry> geometries) const;
+
   Device* device_;
   std::vector<AccelerationStructure> blas_;
   AccelerationStructure tlas_;
