@@ -119,7 +119,10 @@ double spanMs(const std::vector<double>& ns) {
 
 VkDeviceAddress OccupancyMap::Impl::rayScene() {
   if (cast_ray_backend_ != CastRayBackend::kRayTracing) return 0;
-  if (!ray_scene_) ray_scene_ = std::make_unique<RayScene>(device_);
+  if (!ray_scene_) {
+    ray_scene_ = std::make_unique<RayScene>(device_);
+    noteSceneBytes();
+  }
   RayScene& scene = *ray_scene_;
   if (scene.version == tree_version_) return scene.boxes.address();
 
