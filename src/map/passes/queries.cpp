@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <utility>
 
 #include "map/passes/passes.hpp"
@@ -22,85 +23,87 @@ std::size_t queryOutputBytes(std::size_t rays, std::size_t lookups) {
 
 namespace {
 
-// v (any double, NaN included) as an integer in [0, 2^bits): clamped, NaN to 0.
-std::uint64_t quantise(double v, unsigned bits) {
-  const double top = static_cast<double>((1u << bits) - 1u);
-  if (!(v > 0.0)) return 0;
-  return v >= top ? static_cast<std::uint64_t>(top) : static_cast<std::uint64_t>(v);
+// The low 5 bits of a spread to every third bit, the low 8 bits of b to every second bit: one
+// coordinate of a 3D / 2D Morton code.
+std::uint32_t spread3(std::uint32_t a) {
+  a &= 0x1Fu;
+  a = (a | (a << 8)) & 0x0300Fu;
+  a = (a | (a << 4)) & 0x030C3u;
+  a = (a | (a << 2)) & 0x09249u;
+  return a;
+}
+std::uint32_t spread2(std::uint32_t b) {
+  b &= 0xFFu;
+  b = (b | (b << 4)) & 0x0F0Fu;
+  b = (b | (b << 2)) & 0x3333u;
+  b = (b | (b << 1)) & 0x5555u;
+  return b;
 }
 
-// The bits of a (below 2^bits) spread to every `stride`-th bit: one coordinate of a Morton code.
-std::uint64_t spread(std::uint64_t a, unsigned bits, unsigned stride) {
-  std::uint64_t out = 0;
-  for (unsigned i = 0; i < bits; ++i) out |= ((a >> i) & 1u) << (i * stride);
-  return out;
+// v (any float, NaN included) as an integer in [0, top]: clamped, NaN to 0.
+std::uint32_t clampToInt(float v, float top) {
+  if (!(v > 0.0f)) return 0;
+  return v >= top ? static_cast<std::uint32_t>(top) : static_cast<std::uint32_t>(v);
 }
 
-constexpr unsigned kOriginBits = 10;     // per axis, in blocks of 64 cells around the map's centre
-constexpr unsigned kDirectionBits = 11;  // per coordinate of the octahedral map of the direction
-
-// Where a ray sorts: its kind (bit 52), its origin's block along a Morton curve (bits 22..51),
-// its direction on the octahedral map along a Morton curve (bits 0..21).
-std::uint64_t rayKey(const Ray& ray, double resolution) {
-  const double block = resolution * 64.0;
-  const double centre = static_cast<double>(1u << (kOriginBits - 1));
-  std::uint64_t origin = 0;
-  for (unsigned a = 0; a < 3; ++a)
-    origin |= spread(quantise(ray.origin[a] / block + centre, kOriginBits), kOriginBits, 3) << a;
+// Where a ray sorts (32 bits): its kind (bit 31), then the block of 64 cells its origin lies in
+// (bits 16..30: a Morton code of the blocks' coordinates modulo 32, so neighbouring blocks stay
+// together), then its direction on the octahedral map (bits 0..15: a Morton code of 256 x 256
+// cells). Only grouping matters; nothing depends on the order.
+std::uint32_t rayKey(const Ray& ray, float inv_block) {
+  std::uint32_t origin = 0;
+  for (int a = 0; a < 3; ++a) {
+    // The block index modulo 32, from the coordinate offset by 2^20 blocks (clamped: no
+    // conversion of an out-of-range float).
+    const float b = ray.origin[a] * inv_block + 1048576.0f;
+    origin |= spread3(clampToInt(b, 2097151.0f)) << a;
+  }
   // The octahedral map: the direction onto |x| + |y| + |z| = 1, the lower half folded out.
-  const double x = ray.direction.x(), y = ray.direction.y(), z = ray.direction.z();
-  const double l1 = std::abs(x) + std::abs(y) + std::abs(z);
-  double u = 0.0, v = 0.0;
-  if (l1 > 0.0 && std::isfinite(l1)) {
+  const float x = ray.direction.x(), y = ray.direction.y(), z = ray.direction.z();
+  const float l1 = std::abs(x) + std::abs(y) + std::abs(z);
+  float u = 0.0f, v = 0.0f;
+  if (l1 > 0.0f && l1 <= std::numeric_limits<float>::max()) {
     u = x / l1;
     v = y / l1;
-    if (z < 0.0) {
-      const double fu = (1.0 - std::abs(v)) * (u >= 0.0 ? 1.0 : -1.0);
-      v = (1.0 - std::abs(u)) * (v >= 0.0 ? 1.0 : -1.0);
+    if (z < 0.0f) {
+      const float fu = (1.0f - std::abs(v)) * (u >= 0.0f ? 1.0f : -1.0f);
+      v = (1.0f - std::abs(u)) * (v >= 0.0f ? 1.0f : -1.0f);
       u = fu;
     }
   }
-  const double scale = static_cast<double>(1u << (kDirectionBits - 1));
-  const std::uint64_t direction = spread(quantise((u + 1.0) * scale, kDirectionBits),
-                                         kDirectionBits, 2) |
-                                  spread(quantise((v + 1.0) * scale, kDirectionBits),
-                                         kDirectionBits, 2)
-                                      << 1;
-  const std::uint64_t kind = ray.ignore_unknown ? 1u : 0u;
-  return kind << (3 * kOriginBits + 2 * kDirectionBits) |
-         origin << (2 * kDirectionBits) | direction;
+  const std::uint32_t direction = spread2(clampToInt((u + 1.0f) * 128.0f, 255.0f)) |
+                                  spread2(clampToInt((v + 1.0f) * 128.0f, 255.0f)) << 1;
+  return (ray.ignore_unknown ? 1u : 0u) << 31 | origin << 16 | direction;
 }
 
 }  // namespace
 
 std::vector<std::uint32_t> rayOrder(std::span<const Ray> rays, double resolution,
                                     std::uint32_t& stop_rays) {
-  // A stable LSD radix sort of (key, index) on 11-bit digits; a digit all keys share is skipped.
-  struct Entry {
-    std::uint64_t key;
-    std::uint32_t index;
-  };
-  std::vector<Entry> a(rays.size()), b(rays.size());
+  // A stable LSD radix sort of key << 32 | index on the key's three 11-bit digits; a digit all
+  // rays share is skipped (the kind, where all are of one kind).
+  const auto inv_block = static_cast<float>(1.0 / (resolution * 64.0));
+  std::vector<std::uint64_t> a(rays.size()), b(rays.size());
   stop_rays = 0;
   for (std::size_t i = 0; i < rays.size(); ++i) {
-    a[i] = {rayKey(rays[i], resolution), static_cast<std::uint32_t>(i)};
+    a[i] = std::uint64_t{rayKey(rays[i], inv_block)} << 32 | i;
     stop_rays += rays[i].ignore_unknown ? 0u : 1u;
   }
   constexpr unsigned kDigit = 11;
-  constexpr unsigned kKeyBits = 3 * kOriginBits + 2 * kDirectionBits + 1;
+  constexpr std::uint64_t kMask = (1u << kDigit) - 1u;
   std::vector<std::uint32_t> count(std::size_t{1} << kDigit);
-  for (unsigned shift = 0; shift < kKeyBits; shift += kDigit) {
+  for (unsigned shift = 32; shift < 64; shift += kDigit) {
     std::fill(count.begin(), count.end(), 0u);
-    for (const Entry& e : a) ++count[(e.key >> shift) & ((1u << kDigit) - 1u)];
+    for (const std::uint64_t e : a) ++count[(e >> shift) & kMask];
     if (std::any_of(count.begin(), count.end(), [&](std::uint32_t c) { return c == a.size(); }))
       continue;  // one digit for all: this pass would not move anything
     std::uint32_t sum = 0;
     for (std::uint32_t& c : count) sum += std::exchange(c, sum);
-    for (const Entry& e : a) b[count[(e.key >> shift) & ((1u << kDigit) - 1u)]++] = e;
+    for (const std::uint64_t e : a) b[count[(e >> shift) & kMask]++] = e;
     a.swap(b);
   }
   std::vector<std::uint32_t> order(rays.size());
-  for (std::size_t i = 0; i < rays.size(); ++i) order[i] = a[i].index;
+  for (std::size_t i = 0; i < rays.size(); ++i) order[i] = static_cast<std::uint32_t>(a[i]);
   return order;
 }
 
