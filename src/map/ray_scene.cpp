@@ -169,7 +169,12 @@ VkDeviceAddress OccupancyMap::Impl::rayScene() {
 
   stream_.begin(buffers_.bindings);
   stream_.timestamp();
-  passes::recordAccelBuild(rec_, scene.accel, scene.boxes, header);
+  try {
+    passes::recordAccelBuild(rec_, scene.accel, scene.boxes, header);  // allocates first
+  } catch (...) {
+    noteSceneBytes();  // what it holds after a failed allocation
+    throw;
+  }
   stream_.timestamp();
   stream_.submitAndWait();
   const double build_ms = spanMs(stream_.timestampsNs());
