@@ -24,6 +24,11 @@ enum class ErrorCode {
   kVulkan,             ///< an unexpected Vulkan failure; the message names the call and VkResult
   kIo,                 ///< a file could not be read or written
   kFormat,             ///< a file is not in the expected format
+  /// The host could not allocate memory (std::bad_alloc inside octovk); the map is as before
+  /// the call and keeps working.
+  kOutOfHostMemory,
+  /// octovk broke one of its own invariants: a bug, to be reported with the input.
+  kInternal,
 };
 
 /// The one exception type of octovk. The library never exits the process.
@@ -38,7 +43,7 @@ class Error : public std::runtime_error {
 
 /// A value or the reason there is none, for setup steps that fail for ordinary reasons.
 template <class T>
-class Result {
+class [[nodiscard]] Result {
  public:
   Result(T value) : value_(std::move(value)) {}      // NOLINT(google-explicit-constructor)
   Result(Error error) : error_(std::move(error)) {}  // NOLINT(google-explicit-constructor)
@@ -47,7 +52,11 @@ class Result {
     if (!value_) throw *error_;
     return *value_;
   }
-  const Error& error() const { return *error_; }
+  /// The reason there is no value; when there is one, an Error saying so (kInternal).
+  const Error& error() const {
+    static const Error kNoError(ErrorCode::kInternal, "Result::error() called on a value");
+    return error_ ? *error_ : kNoError;
+  }
 
  private:
   std::optional<T> value_;
@@ -157,7 +166,7 @@ std::size_t validationMessageCount() noexcept;
 /// The device a Context runs on.
 struct DeviceInfo {
   std::string name;
-  std::string type;  ///< "discrete GPU", "integrated GPU", "CPU", ...
+  std::string type;    ///< "discrete GPU", "integrated GPU", "CPU", ...
   std::string driver;  ///< driver name and version, e.g. "llvmpipe: Mesa 25.0.7 (LLVM 15.0.6)"
   std::uint32_t index = 0;
   std::uint64_t memory_bytes = 0;
@@ -176,7 +185,16 @@ class Device;
 }
 class InteropAccess;
 
-/// The Vulkan device every map of a process shares. Create one; it must outlive its maps.
+/// The Vulkan device every map of a process shares.
+///
+/// Threads: a Context may be shared by maps used from different threads at once (their
+/// submissions to the device's one queue and the pipelines built at first use are serialised
+/// inside). One OccupancyMap is used from one thread at a time: calls on the same map from two
+/// threads, const queries included, must be ordered by the caller (a map records into its own
+/// command buffers). Different maps need no ordering.
+///
+/// Lifetime: each map keeps the device alive, so a Context may be destroyed before its maps;
+/// the device goes with the last of them.
 class Context {
  public:
   static Result<std::unique_ptr<Context>> create(const ContextOptions& options = {});
@@ -189,10 +207,12 @@ class Context {
   static std::vector<DeviceInfo> listDevices();
 
   vk::Device& vulkan() noexcept { return *device_; }
+  /// The device, shared with the maps that use it (they keep it alive).
+  std::shared_ptr<vk::Device> sharedDevice() const noexcept { return device_; }
 
  private:
   explicit Context(std::unique_ptr<vk::Device> device);
-  std::unique_ptr<vk::Device> device_;
+  std::shared_ptr<vk::Device> device_;
 };
 
 /// Device time of each stage of one scan, from Vulkan timestamp queries (all zero when the
@@ -230,9 +250,9 @@ struct ScanStats {
   /// updates are no-ops), so this is lower than OctoMap's computeUpdate count; the map is the
   /// same.
   std::size_t free_cells = 0;
-  std::size_t occupied_cells = 0;     ///< distinct cells updated as occupied (before early abort)
-  std::size_t aborted_cells = 0;      ///< cells already at the clamping bound: left unchanged
-  std::size_t nodes = 0;              ///< nodes in the tree after the scan
+  std::size_t occupied_cells = 0;  ///< distinct cells updated as occupied (before early abort)
+  std::size_t aborted_cells = 0;   ///< cells already at the clamping bound: left unchanged
+  std::size_t nodes = 0;           ///< nodes in the tree after the scan
   /// Times the scan was run: more than 1 when the device refused it (a set, the pool or the
   /// lists too small, or an earlier scan in flight refused) and it ran again after growth.
   std::size_t cell_set_attempts = 0;
@@ -240,7 +260,7 @@ struct ScanStats {
   /// submit*() took (staging its input and recording; waits for a busy frame or growth
   /// included).
   double wall_ms = 0.0;
-  StageTimes device;                  ///< device time per stage (of the final attempt)
+  StageTimes device;  ///< device time per stage (of the final attempt)
 };
 
 /// A depth image and the pinhole camera that took it (camera frame: x right, y down, z forward).
@@ -318,7 +338,10 @@ struct QueryResults {
   std::vector<RayHit> rays;
 };
 
-/// The occupancy octree, held in device buffers. Not copyable; movable.
+/// The occupancy octree, held in device buffers. Not copyable; movable. A moved-from map throws
+/// kInvalidArgument from every call until a map is assigned to it. One thread at a time (see
+/// Context). A call that throws leaves the map as it was before the call (a std::bad_alloc
+/// inside becomes kOutOfHostMemory), and the map keeps working.
 class OccupancyMap {
  public:
   OccupancyMap(Context& context, const MapParams& params);
@@ -480,6 +503,8 @@ class OccupancyMap {
 
  private:
   friend class InteropAccess;  // vulkan_interop.hpp
+  /// impl_, or kInvalidArgument for a moved-from map.
+  Impl& self() const;
   std::unique_ptr<Impl> impl_;
 };
 

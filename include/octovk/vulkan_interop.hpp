@@ -6,6 +6,7 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <mutex>
 
 #include "octovk/gpu_types.h"
 #include "octovk/octovk.hpp"
@@ -14,6 +15,9 @@ namespace octovk {
 
 /// The Vulkan objects of a Context. Buffers shared with octovk must be created on `device`
 /// with VK_BUFFER_USAGE_STORAGE_BUFFER_BIT; octovk submits its work to `queue` and waits for it.
+/// Vulkan requires a queue externally synchronised, and every map of the Context submits to
+/// `queue` from whichever thread uses it: hold lockQueue(context) around any vkQueueSubmit,
+/// vkQueueWaitIdle or other call of yours on `queue`.
 struct VulkanHandles {
   VkInstance instance = VK_NULL_HANDLE;
   VkPhysicalDevice physical_device = VK_NULL_HANDLE;
@@ -29,6 +33,10 @@ struct VulkanHandles {
 };
 
 VulkanHandles vulkanHandles(Context& context);
+
+/// The lock octovk holds while it submits to the Context's queue; hold it while you use
+/// VulkanHandles::queue (briefly: every map of the Context waits for it to submit).
+std::unique_lock<std::mutex> lockQueue(Context& context);
 
 /// A range of a caller's buffer.
 struct BufferRange {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "io/parse.hpp"
+#include "map/host_memory.hpp"
 #include "map/reference.hpp"
 
 namespace octovk {
@@ -44,9 +45,22 @@ void applyParams(octomap::OcTree& tree, const MapParams& p) {
   tree.setOccupancyThres(p.occupancy_threshold);
 }
 
+std::unique_ptr<octomap::OcTree> buildOcTree(const OccupancyMap& map);
+HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree);
+
 }  // namespace
 
 std::unique_ptr<octomap::OcTree> toOcTree(const OccupancyMap& map) {
+  return hostMemoryGuard("toOcTree", [&] { return buildOcTree(map); });
+}
+
+void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
+  hostMemoryGuard("fromOcTree", [&] { map.upload(hostTreeOf(map, tree)); });
+}
+
+namespace {
+
+std::unique_ptr<octomap::OcTree> buildOcTree(const OccupancyMap& map) {
   const HostTree host = map.download();
   auto tree = std::make_unique<TreeBuilder>(map.params().resolution);
   applyParams(*tree, map.params());
@@ -65,7 +79,8 @@ std::unique_ptr<octomap::OcTree> toOcTree(const OccupancyMap& map) {
   return tree;
 }
 
-void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
+// The tree in the pool's layout, for OccupancyMap::upload.
+HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree) {
   if (tree.getResolution() != map.params().resolution)
     throw Error(ErrorCode::kInvalidArgument,
                 "fromOcTree: the tree's resolution " + std::to_string(tree.getResolution()) +
@@ -95,8 +110,10 @@ void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
       host.nodes[index].mask = mask;
     }
   }
-  map.upload(host);
+  return host;
 }
+
+}  // namespace
 
 void writeMapFile(const OccupancyMap& map, const std::string& path) {
   const std::string ext = extensionOf(path);

@@ -7,7 +7,7 @@ namespace octovk {
 
 class InteropAccess {
  public:
-  static OccupancyMap::Impl& impl(OccupancyMap& map) { return *map.impl_; }
+  static OccupancyMap::Impl& impl(OccupancyMap& map) { return map.self(); }
 };
 
 VulkanHandles vulkanHandles(Context& context) {
@@ -18,6 +18,8 @@ VulkanHandles vulkanHandles(Context& context) {
   h.external_semaphore_fd = d.hasExtension(VK_KHR_EXTERNAL_SEMAPHORE_FD_EXTENSION_NAME);
   return h;
 }
+
+std::unique_lock<std::mutex> lockQueue(Context& context) { return context.vulkan().lockQueue(); }
 
 namespace {
 
@@ -35,8 +37,8 @@ void checkInput(const char* call, const BufferRange& range, std::size_t bytes) {
 
 ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
                                    std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                   const Pose& T_world_sensor, double max_range_m,
-                                   bool discretize, WaitSemaphore wait) {
+                                   const Pose& T_world_sensor, double max_range_m, bool discretize,
+                                   WaitSemaphore wait) {
   checkInput("insertPointCloudOnDevice", points_sensor, std::size_t{count} * 3 * sizeof(float));
   OccupancyMap::Impl::ScanSource source;
   source.device = points_sensor.buffer;

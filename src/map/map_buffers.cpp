@@ -1,13 +1,13 @@
 #include "map/map_buffers.hpp"
 
-#include "map/buffer_sizes.hpp"
-
 #include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdio>
 #include <string>
 #include <vector>
+
+#include "map/buffer_sizes.hpp"
 
 namespace octovk {
 
@@ -44,7 +44,10 @@ std::string mib(std::size_t bytes) {
 
 MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit,
                        std::size_t max_bytes)
-    : bindings(device), device_(device), stream_(stream), block_limit_(block_limit),
+    : bindings(device),
+      device_(device),
+      stream_(stream),
+      block_limit_(block_limit),
       max_bytes_(max_bytes) {
   // MapParams::validate refuses a cap below initialBytes(); the checks below hold it anyway.
   params = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
@@ -70,8 +73,8 @@ BufferBytes MapBuffers::bytesByUse() const {
   b.queries = query_in.size() + query_out.size() + query_staging_in.size() +
               query_staging_out.size() + scene_bytes_;
   for (const vk::Buffer* x :
-       {&params, &counters, &pool, &readback, &points, &walks, &depth, &hash_keys,
-        &hash_flags, &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
+       {&params, &counters, &pool, &readback, &points, &walks, &depth, &hash_keys, &hash_flags,
+        &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
     b.scratch += x->size();
   b.scratch += uploadBytes();
   return b;
@@ -133,7 +136,8 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
     active = vk::Buffer(device_, cell_cap * sizeof(gpu::ActiveCell), false);
   }
   if (new_endpoints) {
-    end_keys = vk::Buffer(device_, (std::size_t{1} << endpoint_log2) * sizeof(std::uint64_t), false);
+    end_keys =
+        vk::Buffer(device_, (std::size_t{1} << endpoint_log2) * sizeof(std::uint64_t), false);
     blocks = vk::Buffer(device_, (std::size_t{1} << endpoint_log2) * sizeof(gpu::NewBlock), false);
   }
   if (new_slots) s = vk::Buffer(device_, slot_bytes, false);
@@ -199,7 +203,8 @@ void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blo
     // The most blocks the cap leaves room for, if that is enough.
     const std::size_t others = deviceBytes() - held;
     const std::size_t room = max_bytes_ > others ? (max_bytes_ - others) / kBlockBytes : 0;
-    if (room >= min_blocks) blocks = static_cast<std::uint32_t>(std::min<std::size_t>(room, blocks));
+    if (room >= min_blocks)
+      blocks = static_cast<std::uint32_t>(std::min<std::size_t>(room, blocks));
   }
   checkBudget(held, std::size_t{blocks} * kBlockBytes,
               "growing the node pool to " + std::to_string(std::size_t{blocks} * 8) +
@@ -259,13 +264,18 @@ void MapBuffers::releaseQueries() {
   rebind();
 }
 
-bool MapBuffers::noteScan(std::size_t points) {
-  if (scan_points_.size() == kScanHistory) scan_points_.erase(scan_points_.begin());
-  scan_points_.push_back(points);
+bool MapBuffers::noteScan(std::size_t points) noexcept {
+  if (scan_count_ == kScanHistory)
+    std::move(scan_points_.begin() + 1, scan_points_.end(), scan_points_.begin());
+  else
+    ++scan_count_;
+  scan_points_[scan_count_ - 1] = points;
   scratch_peak_points_ = std::max(scratch_peak_points_, points);
-  std::vector<std::size_t> sorted = scan_points_;
-  std::sort(sorted.begin(), sorted.end());
-  const std::size_t median = sorted[(sorted.size() - 1) / 2];  // the lower one of an even count
+  std::array<std::size_t, kScanHistory> sorted = scan_points_;
+  for (std::size_t i = 1; i < scan_count_; ++i)  // insertion sort of at most 8
+    for (std::size_t j = i; j > 0 && sorted[j - 1] > sorted[j]; --j)
+      std::swap(sorted[j - 1], sorted[j]);
+  const std::size_t median = sorted[(scan_count_ - 1) / 2];  // the lower one of an even count
   return scratch_peak_points_ > kOutsizedFactor * median &&
          bytesByUse().scratch > kAutoReleaseBytes;
 }
@@ -355,10 +365,9 @@ void MapBuffers::rebind() {
       !slots.valid())
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
-      &params,     &counters, &pool,          &points,     &hash_keys,
-      &hash_flags, &nodes,    &block_parents, &free_stack, &cells,
-      &touched,    &prefix_blocks, &leaf_boxes, &endpoint_keys, &query_in,
-      &query_out,  &walks,    &slots,         &cell_list,  &depth};
+      &params,        &counters,   &pool,  &points,  &hash_keys,     &hash_flags, &nodes,
+      &block_parents, &free_stack, &cells, &touched, &prefix_blocks, &leaf_boxes, &endpoint_keys,
+      &query_in,      &query_out,  &walks, &slots,   &cell_list,     &depth};
   bindings.update(buffers);
 }
 

@@ -3,6 +3,7 @@
 // every pass sees them through. One owner for all of them, so growth is in one place.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -102,7 +103,8 @@ class MapBuffers {
   /// scratch was last released had more than kOutsizedFactor times the points of the median of
   /// the last kScanHistory scans (this one included), and the scratch holds more than
   /// kAutoReleaseBytes. Deterministic: it depends only on the sequence of point counts.
-  bool noteScan(std::size_t points);
+  /// Allocates nothing: it runs after a scan is in the map, where nothing may fail.
+  bool noteScan(std::size_t points) noexcept;
   static constexpr std::size_t kScanHistory = 8;
   static constexpr std::size_t kOutsizedFactor = 4;
   static constexpr std::size_t kAutoReleaseBytes = std::size_t{4} << 20;
@@ -136,9 +138,7 @@ class MapBuffers {
 
   /// Every buffer of the map, staging included, and the scenes: what the cap limits.
   std::size_t deviceBytes() const { return bytesByUse().total(); }
-  std::size_t poolBytes() const {
-    return nodes.size() + block_parents.size() + free_stack.size();
-  }
+  std::size_t poolBytes() const { return nodes.size() + block_parents.size() + free_stack.size(); }
   BufferBytes bytesByUse() const;
   std::size_t maxBytes() const noexcept { return max_bytes_; }
   /// The upload staging of all frames.
@@ -177,8 +177,9 @@ class MapBuffers {
   std::uint32_t block_limit_;
   std::size_t max_bytes_ = 0;
   std::size_t scene_bytes_ = 0;
-  std::vector<std::size_t> scan_points_;  // the last kScanHistory scans, oldest first
-  std::size_t scratch_peak_points_ = 0;   // largest scan since the scratch was last released
+  std::array<std::size_t, kScanHistory> scan_points_{};  // the last scans, oldest first
+  std::size_t scan_count_ = 0;                           // of them, up to kScanHistory
+  std::size_t scratch_peak_points_ = 0;  // largest scan since the scratch was last released
   bool sets_need_fill_ = true;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;

@@ -5,8 +5,8 @@
 #include <chrono>
 #include <cstdint>
 #include <deque>
-#include <optional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -20,6 +20,10 @@
 namespace octovk {
 
 class OccupancyMap::Impl {
+  // First, so destroyed last: every buffer, scene and stream below is released before the last
+  // reference to the device can go (a Context may be destroyed before its maps).
+  std::shared_ptr<vk::Device> device_owner_;
+
  public:
   using DeviceBytes = OccupancyMap::DeviceBytes;
   Impl(Context& context, const MapParams& params);
@@ -42,9 +46,9 @@ class OccupancyMap::Impl {
   };
   /// One scan, then the queries if any, waited for: submit() and flush(), the scan's errors
   /// thrown with the map as before it.
-  ScanStats insert(const ScanSource& source, const Eigen::Vector3f& origin,
-                   const Pose* pose, double max_range, bool discretize,
-                   const QueryRequest* queries = nullptr, QueryResults* results = nullptr);
+  ScanStats insert(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
+                   double max_range, bool discretize, const QueryRequest* queries = nullptr,
+                   QueryResults* results = nullptr);
   /// Records and submits a scan without waiting for it (the host's points or pixels are copied
   /// into the frame's staging first); returns its ticket. Waits only where a frame is still
   /// busy or buffers must grow.
@@ -130,8 +134,8 @@ class OccupancyMap::Impl {
   /// A scan submitted and not yet known to be in the map: what it needs to run again.
   struct PendingScan {
     std::uint64_t ticket = 0;
-    std::uint64_t serial = 0;  ///< its last submission
-    std::uint32_t frame = 0;   ///< that submission's frame (readback region, timestamps)
+    std::uint64_t serial = 0;         ///< its last submission
+    std::uint32_t frame = 0;          ///< that submission's frame (readback region, timestamps)
     std::uint32_t staging_frame = 0;  ///< whose upload staging holds its input
     bool host_input = true;           ///< input in uploads[staging_frame], else a caller's buffer
     passes::RayKeysInput input;
@@ -139,7 +143,7 @@ class OccupancyMap::Impl {
     std::optional<Pose> pose;
     double max_range = -1.0;
     std::size_t count = 0;
-    bool blocking = false;  ///< the blocking call's scan (which waits for it)
+    bool blocking = false;                  ///< the blocking call's scan (which waits for it)
     const QueryRequest* queries = nullptr;  // the blocking call's
     QueryResults* results = nullptr;
     ScanStats stats;
@@ -169,7 +173,7 @@ class OccupancyMap::Impl {
   /// refused it.
   bool takeResult(PendingScan& p, const gpu::ScanCounters& counters, const gpu::PoolState& pool);
   /// Queues a finished scan's statistics for takeStats() (the newest kKeptStats).
-  void keepStats(const ScanStats& stats);
+  void keepStats(const ScanStats& stats) noexcept;
   /// The oldest scan was refused: waits for all, grows, runs them again in order, each waited.
   void recover(gpu::ScanCounters counters, gpu::PoolState pool);
   /// Throws kInvalidArgument naming the first bad input of a scan of `count` points.
@@ -193,11 +197,12 @@ class OccupancyMap::Impl {
   vk::CommandStream stream_;
   MapBuffers buffers_;
   passes::Recorder rec_;
-  std::deque<PendingScan> pending_;  // submitted, in order
+  std::deque<PendingScan> pending_;       // submitted, in order
   std::deque<ScanStats> finished_stats_;  // in the map, not taken yet (the newest kKeptStats)
+  ScanStats blocking_stats_;              // the last blocking call's scan (its result)
   static constexpr std::size_t kKeptStats = 4096;
   std::uint64_t next_ticket_ = 1;
-  std::size_t last_nodes_ = 0;       // nodes after the last scan taken
+  std::size_t last_nodes_ = 0;  // nodes after the last scan taken
   // A scan was refused since the last submission: the next one clears PoolState::halted.
   bool resume_ = false;
   // Growth asked for by the results of recent scans, done at the next submit (after waiting).

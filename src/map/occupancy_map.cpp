@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "map/host_memory.hpp"
 #include "map/host_tree.hpp"
 #include "map/map_impl.hpp"
 #include "octovk/gpu_types.h"
@@ -25,7 +26,8 @@ std::uint32_t blockLimit(const MapParams& params) { return poolBlockLimit(params
 }  // namespace
 
 OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
-    : device_(context.vulkan()),
+    : device_owner_(context.sharedDevice()),
+      device_(*device_owner_),
       params_(validated(params)),
       logs_(ref::LogOddsParams::from(params)),
       stream_(device_, kFramesInFlight),
@@ -152,7 +154,9 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& q) {
   stream_.begin(buffers_.bindings);
   passes::recordQueries(rec_, queryParams(), q, ray_scene, stop_rays);
   stream_.submitAndWait();
-  return passes::collectQueries(buffers_, q, order);
+  QueryResults out;
+  passes::collectQueries(buffers_, q, order, out);
+  return out;
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eigen::Vector3f& min,
@@ -169,7 +173,8 @@ std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eig
       !ref::coordToKeyChecked(factor, max.z(), box.max_z))
     return {};  // as OctoMap's iterator: a corner outside the map gives no leaves
   box.occupied_only = occupied_only ? 1u : 0u;
-  buffers_.ensureQueries(sizeof(box), std::size_t{buffers_.poolBlocks()} * 8 * sizeof(gpu::LeafBox));
+  buffers_.ensureQueries(sizeof(box),
+                         std::size_t{buffers_.poolBlocks()} * 8 * sizeof(gpu::LeafBox));
   stream_.begin(buffers_.bindings);
   passes::recordLeavesInBox(rec_, queryParams(), box);
   passes::recordReadback(rec_);
@@ -211,9 +216,21 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
                     std::to_string(buffers_.blockLimit() * 8ull) +
                     " (MapParams::max_nodes or 2^32); the map is unchanged");
   const PoolImage image = poolImageFromTree(tree);
+  // The staging first: once the pool is replaced (its old nodes not copied) nothing else may
+  // fail, or the map would be neither the old tree nor the new one.
+  const std::size_t node_bytes = image.nodes.size() * sizeof(gpu::Node);
+  const std::size_t meta_bytes = image.parents.size() * sizeof(std::uint32_t);
+  const std::size_t free_bytes = image.free_blocks.size() * sizeof(std::uint32_t);
+  vk::Buffer staging(device_, node_bytes + meta_bytes + free_bytes, true);
+  auto* bytes = static_cast<unsigned char*>(staging.mapped());
+  std::memcpy(bytes, image.nodes.data(), node_bytes);
+  std::memcpy(bytes + node_bytes, image.parents.data(), meta_bytes);
+  if (free_bytes)
+    std::memcpy(bytes + node_bytes + meta_bytes, image.free_blocks.data(), free_bytes);
   releaseRaySceneUnderCap();
   const std::uint32_t capacity = std::min<std::uint32_t>(
-      buffers_.blockLimit(), std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
+      buffers_.blockLimit(),
+      std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
   if (capacity > buffers_.poolBlocks())
     buffers_.allocatePoolAtLeast(capacity, std::max<std::uint32_t>(image.blocks, 2),
                                  /*copy_old=*/false);
@@ -224,14 +241,6 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
   pool.root_exists = image.root_exists ? 1u : 0u;
   pool.live_nodes = image.live_nodes;
 
-  const std::size_t node_bytes = image.nodes.size() * sizeof(gpu::Node);
-  const std::size_t meta_bytes = image.parents.size() * sizeof(std::uint32_t);
-  const std::size_t free_bytes = image.free_blocks.size() * sizeof(std::uint32_t);
-  vk::Buffer staging(device_, node_bytes + meta_bytes + free_bytes, true);
-  auto* bytes = static_cast<unsigned char*>(staging.mapped());
-  std::memcpy(bytes, image.nodes.data(), node_bytes);
-  std::memcpy(bytes + node_bytes, image.parents.data(), meta_bytes);
-  if (free_bytes) std::memcpy(bytes + node_bytes + meta_bytes, image.free_blocks.data(), free_bytes);
   const gpu::ScanParams sp = queryParams();
   stream_.begin(buffers_.bindings);
   stream_.update(buffers_.params, &sp, sizeof(sp));
@@ -281,127 +290,184 @@ std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
 // ---- public face -----------------------------------------------------------------------------
 
 OccupancyMap::OccupancyMap(Context& context, const MapParams& params)
-    : impl_(std::make_unique<Impl>(context, params)) {}
+    : impl_(hostMemoryGuard("OccupancyMap",
+                            [&] { return std::make_unique<Impl>(context, params); })) {}
 OccupancyMap::~OccupancyMap() = default;
 OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
 OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;
 
-const MapParams& OccupancyMap::params() const noexcept { return impl_->params(); }
+OccupancyMap::Impl& OccupancyMap::self() const {
+  if (!impl_)
+    throw Error(ErrorCode::kInvalidArgument,
+                "OccupancyMap: this map was moved from and holds nothing; assign a map to it "
+                "before using it again");
+  return *impl_;
+}
+
+// The noexcept observers answer for a moved-from map as for an empty one.
+const MapParams& OccupancyMap::params() const noexcept {
+  static const MapParams kNone;
+  return impl_ ? impl_->params() : kNone;
+}
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                                          const Eigen::Vector3f& origin_world, double max_range_m,
                                          bool discretize) {
-  return impl_->insert({.points = points_world}, origin_world, nullptr, max_range_m, discretize);
+  return hostMemoryGuard("insertPointCloud", [&] {
+    return self().insert({.points = points_world}, origin_world, nullptr, max_range_m, discretize);
+  });
 }
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                                          const Eigen::Vector3f& origin_sensor,
                                          const Pose& T_world_sensor, double max_range_m,
                                          bool discretize) {
-  const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
-  return impl_->insert({.points = points_sensor}, origin_world, &T_world_sensor, max_range_m,
-                       discretize);
+  return hostMemoryGuard("insertPointCloud", [&] {
+    const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
+    return self().insert({.points = points_sensor}, origin_world, &T_world_sensor, max_range_m,
+                         discretize);
+  });
 }
 
 ScanStats OccupancyMap::insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                                         double max_range_m,
-                                         const Eigen::Vector3f& origin_camera, bool discretize) {
-  if (std::string why = image.validate(); !why.empty())
-    throw Error(ErrorCode::kInvalidArgument, "insertDepthImage: " + why);
-  const Eigen::Vector3f origin_world = T_world_camera.transform(origin_camera);
-  return impl_->insert({.depth = &image}, origin_world, &T_world_camera, max_range_m, discretize);
+                                         double max_range_m, const Eigen::Vector3f& origin_camera,
+                                         bool discretize) {
+  return hostMemoryGuard("insertDepthImage", [&] {
+    if (std::string why = image.validate(); !why.empty())
+      throw Error(ErrorCode::kInvalidArgument, "insertDepthImage: " + why);
+    const Eigen::Vector3f origin_world = T_world_camera.transform(origin_camera);
+    return self().insert({.depth = &image}, origin_world, &T_world_camera, max_range_m, discretize);
+  });
 }
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                                          const Eigen::Vector3f& origin_world, double max_range_m,
                                          bool discretize, const QueryRequest& queries,
                                          QueryResults& results) {
-  return impl_->insert({.points = points_world}, origin_world, nullptr, max_range_m, discretize,
-                       &queries, &results);
+  return hostMemoryGuard("insertPointCloud", [&] {
+    return self().insert({.points = points_world}, origin_world, nullptr, max_range_m, discretize,
+                         &queries, &results);
+  });
 }
 
 ScanTicket OccupancyMap::submitPointCloud(std::span<const Eigen::Vector3f> points_world,
                                           const Eigen::Vector3f& origin_world, double max_range_m,
                                           bool discretize) {
-  return impl_->submit({.points = points_world}, origin_world, nullptr, max_range_m, discretize);
+  return hostMemoryGuard("submitPointCloud", [&] {
+    return self().submit({.points = points_world}, origin_world, nullptr, max_range_m, discretize);
+  });
 }
 
 ScanTicket OccupancyMap::submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                                           const Eigen::Vector3f& origin_sensor,
                                           const Pose& T_world_sensor, double max_range_m,
                                           bool discretize) {
-  const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
-  return impl_->submit({.points = points_sensor}, origin_world, &T_world_sensor, max_range_m,
-                       discretize);
+  return hostMemoryGuard("submitPointCloud", [&] {
+    const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
+    return self().submit({.points = points_sensor}, origin_world, &T_world_sensor, max_range_m,
+                         discretize);
+  });
 }
 
 ScanTicket OccupancyMap::submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                                          double max_range_m,
-                                          const Eigen::Vector3f& origin_camera, bool discretize) {
-  if (std::string why = image.validate(); !why.empty())
-    throw Error(ErrorCode::kInvalidArgument, "submitDepthImage: " + why);
-  const Eigen::Vector3f origin_world = T_world_camera.transform(origin_camera);
-  return impl_->submit({.depth = &image}, origin_world, &T_world_camera, max_range_m, discretize);
+                                          double max_range_m, const Eigen::Vector3f& origin_camera,
+                                          bool discretize) {
+  return hostMemoryGuard("submitDepthImage", [&] {
+    if (std::string why = image.validate(); !why.empty())
+      throw Error(ErrorCode::kInvalidArgument, "submitDepthImage: " + why);
+    const Eigen::Vector3f origin_world = T_world_camera.transform(origin_camera);
+    return self().submit({.depth = &image}, origin_world, &T_world_camera, max_range_m, discretize);
+  });
 }
 
-void OccupancyMap::flush() { impl_->flush(); }
+void OccupancyMap::flush() {
+  return hostMemoryGuard("flush", [&] { self().flush(); });
+}
 
-bool OccupancyMap::finished(ScanTicket ticket) { return impl_->finished(ticket); }
+bool OccupancyMap::finished(ScanTicket ticket) {
+  return hostMemoryGuard("finished", [&] { return self().finished(ticket); });
+}
 
-std::vector<ScanStats> OccupancyMap::takeScanStats() { return impl_->takeStats(); }
+std::vector<ScanStats> OccupancyMap::takeScanStats() {
+  return hostMemoryGuard("takeScanStats", [&] { return self().takeStats(); });
+}
 
-std::size_t OccupancyMap::scansInFlight() const noexcept { return impl_->scansInFlight(); }
+std::size_t OccupancyMap::scansInFlight() const noexcept {
+  return impl_ ? impl_->scansInFlight() : 0;
+}
 
-OccupancyMap::SyncCounts OccupancyMap::syncCounts() const noexcept { return impl_->syncCounts(); }
+OccupancyMap::SyncCounts OccupancyMap::syncCounts() const noexcept {
+  return impl_ ? impl_->syncCounts() : SyncCounts{};
+}
 
 std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points) const {
-  return impl_->runQueries({points, {}}).lookups;
+  return hostMemoryGuard("search", [&] { return self().runQueries({points, {}}).lookups; });
 }
 
 std::vector<RayHit> OccupancyMap::castRays(std::span<const Ray> rays) const {
-  return impl_->runQueries({{}, rays}).rays;
+  return hostMemoryGuard("castRays", [&] { return self().runQueries({{}, rays}).rays; });
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::leavesInBox(const Eigen::Vector3f& min,
                                                                  const Eigen::Vector3f& max,
                                                                  bool occupied_only) const {
-  return impl_->leavesInBox(min, max, occupied_only);
+  return hostMemoryGuard("leavesInBox",
+                         [&] { return self().leavesInBox(min, max, occupied_only); });
 }
 
 std::size_t OccupancyMap::nodeCount() const {
-  const gpu::PoolState pool = impl_->readPool();
-  return pool.root_exists ? pool.live_nodes : 0;
+  return hostMemoryGuard("nodeCount", [&] {
+    const gpu::PoolState pool = self().readPool();
+    return pool.root_exists ? pool.live_nodes : 0;
+  });
 }
 
 std::size_t OccupancyMap::leafCount() const {
-  impl_->refreshLeafBoxes();
-  return impl_->readPool().leaf_count;
+  return hostMemoryGuard("leafCount", [&] {
+    self().refreshLeafBoxes();
+    return self().readPool().leaf_count;
+  });
 }
 
 void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
-  impl_->setLeafBoxesEveryScan(every_scan);
+  return hostMemoryGuard("setLeafBoxesEveryScan",
+                         [&] { self().setLeafBoxesEveryScan(every_scan); });
 }
 
-std::size_t OccupancyMap::deviceBytes() const { return impl_->deviceBytes(); }
+std::size_t OccupancyMap::deviceBytes() const {
+  return hostMemoryGuard("deviceBytes", [&] { return self().deviceBytes(); });
+}
 
-OccupancyMap::CastRayInfo OccupancyMap::castRayInfo() const { return impl_->castRayInfo(); }
+OccupancyMap::CastRayInfo OccupancyMap::castRayInfo() const {
+  return hostMemoryGuard("castRayInfo", [&] { return self().castRayInfo(); });
+}
 
-std::size_t OccupancyMap::poolBytes() const { return impl_->poolBytes(); }
+std::size_t OccupancyMap::poolBytes() const {
+  return hostMemoryGuard("poolBytes", [&] { return self().poolBytes(); });
+}
 
 OccupancyMap::DeviceBytes OccupancyMap::deviceBytesByUse() const {
-  return impl_->deviceBytesByUse();
+  return hostMemoryGuard("deviceBytesByUse", [&] { return self().deviceBytesByUse(); });
 }
 
-std::size_t OccupancyMap::scratchBytes() const { return impl_->deviceBytesByUse().scratch; }
+std::size_t OccupancyMap::scratchBytes() const {
+  return hostMemoryGuard("scratchBytes", [&] { return self().deviceBytesByUse().scratch; });
+}
 
-void OccupancyMap::trim() { impl_->trim(); }
+void OccupancyMap::trim() {
+  return hostMemoryGuard("trim", [&] { self().trim(); });
+}
 
-HostTree OccupancyMap::download() const { return impl_->download(); }
+HostTree OccupancyMap::download() const {
+  return hostMemoryGuard("download", [&] { return self().download(); });
+}
 
-void OccupancyMap::upload(const HostTree& tree) { impl_->upload(tree); }
+void OccupancyMap::upload(const HostTree& tree) {
+  return hostMemoryGuard("upload", [&] { self().upload(tree); });
+}
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::downloadLeafBoxes() const {
-  return impl_->downloadLeafBoxes();
+  return hostMemoryGuard("downloadLeafBoxes", [&] { return self().downloadLeafBoxes(); });
 }
 
 }  // namespace octovk

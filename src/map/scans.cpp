@@ -88,8 +88,7 @@ void OccupancyMap::Impl::growForRetry(const gpu::ScanCounters& counters,
 
 // Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for
 // the next scans) a refusal is not an error: the scan that needs the room will report it.
-void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState& pool,
-                                     bool ahead) {
+void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead) {
   const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
   if (blocks <= available) return;
   const std::uint64_t needed = std::uint64_t{pool.bump} + blocks - pool.free_count + 1;
@@ -102,8 +101,8 @@ void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState&
                     " (MapParams::max_nodes or 2^32); the map is unchanged");
   }
   const std::uint64_t target = std::min<std::uint64_t>(
-      limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers_.poolBlocks()} +
-                                                 buffers_.poolBlocks() / 2));
+      limit, std::max<std::uint64_t>(
+                 needed, std::uint64_t{buffers_.poolBlocks()} + buffers_.poolBlocks() / 2));
   try {
     buffers_.allocatePoolAtLeast(static_cast<std::uint32_t>(target),
                                  static_cast<std::uint32_t>(needed), /*copy_old=*/true);
@@ -115,11 +114,9 @@ void OccupancyMap::Impl::reservePool(std::uint64_t blocks, const gpu::PoolState&
     throw Error(ErrorCode::kOutOfDeviceMemory,
                 std::string("insertPointCloud: the device has no room to grow the node pool "
                             "to ") +
-                    std::to_string(target * 8) + " nodes; the map is unchanged (" + e.what() +
-                    ")");
+                    std::to_string(target * 8) + " nodes; the map is unchanged (" + e.what() + ")");
   }
 }
-
 
 passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source, std::uint32_t frame) {
   vk::Buffer& upload = buffers_.uploads[frame];
@@ -139,9 +136,9 @@ passes::RayKeysInput OccupancyMap::Impl::stage(const ScanSource& source, std::ui
   const DepthImage& image = *source.depth;
   const bool u16 = image.encoding == DepthImage::Encoding::kUint16;
   in.unproject = true;
-  in.camera = {image.fx,    image.fy,     image.cx,
-               image.cy,    image.depth_scale, image.width,
-               image.height, u16 ? gpu::kDepthUint16 : gpu::kDepthFloat32};
+  in.camera = {
+      image.fx,          image.fy,    image.cx,     image.cy,
+      image.depth_scale, image.width, image.height, u16 ? gpu::kDepthUint16 : gpu::kDepthFloat32};
   const std::size_t pixel_bytes = pixelBytes(source);
   in.bytes = wholeWords(pixel_bytes);
   if (source.device != VK_NULL_HANDLE) {
@@ -294,7 +291,12 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
   if (count > 0) {
     releaseRaySceneUnderCap();  // the scan's growth comes first; castRays builds it again
     prepareBuffers(count, depthBytesOf(source));
-    if (queries) passes::stageQueries(buffers_, *queries);  // after the growth: nothing in flight
+    if (queries) {
+      passes::stageQueries(buffers_, *queries);  // after the growth: nothing in flight
+      // Sized now: collected once the scan is in the map, where nothing may fail.
+      results->rays.resize(queries->rays.size());
+      results->lookups.resize(queries->lookups.size());
+    }
     // The frame this scan records into must have no scan of ours in flight.
     while (pending_.size() >= stream_.frames()) confirmOldest();
     p.staging_frame = stream_.nextFrame();
@@ -311,8 +313,7 @@ std::uint64_t OccupancyMap::Impl::enqueue(const ScanSource& source, const Eigen:
     p.queries = queries;
     p.results = results;
     // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
-    if (source.wait != VK_NULL_HANDLE)
-      stream_.waitBeforeNextSubmit(source.wait, source.wait_value);
+    if (source.wait != VK_NULL_HANDLE) stream_.waitBeforeNextSubmit(source.wait, source.wait_value);
     try {
       record(p);
     } catch (...) {
@@ -335,11 +336,17 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
                                     const gpu::PoolState& pool) {
   if (counters.status & gpu::kStatusNotApplied) return false;
   if (counters.status & gpu::kStatusPoolFull)
-    throw Error(ErrorCode::kVulkan,
+    throw Error(ErrorCode::kInternal,
                 "internal error: the node pool ran out during a scan despite its size check; "
                 "please report this with the input");
   ScanStats& stats = p.stats;
-  std::vector<double> t = stream_.timestampsNs(p.frame);
+  // The scan is in the map: from here on nothing may throw (statistics go without, instead).
+  std::vector<double> t;
+  try {
+    t = stream_.timestampsNs(p.frame);
+  } catch (const std::bad_alloc&) {
+    // no memory for the timestamps: the statistics go without device times
+  }
   if (scan_rays_ == ScanRays::kRayTracing && t.size() >= 9) {
     // recordScanScene's three timestamps follow the input stages: the boxes, the build, then
     // the trace up to classify's first timestamp.
@@ -356,7 +363,7 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
     stats.device.prune_ms = (t[5] - t[4]) * 1e-6;
     if (t.size() >= 7 && leaf_boxes_every_scan_) stats.device.leaf_boxes_ms = (t[6] - t[5]) * 1e-6;
   }
-  if (p.queries) *p.results = passes::collectQueries(buffers_, *p.queries);
+  if (p.queries) passes::collectQueries(buffers_, *p.queries, {}, *p.results);
   stats.skipped_no_depth = counters.no_depth;
   stats.skipped_nonfinite = counters.skipped_nonfinite - counters.no_depth;  // NaN points
   stats.skipped_outside = counters.skipped_outside;
@@ -367,7 +374,10 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   last_nodes_ = stats.nodes;
   if (counters.active_cells + counters.leaf_cells > 0)
     ++tree_version_;  // the ray scene is rebuilt before the next castRays
-  keepStats(stats);
+  if (p.blocking)
+    blocking_stats_ = stats;  // the call's result, which must not need an allocation
+  else
+    keepStats(stats);
   // Room ahead for more scans like this one, so that they are not run twice: after a blocking
   // call, for the next one; after a submitted scan, for as many as may be in flight when the
   // growth is next possible (the submits behind it were recorded before its result was seen).
@@ -382,8 +392,12 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   return true;
 }
 
-void OccupancyMap::Impl::keepStats(const ScanStats& stats) {
-  finished_stats_.push_back(stats);
+void OccupancyMap::Impl::keepStats(const ScanStats& stats) noexcept {
+  try {
+    finished_stats_.push_back(stats);
+  } catch (const std::bad_alloc&) {
+    return;  // the scan is in the map; without host memory its statistics are dropped
+  }
   if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
 }
 
@@ -492,12 +506,24 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
   const std::uint64_t ticket =
       enqueue(source, origin, pose, max_range, discretize, true, queries, results);
   flush();
-  growAhead();  // the blocking call leaves the map ready for the next scan, as before it
+  // The scan is in the map: from here on nothing may throw, or a caller that retries would
+  // insert it twice. Growth for the next scan is best-effort; what fails is asked for again
+  // by the next scan, which then reports it with the map unchanged.
+  const std::uint64_t ahead_blocks = ahead_blocks_;
+  const std::size_t ahead_active = ahead_active_;
+  try {
+    growAhead();
+  } catch (const Error&) {
+    ahead_blocks_ = std::max(ahead_blocks_, ahead_blocks);
+    ahead_active_ = std::max(ahead_active_, ahead_active);
+  } catch (const std::bad_alloc&) {
+    ahead_blocks_ = std::max(ahead_blocks_, ahead_blocks);
+    ahead_active_ = std::max(ahead_active_, ahead_active);
+  }
   // Its statistics are the call's result, not left for takeStats().
-  auto it = std::find_if(finished_stats_.begin(), finished_stats_.end(),
-                         [&](const ScanStats& s) { return s.ticket == ticket; });
-  ScanStats stats = *it;
-  finished_stats_.erase(it);
+  ScanStats stats = blocking_stats_;
+  if (stats.ticket != ticket)
+    throw Error(ErrorCode::kInternal, "internal error: the blocking scan's statistics are missing");
   stats.wall_ms = msSince(start);
   return stats;
 }

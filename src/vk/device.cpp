@@ -1,4 +1,5 @@
 #include "vk/device.hpp"
+#include "vk/fault_injection.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -60,6 +61,23 @@ void check(VkResult r, const char* call, const char* file, int line) {
 // ---------------------------------------------------------------------------------------------
 // Buffer
 
+namespace fault {
+namespace {
+std::atomic<std::uint64_t> fail_at{0};
+std::atomic<std::uint64_t> allocations{0};
+}  // namespace
+
+void failDeviceAllocation(std::uint64_t n) noexcept {
+  allocations.store(0);
+  fail_at.store(n);
+}
+std::uint64_t deviceAllocations() noexcept { return allocations.load(); }
+bool deviceAllocationFails() noexcept {
+  const std::uint64_t n = allocations.fetch_add(1) + 1;
+  return n == fail_at.load();
+}
+}  // namespace fault
+
 Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible)
     : Buffer(device, bytes, host_visible, 0) {}
 
@@ -91,7 +109,9 @@ Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsa
       alloc.memoryTypeIndex =
           device.memoryType(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, 0);
     }
-    OCTOVK_VK(vkAllocateMemory(device.handle(), &alloc, nullptr, &memory_));
+    OCTOVK_VK(fault::deviceAllocationFails()
+                  ? VK_ERROR_OUT_OF_DEVICE_MEMORY
+                  : vkAllocateMemory(device.handle(), &alloc, nullptr, &memory_));
     OCTOVK_VK(vkBindBufferMemory(device.handle(), buffer_, memory_, 0));
     if (host_visible)
       OCTOVK_VK(vkMapMemory(device.handle(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
@@ -203,7 +223,8 @@ void BindingSet::write(std::uint32_t binding, VkBuffer buffer, VkDeviceSize offs
   if (size != VK_WHOLE_SIZE && size > device_->maxBindingBytes())
     throw Error(ErrorCode::kInvalidArgument,
                 "a buffer range of " + std::to_string(size) + " bytes at binding " +
-                    std::to_string(binding) + " exceeds what one binding may hold on this device (" +
+                    std::to_string(binding) +
+                    " exceeds what one binding may hold on this device (" +
                     std::to_string(device_->maxBindingBytes()) +
                     " bytes, maxStorageBufferRange); split the batch");
   VkDescriptorBufferInfo info{buffer, offset, size};
@@ -251,7 +272,8 @@ CommandStream::CommandStream(Device& device, std::uint32_t frames)
 
 CommandStream::~CommandStream() {
   for (Frame& f : frames_)  // nothing may be destroyed under a running submission
-    if (f.serial != 0 && !f.done) vkWaitForFences(device_.handle(), 1, &f.fence, VK_TRUE, UINT64_MAX);
+    if (f.serial != 0 && !f.done)
+      vkWaitForFences(device_.handle(), 1, &f.fence, VK_TRUE, UINT64_MAX);
   if (recording_) vkEndCommandBuffer(cmd());
   if (queries_) vkDestroyQueryPool(device_.handle(), queries_, nullptr);
   for (Frame& f : frames_) vkDestroyFence(device_.handle(), f.fence, nullptr);
@@ -360,10 +382,10 @@ std::vector<double> CommandStream::timestampsNs(std::uint32_t frame) {
   const Frame& f = frames_.at(frame);
   if (!queries_ || f.query_count == 0 || f.serial == 0 || !f.done) return {};
   std::vector<std::uint64_t> ticks(f.query_count);
-  const VkResult r = vkGetQueryPoolResults(device_.handle(), queries_, frame * kMaxQueries,
-                                           f.query_count, ticks.size() * sizeof(std::uint64_t),
-                                           ticks.data(), sizeof(std::uint64_t),
-                                           VK_QUERY_RESULT_64_BIT);
+  const VkResult r =
+      vkGetQueryPoolResults(device_.handle(), queries_, frame * kMaxQueries, f.query_count,
+                            ticks.size() * sizeof(std::uint64_t), ticks.data(),
+                            sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT);
   if (r != VK_SUCCESS) return {};
   std::vector<double> ns(ticks.size());
   for (std::size_t i = 0; i < ticks.size(); ++i)
@@ -399,7 +421,7 @@ std::uint64_t CommandStream::submit() {
     submit.pWaitDstStageMask = &wait_stage;
   }
   OCTOVK_VK(vkResetFences(device_.handle(), 1, &f.fence));
-  OCTOVK_VK(vkQueueSubmit(device_.queue(), 1, &submit, f.fence));
+  device_.submit(submit, f.fence);
   f.serial = ++submitted_;
   f.done = false;
   return f.serial;
@@ -479,12 +501,13 @@ const char* kNoDeviceHint =
 std::atomic<std::size_t> validation_messages{0};
 
 // The validation layer's messages: counted, then given to the Context's callback or stderr.
-VKAPI_ATTR VkBool32 VKAPI_CALL onValidationMessage(
-    VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT,
-    const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
+VKAPI_ATTR VkBool32 VKAPI_CALL onValidationMessage(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                   VkDebugUtilsMessageTypeFlagsEXT,
+                                                   const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                                   void* user) {
   validation_messages.fetch_add(1, std::memory_order_relaxed);
-  std::string message = severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "error: "
-                                                                                   : "warning: ";
+  std::string message =
+      severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT ? "error: " : "warning: ";
   message += data && data->pMessage ? data->pMessage : "(no text)";
   const auto* sink = static_cast<const std::function<void(const std::string&)>*>(user);
   if (sink && *sink) {
@@ -689,8 +712,8 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
     if (chosen < 0) {
       std::string names;
       for (std::uint32_t i = 0; i < devices.size(); ++i)
-        names += std::string(i ? "; " : "") + std::to_string(i) + ": " +
-                 describe(devices[i], i).name;
+        names +=
+            std::string(i ? "; " : "") + std::to_string(i) + ": " + describe(devices[i], i).name;
       return Error(ErrorCode::kNoDevice, std::string("device selector '") + selector + "' (" +
                                              source +
                                              ") matches no Vulkan device; available: " + names);
@@ -758,8 +781,8 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
       dev->max_groups_x_ = props.limits.maxComputeWorkGroupCount[0];
       dev->max_binding_bytes_ = props.limits.maxStorageBufferRange;
       if (options.max_binding_bytes != 0)
-        dev->max_binding_bytes_ = std::min<std::uint64_t>(dev->max_binding_bytes_,
-                                                          options.max_binding_bytes);
+        dev->max_binding_bytes_ =
+            std::min<std::uint64_t>(dev->max_binding_bytes_, options.max_binding_bytes);
     }
   }
   if (!found)
@@ -889,12 +912,20 @@ Device::~Device() {
   if (instance_) vkDestroyInstance(instance_, nullptr);
 }
 
+void Device::submit(const VkSubmitInfo& info, VkFence fence) {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  OCTOVK_VK(vkQueueSubmit(queue_, 1, &info, fence));
+}
+
 const Pass& Device::pass(std::string_view name) {
+  // Held while building: a second thread asking for the same pass waits instead of building
+  // it twice, and the deque is never read while it grows.
+  std::lock_guard<std::mutex> lock(passes_mutex_);
   for (auto& p : passes_)
     if (p.name == name) return p;
   const std::span<const std::uint32_t> code = findShader(name);
   if (code.empty())
-    throw Error(ErrorCode::kVulkan, "no embedded shader named '" + std::string(name) + "'");
+    throw Error(ErrorCode::kInternal, "no embedded shader named '" + std::string(name) + "'");
   VkShaderModuleCreateInfo minfo{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
   minfo.codeSize = code.size() * sizeof(std::uint32_t);
   minfo.pCode = code.data();

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <string_view>
@@ -164,7 +165,7 @@ class CommandStream {
     VkFence fence = VK_NULL_HANDLE;
     std::uint64_t serial = 0;  // of its last submission (0: none)
     std::uint32_t query_count = 0;
-    bool done = false;         // its fence was seen signalled
+    bool done = false;  // its fence was seen signalled
   };
   VkCommandBuffer cmd() const { return frames_[current_].cmd; }
   void waitFrame(Frame& f);
@@ -193,7 +194,12 @@ class Device {
 
   const DeviceInfo& info() const noexcept { return info_; }
   VkDevice handle() const noexcept { return device_; }
+  /// Submits to the device's one queue under its lock: every map of a Context records on its
+  /// own command pool but shares this queue, which Vulkan requires externally synchronised.
+  void submit(const VkSubmitInfo& info, VkFence fence);
+  /// The queue, for interop callers, who must hold lockQueue() while they use it.
   VkQueue queue() const noexcept { return queue_; }
+  std::unique_lock<std::mutex> lockQueue() { return std::unique_lock<std::mutex>(queue_mutex_); }
   std::uint32_t queueFamily() const noexcept { return queue_family_; }
   VkPipelineLayout pipelineLayout() const noexcept { return pipeline_layout_; }
   VkDescriptorSetLayout setLayout() const noexcept { return set_layout_; }
@@ -236,8 +242,9 @@ class Device {
   /// the measured limit (room for the loops around the walk and the batch's other lanes), or
   /// all it needs where there is no limit.
   std::uint32_t walkBudget() const noexcept {
-    return loop_limit_ == 0 ? 0x7FFFFFFFu
-                            : static_cast<std::uint32_t>(std::uint64_t{loop_limit_} * 30000u / 65535u);
+    return loop_limit_ == 0
+               ? 0x7FFFFFFFu
+               : static_cast<std::uint32_t>(std::uint64_t{loop_limit_} * 30000u / 65535u);
   }
   /// Continuation dispatches a resumable walk of at most `worst_iterations` needs after its
   /// first one: enough budgets to cover it where loops are limited, none elsewhere.
@@ -247,7 +254,8 @@ class Device {
     return static_cast<std::uint32_t>((worst_iterations + budget - 1) / budget);
   }
 
-  /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once.
+  /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once, by the
+  /// first caller from any thread (the others wait for it).
   const Pass& pass(std::string_view name);
 
   /// Memory type index for the given requirements; throws kOutOfDeviceMemory if none.
@@ -272,8 +280,10 @@ class Device {
   std::uint32_t max_groups_x_ = 65535;
   std::uint32_t loop_limit_ = 0;
   std::uint64_t max_binding_bytes_ = 1u << 27;
+  std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit)
+  std::mutex passes_mutex_;  // guards passes_ (built lazily by whichever map needs one first)
   std::deque<Pass> passes_;  // deque: references to passes stay valid
-  std::vector<std::string> extensions_;  // optional device extensions enabled
+  std::vector<std::string> extensions_;     // optional device extensions enabled
   std::unique_ptr<RayQueryApi> ray_query_;  // set when ray queries are enabled
 };
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "map/passes/recorder.hpp"
-#include "vk/accel.hpp"
 #include "octovk/octovk.hpp"
+#include "vk/accel.hpp"
 
 namespace octovk::passes {
 
@@ -23,10 +23,10 @@ struct RayKeysInput {
   VkBuffer source = VK_NULL_HANDLE;
   VkDeviceSize source_offset = 0;
   std::size_t bytes = 0;
-  bool unproject = false;     ///< a depth image: `camera` is written before its pixels
+  bool unproject = false;  ///< a depth image: `camera` is written before its pixels
   gpu::DepthCamera camera{};
-  bool transform = false;     ///< points in the sensor frame: move them by the pose first
-  bool discretize = false;    ///< insert one ray per distinct end cell (OctoMap's discretize)
+  bool transform = false;   ///< points in the sensor frame: move them by the pose first
+  bool discretize = false;  ///< insert one ray per distinct end cell (OctoMap's discretize)
   /// Empty the sets whole first (new buffers); else they are empty already (each scan empties
   /// the slots it filled at its end, recordClearSets).
   bool fill_sets = false;
@@ -108,17 +108,19 @@ void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state);
 /// entry `first_result` of the output.
 void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result,
                    std::uint32_t first_float);
-/// The results of a batch from the staging output (rays staged in `ray_order`, if given).
-QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
-                            std::span<const std::uint32_t> ray_order = {});
+/// The results of a batch from the staging output (rays staged in `ray_order`, if given), into
+/// `out`, whose vectors are resized to the batch (no allocation where they have that size
+/// already: a scan's queries are collected after the scan is in the map).
+void collectQueries(const MapBuffers& buffers, const QueryRequest& q,
+                    std::span<const std::uint32_t> ray_order, QueryResults& out);
 
 // ---- accel.cpp: castRay's ray-tracing backend ----
 
 /// The two geometries of a box buffer (occupied boxes, then unknown ones at the occupied
 /// capacity), with `occupied` and `unknown` boxes built.
 std::array<vk::BoxGeometry, 2> boxGeometries(const vk::Buffer& boxes,
-                                             const gpu::AccelHeader& header,
-                                             std::uint32_t occupied, std::uint32_t unknown);
+                                             const gpu::AccelHeader& header, std::uint32_t occupied,
+                                             std::uint32_t unknown);
 
 /// Bytes of the boxes buffer for the capacities in `header` (its layout: gpu::AccelHeader).
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header);

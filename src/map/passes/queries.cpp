@@ -184,9 +184,8 @@ void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result
                  .point_count = points, .first_float = first_float, .first_result = first_result});
 }
 
-QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
-                            std::span<const std::uint32_t> ray_order) {
-  QueryResults out;
+void collectQueries(const MapBuffers& buffers, const QueryRequest& q,
+                    std::span<const std::uint32_t> ray_order, QueryResults& out) {
   const auto* bytes = static_cast<const unsigned char*>(buffers.query_staging_out.mapped());
   out.rays.resize(q.rays.size());
   for (std::size_t i = 0; i < q.rays.size(); ++i) {
@@ -206,7 +205,6 @@ QueryResults collectQueries(const MapBuffers& buffers, const QueryRequest& q,
     std::memcpy(&res, bytes + (q.rays.size() + i) * sizeof(res), sizeof(res));
     out.lookups[i] = {static_cast<CellState>(res.state), res.log_odds, res.depth};
   }
-  return out;
 }
 
 }  // namespace octovk::passes
