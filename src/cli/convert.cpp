@@ -184,12 +184,14 @@ int runConvert(const std::vector<std::string>& args) {
   checkTumFolder(o.dir, kConvertUsage);
   if (o.output.empty()) throw UsageError("no output file; add -o SCANS.graph");
   checkOutputFile(o.output, {".graph"}, ".graph (an OctoMap scan graph)");
-  OutputFile output(o.output);  // created now: an unwritable path is found before any work
+  // Created now: an unwritable path is found before any work.
+  OutputFiles output({o.output}, {(fs::path(o.dir) / "depth.txt").string(),
+                                  (fs::path(o.dir) / "groundtruth.txt").string()});
 
   const TumSequence sequence = readTumSequence(o.dir);
   for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
   std::size_t points = 0, no_depth = 0;
-  output.commit([&](const std::string& tmp) {
+  output.write(0, [&](const std::string& tmp) {
     StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
     writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
       const TumFrame& frame = sequence.frames[i];
@@ -203,6 +205,7 @@ int runConvert(const std::vector<std::string>& args) {
       return scan;
     });
   });
+  output.commit();
 
   std::ostringstream s;
   s << tumImagesSummary(sequence) << "points:        " << points << " (camera frame; " << no_depth
