@@ -138,11 +138,18 @@ void printEnvironmentAndExitCodes(std::ostream& out) {
          "Exit codes:\n"
          "  0  success\n"
          "  1  failure while working: corrupt or truncated input, Vulkan or device error,\n"
-         "     a file could not be written; no output file is left behind\n"
-         "  2  usage error: unknown command or option, missing or bad value, missing input, an\n"
-         "     output file that cannot be created (each is created before any work); nothing\n"
-         "     is done\n"
-         "Errors are one line on stderr starting with 'octovk: error: '.\n";
+         "     a file could not be written (full disk); every existing output file is left as\n"
+         "     it was and no new one is left behind. Also: standard output could not be\n"
+         "     written (closed or full; the files are written by then)\n"
+         "  2  usage error: unknown command or option, missing or bad value, missing input or\n"
+         "     one that is not a regular file (a FIFO), an output file that cannot be created\n"
+         "     (each is created before any work) or that is an input or another output (also\n"
+         "     through a link); nothing is done\n"
+         "  128+N  ended by signal N (SIGHUP, SIGINT, SIGTERM): the temporary files are\n"
+         "     removed and every existing output file is left as it was\n"
+         "Errors are one line on stderr starting with 'octovk: error: '. Temporary files are\n"
+         "named .NAME.octovk.tmp-PID.EXT beside each output NAME; a later run on NAME removes\n"
+         "those of a killed run (SIGKILL, a crash) whose process is gone.\n";
 }
 
 void checkRegularInput(const std::string& path, const std::string& what, const std::string& fix) {

@@ -108,8 +108,8 @@ void printCameraOptionsHelp(std::ostream& out) {
 std::string tumImagesSummary(const TumSequence& sequence) {
   std::ostringstream s;
   s << "images:        " << sequence.frames.size() << " used of " << sequence.images_listed
-    << " in depth.txt (" << sequence.skipped_no_pose
-    << " skipped: no ground-truth pose less than " << kTumMaxTimeDifference << " s away)\n";
+    << " in depth.txt (" << sequence.skipped_no_pose << " skipped: no ground-truth pose less than "
+    << kTumMaxTimeDifference << " s away)\n";
   return s.str();
 }
 
@@ -168,7 +168,8 @@ void printConvertHelp(std::ostream& out) {
   out << "\n"
          "Options:\n"
          "  -o, --output FILE      the scan graph to write (.graph); created before any work,\n"
-         "                         written to a temporary file beside it and renamed. Required.\n";
+         "                         written to a temporary file beside it and renamed once\n"
+         "                         complete. Required.\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"

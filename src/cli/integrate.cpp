@@ -219,7 +219,9 @@ void printIntegrateHelp(std::ostream& out) {
          "  -o, --output FILE      file to write; repeat for several. The extension picks the\n"
          "                         format: .bt = max-likelihood binary tree, pruned (OctoMap\n"
          "                         writeBinary); .ot = full tree with float log-odds (OctoMap\n"
-         "                         write). Written to a temporary file and renamed. Required.\n"
+         "                         write). Each is written to a temporary file beside it and\n"
+         "                         all are renamed into place once every one is complete: a\n"
+         "                         failed run replaces none. Required.\n"
          "  -r, --resolution M     edge of the smallest voxel in metres (default: "
       << defaults.resolution
       << ")\n"
