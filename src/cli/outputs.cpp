@@ -96,7 +96,8 @@ void removeStaleTemporaries(const std::string& path) {
     const auto pid =
         static_cast<pid_t>(std::stol(name.substr(prefix.size(), digits - prefix.size())));
     // Our own id: a run before ours that had it (the names are per output, and ours are not made).
-    if (pid != ::getpid() && !(::kill(pid, 0) != 0 && errno == ESRCH)) continue;
+    // Id 0 would ask about our process group: never a run's.
+    if (pid <= 0 || (pid != ::getpid() && !(::kill(pid, 0) != 0 && errno == ESRCH))) continue;
     stale.emplace_back(it->path(), rest == kBackupSuffix);
   }
   for (const auto& [file, backup] : stale) {
