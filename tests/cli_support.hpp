@@ -2,11 +2,16 @@
 // captured, and a scratch directory per test.
 #pragma once
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -55,6 +60,94 @@ inline RunResult runOctovk(const std::vector<std::string>& args, const fs::path&
   std::string command = quote(OCTOVK_CLI);
   for (const std::string& a : args) command += ' ' + quote(a);
   return runShell(command, dir);
+}
+
+/// The names in `dir` that only a fault leaves: octovk's temporaries and backups
+/// (".NAME.octovk.tmp-PID.EXT", ".NAME.octovk.tmp-PID.old") and any other "*.tmp*" file.
+inline std::vector<std::string> temporariesIn(const fs::path& dir) {
+  std::vector<std::string> found;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name.find(".tmp") != std::string::npos) found.push_back(name);
+  }
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
+/// The built octovk program started with `args` and left running, to be signalled: stdout and
+/// stderr go to files in `dir`, every signal has its default action and none is blocked (as from
+/// an interactive shell, whatever the test process inherited).
+class OctovkProcess {
+ public:
+  OctovkProcess(const std::vector<std::string>& args, const fs::path& dir)
+      : out_(dir / "stdout.txt"), err_(dir / "stderr.txt") {
+    std::vector<std::string> argv_strings = {OCTOVK_CLI};
+    argv_strings.insert(argv_strings.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : argv_strings) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t files;
+    posix_spawn_file_actions_init(&files);
+    posix_spawn_file_actions_addopen(&files, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&files, STDOUT_FILENO, out_.c_str(),
+                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&files, STDERR_FILENO, err_.c_str(),
+                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawnattr_t attributes;
+    posix_spawnattr_init(&attributes);
+    sigset_t none, defaults;
+    sigemptyset(&none);
+    sigemptyset(&defaults);
+    for (const int sig : {SIGHUP, SIGINT, SIGTERM, SIGQUIT}) sigaddset(&defaults, sig);
+    posix_spawnattr_setsigmask(&attributes, &none);
+    posix_spawnattr_setsigdefault(&attributes, &defaults);
+    posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+    const int failed = posix_spawn(&pid_, OCTOVK_CLI, &files, &attributes, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&files);
+    posix_spawnattr_destroy(&attributes);
+    if (failed != 0) pid_ = -1;
+  }
+  ~OctovkProcess() {
+    if (pid_ > 0 && !waited_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  OctovkProcess(const OctovkProcess&) = delete;
+  OctovkProcess& operator=(const OctovkProcess&) = delete;
+
+  bool started() const { return pid_ > 0; }
+  void signal(int sig) const { ::kill(pid_, sig); }
+  /// Waits for the end: the exit status as a shell reports it (128+N for death by signal N).
+  RunResult wait() {
+    int status = 0;
+    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+    waited_ = true;
+    RunResult r;
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.out = readFile(out_);
+    r.err = readFile(err_);
+    fs::remove(out_);
+    fs::remove(err_);
+    return r;
+  }
+
+ private:
+  fs::path out_, err_;
+  pid_t pid_ = -1;
+  bool waited_ = false;
+};
+
+/// Polls until `ready()` or `timeout` has passed; the result of the last poll.
+template <typename Ready>
+bool pollUntil(Ready ready, std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (!ready()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    ::usleep(2000);
+  }
+  return true;
 }
 
 /// A fresh directory per test under OCTOVK_TEST_TMP, removed when the test passed.

@@ -1,13 +1,17 @@
 // cli_test: the octovk program run as a user runs it. Its .bt / .ot files must be byte-identical
 // to OctoMap's graph2tree on the same input and parameters, and bad input must give one error
 // line, a non-zero exit code and no file.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <octomap/AbstractOcTree.h>
 #include <octomap/OcTree.h>
+#include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -24,12 +28,15 @@
 namespace {
 
 namespace fs = std::filesystem;
+using octovk::test::OctovkProcess;
+using octovk::test::pollUntil;
 using octovk::test::quote;
 using octovk::test::readFile;
 using octovk::test::runOctovk;
 using octovk::test::RunResult;
 using octovk::test::runShell;
 using octovk::test::Scratch;
+using octovk::test::temporariesIn;
 
 const std::string kSphericalGraph = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
 const std::string kFr079Dir = std::string(OCTOVK_SHARED_DATA_DIR) + "/fr079-2d";
@@ -473,12 +480,17 @@ TEST(cliOutputs, UncreatableOutputIsExit2BeforeAnyWork) {
 // files: under it the process dies of SIGBUS in the driver (octovk builds of before this test do
 // the same). This test is about octovk's own file writes, so its command runs on the system's
 // default driver (the Mesa 25 step's VK_DRIVER_FILES / LD_LIBRARY_PATH removed for it alone).
-RunResult runWithTinyFileLimit(const std::vector<std::string>& args, const Scratch& scratch) {
-  std::string command = "trap '' XFSZ; ulimit -f 1; env -u VK_DRIVER_FILES -u VK_ICD_FILENAMES "
-                        "-u LD_LIBRARY_PATH " +
+RunResult runWithFileLimit(const std::vector<std::string>& args, const Scratch& scratch,
+                           int blocks) {
+  std::string command = "trap '' XFSZ; ulimit -f " + std::to_string(blocks) +
+                        "; env -u VK_DRIVER_FILES -u VK_ICD_FILENAMES -u LD_LIBRARY_PATH " +
                         quote(OCTOVK_CLI);
   for (const std::string& a : args) command += ' ' + quote(a);
   return runShell(command, scratch.dir());
+}
+
+RunResult runWithTinyFileLimit(const std::vector<std::string>& args, const Scratch& scratch) {
+  return runWithFileLimit(args, scratch, 1);
 }
 
 TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
@@ -510,6 +522,279 @@ TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
   const RunResult ok = runOctovk({"export", map, "-o", scratch / "cells.ply"}, scratch.dir());
   EXPECT_EQ(ok.exit_code, 0) << ok.err;
   EXPECT_GT(fs::file_size(scratch / "cells.ply"), 512u);
+}
+
+// ---- nothing lost on any failure: all-or-nothing outputs, signals, stale temporaries ----
+
+// Distinct bytes for a file that a failed run must leave exactly as it was.
+std::string oldContent(const std::string& name) {
+  return "the user's previous " + name + ", which a failed run must keep\n" + std::string(100, 'x');
+}
+
+TEST(cliNothingLost, SecondOutputFailingLeavesEveryOldFileByteForByte) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  // The files of a run without a limit: the .bt is small, the .ot some ten times larger.
+  const RunResult ref = runOctovk(
+      {"integrate", kSphericalGraph, "-q", "-o", scratch / "ref.bt", "-o", scratch / "ref.ot"},
+      scratch.dir());
+  ASSERT_EQ(ref.exit_code, 0) << ref.err;
+  const std::string ref_bt = readFile(scratch / "ref.bt"), ref_ot = readFile(scratch / "ref.ot");
+  // 8 blocks of 512 bytes (dash) or 1024 (bash): the .bt fits either way, the .ot does not.
+  constexpr int kBlocks = 8;
+  ASSERT_LE(ref_bt.size(), kBlocks * 512u);
+  ASSERT_GT(ref_ot.size(), kBlocks * 1024u);
+
+  const std::string bt = scratch / "a.bt", ot = scratch / "b.ot";
+  // Both orders: the failing write first, and second (once the .bt is complete, which the old
+  // code had renamed into place and then deleted).
+  for (const std::vector<std::string>& order : {std::vector<std::string>{bt, ot}, {ot, bt}}) {
+    SCOPED_TRACE("outputs " + order[0] + ", " + order[1]);
+    std::ofstream(bt, std::ios_base::binary) << oldContent("a.bt");
+    std::ofstream(ot, std::ios_base::binary) << oldContent("b.ot");
+    const RunResult r = runWithFileLimit(
+        {"integrate", kSphericalGraph, "-q", "-o", order[0], "-o", order[1]}, scratch, kBlocks);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("'" + ot + "'"), std::string::npos) << r.err;  // the .bt was written
+    EXPECT_EQ(r.err.find(".tmp"), std::string::npos) << r.err;
+    EXPECT_EQ(readFile(bt), oldContent("a.bt"));
+    EXPECT_EQ(readFile(ot), oldContent("b.ot"));
+    EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+  }
+  // With no files there before, none after.
+  fs::remove(bt);
+  fs::remove(ot);
+  const RunResult fresh =
+      runWithFileLimit({"integrate", kSphericalGraph, "-q", "-o", bt, "-o", ot}, scratch, kBlocks);
+  EXPECT_EQ(fresh.exit_code, 1) << fresh.err;
+  EXPECT_FALSE(fs::exists(bt));
+  EXPECT_FALSE(fs::exists(ot));
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+
+  // Without the limit the same run replaces both old files with the complete new ones.
+  std::ofstream(bt, std::ios_base::binary) << oldContent("a.bt");
+  std::ofstream(ot, std::ios_base::binary) << oldContent("b.ot");
+  const RunResult ok =
+      runOctovk({"integrate", kSphericalGraph, "-q", "-o", bt, "-o", ot}, scratch.dir());
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_EQ(readFile(bt), ref_bt);
+  EXPECT_EQ(readFile(ot), ref_ot);
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+}
+
+// The spherical scan `copies` times over: a run long enough to be interrupted.
+std::string writeLongGraph(const Scratch& scratch, std::size_t copies) {
+  const std::vector<octovk::GraphScan> scans = octovk::readScanGraph(kSphericalGraph);
+  const std::string path = scratch / "long.graph";
+  // OctoMap's writer reports every scan on stderr: kept out of the test log.
+  std::fflush(stderr);
+  const int saved = ::dup(STDERR_FILENO);
+  const int null_fd = ::open("/dev/null", O_WRONLY);
+  ::dup2(null_fd, STDERR_FILENO);
+  ::close(null_fd);
+  octovk::writeScanGraph(path, copies, [&](std::size_t) { return scans.front(); });
+  std::fflush(stderr);
+  ::dup2(saved, STDERR_FILENO);
+  ::close(saved);
+  return path;
+}
+
+TEST(cliNothingLost, SignalsRemoveTheTemporariesAndEndTheRunBySignal) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch, inputs("cli-inputs");  // the graph apart: scratch holds only the outputs
+  const std::string graph = writeLongGraph(inputs, 64);
+  const std::string bt = scratch / "a.bt", ot = scratch / "b.ot";
+  // Each signal once the temporaries exist; some also once the device is open, when the
+  // driver's threads run too (a signal must not end the run through one of them).
+  for (const auto& [sig, on_device] : std::vector<std::pair<int, bool>>{
+           {SIGTERM, false}, {SIGTERM, true}, {SIGINT, true}, {SIGHUP, false}}) {
+    SCOPED_TRACE("signal " + std::to_string(sig) + (on_device ? " at work" : " at the start"));
+    std::ofstream(bt, std::ios_base::binary) << oldContent("a.bt");
+    fs::remove(ot);
+    OctovkProcess run({"integrate", graph, "-q", "-r", "0.05", "-o", bt, "-o", ot}, inputs.dir());
+    ASSERT_TRUE(run.started());
+    // 64 scans take a second or more on lavapipe; the signal follows within milliseconds.
+    const bool claimed = pollUntil([&] { return temporariesIn(scratch.dir()).size() == 2; },
+                                   std::chrono::seconds(60));
+    EXPECT_TRUE(claimed) << "the run made no temporaries";
+    if (on_device) {
+      const bool working =
+          pollUntil([&] { return readFile(inputs.dir() / "stdout.txt").find("device: ") == 0; },
+                    std::chrono::seconds(60));
+      EXPECT_TRUE(working) << "the run printed no device line";
+    }
+    run.signal(sig);
+    const RunResult r = run.wait();
+    EXPECT_EQ(r.exit_code, 128 + sig) << r.out << r.err;
+    EXPECT_EQ(r.out.find("scans:"), std::string::npos) << "the run ended before the signal";
+    EXPECT_EQ(readFile(bt), oldContent("a.bt"));
+    EXPECT_FALSE(fs::exists(ot));
+    EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+  }
+}
+
+TEST(cliNothingLost, TemporariesOfDeadRunsAreRemovedByTheNextRun) {
+  // No device needed: the temporaries are claimed before the (corrupt) graph is read.
+  Scratch scratch, inputs("cli-inputs");
+  const std::string graph = inputs / "corrupt.graph";
+  std::ofstream(graph, std::ios_base::binary) << "not a scan graph at all";
+  // A process id that is surely gone: a child that has ended and been waited for.
+  const pid_t dead = ::fork();
+  if (dead == 0) ::_exit(0);
+  ASSERT_GT(dead, 0);
+  ::waitpid(dead, nullptr, 0);
+  const std::string dead_id = std::to_string(dead), live_id = std::to_string(::getpid());
+  const auto make = [&](const std::string& name, const std::string& content) {
+    std::ofstream(scratch / name, std::ios_base::binary) << content;
+  };
+  make("out.bt", oldContent("out.bt"));
+  make(".out.bt.octovk.tmp-" + dead_id + ".bt", "partial map of a killed run");
+  make(".out.bt.octovk.tmp-" + dead_id + ".old", "backup of a killed run, out.bt in place");
+  make(".out.ot.octovk.tmp-" + dead_id + ".ot", "partial map of a killed run");
+  make(".out.bt.octovk.tmp-" + live_id + ".bt", "a running process's temporary: kept");
+  make(".out.bt.octovk.tmp-" + dead_id + ".txt", "not a name octovk makes: kept");
+  make(".gone.bt.octovk.tmp-" + dead_id + ".old", oldContent("gone.bt"));  // output missing
+
+  const RunResult r = runOctovk({"integrate", graph, "-o", scratch / "out.bt", "-o",
+                                 scratch / "out.ot", "-o", scratch / "gone.bt"},
+                                scratch.dir());
+  EXPECT_EQ(r.exit_code, 1) << r.err;  // the corrupt graph, after the claim
+  EXPECT_NE(r.err.find(graph), std::string::npos) << r.err;
+  std::vector<std::string> kept = {".out.bt.octovk.tmp-" + dead_id + ".txt",
+                                   ".out.bt.octovk.tmp-" + live_id + ".bt"};
+  std::sort(kept.begin(), kept.end());
+  EXPECT_EQ(temporariesIn(scratch.dir()), kept);
+  EXPECT_EQ(readFile(scratch / "out.bt"), oldContent("out.bt"));
+  EXPECT_FALSE(fs::exists(scratch / "out.ot"));
+  // A backup whose output is missing (killed between moving it aside and the rename) goes back.
+  EXPECT_EQ(readFile(scratch / "gone.bt"), oldContent("gone.bt"));
+}
+
+// Runs `args`, which must be refused with exit 2 and one error line naming `mention`, leaving
+// `kept` byte for byte as it was and no temporary in `dir`.
+void expectRefusedKeeping(const std::vector<std::string>& args, const std::string& mention,
+                          const std::string& kept, const fs::path& dir) {
+  SCOPED_TRACE(args.front() + " ... " + mention);
+  const std::string before = readFile(kept);
+  const RunResult r = runOctovk(args, dir);
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find("'" + mention + "'"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(readFile(kept), before);
+  EXPECT_EQ(temporariesIn(dir), std::vector<std::string>{});
+}
+
+TEST(cliNothingLost, AnOutputThatIsAnInputOrAnotherOutputIsRefused) {
+  Scratch scratch;
+  // A scan graph named like a map: the same name as input and output.
+  const std::string same = scratch / "same.bt";
+  fs::copy_file(kSphericalGraph, same);
+  expectRefusedKeeping({"integrate", same, "-o", same}, same, same, scratch.dir());
+  // Through a symlink and a hard link to the input.
+  const std::string link = scratch / "link.bt", hard = scratch / "hard.ot";
+  fs::create_symlink(same, link);
+  fs::create_hard_link(same, hard);
+  expectRefusedKeeping({"integrate", same, "-o", link}, link, same, scratch.dir());
+  expectRefusedKeeping({"integrate", same, "-o", scratch / "new.bt", "-o", hard}, hard, same,
+                       scratch.dir());
+  EXPECT_FALSE(fs::exists(scratch / "new.bt"));
+  // Two outputs that are one file: spelt differently, or a symlink to the other.
+  const std::string map = writeSmallMap(scratch);  // small.bt
+  const std::string alias = scratch / "alias.ot";
+  fs::create_symlink(map, alias);
+  expectRefusedKeeping({"integrate", kSphericalGraph, "-o", map, "-o", alias}, alias, map,
+                       scratch.dir());
+  expectRefusedKeeping(
+      {"integrate", kSphericalGraph, "-o", map, "-o", (scratch.dir() / "." / "small.bt").string()},
+      (scratch.dir() / "." / "small.bt").string(), map, scratch.dir());
+  // render and export: an output that is a symlink to the map read.
+  const std::string view = scratch / "view.png", cells = scratch / "cells.ply";
+  fs::create_symlink(map, view);
+  fs::create_symlink(map, cells);
+  expectRefusedKeeping({"render", map, "-o", view}, view, map, scratch.dir());
+  expectRefusedKeeping({"export", map, "-o", cells}, cells, map, scratch.dir());
+}
+
+TEST(cliNothingLost, FifosAreRefusedWithoutBlocking) {
+  Scratch scratch;
+  const std::string fifo_map = scratch / "fifo.bt", fifo_graph = scratch / "fifo.graph",
+                    fifo_ply = scratch / "fifo.ply";
+  for (const std::string& fifo : {fifo_map, fifo_graph, fifo_ply})
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0) << fifo;
+  const std::string map = writeSmallMap(scratch);
+  for (const auto& [args, mention] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"info", fifo_map}, fifo_map},
+           {{"render", fifo_map, "-o", scratch / "view.png"}, fifo_map},
+           {{"export", fifo_map, "-o", scratch / "cells.ply"}, fifo_map},
+           {{"integrate", fifo_graph, "-o", scratch / "map.bt"}, fifo_graph},
+           // As outputs: the rename would replace the FIFO rather than write into it.
+           {{"integrate", kSphericalGraph, "-o", fifo_map}, fifo_map},
+           {{"export", map, "-o", fifo_ply}, fifo_ply}}) {
+    SCOPED_TRACE(args.front() + " " + args[1]);
+    // Under `timeout`: a run blocked on the FIFO would end with 124, not hang the test.
+    std::string command = "timeout 60 " + quote(OCTOVK_CLI);
+    for (const std::string& a : args) command += ' ' + quote(a);
+    const auto start = std::chrono::steady_clock::now();
+    const RunResult r = runShell(command, scratch.dir());
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(30));
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find("'" + mention + "'"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("not a regular file"), std::string::npos) << r.err;
+    EXPECT_TRUE(fs::is_fifo(mention));
+  }
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+}
+
+// Runs octovk with `args` and its stdout redirected by `redirect` (">/dev/full", ">&-").
+RunResult runWithStdout(const std::vector<std::string>& args, const std::string& redirect,
+                        const Scratch& scratch) {
+  std::string command = "(" + quote(OCTOVK_CLI);
+  for (const std::string& a : args) command += ' ' + quote(a);
+  return runShell(command + ' ' + redirect + ")", scratch.dir());
+}
+
+void expectStdoutFailure(const RunResult& r) {
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: cannot write to standard output", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+}
+
+TEST(cliNothingLost, AFullOrClosedStdoutIsAFailure) {
+  Scratch scratch;
+  ASSERT_TRUE(fs::exists("/dev/full"));
+  for (const char* redirect : {">/dev/full", ">&-"}) {
+    SCOPED_TRACE(redirect);
+    expectStdoutFailure(runWithStdout({"--help"}, redirect, scratch));
+    expectStdoutFailure(runWithStdout({"integrate", "--help"}, redirect, scratch));
+  }
+  EXPECT_EQ(runWithStdout({"--help"}, ">/dev/null", scratch).exit_code, 0);
+}
+
+TEST(cliNothingLost, AFullOrClosedStdoutFailsAWorkingRunToo) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const std::string map = writeSmallMap(scratch);
+  for (const char* redirect : {">/dev/full", ">&-"}) {
+    SCOPED_TRACE(redirect);
+    expectStdoutFailure(runWithStdout({"info", map}, redirect, scratch));
+    expectStdoutFailure(runWithStdout({"devices"}, redirect, scratch));
+  }
+  EXPECT_EQ(runWithStdout({"info", map}, ">/dev/null", scratch).exit_code, 0);
+  // With stdout closed the map is still the map: no file opened later takes stdout's number.
+  const RunResult ref =
+      runOctovk({"integrate", kSphericalGraph, "-q", "-o", scratch / "ref.bt"}, scratch.dir());
+  ASSERT_EQ(ref.exit_code, 0) << ref.err;
+  expectStdoutFailure(runWithStdout(
+      {"integrate", kSphericalGraph, "-q", "-o", scratch / "closed.bt"}, ">&-", scratch));
+  EXPECT_EQ(readFile(scratch / "closed.bt"), readFile(scratch / "ref.bt"));
 }
 
 TEST(cliOutputs, ReadingErrorsNameTheFileAndTheFault) {

@@ -1,5 +1,6 @@
 // Command-line parsing, file checks and map loading shared by the octovk commands.
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -137,28 +138,53 @@ void printEnvironmentAndExitCodes(std::ostream& out) {
          "Exit codes:\n"
          "  0  success\n"
          "  1  failure while working: corrupt or truncated input, Vulkan or device error,\n"
-         "     a file could not be written; no output file is left behind\n"
-         "  2  usage error: unknown command or option, missing or bad value, missing input, an\n"
-         "     output file that cannot be created (each is created before any work); nothing\n"
-         "     is done\n"
-         "Errors are one line on stderr starting with 'octovk: error: '.\n";
+         "     a file could not be written (full disk); every existing output file is left as\n"
+         "     it was and no new one is left behind. Also: standard output could not be\n"
+         "     written (closed or full; the files are written by then)\n"
+         "  2  usage error: unknown command or option, missing or bad value, missing input or\n"
+         "     one that is not a regular file (a FIFO), an output file that cannot be created\n"
+         "     (each is created before any work) or that is an input or another output (also\n"
+         "     through a link); nothing is done\n"
+         "  128+N  ended by signal N (SIGHUP, SIGINT, SIGTERM): the temporary files are\n"
+         "     removed and every existing output file is left as it was\n"
+         "Errors are one line on stderr starting with 'octovk: error: '. Temporary files are\n"
+         "named .NAME.octovk.tmp-PID.EXT beside each output NAME; a later run on NAME removes\n"
+         "those of a killed run (SIGKILL, a crash) whose process is gone.\n";
+}
+
+void checkRegularInput(const std::string& path, const std::string& what, const std::string& fix) {
+  const auto cannotRead = [&] {
+    return UsageError("cannot read " + what + " '" + path + "': " + std::strerror(errno) +
+                      "; check its permissions");
+  };
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT || errno == ENOTDIR)
+      throw UsageError(what + " '" + path + "' does not exist; check the path");
+    throw cannotRead();
+  }
+  if (S_ISDIR(st.st_mode)) throw UsageError(what + " '" + path + "' is a directory; " + fix);
+  // Checked before opening: opening a FIFO for reading waits for a writer, possibly forever.
+  const auto notRegular = [&] {
+    return UsageError(what + " '" + path + "' is not a regular file (a pipe, device or socket); " +
+                      fix);
+  };
+  if (!S_ISREG(st.st_mode)) throw notRegular();
+  // O_NONBLOCK: should it have become a FIFO since, the open still returns at once.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw cannotRead();
+  const bool regular = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+  ::close(fd);
+  if (!regular) throw notRegular();
 }
 
 void checkMapInput(const std::string& path, const std::string& usage) {
   if (path.empty()) throw UsageError("no map file given; usage: " + usage);
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (!fs::exists(st)) throw UsageError("map file '" + path + "' does not exist; check the path");
-  if (fs::is_directory(st))
-    throw UsageError("map file '" + path + "' is a directory; give a .bt or .ot file");
+  checkRegularInput(path, "map file", "give a .bt or .ot file");
   const std::string ext = fs::path(path).extension().string();
   if (ext != ".bt" && ext != ".ot")
     throw UsageError("map file '" + path + "' has unknown extension '" + ext +
                      "'; give an OctoMap .bt (binary) or .ot (full) file");
-  std::ifstream probe(path, std::ios_base::binary);
-  if (!probe.is_open())
-    throw UsageError("cannot read map file '" + path + "': " + std::strerror(errno) +
-                     "; check its permissions");
 }
 
 void checkOutputFile(const std::string& path, const std::vector<std::string>& extensions,
@@ -184,55 +210,11 @@ void checkOutputFile(const std::string& path, const std::vector<std::string>& ex
                      "': " + std::strerror(errno) + "; choose a writable directory");
 }
 
-namespace {
-
-// `message` with every mention of `from` replaced by `to`.
-std::string replaced(std::string message, const std::string& from, const std::string& to) {
-  for (std::size_t at = message.find(from); at != std::string::npos;
-       at = message.find(from, at + to.size()))
-    message.replace(at, from.size(), to);
-  return message;
-}
-
-}  // namespace
-
-OutputFile::OutputFile(std::string path)
-    : path_(std::move(path)),
-      temporary_(path_ + ".tmp-" + std::to_string(::getpid()) +
-                 fs::path(path_).extension().string()) {
-  int fd = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  if (fd < 0 && errno == EEXIST) {  // left by a killed run that had the same process id
-    ::unlink(temporary_.c_str());
-    fd = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-  }
-  if (fd < 0)
-    throw UsageError("cannot write '" + path_ + "': " + std::strerror(errno) +
-                     "; choose another output path (nothing was done)");
-  ::close(fd);
-}
-
-OutputFile::~OutputFile() {
-  if (!committed_) ::unlink(temporary_.c_str());
-}
-
-void OutputFile::commit(const std::function<void(const std::string&)>& write) {
-  try {
-    write(temporary_);
-  } catch (const Error& e) {
-    ::unlink(temporary_.c_str());
-    throw Error(e.code(), replaced(e.what(), temporary_, path_));
-  }
-  if (std::rename(temporary_.c_str(), path_.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    ::unlink(temporary_.c_str());
-    throw Error(ErrorCode::kIo, "cannot write '" + path_ + "': " + why);
-  }
-  committed_ = true;
-}
-
-void writeFileAtomically(const std::string& path,
-                         const std::function<void(const std::string&)>& write) {
-  OutputFile(path).commit(write);
+bool flushStdout() {
+  std::cout.flush();
+  errno = 0;
+  const bool flushed = std::fflush(stdout) == 0;
+  return flushed && !std::ferror(stdout) && !std::cout.fail();
 }
 
 std::unique_ptr<Context> createContext() {

@@ -107,31 +107,57 @@ void checkMapInput(const std::string& path, const std::string& usage);
 void checkOutputFile(const std::string& path, const std::vector<std::string>& extensions,
                      const std::string& formats);
 
-/// An output file claimed before any work. The constructor creates its temporary file beside it
-/// (PATH.tmp-PID.EXT, same extension, so format-by-extension writers accept it): an output that
-/// cannot be created is a UsageError (exit 2) naming PATH before anything is read or computed.
-/// commit() writes the temporary through `write(temporary_path)` and renames it onto PATH; a
-/// failure leaves neither file, and its message names PATH, never the temporary. The destructor
-/// removes the temporary when commit() did not run or failed.
-class OutputFile {
- public:
-  explicit OutputFile(std::string path);
-  ~OutputFile();
-  OutputFile(const OutputFile&) = delete;
-  OutputFile& operator=(const OutputFile&) = delete;
+/// Refuses (UsageError, exit 2) an output that is the same file as an input or as another
+/// output, also through a symlink or a hard link, and an existing output that is not a regular
+/// file (a pipe or device would be replaced by the rename, not written).
+void checkOutputsDistinct(const std::vector<std::string>& outputs,
+                          const std::vector<std::string>& inputs);
 
-  const std::string& path() const noexcept { return path_; }
-  void commit(const std::function<void(const std::string&)>& write);
+/// The output files of a run, all or nothing. The constructor checks them (checkOutputsDistinct),
+/// removes what killed runs left for them, and creates each one's temporary beside it
+/// (DIR/.NAME.octovk.tmp-PID.EXT, same extension, so format-by-extension writers accept it): an
+/// output that cannot be created is a UsageError naming it before anything is read or computed.
+/// write() fills an output's temporary and syncs it; commit(), once all are written, renames them
+/// into place, and if one rename fails puts every replaced file back. Messages name the user's
+/// path, never the temporary. Until commit() the destructor and SIGHUP / SIGINT / SIGTERM (see
+/// installSignalCleanup) remove the temporaries, so a failed run leaves every file as it was.
+class OutputFiles {
+ public:
+  OutputFiles(const std::vector<std::string>& paths, const std::vector<std::string>& inputs);
+  ~OutputFiles();
+  OutputFiles(const OutputFiles&) = delete;
+  OutputFiles& operator=(const OutputFiles&) = delete;
+
+  std::size_t size() const noexcept { return entries_.size(); }
+  const std::string& path(std::size_t index) const { return entries_.at(index).path; }
+  /// Writes output `index` through `write(temporary_path)` and syncs it to disk.
+  void write(std::size_t index, const std::function<void(const std::string&)>& write);
+  /// Renames every output into place; all or none (octovk::Error naming the output that failed).
+  void commit();
 
  private:
-  std::string path_;
-  std::string temporary_;
+  struct Entry {
+    std::string path;
+    std::string temporary;
+    bool written = false;
+  };
+  void claim(const std::vector<std::string>& paths);
+  void removeTemporaries();
+  std::vector<Entry> entries_;
   bool committed_ = false;
 };
 
-/// OutputFile(path).commit(write): for an output that needs no claim before the work.
-void writeFileAtomically(const std::string& path,
-                         const std::function<void(const std::string&)>& write);
+/// Makes SIGHUP, SIGINT and SIGTERM remove the temporaries of every OutputFiles and then end the
+/// process by the signal (exit status 128+N in a shell). Call first in main(), before any thread.
+void installSignalCleanup();
+
+/// Flushes stdout; false when anything written to it was lost (errno says why, or is 0 when an
+/// earlier write failed): a closed or full standard output is a failure of the run.
+bool flushStdout();
+
+/// Checks that `path` is an existing regular file that can be read, without blocking on a FIFO.
+/// Throws UsageError naming `what` ("map file", "scan graph") and the fix.
+void checkRegularInput(const std::string& path, const std::string& what, const std::string& fix);
 
 /// The Vulkan context, or octovk::Error with the reason there is none.
 std::unique_ptr<Context> createContext();

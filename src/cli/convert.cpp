@@ -108,8 +108,8 @@ void printCameraOptionsHelp(std::ostream& out) {
 std::string tumImagesSummary(const TumSequence& sequence) {
   std::ostringstream s;
   s << "images:        " << sequence.frames.size() << " used of " << sequence.images_listed
-    << " in depth.txt (" << sequence.skipped_no_pose
-    << " skipped: no ground-truth pose less than " << kTumMaxTimeDifference << " s away)\n";
+    << " in depth.txt (" << sequence.skipped_no_pose << " skipped: no ground-truth pose less than "
+    << kTumMaxTimeDifference << " s away)\n";
   return s.str();
 }
 
@@ -168,7 +168,8 @@ void printConvertHelp(std::ostream& out) {
   out << "\n"
          "Options:\n"
          "  -o, --output FILE      the scan graph to write (.graph); created before any work,\n"
-         "                         written to a temporary file beside it and renamed. Required.\n";
+         "                         written to a temporary file beside it and renamed once\n"
+         "                         complete. Required.\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
@@ -184,12 +185,14 @@ int runConvert(const std::vector<std::string>& args) {
   checkTumFolder(o.dir, kConvertUsage);
   if (o.output.empty()) throw UsageError("no output file; add -o SCANS.graph");
   checkOutputFile(o.output, {".graph"}, ".graph (an OctoMap scan graph)");
-  OutputFile output(o.output);  // created now: an unwritable path is found before any work
+  // Created now: an unwritable path is found before any work.
+  OutputFiles output({o.output}, {(fs::path(o.dir) / "depth.txt").string(),
+                                  (fs::path(o.dir) / "groundtruth.txt").string()});
 
   const TumSequence sequence = readTumSequence(o.dir);
   for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
   std::size_t points = 0, no_depth = 0;
-  output.commit([&](const std::string& tmp) {
+  output.write(0, [&](const std::string& tmp) {
     StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
     writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
       const TumFrame& frame = sequence.frames[i];
@@ -203,6 +206,7 @@ int runConvert(const std::vector<std::string>& args) {
       return scan;
     });
   });
+  output.commit();
 
   std::ostringstream s;
   s << tumImagesSummary(sequence) << "points:        " << points << " (camera frame; " << no_depth

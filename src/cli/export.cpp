@@ -175,8 +175,8 @@ void printExportHelp(std::ostream& out) {
          "  uchar red, green, blue   the colour chosen by --color\n"
          "\n"
          "Options:\n"
-         "  -o, --output FILE      the .ply file to write. Written to a temporary file and\n"
-         "                         renamed. Required.\n"
+         "  -o, --output FILE      the .ply file to write. Written to a temporary file beside\n"
+         "                         it and renamed once complete. Required.\n"
          "      --occupied-only    only the occupied leaves (default: occupied and free)\n"
          "      --box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
          "                         only the leaves that OctoMap's leaf_bbx_iterator visits for\n"
@@ -197,7 +197,8 @@ void printExportHelp(std::ostream& out) {
 int runExport(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printExportHelp)) return kExitOk;
   const ExportOptions o = parseExport(args);
-  OutputFile output(o.output_path);  // created now: an unwritable path is found before any work
+  // Created now: an unwritable path is found before any work.
+  OutputFiles output({o.output_path}, {o.map_path});
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
@@ -245,8 +246,9 @@ int runExport(const std::vector<std::string>& args) {
   comment << "octovk export of " << o.map_path << " (resolution " << resolution
           << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, colour by "
           << (o.coloring == Coloring::kHeight ? "height" : "occupancy");
-  output.commit(
-      [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
+  output.write(
+      0, [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
+  output.commit();
   const double write_s = secondsSince(write_start);
 
   std::ostringstream s;

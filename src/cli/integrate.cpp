@@ -2,6 +2,7 @@
 // one map, written as .bt / .ot files byte-identical to those of OctoMap's graph2tree on the same
 // input (for a folder: on `octovk convert`'s graph of it) and parameters.
 #include <fcntl.h>
+#include <octomap/OcTree.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -13,7 +14,6 @@
 #include <iomanip>
 #include <iostream>
 #include <optional>
-#include <set>
 #include <sstream>
 
 #include "cli.hpp"
@@ -102,13 +102,8 @@ void checkInput(const std::string& path) {
   if (path.empty())
     throw UsageError(
         "no scan graph or folder given; usage: octovk integrate SCANS.graph|DIR -o MAP.bt");
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (!fs::exists(st)) throw UsageError("scan graph '" + path + "' does not exist; check the path");
-  std::ifstream probe(path, std::ios_base::binary);
-  if (!probe.is_open())
-    throw UsageError("cannot read scan graph '" + path + "': " + std::strerror(errno) +
-                     "; check its permissions");
+  checkRegularInput(path, "scan graph",
+                    "give an OctoMap scan graph (.graph) or a TUM RGB-D folder");
 }
 
 // validate() names MapParams fields; the user knows them as options.
@@ -139,12 +134,8 @@ void validate(IntegrateOptions& o) {
                        " out");
   }
   if (o.output_paths.empty()) throw UsageError("no output file; add -o MAP.bt and/or -o MAP.ot");
-  std::set<fs::path> seen;
-  for (const std::string& path : o.output_paths) {
+  for (const std::string& path : o.output_paths)
     checkOutputFile(path, {".bt", ".ot"}, ".bt (max-likelihood binary) or .ot (full log-odds)");
-    if (!seen.insert(fs::absolute(path).lexically_normal()).second)
-      throw UsageError("output '" + path + "' is given twice; give each -o file once");
-  }
   const std::string why = o.params.validate();
   if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
 }
@@ -184,21 +175,26 @@ class Progress {
   bool printed_ = false;
 };
 
-// Writes every output (claimed before the work); if one fails, the ones this run already wrote
-// are removed, so that a failed run leaves no output behind.
-void writeOutputs(const OccupancyMap& map,
-                  const std::vector<std::unique_ptr<OutputFile>>& outputs) {
+// The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
+// would add a temporary of its own, which a killed run would leave behind.
+void writeMap(const OccupancyMap& map, const std::string& path) {
+  std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
+  std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
+  if (!out.is_open())
+    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
+  bool ok = fs::path(path).extension() == ".bt" ? tree->writeBinary(out) : tree->write(out);
+  out.close();
+  ok = ok && out.good();
+  if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+}
+
+// Every output is written before any is renamed into place, so that a failed write (a full
+// disk) leaves every existing file as it was.
+void writeOutputs(const OccupancyMap& map, OutputFiles& outputs) {
   StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-  std::vector<std::string> written;
-  try {
-    for (const std::unique_ptr<OutputFile>& output : outputs) {
-      output->commit([&](const std::string& temporary) { writeMapFile(map, temporary); });
-      written.push_back(output->path());
-    }
-  } catch (...) {
-    for (const std::string& path : written) std::remove(path.c_str());
-    throw;
-  }
+  for (std::size_t i = 0; i < outputs.size(); ++i)
+    outputs.write(i, [&](const std::string& temporary) { writeMap(map, temporary); });
+  outputs.commit();
 }
 
 }  // namespace
@@ -223,7 +219,9 @@ void printIntegrateHelp(std::ostream& out) {
          "  -o, --output FILE      file to write; repeat for several. The extension picks the\n"
          "                         format: .bt = max-likelihood binary tree, pruned (OctoMap\n"
          "                         writeBinary); .ot = full tree with float log-odds (OctoMap\n"
-         "                         write). Written to a temporary file and renamed. Required.\n"
+         "                         write). Each is written to a temporary file beside it and\n"
+         "                         all are renamed into place once every one is complete: a\n"
+         "                         failed run replaces none. Required.\n"
          "  -r, --resolution M     edge of the smallest voxel in metres (default: "
       << defaults.resolution
       << ")\n"
@@ -271,9 +269,11 @@ int runIntegrate(const std::vector<std::string>& args) {
   IntegrateOptions o = parseIntegrate(args);
   validate(o);
   // Every output is created now, so an unwritable one is found before any work.
-  std::vector<std::unique_ptr<OutputFile>> outputs;
-  for (const std::string& path : o.output_paths)
-    outputs.push_back(std::make_unique<OutputFile>(path));
+  const std::vector<std::string> inputs =
+      o.tum ? std::vector<std::string>{(fs::path(o.graph_path) / "depth.txt").string(),
+                                       (fs::path(o.graph_path) / "groundtruth.txt").string()}
+            : std::vector<std::string>{o.graph_path};
+  OutputFiles outputs(o.output_paths, inputs);
 
   const auto run_start = Clock::now();
   std::vector<GraphScan> scans;

@@ -1,6 +1,11 @@
 // octovk: the command-line program. Dispatches to a command; every failure ends here as one line
 // on stderr and an exit code (the library never exits, and neither does a command).
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <iostream>
 #include <string>
@@ -153,6 +158,20 @@ std::string oneLine(const std::string& message) {
   return out;
 }
 
+// A standard stream closed by the caller gets a stand-in, so that no file opened later takes its
+// number: the map written to fd 1 would receive the summary. stdout's stand-in is read-only, so
+// that writes to it fail and are reported as a failure.
+void reopenClosedStandardStreams() {
+  for (const int fd : {STDIN_FILENO, STDOUT_FILENO, STDERR_FILENO}) {
+    if (::fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+    const int opened = ::open("/dev/null", fd == STDERR_FILENO ? O_WRONLY : O_RDONLY);
+    if (opened >= 0 && opened != fd) {
+      ::dup2(opened, fd);
+      ::close(opened);
+    }
+  }
+}
+
 void printError(const std::string& message) {
   std::cout.flush();
   std::fprintf(stderr, "octovk: error: %s\n", oneLine(message).c_str());
@@ -164,9 +183,18 @@ void printError(const std::string& message) {
 
 int main(int argc, char** argv) {
   using namespace octovk::cli;
+  reopenClosedStandardStreams();
+  installSignalCleanup();
   try {
     const std::vector<std::string> args(argv + 1, argv + argc);
     const int status = dispatch(args);
+    // What the user asked to see is part of the result: lost output is a failure.
+    if (!flushStdout()) {
+      const int why = errno;
+      printError(why != 0 ? std::string("cannot write to standard output: ") + std::strerror(why)
+                          : "cannot write to standard output (closed, full, or a write error)");
+      return kExitFailure;
+    }
     // Under OCTOVK_VALIDATION a message of the validation layer is a failure of the run.
     if (const std::size_t messages = octovk::validationMessageCount(); messages > 0) {
       printError(std::to_string(messages) +

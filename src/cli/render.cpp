@@ -296,7 +296,8 @@ void printRenderHelp(std::ostream& out) {
          "\n"
          "Options:\n"
          "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Written to a\n"
-         "                         temporary file and renamed. Required.\n"
+         "                         temporary file beside it and renamed once complete.\n"
+         "                         Required.\n"
          "      --eye X Y Z        camera position in metres (default: on the side of the\n"
          "                         occupied cells that shows their longer horizontal extent,\n"
          "                         looking down at "
@@ -327,7 +328,8 @@ void printRenderHelp(std::ostream& out) {
 int runRender(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printRenderHelp)) return kExitOk;
   const RenderOptions o = parseRender(args);
-  OutputFile output(o.output_path);  // created now: an unwritable path is found before any work
+  // Created now: an unwritable path is found before any work.
+  OutputFiles output({o.output_path}, {o.map_path});
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
@@ -466,7 +468,8 @@ int runRender(const std::vector<std::string>& args) {
       image.set(x, y, mix(scale(base, light_f), haze, 0.4 * far));
     }
   }
-  output.commit([&](const std::string& temporary) { writePng(image, temporary); });
+  output.write(0, [&](const std::string& temporary) { writePng(image, temporary); });
+  output.commit();
   const double shade_s = secondsSince(shade_start);
 
   const double fov_h_deg = 2.0 * std::atan(camera.tan_half_h) * 180.0 / M_PI;
