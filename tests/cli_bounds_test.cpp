@@ -127,6 +127,26 @@ TEST(cliDeviceMemory, ScanOverTheCapFailsNamingTheCapAndTheScan) {
   }
 }
 
+TEST(cliDeviceMemory, FarSensorOriginStopsAtTheCap) {
+  // 2,000 rays of 3,276.7 m (the sensor far from its points) need cell sets of gigabytes: without
+  // a cap the run grew to 5.9 GB over minutes before the device refused it. Under the cap it stops
+  // at the first growth that would pass it, which a synchronisation after later submits finds:
+  // the error still names scan 2, not the scan being submitted then.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const std::string graph =
+      writeGraph(scratch, "far.graph", {{200}, {2000, 3276.7f}, {200}, {200}, {200}});
+  const RunResult r =
+      runOctovk({"integrate", graph, "-o", scratch / "m.bt", "-q", "--max-device-memory", "128M"},
+                scratch.dir());
+  expectError(
+      r, 1,
+      {graph + ": scan 2 of 5: ", "--max-device-memory = 134217728 bytes (128.0 MiB)", "cell sets"},
+      scratch);
+  EXPECT_EQ(r.err.find("[scan"), std::string::npos) << "the library's ticket note: " << r.err;
+}
+
 TEST(cliDeviceMemory, MapCommandsTakeTheCap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   (void)ctx;

@@ -865,6 +865,24 @@ TEST(TumBadInput, TruncatedPng) {
                      /*mid_run=*/true);
 }
 
+TEST(TumBadInput, ScanErrorsNameTheImage) {
+  // Damage found while integrating (the header is sound, the pixels cut short) names the folder,
+  // the image's timestamp and its depth.txt line before the reader's message.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  const fs::path image = seq.dir / seq.image_files[3];  // depth.txt line 8
+  const std::string whole = readFile(image);
+  std::ofstream(image, std::ios_base::binary | std::ios_base::trunc)
+      << whole.substr(0, whole.size() / 2);
+  expectRejected({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, 1,
+                 {seq.dir.string() + ": depth image " + seq.image_times[3] + " (" +
+                      seq.image_files[3] + ", depth.txt line 8): ",
+                  "corrupt or truncated"},
+                 scratch, /*mid_run=*/true);
+}
+
 TEST(TumBadInput, GarbageLineInDepthTxt) {
   Scratch scratch("tum");
   const Sequence seq = makeSequence(scratch.dir() / "seq");
