@@ -174,4 +174,17 @@ TEST(cliDeviceMemory, MapCommandsTakeTheCap) {
   }
 }
 
+TEST(cliDeviceMemory, HelpDocumentsTheOptionAndTheFolderPolicy) {
+  Scratch scratch;
+  for (const char* command : {"integrate", "info", "render", "export"}) {
+    const RunResult r = runOctovk({command, "--help"}, scratch.dir());
+    EXPECT_EQ(r.exit_code, 0) << command;
+    for (const char* words : {"--max-device-memory BYTES", "512M", "0 = no cap", "naming the cap"})
+      EXPECT_NE(r.out.find(words), std::string::npos) << command << " help lacks " << words;
+  }
+  const RunResult r = runOctovk({"integrate", "--help"}, scratch.dir());
+  for (const char* words : {"inside DIR only", "'..'", "symbolic link", "Not with --rays rt"})
+    EXPECT_NE(r.out.find(words), std::string::npos) << "integrate help lacks " << words;
+}
+
 }  // namespace

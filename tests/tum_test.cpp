@@ -439,6 +439,10 @@ TEST(TumReader, RefusesAHugeChunkWithoutAllocatingIt) {
   Scratch scratch("tum");
   const std::string bytes = hugeTextChunkPng();
   ASSERT_EQ(bytes.size(), 2475u);
+  // The fuzz targets' regression corpus holds the same file (tests/fuzz/make_corpus.cpp).
+  EXPECT_EQ(
+      readFile(fs::path(OCTOVK_SHARED_DATA_DIR) / "../fuzz/corpus/depth_png/text_chunk_2gib.png"),
+      bytes);
   const fs::path path = scratch.dir() / "text.png";
   std::ofstream(path, std::ios_base::binary) << bytes;
   const auto start = std::chrono::steady_clock::now();

@@ -101,7 +101,7 @@ void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails) {
          "                         0 = no cap (default: 0). On a CPU device (lavapipe) device\n"
          "                         memory is host memory, so this bounds the program's memory\n"
          "                         too. "
-      << what_fails << " needing more fails (exit 1) naming the cap\n";
+      << what_fails << " needing more fails (exit 1) naming the cap.\n";
 }
 
 }  // namespace octovk::cli
