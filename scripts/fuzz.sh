@@ -2,9 +2,11 @@
 # Fuzzes octovk's file readers with clang's libFuzzer: builds
 # octovk_fuzz_{bt,ot,graph,tum_lists,depth_png} (tests/fuzz/, -fsanitize=fuzzer,address,undefined)
 # into build-fuzz/ with clang, then runs each for OCTOVK_FUZZ_SECONDS (default 60) from the seed
-# corpus tests/fuzz/corpus/FORMAT/ with -rss_limit_mb=2048 (also the cap on one allocation) and
-# -timeout=10. Fails on any crash, sanitizer report, hang (an input over 10 s) or allocation over
-# the cap; the input that caused it is kept as build-fuzz/artifacts/FORMAT-crash-*, -timeout-*,
+# corpus tests/fuzz/corpus/FORMAT/ with -malloc_limit_mb=256 (the most one allocation may take:
+# inputs are at most 16 kB, and a reader's memory must be bounded by its input), -rss_limit_mb=1024
+# and -timeout=10. (libFuzzer's default, one allocation up to the 2 GB RSS limit, let a 2.5 kB PNG
+# allocate 2 GiB unnoticed: issue 22.) Fails on any crash, sanitizer report, hang (an input over
+# 10 s) or allocation over the caps; the input that caused it is kept as build-fuzz/artifacts/FORMAT-crash-*, -timeout-*,
 # -oom-* (add it to the regression tests in tests/io_test.cpp, or tests/tum_test.cpp for
 # tum_lists and depth_png). Inputs the fuzzer found interesting go to build-fuzz/corpus/FORMAT/,
 # never into the repository. Prints how many inputs each target ran.
@@ -50,14 +52,15 @@ for f in "${formats[@]}"; do
   echo "==== fuzz: $f for $seconds s ===="
   status=0
   "$build/tests/fuzz/octovk_fuzz_$f" "$corpus" "$root/tests/fuzz/corpus/$f" \
-    -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 -max_len=16384 \
-    -print_final_stats=1 -artifact_prefix="$build/artifacts/$f-" >"$log" 2>&1 || status=$?
+    -max_total_time="$seconds" -malloc_limit_mb=256 -rss_limit_mb=1024 -timeout=10 \
+    -max_len=16384 -print_final_stats=1 -artifact_prefix="$build/artifacts/$f-" >"$log" 2>&1 || status=$?
   runs="$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)"
   # libFuzzer's -timeout is wall-clock time: on a loaded machine a process can stall past it on
   # an input that takes a millisecond. A timeout counts only if the input also times out alone.
   if [ "$status" -ne 0 ] && grep -aq "libFuzzer: timeout" "$log"; then
     unit="$(sed -n "s/.*Test unit written to \(.*\)$/\1/p" "$log" | tail -1)"
-    if [ -n "$unit" ] && "$build/tests/fuzz/octovk_fuzz_$f" -timeout=10 -runs=3 "$unit" \
+    if [ -n "$unit" ] && "$build/tests/fuzz/octovk_fuzz_$f" -timeout=10 -runs=3 \
+      -malloc_limit_mb=256 -rss_limit_mb=1024 "$unit" \
       >"$log.rerun" 2>&1; then
       echo "fuzz.sh: warning: $f: the timeout on $unit did not happen again when the input ran" \
         "alone (3 runs within 10 s each): the machine was loaded; not counted as a hang" >&2

@@ -3,14 +3,19 @@
 // TUM's comments and precision) is read by the library, converted to a scan graph with
 // `octovk convert`, and integrated with `octovk integrate DIR`: the maps must be byte-identical
 // to graph2tree's on the converted graph. Bad folders give one error line and no file.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
 #include <octomap/ScanGraph.h>
 #include <png.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <csetjmp>
 #include <cstdio>
@@ -406,6 +411,123 @@ TEST(TumReader, RefusesAPngAnnouncingMorePixelsThanItsBytesHold) {
   EXPECT_EQ(read.depths, std::vector<std::uint16_t>(2000 * 1000, 0));
 }
 
+// `png` with a chunk of `type` appended whose length field says `length` (the bytes that follow
+// are `data`, and its checksum theirs).
+void appendPngChunk(std::string& png, const std::string& type, const std::string& data,
+                    std::uint32_t length) {
+  for (int i = 0; i < 4; ++i) png += static_cast<char>(length >> (24 - 8 * i));
+  const std::string body = type + data;
+  png += body;
+  const uLong crc =
+      ::crc32(0L, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()));
+  for (int i = 0; i < 4; ++i) png += static_cast<char>(crc >> (24 - 8 * i));
+}
+
+// About 2.5 kB: the signature, the header of a 4 x 3 16-bit grayscale image, then a tEXt chunk
+// whose length field says 0x7fffffff (2 GiB) and which holds the rest of the file. libpng used to
+// allocate the chunk's declared length before reading it: 2.1 GB of RSS and 7-9 s before the
+// read failed (issue 22; tests/fuzz/corpus/depth_png/text_chunk_2gib.png is this file).
+std::string hugeTextChunkPng() {
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  const std::string ihdr("\0\0\0\4\0\0\0\3\x10\0\0\0\0", 13);  // 4 x 3, 16-bit, gray, no interlace
+  appendPngChunk(png, "IHDR", ihdr, 13);
+  appendPngChunk(png, "tEXt", std::string("Comment\0", 8) + std::string(2422, 'x'), 0x7fffffff);
+  return png;
+}
+
+TEST(TumReader, RefusesAHugeChunkWithoutAllocatingIt) {
+  Scratch scratch("tum");
+  const std::string bytes = hugeTextChunkPng();
+  ASSERT_EQ(bytes.size(), 2475u);
+  // The fuzz targets' regression corpus holds the same file (tests/fuzz/make_corpus.cpp).
+  EXPECT_EQ(
+      readFile(fs::path(OCTOVK_SHARED_DATA_DIR) / "../fuzz/corpus/depth_png/text_chunk_2gib.png"),
+      bytes);
+  const fs::path path = scratch.dir() / "text.png";
+  std::ofstream(path, std::ios_base::binary) << bytes;
+  const auto start = std::chrono::steady_clock::now();
+  for (const std::string& why :
+       {formatError([&] { octovk::readDepthPng(path.string()); }),
+        formatError([&] { octovk::checkDepthPng(path.string()); }),
+        formatError([&] { octovk::io::decodeDepthPng(bytes, path.string()); })}) {
+    EXPECT_NE(why.find("'" + path.string() + "'"), std::string::npos) << why;
+    EXPECT_NE(why.find("corrupt or truncated"), std::string::npos) << why;
+  }
+  // Three reads that each allocated and touched 2 GiB took seconds; now they take microseconds.
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 1.0);
+  // An ancillary chunk of honest length is skipped, and the image still read.
+  const fs::path small = scratch.dir() / "small.png";
+  writeDepthPng(small, 4, 3, std::vector<std::uint16_t>(12, 5000));
+  std::string with_text = readFile(small);
+  const std::size_t idat = with_text.find("IDAT") - 4;
+  std::string text;
+  appendPngChunk(text, "tEXt", std::string("Comment\0hello", 13), 13);
+  with_text.insert(idat, text);
+  EXPECT_EQ(octovk::io::decodeDepthPng(with_text, "text").depths,
+            std::vector<std::uint16_t>(12, 5000));
+}
+
+// Runs the octovk program with `args` (output in files under `dir`) and measures it alone:
+// wait4() gives that child's peak RSS and CPU time, not the test's nor other children's.
+struct MeasuredRun {
+  octovk::test::RunResult result;
+  long max_rss_kb = 0;
+  double cpu_s = 0.0;
+};
+
+MeasuredRun runMeasured(const std::vector<std::string>& args, const fs::path& dir) {
+  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+  std::vector<std::string> argv_strings = {OCTOVK_CLI};
+  argv_strings.insert(argv_strings.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (std::string& a : argv_strings) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  MeasuredRun m;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int o = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (o < 0 || e < 0 || ::dup2(o, 1) < 0 || ::dup2(e, 2) < 0) ::_exit(127);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  if (pid < 0) {
+    ADD_FAILURE() << "fork failed";
+    return m;
+  }
+  int status = 0;
+  struct rusage usage {};
+  if (::wait4(pid, &status, 0, &usage) != pid) ADD_FAILURE() << "wait4 failed";
+  m.result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  m.result.out = readFile(out);
+  m.result.err = readFile(err);
+  m.max_rss_kb = usage.ru_maxrss;
+  m.cpu_s = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+            static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
+  fs::remove(out);
+  fs::remove(err);
+  return m;
+}
+
+TEST(TumCli, HugeChunkIsACheapCleanError) {
+  // The hostile PNG in a folder: integrate refuses it while checking the images, before any
+  // Vulkan work, in well under a second and 200 MB (it took 2.1 GB and 7-9 s).
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  std::ofstream(seq.dir / seq.image_files[1], std::ios_base::binary | std::ios_base::trunc)
+      << hugeTextChunkPng();
+  const MeasuredRun m =
+      runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
+  EXPECT_EQ(m.result.exit_code, 1) << m.result.err;
+  EXPECT_EQ(m.result.err.rfind("octovk: error: ", 0), 0u) << m.result.err;
+  EXPECT_EQ(std::count(m.result.err.begin(), m.result.err.end(), '\n'), 1) << m.result.err;
+  EXPECT_NE(m.result.err.find(seq.image_files[1]), std::string::npos) << m.result.err;
+  EXPECT_NE(m.result.err.find("corrupt or truncated"), std::string::npos) << m.result.err;
+  EXPECT_LT(m.max_rss_kb, 200 * 1024) << "peak RSS of the run";
+  EXPECT_LT(m.cpu_s, 1.0) << "CPU time of the run";
+  EXPECT_FALSE(fs::exists(scratch / "map.bt"));
+}
+
 TEST(TumReader, BytesInReadersMatchTheFileReaders) {
   // io::parseGroundTruth + io::associateDepthList and io::decodeDepthPng (the fuzz targets'
   // entry points) give what readTumSequence and readDepthPng give on the files.
@@ -747,6 +869,24 @@ TEST(TumBadInput, TruncatedPng) {
                      /*mid_run=*/true);
 }
 
+TEST(TumBadInput, ScanErrorsNameTheImage) {
+  // Damage found while integrating (the header is sound, the pixels cut short) names the folder,
+  // the image's timestamp and its depth.txt line before the reader's message.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  const fs::path image = seq.dir / seq.image_files[3];  // depth.txt line 8
+  const std::string whole = readFile(image);
+  std::ofstream(image, std::ios_base::binary | std::ios_base::trunc)
+      << whole.substr(0, whole.size() / 2);
+  expectRejected({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, 1,
+                 {seq.dir.string() + ": depth image " + seq.image_times[3] + " (" +
+                      seq.image_files[3] + ", depth.txt line 8): ",
+                  "corrupt or truncated"},
+                 scratch, /*mid_run=*/true);
+}
+
 TEST(TumBadInput, GarbageLineInDepthTxt) {
   Scratch scratch("tum");
   const Sequence seq = makeSequence(scratch.dir() / "seq");
@@ -770,6 +910,70 @@ TEST(TumBadInput, AbsoluteImageName) {
     ADD_FAILURE() << "an absolute image name was accepted";
   } catch (const octovk::Error& e) {
     EXPECT_EQ(e.code(), octovk::ErrorCode::kFormat) << e.what();
+  }
+}
+
+TEST(TumBadInput, DotDotImageName) {
+  // '..' climbs out of the folder as an absolute name leaves it: refused the same way, wherever
+  // it leads (even back inside: the rule is on the name, not on where it happens to land).
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  fs::copy_file(seq.dir / seq.image_files[0], scratch.dir() / "outside.png");
+  const std::vector<std::string> names = {"../outside.png", "depth/../../outside.png",
+                                          "depth/../" + seq.image_files[0]};
+  for (const std::string& name : names) {
+    SCOPED_TRACE(name);
+    replaceLine(seq.dir / "depth.txt", 5, "1305031102.2 " + name);
+    expectBothRejected(seq.dir, 1, {"depth.txt' line 5", "'" + name + "' has a '..' component"},
+                       scratch);
+    try {
+      octovk::readTumSequence(seq.dir.string());
+      ADD_FAILURE() << "a '..' image name was accepted";
+    } catch (const octovk::Error& e) {
+      EXPECT_EQ(e.code(), octovk::ErrorCode::kFormat) << e.what();
+    }
+  }
+}
+
+TEST(TumBadInput, SymlinkOutOfTheFolder) {
+  // A link in the folder to an image outside it (or to a folder outside it) reads any file on
+  // the machine, as '..' or an absolute name would: refused. Links that stay inside are fine,
+  // and so is a folder given through a link.
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  fs::create_directories(scratch.dir() / "elsewhere");
+  const fs::path outside = scratch.dir() / "elsewhere" / "image.png";
+  fs::copy_file(seq.dir / seq.image_files[0], outside);
+  const fs::path image = seq.dir / seq.image_files[0];  // depth.txt line 4
+  fs::remove(image);
+  fs::create_symlink(outside, image);
+  expectBothRejected(seq.dir, 1,
+                     {"depth.txt' line 4", seq.image_files[0], "symbolic link",
+                      "outside the folder", fs::canonical(outside).string()},
+                     scratch);
+  // A relative link, and a link to a folder outside on the way to the image.
+  fs::remove(image);
+  fs::create_symlink("../../elsewhere/image.png", image);
+  expectBothRejected(seq.dir, 1, {"depth.txt' line 4", "outside the folder"}, scratch);
+  fs::remove(image);
+  fs::create_symlink(outside.parent_path(), seq.dir / "linked");
+  replaceLine(seq.dir / "depth.txt", 4, seq.image_times[0] + " linked/image.png");
+  expectBothRejected(seq.dir, 1, {"depth.txt' line 4", "linked/image.png", "outside the folder"},
+                     scratch);
+  try {
+    octovk::readTumSequence(seq.dir.string());
+    ADD_FAILURE() << "a link out of the folder was accepted";
+  } catch (const octovk::Error& e) {
+    EXPECT_EQ(e.code(), octovk::ErrorCode::kIo) << e.what();
+  }
+  // Inside the folder a link is an ordinary name, and the folder may be reached through one.
+  fs::create_symlink(fs::path("..") / seq.image_files[1], seq.dir / "depth" / "inside.png");
+  replaceLine(seq.dir / "depth.txt", 4, seq.image_times[0] + " depth/inside.png");
+  fs::create_symlink(seq.dir, scratch.dir() / "seq-link");
+  for (const fs::path& dir : {seq.dir, scratch.dir() / "seq-link"}) {
+    const octovk::TumSequence read = octovk::readTumSequence(dir.string());
+    ASSERT_EQ(read.frames.size(), 4u) << dir;
+    EXPECT_EQ(octovk::readDepthPng(read.frames[0].image_path).depths, seq.depths[1]);
   }
 }
 

@@ -29,7 +29,10 @@ void writeMapFile(const OccupancyMap& map, const std::string& path);
 /// its sensor model. The file is checked before OctoMap's reader sees it (header fields, tree type
 /// OcTree, at most 16 levels, node count, finite log-odds), so a damaged or hostile file is a
 /// kFormat error naming the file and the fault, at a cost in time and memory linear in its size.
-OccupancyMap readMapFile(Context& context, const std::string& path);
+/// `max_device_bytes` caps the map as MapParams::max_device_bytes does (0: no cap): a file whose
+/// tree does not fit under it is a kOutOfDeviceMemory error naming the cap.
+OccupancyMap readMapFile(Context& context, const std::string& path,
+                         std::size_t max_device_bytes = 0);
 
 /// One scan of a scan graph: points in the sensor frame, and the sensor pose in the world.
 struct GraphScan {

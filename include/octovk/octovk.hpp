@@ -34,11 +34,17 @@ enum class ErrorCode {
 /// The one exception type of octovk. The library never exits the process.
 class Error : public std::runtime_error {
  public:
-  Error(ErrorCode code, const std::string& message) : std::runtime_error(message), code_(code) {}
+  Error(ErrorCode code, const std::string& message, std::uint64_t scan = 0)
+      : std::runtime_error(message), code_(code), scan_(scan) {}
   ErrorCode code() const noexcept { return code_; }
+  /// For an error a synchronisation found in a scan submitted earlier (OccupancyMap::submit*,
+  /// see there): that scan's ticket, so that a caller can say which of its inputs failed; 0 when
+  /// the error is about the call that threw it.
+  std::uint64_t scan() const noexcept { return scan_; }
 
  private:
   ErrorCode code_;
+  std::uint64_t scan_;
 };
 
 /// A value or the reason there is none, for setup steps that fail for ordinary reasons.
@@ -384,7 +390,8 @@ class OccupancyMap {
   // Errors a scan's input shows are thrown by submit*() (nothing submitted); an error found on
   // the device (a pool over MapParams::max_nodes, the memory cap, ...) is thrown by the
   // synchronisation that finds it: the map then holds every scan before the failing one, and
-  // it and the scans submitted after it are not inserted (the message names its ticket).
+  // it and the scans submitted after it are not inserted (the message names its ticket, and
+  // Error::scan() gives it).
 
   /// insertPointCloud(points_world, origin_world, ...), submitted without waiting. The points
   /// are copied before it returns: the span may be reused at once.

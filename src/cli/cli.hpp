@@ -162,8 +162,9 @@ void checkRegularInput(const std::string& path, const std::string& what, const s
 /// The Vulkan context, or octovk::Error with the reason there is none.
 std::unique_ptr<Context> createContext();
 
-/// readMapFile with OctoMap's reader chatter kept off stderr.
-OccupancyMap loadMap(Context& context, const std::string& path);
+/// readMapFile with OctoMap's reader chatter kept off stderr, capped at `max_device_bytes`
+/// (--max-device-memory; 0: no cap); a cap's errors name the option (withOptionNames).
+OccupancyMap loadMap(Context& context, const std::string& path, std::size_t max_device_bytes = 0);
 
 /// Points stderr at /dev/null while alive (OctoMap's readers and writers report there).
 class StderrSilencer {
@@ -194,6 +195,20 @@ void printTumFolderHelp(std::ostream& out);
 void printCameraOptionsHelp(std::ostream& out);
 /// The summary line of a sequence: images listed, used, skipped for want of a pose.
 std::string tumImagesSummary(const TumSequence& sequence);
+
+// ---- the device-memory cap, for the commands that build a map (device_memory.cpp) ----
+
+/// The option that sets MapParams::max_device_bytes.
+inline constexpr const char* kMaxDeviceMemoryOption = "--max-device-memory";
+/// --max-device-memory's value: bytes, or with K, M, G, T (KiB ... TiB; "512M", "2GiB"); 0 is no
+/// cap. A UsageError naming the option otherwise.
+std::size_t parseByteCount(const ParsedOption& option);
+/// A UsageError when `params.max_device_bytes` is set below what an empty map holds.
+void checkDeviceMemoryCap(const MapParams& params);
+/// `e` with the library's name for the cap (MapParams::max_device_bytes) in the program's.
+Error withOptionNames(const Error& e);
+/// The help lines of --max-device-memory; `what_fails` begins the sentence on its error ("A scan").
+void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails);
 
 /// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).
 float occupancyLogOdds(const MapParams& params);

@@ -86,7 +86,9 @@ void checkTumFolder(const std::string& dir, const std::string& usage) {
 void printTumFolderHelp(std::ostream& out) {
   out << "DIR is a depth-image sequence in the TUM RGB-D layout:\n"
          "  DIR/depth.txt        one image per line: 'timestamp filename', the file name\n"
-         "                       relative to DIR (e.g. 'depth/1305031102.160407.png')\n"
+         "                       relative to DIR (e.g. 'depth/1305031102.160407.png'). Images\n"
+         "                       are read from inside DIR only: an absolute name, a '..' in\n"
+         "                       it, or a symbolic link leading out of DIR is refused\n"
          "  DIR/groundtruth.txt  one camera pose per line: 'timestamp tx ty tz qx qy qz qw'\n"
          "                       (camera to world; a unit quaternion)\n"
          "  depth images         16-bit grayscale PNGs; 0 = no depth (skipped); other bit\n"

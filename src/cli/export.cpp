@@ -26,7 +26,8 @@ using Clock = std::chrono::steady_clock;
 
 constexpr const char* kExportUsage =
     "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] "
-    "[--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy]";
+    "[--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy] "
+    "[--max-device-memory BYTES]";
 
 enum class Coloring { kHeight, kOccupancy };
 
@@ -36,6 +37,7 @@ struct ExportOptions {
   bool occupied_only = false;
   std::optional<std::array<double, 6>> box;
   Coloring coloring = Coloring::kHeight;
+  MapParams cap;  // only its max_device_bytes (--max-device-memory): the rest comes from the file
 };
 
 const Rgb kFreeGrey{190, 190, 190};
@@ -48,7 +50,7 @@ double secondsSince(Clock::time_point start) {
 
 ExportOptions parseExport(const std::vector<std::string>& args) {
   ExportOptions o;
-  ArgReader reader(args, {"-o", "--output", "--color"},
+  ArgReader reader(args, {"-o", "--output", "--color", kMaxDeviceMemoryOption},
                    {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}});
   while (reader.next()) {
     if (!reader.isOption()) {
@@ -65,6 +67,8 @@ ExportOptions parseExport(const std::vector<std::string>& args) {
       o.output_path = opt.value;
     } else if (opt.name == "--occupied-only") {
       o.occupied_only = true;
+    } else if (opt.name == kMaxDeviceMemoryOption) {
+      o.cap.max_device_bytes = parseByteCount(opt);
     } else if (opt.name == "--box") {
       const std::vector<double> v = parseNumbers(opt, "-5 -5 0 5 5 2");
       for (int a = 0; a < 3; ++a)
@@ -86,6 +90,7 @@ ExportOptions parseExport(const std::vector<std::string>& args) {
     }
   }
   checkMapInput(o.map_path, kExportUsage);
+  checkDeviceMemoryCap(o.cap);
   if (o.output_path.empty()) throw UsageError("no output file; add -o CELLS.ply");
   checkOutputFile(o.output_path, {".ply"}, ".ply (ASCII PLY point cloud)");
   return o;
@@ -185,8 +190,9 @@ void printExportHelp(std::ostream& out) {
          "                         moved onto its border (default: the whole map)\n"
          "      --color MODE       height: occupied cells by height, blue (low) to red (high)\n"
          "                         over the z range of the exported occupied cells, free cells\n"
-         "                         grey; occupancy: occupied red, free green (default: height)\n"
-         "  -h, --help             show this help\n"
+         "                         grey; occupancy: occupied red, free green (default: height)\n";
+  printMaxDeviceMemoryHelp(out, "A map or a --box selection");
+  out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE'; --box also as\n"
          "'--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
@@ -202,23 +208,27 @@ int runExport(const std::vector<std::string>& args) {
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(*context, o.map_path);
+  const OccupancyMap map = loadMap(*context, o.map_path, o.cap.max_device_bytes);
   const double read_s = secondsSince(start);
 
   const auto select_start = Clock::now();
   const double resolution = map.params().resolution;
   const float occupied_log_odds = occupancyLogOdds(map.params());
   std::vector<OccupancyMap::LeafBoxHost> cells;
-  if (o.box) {
-    const std::array<double, 6>& b = *o.box;
-    cells = map.leavesInBox(clampToDomain(b[0], b[1], b[2], resolution),
-                            clampToDomain(b[3], b[4], b[5], resolution), o.occupied_only);
-  } else {
-    cells = map.downloadLeafBoxes();
-    if (o.occupied_only)
-      std::erase_if(cells, [&](const OccupancyMap::LeafBoxHost& c) {
-        return !(c.log_odds >= occupied_log_odds);
-      });
+  try {
+    if (o.box) {
+      const std::array<double, 6>& b = *o.box;
+      cells = map.leavesInBox(clampToDomain(b[0], b[1], b[2], resolution),
+                              clampToDomain(b[3], b[4], b[5], resolution), o.occupied_only);
+    } else {
+      cells = map.downloadLeafBoxes();
+      if (o.occupied_only)
+        std::erase_if(cells, [&](const OccupancyMap::LeafBoxHost& c) {
+          return !(c.log_odds >= occupied_log_odds);
+        });
+    }
+  } catch (const Error& e) {
+    throw withOptionNames(e);
   }
   const double select_s = secondsSince(select_start);
 

@@ -15,7 +15,7 @@ namespace octovk::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr const char* kInfoUsage = "octovk info MAP.bt|MAP.ot";
+constexpr const char* kInfoUsage = "octovk info MAP.bt|MAP.ot [--max-device-memory BYTES]";
 
 double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
@@ -70,15 +70,21 @@ void printInfoHelp(std::ostream& out) {
          "                  no scan)\n"
          "and the device used and the time taken.\n"
          "\n"
-         "Options:\n"
-         "  -h, --help      show this help\n";
+         "Options:\n";
+  printMaxDeviceMemoryHelp(out, "A map");
+  out << "  -h, --help             show this help\n";
 }
 
 int runInfo(const std::vector<std::string>& args) {
   if (printHelpIfAsked(args, printInfoHelp)) return kExitOk;
   std::string map_path;
-  ArgReader reader(args, {});
+  MapParams cap;  // only its max_device_bytes: the rest comes from the file
+  ArgReader reader(args, {kMaxDeviceMemoryOption});
   while (reader.next()) {
+    if (reader.isOption() && reader.option().name == kMaxDeviceMemoryOption) {
+      cap.max_device_bytes = parseByteCount(reader.option());
+      continue;
+    }
     if (reader.isOption())
       throw UsageError("unknown option '" + reader.option().name +
                        "' for info; see 'octovk info --help'");
@@ -88,15 +94,22 @@ int runInfo(const std::vector<std::string>& args) {
     map_path = reader.positional();
   }
   checkMapInput(map_path, kInfoUsage);
+  checkDeviceMemoryCap(cap);
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(*context, map_path);
+  const OccupancyMap map = loadMap(*context, map_path, cap.max_device_bytes);
   const double read_s = secondsSince(start);
 
   const auto count_start = Clock::now();
-  const std::size_t nodes = map.nodeCount();
-  const std::vector<OccupancyMap::LeafBoxHost> leaves = map.downloadLeafBoxes();
+  std::size_t nodes = 0;
+  std::vector<OccupancyMap::LeafBoxHost> leaves;
+  try {
+    nodes = map.nodeCount();
+    leaves = map.downloadLeafBoxes();
+  } catch (const Error& e) {
+    throw withOptionNames(e);
+  }
   const float occupied_log_odds = occupancyLogOdds(map.params());
   std::size_t occupied = 0;
   double occupied_m3 = 0.0, free_m3 = 0.0;

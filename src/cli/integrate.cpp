@@ -50,6 +50,7 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
                                             "--resolution", "-m",           "--max-range",
                                             "--prob-hit",   "--prob-miss",  "--clamping-min",
                                             "--clamping-max", "--rays"};
+  value_options.push_back(kMaxDeviceMemoryOption);
   for (const std::string& name : cameraValueOptions()) value_options.push_back(name);
   ArgReader reader(args, value_options, cameraMultiValueOptions());
   while (reader.next()) {
@@ -89,6 +90,8 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
     }
     else if (opt.name == "-q" || opt.name == "--quiet")
       o.quiet = true;
+    else if (opt.name == kMaxDeviceMemoryOption)
+      o.params.max_device_bytes = parseByteCount(opt);
     else if (parseCameraOption(opt, o.camera)) {
       if (o.camera_option.empty()) o.camera_option = opt.name;
     } else
@@ -136,8 +139,29 @@ void validate(IntegrateOptions& o) {
   if (o.output_paths.empty()) throw UsageError("no output file; add -o MAP.bt and/or -o MAP.ot");
   for (const std::string& path : o.output_paths)
     checkOutputFile(path, {".bt", ".ot"}, ".bt (max-likelihood binary) or .ot (full log-odds)");
+  checkDeviceMemoryCap(o.params);
+  if (o.params.scan_rays == ScanRays::kRayTracing && o.params.max_device_bytes != 0)
+    throw UsageError(std::string("--rays rt cannot be capped by ") + kMaxDeviceMemoryOption +
+                     ": its acceleration structures are not held under the cap; use --rays walk "
+                     "or leave " +
+                     kMaxDeviceMemoryOption + " out");
   const std::string why = o.params.validate();
   if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
+}
+
+// Where scan `i` of the run comes from, to begin its errors: the graph and the scan's number
+// (from 1), or the folder and the image's timestamp and name, as depth.txt lists them.
+std::string scanPlace(const IntegrateOptions& o, const std::optional<TumSequence>& tum,
+                      std::size_t i, std::size_t count) {
+  if (!tum)
+    return o.graph_path + ": scan " + std::to_string(i + 1) + " of " + std::to_string(count);
+  const TumFrame& frame = tum->frames[i];
+  char stamp[64];
+  std::snprintf(stamp, sizeof(stamp), "%.6f", frame.timestamp);
+  const std::string name =
+      fs::path(frame.image_path).lexically_relative(fs::path(o.graph_path)).string();
+  return o.graph_path + ": depth image " + stamp + " (" + (name.empty() ? frame.image_path : name) +
+         ", depth.txt line " + std::to_string(frame.line) + ")";
 }
 
 // Progress lines on stderr: on a terminal from the start, elsewhere only once the run has taken
@@ -250,6 +274,8 @@ void printIntegrateHelp(std::ostream& out) {
          "                         the same either way (default: walk)\n"
          "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
          "                         or once a run takes longer than a second)\n";
+  printMaxDeviceMemoryHelp(out, "A scan");
+  out << "                         Not with --rays rt.\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
@@ -310,23 +336,45 @@ int runIntegrate(const std::vector<std::string>& args) {
     }
   };
   const auto insert_start = Clock::now();
-  for (std::size_t i = 0; i < scan_count; ++i) {
-    if (tum) {
-      // As graph2tree on convert's graph: the camera-frame points, cast from the pose's position.
-      const TumFrame& frame = tum->frames[i];
-      const DepthPng png = readDepthPng(frame.image_path);
-      map.submitDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
-                           graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
-    } else {
-      const GraphScan& scan = scans[i];
-      map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                           scan.T_world_sensor, o.max_range_m, o.discretize);
+  // Errors say which scan failed: the one being submitted, or (Error::scan()) one submitted
+  // earlier whose failure a synchronisation found. Tickets count the submissions from the first.
+  std::size_t at = 0;
+  ScanTicket first_ticket = 0;
+  try {
+    for (; at < scan_count; ++at) {
+      ScanTicket ticket = 0;
+      if (tum) {
+        // As graph2tree on convert's graph: the camera-frame points, cast from the pose's
+        // position.
+        const TumFrame& frame = tum->frames[at];
+        const DepthPng png = readDepthPng(frame.image_path);
+        ticket = map.submitDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
+                                      graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
+      } else {
+        const GraphScan& scan = scans[at];
+        ticket =
+            map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
+                                 scan.T_world_sensor, o.max_range_m, o.discretize);
+      }
+      if (at == 0) first_ticket = ticket;
+      if (at % 256 == 255) account(map.takeScanStats());
+      progress.update(at + 1);
     }
-    if (i % 256 == 255) account(map.takeScanStats());
-    progress.update(i + 1);
+    map.flush();
+    account(map.takeScanStats());
+  } catch (const Error& e) {
+    const std::size_t failed = e.scan() >= first_ticket && e.scan() != 0
+                                   ? static_cast<std::size_t>(e.scan() - first_ticket)
+                                   : at;
+    std::string message = withOptionNames(e).what();
+    // The library's note on which scans the map still holds, in its tickets: the place says
+    // which scan, and a failed run writes no map.
+    if (const std::size_t note = message.rfind(" [scan " + std::to_string(e.scan()) + " was not");
+        e.scan() != 0 && note != std::string::npos)
+      message.erase(note);
+    if (failed >= scan_count) throw Error(e.code(), o.graph_path + ": " + message, e.scan());
+    throw Error(e.code(), scanPlace(o, tum, failed, scan_count) + ": " + message, e.scan());
   }
-  map.flush();
-  account(map.takeScanStats());
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();

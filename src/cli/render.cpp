@@ -25,7 +25,7 @@ using Vec3 = Eigen::Vector3d;
 
 constexpr const char* kRenderUsage =
     "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH] "
-    "[--fov DEG] [--z-max Z]";
+    "[--fov DEG] [--z-max Z] [--max-device-memory BYTES]";
 constexpr std::uint32_t kMaxSide = 8192;
 constexpr std::uint32_t kDefaultWidth = 800;
 constexpr std::uint32_t kDefaultHeight = 600;
@@ -46,6 +46,7 @@ struct RenderOptions {
   std::uint32_t width = kDefaultWidth;
   std::uint32_t height = kDefaultHeight;
   double fov_deg = kDefaultFovDeg;
+  MapParams cap;  // only its max_device_bytes (--max-device-memory): the rest comes from the file
 };
 
 double secondsSince(Clock::time_point start) {
@@ -73,7 +74,7 @@ std::uint32_t parseSide(const ParsedOption& option, const std::string& text) {
 
 RenderOptions parseRender(const std::vector<std::string>& args) {
   RenderOptions o;
-  ArgReader reader(args, {"-o", "--output", "--size", "--fov", "--z-max"},
+  ArgReader reader(args, {"-o", "--output", "--size", "--fov", "--z-max", kMaxDeviceMemoryOption},
                    {{"--eye", "X Y Z"}, {"--look-at", "X Y Z"}});
   while (reader.next()) {
     if (!reader.isOption()) {
@@ -100,6 +101,8 @@ RenderOptions parseRender(const std::vector<std::string>& args) {
                          "'; e.g. " + opt.name + " 800x600");
       o.width = parseSide(opt, opt.value.substr(0, x));
       o.height = parseSide(opt, opt.value.substr(x + 1));
+    } else if (opt.name == kMaxDeviceMemoryOption) {
+      o.cap.max_device_bytes = parseByteCount(opt);
     } else if (opt.name == "--z-max") {
       o.z_max = parseNumber(opt, "2.0 (metres)");
     } else if (opt.name == "--fov") {
@@ -113,6 +116,7 @@ RenderOptions parseRender(const std::vector<std::string>& args) {
     }
   }
   checkMapInput(o.map_path, kRenderUsage);
+  checkDeviceMemoryCap(o.cap);
   if (o.output_path.empty()) throw UsageError("no output picture; add -o VIEW.png");
   checkOutputFile(o.output_path, {".png"}, ".png");
   if (o.eye && o.look_at && (*o.eye - *o.look_at).norm() < 1e-9)
@@ -315,8 +319,9 @@ void printRenderHelp(std::ostream& out) {
       << ")\n"
          "      --z-max Z          hide everything above height Z metres (cut at the cell\n"
          "                         boundary nearest Z), e.g. to look into a building through\n"
-         "                         its ceiling (default: nothing hidden)\n"
-         "  -h, --help             show this help\n"
+         "                         its ceiling (default: nothing hidden)\n";
+  printMaxDeviceMemoryHelp(out, "A map or a batch of rays");
+  out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE'; --eye and --look-at also\n"
          "as '--eye=X,Y,Z'. Up in the picture is +z (+y when looking straight up or down).\n"
          "\n"
@@ -333,7 +338,7 @@ int runRender(const std::vector<std::string>& args) {
 
   std::unique_ptr<Context> context = createContext();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(*context, o.map_path);
+  const OccupancyMap map = loadMap(*context, o.map_path, o.cap.max_device_bytes);
   const double resolution = map.params().resolution;
   const float occupied_log_odds = occupancyLogOdds(map.params());
   // The cells that can show: occupied, and below --z-max, which cuts at the cell boundary
@@ -387,7 +392,12 @@ int runRender(const std::vector<std::string>& args) {
   std::vector<double> ray_start;
   std::size_t cast = 0, hits = 0;
   const auto flush = [&] {
-    const std::vector<RayHit> results = map.castRays(rays);
+    std::vector<RayHit> results;
+    try {
+      results = map.castRays(rays);
+    } catch (const Error& e) {
+      throw withOptionNames(e);
+    }
     for (std::size_t i = 0; i < results.size(); ++i) {
       if (!results[i].hit) continue;
       const std::size_t p = ray_pixel[i];

@@ -152,7 +152,7 @@ void writeMapFile(const OccupancyMap& map, const std::string& path) {
   }
 }
 
-OccupancyMap readMapFile(Context& context, const std::string& path) {
+OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +
@@ -178,6 +178,7 @@ OccupancyMap readMapFile(Context& context, const std::string& path) {
   bytes = std::string();
   MapParams params;
   params.resolution = tree->getResolution();
+  params.max_device_bytes = max_device_bytes;
   OccupancyMap map(context, params);
   fromOcTree(map, *tree);
   return map;

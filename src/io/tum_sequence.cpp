@@ -153,6 +153,27 @@ void pngRead(png_structp png, png_bytep out, png_size_t length) {
   if (reader->read(out, length) != length) png_error(png, "Read Error");
 }
 
+// The most pixels a depth image may have in each direction (libpng's user limit and our check).
+constexpr png_uint_32 kMaxPngSide = 65536;
+// The longest chunk libpng will take (IDAT excepted: libpng streams it and bounds it by the
+// image's size); libpng's own default, made explicit.
+constexpr png_alloc_size_t kMaxPngChunkBytes = 8'000'000;
+// The most ancillary chunks (text, sPLT, unknown) libpng keeps; none are kept here anyway.
+constexpr png_uint_32 kMaxPngCachedChunks = 32;
+
+// Bounds what libpng may allocate for a PNG beyond its rows and zlib's window. Debian's libpng
+// 1.6.39 allocates a text chunk whole, as long as its length field says, before reading it, and
+// png_set_chunk_malloc_max does not stop that: a 2.5 kB file declaring a 2 GiB tEXt chunk cost
+// 2 GiB of RSS and seconds before its read failed. Depth images need no ancillary chunk (text,
+// ICC profile, gamma, ...), so all but tRNS are skipped unread (libpng reads them through in
+// 1 kB pieces, holding nothing): none is allocated, decompressed or stored.
+void limitPngMemory(png_structp png) {
+  png_set_user_limits(png, kMaxPngSide, kMaxPngSide);
+  png_set_chunk_malloc_max(png, kMaxPngChunkBytes);
+  png_set_chunk_cache_max(png, kMaxPngCachedChunks);
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, nullptr, -1);  // -1: known ones too
+}
+
 bool pngReadHeader(PngReader& r, png_uint_32* width, png_uint_32* height, int* bit_depth,
                    int* color_type) {
   if (setjmp(png_jmpbuf(r.png))) return false;
@@ -248,12 +269,20 @@ TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPos
                     "expected 2 fields 'timestamp filename', found " +
                         std::to_string(line.fields.size()));
     const double t = parseField<double>(depth_path, line, 0, "the timestamp");
-    // Joined with an absolute name, the folder would be dropped: the image read from anywhere.
-    if (fs::path(line.fields[1]).is_absolute())
+    // Images are read from inside the folder only: joined with an absolute name the folder would
+    // be dropped, and '..' climbs out of it, either way to any file on the machine. (Symbolic
+    // links are resolved and checked where the files are: readTumSequence.)
+    const fs::path name(line.fields[1]);
+    if (name.is_absolute())
       throw badLine(depth_path, line,
                     "the file name '" + line.fields[1] +
                         "' is absolute; depth.txt names images relative to the folder (e.g. "
                         "'depth/1305031102.160407.png')");
+    if (std::any_of(name.begin(), name.end(), [](const fs::path& part) { return part == ".."; }))
+      throw badLine(depth_path, line,
+                    "the file name '" + line.fields[1] +
+                        "' has a '..' component; depth.txt names images inside the folder (e.g. "
+                        "'depth/1305031102.160407.png'): move the images into it");
     ++sequence.images_listed;
     // The nearest pose: the first at or after t, or the one before it (the earlier on a tie).
     const auto after = std::lower_bound(
@@ -314,17 +343,33 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
   names.depth = (root / "depth.txt").string();
   std::vector<io::GroundTruthPose> poses =
       io::parseGroundTruth(readTextFile(names.groundtruth), names.groundtruth);
+  // The folder as the images are resolved against it (it may itself be reached by a link).
+  const fs::path real_root = fs::canonical(root, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot resolve the folder '" + dir + "': " + ec.message());
   return io::associateDepthList(
       readTextFile(names.depth), std::move(poses), names, max_time_difference_s,
       [&](const TumFrame& frame) {
+        const std::string where = "'" + names.depth + "' line " + std::to_string(frame.line) +
+                                  ": depth image '" + frame.image_path + "'";
         std::error_code exists_ec;
-        if (!fs::is_regular_file(frame.image_path, exists_ec))
+        if (!fs::exists(frame.image_path, exists_ec))
+          throw Error(ErrorCode::kIo, where + " does not exist; check the folder is complete");
+        // A symbolic link (of the image or of a folder on its way) that leads out of the folder
+        // reads any file on the machine, as an absolute or '..' name would: refused alike.
+        std::error_code real_ec;
+        const fs::path real = fs::canonical(frame.image_path, real_ec);
+        if (real_ec)
+          throw Error(ErrorCode::kIo, where + " cannot be resolved: " + real_ec.message());
+        const fs::path inside = real.lexically_relative(real_root);
+        if (inside.empty() || *inside.begin() == "..")
           throw Error(ErrorCode::kIo,
-                      "'" + names.depth + "' line " + std::to_string(frame.line) +
-                          ": depth image '" + frame.image_path +
-                          (fs::exists(frame.image_path, exists_ec) ? "' is not a regular file"
-                                                                   : "' does not exist") +
-                          "; check the folder is complete");
+                      where + " leads through a symbolic link to '" + real.string() +
+                          "', outside the folder '" + real_root.string() +
+                          "'; images are read from inside the folder only: copy the image into "
+                          "it");
+        if (!fs::is_regular_file(real, exists_ec))
+          throw Error(ErrorCode::kIo,
+                      where + " is not a regular file; check the folder is complete");
       });
 }
 
@@ -357,6 +402,7 @@ void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* widt
   if (r.png) r.info = png_create_info_struct(r.png);
   if (!r.png || !r.info)
     throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': libpng is out of memory");
+  limitPngMemory(r.png);
 
   int bit_depth = 0, color_type = 0;
   if (!pngReadHeader(r, width, height, &bit_depth, &color_type))
@@ -368,10 +414,12 @@ void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* widt
                                         colorTypeName(color_type) + " PNG of bit depth " +
                                         std::to_string(bit_depth) +
                                         "; depth images must be 16-bit grayscale PNGs");
-  if (*width > 65536 || *height > 65536)
+  // libpng's user limit refuses these first (a "corrupt" PNG whose message says so); kept for a
+  // libpng built without user limits.
+  if (*width > kMaxPngSide || *height > kMaxPngSide)
     throw Error(ErrorCode::kFormat, "depth image '" + path + "' is " + std::to_string(*width) +
-                                        " x " + std::to_string(*height) +
-                                        " pixels; at most 65536 in each direction");
+                                        " x " + std::to_string(*height) + " pixels; at most " +
+                                        std::to_string(kMaxPngSide) + " in each direction");
   // The pixels' bytes as deflate's input: a filter byte and two bytes a pixel per row (interlaced
   // images need more). Deflate shrinks data at most 1032-fold, so a file too small to hold them is
   // cut short or damaged: refused before its pixels are allocated (a few kB of file could

@@ -459,9 +459,11 @@ void OccupancyMap::Impl::recover(gpu::ScanCounters counters, gpu::PoolState pool
     pending_.clear();
     resume_ = true;
     if (alone) throw;  // the blocking call's own scan: its message says the map is unchanged
-    throw Error(e.code(), std::string(e.what()) + " [scan " + std::to_string(failed) +
-                              " was not inserted, nor the " + std::to_string(dropped - 1) +
-                              " submitted after it; the map holds every scan before it]");
+    throw Error(e.code(),
+                std::string(e.what()) + " [scan " + std::to_string(failed) +
+                    " was not inserted, nor the " + std::to_string(dropped - 1) +
+                    " submitted after it; the map holds every scan before it]",
+                failed);
   } catch (...) {
     pending_.clear();
     resume_ = true;

@@ -2,11 +2,13 @@
 // groundtruth.txt's contents, a NUL byte, then depth.txt's (no NUL: all of it is groundtruth.txt
 // and depth.txt is empty). A refusal must be a kFormat error; an accepted sequence must count its
 // images consistently, and every frame must take a finite pose of unit-ish rotation less than
-// kTumMaxTimeDifference away. Anything else (a crash, a sanitizer report, a hang, an allocation
-// past -rss_limit_mb) is a finding.
+// kTumMaxTimeDifference away and an image name with no '..' in it. Anything else (a crash, a
+// sanitizer report, a hang, an allocation past -rss_limit_mb) is a finding.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
@@ -39,6 +41,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (!std::isfinite(frame.timestamp) || !std::isfinite(frame.pose_timestamp) ||
         !(std::abs(frame.timestamp - frame.pose_timestamp) < octovk::kTumMaxTimeDifference) ||
         frame.line == 0 || frame.image_path.rfind("fuzz-dir/", 0) != 0)
+      std::abort();
+    // Inside the folder by name: no '..' climbs out (links are the file reader's to check).
+    const std::filesystem::path name(frame.image_path);
+    if (std::any_of(name.begin(), name.end(), [](const auto& part) { return part == ".."; }))
       std::abort();
     const octovk::Pose& pose = frame.T_world_camera;
     if (!pose.translation.allFinite() || !pose.rotation.coeffs().allFinite() ||
