@@ -9,16 +9,17 @@
 #      again under the validation layer;
 #   4. the whole suite with the Khronos validation layer (core + synchronization validation):
 #      any validation message fails the test that caused it;
-#   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh);
+#   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh),
+#      and the threading tests under ThreadSanitizer (scripts/tsan.sh);
 #   6. the .bt / .ot / .graph readers and the TUM RGB-D lists and PNG depth-image reader under
 #      libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each (scripts/fuzz.sh).
 # Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
 # Vulkan device fails the Vulkan tests (and the consumer) instead of skipping them.
-# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize fuzz") picks steps, e.g.
+# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize tsan fuzz") picks steps, e.g.
 # "system".
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize fuzz}"
+steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize tsan fuzz}"
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh"
 jobs="$(nproc)"
@@ -84,6 +85,14 @@ if step sanitize; then
     echo "==== tests: sanitizers passed ===="
   else
     failed+=("sanitizers")
+  fi
+fi
+if step tsan; then
+  echo "==== tests: ThreadSanitizer (maps sharing a Context on several threads) ===="
+  if "$root/scripts/tsan.sh"; then
+    echo "==== tests: ThreadSanitizer passed ===="
+  else
+    failed+=("ThreadSanitizer")
   fi
 fi
 if step fuzz; then
