@@ -899,7 +899,8 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
 Device::~Device() {
   if (device_) {
     vkDeviceWaitIdle(device_);
-    for (auto& p : passes_) vkDestroyPipeline(device_, p.pipeline, nullptr);
+    for (auto& slot : passes_)
+      if (slot.pass.pipeline) vkDestroyPipeline(device_, slot.pass.pipeline, nullptr);
     if (pipeline_layout_) vkDestroyPipelineLayout(device_, pipeline_layout_, nullptr);
     if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
     vkDestroyDevice(device_, nullptr);
@@ -918,11 +919,28 @@ void Device::submit(const VkSubmitInfo& info, VkFence fence) {
 }
 
 const Pass& Device::pass(std::string_view name) {
-  // Held while building: a second thread asking for the same pass waits instead of building
-  // it twice, and the deque is never read while it grows.
-  std::lock_guard<std::mutex> lock(passes_mutex_);
-  for (auto& p : passes_)
-    if (p.name == name) return p;
+  // The lock covers only finding the pass's slot: maps on other threads build other passes at
+  // the same time, and a second caller of the same pass waits on its once_flag.
+  PassSlot* slot = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(passes_mutex_);
+    for (PassSlot& s : passes_) {
+      if (s.pass.name == name) {
+        slot = &s;
+        break;
+      }
+    }
+    if (!slot) {
+      slot = &passes_.emplace_back();
+      slot->pass.name = std::string(name);
+    }
+  }
+  // A build that throws leaves the flag unset: the next caller tries again.
+  std::call_once(slot->built, [&] { slot->pass.pipeline = buildPipeline(name); });
+  return slot->pass;
+}
+
+VkPipeline Device::buildPipeline(std::string_view name) {
   const std::span<const std::uint32_t> code = findShader(name);
   if (code.empty())
     throw Error(ErrorCode::kInternal, "no embedded shader named '" + std::string(name) + "'");
@@ -937,14 +955,12 @@ const Pass& Device::pass(std::string_view name) {
   cinfo.stage.module = module;
   cinfo.stage.pName = "main";
   cinfo.layout = pipeline_layout_;
-  Pass p;
-  p.name = std::string(name);
+  VkPipeline pipeline = VK_NULL_HANDLE;
   const VkResult r =
-      vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cinfo, nullptr, &p.pipeline);
+      vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cinfo, nullptr, &pipeline);
   vkDestroyShaderModule(device_, module, nullptr);
   check(r, "vkCreateComputePipelines", __FILE__, __LINE__);
-  passes_.push_back(p);
-  return passes_.back();
+  return pipeline;
 }
 
 std::uint32_t Device::memoryType(std::uint32_t type_bits, VkMemoryPropertyFlags wanted,

@@ -281,8 +281,13 @@ class Device {
   std::uint32_t loop_limit_ = 0;
   std::uint64_t max_binding_bytes_ = 1u << 27;
   std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit)
-  std::mutex passes_mutex_;  // guards passes_ (built lazily by whichever map needs one first)
-  std::deque<Pass> passes_;  // deque: references to passes stay valid
+  struct PassSlot {
+    Pass pass;
+    std::once_flag built;  // set once pass.pipeline is built
+  };
+  VkPipeline buildPipeline(std::string_view name);
+  std::mutex passes_mutex_;      // guards the deque (not the builds: see pass())
+  std::deque<PassSlot> passes_;  // deque: slots never move
   std::vector<std::string> extensions_;     // optional device extensions enabled
   std::unique_ptr<RayQueryApi> ray_query_;  // set when ray queries are enabled
 };
