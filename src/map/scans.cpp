@@ -347,22 +347,20 @@ bool OccupancyMap::Impl::takeResult(PendingScan& p, const gpu::ScanCounters& cou
   } catch (const std::bad_alloc&) {
     // no memory for the timestamps: the statistics go without device times
   }
-  if (scan_rays_ == ScanRays::kRayTracing && t.size() >= 9) {
-    // recordScanScene's three timestamps follow the input stages: the boxes, the build, then
-    // the trace up to classify's first timestamp.
-    stats.device.scan_boxes_ms = (t[3] - t[2]) * 1e-6;
-    stats.device.scan_build_ms = (t[4] - t[3]) * 1e-6;
-    stats.device.scan_trace_ms = (t[5] - t[4]) * 1e-6;
-    t.erase(t.begin() + 2, t.begin() + 5);
-  }
-  if (t.size() >= 6) {
-    stats.device.upload_ms = (t[1] - t[0]) * 1e-6;
-    stats.device.ray_keys_ms = (t[2] - t[1]) * 1e-6;
-    stats.device.classify_ms = (t[3] - t[2]) * 1e-6;
-    stats.device.tree_update_ms = (t[4] - t[3]) * 1e-6;
-    stats.device.prune_ms = (t[5] - t[4]) * 1e-6;
-    if (t.size() >= 7 && leaf_boxes_every_scan_) stats.device.leaf_boxes_ms = (t[6] - t[5]) * 1e-6;
-  }
+  const auto span = [&](passes::Stamp from, passes::Stamp to) {
+    return rec_.spanMs(p.frame, t, from, to);
+  };
+  using passes::Stamp;
+  stats.device.upload_ms = span(Stamp::kScanStart, Stamp::kUploaded);
+  stats.device.ray_keys_ms = span(Stamp::kUploaded, Stamp::kClassifyStart);
+  stats.device.classify_ms = span(Stamp::kClassifyStart, Stamp::kClassifyEnd);
+  stats.device.tree_update_ms = span(Stamp::kClassifyEnd, Stamp::kTreeUpdateEnd);
+  stats.device.prune_ms = span(Stamp::kTreeUpdateEnd, Stamp::kPruneEnd);
+  stats.device.leaf_boxes_ms = span(Stamp::kPruneEnd, Stamp::kLeafBoxesEnd);
+  // With ScanRays::kRayTracing, the parts of ray_keys_ms: boxes, build, then the trace.
+  stats.device.scan_boxes_ms = span(Stamp::kBoxesStart, Stamp::kBoxesEnd);
+  stats.device.scan_build_ms = span(Stamp::kBoxesEnd, Stamp::kBuildEnd);
+  stats.device.scan_trace_ms = span(Stamp::kBuildEnd, Stamp::kClassifyStart);
   if (p.queries) passes::collectQueries(buffers_, *p.queries, {}, *p.results);
   stats.skipped_no_depth = counters.no_depth;
   stats.skipped_nonfinite = counters.skipped_nonfinite - counters.no_depth;  // NaN points

@@ -36,8 +36,8 @@ void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& 
   r.stream.fill(boxes, 0u, sort_at, accelSortBytes());
   r.stream.barrier();
   const auto pass = [&](std::uint32_t mode, std::size_t items) {
-    r.dispatch("accel_boxes", items,
-               gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
+    r.dispatch<Shader::kAccelBoxes>(
+        items, gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
   };
   // The boxes, unsorted; then the counting sort along the Morton curve into their places.
   pass(gpu::kAccelBoxesOccupied, header.occupied_capacity);
@@ -79,13 +79,13 @@ void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRang
   // On lavapipe an invocation of the ray-query pass costs more than the whole walk of a ray
   // that stops at unknown space, even when it returns at once: each pass gets its own range.
   if (stop.count)
-    r.dispatch(
-        "cast_ray_jump", stop.count,
+    r.dispatch<Shader::kCastRayJump>(
+        stop.count,
         gpu::CastRayRtConstants{.boxes = boxes, .ray_count = stop.count, .first_ray = stop.first});
   if (ignore.count)
-    r.dispatch("cast_ray_rt", ignore.count,
-               gpu::CastRayRtConstants{
-                   .boxes = boxes, .ray_count = ignore.count, .first_ray = ignore.first});
+    r.dispatch<Shader::kCastRayRt>(
+        ignore.count, gpu::CastRayRtConstants{
+                          .boxes = boxes, .ray_count = ignore.count, .first_ray = ignore.first});
 }
 
 }  // namespace octovk::passes

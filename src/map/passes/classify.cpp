@@ -6,15 +6,15 @@
 namespace octovk::passes {
 
 void recordClassify(Recorder& r, bool discretize, std::uint32_t points) {
-  r.stream.timestamp();
+  r.stamp(Stamp::kClassifyStart);
   // The second set now collects the prefixes of nodes that get a block: empty discretize's end
   // cells out of it first.
   if (discretize)
-    r.dispatch("clear_sets", points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
-  r.dispatchIndirect("list_cells", offsetof(gpu::ScanCounters, brick_args));
-  r.dispatchIndirect("classify", offsetof(gpu::ScanCounters, cell_args));
-  r.dispatchIndirect("classify_blocks", offsetof(gpu::ScanCounters, active_args));
-  r.stream.timestamp();
+    r.dispatch<Shader::kClearSets>(points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
+  r.dispatchIndirect<Shader::kListCells>(offsetof(gpu::ScanCounters, brick_args));
+  r.dispatchIndirect<Shader::kClassify>(offsetof(gpu::ScanCounters, cell_args));
+  r.dispatchIndirect<Shader::kClassifyBlocks>(offsetof(gpu::ScanCounters, active_args));
+  r.stamp(Stamp::kClassifyEnd);
 }
 
 }  // namespace octovk::passes

@@ -7,9 +7,9 @@ namespace octovk::passes {
 void recordLeafBoxes(Recorder& r) {
   r.stream.fill(r.buffers.pool, 0u, offsetof(gpu::PoolState, leaf_count), sizeof(std::uint32_t));
   r.stream.barrier();
-  r.dispatch("leaf_boxes", r.buffers.poolBlocks(),
-             gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesRebuild});
-  r.stream.timestamp();
+  r.dispatch<Shader::kLeafBoxes>(r.buffers.poolBlocks(),
+                                 gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesRebuild});
+  r.stamp(Stamp::kLeafBoxesEnd);
 }
 
 void recordLeavesInBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery& box) {
@@ -18,7 +18,8 @@ void recordLeavesInBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQue
   r.stream.update(b.query_in, &box, sizeof(box));
   r.stream.fill(b.counters, 0u, offsetof(gpu::ScanCounters, query_results), sizeof(std::uint32_t));
   r.stream.barrier();
-  r.dispatch("leaf_boxes", b.poolBlocks(), gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesInBox});
+  r.dispatch<Shader::kLeafBoxes>(b.poolBlocks(),
+                                 gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesInBox});
 }
 
 }  // namespace octovk::passes

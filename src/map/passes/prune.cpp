@@ -6,10 +6,10 @@ namespace octovk::passes {
 
 void recordPrune(Recorder& r) {
   for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;)
-    r.dispatchIndirect(
-        "prune", offsetof(gpu::ScanCounters, touched_args) + level * sizeof(gpu::DispatchArgs),
+    r.dispatchIndirect<Shader::kPrune>(
+        offsetof(gpu::ScanCounters, touched_args) + level * sizeof(gpu::DispatchArgs),
         gpu::PruneConstants{.level = level});
-  r.stream.timestamp();
+  r.stamp(Stamp::kPruneEnd);
 }
 
 }  // namespace octovk::passes

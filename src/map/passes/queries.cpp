@@ -168,10 +168,10 @@ void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state) 
                   sizeof(fresh.walk_count) + sizeof(fresh.walk_args),
                   offsetof(gpu::ScanCounters, walk_count));
   r.stream.barrier();
-  r.dispatch("cast_ray", rays,
-             gpu::CastRayConstants{
-                 .budget = budget, .ray_count = rays, .resume = 0, .first_state = first_state});
-  r.continuations("cast_ray", rounds, [&](std::uint32_t from, bool) {
+  r.dispatch<Shader::kCastRay>(
+      rays, gpu::CastRayConstants{
+                .budget = budget, .ray_count = rays, .resume = 0, .first_state = first_state});
+  r.continuations<Shader::kCastRay>(rounds, [&](std::uint32_t from, bool) {
     return gpu::CastRayConstants{
         .budget = budget, .ray_count = rays, .resume = from + 1, .first_state = first_state};
   });
@@ -179,9 +179,9 @@ void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state) 
 
 void recordLookups(Recorder& r, std::uint32_t points, std::uint32_t first_result,
                    std::uint32_t first_float) {
-  r.dispatch("lookup", points,
-             gpu::LookupConstants{
-                 .point_count = points, .first_float = first_float, .first_result = first_result});
+  r.dispatch<Shader::kLookup>(
+      points, gpu::LookupConstants{
+                  .point_count = points, .first_float = first_float, .first_result = first_result});
 }
 
 void collectQueries(const MapBuffers& buffers, const QueryRequest& q,

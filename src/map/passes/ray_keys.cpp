@@ -1,15 +1,16 @@
-// Stage 1, points to cells: clear_sets.comp (at the scan's end), unproject.comp (depth images), transform_points.comp,
-// discretize.comp and ray_keys.comp (the walk of each ray into the cell set).
-#include "map/passes/passes.hpp"
-
+// Stage 1, points to cells: clear_sets.comp (at the scan's end), unproject.comp (depth images),
+// transform_points.comp, discretize.comp and ray_keys.comp (the walk of each ray into the cell
+// set).
 #include <algorithm>
+
+#include "map/passes/passes.hpp"
 
 namespace octovk::passes {
 
 void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& in) {
   MapBuffers& b = r.buffers;
   const gpu::ScanCounters counters = freshCounters();
-  r.stream.timestamp();
+  r.stamp(Stamp::kScanStart);
   r.stream.update(b.params, &sp, sizeof(sp));
   r.stream.update(b.counters, &counters, sizeof(counters));
   if (in.unproject) {
@@ -25,12 +26,13 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
   }
   if (in.resume) r.stream.fill(b.pool, 0u, offsetof(gpu::PoolState, halted), 4);
   r.stream.barrier();
-  r.stream.timestamp();
+  r.stamp(Stamp::kUploaded);
   if (in.unproject)
-    r.dispatch("unproject", sp.point_count, gpu::UnprojectConstants{.pixel_count = sp.point_count});
+    r.dispatch<Shader::kUnproject>(sp.point_count,
+                                   gpu::UnprojectConstants{.pixel_count = sp.point_count});
   if (in.transform)
-    r.dispatch("transform_points", sp.point_count,
-               gpu::TransformPointsConstants{.point_count = sp.point_count});
+    r.dispatch<Shader::kTransformPoints>(
+        sp.point_count, gpu::TransformPointsConstants{.point_count = sp.point_count});
   // Where the driver ends an invocation's loops early (the device probe measures it: llvmpipe
   // after 65535 iterations in total, silently, counted for 8 lanes at once), a walk stops after
   // its budget of iterations (steps and hash probes; 30000 there) and is continued by more
@@ -39,16 +41,16 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
   // limit was seen, every ray is walked in one go.
   const std::uint32_t budget = r.device.walkBudget();
   if (in.discretize)
-    r.dispatch("discretize", sp.point_count,
-               gpu::DiscretizeConstants{.point_count = sp.point_count});
+    r.dispatch<Shader::kDiscretize>(sp.point_count,
+                                    gpu::DiscretizeConstants{.point_count = sp.point_count});
   if (in.trace) return;  // scan_rays_rt.cpp traces the rays instead
-  r.dispatch("ray_keys", sp.point_count,
-             gpu::RayKeysConstants{
-                 .budget = budget,
-                 .point_count = sp.point_count,
-                 .mode = in.discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
+  r.dispatch<Shader::kRayKeys>(
+      sp.point_count,
+      gpu::RayKeysConstants{.budget = budget,
+                            .point_count = sp.point_count,
+                            .mode = in.discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
   const std::uint32_t rounds = in.walk_rounds;
-  r.continuations("ray_keys", rounds, [&](std::uint32_t from, bool last) {
+  r.continuations<Shader::kRayKeys>(rounds, [&](std::uint32_t from, bool last) {
     return gpu::RayKeysConstants{.budget = budget,
                                  .point_count = sp.point_count,
                                  .mode = last ? gpu::kRayKeysContinueLast : gpu::kRayKeysContinue,
@@ -70,8 +72,8 @@ std::uint32_t walkRounds(const vk::Device& device, double steps) {
 }
 
 void recordClearSets(Recorder& r) {
-  r.dispatchIndirect("clear_sets", offsetof(gpu::ScanCounters, clear_args),
-                     gpu::ClearSetsConstants{.mode = gpu::kClearScan});
+  r.dispatchIndirect<Shader::kClearSets>(offsetof(gpu::ScanCounters, clear_args),
+                                         gpu::ClearSetsConstants{.mode = gpu::kClearScan});
 }
 
 }  // namespace octovk::passes

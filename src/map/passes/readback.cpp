@@ -11,8 +11,7 @@ void recordReadback(Recorder& r) {
   MapBuffers& b = r.buffers;
   const std::size_t region = std::size_t{r.stream.frame()} * kReadbackBytes;
   r.stream.copy(b.counters, b.readback, sizeof(gpu::ScanCounters), 0, region);
-  r.stream.copy(b.pool, b.readback, sizeof(gpu::PoolState), 0,
-                region + sizeof(gpu::ScanCounters));
+  r.stream.copy(b.pool, b.readback, sizeof(gpu::PoolState), 0, region + sizeof(gpu::ScanCounters));
 }
 
 void readBack(const MapBuffers& buffers, std::uint32_t frame, gpu::ScanCounters& counters,

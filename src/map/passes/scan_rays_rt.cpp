@@ -23,7 +23,7 @@ gpu::AccelHeader scanSceneHeader(const MapBuffers& buffers) {
 
 void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
                      const gpu::AccelHeader& header) {
-  r.stream.timestamp();
+  r.stamp(Stamp::kBoxesStart);
   gpu::AccelHeader fresh = header;
   fresh.occupied_count = fresh.unknown_count = 0;
   fresh.lo_x = fresh.lo_y = fresh.lo_z = 0xFFFFFFFFu;  // the extent, shrunk by atomics
@@ -37,8 +37,8 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   r.stream.fill(boxes, 0u, sort_at, accelSortBytes(kScanBucketBits));
   r.stream.barrier();
   const auto pass = [&](std::uint32_t mode, std::size_t items) {
-    r.dispatch("accel_boxes", items,
-               gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
+    r.dispatch<Shader::kAccelBoxes>(
+        items, gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
   };
   const std::size_t all = std::size_t{header.occupied_capacity} + header.unknown_capacity;
   pass(gpu::kAccelBoxesScan, r.buffers.poolBlocks());
@@ -47,7 +47,7 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   pass(gpu::kAccelBoxesOffsets, 2 * gpu::kAccelChunks);
   pass(gpu::kAccelBoxesScatter, all);
   pass(gpu::kAccelBoxesTail, all);
-  r.stream.timestamp();
+  r.stamp(Stamp::kBoxesEnd);
   // Both lists at their capacities: the counts stay on the device.
   const auto geometries =
       boxGeometries(boxes, header, header.occupied_capacity, header.unknown_capacity);
@@ -55,13 +55,13 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   const VkDeviceAddress tlas = scene.tlasAddress();
   r.stream.update(boxes, &tlas, sizeof(tlas), offsetof(gpu::AccelHeader, tlas));
   r.stream.barrier();
-  r.stream.timestamp();
+  r.stamp(Stamp::kBuildEnd);
 }
 
 void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, bool discretize) {
   // With discretize, one invocation per point covers the distinct end cells (at most as many).
-  r.dispatch(
-      "scan_rays_rt", points,
+  r.dispatch<Shader::kScanRaysRt>(
+      points,
       gpu::ScanRaysRtConstants{.boxes = boxes,
                                .point_count = points,
                                .mode = discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});

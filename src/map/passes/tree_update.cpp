@@ -8,13 +8,13 @@
 namespace octovk::passes {
 
 void recordTreeUpdate(Recorder& r) {
-  r.dispatch("tree_gate", 1);
-  r.dispatch("tree_begin", 1);
-  r.dispatchIndirect("alloc", offsetof(gpu::ScanCounters, block_args));
-  r.dispatch("tree_fixup", 1);
-  r.dispatchIndirect("link", offsetof(gpu::ScanCounters, block_args));
-  r.dispatchIndirect("descend", offsetof(gpu::ScanCounters, active_args));
-  r.stream.timestamp();
+  r.dispatch<Shader::kTreeGate>(1);
+  r.dispatch<Shader::kTreeBegin>(1);
+  r.dispatchIndirect<Shader::kAlloc>(offsetof(gpu::ScanCounters, block_args));
+  r.dispatch<Shader::kTreeFixup>(1);
+  r.dispatchIndirect<Shader::kLink>(offsetof(gpu::ScanCounters, block_args));
+  r.dispatchIndirect<Shader::kDescend>(offsetof(gpu::ScanCounters, active_args));
+  r.stamp(Stamp::kTreeUpdateEnd);
 }
 
 }  // namespace octovk::passes
