@@ -5,6 +5,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <fstream>
+#include <regex>
+#include <string>
 #include <type_traits>
 #include <utility>
 
@@ -758,6 +761,50 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   EXPECT_EQ(touched[5], kLevelCount);
   EXPECT_EQ(touched[6], kTreeDepth);
   EXPECT_EQ(touched[7], kNoBlock);
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// docs/architecture.md's table of buffers states each element's size ("| 1 | `counters` |
+// `ScanCounters`: ... | 408 B |"): every row naming a host/device struct must give its sizeof,
+// and the readback figure must be ScanCounters + PoolState, so the newcomer's map cannot drift
+// from the code (it had: ScanCounters was documented as 408 B while the code said 420).
+TEST(Layout, ArchitectureDocSizesAreTheCode) {
+  std::ifstream in(OCTOVK_SOURCE_DIR "/docs/architecture.md");
+  ASSERT_TRUE(in.is_open()) << "cannot read docs/architecture.md";
+  const std::vector<std::pair<std::string, std::size_t>> sizes = {
+      {"ScanParams", sizeof(gpu::ScanParams)},     {"ScanCounters", sizeof(gpu::ScanCounters)},
+      {"PoolState", sizeof(gpu::PoolState)},       {"Node", sizeof(gpu::Node)},
+      {"ActiveCell", sizeof(gpu::ActiveCell)},     {"NewBlock", sizeof(gpu::NewBlock)},
+      {"LeafBox", sizeof(gpu::LeafBox)},           {"WalkState", sizeof(gpu::WalkState)},
+      {"DepthCamera", sizeof(gpu::DepthCamera)}};
+  // A table row: "| binding | `buffer` | ... `Struct` ... | N B..." (the first struct named).
+  const std::regex row(R"(^\| [0-9, ]+ \| `[a-z_]+` \| [^|`]*`([A-Z][A-Za-z]+)`[^|]*\| ([0-9]+) B)");
+  const std::regex readback(R"(\(`ScanCounters` \+ `PoolState`, ([0-9]+) bytes)");
+  std::size_t rows = 0;
+  bool readback_seen = false;
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (std::regex_search(line, m, row)) {
+      for (const auto& [name, size] : sizes) {
+        if (m[1] != name) continue;
+        ++rows;
+        EXPECT_EQ(std::stoul(m[2]), size) << "docs/architecture.md gives `" << name << "` as "
+                                          << m[2] << " B; sizeof says " << size << ":\n"
+                                          << line;
+      }
+    }
+    if (std::regex_search(line, m, readback)) {
+      readback_seen = true;
+      EXPECT_EQ(std::stoul(m[1]), sizeof(gpu::ScanCounters) + sizeof(gpu::PoolState)) << line;
+    }
+  }
+  EXPECT_EQ(rows, sizes.size()) << "a struct's row is missing from the buffer table";
+  EXPECT_TRUE(readback_seen) << "the readback size is no longer stated";
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // The host half of each stage: one function per stage that records its shaders' dispatches
 // (shaders/<stage>.comp), in pipeline order. None submits or waits; the scan's state machine in
-// map/occupancy_map.cpp decides what runs when.
+// map/scans.cpp decides what runs when.
 #pragma once
 
 #include <array>
