@@ -13,6 +13,7 @@
 
 #include "octovk/gpu_types.h"
 #include "test_support.hpp"
+#include "map/context_access.hpp"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -648,7 +649,7 @@ std::string findMarker(const unsigned char* bytes, std::size_t size, const void*
 
 TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  vk::Device& device = ctx.vulkan();
+  vk::Device& device = ContextAccess::device(ctx);
   const vk::Pass& probe = device.pass("layout_probe");
   ASSERT_NE(probe.pipeline, VK_NULL_HANDLE);
 

@@ -260,3 +260,53 @@ TEST(Streaming, EmptyAndInvalidScans) {
 
 }  // namespace
 }  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// ScanOptions (params.hpp) is the same call as the trailing (max_range_m, discretize) arguments:
+// blocking, submitted and depth images, node for node.
+TEST(ScanOptionsApi, EqualsThePositionalArguments) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = test::withResolution(0.1);
+  std::mt19937 rng(17);
+  const std::vector<Scan> scans = sequence(rng, 8);
+  Pose pose;
+  pose.translation = Eigen::Vector3f(0.2f, -0.1f, 0.05f);
+  pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.3f, Eigen::Vector3f::UnitZ()));
+  std::vector<float> depth(32 * 24);
+  for (std::size_t i = 0; i < depth.size(); ++i) depth[i] = 0.5f + 0.01f * static_cast<float>(i % 37);
+  DepthImage image;
+  image.width = 32;
+  image.height = 24;
+  image.encoding = DepthImage::Encoding::kFloat32;
+  image.pixels = depth.data();
+  image.fx = image.fy = 20.0f;
+  image.cx = 15.5f;
+  image.cy = 11.5f;
+  image.depth_scale = 1.0f;
+
+  OccupancyMap positional(ctx, params), options(ctx, params);
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const Scan& s = scans[i];
+    const ScanOptions o{.max_range_m = s.max_range, .discretize = s.discretize};
+    if (i % 2 == 0) {
+      positional.insertPointCloud(s.points, s.origin, s.max_range, s.discretize);
+      options.insertPointCloud(s.points, s.origin, o);
+    } else {
+      positional.submitPointCloud(s.points, s.origin, pose, s.max_range, s.discretize);
+      options.submitPointCloud(s.points, s.origin, pose, o);
+    }
+  }
+  positional.insertDepthImage(image, pose, 0.9, Eigen::Vector3f::Zero(), true);
+  options.insertDepthImage(image, pose, {.max_range_m = 0.9, .discretize = true});
+  positional.submitDepthImage(image, pose, 0.7);
+  options.submitDepthImage(image, pose, {.max_range_m = 0.7});
+  positional.flush();
+  options.flush();
+  EXPECT_GT(positional.nodeCount(), 1u);
+  EXPECT_TRUE(test::otBytes(*toOcTree(positional)) == test::otBytes(*toOcTree(options)));
+}
+
+}  // namespace
+}  // namespace octovk

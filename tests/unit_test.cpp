@@ -11,6 +11,7 @@
 #include "test_support.hpp"
 #include "map/device_probe.hpp"
 #include "octovk/gpu_types.h"
+#include "map/context_access.hpp"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -493,7 +494,7 @@ TEST(Context, RunsOnTheDriverTheRunAskedFor) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   std::printf("device: %s (%s), driver: %s, loop limit: %u (0: none seen)\n",
               ctx.device().name.c_str(), ctx.device().type.c_str(), ctx.device().driver.c_str(),
-              ctx.vulkan().loopLimit());
+              ContextAccess::device(ctx).loopLimit());
   EXPECT_FALSE(ctx.device().driver.empty());
   const char* expected = std::getenv("OCTOVK_EXPECT_DRIVER");
   if (expected && *expected) {
@@ -516,7 +517,7 @@ TEST(Context, ValidationMessagesReachTheCallback) {
   ASSERT_TRUE(context) << context.error().what();
   const std::size_t before = validationMessageCount();
   // A deliberate misuse: a buffer of size 0 (VUID-VkBufferCreateInfo-size-00912).
-  vk::Device& device = context.value()->vulkan();
+  vk::Device& device = ContextAccess::device(*context.value());
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = 0;
   info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
@@ -538,7 +539,7 @@ TEST(BindingRange, MapsLargerThanOneBindingWithTheLimitForcedLow) {
   options.max_binding_bytes = 1u << 20;
   auto small = Context::create(options);
   ASSERT_TRUE(small) << small.error().what();
-  EXPECT_EQ(small.value()->vulkan().maxBindingBytes(), 1u << 20);
+  EXPECT_EQ(ContextAccess::device(*small.value()).maxBindingBytes(), 1u << 20);
   const MapParams params = withResolution(0.01);
   OccupancyMap map(*small.value(), params);
   octomap::OcTree oracle = makeOracle(params);
@@ -550,8 +551,8 @@ TEST(BindingRange, MapsLargerThanOneBindingWithTheLimitForcedLow) {
   }
   // Beyond 1 MiB of 8-byte nodes.
   EXPECT_GT(map.nodeCount() * sizeof(gpu::Node), std::size_t{2} << 20);
-  vk::Buffer big(small.value()->vulkan(), (1u << 20) + 16, /*host_visible=*/false);
-  vk::BindingSet set(small.value()->vulkan());
+  vk::Buffer big(ContextAccess::device(*small.value()), (1u << 20) + 16, /*host_visible=*/false);
+  vk::BindingSet set(ContextAccess::device(*small.value()));
   try {
     set.updateRange(gpu::kBindQueryIn, big.handle(), 0, big.size());
     ADD_FAILURE() << "a range beyond the binding limit was bound";

@@ -1,5 +1,6 @@
-// Depth-image sequences in the TUM RGB-D layout (https://cvg.cit.tum.de/data/datasets/rgbd-dataset):
-// DIR/depth.txt, DIR/groundtruth.txt and 16-bit grayscale PNG depth images.
+// Depth-image sequences in the TUM RGB-D layout
+// (https://cvg.cit.tum.de/data/datasets/rgbd-dataset): DIR/depth.txt, DIR/groundtruth.txt and
+// 16-bit grayscale PNG depth images.
 #pragma once
 
 #include <cstddef>

@@ -1,5 +1,6 @@
 // Vulkan interop (include/octovk/vulkan_interop.hpp): the one file that hands Vulkan handles
 // out and takes the caller's buffers in.
+#include "map/context_access.hpp"
 #include "map/map_impl.hpp"
 #include "octovk/vulkan_interop.hpp"
 
@@ -11,7 +12,7 @@ class InteropAccess {
 };
 
 VulkanHandles vulkanHandles(Context& context) {
-  vk::Device& d = context.vulkan();
+  vk::Device& d = ContextAccess::device(context);
   VulkanHandles h{d.instance(), d.physical(),    d.handle(),
                   d.queue(),    d.queueFamily(), d.storageOffsetAlignment()};
   h.external_memory_fd = d.hasExtension(VK_KHR_EXTERNAL_MEMORY_FD_EXTENSION_NAME);
@@ -19,7 +20,9 @@ VulkanHandles vulkanHandles(Context& context) {
   return h;
 }
 
-std::unique_lock<std::mutex> lockQueue(Context& context) { return context.vulkan().lockQueue(); }
+std::unique_lock<std::mutex> lockQueue(Context& context) {
+  return ContextAccess::device(context).lockQueue();
+}
 
 namespace {
 

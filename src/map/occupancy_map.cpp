@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "map/context_access.hpp"
 #include "map/host_memory.hpp"
 #include "map/host_tree.hpp"
 #include "map/map_impl.hpp"
@@ -26,7 +27,7 @@ std::uint32_t blockLimit(const MapParams& params) { return poolBlockLimit(params
 }  // namespace
 
 OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
-    : device_owner_(context.sharedDevice()),
+    : device_owner_(ContextAccess::shared(context)),
       device_(*device_owner_),
       params_(validated(params)),
       logs_(ref::LogOddsParams::from(params)),

@@ -1,0 +1,66 @@
+// octovk: Errors: the one exception type, its codes, and Result for setup steps.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace octovk {
+
+/// What went wrong, coarsely, so callers can react without parsing messages.
+enum class ErrorCode {
+  kNoDevice,           ///< no Vulkan device (install mesa-vulkan-drivers for the CPU device)
+  kMissingFeature,     ///< the device lacks a feature octovk needs; the message names it
+  kInvalidArgument,    ///< a parameter or input is out of its domain
+  kOutOfDeviceMemory,  ///< the device could not hold the map; the map is as before the call
+  kVulkan,             ///< an unexpected Vulkan failure; the message names the call and VkResult
+  kIo,                 ///< a file could not be read or written
+  kFormat,             ///< a file is not in the expected format
+  /// The host could not allocate memory (std::bad_alloc inside octovk); the map is as before
+  /// the call and keeps working.
+  kOutOfHostMemory,
+  /// octovk broke one of its own invariants: a bug, to be reported with the input.
+  kInternal,
+};
+
+/// The one exception type of octovk. The library never exits the process.
+class Error : public std::runtime_error {
+ public:
+  Error(ErrorCode code, const std::string& message, std::uint64_t scan = 0)
+      : std::runtime_error(message), code_(code), scan_(scan) {}
+  ErrorCode code() const noexcept { return code_; }
+  /// For an error a synchronisation found in a scan submitted earlier (OccupancyMap::submit*,
+  /// see there): that scan's ticket, so that a caller can say which of its inputs failed; 0 when
+  /// the error is about the call that threw it.
+  std::uint64_t scan() const noexcept { return scan_; }
+
+ private:
+  ErrorCode code_;
+  std::uint64_t scan_;
+};
+
+/// A value or the reason there is none, for setup steps that fail for ordinary reasons.
+template <class T>
+class [[nodiscard]] Result {
+ public:
+  Result(T value) : value_(std::move(value)) {}      // NOLINT(google-explicit-constructor)
+  Result(Error error) : error_(std::move(error)) {}  // NOLINT(google-explicit-constructor)
+  explicit operator bool() const noexcept { return value_.has_value(); }
+  T& value() {
+    if (!value_) throw *error_;
+    return *value_;
+  }
+  /// The reason there is no value; when there is one, an Error saying so (kInternal).
+  const Error& error() const {
+    static const Error kNoError(ErrorCode::kInternal, "Result::error() called on a value");
+    return error_ ? *error_ : kNoError;
+  }
+
+ private:
+  std::optional<T> value_;
+  std::optional<Error> error_;
+};
+
+}  // namespace octovk

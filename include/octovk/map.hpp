@@ -1,0 +1,226 @@
+// octovk: The occupancy octree on the device: OccupancyMap.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "octovk/context.hpp"
+#include "octovk/errors.hpp"
+#include "octovk/params.hpp"
+#include "octovk/queries.hpp"
+#include "octovk/scan.hpp"
+
+namespace octovk {
+
+/// The occupancy octree, held in device buffers. Not copyable; movable. A moved-from map throws
+/// kInvalidArgument from every call until a map is assigned to it. One thread at a time (see
+/// Context). A call that throws leaves the map as it was before the call (a std::bad_alloc
+/// inside becomes kOutOfHostMemory), and the map keeps working.
+class OccupancyMap {
+ public:
+  OccupancyMap(Context& context, const MapParams& params);
+  ~OccupancyMap();
+  OccupancyMap(OccupancyMap&&) noexcept;
+  OccupancyMap& operator=(OccupancyMap&&) noexcept;
+
+  const MapParams& params() const noexcept;
+
+  /// OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=false, discretize) with
+  /// points and origin in the world frame. max_range_m < 0 means unlimited.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, double max_range_m = -1.0,
+                             bool discretize = false);
+
+  /// OctoMap's insertPointCloud(points, sensor_origin, frame_origin, ...): points and sensor origin
+  /// in the sensor frame; both are moved to the world by T_world_sensor, the points on the device.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                             const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
+                             double max_range_m = -1.0, bool discretize = false);
+
+  /// A depth image, unprojected on the device (DepthImage), then inserted like
+  /// insertPointCloud(points_camera, origin_camera, T_world_camera, max_range_m, discretize):
+  /// the result equals inserting unprojectDepthImage(image) with that overload.
+  ScanStats insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                             double max_range_m = -1.0,
+                             const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
+                             bool discretize = false);
+
+  /// The three calls above with their options in one struct, e.g.
+  /// `map.insertPointCloud(points, origin, {.max_range_m = 5.0, .discretize = true})`.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, const ScanOptions& options) {
+    return insertPointCloud(points_world, origin_world, options.max_range_m, options.discretize);
+  }
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                             const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
+                             const ScanOptions& options) {
+    return insertPointCloud(points_sensor, origin_sensor, T_world_sensor, options.max_range_m,
+                            options.discretize);
+  }
+  ScanStats insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                             const ScanOptions& options,
+                             const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero()) {
+    return insertDepthImage(image, T_world_camera, options.max_range_m, origin_camera,
+                            options.discretize);
+  }
+
+  // ---- streaming: scans submitted back to back, no host wait per scan ----
+  //
+  // submit*() stages the input (points or pixels copied into one of 3 staging buffers), records
+  // the scan and submits it, and returns without waiting; the device decides on its own whether
+  // the scan fits. The host waits only when all 3 frames are in flight (the oldest one then), or
+  // when buffers must grow. A scan that did not fit leaves the map as it was, and so do the
+  // scans behind it; at the next synchronisation (flush(), or any call that reads or changes
+  // the map: queries, download, nodeCount, insertPointCloud, ...) the library grows what was
+  // short and runs them again in order. The map after any sequence of submits equals the map of
+  // the same scans inserted one by one with the blocking calls, and OctoMap's.
+  // Errors a scan's input shows are thrown by submit*() (nothing submitted); an error found on
+  // the device (a pool over MapParams::max_nodes, the memory cap, ...) is thrown by the
+  // synchronisation that finds it: the map then holds every scan before the failing one, and
+  // it and the scans submitted after it are not inserted (the message names its ticket, and
+  // Error::scan() gives it).
+
+  /// insertPointCloud(points_world, origin_world, ...), submitted without waiting. The points
+  /// are copied before it returns: the span may be reused at once.
+  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_world,
+                              const Eigen::Vector3f& origin_world, double max_range_m = -1.0,
+                              bool discretize = false);
+  /// insertPointCloud(points_sensor, origin_sensor, T_world_sensor, ...), without waiting.
+  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
+                              double max_range_m = -1.0, bool discretize = false);
+  /// insertDepthImage(...), without waiting. The pixels are copied before it returns.
+  ScanTicket submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                              double max_range_m = -1.0,
+                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
+                              bool discretize = false);
+  /// The three submits with their options in one struct (ScanOptions).
+  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_world,
+                              const Eigen::Vector3f& origin_world, const ScanOptions& options) {
+    return submitPointCloud(points_world, origin_world, options.max_range_m, options.discretize);
+  }
+  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
+                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
+                              const ScanOptions& options) {
+    return submitPointCloud(points_sensor, origin_sensor, T_world_sensor, options.max_range_m,
+                            options.discretize);
+  }
+  ScanTicket submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
+                              const ScanOptions& options,
+                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero()) {
+    return submitDepthImage(image, T_world_camera, options.max_range_m, origin_camera,
+                            options.discretize);
+  }
+  /// Waits until every submitted scan is in the map (running refused ones again); throws as
+  /// described above.
+  void flush();
+  /// Whether scan `ticket` is in the map; does not wait (takes the results already there).
+  bool finished(ScanTicket ticket);
+  /// Statistics of the submitted scans known to be in the map since the last call, in ticket
+  /// order (the newest 4096 are kept); does not wait. Blocking calls return their own instead.
+  std::vector<ScanStats> takeScanStats();
+  /// Submitted scans not yet known to be in the map.
+  std::size_t scansInFlight() const noexcept;
+  /// Device submissions this map made, and the times the host waited for one still running
+  /// (for a free frame, for results, before growing), since the map was made: for measuring
+  /// how much of a stream the host spends waiting.
+  struct SyncCounts {
+    std::uint64_t submissions = 0;
+    std::uint64_t host_waits = 0;
+  };
+  SyncCounts syncCounts() const noexcept;
+
+  /// One leaf: centre, edge length, log-odds.
+  struct LeafBoxHost {
+    float center[3];
+    float size;
+    float log_odds;
+  };
+  /// The same scan, then `queries` on the updated map, recorded in the same command stream (no
+  /// host round trip between the update and the queries).
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, double max_range_m,
+                             bool discretize, const QueryRequest& queries, QueryResults& results);
+
+  /// OctoMap's search() for each point, on the device.
+  std::vector<Lookup> search(std::span<const Eigen::Vector3f> points) const;
+  /// OctoMap's castRay for each ray, on the device.
+  std::vector<RayHit> castRays(std::span<const Ray> rays) const;
+  /// The leaves OctoMap's leaf_bbx_iterator(min, max) visits (all, or only the occupied ones),
+  /// compacted on the device and downloaded. Empty if a corner lies outside the map.
+  std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                                       bool occupied_only = false) const;
+
+  /// Nodes in the tree (read from the device's counters, no map data moves).
+  std::size_t nodeCount() const;
+  /// Device bytes held by this map's buffers (staging included): what
+  /// MapParams::max_device_bytes caps.
+  std::size_t deviceBytes() const;
+  /// Of those, the node pool (nodes, block records, free-block stack, at their capacity); the
+  /// rest is per-scan scratch, query buffers and the leaf boxes (deviceBytesByUse()).
+  std::size_t poolBytes() const;
+  /// deviceBytes() by use.
+  struct DeviceBytes {
+    std::size_t pool = 0;        ///< nodes, block records, free-block stack (poolBytes())
+    std::size_t leaf_boxes = 0;  ///< a leaf box per pool slot
+    /// Per-scan scratch: cell sets, touched lists, points and their upload staging, ray walks,
+    /// depth image, counters. Sized by the largest scan since it was last released (trim(), or
+    /// automatically after an outsized scan).
+    std::size_t scratch = 0;
+    std::size_t queries = 0;  ///< query input and output, with their staging
+    std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+  };
+  DeviceBytes deviceBytesByUse() const;
+
+  /// castRay's backend on this map and what its acceleration structure cost (ray tracing only).
+  struct CastRayInfo {
+    CastRayBackend backend = CastRayBackend::kWalk;  ///< kWalk or kRayTracing, as castRays runs
+    std::size_t builds = 0;  ///< acceleration-structure builds (lazily, by castRays) since trim()
+    double last_build_ms = 0.0;      ///< device time of the last: the boxes, then the structures
+    double last_boxes_ms = 0.0;      ///< of which the boxes (leaf boxes if stale, accel_boxes)
+    std::size_t occupied_boxes = 0;  ///< boxes of the last build: occupied leaves
+    std::size_t unknown_boxes = 0;   ///< and unknown regions
+    std::size_t device_bytes = 0;    ///< boxes, structures, scratch (in deviceBytesByUse().queries)
+    /// castRays calls answered by the walk because, under MapParams::max_device_bytes, the
+    /// structure would not have fitted (kAuto only; kRayTracing throws kOutOfDeviceMemory).
+    std::size_t cap_fallbacks = 0;
+  };
+  CastRayInfo castRayInfo() const;
+  /// deviceBytesByUse().scratch.
+  std::size_t scratchBytes() const;
+  /// Releases the per-scan scratch and the query buffers back to an empty map's sizes (the
+  /// node pool and the leaf boxes stay). The next scan or query grows them again; results do
+  /// not change. A scan also releases the scratch by itself when an outsized scan grew it: when
+  /// the largest scan since the last release had more than 4 times the points of the median of
+  /// the last 8 scans, and the scratch holds more than 4 MiB.
+  void trim();
+  /// Leaves of the map (rebuilding the leaf boxes first if they are out of date).
+  std::size_t leafCount() const;
+
+  /// Whether each scan ends by rebuilding the leaf boxes. Off (the default), they are rebuilt
+  /// on the next leafCount() / downloadLeafBoxes() that follows a scan: the rebuild visits every
+  /// block of the map, so doing it after every scan makes a scan's cost grow with the map.
+  void setLeafBoxesEveryScan(bool every_scan);
+
+  /// Explicit transfer of the whole tree to the host.
+  HostTree download() const;
+  /// Replaces the map with `tree` (explicit transfer to the device).
+  void upload(const HostTree& tree);
+
+  /// The leaf boxes (centre, size, log-odds) of the map, downloaded.
+  std::vector<LeafBoxHost> downloadLeafBoxes() const;
+
+  class Impl;
+
+ private:
+  friend class InteropAccess;  // vulkan_interop.hpp
+  /// impl_, or kInvalidArgument for a moved-from map.
+  Impl& self() const;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace octovk

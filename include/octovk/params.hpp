@@ -1,0 +1,96 @@
+// octovk: A map's parameters (OctoMap's sensor model and grid) and OctoMap's pose arithmetic.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace octovk {
+
+/// How castRay is answered on the device (MapParams::cast_ray_backend). Both give OctoMap's
+/// answers bit for bit.
+enum class CastRayBackend : std::uint32_t {
+  /// The ray-tracing backend where the device has ray queries, loops without a driver limit and
+  /// no device-memory cap is set; else the walk (docs/benchmarks.md: which is faster where).
+  kAuto = 0,
+  /// A compute shader steps through every cell along the ray, as OctoMap does.
+  kWalk = 1,
+  /// Ray queries against an acceleration structure over the map's occupied and unknown boxes
+  /// find where the walk can end; the walk jumps there exactly and decides with OctoMap's steps.
+  /// Needs VK_KHR_acceleration_structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled).
+  kRayTracing = 2,
+};
+
+/// How a scan's rays find their cells (MapParams::scan_rays). Both give OctoMap's map bit for bit.
+enum class ScanRays : std::uint32_t {
+  /// A compute shader steps OctoMap's DDA (computeRayKeys) through every cell of every ray.
+  kWalk = 0,
+  /// The paper's way: ray queries against an acceleration structure over the boxes a free
+  /// update can change (occupied leaves, free leaves not yet clamped, unknown space), built on
+  /// the device in each scan's own submission; OctoMap's DDA steps only through the boxes a ray
+  /// crosses and jumps exactly over leaves already clamped free, whose free updates OctoMap
+  /// aborts (ScanStats::free_cells then leaves those cells out). Needs VK_KHR_acceleration_
+  /// structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled) and loops without a driver
+  /// limit.
+  kRayTracing = 1,
+};
+
+/// The sensor model and grid, with OctoMap's defaults.
+struct MapParams {
+  double resolution = 0.1;
+  double prob_hit = 0.7;
+  double prob_miss = 0.4;
+  double clamping_min = 0.1192;
+  double clamping_max = 0.971;
+  double occupancy_threshold = 0.5;
+  /// Most nodes the device pool may hold; 0 = as many as the device's memory allows. A scan that
+  /// would need more throws kOutOfDeviceMemory and leaves the map as it was.
+  std::size_t max_nodes = 0;
+  /// Most bytes the map may hold on the device, all its buffers together: the node pool, the
+  /// leaf boxes, the per-scan scratch (cell sets, lists, points, ray walks, depth image, upload
+  /// staging) and the query buffers; 0 = no cap. It bounds what the map holds between calls
+  /// (OccupancyMap::deviceBytes() never exceeds it); while a buffer is replaced by a larger one
+  /// both exist for a moment, so the peak during a growth can be higher. A scan or query batch
+  /// that would need more throws kOutOfDeviceMemory and leaves the map as it was; the map keeps
+  /// working. At least minDeviceBytes().
+  std::size_t max_device_bytes = 0;
+  /// castRay's backend. kRayTracing on a device without ray queries (or with a loop limit)
+  /// makes the map's constructor throw kMissingFeature. The acceleration structure counts under
+  /// max_device_bytes (with the query buffers): where it would not fit, a castRays call with
+  /// kAuto answers with the walk (the same answers; CastRayInfo::cap_fallbacks), with
+  /// kRayTracing it throws kOutOfDeviceMemory and the map stays as it was.
+  CastRayBackend cast_ray_backend = CastRayBackend::kAuto;
+  /// How scans find their cells. kRayTracing on a device without ray queries (or with a loop
+  /// limit, or with max_device_bytes set: the acceleration structure is not under the cap)
+  /// makes the map's constructor throw kMissingFeature / kInvalidArgument.
+  ScanRays scan_rays = ScanRays::kWalk;
+
+  /// Device bytes an empty map with these parameters holds: the smallest max_device_bytes.
+  std::size_t minDeviceBytes() const;
+
+  /// Empty when valid, else a sentence naming the bad value.
+  std::string validate() const;
+};
+
+/// How one scan is inserted: OctoMap's insertPointCloud arguments after the points and origin
+/// (lazy_eval is always false: the inner nodes are updated with every scan).
+struct ScanOptions {
+  double max_range_m = -1.0;  ///< rays longer than this are cut there (no occupied end); < 0: none
+  bool discretize = false;    ///< OctoMap's discretize: one ray per distinct end cell
+};
+
+/// A rigid transform with OctoMap's float arithmetic (octomath::Pose6D): rotation applied as
+/// q * v * q^-1 in single precision, then the translation added.
+struct Pose {
+  Eigen::Vector3f translation = Eigen::Vector3f::Zero();
+  Eigen::Quaternionf rotation = Eigen::Quaternionf::Identity();
+
+  /// `this` applied to v, bit-exact with octomath::Pose6D::transform.
+  Eigen::Vector3f transform(const Eigen::Vector3f& v) const;
+  /// The inverse, bit-exact with octomath::Pose6D::inv.
+  Pose inverse() const;
+};
+
+}  // namespace octovk

@@ -1,0 +1,61 @@
+// octovk: Queries on a map with OctoMap's meaning (search, castRay) and the tree on the host.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace octovk {
+
+/// The tree as the host sees it after an explicit download. Node index = block * 8 + slot;
+/// the root is node 0. Children of node n are at children * 8 + i where bit i of mask is set.
+struct HostTree {
+  struct Node {
+    float log_odds;
+    std::uint32_t children;
+    std::uint32_t mask;
+  };
+  bool root_exists = false;
+  std::vector<Node> nodes;
+};
+
+/// State of a cell as OctoMap's search() and isNodeOccupied() see it.
+enum class CellState : std::uint32_t { kUnknown = 0, kFree = 1, kOccupied = 2 };
+
+/// Result of a point lookup: the deepest existing node on the point's path (OctoMap's search,
+/// pruned nodes included). Unknown for points outside the map, NaN points and unmapped space.
+struct Lookup {
+  CellState state = CellState::kUnknown;
+  float log_odds = 0.0f;    ///< of the node found (0 when unknown)
+  std::uint32_t depth = 0;  ///< depth of the node found, 16 = finest (0 when unknown)
+};
+
+/// A castRay query, as OctoMap's castRay(origin, direction, end, ignore_unknown, max_range).
+struct Ray {
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  Eigen::Vector3f direction = Eigen::Vector3f::UnitX();  ///< need not be normalised
+  double max_range_m = -1.0;                             ///< <= 0: up to the map's border
+  bool ignore_unknown = false;                           ///< true: unknown cells count as free
+};
+
+/// Result of a castRay: OctoMap's return value and its `end` (the centre of the last cell
+/// visited). Where OctoMap leaves `end` untouched (origin outside the map, zero direction) it is
+/// the ray's origin.
+struct RayHit {
+  bool hit = false;
+  Eigen::Vector3f end = Eigen::Vector3f::Zero();
+};
+
+/// Queries to run right after a scan, in the same command stream.
+struct QueryRequest {
+  std::span<const Eigen::Vector3f> lookups;
+  std::span<const Ray> rays;
+};
+
+struct QueryResults {
+  std::vector<Lookup> lookups;
+  std::vector<RayHit> rays;
+};
+
+}  // namespace octovk
