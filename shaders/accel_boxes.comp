@@ -22,7 +22,7 @@
 //                      before the counts are known, finds nothing more where rays go.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
-#include "common.glsl"
+#include "tree_search.glsl"
 #include "block_key.glsl"
 
 layout(push_constant) uniform PushBlock { AccelBoxesConstants pc; };

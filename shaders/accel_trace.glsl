@@ -1,9 +1,11 @@
 // Tracing a walk's ray through the boxes accel_boxes.comp writes (castRay's ray-tracing backend,
 // cast_ray_rt.glsl, and scans through ray tracing, scan_rays_rt.comp): the boxes buffer's view,
 // the slack on ray parameters, the exact slab test of one box, and (with OCTOVK_RAY_QUERY) the
-// ray query for the nearest box. Needs common.glsl and cast_ray_walk.glsl.
+// ray query for the nearest box.
 #ifndef OCTOVK_ACCEL_TRACE_GLSL
 #define OCTOVK_ACCEL_TRACE_GLSL
+
+#include "cast_ray_walk.glsl"
 
 layout(buffer_reference, std430, buffer_reference_align = 8) buffer AccelRef {
   AccelHeader header;

@@ -7,7 +7,7 @@
 //   with the leaf's value;
 // - a node created in this scan: createNodeChild, children at 0 that the descent switches on.
 // The link pass then hangs the blocks in the tree.
-#include "common.glsl"
+#include "bindings.glsl"
 
 void main() {
   uint n = invocationIndex();

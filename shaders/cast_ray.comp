@@ -11,7 +11,7 @@
 // the host passes a budget that finishes every ray in one segment.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
-#include "common.glsl"
+#include "tree_search.glsl"
 
 layout(push_constant) uniform PushBlock { CastRayConstants pc; };
 

@@ -15,7 +15,7 @@
 // unknown, when ignored), the walk jumps to the node's exit the same way. Without ray queries
 // (cast_ray_jump) the walk only steps and jumps through such nodes.
 #define OCTOVK_NODES_READ_ONLY
-#include "common.glsl"
+#include "tree_search.glsl"
 #include "cast_ray_walk.glsl"
 #ifdef OCTOVK_CAST_RAY_TRACE
 #define OCTOVK_RAY_QUERY

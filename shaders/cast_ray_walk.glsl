@@ -1,9 +1,11 @@
 // OccupancyOcTreeBase::castRay's walk, as functions on a CastRayWalk, for the passes that walk
 // it (cast_ray_rt.comp; cast_ray.comp spells the same arithmetic inline). Everything follows
 // OctoMap 1.9.7 operation for operation: the direction normalised in float, tMax / tDelta in
-// double, ties to the later axis, the max-range test on the float cell centre. Needs common.glsl.
+// double, ties to the later axis, the max-range test on the float cell centre.
 #ifndef OCTOVK_CAST_RAY_WALK_GLSL
 #define OCTOVK_CAST_RAY_WALK_GLSL
+
+#include "tree_search.glsl"
 
 struct CastRayWalk {
   uvec3 key;           // the current cell

@@ -6,7 +6,7 @@
 // active cells is counted by classify_blocks.comp, over the cells that descend only: llvmpipe
 // (Mesa 22.3) runs all of a shader's code for every group of lanes, masked, so that code kept
 // here would cost every cell, while after a few scans most cells end here.
-#include "common.glsl"
+#include "tree_search.glsl"
 #include "tree.glsl"
 
 

@@ -4,7 +4,8 @@
 // of `cells`: their search ended above the finest level): the child slot the path steps into
 // made ready, and each node on the path that gets a block listed once in the second set, with
 // the exact count of new blocks that tree_gate checks against the pool.
-#include "common.glsl"
+#include "hash_set.glsl"
+#include "tree_search.glsl"
 #include "tree.glsl"
 
 // A child slot made ready for the descent: log-odds 0, no children, not live yet.

@@ -6,7 +6,7 @@
 // kClearScan: at the scan's end (indirect over clear_args), its brick_entries bricks and its
 //             new_blocks second-set entries, whether or not the scan was applied.
 // kClearEndCells: this scan's end cells of discretize, before classify reuses the second set.
-#include "common.glsl"
+#include "hash_set.glsl"
 
 layout(push_constant) uniform PushBlock { ClearSetsConstants pc; };
 

@@ -7,7 +7,7 @@
 // (createNodeChild: classify or alloc made its slot ready). At the leaf: add the update, clamp,
 // and list the parent for the prune pass. Live bits only grow, by atomicOr, so the cells need
 // no ordering between them.
-#include "common.glsl"
+#include "tree_search.glsl"
 #include "tree.glsl"
 
 

@@ -3,7 +3,7 @@
 // Discretize: one point per end cell (computeDiscreteUpdate). Distinct end keys go into the
 // endpoint set; ray_keys (mode 1) then shoots one ray to the centre of each. Non-finite and
 // out-of-map points are skipped and counted (OctoMap's unchecked coordToKey would wrap them).
-#include "common.glsl"
+#include "hash_set.glsl"
 
 layout(push_constant) uniform PushBlock { DiscretizeConstants pc; };
 

@@ -5,7 +5,7 @@
 // and 1 of the arrays, for the stride), and copies the push constants and a few constants out, so
 // the test can check that each lands at its C++ offsetof. Marker of field `id`: uint
 // 0xC0DE0000 + id, float id + 0.5, double id + 0.25, uint64 0xC0DE0000C0DE0000 + id.
-#include "common.glsl"
+#include "bindings.glsl"
 
 // The push range, seen as one of the passes' structs (all four uints).
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };

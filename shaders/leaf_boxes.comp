@@ -8,7 +8,7 @@
 //                  compacted into the query output.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
-#include "common.glsl"
+#include "tree_search.glsl"
 #include "block_key.glsl"
 
 layout(push_constant) uniform PushBlock { LeafBoxesConstants pc; };

@@ -3,7 +3,7 @@
 // Hangs each block alloc filled under its node: the node is known (it existed before alloc), or
 // it is a child in the block of the node one level up. (An expansion's children exist already;
 // a created node's children are switched on by the descent, one per path.)
-#include "common.glsl"
+#include "hash_set.glsl"
 
 void main() {
   uint n = invocationIndex();

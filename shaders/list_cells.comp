@@ -8,7 +8,7 @@
 // listed at all.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
-#include "common.glsl"
+#include "tree_search.glsl"
 #include "tree.glsl"
 
 void main() {

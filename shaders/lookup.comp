@@ -3,7 +3,7 @@
 // Point lookups: OctoMap's search(point) for each query point, on the tree as it is now.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
-#include "common.glsl"
+#include "tree_search.glsl"
 
 layout(push_constant) uniform PushBlock { LookupConstants pc; };
 

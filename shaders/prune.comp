@@ -4,7 +4,7 @@
 // level below:
 // pruneNode when all 8 children exist, are leaves and hold equal values; otherwise the node takes
 // the max of its children (updateOccupancyChildren). Pruned blocks go onto the free stack.
-#include "common.glsl"
+#include "bindings.glsl"
 #include "tree.glsl"
 
 layout(push_constant) uniform PushBlock { PruneConstants pc; };

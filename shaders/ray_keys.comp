@@ -10,7 +10,7 @@
 // the other (kRayKeysContinueLast, the last round, reports them instead). Where the device probe
 // measured a loop limit (Mesa 22.3's llvmpipe: 65535 iterations in total) the budget stays below
 // it; elsewhere it finishes every ray at once.
-#include "common.glsl"
+#include "hash_set.glsl"
 
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 

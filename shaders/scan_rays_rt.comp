@@ -20,7 +20,7 @@
 // limit (the host refuses it elsewhere), so every ray is walked in one go.
 #define OCTOVK_NODES_READ_ONLY
 #define OCTOVK_RAY_QUERY
-#include "common.glsl"
+#include "hash_set.glsl"
 #include "cast_ray_walk.glsl"
 #include "accel_trace.glsl"
 

@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // Sensor frame to world, in place: octomath::Pose6D::transform, i.e. q * (0, v) * q^-1 then the
 // translation, with the same float operations in the same order.
-#include "common.glsl"
+#include "bindings.glsl"
 
 layout(push_constant) uniform PushBlock { TransformPointsConstants pc; };
 

@@ -1,4 +1,9 @@
-// Helpers of the tree passes.
+// Helpers of the tree passes: a cell of the cell set, its update and early abort, and the
+// per-level lists of touched nodes the prune pass works through.
+#ifndef OCTOVK_TREE_GLSL
+#define OCTOVK_TREE_GLSL
+
+#include "tree_search.glsl"
 
 // Key of the cell with this id in the cell set (brick slot * 64 + index).
 uvec3 cellKey(uint id) {
@@ -40,3 +45,5 @@ void listNode(uint level, uint parent) {
 
 // Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
 void listParent(uint level, uint node) { listNode(level, block_parent[node / 8u]); }
+
+#endif  // OCTOVK_TREE_GLSL

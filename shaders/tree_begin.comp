@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // Creates the root if the map is empty (OccupancyOcTreeBase::updateNode creates it on demand):
 // only for a scan that tree_gate let through and that updates at least one cell.
-#include "common.glsl"
+#include "bindings.glsl"
 
 void main() {
   if (invocationIndex() != 0u) return;

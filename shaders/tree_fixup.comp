@@ -1,7 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // After alloc: the blocks it took leave the free stack, then the never-used tail.
-#include "common.glsl"
+#include "bindings.glsl"
 
 void main() {
   if (invocationIndex() != 0u) return;

@@ -11,7 +11,7 @@
 // never has to look between the passes, nor between scans.
 // Also sets clear_args, over the slots this scan filled in the sets (cleared at its end), and
 // the count of early-aborted cells.
-#include "common.glsl"
+#include "bindings.glsl"
 
 void setArgs(uint items, inout DispatchArgs args) {
   uint groups = (items + kWorkgroupSize - 1u) / kWorkgroupSize;

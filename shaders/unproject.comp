@@ -6,7 +6,7 @@
 // no usable depth (d or z zero, subnormal or non-finite) becomes a NaN point, which the ray pass
 // skips, and is counted in ScanCounters::no_depth. Decided on the bits, before any arithmetic:
 // Vulkan lets an operation on NaN, inf or a subnormal give something else than IEEE's answer.
-#include "common.glsl"
+#include "bindings.glsl"
 
 layout(push_constant) uniform PushBlock { UnprojectConstants pc; };
 

@@ -12,6 +12,7 @@
 #include <optional>
 #include <sstream>
 
+#include "camera.hpp"
 #include "cli.hpp"
 #include "octovk/octovk.hpp"
 #include "png.hpp"
@@ -21,7 +22,6 @@ namespace octovk::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-using Vec3 = Eigen::Vector3d;
 
 constexpr const char* kRenderUsage =
     "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH] "
@@ -32,11 +32,6 @@ constexpr std::uint32_t kDefaultHeight = 600;
 constexpr double kDefaultFovDeg = 60.0;
 // Rays per castRays call: bounds the host and device memory of large pictures.
 constexpr std::size_t kRayBatch = std::size_t{1} << 20;
-// The default camera looks down at this angle, from the side of the box's longer horizontal axis
-// and a little from its start, so that the long side fills the picture's width.
-constexpr double kDefaultElevationDeg = 55.0;
-constexpr double kDefaultSkewDeg = 18.0;
-
 struct RenderOptions {
   std::string map_path;
   std::string output_path;
@@ -122,98 +117,6 @@ RenderOptions parseRender(const std::vector<std::string>& args) {
   if (o.eye && o.look_at && (*o.eye - *o.look_at).norm() < 1e-9)
     throw UsageError("--eye and --look-at are the same point; the camera needs a direction");
   return o;
-}
-
-// A pinhole camera; pixel (x, y) counts from the top-left corner.
-struct Camera {
-  Vec3 eye, look_at, forward, right, up;
-  double tan_half_h = 0, tan_half_v = 0;
-  std::uint32_t width = 0, height = 0;
-
-  Camera(const Vec3& eye_in, const Vec3& look_at_in, std::uint32_t w, std::uint32_t h,
-         double fov_v_deg)
-      : eye(eye_in), look_at(look_at_in), width(w), height(h) {
-    forward = (look_at - eye).normalized();
-    // Looking straight up or down, "up" in the picture is +y instead of +z.
-    const Vec3 world_up = std::abs(forward.z()) > 0.9999 ? Vec3::UnitY() : Vec3::UnitZ();
-    right = forward.cross(world_up).normalized();
-    up = right.cross(forward);
-    tan_half_v = std::tan(fov_v_deg * M_PI / 360.0);
-    tan_half_h = tan_half_v * w / h;
-  }
-
-  Vec3 direction(double px, double py) const {
-    const double sx = (2.0 * px / width - 1.0) * tan_half_h;
-    const double sy = (1.0 - 2.0 * py / height) * tan_half_v;
-    return (forward + sx * right + sy * up).normalized();
-  }
-};
-
-// An axis-aligned box of metric coordinates.
-struct Box {
-  Vec3 min = Vec3::Constant(std::numeric_limits<double>::max());
-  Vec3 max = Vec3::Constant(std::numeric_limits<double>::lowest());
-  void add(const OccupancyMap::LeafBoxHost& leaf) {
-    const Vec3 c(leaf.center[0], leaf.center[1], leaf.center[2]);
-    min = min.cwiseMin(c - Vec3::Constant(0.5 * leaf.size));
-    max = max.cwiseMax(c + Vec3::Constant(0.5 * leaf.size));
-  }
-  // The stretch [t_in, t_out] of the ray origin + t * dir inside the box; false if none ahead.
-  bool clip(const Vec3& origin, const Vec3& dir, double& t_in, double& t_out) const {
-    t_in = 0.0;
-    t_out = std::numeric_limits<double>::max();
-    for (int a = 0; a < 3; ++a) {
-      if (dir[a] == 0.0) {
-        if (origin[a] < min[a] || origin[a] > max[a]) return false;
-        continue;
-      }
-      double t0 = (min[a] - origin[a]) / dir[a];
-      double t1 = (max[a] - origin[a]) / dir[a];
-      if (t0 > t1) std::swap(t0, t1);
-      t_in = std::max(t_in, t0);
-      t_out = std::min(t_out, t1);
-    }
-    return t_in <= t_out;
-  }
-};
-
-// Where the default camera looks and stands, looking along -`view` at `cells`: the eye is just
-// far enough from the target for every cell to fit the picture, with a margin. With `centre`,
-// the target moves sideways (a few rounds, as perspective shifts what is near) until the cells
-// lie centred in the picture; without, it stays as given (--look-at).
-void frame(const std::vector<OccupancyMap::LeafBoxHost>& cells, const Vec3& view, std::uint32_t w,
-           std::uint32_t h, double fov_v_deg, bool centre, Vec3& target, Vec3& eye) {
-  const Camera probe(target + view, target, w, h, fov_v_deg);
-  const double k_h = probe.tan_half_h * 0.94, k_v = probe.tan_half_v * 0.94;
-  const auto fit = [&] {
-    double distance = 0.0;
-    for (const OccupancyMap::LeafBoxHost& c : cells) {
-      const Vec3 q = Vec3(c.center[0], c.center[1], c.center[2]) - target;
-      const double reach = 0.87 * c.size;                 // half the cell's diagonal
-      const double depth = q.dot(probe.forward) - reach;  // its nearest to the camera
-      distance = std::max(distance, (std::abs(q.dot(probe.right)) + reach) / k_h - depth);
-      distance = std::max(distance, (std::abs(q.dot(probe.up)) + reach) / k_v - depth);
-    }
-    return distance;
-  };
-  double distance = fit();
-  for (int round = 0; centre && round < 4; ++round) {
-    const Vec3 from = target + view * distance;
-    double lo[2] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
-    double hi[2] = {std::numeric_limits<double>::lowest(), std::numeric_limits<double>::lowest()};
-    for (const OccupancyMap::LeafBoxHost& c : cells) {
-      const Vec3 q = Vec3(c.center[0], c.center[1], c.center[2]) - from;
-      const double depth = std::max(q.dot(probe.forward), 1e-9);
-      const double sx = q.dot(probe.right) / depth, sy = q.dot(probe.up) / depth;
-      lo[0] = std::min(lo[0], sx);
-      hi[0] = std::max(hi[0], sx);
-      lo[1] = std::min(lo[1], sy);
-      hi[1] = std::max(hi[1], sy);
-    }
-    target += distance * (0.5 * (lo[0] + hi[0]) * probe.right + 0.5 * (lo[1] + hi[1]) * probe.up);
-    distance = fit();
-  }
-  eye = target + view * distance;
 }
 
 // What the ray of one pixel met: the depth along the ray where it entered the hit cell, the
@@ -363,13 +266,7 @@ int runRender(const std::vector<std::string>& args) {
   if (o.eye) {
     eye = *o.eye;
   } else {
-    const Vec3 extent = occupied.max - occupied.min;
-    const double elevation = kDefaultElevationDeg * M_PI / 180.0;
-    const double skew = kDefaultSkewDeg * M_PI / 180.0;
-    // From the side of the longer horizontal axis: -y of an x-long box, -x of a y-long one.
-    const Vec3 side = extent.x() >= extent.y() ? Vec3(-std::sin(skew), -std::cos(skew), 0.0)
-                                               : Vec3(-std::cos(skew), std::sin(skew), 0.0);
-    const Vec3 view = std::cos(elevation) * side + std::sin(elevation) * Vec3::UnitZ();
+    const Vec3 view = defaultView(occupied);
     frame(shown, view, o.width, o.height, o.fov_deg, !o.look_at, look_at, eye);
   }
   if ((eye - look_at).norm() < 1e-9)

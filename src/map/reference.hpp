@@ -1,4 +1,4 @@
-// Host twins of the map math in shaders/common.glsl, in OctoMap's arithmetic.
+// Host twins of the map math in shaders/keys.glsl, in OctoMap's arithmetic.
 #pragma once
 
 #include <cmath>
