@@ -38,8 +38,8 @@ echo "bundle: building $build (Release)" >&2
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=Release -DOCTOVK_BUILD_BENCH=ON >/dev/null
 cmake --build "$build" -j "$(nproc)"
 
-for tool in graph2tree log2graph bzip2 xz strip ldd objdump; do
-  command -v "$tool" >/dev/null || fail "$tool is missing (scripts/setup.sh installs octomap-tools)"
+for tool in graph2tree log2graph bzip2 xz strip ldd objdump patchelf; do
+  command -v "$tool" >/dev/null || fail "$tool is missing (scripts/setup.sh installs it)"
 done
 [ -f "$octomap_data/spherical_scan.graph" ] || fail "$octomap_data is missing (install liboctomap-dev)"
 
@@ -50,10 +50,16 @@ esac
 rm -rf "$out"
 mkdir -p "$out/bin" "$out/tests" "$out/lib/compat" "$out/data"
 
-# Programs and test executables, stripped: the device tool carries at most 64 MiB in all.
+# Programs and test executables, stripped (the device tool carries at most 64 MiB in all), with
+# the RUNPATH $ORIGIN/../lib: they load the bundle's libraries without LD_LIBRARY_PATH, as when a
+# test runs octovk with the environment cleared (cli_test's file-limit test, on lavapipe).
 copy_stripped() {  # copy_stripped SRC DST_DIR
-  cp "$1" "$2/"
-  strip --strip-unneeded "$2/$(basename "$1")"
+  local dst
+  dst="$2/$(basename "$1")"
+  cp "$1" "$dst"
+  strip --strip-unneeded "$dst"
+  # shellcheck disable=SC2016  # $ORIGIN is for the dynamic loader, not the shell
+  patchelf --set-rpath '$ORIGIN/../lib' "$dst"
 }
 copy_stripped "$build/octovk" "$out/bin"
 copy_stripped "$build/bench/octovk_bench" "$out/bin"
@@ -80,9 +86,12 @@ while read -r name path; do
   fi
   if [[ "$name" =~ $base_libs ]]; then continue; fi
   if [[ "$name" =~ $compat_libs ]]; then dest="$out/lib/compat"; else dest="$out/lib"; fi
-  # Under its soname, the file itself (not the symlink), stripped of symbols only.
+  # Under its soname, the file itself (not the symlink), stripped of symbols only; RUNPATH
+  # $ORIGIN, so that the libraries they load in turn (liboctomath, zlib) come from lib/ too.
   cp -L "$path" "$dest/$name"
   strip --strip-unneeded "$dest/$name"
+  # shellcheck disable=SC2016
+  [ "$dest" = "$out/lib/compat" ] || patchelf --set-rpath '$ORIGIN' "$dest/$name"
 done < <(for f in "$out"/bin/* "$out"/tests/*; do ldd "$f"; done |
   awk '$2 == "=>" { print $1, $3 }' | sort -u)
 [ $missing -eq 0 ] || fail "unresolved libraries"

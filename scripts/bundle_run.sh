@@ -7,7 +7,8 @@
 #   ./run.sh tests [EXE...]       every test executable (or the ones named, e.g. octovk_cli_tests)
 #   ./run.sh parity               octovk integrate against graph2tree, byte for byte, timed
 #   ./run.sh bench [RUN...]       the benchmark: quick (default), all, fr079_lazy, paper_repeat5,
-#                                 paper_repeat5_lazy (the runs of bench/run_all.sh), full (all four)
+#                                 paper_repeat5_lazy (the runs of bench/run_all.sh), full (all four),
+#                                 or one workload of all: paper, scandat, fr079, scaling, queries
 #   ./run.sh all                  info, tests, parity, bench quick
 #
 # Results go to $OUT when set (the device tool returns that folder), else to results/ beside this
@@ -21,6 +22,13 @@
 # one is used: the bundle's Vulkan loader would not look there); GTEST_FILTER narrows the tests.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
+usage() { sed -n '6,12p' "$0" | sed 's/^# \{0,1\}//'; }
+# A bad or help request touches nothing (no results/ or work/ folders made).
+case "${1:-all}" in
+  info | tests | parity | bench | all) ;;
+  -h | --help | help) usage; exit 0 ;;
+  *) usage >&2; exit 2 ;;
+esac
 out="${OUT:-$here/results}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
@@ -29,8 +37,6 @@ summary="$out/summary.txt"
 # device tool copies back: in work/ beside this script, or under /tmp where the bundle is read-only.
 work="${OCTOVK_BUNDLE_WORK:-$here/work}"
 mkdir -p "$work" 2>/dev/null && [ -w "$work" ] || work="$(mktemp -d "${TMPDIR:-/tmp}/octovk-bundle.XXXXXX")"
-
-usage() { sed -n '6,11p' "$0" | sed 's/^# \{0,1\}//'; }
 
 # --- the environment: everything from the bundle ---------------------------------------------
 
@@ -244,6 +250,8 @@ run_bench() {
           --lazy-leaf-boxes
         ;;
       full) run_bench all fr079_lazy paper_repeat5 paper_repeat5_lazy ;;
+      # One workload of `all` alone, for when `all` does not fit one 10-minute command.
+      paper | scandat | fr079 | scaling | queries) bench_run "results_$r" --workload "$r" ;;
       *) echo "run.sh: unknown bench run '$r'" >&2; usage >&2; exit 2 ;;
     esac
   done
@@ -260,8 +268,6 @@ case "$part" in
   parity) run_parity ;;
   bench) run_bench "$@" ;;
   all) run_info; run_tests; run_parity; run_bench quick ;;
-  -h | --help | help) usage; exit 0 ;;
-  *) usage >&2; exit 2 ;;
 esac
 echo "run.sh: results in $out (summary: $summary)" >&2
 exit $failed
