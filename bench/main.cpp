@@ -85,7 +85,8 @@ void printHelp(const char* data_dir) {
       "\n"
       "bench/prepare_data.sh makes the data files; bench/run_all.sh builds, prepares the data,\n"
       "runs everything and draws the plot. OCTOVK_DEVICE picks the Vulkan device (index or name\n"
-      "substring). Exit status: 0 done, 1 failure (no device, missing data), 2 usage error.\n",
+      "substring); OCTOVK_BENCH_DATA_DIR replaces the default data folder above.\n"
+      "Exit status: 0 done, 1 failure (no device, missing data), 2 usage error.\n",
       data_dir, data_dir);
 }
 
@@ -110,10 +111,18 @@ std::vector<std::string> splitCommas(const std::string& text) {
   return out;
 }
 
+// The data folder: $OCTOVK_BENCH_DATA_DIR when set (a bundle from scripts/bundle.sh, run from
+// another folder, points at its own copy), else the one the build compiled in.
+std::string dataDir() {
+  const char* env = std::getenv("OCTOVK_BENCH_DATA_DIR");
+  return env && *env ? std::string(env) : std::string(OCTOVK_BENCH_DATA_DIR);
+}
+
 Args parseArgs(int argc, char** argv) {
   Args a;
-  a.bench.scandat_path = std::string(OCTOVK_BENCH_DATA_DIR) + "/scan.dat";
-  a.bench.fr079_path = std::string(OCTOVK_BENCH_DATA_DIR) + "/fr079.graph";
+  const std::string data_dir = dataDir();
+  a.bench.scandat_path = data_dir + "/scan.dat";
+  a.bench.fr079_path = data_dir + "/fr079.graph";
   for (int i = 1; i < argc; ++i) {
     std::string name = argv[i], value;
     const bool has_inline = name.rfind("--", 0) == 0 && name.find('=') != std::string::npos;
@@ -127,7 +136,7 @@ Args parseArgs(int argc, char** argv) {
       return argv[++i];
     };
     if (name == "-h" || name == "--help") {
-      printHelp(OCTOVK_BENCH_DATA_DIR);
+      printHelp(data_dir.c_str());
       std::exit(0);
     } else if (name == "--workload") {
       for (const std::string& w : splitCommas(next())) {

@@ -14,6 +14,7 @@ packages=(
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
   gnuplot-nox                            # bench/plot_results.py draws the benchmark plot
   vulkan-validationlayers                # the tests run once under the Khronos validation layer
+  patchelf xz-utils                      # scripts/bundle.sh: the bundle's RUNPATH, its packed data
 )
 
 missing=()

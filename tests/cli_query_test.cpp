@@ -36,8 +36,8 @@ using octovk::test::runOctovk;
 using octovk::test::RunResult;
 using octovk::test::Scratch;
 
-const std::string kGeb079 = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
-const std::string kSphericalGraph = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+const std::string kGeb079 = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
+const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
 
 // The rest of the stdout line that starts with `label` ("nodes:"), trimmed; empty if none.
 std::string field(const std::string& out, const std::string& label) {
@@ -220,7 +220,7 @@ class SmallMaps {
 
  private:
   SmallMaps() {
-    dir_ = fs::path(OCTOVK_TEST_TMP) / ("cliquery.maps." + std::to_string(::getpid()));
+    dir_ = fs::path(OCTOVK_PATH(OCTOVK_TEST_TMP)) / ("cliquery.maps." + std::to_string(::getpid()));
     fs::create_directories(dir_);
     const std::string b = (dir_ / "spherical.bt").string(), o = (dir_ / "spherical.ot").string();
     const std::string f = (dir_ / "free_only.bt").string();

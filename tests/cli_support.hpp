@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "test_paths.hpp"
+
 namespace octovk::test {
 
 namespace fs = std::filesystem;
@@ -57,7 +59,7 @@ inline RunResult runShell(const std::string& command, const fs::path& dir) {
 
 /// Runs the built octovk program with `args`.
 inline RunResult runOctovk(const std::vector<std::string>& args, const fs::path& dir) {
-  std::string command = quote(OCTOVK_CLI);
+  std::string command = quote(OCTOVK_PATH(OCTOVK_CLI));
   for (const std::string& a : args) command += ' ' + quote(a);
   return runShell(command, dir);
 }
@@ -81,7 +83,7 @@ class OctovkProcess {
  public:
   OctovkProcess(const std::vector<std::string>& args, const fs::path& dir)
       : out_(dir / "stdout.txt"), err_(dir / "stderr.txt") {
-    std::vector<std::string> argv_strings = {OCTOVK_CLI};
+    std::vector<std::string> argv_strings = {OCTOVK_PATH(OCTOVK_CLI)};
     argv_strings.insert(argv_strings.end(), args.begin(), args.end());
     std::vector<char*> argv;
     for (std::string& a : argv_strings) argv.push_back(a.data());
@@ -102,7 +104,8 @@ class OctovkProcess {
     posix_spawnattr_setsigmask(&attributes, &none);
     posix_spawnattr_setsigdefault(&attributes, &defaults);
     posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
-    const int failed = posix_spawn(&pid_, OCTOVK_CLI, &files, &attributes, argv.data(), environ);
+    const int failed =
+        posix_spawn(&pid_, argv_strings[0].c_str(), &files, &attributes, argv.data(), environ);
     posix_spawn_file_actions_destroy(&files);
     posix_spawnattr_destroy(&attributes);
     if (failed != 0) pid_ = -1;
@@ -158,7 +161,7 @@ class Scratch {
     std::string name = prefix + "." + std::string(info->test_suite_name()) + "." + info->name() +
                        "." + std::to_string(::getpid());
     std::replace(name.begin(), name.end(), '/', '_');  // parameterized names hold slashes
-    dir_ = fs::path(OCTOVK_TEST_TMP) / name;
+    dir_ = fs::path(OCTOVK_PATH(OCTOVK_TEST_TMP)) / name;
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }

@@ -24,8 +24,8 @@ using test::tmpPath;
 using test::toPoint;
 using test::toPointcloud;
 
-const std::string kGeb079 = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
-const std::string kSpherical = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+const std::string kGeb079 = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
+const std::string kSpherical = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
 
 std::unique_ptr<octomap::OcTree> readOctoMapBt(const std::string& path) {
   auto tree = std::make_unique<octomap::OcTree>(0.1);
@@ -573,7 +573,7 @@ TEST(IoHostile, MessagesFromReadMapFileNameTheFile) {
 
 TEST(IoHostile, StoredInputsAreRefused) {
   // tests/data/hostile/: inputs that once broke a reader (see its README).
-  const fs::path dir = fs::path(OCTOVK_SHARED_DATA_DIR) / "hostile";
+  const fs::path dir = fs::path(OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR)) / "hostile";
   std::size_t files = 0;
   for (const auto& entry : fs::directory_iterator(dir)) {
     const std::string ext = entry.path().extension().string();

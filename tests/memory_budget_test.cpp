@@ -392,7 +392,7 @@ TEST(MemoryBudget, InfoReportsPoolAndScratch) {
   const std::string bt = test::tmpPath("budget_info.bt");
   const std::string out = test::tmpPath("budget_info.txt");
   ASSERT_TRUE(tree.writeBinary(bt));
-  ASSERT_EQ(test::shell(std::string(OCTOVK_CLI) + " info " + bt + " > " + out + " 2>&1"), 0);
+  ASSERT_EQ(test::shell(OCTOVK_PATH(OCTOVK_CLI) + " info " + bt + " > " + out + " 2>&1"), 0);
   const std::string text = test::fileBytes(out);
   const auto line_at = text.find("device memory:");
   ASSERT_NE(line_at, std::string::npos) << text;

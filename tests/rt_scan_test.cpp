@@ -348,13 +348,13 @@ TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
     ASSERT_EQ(rt.exit_code, 0) << rt.err;
     EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "walk.bt")) << "-m " << max_range;
     EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "walk.ot")) << "-m " << max_range;
-    if (std::string(OCTOVK_GRAPH2TREE).empty()) {
+    if (OCTOVK_PATH(OCTOVK_GRAPH2TREE).empty()) {
       if (test::runningInCi()) ADD_FAILURE() << "graph2tree missing under CI";
       continue;
     }
     const test::RunResult g2t =
-        test::runShell(test::quote(OCTOVK_GRAPH2TREE) + " -i " + test::quote(graph) + " -o " +
-                           test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
+        test::runShell(test::quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + test::quote(graph) +
+                           " -o " + test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
                        dir.dir());
     ASSERT_EQ(g2t.exit_code, 0) << g2t.err;
     EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "g2t.bt")) << "-m " << max_range;

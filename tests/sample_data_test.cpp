@@ -16,8 +16,8 @@ using test::makeOracle;
 using test::sameTree;
 using test::toPoint;
 
-const std::string kOctomapData = OCTOVK_OCTOMAP_DATA_DIR;
-const std::string kSharedData = OCTOVK_SHARED_DATA_DIR;
+const std::string kOctomapData = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR);
+const std::string kSharedData = OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR);
 
 /// graph2tree's preparation of one scan: the cloud moved to the world by the pose, and the origin
 /// pose.transform(pose.inv().transform(pose.trans())).
@@ -139,7 +139,7 @@ TEST(SphericalScan, ReadScanGraphMatchesOctoMap) {
 // The real graph2tree program, run on the same file, writes the same .ot as octovk.
 TEST(SphericalScan, SameOtAsGraph2treeProgram) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  const std::string graph2tree = OCTOVK_GRAPH2TREE;
+  const std::string graph2tree = OCTOVK_PATH(OCTOVK_GRAPH2TREE);
   ASSERT_FALSE(graph2tree.empty() || graph2tree.find("NOTFOUND") != std::string::npos)
       << "graph2tree (octomap-tools) not found";
   const std::string bt = test::tmpPath("spherical_graph2tree.bt");
@@ -230,7 +230,7 @@ const std::string& fr079Graph(std::string* why) {
   static std::string error;
   static std::once_flag once;
   std::call_once(once, [] {
-    const std::string log2graph = OCTOVK_LOG2GRAPH;
+    const std::string log2graph = OCTOVK_PATH(OCTOVK_LOG2GRAPH);
     if (log2graph.empty() || log2graph.find("NOTFOUND") != std::string::npos) {
       error = "log2graph (octomap-tools) not found";
       return;

@@ -14,6 +14,7 @@
 
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
+#include "test_paths.hpp"
 
 namespace octovk::test {
 
@@ -215,8 +216,8 @@ inline octomath::Pose6D toPose6D(const Pose& pose) {
 
 /// The test's scratch folder (OCTOVK_TEST_TMP), created when missing.
 inline std::string tmpDir() {
-  std::filesystem::create_directories(OCTOVK_TEST_TMP);
-  return OCTOVK_TEST_TMP;
+  std::filesystem::create_directories(OCTOVK_PATH(OCTOVK_TEST_TMP));
+  return OCTOVK_PATH(OCTOVK_TEST_TMP);
 }
 
 inline std::string tmpPath(const std::string& name) { return tmpDir() + "/" + name; }

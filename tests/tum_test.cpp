@@ -48,11 +48,11 @@ using octovk::test::writePngRows;
 
 bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK) == 0; }
 
-#define REQUIRE_GRAPH2TREE()                                                      \
-  if (!isExecutable(OCTOVK_GRAPH2TREE)) {                                         \
-    if (::octovk::test::runningInCi())                                            \
-      FAIL() << "graph2tree missing under CI: apt-get install octomap-tools";     \
-    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";          \
+#define REQUIRE_GRAPH2TREE()                                                  \
+  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                        \
+    if (::octovk::test::runningInCi())                                        \
+      FAIL() << "graph2tree missing under CI: apt-get install octomap-tools"; \
+    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";      \
   }
 
 // ---- PNG files, written with libpng's full API (big-endian samples built here, no swap) ----
@@ -440,9 +440,9 @@ TEST(TumReader, RefusesAHugeChunkWithoutAllocatingIt) {
   const std::string bytes = hugeTextChunkPng();
   ASSERT_EQ(bytes.size(), 2475u);
   // The fuzz targets' regression corpus holds the same file (tests/fuzz/make_corpus.cpp).
-  EXPECT_EQ(
-      readFile(fs::path(OCTOVK_SHARED_DATA_DIR) / "../fuzz/corpus/depth_png/text_chunk_2gib.png"),
-      bytes);
+  EXPECT_EQ(readFile(fs::path(OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR)) /
+                     "../fuzz/corpus/depth_png/text_chunk_2gib.png"),
+            bytes);
   const fs::path path = scratch.dir() / "text.png";
   std::ofstream(path, std::ios_base::binary) << bytes;
   const auto start = std::chrono::steady_clock::now();
@@ -477,7 +477,7 @@ struct MeasuredRun {
 
 MeasuredRun runMeasured(const std::vector<std::string>& args, const fs::path& dir) {
   const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  std::vector<std::string> argv_strings = {OCTOVK_CLI};
+  std::vector<std::string> argv_strings = {OCTOVK_PATH(OCTOVK_CLI)};
   argv_strings.insert(argv_strings.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (std::string& a : argv_strings) argv.push_back(a.data());
@@ -698,8 +698,8 @@ TEST_P(TumParity, IntegrateEqualsGraph2treeOnConvertedGraph) {
   ASSERT_EQ(converted.exit_code, 0) << converted.out << converted.err;
 
   const std::string ref = scratch / "graph2tree.bt";
-  std::string g2t = quote(OCTOVK_GRAPH2TREE) + " -i " + quote(graph) + " -o " + quote(ref) +
-                    " -res " + c.resolution;
+  std::string g2t = quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) + " -o " +
+                    quote(ref) + " -res " + c.resolution;
   const std::string bt = scratch / "octovk.bt", ot = scratch / "octovk.ot";
   // --quiet: no progress lines on a slow run (under the sanitizers), so stderr stays empty.
   std::vector<std::string> integrate = {"integrate", seq.dir.string(), "-o", bt, "-o", ot,
@@ -1017,7 +1017,7 @@ TEST(TumBadInput, BadCameraOptions) {
   expectRejected({"convert", dir, "-o", scratch / "s.txt"}, 2, {".graph"}, scratch);
   expectRejected({"convert", dir}, 2, {"-o"}, scratch);
   // Camera options mean nothing for a scan graph.
-  const std::string graph = std::string(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+  const std::string graph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
   expectRejected({"integrate", graph, "-o", scratch / "m.bt", "--intrinsics", "1", "1", "1", "1"},
                  2, {"--intrinsics", "TUM RGB-D folder"}, scratch);
 }
@@ -1056,8 +1056,8 @@ TEST(TumOutputs, ConvertWriteFailureNamesTheUsersPathAndLeavesNothing) {
   const std::string graph = scratch / "scans.graph";
   // No file may grow past 512 bytes (SIGXFSZ ignored, so the write fails instead): the graph of
   // the sequence is far larger, so writing it fails after the images are read.
-  const RunResult r = runShell("trap '' XFSZ; ulimit -f 1; " + quote(OCTOVK_CLI) + " convert " +
-                                   quote(seq.dir.string()) + " -o " + quote(graph),
+  const RunResult r = runShell("trap '' XFSZ; ulimit -f 1; " + quote(OCTOVK_PATH(OCTOVK_CLI)) +
+                                   " convert " + quote(seq.dir.string()) + " -o " + quote(graph),
                                scratch.dir());
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
