@@ -102,6 +102,9 @@ mkdir -p "$out/data/octomap" "$out/data/tests/fuzz/corpus"
 cp "$octomap_data"/* "$out/data/octomap/"
 cp -r "$root/tests/data" "$out/data/tests/data"
 cp -r "$root/tests/fuzz/corpus/depth_png" "$out/data/tests/fuzz/corpus/"
+# The doc a layout test checks against the code (OCTOVK_SOURCE_DIR=data: data/docs/...).
+mkdir -p "$out/data/docs"
+cp "$root/docs/architecture.md" "$out/data/docs/"
 # The whole FR-079 graph (the bench's and the parity checks' input) made here, where python3 and
 # log2graph are, so that the target needs neither; packed with xz (48 MB -> 5 MB: the device tool
 # carries 64 MiB in all). run.sh unpacks it, and scan.dat from OctoMap's scan.dat.bz2, on first use.

@@ -66,6 +66,7 @@ export OCTOVK_LOG2GRAPH="$here/bin/log2graph"
 export OCTOVK_OCTOMAP_DATA_DIR="$here/data/octomap"
 export OCTOVK_SHARED_DATA_DIR="$here/data/tests/data"
 export OCTOVK_TEST_TMP="$work/tmp"
+export OCTOVK_SOURCE_DIR="$here/data"
 export OCTOVK_BENCH_DATA_DIR="$work/bench-data"
 # bzip2 and xz of the bundle where the machine has none (sample_data_test unpacks scan.dat.bz2).
 export PATH="$PATH:$here/bin"

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "octovk/gpu_types.h"
+#include "test_paths.hpp"
 #include "test_support.hpp"
 #include "map/context_access.hpp"
 #include "vk/device.hpp"
@@ -775,7 +776,7 @@ namespace {
 // and the readback figure must be ScanCounters + PoolState, so the newcomer's map cannot drift
 // from the code (it had: ScanCounters was documented as 408 B while the code said 420).
 TEST(Layout, ArchitectureDocSizesAreTheCode) {
-  std::ifstream in(OCTOVK_SOURCE_DIR "/docs/architecture.md");
+  std::ifstream in(OCTOVK_PATH(OCTOVK_SOURCE_DIR) + "/docs/architecture.md");
   ASSERT_TRUE(in.is_open()) << "cannot read docs/architecture.md";
   const std::vector<std::pair<std::string, std::size_t>> sizes = {
       {"ScanParams", sizeof(gpu::ScanParams)},     {"ScanCounters", sizeof(gpu::ScanCounters)},

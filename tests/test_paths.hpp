@@ -18,6 +18,7 @@ inline std::string configuredPath(const char* name, const char* compiled) {
 }  // namespace octovk::test
 
 /// The path of compile definition NAME (OCTOVK_OCTOMAP_DATA_DIR, OCTOVK_SHARED_DATA_DIR,
-/// OCTOVK_GRAPH2TREE, OCTOVK_LOG2GRAPH, OCTOVK_CLI, OCTOVK_TEST_TMP), or $NAME when set, as a
+/// OCTOVK_GRAPH2TREE, OCTOVK_LOG2GRAPH, OCTOVK_CLI, OCTOVK_TEST_TMP, OCTOVK_SOURCE_DIR), or $NAME
+/// when set, as a
 /// std::string. (#NAME is the macro's name: a stringized argument is not expanded.)
 #define OCTOVK_PATH(NAME) ::octovk::test::configuredPath(#NAME, NAME)
