@@ -151,7 +151,8 @@ def edit_line(r, b, keys=None, tokens=NUMBERS, field=None):  # text: one field o
     elif what == 2:
         lines[i] += r.choice([b"\r", b" 1", b"\0", b" # x", b"\t"])
     else:
-        k = field if field is not None else r.randrange(1 if keys else 0, max(1, len(fields)))
+        k = field if field is not None else r.randrange(len(fields)) if len(fields) < 2 \
+            else r.randrange(1 if keys else 0, len(fields))
         fields[min(k, len(fields) - 1)] = r.choice(tokens).encode("utf-8", "surrogateescape")
         lines[i] = b" ".join(fields)
     return b"\n".join(lines)
@@ -190,7 +191,7 @@ def graph_fields(r, b):  # .graph: a count (scans, points, edges) or a coordinat
     if not counts:
         return overwrite(r, b)
     at = r.choice(counts)
-    old, = struct.unpack_from("<I", b + bytes(4), at)
+    old, = struct.unpack_from("<I", b + bytes(at + 4), at)
     value = r.choice(U32 + [old + 1, max(old - 1, 0)]) & 0xFFFFFFFF
     return b[:at] + struct.pack("<I", value) + b[at + 4:]
 
