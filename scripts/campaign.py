@@ -112,11 +112,11 @@ def flip_bits(r, b):
     return bytes(b)
 
 
-def overwrite(r, b, at=None):  # an interesting byte, u32 or double at a random offset
+def overwrite(r, b):  # an interesting byte, u32 (either byte order) or double, anywhere
     value = r.choice([bytes([r.choice([0, 1, 0x7F, 0x80, 0xFF])]),
                       struct.pack(r.choice("<>") + "I", r.choice(U32)),
                       struct.pack("<d", r.choice(DOUBLES))])
-    at = r.randrange(max(1, len(b))) if at is None else at
+    at = r.randrange(max(1, len(b)))
     return b[:at] + value + b[at + len(value):]
 
 
