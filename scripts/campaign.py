@@ -14,6 +14,7 @@ under `ulimit -v` and a timeout, and classifies each run:
   changed     a failed run that altered an existing output or left a new one behind
   no-output   exit 0 without every output written
   leftover    any other file left in the directory (a temporary .NAME.octovk.tmp-*)
+  escaped     a TUM folder accepted although depth.txt names an image outside it (absolute, '..')
 Every class but accepted and error fails the campaign; each such mutant is saved with a
 script that reproduces it. Deterministic from --seed: mutant I of format F is the same every time.
 Usage: scripts/campaign.py [--budget-seconds S] [--count N] [--seed N] [--formats bt,ot,graph,tum]
@@ -25,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 CORPUS = ROOT / "tests" / "fuzz" / "corpus"
 FORMATS = ["bt", "ot", "graph", "tum"]
-BAD = ["crash", "hang", "multiline", "unexpected", "changed", "no-output", "leftover",
+BAD = ["crash", "hang", "multiline", "unexpected", "changed", "no-output", "leftover", "escaped",
        "script-bug"]
 U32 = [0, 1, 2, 3, 4, 0x7F, 0x80, 0xFF, 0xFFFF, 0x10000, 0x10000000, 0x7FFFFFFF, 0x80000000,
        0xFFFFFFFF]
@@ -315,6 +316,14 @@ def execute(argv, cwd, timeout):
         return None, out, err
 
 
+def names_outside(depth_txt):  # depth.txt's data lines as octovk splits them (splitDataLines)
+    for line in depth_txt.split(b"\n"):
+        fields = [f for f in line.removesuffix(b"\r").replace(b"\t", b" ").split(b" ") if f]
+        if len(fields) == 2 and fields[0][:1] != b"#" and (
+                fields[1].startswith(b"/") or b".." in fields[1].split(b"/")):
+            yield fields[1]
+
+
 def classify(rc, err, d, inputs, outputs, before):
     if rc is None:
         return "hang", "over the timeout"
@@ -333,6 +342,9 @@ def classify(rc, err, d, inputs, outputs, before):
     elif not all((d / name).is_file() and (d / name).read_bytes() != before.get(name)
                  for name in outputs):
         return "no-output", "exit 0, an output not written"
+    depth_txt = d / "in" / "depth.txt"
+    if rc == 0 and depth_txt.is_file() and any(names_outside(depth_txt.read_bytes())):
+        return "escaped", f"accepted, depth.txt names {next(names_outside(depth_txt.read_bytes()))}"
     extra = sorted({str(p.relative_to(d)) for p in d.rglob("*")} - inputs - set(outputs))
     if extra:
         return "leftover", "left " + ", ".join(extra)

@@ -15,8 +15,8 @@
 #      libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each (scripts/fuzz.sh);
 #   7. campaign: mutated .bt, .ot, .graph files and TUM folders through the program itself under
 #      ulimit -v and a timeout, OCTOVK_CAMPAIGN_SECONDS (default 150) in all
-#      (scripts/campaign.py): fails on a crash, hang, leftover temporary, multi-line error or an
-#      existing output changed by a failed run.
+#      (scripts/campaign.py): fails on a crash, hang, leftover temporary, multi-line error, an
+#      existing output changed by a failed run, or an image outside a TUM folder accepted.
 # Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
 # Vulkan device fails the Vulkan tests (and the consumer) instead of skipping them.
 # OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize tsan fuzz campaign") picks
