@@ -12,14 +12,19 @@
 #   5. the host code under AddressSanitizer and UndefinedBehaviorSanitizer (scripts/sanitize.sh),
 #      and the threading tests under ThreadSanitizer (scripts/tsan.sh);
 #   6. the .bt / .ot / .graph readers and the TUM RGB-D lists and PNG depth-image reader under
-#      libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each (scripts/fuzz.sh).
+#      libFuzzer, OCTOVK_FUZZ_SECONDS (default 60) each (scripts/fuzz.sh);
+#   7. campaign: mutated .bt, .ot, .graph files and TUM folders through the program itself under
+#      ulimit -v and a timeout, OCTOVK_CAMPAIGN_SECONDS (default 150) in all
+#      (scripts/campaign.py): fails on a crash, hang, leftover temporary, multi-line error, an
+#      existing output changed by a failed run, or an image outside a TUM folder accepted.
 # Fails if any of them fails, or if a driver it needs is unavailable. With CI set, a missing
 # Vulkan device fails the Vulkan tests (and the consumer) instead of skipping them.
-# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize tsan fuzz") picks steps, e.g.
+# OCTOVK_TEST_STEPS (default "system consumer mesa25 validation sanitize tsan fuzz campaign") picks
+# steps, e.g.
 # "system".
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize tsan fuzz}"
+steps="${OCTOVK_TEST_STEPS:-system consumer mesa25 validation sanitize tsan fuzz campaign}"
 "$root/scripts/setup.sh"
 "$root/scripts/build.sh"
 jobs="$(nproc)"
@@ -101,6 +106,19 @@ if step fuzz; then
     echo "==== tests: fuzzing passed ===="
   else
     failed+=("fuzzing")
+  fi
+fi
+if step campaign; then
+  # The readers' parsers are fuzzed above; this is the whole program on mutated files, as a user
+  # runs it (commands, outputs, temporaries, error lines), at a budget CI's time cap can afford.
+  echo "==== tests: mutation campaign through the program ===="
+  t0=$SECONDS
+  if python3 "$root/scripts/campaign.py" --octovk "$root/build/octovk" \
+    --budget-seconds "${OCTOVK_CAMPAIGN_SECONDS:-150}"; then
+    echo "==== tests: campaign passed ($((SECONDS - t0)) s) ===="
+  else
+    echo "==== tests: campaign FAILED ($((SECONDS - t0)) s); mutants in build/campaign-failures/ ====" >&2
+    failed+=("campaign")
   fi
 fi
 
