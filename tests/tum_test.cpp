@@ -411,33 +411,9 @@ TEST(TumReader, RefusesAPngAnnouncingMorePixelsThanItsBytesHold) {
   EXPECT_EQ(read.depths, std::vector<std::uint16_t>(2000 * 1000, 0));
 }
 
-// `png` with a chunk of `type` appended whose length field says `length` (the bytes that follow
-// are `data`, and its checksum theirs).
-void appendPngChunk(std::string& png, const std::string& type, const std::string& data,
-                    std::uint32_t length) {
-  for (int i = 0; i < 4; ++i) png += static_cast<char>(length >> (24 - 8 * i));
-  const std::string body = type + data;
-  png += body;
-  const uLong crc =
-      ::crc32(0L, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()));
-  for (int i = 0; i < 4; ++i) png += static_cast<char>(crc >> (24 - 8 * i));
-}
-
-// About 2.5 kB: the signature, the header of a 4 x 3 16-bit grayscale image, then a tEXt chunk
-// whose length field says 0x7fffffff (2 GiB) and which holds the rest of the file. libpng used to
-// allocate the chunk's declared length before reading it: 2.1 GB of RSS and 7-9 s before the
-// read failed (issue 22; tests/fuzz/corpus/depth_png/text_chunk_2gib.png is this file).
-std::string hugeTextChunkPng() {
-  std::string png("\x89PNG\r\n\x1a\n", 8);
-  const std::string ihdr("\0\0\0\4\0\0\0\3\x10\0\0\0\0", 13);  // 4 x 3, 16-bit, gray, no interlace
-  appendPngChunk(png, "IHDR", ihdr, 13);
-  appendPngChunk(png, "tEXt", std::string("Comment\0", 8) + std::string(2422, 'x'), 0x7fffffff);
-  return png;
-}
-
 TEST(TumReader, RefusesAHugeChunkWithoutAllocatingIt) {
   Scratch scratch("tum");
-  const std::string bytes = hugeTextChunkPng();
+  const std::string bytes = octovk::test::hugeTextChunkPng();
   ASSERT_EQ(bytes.size(), 2475u);
   // The fuzz targets' regression corpus holds the same file (tests/fuzz/make_corpus.cpp).
   EXPECT_EQ(readFile(fs::path(OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR)) /
@@ -461,7 +437,7 @@ TEST(TumReader, RefusesAHugeChunkWithoutAllocatingIt) {
   std::string with_text = readFile(small);
   const std::size_t idat = with_text.find("IDAT") - 4;
   std::string text;
-  appendPngChunk(text, "tEXt", std::string("Comment\0hello", 13), 13);
+  octovk::test::appendPngChunk(text, "tEXt", std::string("Comment\0hello", 13), 13);
   with_text.insert(idat, text);
   EXPECT_EQ(octovk::io::decodeDepthPng(with_text, "text").depths,
             std::vector<std::uint16_t>(12, 5000));
@@ -515,7 +491,7 @@ TEST(TumCli, HugeChunkIsACheapCleanError) {
   Scratch scratch("tum");
   const Sequence seq = makeSequence(scratch.dir() / "seq");
   std::ofstream(seq.dir / seq.image_files[1], std::ios_base::binary | std::ios_base::trunc)
-      << hugeTextChunkPng();
+      << octovk::test::hugeTextChunkPng();
   const MeasuredRun m =
       runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
   EXPECT_EQ(m.result.exit_code, 1) << m.result.err;

@@ -60,28 +60,6 @@ bool writeDepthPng(const std::string& path, png_uint_32 width, png_uint_32 heigh
   return ok;
 }
 
-// `png` with a chunk appended whose length field says `length`, whatever `data` holds.
-void appendChunk(std::string& png, const std::string& type, const std::string& data,
-                 std::uint32_t length) {
-  for (int i = 0; i < 4; ++i) png += static_cast<char>(length >> (24 - 8 * i));
-  const std::string body = type + data;
-  png += body;
-  const uLong crc =
-      ::crc32(0L, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()));
-  for (int i = 0; i < 4; ++i) png += static_cast<char>(crc >> (24 - 8 * i));
-}
-
-// Issue 22's PNG (2,475 bytes): a 4 x 3 16-bit grayscale header, then a tEXt chunk whose length
-// field says 0x7fffffff. libpng allocated the declared 2 GiB before finding the file short; in the
-// corpus, -malloc_limit_mb keeps that from coming back unnoticed (tests/tum_test.cpp builds it
-// too: TumReader.RefusesAHugeChunkWithoutAllocatingIt).
-std::string hugeTextChunkPng() {
-  std::string png("\x89PNG\r\n\x1a\n", 8);
-  appendChunk(png, "IHDR", std::string("\0\0\0\4\0\0\0\3\x10\0\0\0\0", 13), 13);
-  appendChunk(png, "tEXt", std::string("Comment\0", 8) + std::string(2422, 'x'), 0x7fffffff);
-  return png;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -138,6 +116,6 @@ int main(int argc, char** argv) {
   ok &= writeDepthPng(dir + "/depth_png/gray16_adam7_5x4.png", 5, 4, PNG_INTERLACE_ADAM7);
   ok &= writeDepthPng(dir + "/depth_png/gray8_2x2.png", 2, 2, PNG_INTERLACE_NONE, 8);
   ok &= write(dir + "/depth_png/text_chunk_2gib.png",
-              [](std::ostream& s) { s << hugeTextChunkPng(); });
+              [](std::ostream& s) { s << octovk::test::hugeTextChunkPng(); });
   return ok ? 0 : 1;
 }
