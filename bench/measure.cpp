@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <iostream>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "octovk/octomap_io.hpp"
 
 namespace octovk::bench {

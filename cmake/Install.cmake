@@ -1,6 +1,6 @@
 # Install rules: headers, the two libraries, the program, a CMake package and pkg-config files.
 #   cmake --install build --prefix P
-# P/include/octovk/*                       headers (gpu_types.h is shared with the shaders)
+# P/include/octovk/*                       headers (device_types.h is shared with the shaders)
 # P/lib*/liboctovk.a, liboctovk_octomap.a  the core (SPIR-V embedded) and OctoMap's formats
 # P/bin/octovk                             the program
 # P/lib*/cmake/octovk/                     find_package(octovk): octovk::octovk, octovk::octomap

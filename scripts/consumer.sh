@@ -27,7 +27,7 @@ echo "consumer.sh: installing $build into $prefix"
 cmake --install "$build" --prefix "$prefix" >"$work/install.log" 2>&1 ||
   { cat "$work/install.log" >&2; die "cmake --install failed (is $build fully built? run scripts/build.sh)"; }
 for f in bin/octovk include/octovk/octovk.hpp include/octovk/vulkan_interop.hpp \
-  include/octovk/gpu_types.h include/octovk/octomap_io.hpp; do
+  include/octovk/device_types.h include/octovk/octomap_io.hpp; do
   [ -f "$prefix/$f" ] || die "the install lacks $f"
 done
 "$prefix/bin/octovk" --help >/dev/null || die "the installed program $prefix/bin/octovk does not run"

@@ -13,7 +13,7 @@
 #extension GL_EXT_buffer_reference : require
 #extension GL_KHR_memory_scope_semantics : require
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "exact.glsl"
 
 layout(local_size_x = 64) in;

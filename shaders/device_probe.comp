@@ -9,7 +9,7 @@
 //   kProbeModeLoop: how many iterations a loop of pc.loop_iterations iterations really gets to
 //           run (llvmpipe ends an invocation's loops early, silently), in invocation 0.
 // Uses only the two query bindings, with its own view of them.
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "exact.glsl"
 
 layout(local_size_x = 64) in;

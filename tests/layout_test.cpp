@@ -11,7 +11,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "test_paths.hpp"
 #include "test_support.hpp"
 #include "map/context_access.hpp"

@@ -10,7 +10,7 @@
 
 #include "test_support.hpp"
 #include "map/device_probe.hpp"
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "map/context_access.hpp"
 #include "vk/device.hpp"
 

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <mutex>
 
-#include "octovk/gpu_types.h"
+#include "octovk/device_types.h"
 #include "octovk/octovk.hpp"
 
 namespace octovk {

@@ -7,7 +7,7 @@
 #include <cstdint>
 
 #include "map/map_buffers.hpp"
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 
 namespace octovk::sizes {
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "vk/device.hpp"
 
 namespace octovk {

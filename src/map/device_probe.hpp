@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 
 #include "octovk/octovk.hpp"
 

@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "octovk/octovk.hpp"
 
 namespace octovk {

@@ -9,7 +9,7 @@
 #include "map/host_memory.hpp"
 #include "map/host_tree.hpp"
 #include "map/map_impl.hpp"
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 
 namespace octovk {
 

@@ -5,7 +5,7 @@
 
 #include <cstdint>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "octovk/octovk.hpp"
 #include "vk/accel.hpp"
 #include "vk/device.hpp"

@@ -10,7 +10,7 @@
 #include <utility>
 
 #include "map/map_impl.hpp"
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 
 namespace octovk {
 

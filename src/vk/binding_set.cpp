@@ -4,7 +4,7 @@
 #include <string>
 #include <utility>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "vk/check.hpp"
 #include "vk/device.hpp"
 

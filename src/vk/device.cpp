@@ -4,7 +4,7 @@
 #include <cstdlib>
 #include <utility>
 
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "vk/instance.hpp"
 #include "vk/shader_registry.hpp"
 

@@ -4,7 +4,7 @@
 // library is loaded.
 #include <link.h>
 
-#include <octovk/gpu_types.h>
+#include <octovk/device_types.h>
 #include <octovk/octovk.hpp>
 #include <octovk/vulkan_interop.hpp>
 

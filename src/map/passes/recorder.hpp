@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "map/map_buffers.hpp"
-#include "octovk/gpu_types.h"
+#include "gpu/gpu_types.h"
 #include "shader_ids.hpp"
 #include "vk/device.hpp"
 

@@ -1,8 +1,13 @@
-// Structs and constants shared by the C++ host code and the GLSL compute shaders.
-// Included verbatim by both: every layout that crosses the host/device line is defined here once.
+// Structs and constants shared by the C++ host code and the GLSL compute shaders (internal: not
+// installed). Included verbatim by both: every layout that crosses the host/device line is defined
+// here once, or in the public octovk/device_types.h for the ones interop callers fill and read.
 // Layout tests (tests/layout_test.cpp) check that both sides agree on sizes and offsets.
 #ifndef OCTOVK_GPU_TYPES_H
 #define OCTOVK_GPU_TYPES_H
+
+// The layouts a caller of the interop API needs (queries and their results) are public, in
+// octovk/device_types.h, included here; everything else stays internal to the library.
+#include "octovk/device_types.h"
 
 #ifdef __cplusplus
 #include <cstdint>
@@ -176,44 +181,6 @@ struct ScanCounters {
   DispatchArgs active_args;  // 12B (396) groups over the active cells (descend); set by tree_gate
   DispatchArgs clear_args;   // 12B (408) groups over max(brick_entries, new_blocks): the slots
                              //           clear_sets empties at the scan's end; set by tree_gate
-};
-
-// Cell states of a point lookup.
-OCTOVK_CONST uint kCellUnknown = 0u;
-OCTOVK_CONST uint kCellFree = 1u;
-OCTOVK_CONST uint kCellOccupied = 2u;
-
-// Result of one point lookup (OctoMap's search). 16 B.
-struct LookupResult {
-  uint state;      // 4B (0)  kCellUnknown / kCellFree / kCellOccupied
-  float log_odds;  // 4B (4)  of the node found (0 when unknown)
-  uint depth;      // 4B (8)  depth of the node found (0 when unknown)
-  uint pad0;       // 4B (12)
-};
-
-// One castRay query. 40 B.
-struct RayQuery {
-  double max_range;     // 8B (0)  <= 0: unlimited (OctoMap's maxRange)
-  float origin_x;       // 4B (8)
-  float origin_y;       // 4B (12)
-  float origin_z;       // 4B (16)
-  float direction_x;    // 4B (20)
-  float direction_y;    // 4B (24)
-  float direction_z;    // 4B (28)
-  uint ignore_unknown;  // 4B (32)
-  uint pad0;            // 4B (36)
-};
-
-// RayResult::hit of a castRay whose walk did not finish within the continuations the host
-// recorded (a driver that limits loops, and a pathological ray): never left as stale memory.
-OCTOVK_CONST uint kRayUnfinished = 0xFFFFFFFFu;
-
-// Result of one castRay. 16 B.
-struct RayResult {
-  uint hit;     // 4B (0)  1: an occupied cell was hit (castRay returned true)
-  float end_x;  // 4B (4)  OctoMap's `end`: centre of the last cell visited
-  float end_y;  // 4B (8)
-  float end_z;  // 4B (12)
 };
 
 // A ray walk of the ray-key pass, saved between segments. 48 B.

@@ -1,0 +1,60 @@
+// The device layouts of the interop API (octovk/vulkan_interop.hpp): what a caller writes into
+// its query buffers and reads back. Shared verbatim by C++ and octovk's GLSL shaders, like the
+// library's internal layouts (src/gpu/gpu_types.h, which includes this file); the layout tests
+// check both sides agree.
+#ifndef OCTOVK_DEVICE_TYPES_H
+#define OCTOVK_DEVICE_TYPES_H
+
+#ifdef __cplusplus
+#include <cstdint>
+namespace octovk::gpu {
+using uint = std::uint32_t;
+#define OCTOVK_DEVICE_CONST static constexpr
+#else
+#define OCTOVK_DEVICE_CONST const
+#endif
+
+// Cell states of a point lookup.
+OCTOVK_DEVICE_CONST uint kCellUnknown = 0u;
+OCTOVK_DEVICE_CONST uint kCellFree = 1u;
+OCTOVK_DEVICE_CONST uint kCellOccupied = 2u;
+
+// Result of one point lookup (OctoMap's search). 16 B.
+struct LookupResult {
+  uint state;      // 4B (0)  kCellUnknown / kCellFree / kCellOccupied
+  float log_odds;  // 4B (4)  of the node found (0 when unknown)
+  uint depth;      // 4B (8)  depth of the node found (0 when unknown)
+  uint pad0;       // 4B (12)
+};
+
+// One castRay query. 40 B.
+struct RayQuery {
+  double max_range;     // 8B (0)  <= 0: unlimited (OctoMap's maxRange)
+  float origin_x;       // 4B (8)
+  float origin_y;       // 4B (12)
+  float origin_z;       // 4B (16)
+  float direction_x;    // 4B (20)
+  float direction_y;    // 4B (24)
+  float direction_z;    // 4B (28)
+  uint ignore_unknown;  // 4B (32)
+  uint pad0;            // 4B (36)
+};
+
+// RayResult::hit of a castRay whose walk did not finish within the continuations the host
+// recorded (a driver that limits loops, and a pathological ray): never left as stale memory.
+OCTOVK_DEVICE_CONST uint kRayUnfinished = 0xFFFFFFFFu;
+
+// Result of one castRay. 16 B.
+struct RayResult {
+  uint hit;     // 4B (0)  1: an occupied cell was hit (castRay returned true)
+  float end_x;  // 4B (4)  OctoMap's `end`: centre of the last cell visited
+  float end_y;  // 4B (8)
+  float end_z;  // 4B (12)
+};
+
+#ifdef __cplusplus
+}  // namespace octovk::gpu
+#endif
+#undef OCTOVK_DEVICE_CONST
+
+#endif  // OCTOVK_DEVICE_TYPES_H
