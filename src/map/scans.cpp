@@ -513,10 +513,7 @@ ScanStats OccupancyMap::Impl::insert(const ScanSource& source, const Eigen::Vect
   const std::size_t ahead_active = ahead_active_;
   try {
     growAhead();
-  } catch (const Error&) {
-    ahead_blocks_ = std::max(ahead_blocks_, ahead_blocks);
-    ahead_active_ = std::max(ahead_active_, ahead_active);
-  } catch (const std::bad_alloc&) {
+  } catch (const std::exception&) {  // octovk::Error or std::bad_alloc: asked for again
     ahead_blocks_ = std::max(ahead_blocks_, ahead_blocks);
     ahead_active_ = std::max(ahead_active_, ahead_active);
   }
