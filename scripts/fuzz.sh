@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Fuzzes octovk's file readers with clang's libFuzzer: builds
-# octovk_fuzz_{bt,ot,graph,tum_lists,depth_png} (tests/fuzz/, -fsanitize=fuzzer,address,undefined)
+# octovk_fuzz_{bt,ot,message,graph,tum_lists,depth_png} (tests/fuzz/, -fsanitize=fuzzer,address,undefined)
 # into build-fuzz/ with clang, then runs each for OCTOVK_FUZZ_SECONDS (default 60) from the seed
 # corpus tests/fuzz/corpus/FORMAT/ with -malloc_limit_mb=256 (the most one allocation may take:
 # inputs are at most 16 kB, and a reader's memory must be bounded by its input), -rss_limit_mb=1024
@@ -11,13 +11,13 @@
 # tum_lists and depth_png). Inputs the fuzzer found interesting go to build-fuzz/corpus/FORMAT/,
 # never into the repository. Prints how many inputs each target ran.
 # Installs clang and its libFuzzer runtime (Debian: clang, libclang-rt-N-dev) when missing.
-# Usage: scripts/fuzz.sh [FORMAT...]   (default: bt ot graph tum_lists depth_png)
+# Usage: scripts/fuzz.sh [FORMAT...]   (default: bt ot message graph tum_lists depth_png)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 build="$root/build-fuzz"
 seconds="${OCTOVK_FUZZ_SECONDS:-60}"
 formats=("$@")
-[ ${#formats[@]} -gt 0 ] || formats=(bt ot graph tum_lists depth_png)
+[ ${#formats[@]} -gt 0 ] || formats=(bt ot message graph tum_lists depth_png)
 
 install() {
   local sudo=""

@@ -5,6 +5,7 @@
 #include <octomap/OcTree.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -33,6 +34,40 @@ void writeMapFile(const OccupancyMap& map, const std::string& path);
 /// tree does not fit under it is a kOutOfDeviceMemory error naming the cap.
 OccupancyMap readMapFile(Context& context, const std::string& path,
                          std::size_t max_device_bytes = 0);
+
+/// The body of an octomap_msgs/Octomap message (everything but its ROS header), as OctoMap's
+/// octomap_msgs conversions fill it: `id` the tree type ("OcTree"), `resolution` in metres,
+/// `binary` and `data`, the bytes of OctoMap's writeBinaryData() (binary: one occupied or free
+/// state per leaf, the tree not pruned or converted first) or writeData() (full: every node's
+/// float log-odds). Nothing of a file's text header is in `data`.
+struct MapMessage {
+  std::string id = "OcTree";
+  double resolution = 0.0;
+  bool binary = true;
+  std::vector<std::int8_t> data;  ///< int8, as octomap_msgs declares it: `msg.data = m.data`
+};
+
+/// The map as a binary message body: byte-identical to octomap_msgs::binaryMapToMsg on the same
+/// tree (OctoMap's writeBinaryData). Downloads the map; no file is written.
+MapMessage binaryMapToMessage(const OccupancyMap& map);
+
+/// The map as a full message body: byte-identical to octomap_msgs::fullMapToMsg on the same tree
+/// (OctoMap's writeData, every node's log-odds). Downloads the map; no file is written.
+MapMessage fullMapToMessage(const OccupancyMap& map);
+
+/// A message body as a new map on `context` with the message's resolution (and the default
+/// sensor model). The body is checked as readMapFile checks a file (tree type OcTree, at most 16
+/// levels, every record within the bytes, finite log-odds, no byte after the last record): a
+/// damaged or hostile body is a kFormat error naming `name` and the fault. `max_device_bytes`
+/// as readMapFile.
+OccupancyMap messageToMap(Context& context, const MapMessage& message,
+                          std::size_t max_device_bytes = 0,
+                          const std::string& name = "map message");
+
+/// Replaces `map`'s contents with a message body (checked as above); the message's resolution
+/// must equal the map's (else kInvalidArgument). On any error the map is as before.
+void messageToMap(OccupancyMap& map, const MapMessage& message,
+                  const std::string& name = "map message");
 
 /// One scan of a scan graph: points in the sensor frame, and the sensor pose in the world.
 struct GraphScan {

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <sstream>
 #include <vector>
 
 #include "io/parse.hpp"
@@ -182,6 +183,64 @@ OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t 
   OccupancyMap map(context, params);
   fromOcTree(map, *tree);
   return map;
+}
+
+namespace {
+
+MapMessage messageOf(const OccupancyMap& map, bool binary) {
+  return hostMemoryGuard(binary ? "binaryMapToMessage" : "fullMapToMessage", [&] {
+    const std::unique_ptr<octomap::OcTree> tree = buildOcTree(map);
+    std::ostringstream out(std::ios_base::binary);
+    if (binary)
+      tree->writeBinaryData(out);
+    else
+      tree->writeData(out);
+    if (!out) throw Error(ErrorCode::kInternal, "OctoMap could not write the message body");
+    const std::string bytes = std::move(out).str();
+    MapMessage message;
+    message.id = tree->getTreeType();
+    message.resolution = tree->getResolution();
+    message.binary = binary;
+    message.data.resize(bytes.size());
+    if (!bytes.empty()) std::memcpy(message.data.data(), bytes.data(), bytes.size());
+    return message;
+  });
+}
+
+std::unique_ptr<octomap::OcTree> treeOf(const MapMessage& message, const std::string& name) {
+  return hostMemoryGuard("messageToMap", [&] {
+    const std::string_view body(reinterpret_cast<const char*>(message.data.data()),
+                                message.data.size());
+    return io::parseTreeBody(body, message.binary, message.id, message.resolution, name);
+  });
+}
+
+}  // namespace
+
+MapMessage binaryMapToMessage(const OccupancyMap& map) { return messageOf(map, true); }
+
+MapMessage fullMapToMessage(const OccupancyMap& map) { return messageOf(map, false); }
+
+OccupancyMap messageToMap(Context& context, const MapMessage& message,
+                          std::size_t max_device_bytes, const std::string& name) {
+  const std::unique_ptr<octomap::OcTree> tree = treeOf(message, name);
+  MapParams params;
+  params.resolution = tree->getResolution();
+  params.max_device_bytes = max_device_bytes;
+  OccupancyMap map(context, params);
+  fromOcTree(map, *tree);
+  return map;
+}
+
+void messageToMap(OccupancyMap& map, const MapMessage& message, const std::string& name) {
+  const std::unique_ptr<octomap::OcTree> tree = treeOf(message, name);
+  if (tree->getResolution() != map.params().resolution)
+    throw Error(ErrorCode::kInvalidArgument,
+                "messageToMap: '" + name + "' has resolution " +
+                    std::to_string(tree->getResolution()) + " m, the map " +
+                    std::to_string(map.params().resolution) +
+                    " m; read it into a new map (messageToMap(context, message)) instead");
+  fromOcTree(map, *tree);
 }
 
 }  // namespace octovk

@@ -37,6 +37,14 @@ TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::strin
 std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
                                                const std::string& name);
 
+/// Checks a message body (OctoMap's writeBinaryData (`binary`) or writeData output, the `data` of
+/// an octomap_msgs/Octomap) with the same record walk as parseTreeFile, without a header: `id`
+/// must be "OcTree" and `resolution` one a map can have; no node count is announced. Throws
+/// Error(kFormat) naming `name` and the fault.
+std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binary,
+                                               const std::string& id, double resolution,
+                                               const std::string& name);
+
 /// Reads an OctoMap ScanGraph binary file's bytes (see readScanGraph). Every count is checked
 /// against the bytes left before anything is allocated for it; poses must be finite (points may
 /// be NaN: the mapper skips those, as OctoMap does). Throws Error(kFormat) naming `name`.

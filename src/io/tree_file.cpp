@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <istream>
+#include <optional>
 #include <streambuf>
 #include <vector>
 
@@ -33,10 +34,19 @@ std::string shown(std::string_view text) {
   return out;
 }
 
+// Refusals of a tree's bytes: a file (.bt / .ot) or a message body (OctoMap's writeBinaryData /
+// writeData output, as octomap_msgs carries it).
 class Fault {
  public:
-  Fault(const std::string& name, bool binary) : name_(name), binary_(binary) {}
+  Fault(const std::string& name, bool binary, bool message = false)
+      : name_(name), binary_(binary), message_(message) {}
   Error operator()(const std::string& why) const {
+    if (message_)
+      return Error(ErrorCode::kFormat,
+                   "'" + name_ + "' is not a valid OctoMap " + (binary_ ? "binary" : "full") +
+                       " map message body: " + why +
+                       "; the message is corrupt or truncated, or its binary flag is wrong "
+                       "(binary bodies come from writeBinaryData, full ones from writeData)");
     return Error(ErrorCode::kFormat, "'" + name_ + "' is not a valid OctoMap " +
                                          (binary_ ? ".bt" : ".ot") + " file: " + why +
                                          "; the file is corrupt, truncated or of another kind "
@@ -46,6 +56,7 @@ class Fault {
  private:
   const std::string& name_;
   bool binary_;
+  bool message_;
 };
 
 // The whitespace-separated words of a header line (as OctoMap's `>>` splits them); at most 3,
@@ -149,21 +160,26 @@ TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::strin
   return h;
 }
 
-std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
-                                               const std::string& name) {
-  const Fault bad(name, binary);
-  const TreeHeader h = parseTreeHeader(bytes, binary, name);
-  const std::string_view data = bytes.substr(h.data_at);
-  auto tree = std::make_unique<octomap::OcTree>(h.resolution);
-  if (h.size == 0) {  // what OctoMap writes for an empty tree: no record
-    if (!data.empty())
-      throw bad("its header announces 0 nodes, but " + std::to_string(data.size()) +
-                " bytes of node data follow");
+namespace {
+
+// The node records of a tree (a file's data section, or a message body) walked without
+// recursion, then read by OctoMap. `offset`: where `data` starts in what the caller names (for
+// the messages); `announced`: the node count a file's header gives (a message has none).
+std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary,
+                                              double resolution,
+                                              std::optional<std::uint64_t> announced,
+                                              std::size_t offset, const Fault& bad) {
+  auto tree = std::make_unique<octomap::OcTree>(resolution);
+  if (data.empty()) {
+    // What OctoMap writes for an empty tree: no record (its header says size 0).
+    if (announced && *announced != 0)
+      throw bad("its header announces " + std::to_string(*announced) +
+                " nodes, but the data section is empty (truncated?)");
     return tree;
   }
-  if (data.empty())
-    throw bad("its header announces " + std::to_string(h.size) +
-              " nodes, but the data section is empty (truncated?)");
+  if (announced && *announced == 0)
+    throw bad("its header announces 0 nodes, but " + std::to_string(data.size()) +
+              " bytes of node data follow");
 
   // The walk: a stack of the nodes whose child records are still to come (at most 17).
   struct Open {
@@ -176,7 +192,7 @@ std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool bina
   std::uint64_t nodes = binary ? 1 : 0;  // .bt: records list children; the root has none
   const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(data[i]); };
   const auto where = [&](unsigned depth) {
-    return "the node record at byte " + std::to_string(h.data_at + at) + " (depth " +
+    return "the node record at byte " + std::to_string(offset + at) + " (depth " +
            std::to_string(depth) + ")";
   };
   const auto record = [&](unsigned depth) {
@@ -223,10 +239,10 @@ std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool bina
   }
   if (at != data.size())
     throw bad(std::to_string(data.size() - at) +
-              " bytes follow the tree's last node record (at byte " +
-              std::to_string(h.data_at + at) + ")");
-  if (nodes != h.size)
-    throw bad("its header announces " + std::to_string(h.size) + " nodes, the data holds " +
+              " bytes follow the tree's last node record (at byte " + std::to_string(offset + at) +
+              ")");
+  if (announced && nodes != *announced)
+    throw bad("its header announces " + std::to_string(*announced) + " nodes, the data holds " +
               std::to_string(nodes));
 
   // A whole tree OctoMap can read: now OctoMap reads it.
@@ -236,11 +252,36 @@ std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool bina
     tree->readBinaryData(in);
   else
     tree->readData(in);
-  if (in.fail() || buffer.consumed() != data.size() || tree->size() != h.size)
+  if (in.fail() || buffer.consumed() != data.size() || tree->size() != nodes)
     throw bad("OctoMap read " + std::to_string(tree->size()) + " nodes from " +
               std::to_string(buffer.consumed()) + " bytes, where the check found " +
               std::to_string(nodes) + " in " + std::to_string(data.size()));
   return tree;
+}
+
+}  // namespace
+
+std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
+                                               const std::string& name) {
+  const Fault bad(name, binary);
+  const TreeHeader h = parseTreeHeader(bytes, binary, name);
+  return readTreeData(bytes.substr(h.data_at), binary, h.resolution, h.size, h.data_at, bad);
+}
+
+std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binary,
+                                               const std::string& id, double resolution,
+                                               const std::string& name) {
+  const Fault bad(name, binary, /*message=*/true);
+  if (id != "OcTree")
+    throw bad("it holds a tree of type '" + shown(id) +
+              "', not a plain OcTree; octovk reads OcTree maps only");
+  MapParams params;
+  params.resolution = resolution;
+  if (!std::isfinite(resolution) || resolution <= 0.0)
+    throw bad("its resolution " + std::to_string(resolution) +
+              " is not a positive number of metres");
+  if (const std::string why = params.validate(); !why.empty()) throw bad("its " + why);
+  return readTreeData(body, binary, resolution, std::nullopt, 0, bad);
 }
 
 }  // namespace octovk::io

@@ -1,5 +1,5 @@
-// Writes the fuzz targets' seed corpus into DIR/{bt,ot,graph,tum_lists,depth_png}/: tiny maps and
-// graphs with OctoMap's own writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt)
+// Writes the fuzz targets' seed corpus into DIR/{bt,ot,message,graph,tum_lists,depth_png}/: tiny
+// maps, map message bodies and graphs with OctoMap's own writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt)
 // and tiny 16-bit PNGs with libpng. Usage: octovk_fuzz_corpus DIR (tests/fuzz/corpus holds its
 // output).
 #include <octomap/OcTree.h>
@@ -64,7 +64,7 @@ bool writeDepthPng(const std::string& path, png_uint_32 width, png_uint_32 heigh
 
 int main(int argc, char** argv) {
   if (argc != 2) {
-    std::cerr << "usage: octovk_fuzz_corpus DIR (writes DIR/bt, DIR/ot, DIR/graph)\n";
+    std::cerr << "usage: octovk_fuzz_corpus DIR (writes DIR/bt, DIR/ot, DIR/message, DIR/graph, ...)\n";
     return 2;
   }
   const std::string dir = argv[1];
@@ -78,6 +78,19 @@ int main(int argc, char** argv) {
   ok &= write(dir + "/bt/small.bt", [&](std::ostream& s) { small.writeBinary(s); });
   ok &= write(dir + "/bt/empty.bt", [&](std::ostream& s) { empty.writeBinary(s); });
   ok &= write(dir + "/bt/coarse.bt", [&](std::ostream& s) { coarse.writeBinary(s); });
+  // Message bodies: a flag byte (1 binary, 0 full; see fuzz_message.cpp), then the body.
+  for (const bool binary : {true, false}) {
+    const std::string kind = binary ? "binary" : "full";
+    for (const auto& [name, tree] : {std::pair<const char*, octomap::OcTree*>{"small", &small},
+                                     std::pair<const char*, octomap::OcTree*>{"coarse", &coarse}})
+      ok &= write(dir + "/message/" + kind + "_" + name + ".msg", [&](std::ostream& s) {
+        s.put(binary ? 1 : 0);
+        if (binary)
+          tree->writeBinaryData(s);
+        else
+          tree->writeData(s);
+      });
+  }
 
   // Two scans of four points (one NaN: legal, the mapper skips it) and an edge between them.
   octomap::ScanGraph graph;
