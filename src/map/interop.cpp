@@ -50,7 +50,7 @@ ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
   source.wait = wait.semaphore;
   source.wait_value = wait.value;
   return InteropAccess::impl(map).insert(source, T_world_sensor.transform(origin_sensor),
-                                         &T_world_sensor, max_range_m, discretize);
+                                         &T_world_sensor, {max_range_m, discretize});
 }
 
 ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
@@ -71,7 +71,7 @@ ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const 
   source.wait = wait.semaphore;
   source.wait_value = wait.value;
   return InteropAccess::impl(map).insert(source, T_world_camera.transform(origin_camera),
-                                         &T_world_camera, max_range_m, discretize);
+                                         &T_world_camera, {max_range_m, discretize});
 }
 
 void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,

@@ -79,21 +79,6 @@ class Device {
   /// for a whole SIMD batch), as the device probe measured it; 0 when it saw no limit.
   std::uint32_t loopLimit() const noexcept { return loop_limit_; }
   void setLoopLimit(std::uint32_t limit) noexcept { loop_limit_ = limit; }
-  /// Loop iterations a resumable walk (ray keys, castRay) takes per dispatch: 30000 per 65535 of
-  /// the measured limit (room for the loops around the walk and the batch's other lanes), or
-  /// all it needs where there is no limit.
-  std::uint32_t walkBudget() const noexcept {
-    return loop_limit_ == 0
-               ? 0x7FFFFFFFu
-               : static_cast<std::uint32_t>(std::uint64_t{loop_limit_} * 30000u / 65535u);
-  }
-  /// Continuation dispatches a resumable walk of at most `worst_iterations` needs after its
-  /// first one: enough budgets to cover it where loops are limited, none elsewhere.
-  std::uint32_t walkContinuations(std::uint64_t worst_iterations) const noexcept {
-    if (loop_limit_ == 0) return 0u;
-    const std::uint64_t budget = walkBudget();
-    return static_cast<std::uint32_t>((worst_iterations + budget - 1) / budget);
-  }
 
   /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once, by the
   /// first caller from any thread (the others wait for it).

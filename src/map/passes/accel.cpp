@@ -11,6 +11,15 @@ static_assert(sizeof(octovk::gpu::AccelBox) == sizeof(VkAabbPositionsKHR),
 
 namespace octovk::passes {
 
+namespace {
+// A traced scan's sort: 2^15 Morton buckets per list rather than castRay's 2^21. Clearing and
+// summing the buckets is a fixed cost of every scan (about 35 ms on lavapipe with 2^21, an empty
+// map's whole boxes stage); within a bucket the boxes keep the order the passes wrote them.
+constexpr std::uint32_t kScanBucketBits = 5;
+static_assert((1u << (3 * kScanBucketBits)) % gpu::kAccelChunks == 0 &&
+              kScanBucketBits <= gpu::kAccelBucketBits);
+}  // namespace
+
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header) {
   const std::size_t boxes = std::size_t{header.occupied_capacity} + header.unknown_capacity;
   return sizeof(gpu::AccelHeader) + 2 * boxes * sizeof(gpu::AccelBox) + accelSortBytes();
@@ -23,30 +32,41 @@ std::size_t accelSortBytes(std::uint32_t bucket_bits) {
   return (2 * buckets + 2 * std::size_t{gpu::kAccelChunks}) * sizeof(std::uint32_t);
 }
 
-void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
-                      const gpu::AccelHeader& header, const vk::Buffer& readback) {
+void recordBoxes(Recorder& r, const vk::Buffer& boxes, const gpu::AccelHeader& header,
+                 BoxesFor target) {
+  const bool scan = target == BoxesFor::kScan;
   gpu::AccelHeader fresh = header;
   fresh.occupied_count = fresh.unknown_count = 0;
   fresh.lo_x = fresh.lo_y = fresh.lo_z = 0xFFFFFFFFu;  // the extent, shrunk by atomics
   fresh.hi_x = fresh.hi_y = fresh.hi_z = 0;
-  fresh.bucket_bits = gpu::kAccelBucketBits;
-  r.stream.update(r.buffers.params, &sp, sizeof(sp));
+  fresh.bucket_bits = scan ? kScanBucketBits : gpu::kAccelBucketBits;
   r.stream.update(boxes, &fresh, sizeof(fresh));
   const std::size_t sort_at = accelBoxesBytes(header) - accelSortBytes();
-  r.stream.fill(boxes, 0u, sort_at, accelSortBytes());
+  r.stream.fill(boxes, 0u, sort_at, accelSortBytes(fresh.bucket_bits));
   r.stream.barrier();
   const auto pass = [&](std::uint32_t mode, std::size_t items) {
     r.dispatch<Shader::kAccelBoxes>(
         items, gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
   };
   // The boxes, unsorted; then the counting sort along the Morton curve into their places.
-  pass(gpu::kAccelBoxesOccupied, header.occupied_capacity);
-  pass(gpu::kAccelBoxesUnknown, r.buffers.poolBlocks());
+  if (scan) {
+    pass(gpu::kAccelBoxesScan, r.buffers.poolBlocks());
+  } else {
+    pass(gpu::kAccelBoxesOccupied, header.occupied_capacity);
+    pass(gpu::kAccelBoxesUnknown, r.buffers.poolBlocks());
+  }
   const std::size_t all = std::size_t{header.occupied_capacity} + header.unknown_capacity;
   pass(gpu::kAccelBoxesCount, all);
   pass(gpu::kAccelBoxesChunks, 2 * gpu::kAccelChunks);
   pass(gpu::kAccelBoxesOffsets, 2 * gpu::kAccelChunks);
   pass(gpu::kAccelBoxesScatter, all);
+  if (scan) pass(gpu::kAccelBoxesTail, all);
+}
+
+void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
+                      const gpu::AccelHeader& header, const vk::Buffer& readback) {
+  r.setParams(sp);
+  recordBoxes(r, boxes, header, BoxesFor::kCastRay);
   r.stream.copy(boxes, readback, sizeof(gpu::AccelHeader));
 }
 

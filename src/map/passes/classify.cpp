@@ -9,8 +9,7 @@ void recordClassify(Recorder& r, bool discretize, std::uint32_t points) {
   r.stamp(Stamp::kClassifyStart);
   // The second set now collects the prefixes of nodes that get a block: empty discretize's end
   // cells out of it first.
-  if (discretize)
-    r.dispatch<Shader::kClearSets>(points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
+  if (discretize) recordClearSets(r, ClearSets::kEndCells, points);
   r.dispatchIndirect<Shader::kListCells>(offsetof(gpu::ScanCounters, brick_args));
   r.dispatchIndirect<Shader::kClassify>(offsetof(gpu::ScanCounters, cell_args));
   r.dispatchIndirect<Shader::kClassifyBlocks>(offsetof(gpu::ScanCounters, active_args));

@@ -4,22 +4,27 @@
 
 namespace octovk::passes {
 
+namespace {
+// The one dispatch of leaf_boxes.comp: over every block of the pool, in `mode`.
+void dispatchLeafBoxes(Recorder& r, std::uint32_t mode) {
+  r.dispatch<Shader::kLeafBoxes>(r.buffers.poolBlocks(), gpu::LeafBoxesConstants{.mode = mode});
+}
+}  // namespace
+
 void recordLeafBoxes(Recorder& r) {
   r.stream.fill(r.buffers.pool, 0u, offsetof(gpu::PoolState, leaf_count), sizeof(std::uint32_t));
   r.stream.barrier();
-  r.dispatch<Shader::kLeafBoxes>(r.buffers.poolBlocks(),
-                                 gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesRebuild});
+  dispatchLeafBoxes(r, gpu::kLeafBoxesRebuild);
   r.stamp(Stamp::kLeafBoxesEnd);
 }
 
 void recordLeavesInBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery& box) {
   MapBuffers& b = r.buffers;
-  r.stream.update(b.params, &sp, sizeof(sp));
+  r.setParams(sp);
   r.stream.update(b.query_in, &box, sizeof(box));
   r.stream.fill(b.counters, 0u, offsetof(gpu::ScanCounters, query_results), sizeof(std::uint32_t));
   r.stream.barrier();
-  r.dispatch<Shader::kLeafBoxes>(b.poolBlocks(),
-                                 gpu::LeafBoxesConstants{.mode = gpu::kLeafBoxesInBox});
+  dispatchLeafBoxes(r, gpu::kLeafBoxesInBox);
 }
 
 }  // namespace octovk::passes

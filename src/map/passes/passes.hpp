@@ -1,6 +1,7 @@
 // The host half of each stage: one function per stage that records its shaders' dispatches
-// (shaders/<stage>.comp), in pipeline order. None submits or waits; the scan's state machine in
-// map/scans.cpp decides what runs when.
+// (shaders/<stage>.comp), in pipeline order; each shader is dispatched from exactly one of them.
+// None submits or waits; the scan pipeline (map/scan_pipeline.cpp) and the other parts of the map
+// decide what runs when.
 #pragma once
 
 #include <array>
@@ -31,25 +32,27 @@ struct RayKeysInput {
   /// the slots it filled at its end, recordClearSets).
   bool fill_sets = false;
   bool resume = false;  ///< clear PoolState::halted first: the host has handled a refused scan
-  /// Continuation dispatches of the ray walk where the device limits loops (walkRounds()).
+  /// Continuation dispatches of the ray walk where the device limits loops (walkRounds(),
+  /// map/walk_budget.hpp).
   std::uint32_t walk_rounds = 0;
   /// The rays are traced (ScanRays::kRayTracing, recordScanRaysRt) instead of walked: stop
   /// after the input stages (upload, unproject, transform, discretize).
   bool trace = false;
 };
-/// The continuation rounds a walk of at most `steps` DDA steps needs where the device limits
-/// loops: at least 1 (the last one reports a walk still unfinished), at most fullWalkRounds();
-/// 0 where loops are not limited. Counts 4 loop iterations per step (the step and the cell
-/// set's probes; a scan whose probes outrun that is run again with fullWalkRounds()).
-std::uint32_t walkRounds(const vk::Device& device, double steps);
-/// Rounds that cover any ray (3 * 65536 steps with room for the probes).
-std::uint32_t fullWalkRounds(const vk::Device& device);
 /// Uploads the parameters, fresh counters and the staged points (or depth image), then
 /// unproject, transform, discretize and the ray walk (with its continuations) into the cell set.
 void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& in);
-/// At a scan's end: empties the slots it filled in both sets (counts from its counters, so it
-/// needs no host decision and works whether or not the scan was applied).
-void recordClearSets(Recorder& r);
+/// What clear_sets empties.
+enum class ClearSets : std::uint8_t {
+  /// At a scan's end: the slots it filled in both sets (counts from its counters, so it needs no
+  /// host decision and works whether or not the scan was applied).
+  kScan,
+  /// discretize's end cells (one per point at most, `points`) out of the second set, before
+  /// classify reuses it for new-block prefixes.
+  kEndCells
+};
+/// clear_sets.comp: the one function that records it (recordClassify asks for kEndCells).
+void recordClearSets(Recorder& r, ClearSets which = ClearSets::kScan, std::uint32_t points = 0);
 
 // ---- classify.cpp: the cells against the tree ----
 
@@ -128,6 +131,14 @@ std::size_t accelBoxesBytes(const gpu::AccelHeader& header);
 std::size_t accelSortBytes();
 /// The part of them a sort on 2^(3 bucket_bits) buckets per list uses (from the same start).
 std::size_t accelSortBytes(std::uint32_t bucket_bits);
+/// Which boxes accel_boxes.comp writes: castRay's (the occupied leaves of the leaf-box buffer and
+/// the unknown regions, counted) or a traced scan's (every box a free update can change, at the
+/// lists' capacities, the tails inactive; a smaller sort).
+enum class BoxesFor : std::uint8_t { kCastRay, kScan };
+/// accel_boxes.comp, the one function that records it: resets `header`'s counts and extent at the
+/// start of `boxes`, writes the boxes after it and sorts them along a Morton curve.
+void recordBoxes(Recorder& r, const vk::Buffer& boxes, const gpu::AccelHeader& header,
+                 BoxesFor target);
 /// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
 /// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
 /// leaf-box buffer, which must be current, and the unknown regions of the pool), sorted along a

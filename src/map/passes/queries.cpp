@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "map/passes/passes.hpp"
+#include "map/walk_budget.hpp"
 
 namespace octovk::passes {
 
@@ -136,7 +137,7 @@ void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q
   const auto rays = static_cast<std::uint32_t>(q.rays.size());
   const auto points = static_cast<std::uint32_t>(q.lookups.size());
   const std::size_t in_bytes = rays * sizeof(gpu::RayQuery) + points * 3 * sizeof(float);
-  r.stream.update(b.params, &sp, sizeof(sp));
+  r.setParams(sp);
   r.stream.copy(b.query_staging_in, b.query_in, in_bytes);
   r.stream.barrier();
   if (rays && ray_scene) {
@@ -155,8 +156,8 @@ void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state) 
   // budget (30000 on llvmpipe); the longest castRay (3 * 65536 steps, each with a search of up
   // to 17 iterations) then needs 112 continuations, over ever fewer rays. Elsewhere each ray is
   // walked in one segment.
-  const std::uint32_t budget = r.device.walkBudget();
-  const std::uint32_t rounds = r.device.walkContinuations(3u * 65536u * 17u);
+  const std::uint32_t budget = walkBudget(r.device);
+  const std::uint32_t rounds = walkContinuations(r.device, 3u * 65536u * 17u);
   // The unfinished walks are listed (walk_count / walk_args, free once the scan's rays are
   // walked) and continued by indirect dispatches, which cost next to nothing once empty.
   // Both lists empty, with whole dispatch arguments: the counters may hold anything here (a map

@@ -1,9 +1,8 @@
-// Stage 1, points to cells: clear_sets.comp (at the scan's end), unproject.comp (depth images),
-// transform_points.comp, discretize.comp and ray_keys.comp (the walk of each ray into the cell
-// set).
-#include <algorithm>
-
+// Stage 1, points to cells: unproject.comp (depth images), transform_points.comp,
+// discretize.comp and ray_keys.comp (the walk of each ray into the cell set); clear_sets.comp
+// (at the scan's end, and discretize's end cells before classify reuses the second set).
 #include "map/passes/passes.hpp"
+#include "map/walk_budget.hpp"
 
 namespace octovk::passes {
 
@@ -11,7 +10,7 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
   MapBuffers& b = r.buffers;
   const gpu::ScanCounters counters = freshCounters();
   r.stamp(Stamp::kScanStart);
-  r.stream.update(b.params, &sp, sizeof(sp));
+  r.setParams(sp);
   r.stream.update(b.counters, &counters, sizeof(counters));
   if (in.unproject) {
     r.stream.update(b.depth, &in.camera, sizeof(in.camera));
@@ -39,7 +38,7 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
   // dispatches, each over the walks left unfinished (3 * 65536 steps reach any border, 24 of
   // 30000 leave room for the probes). A walk still unfinished after them is reported. Where no
   // limit was seen, every ray is walked in one go.
-  const std::uint32_t budget = r.device.walkBudget();
+  const std::uint32_t budget = walkBudget(r.device);
   if (in.discretize)
     r.dispatch<Shader::kDiscretize>(sp.point_count,
                                     gpu::DiscretizeConstants{.point_count = sp.point_count});
@@ -58,22 +57,12 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
   });
 }
 
-std::uint32_t fullWalkRounds(const vk::Device& device) {
-  return device.walkContinuations(24u * 30000u);
-}
-
-std::uint32_t walkRounds(const vk::Device& device, double steps) {
-  const std::uint32_t full = fullWalkRounds(device);
-  if (full == 0) return 0;
-  const double iterations = 4.0 * steps;
-  if (!(iterations < 24.0 * 30000.0)) return full;  // also NaN
-  return std::clamp<std::uint32_t>(device.walkContinuations(static_cast<std::uint64_t>(iterations)),
-                                   1u, full);
-}
-
-void recordClearSets(Recorder& r) {
-  r.dispatchIndirect<Shader::kClearSets>(offsetof(gpu::ScanCounters, clear_args),
-                                         gpu::ClearSetsConstants{.mode = gpu::kClearScan});
+void recordClearSets(Recorder& r, ClearSets which, std::uint32_t points) {
+  if (which == ClearSets::kEndCells)
+    r.dispatch<Shader::kClearSets>(points, gpu::ClearSetsConstants{.mode = gpu::kClearEndCells});
+  else
+    r.dispatchIndirect<Shader::kClearSets>(offsetof(gpu::ScanCounters, clear_args),
+                                           gpu::ClearSetsConstants{.mode = gpu::kClearScan});
 }
 
 }  // namespace octovk::passes

@@ -10,8 +10,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "map/map_buffers.hpp"
 #include "gpu/gpu_types.h"
+#include "map/map_buffers.hpp"
 #include "shader_ids.hpp"
 #include "vk/device.hpp"
 
@@ -85,6 +85,10 @@ class Recorder {
                           constants(from, round + 1 == rounds));
     }
   }
+
+  /// Writes the parameters every pass reads (binding kBindParams): the one place that records
+  /// into the params buffer.
+  void setParams(const gpu::ScanParams& sp) { stream.update(buffers.params, &sp, sizeof(sp)); }
 
   /// Records a device timestamp named `stamp` in the recording under way; kScanStart forgets
   /// the frame's earlier stamps.

@@ -1,11 +1,13 @@
-// castRay's ray-tracing backend on a map: which backend runs, and the lazy rebuild of the
+// The ray-scene cache: which backend castRay and the scans use, the lazy rebuild of castRay's
 // acceleration structure after the tree changed (two submissions: the boxes and their count,
-// then the build over exactly that many boxes; no box leaves the device).
+// then the build over exactly that many boxes; no box leaves the device), the scans' scene sized
+// for the pool, and both under the map's memory cap.
+#include "map/ray_scene_cache.hpp"
+
 #include <algorithm>
 #include <cstring>
 #include <string>
-
-#include "map/map_impl.hpp"
+#include <vector>
 
 namespace octovk {
 
@@ -39,38 +41,46 @@ void requireRayTracing(const vk::Device& device, const MapParams& params, const 
                     remedy + ", or max_device_bytes = 0");
 }
 
-}  // namespace
-
-CastRayBackend OccupancyMap::Impl::chooseCastRayBackend(const vk::Device& device,
-                                                        const MapParams& params) {
+CastRayBackend chooseCastRayBackend(const vk::Device& device, const MapParams& params) {
   if (params.cast_ray_backend == CastRayBackend::kWalk) return CastRayBackend::kWalk;
   if (params.cast_ray_backend == CastRayBackend::kAuto)
     return device.rayQuery() && device.loopLimit() == 0 ? CastRayBackend::kRayTracing
                                                         : CastRayBackend::kWalk;
-  requireRayTracing(device, params, "MapParams::cast_ray_backend",
-                    "CastRayBackend::kAuto or kWalk", /*refuse_cap=*/false);
+  requireRayTracing(device, params, "MapParams::cast_ray_backend", "CastRayBackend::kAuto or kWalk",
+                    /*refuse_cap=*/false);
   return CastRayBackend::kRayTracing;
 }
 
-ScanRays OccupancyMap::Impl::chooseScanRays(const vk::Device& device, const MapParams& params) {
+ScanRays chooseScanRays(const vk::Device& device, const MapParams& params) {
   if (params.scan_rays == ScanRays::kWalk) return ScanRays::kWalk;
   requireRayTracing(device, params, "MapParams::scan_rays",
                     "ScanRays::kWalk (octovk integrate --rays walk)", /*refuse_cap=*/true);
   return ScanRays::kRayTracing;
 }
 
-RayScene& OccupancyMap::Impl::scanScene() {
-  if (!scan_scene_) scan_scene_ = std::make_unique<RayScene>(device_);
+double spanMs(const std::vector<double>& ns) {
+  return ns.size() >= 2 ? (ns.back() - ns.front()) * 1e-6 : 0.0;
+}
+
+}  // namespace
+
+RaySceneCache::RaySceneCache(MapCore& core)
+    : core_(core),
+      cast_ray_backend_(chooseCastRayBackend(core.device, core.params)),
+      scan_rays_(chooseScanRays(core.device, core.params)) {}
+
+RayScene& RaySceneCache::scanScene() {
+  if (!scan_scene_) scan_scene_ = std::make_unique<RayScene>(core_.device);
   RayScene& scene = *scan_scene_;
-  const gpu::AccelHeader header = passes::scanSceneHeader(buffers_);
+  const gpu::AccelHeader header = passes::scanSceneHeader(core_.buffers);
   if (scene.boxes.valid() && header.occupied_capacity == scan_header_.occupied_capacity &&
       header.unknown_capacity == scan_header_.unknown_capacity)
-    return scene;      // the same capacities: the build reuses every structure and buffer
-  stream_.waitIdle();  // the scans in flight build and trace the scene being replaced
+    return scene;           // the same capacities: the build reuses every structure and buffer
+  core_.stream.waitIdle();  // the scans in flight build and trace the scene being replaced
   const std::size_t bytes = passes::accelBoxesBytes(header);
   if (!scene.boxes.valid() || scene.boxes.size() < bytes) {
     scene.boxes = vk::Buffer();
-    scene.boxes = vk::Buffer(device_, bytes + bytes / 4, /*host_visible=*/false,
+    scene.boxes = vk::Buffer(core_.device, bytes + bytes / 4, /*host_visible=*/false,
                              VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
   }
   scan_header_ = header;
@@ -78,32 +88,40 @@ RayScene& OccupancyMap::Impl::scanScene() {
   return scene;
 }
 
-void OccupancyMap::Impl::noteSceneBytes() {
-  buffers_.setSceneBytes((ray_scene_ ? ray_scene_->deviceBytes() : 0) +
-                         (scan_scene_ ? scan_scene_->deviceBytes() : 0));
+void RaySceneCache::noteSceneBytes() {
+  core_.buffers.setSceneBytes((ray_scene_ ? ray_scene_->deviceBytes() : 0) +
+                              (scan_scene_ ? scan_scene_->deviceBytes() : 0));
 }
 
-void OccupancyMap::Impl::releaseRaySceneUnderCap() {
-  if (buffers_.maxBytes() == 0 || !ray_scene_) return;
+void RaySceneCache::releaseUnderCap() {
+  if (core_.buffers.maxBytes() == 0 || !ray_scene_) return;
   ray_scene_.reset();
   noteSceneBytes();
 }
 
-bool OccupancyMap::Impl::rayScenefits(std::size_t bytes, const std::string& what) {
+bool RaySceneCache::castRaySceneFits(std::size_t bytes, const std::string& what) {
   const std::size_t held = ray_scene_ ? ray_scene_->deviceBytes() : 0;
-  if (buffers_.fits(held, bytes)) return true;
+  if (core_.buffers.fits(held, bytes)) return true;
   // Dropped either way: it describes an older tree, and the walk needs none of it.
   ray_scene_.reset();
   noteSceneBytes();
-  if (params_.cast_ray_backend == CastRayBackend::kRayTracing)
-    buffers_.checkBudget(0, bytes,
-                         what + " (CastRayBackend::kAuto answers with the walk instead when it "
-                                "does not fit)");
+  if (core_.params.cast_ray_backend == CastRayBackend::kRayTracing)
+    core_.buffers.checkBudget(0, bytes,
+                              what +
+                                  " (CastRayBackend::kAuto answers with the walk instead when it "
+                                  "does not fit)");
   ++cap_fallbacks_;
   return false;
 }
 
-OccupancyMap::CastRayInfo OccupancyMap::Impl::castRayInfo() const {
+void RaySceneCache::release() {
+  ray_scene_.reset();
+  scan_scene_.reset();
+  scan_header_ = {};
+  noteSceneBytes();
+}
+
+OccupancyMap::CastRayInfo RaySceneCache::castRayInfo() const {
   OccupancyMap::CastRayInfo info = ray_scene_ ? ray_scene_->info : OccupancyMap::CastRayInfo{};
   info.backend = cast_ray_backend_;
   info.cap_fallbacks = cap_fallbacks_;
@@ -111,76 +129,70 @@ OccupancyMap::CastRayInfo OccupancyMap::Impl::castRayInfo() const {
   return info;
 }
 
-namespace {
-double spanMs(const std::vector<double>& ns) {
-  return ns.size() >= 2 ? (ns.back() - ns.front()) * 1e-6 : 0.0;
-}
-}  // namespace
-
-VkDeviceAddress OccupancyMap::Impl::rayScene() {
+VkDeviceAddress RaySceneCache::castRayScene() {
   if (cast_ray_backend_ != CastRayBackend::kRayTracing) return 0;
   if (!ray_scene_) {
-    ray_scene_ = std::make_unique<RayScene>(device_);
+    ray_scene_ = std::make_unique<RayScene>(core_.device);
     noteSceneBytes();
   }
   RayScene& scene = *ray_scene_;
-  if (scene.version == tree_version_) return scene.boxes.address();
+  if (scene.version == core_.tree_version) return scene.boxes.address();
 
   // Room for every leaf slot (occupied ones) and 8 unknown children per block, twice (sorted and
   // unsorted); at least one box each, for the inactive box of an empty geometry.
   gpu::AccelHeader header{};
   header.occupied_capacity = static_cast<std::uint32_t>(
-      std::max<std::size_t>(buffers_.leaf_boxes.size() / sizeof(gpu::LeafBox), 1));
-  header.unknown_capacity =
-      static_cast<std::uint32_t>(std::max<std::size_t>(std::size_t{buffers_.poolBlocks()} * 8, 1));
+      std::max<std::size_t>(core_.buffers.leaf_boxes.size() / sizeof(gpu::LeafBox), 1));
+  header.unknown_capacity = static_cast<std::uint32_t>(
+      std::max<std::size_t>(std::size_t{core_.buffers.poolBlocks()} * 8, 1));
   const std::size_t bytes = passes::accelBoxesBytes(header);
   // Under a cap: the boxes buffer, with what the scene holds besides, must fit first (with
   // the headroom if it fits, else exactly); the structures are checked once the counts are known.
-  // A scene that does not fit is dropped (rayScenefits): kAuto answers with the walk (the same
+  // A scene that does not fit is dropped (castRaySceneFits): kAuto answers with the walk (the same
   // answers), kRayTracing throws.
   const std::string what = "castRay's acceleration structure over the map's boxes";
   if (!scene.boxes.valid() || scene.boxes.size() < bytes) {
     const std::size_t others = scene.readback.size() + scene.accel.deviceBytes();
     std::size_t alloc = bytes + bytes / 4;
-    if (!buffers_.fits(scene.deviceBytes(), others + alloc)) alloc = bytes;
-    if (!rayScenefits(others + alloc, what + " (its boxes buffer)")) return 0;
+    if (!core_.buffers.fits(scene.deviceBytes(), others + alloc)) alloc = bytes;
+    if (!castRaySceneFits(others + alloc, what + " (its boxes buffer)")) return 0;
     scene.boxes = vk::Buffer();
-    scene.boxes = vk::Buffer(device_, alloc, /*host_visible=*/false,
+    scene.boxes = vk::Buffer(core_.device, alloc, /*host_visible=*/false,
                              VK_BUFFER_USAGE_ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_BIT_KHR);
     noteSceneBytes();
   }
 
-  stream_.begin(buffers_.bindings);
-  stream_.timestamp();
-  if (leaf_boxes_dirty_) passes::recordLeafBoxes(rec_);
-  passes::recordAccelBoxes(rec_, queryParams(), scene.boxes, header, scene.readback);
-  stream_.timestamp();
-  stream_.submitAndWait();
-  leaf_boxes_dirty_ = false;
-  const double boxes_ms = spanMs(stream_.timestampsNs());
+  core_.stream.begin(core_.buffers.bindings);
+  core_.stream.timestamp();
+  if (core_.leaf_boxes == LeafBoxes::kStale) passes::recordLeafBoxes(core_.rec);
+  passes::recordAccelBoxes(core_.rec, core_.queryParams(), scene.boxes, header, scene.readback);
+  core_.stream.timestamp();
+  core_.stream.submitAndWait();
+  core_.leaf_boxes = LeafBoxes::kCurrent;
+  const double boxes_ms = spanMs(core_.stream.timestampsNs());
   std::memcpy(&header, scene.readback.mapped(), sizeof(header));
-  if (buffers_.maxBytes() != 0) {
-    const auto geometries = passes::boxGeometries(scene.boxes, header, header.occupied_count,
-                                                  header.unknown_count);
-    const std::size_t after = scene.boxes.size() + scene.readback.size() +
-                              scene.accel.bytesAfterBuild(geometries);
-    if (!rayScenefits(after, what)) return 0;
+  if (core_.buffers.maxBytes() != 0) {
+    const auto geometries =
+        passes::boxGeometries(scene.boxes, header, header.occupied_count, header.unknown_count);
+    const std::size_t after =
+        scene.boxes.size() + scene.readback.size() + scene.accel.bytesAfterBuild(geometries);
+    if (!castRaySceneFits(after, what)) return 0;
   }
 
-  stream_.begin(buffers_.bindings);
-  stream_.timestamp();
+  core_.stream.begin(core_.buffers.bindings);
+  core_.stream.timestamp();
   try {
-    passes::recordAccelBuild(rec_, scene.accel, scene.boxes, header);  // allocates first
+    passes::recordAccelBuild(core_.rec, scene.accel, scene.boxes, header);  // allocates first
   } catch (...) {
     noteSceneBytes();  // what it holds after a failed allocation
     throw;
   }
-  stream_.timestamp();
-  stream_.submitAndWait();
-  const double build_ms = spanMs(stream_.timestampsNs());
+  core_.stream.timestamp();
+  core_.stream.submitAndWait();
+  const double build_ms = spanMs(core_.stream.timestampsNs());
   noteSceneBytes();
 
-  scene.version = tree_version_;
+  scene.version = core_.tree_version;
   scene.info.builds += 1;
   scene.info.last_boxes_ms = boxes_ms;
   scene.info.last_build_ms = boxes_ms + build_ms;

@@ -1,0 +1,158 @@
+#include "map/growth_policy.hpp"
+
+#include <algorithm>
+#include <exception>
+#include <string>
+#include <utility>
+
+namespace octovk {
+
+namespace {
+
+// First guess of the cell set's size for a scan of `count` points: 4 brick slots (16 cells) per
+// point (a 320x240 depth view at 0.05 m touches 0.6-1 million cells in about a quarter as many
+// bricks), at most 2^20 brick slots; it grows (and the scan is redone) when a scan needs more,
+// and keeps its size for the next scans.
+std::uint32_t hashGuess(std::size_t count) {
+  return std::min<std::uint32_t>(nextPow2Log2(count * 4), 20);
+}
+
+}  // namespace
+
+bool GrowthPolicy::mustGrow(std::size_t count, std::size_t depth_bytes) const {
+  const MapBuffers& b = core_.buffers;
+  return count > b.pointCapacity() || depth_bytes > b.depth.size() ||
+         depth_bytes > b.uploads[0].size() || hashGuess(count) > hash_guess_tried_ ||
+         ahead_blocks_ > 0 || ahead_active_ > 0 || release_scratch_;
+}
+
+void GrowthPolicy::growFor(std::size_t count, std::size_t depth_bytes) {
+  growAhead();
+  core_.buffers.ensurePoints(count);
+  if (depth_bytes > 0) core_.buffers.ensureDepth(depth_bytes);
+  const std::uint32_t guess = hashGuess(count);
+  if (guess > hash_guess_tried_) {
+    core_.buffers.growHashToward(guess);  // as far as MapParams::max_device_bytes allows
+    hash_guess_tried_ = guess;
+  }
+}
+
+void GrowthPolicy::growAhead(const gpu::PoolState* pool, bool release) {
+  if (ahead_blocks_ > 0) {
+    const std::uint64_t blocks = std::exchange(ahead_blocks_, 0);
+    reservePool(blocks, pool ? *pool : core_.readPool(), /*ahead=*/true);
+  }
+  if (ahead_active_ > 0) {
+    const std::size_t active = std::exchange(ahead_active_, 0);
+    if (active > core_.buffers.activeCapacity()) {
+      try {
+        core_.buffers.allocateLists(std::size_t{1} << nextPow2Log2(active));
+      } catch (const BudgetError&) {
+        // ahead of need: the cap leaves no room, and the scan that needs it will say so
+      }
+    }
+  }
+  if (release && release_scratch_) {
+    release_scratch_ = false;
+    releaseScratch();
+  }
+}
+
+void GrowthPolicy::growAheadBestEffort() {
+  const std::uint64_t ahead_blocks = ahead_blocks_;
+  const std::size_t ahead_active = ahead_active_;
+  try {
+    growAhead();
+  } catch (const std::exception&) {  // octovk::Error or std::bad_alloc: asked for again
+    ahead_blocks_ = std::max(ahead_blocks_, ahead_blocks);
+    ahead_active_ = std::max(ahead_active_, ahead_active);
+  }
+}
+
+void GrowthPolicy::releaseScratch() {
+  core_.buffers.releaseScratch();
+  hash_guess_tried_ = 0;
+}
+
+void GrowthPolicy::trim() {
+  core_.buffers.releaseScratch();
+  core_.buffers.releaseQueries();
+  hash_guess_tried_ = 0;
+}
+
+void GrowthPolicy::noteApplied(const gpu::ScanCounters& counters, const gpu::PoolState& pool,
+                               std::uint64_t scans_ahead, std::size_t points) noexcept {
+  const std::uint64_t room = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
+  const std::uint64_t want = std::uint64_t{counters.new_blocks} * scans_ahead;
+  if (want > room) ahead_blocks_ = std::max(ahead_blocks_, want);
+  const std::size_t active = std::size_t{counters.active_cells} + counters.leaf_cells;
+  if (active > core_.buffers.activeCapacity() / 2)
+    ahead_active_ = std::max(ahead_active_, active * 2);
+  if (core_.buffers.noteScan(points)) release_scratch_ = true;  // released once none is in flight
+}
+
+void GrowthPolicy::growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool) {
+  MapBuffers& buffers = core_.buffers;
+  const std::uint32_t status = counters.status;
+  if (status & gpu::kStatusRayCut)
+    throw Error(ErrorCode::kMissingFeature,
+                "insertPointCloud: a ray crosses more cells than octovk walks on the device '" +
+                    core_.device.info().name +
+                    "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
+                    "or a max range");
+  // A full set stopped classify early: its other counts are partial, so only the set grows.
+  if (status & gpu::kStatusHashFull) {
+    if (buffers.hashLog2() + 2 > kMaxHashLog2)
+      throw Error(ErrorCode::kOutOfDeviceMemory,
+                  "insertPointCloud: a scan touches more than 2^25 bricks of 4x4x4 cells; the "
+                  "map is unchanged. Split the scan");
+    buffers.allocateHash(buffers.hashLog2() + 2);
+    return;
+  }
+  if (status & gpu::kStatusEndpointHashFull) {
+    if (buffers.endpointLog2() >= 30)
+      throw Error(ErrorCode::kOutOfDeviceMemory,
+                  "insertPointCloud: a scan creates more than 2^29 blocks; split the scan");
+    buffers.allocateEndpoints(buffers.endpointLog2() + 2);
+    return;
+  }
+  if (status & gpu::kStatusPoolShort) reservePool(counters.new_blocks, pool, /*ahead=*/false);
+  const std::uint32_t active = counters.active_cells + counters.leaf_cells;
+  if (status & gpu::kStatusListsShort)
+    buffers.allocateLists(std::size_t{1} << nextPow2Log2(active));
+}
+
+// Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for
+// the next scans) a refusal is not an error: the scan that needs the room will report it.
+void GrowthPolicy::reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead) {
+  MapBuffers& buffers = core_.buffers;
+  const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
+  if (blocks <= available) return;
+  const std::uint64_t needed = std::uint64_t{pool.bump} + blocks - pool.free_count + 1;
+  const std::uint64_t limit = buffers.blockLimit();
+  if (needed > limit) {
+    if (ahead) return;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "insertPointCloud: the scan needs a node pool of " + std::to_string(needed * 8) +
+                    " nodes, over the limit of " + std::to_string(limit * 8) +
+                    " (MapParams::max_nodes or 2^32); the map is unchanged");
+  }
+  const std::uint64_t target = std::min<std::uint64_t>(
+      limit, std::max<std::uint64_t>(
+                 needed, std::uint64_t{buffers.poolBlocks()} + buffers.poolBlocks() / 2));
+  try {
+    buffers.allocatePoolAtLeast(static_cast<std::uint32_t>(target),
+                                static_cast<std::uint32_t>(needed), /*copy_old=*/true);
+  } catch (const BudgetError&) {
+    if (ahead) return;
+    throw;  // names the cap
+  } catch (const Error& e) {
+    if (ahead) return;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                std::string("insertPointCloud: the device has no room to grow the node pool "
+                            "to ") +
+                    std::to_string(target * 8) + " nodes; the map is unchanged (" + e.what() + ")");
+  }
+}
+
+}  // namespace octovk

@@ -1,0 +1,58 @@
+// The growth policy: how large the map's scratch and pool grow, and when. Before a scan, what its
+// size needs (points, depth image, a first guess of the cell set); after a refused scan, what the
+// device found short; ahead of need, what the results of recent scans ask for (pool and list
+// room for more scans like them, releasing the scratch after an outsized one). It decides;
+// MapBuffers allocates (under the memory cap). Every growth runs with no scan in flight.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "map/map_core.hpp"
+
+namespace octovk {
+
+class GrowthPolicy {
+ public:
+  explicit GrowthPolicy(MapCore& core) : core_(core) {}
+
+  /// Whether a scan of `count` points (`depth_bytes` of depth image) needs anything to grow
+  /// first, or growth asked for ahead is due: then the caller waits for the scans in flight and
+  /// calls growFor.
+  bool mustGrow(std::size_t count, std::size_t depth_bytes) const;
+  /// Grows what was asked for ahead, then what the scan needs; nothing may be in flight.
+  void growFor(std::size_t count, std::size_t depth_bytes);
+  /// What the results of recent scans asked for ahead; nothing may be in flight. `pool`: the
+  /// pool's state if known (else it is read); `release`: also release the scratch if asked for
+  /// (not while refused scans wait in their staging to run again).
+  void growAhead(const gpu::PoolState* pool = nullptr, bool release = true);
+  /// growAhead after a blocking scan is in the map, best-effort: what fails (octovk::Error or
+  /// std::bad_alloc) is asked for again by the next scan, which then reports it with the map
+  /// unchanged.
+  void growAheadBestEffort();
+  /// Grows what a scan the device did not apply found short; throws (map unchanged) where it
+  /// may not grow.
+  void growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// After a scan of `points` points is in the map (its counters, the pool after it): asks for
+  /// room ahead for `scans_ahead` more scans like it. Allocates nothing, never throws.
+  void noteApplied(const gpu::ScanCounters& counters, const gpu::PoolState& pool,
+                   std::uint64_t scans_ahead, std::size_t points) noexcept;
+  /// Releases the per-scan scratch and the query buffers now (OccupancyMap::trim); the next
+  /// scan guesses the cell set afresh.
+  void trim();
+
+ private:
+  /// Releases the per-scan scratch; the next scan guesses the cell set afresh.
+  void releaseScratch();
+  /// Room in the pool for `blocks` more blocks; `ahead`: for later scans, never an error.
+  void reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead);
+
+  MapCore& core_;
+  // Growth asked for by the results of recent scans, done at the next submit (after waiting).
+  std::uint64_t ahead_blocks_ = 0;
+  std::size_t ahead_active_ = 0;
+  bool release_scratch_ = false;
+  std::uint32_t hash_guess_tried_ = 0;  // the largest first guess of the cell set tried
+};
+
+}  // namespace octovk

@@ -1,0 +1,311 @@
+#include "map/scan_pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <string>
+#include <utility>
+
+#include "gpu/gpu_types.h"
+#include "map/walk_budget.hpp"
+
+namespace octovk {
+
+namespace {
+
+double msSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
+}  // namespace
+
+// ---- one scan ---------------------------------------------------------------------------------
+
+void ScanPipeline::record(PendingScan& p) {
+  const gpu::ScanParams sp = core_.scanParams(p.origin, p.pose ? &*p.pose : nullptr,
+                                              p.options.max_range_m, p.count);  // sizes may grow
+  passes::RayKeysInput input = p.input;
+  if (p.input_at == ScanInput::kStaging)
+    input.source = core_.buffers.uploads[p.staging_frame].handle();
+  input.fill_sets = core_.buffers.setsNeedFill();  // new sets; else the last scan emptied them
+  input.resume = gate_ == Gate::kHalted;
+  input.trace = scenes_.traceScans();
+  RayScene* scene = input.trace ? &scenes_.scanScene() : nullptr;  // before recording: it may wait
+  passes::Recorder& rec = core_.rec;
+  core_.stream.begin(core_.buffers.bindings);
+  passes::recordRayKeys(rec, sp, input);
+  if (scene) {
+    passes::recordScanScene(rec, scene->accel, scene->boxes, scenes_.scanHeader());
+    scenes_.noteSceneBytes();  // the build allocated before recording
+    passes::recordScanRaysRt(rec, scene->boxes.address(), sp.point_count, input.discretize);
+  }
+  passes::recordClassify(rec, input.discretize, sp.point_count);
+  passes::recordTreeUpdate(rec);
+  passes::recordPrune(rec);
+  if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec);
+  if (p.queries) passes::recordQueries(rec, core_.queryParams(), *p.queries);
+  passes::recordClearSets(rec);
+  passes::recordReadback(rec);
+  p.serial = core_.stream.submit();
+  p.frame = core_.stream.frame();
+  p.state = ScanState::kInFlight;
+  ++p.stats.cell_set_attempts;
+  core_.buffers.setSetsNeedFill(false);
+  gate_ = Gate::kOpen;
+  core_.leaf_boxes = leaf_boxes_every_scan_ ? LeafBoxes::kCurrent : LeafBoxes::kStale;
+}
+
+std::uint64_t ScanPipeline::submit(const ScanSource& source, const Eigen::Vector3f& origin,
+                                   const Pose* pose, const ScanOptions& options) {
+  return enqueue(source, origin, pose, options, ScanCaller::kSubmit, nullptr, nullptr);
+}
+
+std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vector3f& origin,
+                                    const Pose* pose, const ScanOptions& options, ScanCaller caller,
+                                    const QueryRequest* queries, QueryResults* results) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t count = source.count();
+  checkScan(core_.device, count, origin, pose, options);
+  PendingScan p;
+  p.stats.points = count;
+  p.caller = caller;
+  if (count > 0) {
+    scenes_.releaseUnderCap();  // the scan's growth comes first; castRays builds it again
+    const std::size_t depth_bytes = depthBytesOf(source);
+    if (growth_.mustGrow(count, depth_bytes)) {
+      flush();  // buffers are replaced (and rebound) only while no scan is in flight
+      growth_.growFor(count, depth_bytes);
+    }
+    if (queries) {
+      passes::stageQueries(core_.buffers, *queries);  // after the growth: nothing in flight
+      // Sized now: collected once the scan is in the map, where nothing may fail.
+      results->rays.resize(queries->rays.size());
+      results->lookups.resize(queries->lookups.size());
+    }
+    // The frame this scan records into must have no scan of ours in flight.
+    while (pending_.size() >= core_.stream.frames()) confirmOldest();
+    p.staging_frame = core_.stream.nextFrame();
+    p.input_at = source.device == VK_NULL_HANDLE ? ScanInput::kStaging : ScanInput::kCaller;
+    p.input = stage(source, core_.buffers.uploads[p.staging_frame]);
+    p.input.transform = pose != nullptr;
+    p.input.discretize = options.discretize;
+    p.input.walk_rounds =
+        walkRounds(core_.device,
+                   worstSteps(source, origin, pose, options.max_range_m, core_.params.resolution));
+    p.origin = origin;
+    if (pose) p.pose = *pose;
+    p.options = options;
+    p.count = count;
+    p.queries = queries;
+    p.results = results;
+    // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
+    if (source.wait != VK_NULL_HANDLE)
+      core_.stream.waitBeforeNextSubmit(source.wait, source.wait_value);
+    try {
+      record(p);
+    } catch (...) {
+      core_.stream.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);  // not for some later submission
+      throw;
+    }
+  }
+  p.ticket = p.stats.ticket = next_ticket_++;  // only for a scan submitted (or empty)
+  p.stats.wall_ms = msSince(start);
+  const std::uint64_t ticket = p.ticket;
+  pending_.push_back(std::move(p));
+  // Results already there are taken without waiting (statistics early, growth ahead asked for);
+  // never this scan's own: a scan refused on the device is then always noticed after the scan
+  // submitted next, which the device refused too (halted) and which runs again with it.
+  while (pending_.size() > 1 && core_.stream.finished(pending_.front().serial)) confirmOldest();
+  return ticket;
+}
+
+// ---- results ----------------------------------------------------------------------------------
+
+bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
+                              const gpu::PoolState& pool) {
+  if (counters.status & gpu::kStatusNotApplied) {
+    p.state = ScanState::kRefused;
+    return false;
+  }
+  if (counters.status & gpu::kStatusPoolFull)
+    throw Error(ErrorCode::kInternal,
+                "internal error: the node pool ran out during a scan despite its size check; "
+                "please report this with the input");
+  ScanStats& stats = p.stats;
+  // The scan is in the map: from here on nothing may throw (statistics go without, instead).
+  std::vector<double> t;
+  try {
+    t = core_.stream.timestampsNs(p.frame);
+  } catch (const std::bad_alloc&) {
+    // no memory for the timestamps: the statistics go without device times
+  }
+  const auto span = [&](passes::Stamp from, passes::Stamp to) {
+    return core_.rec.spanMs(p.frame, t, from, to);
+  };
+  using passes::Stamp;
+  stats.device.upload_ms = span(Stamp::kScanStart, Stamp::kUploaded);
+  stats.device.ray_keys_ms = span(Stamp::kUploaded, Stamp::kClassifyStart);
+  stats.device.classify_ms = span(Stamp::kClassifyStart, Stamp::kClassifyEnd);
+  stats.device.tree_update_ms = span(Stamp::kClassifyEnd, Stamp::kTreeUpdateEnd);
+  stats.device.prune_ms = span(Stamp::kTreeUpdateEnd, Stamp::kPruneEnd);
+  stats.device.leaf_boxes_ms = span(Stamp::kPruneEnd, Stamp::kLeafBoxesEnd);
+  // With ScanRays::kRayTracing, the parts of ray_keys_ms: boxes, build, then the trace.
+  stats.device.scan_boxes_ms = span(Stamp::kBoxesStart, Stamp::kBoxesEnd);
+  stats.device.scan_build_ms = span(Stamp::kBoxesEnd, Stamp::kBuildEnd);
+  stats.device.scan_trace_ms = span(Stamp::kBuildEnd, Stamp::kClassifyStart);
+  if (p.queries) passes::collectQueries(core_.buffers, *p.queries, {}, *p.results);
+  stats.skipped_no_depth = counters.no_depth;
+  stats.skipped_nonfinite = counters.skipped_nonfinite - counters.no_depth;  // NaN points
+  stats.skipped_outside = counters.skipped_outside;
+  stats.free_cells = counters.free_cells;
+  stats.occupied_cells = counters.occupied_cells;
+  stats.aborted_cells = counters.aborted;
+  stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+  last_nodes_ = stats.nodes;
+  if (counters.active_cells + counters.leaf_cells > 0)
+    ++core_.tree_version;  // the ray scene is rebuilt before the next castRays
+  if (p.caller == ScanCaller::kInsert)
+    blocking_stats_ = stats;  // the call's result, which must not need an allocation
+  else
+    keepStats(stats);
+  // Room ahead for more scans like this one, so that they are not run twice: after a blocking
+  // call, for the next one; after a submitted scan, for as many as may be in flight when the
+  // growth is next possible (the submits behind it were recorded before its result was seen).
+  // Grown at the next submit (or at the end of the blocking call).
+  const std::uint64_t scans_ahead = p.caller == ScanCaller::kInsert ? 1 : core_.stream.frames();
+  growth_.noteApplied(counters, pool, scans_ahead, p.count);
+  return true;
+}
+
+void ScanPipeline::keepStats(const ScanStats& stats) noexcept {
+  try {
+    finished_stats_.push_back(stats);
+  } catch (const std::bad_alloc&) {
+    return;  // the scan is in the map; without host memory its statistics are dropped
+  }
+  if (finished_stats_.size() > kKeptStats) finished_stats_.pop_front();
+}
+
+void ScanPipeline::confirmOldest() {
+  PendingScan& p = pending_.front();
+  if (p.state == ScanState::kEmpty) {  // in the map once the scans before it are
+    p.stats.nodes = last_nodes_;
+    keepStats(p.stats);
+    pending_.pop_front();
+    return;
+  }
+  core_.stream.wait(p.serial);
+  gpu::ScanCounters counters{};
+  gpu::PoolState pool{};
+  passes::readBack(core_.buffers, p.frame, counters, pool);
+  if (!takeResult(p, counters, pool)) return recover(counters, pool);
+  pending_.pop_front();
+}
+
+void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
+  // Every scan behind the refused one was refused too (halted): the map is as before it.
+  core_.stream.waitIdle();
+  gate_ = Gate::kHalted;
+  try {
+    while (!pending_.empty()) {
+      PendingScan& p = pending_.front();
+      if (p.state == ScanState::kEmpty) {
+        confirmOldest();
+        continue;
+      }
+      if (p.state == ScanState::kInFlight) {
+        // Halted on the device behind the refused one, its result not read: run it again.
+        // What the scans run again so far asked for (`pool`: the last one's state, the current
+        // one); the scratch stays: it holds the inputs of the scans still to run.
+        growth_.growAhead(&pool, /*release=*/false);
+        record(p);
+        core_.stream.wait(p.serial);
+        passes::readBack(core_.buffers, p.frame, counters, pool);
+      }
+      while (!takeResult(p, counters, pool)) {
+        gate_ = Gate::kHalted;
+        // A walk outran the rounds estimated for its length (the set's probes): every round.
+        const std::uint32_t full = fullWalkRounds(core_.device);
+        if ((counters.status & gpu::kStatusRayCut) && p.input.walk_rounds < full) {
+          p.input.walk_rounds = full;
+          counters.status &= ~gpu::kStatusRayCut;
+        }
+        growth_.growForRetry(counters, pool);
+        record(p);
+        core_.stream.wait(p.serial);
+        passes::readBack(core_.buffers, p.frame, counters, pool);
+      }
+      pending_.pop_front();
+    }
+  } catch (const Error& e) {
+    // The map holds every scan before the one that failed; it and the later ones are dropped.
+    const std::uint64_t failed = pending_.empty() ? 0 : pending_.front().ticket;
+    const std::size_t dropped = pending_.size();
+    const bool alone = dropped == 1 && pending_.front().caller == ScanCaller::kInsert;
+    pending_.clear();
+    gate_ = Gate::kHalted;
+    if (alone) throw;  // the blocking call's own scan: its message says the map is unchanged
+    throw Error(e.code(),
+                std::string(e.what()) + " [scan " + std::to_string(failed) +
+                    " was not inserted, nor the " + std::to_string(dropped - 1) +
+                    " submitted after it; the map holds every scan before it]",
+                failed);
+  } catch (...) {
+    pending_.clear();
+    gate_ = Gate::kHalted;
+    throw;
+  }
+}
+
+// ---- synchronisation --------------------------------------------------------------------------
+
+void ScanPipeline::flush() {
+  while (!pending_.empty()) confirmOldest();
+}
+
+std::vector<ScanStats> ScanPipeline::takeStats() {
+  while (!pending_.empty() && core_.stream.finished(pending_.front().serial)) confirmOldest();
+  std::vector<ScanStats> out(finished_stats_.begin(), finished_stats_.end());
+  finished_stats_.clear();
+  return out;
+}
+
+bool ScanPipeline::finished(std::uint64_t ticket) {
+  while (!pending_.empty() && pending_.front().ticket <= ticket &&
+         core_.stream.finished(pending_.front().serial))
+    confirmOldest();
+  return ticket < next_ticket_ && (pending_.empty() || pending_.front().ticket > ticket);
+}
+
+// The blocking call: the same path, waited for. Its errors leave the map as before the scan.
+ScanStats ScanPipeline::insert(const ScanSource& source, const Eigen::Vector3f& origin,
+                               const Pose* pose, const ScanOptions& options,
+                               const QueryRequest* queries, QueryResults* results) {
+  const auto start = std::chrono::steady_clock::now();
+  flush();
+  if (source.count() == 0) {
+    checkScan(core_.device, 0, origin, pose, options);
+    ScanStats stats;
+    stats.ticket = next_ticket_++;
+    if (queries) *results = queries_.run(*queries);
+    const gpu::PoolState pool = core_.readPool();
+    stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+    stats.wall_ms = msSince(start);
+    return stats;
+  }
+  const std::uint64_t ticket =
+      enqueue(source, origin, pose, options, ScanCaller::kInsert, queries, results);
+  flush();
+  // The scan is in the map: from here on nothing may throw, or a caller that retries would
+  // insert it twice. Growth for the next scan is best-effort; what fails is asked for again
+  // by the next scan, which then reports it with the map unchanged.
+  growth_.growAheadBestEffort();
+  // Its statistics are the call's result, not left for takeStats().
+  ScanStats stats = blocking_stats_;
+  if (stats.ticket != ticket)
+    throw Error(ErrorCode::kInternal, "internal error: the blocking scan's statistics are missing");
+  stats.wall_ms = msSince(start);
+  return stats;
+}
+
+}  // namespace octovk

@@ -1,0 +1,127 @@
+// The scan pipeline: scans recorded and submitted back to back without waiting (each one
+// submission; the device decides whether it fits, tree_gate), their results taken in order when
+// their frame is needed again or at a synchronisation, and the rare scan the device refused run
+// again, with everything behind it, once the growth policy has grown what was short. The
+// blocking insert is a submit and a flush on the same path.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <vector>
+
+#include "map/growth_policy.hpp"
+#include "map/map_core.hpp"
+#include "map/query_runner.hpp"
+#include "map/ray_scene_cache.hpp"
+#include "map/scan_source.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+/// Where a scan is on its way into the map (a scan in the map leaves the pipeline).
+enum class ScanState : std::uint8_t {
+  kEmpty,     ///< no points: nothing recorded; in the map once the scans before it are
+  kInFlight,  ///< recorded and submitted; its result not taken yet
+  kRefused    ///< the device did not apply it: recover() grows what was short and runs it again
+};
+
+/// Whose call a scan belongs to.
+enum class ScanCaller : std::uint8_t {
+  kSubmit,  ///< submit*: its statistics are queued for takeStats()
+  kInsert   ///< the blocking call, which waits for it: its statistics are the call's result
+};
+
+/// Where a scan's input is while it may have to run again.
+enum class ScanInput : std::uint8_t {
+  kStaging,  ///< the host's points or pixels, in its frame's upload staging
+  kCaller    ///< a caller's device buffer (interop)
+};
+
+/// What the device's tree_gate does with the next scan recorded.
+enum class Gate : std::uint8_t {
+  kOpen,   ///< takes it if it fits
+  kHalted  ///< a scan was refused since the last submission: PoolState::halted may be set, and
+           ///< refuses every scan until the next recording clears it
+};
+
+class ScanPipeline {
+ public:
+  ScanPipeline(MapCore& core, GrowthPolicy& growth, RaySceneCache& scenes, QueryRunner& queries)
+      : core_(core), growth_(growth), scenes_(scenes), queries_(queries) {}
+
+  /// One scan, then the queries if any, waited for: submit() and flush(), then the growth
+  /// ahead (best-effort); the scan's errors thrown with the map as before it.
+  ScanStats insert(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
+                   const ScanOptions& options, const QueryRequest* queries = nullptr,
+                   QueryResults* results = nullptr);
+  /// Records and submits a scan without waiting for it (the host's points or pixels are copied
+  /// into the frame's staging first); returns its ticket. Waits only where a frame is still
+  /// busy or buffers must grow.
+  std::uint64_t submit(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
+                       const ScanOptions& options);
+  /// Waits for every submitted scan; a scan the device refused (and the ones behind it) run
+  /// again after the host grew what was short. Throws where a scan cannot be inserted: the
+  /// map then holds every scan before it, and it and the later ones are dropped.
+  void flush();
+  /// Statistics of the scans known to be in the map, in order, not taken before.
+  std::vector<ScanStats> takeStats();
+  /// Whether scan `ticket` is in the map (polls, does not wait).
+  bool finished(std::uint64_t ticket);
+  std::size_t inFlight() const noexcept { return pending_.size(); }
+  void setLeafBoxesEveryScan(bool every_scan) noexcept { leaf_boxes_every_scan_ = every_scan; }
+
+ private:
+  /// A scan submitted and not yet known to be in the map: what it needs to run again.
+  struct PendingScan {
+    ScanState state = ScanState::kEmpty;
+    ScanCaller caller = ScanCaller::kSubmit;
+    ScanInput input_at = ScanInput::kStaging;
+    std::uint64_t ticket = 0;
+    std::uint64_t serial = 0;         ///< its last submission
+    std::uint32_t frame = 0;          ///< that submission's frame (readback region, timestamps)
+    std::uint32_t staging_frame = 0;  ///< whose upload staging holds its input (kStaging)
+    passes::RayKeysInput input;
+    Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+    std::optional<Pose> pose;
+    ScanOptions options;
+    std::size_t count = 0;
+    const QueryRequest* queries = nullptr;  // the blocking call's
+    QueryResults* results = nullptr;
+    ScanStats stats;
+  };
+  /// submit(); `caller` kInsert: the blocking call's scan, whose `queries` (staged here) run
+  /// right after it in its submission.
+  std::uint64_t enqueue(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
+                        const ScanOptions& options, ScanCaller caller, const QueryRequest* queries,
+                        QueryResults* results);
+  /// Records and submits scan `p` (its queries, if any, after it): the one place a scan's
+  /// passes are recorded.
+  void record(PendingScan& p);
+  /// Waits for the oldest scan in flight and takes its result; a refused one is run again with
+  /// everything behind it (recover).
+  void confirmOldest();
+  /// Takes the result of the oldest scan in flight, which has completed: false (and the scan
+  /// kRefused) if the device refused it.
+  bool takeResult(PendingScan& p, const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// Queues a finished scan's statistics for takeStats() (the newest kKeptStats).
+  void keepStats(const ScanStats& stats) noexcept;
+  /// The oldest scan was refused: waits for all, grows, runs them again in order, each waited.
+  void recover(gpu::ScanCounters counters, gpu::PoolState pool);
+
+  MapCore& core_;
+  GrowthPolicy& growth_;
+  RaySceneCache& scenes_;
+  QueryRunner& queries_;
+  std::deque<PendingScan> pending_;       // submitted, in order
+  std::deque<ScanStats> finished_stats_;  // in the map, not taken yet (the newest kKeptStats)
+  ScanStats blocking_stats_;              // the last blocking call's scan (its result)
+  static constexpr std::size_t kKeptStats = 4096;
+  std::uint64_t next_ticket_ = 1;
+  std::size_t last_nodes_ = 0;  // nodes after the last scan taken
+  Gate gate_ = Gate::kOpen;
+  bool leaf_boxes_every_scan_ = false;  // a setting (setLeafBoxesEveryScan), not a state
+};
+
+}  // namespace octovk

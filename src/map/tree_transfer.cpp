@@ -1,0 +1,84 @@
+#include "map/tree_transfer.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include "gpu/gpu_types.h"
+
+namespace octovk {
+
+HostTree TreeTransfer::download() {
+  const gpu::PoolState pool = core_.readPool();
+  const std::size_t count = std::size_t{pool.bump} * 8;
+  vk::Buffer staging(core_.device, count * sizeof(gpu::Node), true);
+  core_.stream.begin(core_.buffers.bindings);
+  core_.stream.copy(core_.buffers.nodes, staging, count * sizeof(gpu::Node));
+  core_.stream.submitAndWait();
+  return hostTreeFromPool({static_cast<const gpu::Node*>(staging.mapped()), count}, pool);
+}
+
+void TreeTransfer::upload(const HostTree& tree) {
+  const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);
+  if (blocks > core_.buffers.blockLimit())
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "upload: the tree needs " + std::to_string(blocks * 8) +
+                    " pool nodes, over the limit of " +
+                    std::to_string(core_.buffers.blockLimit() * 8ull) +
+                    " (MapParams::max_nodes or 2^32); the map is unchanged");
+  const PoolImage image = poolImageFromTree(tree);
+  // The staging first: once the pool is replaced (its old nodes not copied) nothing else may
+  // fail, or the map would be neither the old tree nor the new one.
+  const std::size_t node_bytes = image.nodes.size() * sizeof(gpu::Node);
+  const std::size_t meta_bytes = image.parents.size() * sizeof(std::uint32_t);
+  const std::size_t free_bytes = image.free_blocks.size() * sizeof(std::uint32_t);
+  vk::Buffer staging(core_.device, node_bytes + meta_bytes + free_bytes, true);
+  auto* bytes = static_cast<unsigned char*>(staging.mapped());
+  std::memcpy(bytes, image.nodes.data(), node_bytes);
+  std::memcpy(bytes + node_bytes, image.parents.data(), meta_bytes);
+  if (free_bytes)
+    std::memcpy(bytes + node_bytes + meta_bytes, image.free_blocks.data(), free_bytes);
+  scenes_.releaseUnderCap();
+  const std::uint32_t capacity = std::min<std::uint32_t>(
+      core_.buffers.blockLimit(),
+      std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
+  if (capacity > core_.buffers.poolBlocks())
+    core_.buffers.allocatePoolAtLeast(capacity, std::max<std::uint32_t>(image.blocks, 2),
+                                      /*copy_old=*/false);
+  gpu::PoolState pool{};
+  pool.bump = image.blocks;
+  pool.capacity = core_.buffers.poolBlocks();
+  pool.free_count = static_cast<std::uint32_t>(image.free_blocks.size());
+  pool.root_exists = image.root_exists ? 1u : 0u;
+  pool.live_nodes = image.live_nodes;
+
+  const gpu::ScanParams sp = core_.queryParams();
+  core_.stream.begin(core_.buffers.bindings);
+  core_.rec.setParams(sp);
+  core_.stream.update(core_.buffers.pool, &pool, sizeof(pool));
+  core_.stream.copy(staging, core_.buffers.nodes, node_bytes);
+  core_.stream.copy(staging, core_.buffers.block_parents, meta_bytes, node_bytes);
+  core_.stream.copy(staging, core_.buffers.free_stack, free_bytes, node_bytes + meta_bytes);
+  core_.stream.barrier();
+  passes::recordLeafBoxes(core_.rec);
+  core_.stream.submitAndWait();
+  core_.leaf_boxes = LeafBoxes::kCurrent;
+  ++core_.tree_version;  // a new tree: the ray scene is rebuilt before the next castRays
+}
+
+std::vector<OccupancyMap::LeafBoxHost> TreeTransfer::downloadLeafBoxes() {
+  core_.refreshLeafBoxes();
+  const gpu::PoolState pool = core_.readPool();
+  std::vector<OccupancyMap::LeafBoxHost> out(pool.leaf_count);
+  if (out.empty()) return out;
+  const std::size_t bytes = out.size() * sizeof(gpu::LeafBox);
+  vk::Buffer staging(core_.device, bytes, true);
+  core_.stream.begin(core_.buffers.bindings);
+  core_.stream.copy(core_.buffers.leaf_boxes, staging, bytes);
+  core_.stream.submitAndWait();
+  static_assert(sizeof(OccupancyMap::LeafBoxHost) == sizeof(gpu::LeafBox));
+  std::memcpy(out.data(), staging.mapped(), bytes);
+  return out;
+}
+
+}  // namespace octovk
