@@ -35,8 +35,7 @@ struct IntegrateOptions {
   std::string camera_option;  ///< the first of those given, for the error on a scan graph
   std::vector<std::string> output_paths;
   MapParams params;
-  double max_range_m = -1.0;
-  bool discretize = false;
+  ScanOptions scan;  ///< --max-range, --discretize
   bool quiet = false;
 };
 
@@ -68,7 +67,7 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
     else if (opt.name == "-r" || opt.name == "--resolution")
       o.params.resolution = parseNumber(opt, "0.05");
     else if (opt.name == "-m" || opt.name == "--max-range")
-      o.max_range_m = parseNumber(opt, "10 (metres; negative: unlimited)");
+      o.scan.max_range_m = parseNumber(opt, "10 (metres; negative: unlimited)");
     else if (opt.name == "--prob-hit")
       o.params.prob_hit = parseNumber(opt, "0.7");
     else if (opt.name == "--prob-miss")
@@ -78,7 +77,7 @@ IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
     else if (opt.name == "--clamping-max")
       o.params.clamping_max = parseNumber(opt, "0.971");
     else if (opt.name == "--discretize")
-      o.discretize = true;
+      o.scan.discretize = true;
     else if (opt.name == "--rays") {
       if (opt.value == "walk")
         o.params.scan_rays = ScanRays::kWalk;
@@ -348,13 +347,13 @@ int runIntegrate(const std::vector<std::string>& args) {
         // position.
         const TumFrame& frame = tum->frames[at];
         const DepthPng png = readDepthPng(frame.image_path);
-        ticket = map.submitDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
-                                      graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
+        ticket = map.submitDepthImage(png.image(o.camera), frame.T_world_camera, o.scan,
+                                      graph2treeSensorOrigin(frame.T_world_camera));
       } else {
         const GraphScan& scan = scans[at];
         ticket =
             map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                                 scan.T_world_sensor, o.max_range_m, o.discretize);
+                                 scan.T_world_sensor, o.scan);
       }
       if (at == 0) first_ticket = ticket;
       if (at % 256 == 255) account(map.takeScanStats());
