@@ -94,7 +94,8 @@ void walkSetUp(inout RayWalk w, vec3 org, vec3 dir, bool start, bool half_step_f
 }
 
 // |w.dir| in double: the length of the walk's line per unit of ray parameter (1 up to float
-// rounding, unless OctoMap could not normalise the direction).
+// rounding, unless OctoMap could not normalise the direction). Only margins use it (castRay's
+// range bound, the traced passes' slack and limits), each with far more room than its rounding.
 double walkDirLength(RayWalk w) {
   precise double sq = double(w.dir.x) * double(w.dir.x) + double(w.dir.y) * double(w.dir.y) +
                       double(w.dir.z) * double(w.dir.z);
@@ -304,6 +305,10 @@ bool walkAdvanceAxis(inout double s, double d, uint max_steps, double limit, boo
 // cannot tell (walkAdvanceAxis). The caller makes sure that no cell the walk enters before t
 // ends it (computeRayKeys: not the end cell, not past the length; castRay: no occupied or, where
 // it matters, unknown cell, none beyond the max range, not the map's border).
+// (The traced passes had their own jump, a double multiply-add per binade stretch with a
+// correction loop. It too produced the additions' own values, so the two agree bit for bit
+// wherever both answer; this one is kept because it counts in integers and is bounded in
+// iterations, which a driver that limits loops needs.)
 bool walkJumpTo(inout RayWalk w, double t, inout int budget, int charge) {
   dvec3 t_max = w.t_max;
   uvec3 n = uvec3(0u);

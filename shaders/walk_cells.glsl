@@ -36,7 +36,10 @@ CellCache walkEmptyCache() {
   return c;
 }
 
-// kCellUnknown / kCellFree / kCellOccupied of cell k (OctoMap's search, isNodeOccupied).
+// kCellUnknown / kCellFree / kCellOccupied of cell k (OctoMap's search, isNodeOccupied). The
+// search resumed from path[depth] visits the nodes a search from the root visits below that
+// depth (the node is on both keys' paths, and no node changes while a pass walks), so it finds
+// the same node. Over an empty map (no root) the whole map is one unknown region.
 // `cost`: 0 when the cache answered, else the iterations of the search's loop and one (for walk
 // budgets, and to tell a new lookup).
 uint walkCellState(uvec3 k, inout CellCache c, out uint cost) {
@@ -154,7 +157,9 @@ const int kJumpBudget = int(6u * kSeqIterations) + 8;
 // the ray by max range (its tMax above range.test_after), taking exactly the steps the
 // cell-by-cell walk would take (walkAdvanceAxis). Does nothing where it cannot tell. Nothing
 // else can end a castRay walk inside such a region: every cell there has the region's answer,
-// and the region lies inside the map (no border).
+// and the region lies inside the map (no border). (cast_ray_rt jumped to an approximate exit
+// parameter of the node less a slack instead: also only steps the walk takes through cells of
+// the node, so the same answers; this one needs no slack and reaches the node's last cell.)
 void walkJumpAcrossRegion(inout RayWalk w, CellCache c, CastRayRange range, uint min_shift,
                           inout int budget, int charge) {
   uint shift = c.shift;
