@@ -5,7 +5,7 @@
 #ifndef OCTOVK_ACCEL_TRACE_GLSL
 #define OCTOVK_ACCEL_TRACE_GLSL
 
-#include "cast_ray_walk.glsl"
+#include "ray_walk.glsl"
 
 layout(buffer_reference, std430, buffer_reference_align = 8) buffer AccelRef {
   AccelHeader header;
@@ -21,7 +21,7 @@ double slack(double t, vec3 org, double dir_len) {
 }
 
 // Parameter interval of the ray in box b (slab test in double); false when it misses.
-bool boxInterval(AccelBox b, CastRayWalk w, out double t_in, out double t_out) {
+bool boxInterval(AccelBox b, RayWalk w, out double t_in, out double t_out) {
   t_in = -1.0e300lf;
   t_out = 1.0e300lf;
   float lo[3] = float[3](b.min_x, b.min_y, b.min_z);
@@ -46,7 +46,7 @@ bool boxInterval(AccelBox b, CastRayWalk w, out double t_in, out double t_out) {
 // steps along. The walk stays in that cell's slab there, so a box that misses it never holds a
 // cell of the walk, however near the line runs (a ray along a cell border grazes the enlarged
 // boxes of the next layer: a planar scan at z = 0 runs along the border of two layers).
-bool holdsFixedAxes(AccelBox b, CastRayWalk w) {
+bool holdsFixedAxes(AccelBox b, RayWalk w) {
   vec3 lo = vec3(b.min_x, b.min_y, b.min_z);
   vec3 hi = vec3(b.max_x, b.max_y, b.max_z);
   vec3 c = 0.5 * (lo + hi);
@@ -67,7 +67,7 @@ bool holdsFixedAxes(AccelBox b, CastRayWalk w) {
 // The nearest box (of the masks) whose interval reaches past t_from and starts before t_to: its
 // entry (at least t_from) and exit. False when there is none. `fixed_axes`: only boxes that
 // hold the walk's cell on the axes it never steps along (holdsFixedAxes).
-bool nearestBox(AccelRef scene, CastRayWalk w, uint mask, double t_from, float t_to,
+bool nearestBox(AccelRef scene, RayWalk w, uint mask, double t_from, float t_to,
                 bool fixed_axes, out double t_enter, out double t_exit) {
   rayQueryEXT rq;
   float t_min = float(max(t_from, 0.0lf));

@@ -11,48 +11,20 @@
 // measured a loop limit (Mesa 22.3's llvmpipe: 65535 iterations in total) the budget stays below
 // it; elsewhere it finishes every ray at once.
 #include "hash_set.glsl"
+#include "ray_walk.glsl"
 
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 
-// The walk of this invocation's ray.
+// The walk of this invocation's ray (ray_walk.glsl).
 int budget;
 uvec3 key_end;
 float len;
-// Vectors, not arrays: the walk picks its axis with selects, never by a dynamic index (which
-// llvmpipe lowers to per-lane memory accesses).
-ivec3 step;
-dvec3 t_max;
-dvec3 t_delta;
-uvec3 cur;
+RayWalk w;
 
 // Direction, length, steps and tDelta of the ray o -> e (and tMax when starting), as
 // computeRayKeys computes them.
 void setUp(vec3 o, vec3 e, bool start) {
-  precise float dir[3];
-  dir[0] = e.x - o.x;
-  dir[1] = e.y - o.y;
-  dir[2] = e.z - o.z;
-  len = toFloat(normOf(dir[0], dir[1], dir[2]));
-  dir[0] = divFloat(dir[0], len);
-  dir[1] = divFloat(dir[1], len);
-  dir[2] = divFloat(dir[2], len);
-  float org[3] = float[3](o.x, o.y, o.z);
-  const double kDoubleMax = 1.7976931348623157e308lf;
-  for (int i = 0; i < 3; ++i) {
-    step[i] = dir[i] > 0.0 ? 1 : (dir[i] < 0.0 ? -1 : 0);
-    if (step[i] != 0) {
-      t_delta[i] = params.resolution / double(abs(dir[i]));
-      if (start) {
-        precise double border = keyToCoord(cur[i]);
-        precise double half_step = double(step[i]) * params.resolution * 0.5lf;
-        border += roundedToFloat(half_step);
-        t_max[i] = (border - double(org[i])) / double(dir[i]);
-      }
-    } else {
-      t_delta[i] = kDoubleMax;
-      if (start) t_max[i] = kDoubleMax;
-    }
-  }
+  walkSetUp(w, o, rayKeysDirection(o, e, len), start, kHalfStepFloat);
 }
 
 // Steps until the ray is done (true) or the budget of loop iterations (the walk's and the set's
@@ -66,18 +38,8 @@ bool walk() {
     uvec3 c;
     while (budget - probes_spent > 0) {
       --budget;
-      // The axis of the smallest tMax, ties to the later axis.
-      bool x_first = t_max.x < t_max.y ? t_max.x < t_max.z : false;
-      bool y_first = t_max.x < t_max.y ? false : t_max.y < t_max.z;
-      bvec3 axis = bvec3(x_first, y_first, !x_first && !y_first);
-      cur = mix(cur, uvec3(ivec3(cur) + step) & uvec3(0xFFFFu), axis);
-      precise dvec3 advanced = t_max + t_delta;
-      t_max = mix(t_max, advanced, axis);
-      if (cur == key_end) return true;
-      double m01 = t_max.y < t_max.x ? t_max.y : t_max.x;
-      double dist = t_max.z < m01 ? t_max.z : m01;
-      if (dist > double(len)) return true;
-      c = cur;
+      if (rayKeysStep(w, key_end, len)) return true;
+      c = w.key;
       if ((c >> 2) != marked_brick) {
         entered = true;
         break;
@@ -95,7 +57,8 @@ void save(uint list, vec3 e) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
   walks[list * params.point_count + at] =
-      WalkState(t_max[0], t_max[1], t_max[2], e.x, e.y, e.z, cur.x | (cur.y << 16), cur.z, 0u);
+      WalkState(w.t_max.x, w.t_max.y, w.t_max.z, e.x, e.y, e.z, w.key.x | (w.key.y << 16), w.key.z,
+                0u);
 }
 
 // OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
@@ -112,7 +75,7 @@ bool startRay(vec3 o, vec3 e, out bool walking) {
     return false;
   if (ko == key_end) return true;
   markCell(ko, false);
-  cur = ko;
+  w.key = ko;
   walking = true;
   return true;
 }
@@ -124,13 +87,13 @@ bool resumeWalk(uint i, out vec3 e) {
   e = vec3(0.0);
   uint from = pc.from_list;
   if (i >= counters.walk_count[from]) return false;
-  WalkState w = walks[from * params.point_count + i];
-  e = vec3(w.end_x, w.end_y, w.end_z);
+  WalkState saved = walks[from * params.point_count + i];
+  e = vec3(saved.end_x, saved.end_y, saved.end_z);
   coordToKeyChecked(e.x, key_end.x);
   coordToKeyChecked(e.y, key_end.y);
   coordToKeyChecked(e.z, key_end.z);
-  t_max = dvec3(w.t_max_x, w.t_max_y, w.t_max_z);
-  cur = uvec3(w.key_xy & 0xFFFFu, w.key_xy >> 16, w.key_z);
+  w.t_max = dvec3(saved.t_max_x, saved.t_max_y, saved.t_max_z);
+  w.key = uvec3(saved.key_xy & 0xFFFFu, saved.key_xy >> 16, saved.key_z);
   return true;
 }
 

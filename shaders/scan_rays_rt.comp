@@ -7,7 +7,7 @@
 // no-op (updateNode's early abort), so those cells may be left out of the cell set exactly.
 // The boxes (accel_boxes.comp, kAccelBoxesScan) cover every other cell of the map: leaves above
 // clamp_min_log and unknown regions, each enlarged by a quarter cell. Per ray a ray query finds
-// the nearest box; the walk jumps exactly (castRayJumpTo: the same tMax bits as stepping) to
+// the nearest box; the walk jumps exactly (walkJumpTo: the same tMax bits as stepping) to
 // just before it, then steps OctoMap's DDA, marking each cell whose node is not clamped free
 // (a tree lookup, cached per node), and traces again from the first clamped-free cell past the
 // box's entry. Every cell marked is one computeRayKeys visits (the walk is OctoMap's, jumps
@@ -21,64 +21,21 @@
 #define OCTOVK_NODES_READ_ONLY
 #define OCTOVK_RAY_QUERY
 #include "hash_set.glsl"
-#include "cast_ray_walk.glsl"
+#include "walk_cells.glsl"
 #include "accel_trace.glsl"
 
 layout(push_constant) uniform PushBlock { ScanRaysRtConstants pc; };
 
-CastRayWalk w;
+// The walk of this invocation's ray (ray_walk.glsl).
+RayWalk w;
 uvec3 key_end;
 float len;
-
-// Direction, length, steps, tDelta and tMax of the ray o -> e from w.key, as computeRayKeys
-// computes them (as ray_keys.comp's setUp; the half step is rounded to float there, unlike
-// castRay's).
-void setUp(vec3 o, vec3 e) {
-  precise float dir[3];
-  dir[0] = e.x - o.x;
-  dir[1] = e.y - o.y;
-  dir[2] = e.z - o.z;
-  len = toFloat(normOf(dir[0], dir[1], dir[2]));
-  dir[0] = divFloat(dir[0], len);
-  dir[1] = divFloat(dir[1], len);
-  dir[2] = divFloat(dir[2], len);
-  w.org = o;
-  w.dir = vec3(dir[0], dir[1], dir[2]);
-  w.max_range_set = false;
-  w.max_range_sq = 0.0lf;
-  const double kDoubleMax = 1.7976931348623157e308lf;
-  for (int i = 0; i < 3; ++i) {
-    w.step[i] = dir[i] > 0.0 ? 1 : (dir[i] < 0.0 ? -1 : 0);
-    if (w.step[i] != 0) {
-      w.t_delta[i] = params.resolution / double(abs(dir[i]));
-      precise double border = keyToCoord(w.key[i]);
-      precise double half_step = double(w.step[i]) * params.resolution * 0.5lf;
-      border += roundedToFloat(half_step);
-      w.t_max[i] = (border - double(o[i])) / double(dir[i]);
-    } else {
-      w.dir[i] = 0.0;  // -0.0: the traced line is the walk's
-      w.t_delta[i] = kDoubleMax;
-      w.t_max[i] = kDoubleMax;
-    }
-  }
-}
-
-// One step of computeRayKeys: true when the ray is done (the end cell, or past the length).
-bool advance() {
-  int dim = castRayNextAxis(w);
-  w.key[dim] = uint(int(w.key[dim]) + w.step[dim]) & 0xFFFFu;
-  precise double t = w.t_max[dim] + w.t_delta[dim];
-  w.t_max[dim] = t;
-  if (w.key == key_end) return true;
-  return castRayMinTMax(w) > double(len);
-}
 
 // Whether a free update of cell k is a no-op: search() finds a node at clamp_min_log
 // (classify's early abort). The cache answers for every cell of the node it last found.
 bool clampedFree(uvec3 k, inout CellCache cache) {
-  uint searched;
-  return castRayCellState(k, cache, searched) != kCellUnknown &&
-         cache.log_odds <= params.clamp_min_log;
+  uint cost;
+  return walkCellState(k, cache, cost) != kCellUnknown && cache.log_odds <= params.clamp_min_log;
 }
 
 // The walk from the origin's cell (marked by the caller) to the end. A ray query finds the
@@ -86,9 +43,9 @@ bool clampedFree(uvec3 k, inout CellCache cache) {
 // update can change, until it steps into a cell clamped free past the box's entry: then the
 // next box is traced from there. Neighbouring boxes cost one ray query together, not one each.
 void walkTraced() {
-  CellCache cache = castRayEmptyCache();
+  CellCache cache = walkEmptyCache();
   if (pool.root_exists == 0u) {  // an empty map is unknown everywhere: every cell is updated
-    while (!advance())
+    while (!rayKeysStep(w, key_end, len))
       if (!markCell(w.key, false)) return;  // a full set: the scan is redone with a larger one
     return;
   }
@@ -102,7 +59,7 @@ void walkTraced() {
   // Boxes beyond the end do not matter.
   float t_to = float((double(len) + 2.0lf * params.resolution) / dir_len);
   for (;;) {
-    double t_from = castRayMinTMax(w) - slack(castRayMinTMax(w), w.org, dir_len);
+    double t_from = walkMinTMax(w) - slack(walkMinTMax(w), w.org, dir_len);
     double t_enter = 1.0e300lf, t_exit;
     bool found = t_from < double(t_to) &&
                  nearestBox(scene, w, kAccelMaskOccupied | kAccelMaskUnknown, t_from, t_to,
@@ -110,8 +67,10 @@ void walkTraced() {
     double target = min(t_enter, t_limit);
     target -= slack(target, w.org, dir_len);
     // The cells the jump passes lie in no box (clamped free): their updates are no-ops. The
-    // cell it lands in is entered before the target: in no box either.
-    if (target > castRayMinTMax(w)) castRayJumpTo(w, target);
+    // cell it lands in is entered before the target: in no box either. (A jump that cannot tell
+    // is not taken: the cells are then stepped and looked up.)
+    int no_budget = 0;
+    if (target > walkMinTMax(w)) walkJumpTo(w, target, no_budget, 0);
     // A clamped-free cell before the box's entry (and its slack) is still on the way in. Past
     // it, a run of kRetraceAfter clamped-free cells ends the stretch: near surfaces, where
     // clamped cells and cells not clamped yet alternate, a ray query per clamped cell costs
@@ -120,11 +79,11 @@ void walkTraced() {
     double t_in = found ? t_enter + 2.0lf * slack(t_enter, w.org, dir_len) : 1.0e300lf;
     uint clamped_run = 0u;
     for (;;) {
-      if (advance()) return;
+      if (rayKeysStep(w, key_end, len)) return;
       if (!clampedFree(w.key, cache)) {
         clamped_run = 0u;
         if (!markCell(w.key, false)) return;  // a full set: the scan is redone
-      } else if (castRayMinTMax(w) > t_in && ++clamped_run >= kRetraceAfter) {
+      } else if (walkMinTMax(w) > t_in && ++clamped_run >= kRetraceAfter) {
         break;
       }
     }
@@ -143,7 +102,7 @@ bool traceRay(vec3 o, vec3 e) {
   if (ko == key_end) return true;
   markCell(ko, false);
   w.key = ko;
-  setUp(o, e);
+  walkSetUp(w, o, rayKeysDirection(o, e, len), true, kHalfStepFloat);
   walkTraced();
   return true;
 }
