@@ -410,7 +410,9 @@ Device::~Device() {
 
 void Device::submit(const VkSubmitInfo& info, VkFence fence) {
   std::lock_guard<std::mutex> lock(queue_mutex_);
+  const auto t = std::chrono::steady_clock::now();
   OCTOVK_VK(vkQueueSubmit(queue_, 1, &info, fence));
+  if (traceStartup() && submissions_++ == 0) traceStep("first submission (vkQueueSubmit)", t);
 }
 
 const Pass& Device::pass(std::string_view name) {

@@ -134,7 +134,8 @@ class Device {
   std::uint32_t max_groups_x_ = 65535;
   std::uint32_t loop_limit_ = 0;
   std::uint64_t max_binding_bytes_ = 1u << 27;
-  std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit)
+  std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit) and submissions_
+  std::uint64_t submissions_ = 0;  // for OCTOVK_TRACE_STARTUP only
   struct PassSlot {
     Pass pass;
     std::once_flag built;  // set once pass.pipeline is built
