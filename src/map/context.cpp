@@ -9,8 +9,9 @@ Context::~Context() = default;
 Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) {
   auto device = vk::Device::create(options);
   if (!device) return device.error();
-  // What the exact walk takes from the device, checked before any map trusts it.
-  auto probe = probeDevice(*device.value());
+  // What the exact walk takes from the device, checked before any map trusts it (or the
+  // verdict an earlier process kept for this device, driver and build).
+  auto probe = checkDevice(*device.value());
   if (!probe) return probe.error();
   const std::uint32_t limit = probe.value().loop_limit;
   if (limit != 0 && limit < 4096u)

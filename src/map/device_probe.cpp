@@ -1,7 +1,9 @@
 #include "map/device_probe.hpp"
 
 #include <bit>
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <limits>
@@ -13,6 +15,8 @@
 
 #include "gpu/gpu_types.h"
 #include "vk/device.hpp"
+#include "vk/disk_cache.hpp"
+#include "vk/startup_trace.hpp"
 
 namespace octovk {
 namespace {
@@ -208,6 +212,81 @@ Result<DeviceProbe> probeDevice(vk::Device& device) {
   } catch (const Error& e) {
     return e;
   }
+}
+
+namespace {
+
+constexpr const char* kProbeKind = "probe";
+
+// The record's payload: a passing verdict (only those are kept) and the loop limit it saw.
+struct KeptVerdict {
+  std::uint32_t format = 1;
+  std::uint32_t loop_limit = 0;
+};
+
+// What the verdict depends on besides the device, its driver and the shaders (which
+// Device::cacheKey names): the cases, the host's answers and the loop's length.
+std::string probeKey(const vk::Device& device) {
+  const std::vector<ProbeCase> cases = probeCases();
+  std::uint64_t h = vk::disk::hash64(std::as_bytes(std::span(cases)));
+  for (const ProbeCase& c : cases) {
+    const ProbeResult want = expected(c);
+    const std::int32_t floor = hostProbeFloor(c);
+    h = vk::disk::hash64(std::as_bytes(std::span(&want, 1)), h);
+    h = vk::disk::hash64(std::as_bytes(std::span(&floor, 1)), h);
+  }
+  const std::uint32_t loop = kProbeLoopIterations;
+  h = vk::disk::hash64(std::as_bytes(std::span(&loop, 1)), h);
+  return device.cacheKey() + "; probe " + std::to_string(h);
+}
+
+bool reprobeRequested() {
+  const char* env = std::getenv("OCTOVK_REPROBE");
+  return env && *env && std::string(env) != "0";
+}
+
+}  // namespace
+
+Result<DeviceProbe> checkDevice(vk::Device& device) {
+  const auto t = std::chrono::steady_clock::now();
+  std::filesystem::path file;
+  std::string key;
+  try {
+    file = device.cacheFile(kProbeKind);
+    key = probeKey(device);
+  } catch (...) {  // no memory for the key: probe, keep nothing
+    file.clear();
+  }
+  if (!file.empty() && !reprobeRequested()) {
+    std::optional<std::vector<std::byte>> record;
+    try {
+      record = vk::disk::readRecord(file, kProbeKind, key);
+    } catch (...) {
+      record.reset();
+    }
+    KeptVerdict kept;
+    if (record && record->size() == sizeof kept) {
+      std::memcpy(&kept, record->data(), sizeof kept);
+      if (kept.format == KeptVerdict{}.format) {
+        vk::traceStep("device probe: verdict kept by an earlier run", t);
+        return DeviceProbe{.loop_limit = kept.loop_limit, .kept = true};
+      }
+    }
+  }
+  Result<DeviceProbe> probe = probeDevice(device);
+  if (!file.empty()) {
+    try {
+      if (probe) {
+        const KeptVerdict kept{.loop_limit = probe.value().loop_limit};
+        vk::disk::writeRecord(file, kProbeKind, key, std::as_bytes(std::span(&kept, 1)));
+      } else {
+        vk::disk::removeRecord(file);
+      }
+    } catch (...) {  // keeping the verdict is only a shortcut for the next process
+    }
+  }
+  vk::traceStep("device probe: run", t);
+  return probe;
 }
 
 }  // namespace octovk

@@ -1,6 +1,8 @@
 // The device probe: checks, when a Context is created, what the exact ray walk takes from the
 // device (shaders/device_probe.comp), so that a device that would build a different map than
-// OctoMap is refused with the operation named instead of mapping silently wrong.
+// OctoMap is refused with the operation named instead of mapping silently wrong. A passing
+// verdict is kept in the cache folder (vk/disk_cache.hpp) for this device, driver and build of
+// octovk, so that later processes skip the probe; OCTOVK_REPROBE=1 probes again.
 #pragma once
 
 #include <cstdint>
@@ -22,6 +24,8 @@ struct DeviceProbe {
   /// Loop iterations an invocation gets before the driver ends its loops (llvmpipe: 65535);
   /// 0 when no limit was seen within kProbeLoopIterations.
   std::uint32_t loop_limit = 0;
+  /// The verdict came from the record an earlier process kept (checkDevice), not a probe.
+  bool kept = false;
 };
 
 /// Iterations of the probe's loop: a limit above this is not seen (and does not matter: the
@@ -44,5 +48,13 @@ std::optional<std::string> firstProbeMismatch(std::span<const gpu::ProbeCase> ca
 /// Runs the probe. Fails with kMissingFeature naming the first operation whose result differs
 /// from the host's (IEEE 754 double, round to nearest even), with its operands.
 Result<DeviceProbe> probeDevice(vk::Device& device);
+
+/// The probe's verdict for `device`: the one kept by an earlier process when its record was
+/// written for this device, driver and octovk build (vk::Device::cacheKey) and for these very
+/// probe cases and answers; else probeDevice's, kept when it passes (a failure removes the
+/// record). OCTOVK_REPROBE set and not "0" ignores a kept verdict. Never fails for the record's
+/// sake: a missing, corrupt or foreign record, or a cache folder that cannot be written, only
+/// means the probe runs.
+Result<DeviceProbe> checkDevice(vk::Device& device);
 
 }  // namespace octovk

@@ -1,12 +1,17 @@
 #include "vk/device.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <utility>
 
 #include "gpu/gpu_types.h"
+#include "shader_ids.hpp"
+#include "vk/disk_cache.hpp"
 #include "vk/instance.hpp"
 #include "vk/shader_registry.hpp"
+#include "vk/startup_trace.hpp"
 
 namespace octovk::vk {
 
@@ -32,15 +37,21 @@ std::vector<DeviceInfo> Device::enumerate() {
 Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   std::unique_ptr<Device> dev(new Device());
   try {
+    auto t = std::chrono::steady_clock::now();
     dev->createInstance(options);
+    traceStep("Vulkan instance", t);
+    t = std::chrono::steady_clock::now();
     dev->pickPhysicalDevice(options);
     const VkPhysicalDeviceVulkan12Features supported = dev->requireFeatures();
     dev->pickQueueFamily(options);
+    traceStep("physical device", t);
+    t = std::chrono::steady_clock::now();
     const bool ray_query = options.enable_ray_query && dev->info_.ray_query;
     dev->createLogicalDevice(supported, ray_query);
     if (ray_query) dev->loadRayQueryApi();
     vkGetPhysicalDeviceMemoryProperties(dev->physical_, &dev->memory_);
     dev->createLayouts();
+    traceStep("logical device", t);
   } catch (const Error& e) {
     return e;
   }
@@ -151,6 +162,67 @@ void Device::pickPhysicalDevice(const ContextOptions& options) {
                     std::to_string(VK_API_VERSION_MAJOR(props.apiVersion)) + "." +
                     std::to_string(VK_API_VERSION_MINOR(props.apiVersion)) +
                     "; octovk needs Vulkan 1.2");
+  describeForCache(props);
+}
+
+namespace {
+
+std::string hexBytes(const std::uint8_t* bytes, std::size_t n) {
+  std::string out;
+  char pair[3];
+  for (std::size_t i = 0; i < n; ++i) {
+    std::snprintf(pair, sizeof pair, "%02x", bytes[i]);
+    out += pair;
+  }
+  return out;
+}
+
+std::string hex64(std::uint64_t v) {
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(v));
+  return text;
+}
+
+// This build's shaders: every embedded SPIR-V module, hashed (once per process).
+std::uint64_t shaderSetHash() {
+  static const std::uint64_t hash = [] {
+    std::uint64_t h = disk::hash64(std::string_view("octovk shaders"));
+    for (std::string_view name : kShaderNames) {
+      h = disk::hash64(name, h);
+      h = disk::hash64(std::as_bytes(findShader(name)), h);
+    }
+    return h;
+  }();
+  return hash;
+}
+
+}  // namespace
+
+// The key of the records kept between runs: the device and its driver as Vulkan names them
+// (IDs, UUIDs, driver name, info and version, pipelineCacheUUID), then this build's shaders.
+void Device::describeForCache(const VkPhysicalDeviceProperties& props) {
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  VkPhysicalDeviceIDProperties ids{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ID_PROPERTIES};
+  ids.pNext = &driver;
+  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props2.pNext = &ids;
+  vkGetPhysicalDeviceProperties2(physical_, &props2);
+  std::string device =
+      std::string("device ") + props.deviceName + " vendor " + std::to_string(props.vendorID) +
+      " id " + std::to_string(props.deviceID) + " uuid " + hexBytes(ids.deviceUUID, VK_UUID_SIZE) +
+      "; driver " + driver.driverName + " (" + driver.driverInfo + ") id " +
+      std::to_string(driver.driverID) + " version " + std::to_string(props.driverVersion) +
+      " uuid " + hexBytes(ids.driverUUID, VK_UUID_SIZE) + " pipeline cache uuid " +
+      hexBytes(props.pipelineCacheUUID, VK_UUID_SIZE);
+  properties_ = props;
+  cache_name_ = hex64(disk::hash64(device));
+  cache_key_ = device + "; octovk shaders " + hex64(shaderSetHash());
+}
+
+std::filesystem::path Device::cacheFile(std::string_view kind) const {
+  const std::filesystem::path dir = disk::folder();
+  if (dir.empty()) return {};
+  return dir / (std::string(kind) + "-" + cache_name_ + ".bin");
 }
 
 // Features octovk needs, checked by name; returns the device's Vulkan 1.2 features, for the
@@ -316,6 +388,12 @@ void Device::createLayouts() {
 Device::~Device() {
   if (device_) {
     vkDeviceWaitIdle(device_);
+    if (pipeline_cache_) {
+      const auto t = std::chrono::steady_clock::now();
+      const std::size_t saved = pipeline_cache_->save();
+      if (traceStartup()) traceStep("pipeline cache saved " + std::to_string(saved) + " bytes", t);
+      pipeline_cache_.reset();
+    }
     for (auto& slot : passes_)
       if (slot.pass.pipeline) vkDestroyPipeline(device_, slot.pass.pipeline, nullptr);
     if (pipeline_layout_) vkDestroyPipelineLayout(device_, pipeline_layout_, nullptr);
@@ -332,7 +410,9 @@ Device::~Device() {
 
 void Device::submit(const VkSubmitInfo& info, VkFence fence) {
   std::lock_guard<std::mutex> lock(queue_mutex_);
+  const auto t = std::chrono::steady_clock::now();
   OCTOVK_VK(vkQueueSubmit(queue_, 1, &info, fence));
+  if (traceStartup() && submissions_++ == 0) traceStep("first submission (vkQueueSubmit)", t);
 }
 
 const Pass& Device::pass(std::string_view name) {
@@ -357,6 +437,26 @@ const Pass& Device::pass(std::string_view name) {
   return slot->pass;
 }
 
+// The cache kept between runs, loaded by the first pipeline built; VK_NULL_HANDLE when turned
+// off or when no cache could be created (the pipelines are the same either way).
+VkPipelineCache Device::pipelineCache() {
+  std::call_once(pipeline_cache_loaded_, [&] {
+    if (!pipelineCacheEnabled()) return;
+    const auto t = std::chrono::steady_clock::now();
+    try {
+      pipeline_cache_ =
+          std::make_unique<PipelineCache>(device_, properties_, cacheFile("pipelines"), cache_key_);
+    } catch (...) {  // no memory for the file's name or the cache: build without one
+      pipeline_cache_.reset();
+      return;
+    }
+    if (traceStartup())
+      traceStep(
+          "pipeline cache loaded " + std::to_string(pipeline_cache_->loadedBytes()) + " bytes", t);
+  });
+  return pipeline_cache_ ? pipeline_cache_->handle() : VK_NULL_HANDLE;
+}
+
 VkPipeline Device::buildPipeline(std::string_view name) {
   const std::span<const std::uint32_t> code = findShader(name);
   if (code.empty())
@@ -373,10 +473,12 @@ VkPipeline Device::buildPipeline(std::string_view name) {
   cinfo.stage.pName = "main";
   cinfo.layout = pipeline_layout_;
   VkPipeline pipeline = VK_NULL_HANDLE;
-  const VkResult r =
-      vkCreateComputePipelines(device_, VK_NULL_HANDLE, 1, &cinfo, nullptr, &pipeline);
+  const VkPipelineCache cache = pipelineCache();
+  const auto t = std::chrono::steady_clock::now();
+  const VkResult r = vkCreateComputePipelines(device_, cache, 1, &cinfo, nullptr, &pipeline);
   vkDestroyShaderModule(device_, module, nullptr);
   check(r, "vkCreateComputePipelines", __FILE__, __LINE__);
+  if (traceStartup()) traceStep("pipeline " + std::string(name), t);
   return pipeline;
 }
 

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -20,6 +21,7 @@
 #include "vk/buffer.hpp"
 #include "vk/check.hpp"
 #include "vk/command_stream.hpp"
+#include "vk/pipeline_cache.hpp"
 
 namespace octovk::vk {
 
@@ -81,8 +83,24 @@ class Device {
   void setLoopLimit(std::uint32_t limit) noexcept { loop_limit_ = limit; }
 
   /// The pass built from the embedded shader `name` (e.g. "ray_keys"), built once, by the
-  /// first caller from any thread (the others wait for it).
+  /// first caller from any thread (the others wait for it), through the pipeline cache kept
+  /// between runs (vk/pipeline_cache.hpp) unless OCTOVK_PIPELINE_CACHE=0.
   const Pass& pass(std::string_view name);
+
+  /// What records kept between runs are written for (vk/disk_cache.hpp): this device (vendor,
+  /// device, UUIDs), its driver (name, version, pipelineCacheUUID) and the SPIR-V of this build
+  /// of octovk. A record written for another key is never used.
+  const std::string& cacheKey() const noexcept { return cache_key_; }
+  /// The file for records of `kind` ("pipelines", "probe") of this device and driver in the cache
+  /// folder; empty when there is no folder (no OCTOVK_CACHE_DIR, XDG_CACHE_HOME or HOME).
+  std::filesystem::path cacheFile(std::string_view kind) const;
+  /// Whether the passes built so far went through a VkPipelineCache (false before the first
+  /// pass, and with OCTOVK_PIPELINE_CACHE=0).
+  bool usesPipelineCache() const noexcept {
+    return pipeline_cache_ && pipeline_cache_->handle() != VK_NULL_HANDLE;
+  }
+  /// The physical device's properties (IDs, pipelineCacheUUID, limits).
+  const VkPhysicalDeviceProperties& properties() const noexcept { return properties_; }
 
   /// Memory type index for the given requirements; throws kOutOfDeviceMemory if none.
   std::uint32_t memoryType(std::uint32_t type_bits, VkMemoryPropertyFlags wanted,
@@ -98,6 +116,7 @@ class Device {
   void createLogicalDevice(const VkPhysicalDeviceVulkan12Features& supported, bool ray_query);
   void loadRayQueryApi();
   void createLayouts();
+  void describeForCache(const VkPhysicalDeviceProperties& props);
 
   DeviceInfo info_;
   std::function<void(const std::string&)> validation_sink_;  // before the instance that uses it
@@ -115,12 +134,19 @@ class Device {
   std::uint32_t max_groups_x_ = 65535;
   std::uint32_t loop_limit_ = 0;
   std::uint64_t max_binding_bytes_ = 1u << 27;
-  std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit)
+  std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit) and submissions_
+  std::uint64_t submissions_ = 0;  // for OCTOVK_TRACE_STARTUP only
   struct PassSlot {
     Pass pass;
     std::once_flag built;  // set once pass.pipeline is built
   };
   VkPipeline buildPipeline(std::string_view name);
+  VkPipelineCache pipelineCache();
+  VkPhysicalDeviceProperties properties_{};
+  std::string cache_key_;
+  std::string cache_name_;  // the device-and-driver part of the key, hashed: the files' names
+  std::once_flag pipeline_cache_loaded_;
+  std::unique_ptr<PipelineCache> pipeline_cache_;  // after the first pass, unless turned off
   std::mutex passes_mutex_;      // guards the deque (not the builds: see pass())
   std::deque<PassSlot> passes_;  // deque: slots never move
   std::vector<std::string> extensions_;     // optional device extensions enabled
