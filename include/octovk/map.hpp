@@ -155,6 +155,21 @@ class OccupancyMap {
   std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
                                        bool occupied_only = false) const;
 
+  // ---- change detection: OctoMap's enableChangeDetection / changedKeys, on the device ----
+  /// Turns change detection on or off for the scans inserted or submitted after this call
+  /// (OcTree::enableChangeDetection). With it on, every leaf a scan updates is noted as OctoMap
+  /// notes it: created (`true`), or its occupancy flipped (`false`; flipped back: removed). The
+  /// set lives on the device (its bytes in deviceBytesByUse().changes, under
+  /// MapParams::max_device_bytes); turning detection off keeps the keys noted so far.
+  void enableChangeDetection(bool enable);
+  bool isChangeDetectionEnabled() const;
+  /// Empties the change set (OcTree::resetChangeDetection).
+  void resetChangeDetection();
+  /// Keys in the change set (OcTree::numChangesDetected).
+  std::size_t numChangesDetected() const;
+  /// The change set (OcTree::changedKeysBegin/End), in no particular order.
+  std::vector<ChangedKey> changedKeys() const;
+
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;
   /// Device bytes held by this map's buffers (staging included): what
@@ -172,7 +187,8 @@ class OccupancyMap {
     /// automatically after an outsized scan).
     std::size_t scratch = 0;
     std::size_t queries = 0;  ///< query input and output, with their staging
-    std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+    std::size_t changes = 0;  ///< the change set (change detection), 16 B per slot
+    std::size_t total() const { return pool + leaf_boxes + scratch + queries + changes; }
   };
   DeviceBytes deviceBytesByUse() const;
 

@@ -16,6 +16,7 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       growth_(core_),
       queries_(core_, scenes_),
       transfer_(core_, scenes_),
+      changes_(core_),
       scans_(core_, growth_, scenes_, queries_) {}
 
 OccupancyMap::Impl::~Impl() {
@@ -72,7 +73,11 @@ void OccupancyMap::Impl::refreshLeafBoxes() {
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
   const BufferBytes b = core_.buffers.bytesByUse();  // the scenes are in b.queries
-  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
+  return {.pool = b.pool,
+          .leaf_boxes = b.leaf_boxes,
+          .scratch = b.scratch,
+          .queries = b.queries,
+          .changes = b.changes};
 }
 
 void OccupancyMap::Impl::trim() {
@@ -211,6 +216,24 @@ std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::leavesInBox(const Eigen::Ve
                                                                  bool occupied_only) const {
   return hostMemoryGuard("leavesInBox",
                          [&] { return self().leavesInBox(min, max, occupied_only); });
+}
+
+void OccupancyMap::enableChangeDetection(bool enable) {
+  hostMemoryGuard("enableChangeDetection", [&] { self().enableChangeDetection(enable); });
+}
+
+bool OccupancyMap::isChangeDetectionEnabled() const { return self().changeDetectionEnabled(); }
+
+void OccupancyMap::resetChangeDetection() {
+  hostMemoryGuard("resetChangeDetection", [&] { self().resetChangeDetection(); });
+}
+
+std::size_t OccupancyMap::numChangesDetected() const {
+  return hostMemoryGuard("numChangesDetected", [&] { return self().numChangesDetected(); });
+}
+
+std::vector<ChangedKey> OccupancyMap::changedKeys() const {
+  return hostMemoryGuard("changedKeys", [&] { return self().changedKeys(); });
 }
 
 std::size_t OccupancyMap::nodeCount() const {
