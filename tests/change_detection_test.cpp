@@ -6,8 +6,11 @@
 
 #include <algorithm>
 #include <random>
+#include <cstring>
 #include <tuple>
 
+#include "caller_buffer.hpp"
+#include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -271,6 +274,53 @@ TEST(ChangeDetectionApi, TheSetCountsUnderTheCap) {
   }
   EXPECT_FALSE(map.isChangeDetectionEnabled());
   EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// A GPU consumer reads the change set in place: changedKeysOnDevice writes the header and the
+// keys into its buffer, the same set as changedKeys(); a buffer too small is refused unwritten.
+TEST(ChangeDetectionApi, ChangedKeysOnDeviceIntoACallersBuffer) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  map.enableChangeDetection(true);
+  std::mt19937 rng(31);
+  (void)map.submitPointCloud(test::randomScan(rng, Eigen::Vector3f::Zero(), 700, 2.0f),
+                             Eigen::Vector3f::Zero());
+  const std::size_t count = map.numChangesDetected();
+  ASSERT_GT(count, 100u);
+  const std::vector<KeyFlag> expected = ourChanges(map);
+  test::CallerBuffer out(vulkanHandles(ctx), changedKeysBytes(count));
+  std::memset(out.data(), 0xAB, changedKeysBytes(count));
+  changedKeysOnDevice(map, out.range());
+  gpu::ChangedKeysHeader header;
+  std::memcpy(&header, out.data(), sizeof(header));
+  ASSERT_EQ(header.count, count);
+  std::vector<KeyFlag> actual;
+  for (std::size_t i = 0; i < count; ++i) {
+    gpu::ChangedKey k;
+    std::memcpy(&k, static_cast<const unsigned char*>(out.data()) + sizeof(header) + i * sizeof(k),
+                sizeof(k));
+    actual.emplace_back(k.key_x, k.key_y, k.key_z, k.created != 0);
+  }
+  std::sort(actual.begin(), actual.end());
+  EXPECT_EQ(actual, expected);
+  // Too small by one entry: refused, nothing written.
+  test::CallerBuffer small(vulkanHandles(ctx), changedKeysBytes(count));
+  std::memset(small.data(), 0xAB, changedKeysBytes(count));
+  BufferRange range = small.range();
+  range.size = changedKeysBytes(count - 1);
+  try {
+    changedKeysOnDevice(map, range);
+    ADD_FAILURE() << "a range one entry short was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+  }
+  EXPECT_EQ(static_cast<const unsigned char*>(small.data())[0], 0xAB);
 }
 
 }  // namespace

@@ -103,4 +103,13 @@ std::size_t castRaysResultBytes(std::uint32_t count);
 void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
                       BufferRange results);
 
+/// Bytes changedKeysOnDevice needs for `count` changed keys (map.numChangesDetected()).
+std::size_t changedKeysBytes(std::size_t count);
+
+/// The map's change set (OccupancyMap::changedKeys) into a device buffer: a gpu::ChangedKeysHeader
+/// (its count), then that many gpu::ChangedKey {key x, y, z, created} (octovk/device_types.h), in
+/// no particular order; `out` must hold changedKeysBytes(map.numChangesDetected()) (else
+/// kInvalidArgument, nothing written). Waits for the scans submitted before it.
+void changedKeysOnDevice(OccupancyMap& map, BufferRange out);
+
 }  // namespace octovk

@@ -467,9 +467,11 @@ struct CastRayRtConstants {
 };
 
 // list_changes. 16 B.
+OCTOVK_CONST uint kListChangesHeader = 0u;  // one invocation: the output header's count to 0
+OCTOVK_CONST uint kListChangesKeys = 1u;    // per slot: the keys in the set appended after it
 struct ListChangesConstants {
   uint capacity;  // 4B (0)  slots of the change set
-  uint pad0;      // 4B (4)
+  uint mode;      // 4B (4)  kListChanges*
   uint pad1;      // 4B (8)
   uint pad2;      // 4B (12)
 };

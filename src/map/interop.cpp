@@ -96,4 +96,12 @@ void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
                                          results.offset, results.size, count);
 }
 
+std::size_t changedKeysBytes(std::size_t count) {
+  return sizeof(gpu::ChangedKeysHeader) + count * sizeof(gpu::ChangedKey);
+}
+
+void changedKeysOnDevice(OccupancyMap& map, BufferRange out) {
+  InteropAccess::impl(map).changedKeysOnDevice(out.buffer, out.offset, out.size);
+}
+
 }  // namespace octovk

@@ -8,13 +8,12 @@ void recordListChanges(Recorder& r, const gpu::ScanParams& sp) {
   MapBuffers& b = r.buffers;
   const std::uint32_t slots = std::uint32_t{1} << b.changesLog2();
   r.setParams(sp);
-  r.stream.fill(b.counters, 0u, offsetof(gpu::ScanCounters, query_results), sizeof(std::uint32_t));
   r.stream.barrier();
-  r.dispatch<Shader::kListChanges>(slots, gpu::ListChangesConstants{.capacity = slots});
+  r.dispatch<Shader::kListChanges>(
+      1, gpu::ListChangesConstants{.capacity = slots, .mode = gpu::kListChangesHeader});
   r.stream.barrier();
-  // The count into the header the entries follow (ChangedKeysHeader::count).
-  r.stream.copy(b.counters, b.query_out, sizeof(std::uint32_t),
-                offsetof(gpu::ScanCounters, query_results), 0);
+  r.dispatch<Shader::kListChanges>(
+      slots, gpu::ListChangesConstants{.capacity = slots, .mode = gpu::kListChangesKeys});
   r.stream.barrier();
 }
 

@@ -175,8 +175,8 @@ void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, 
 
 // ---- changes.cpp: the change set (change detection) ----
 
-/// list_changes.comp: the change set's keys into the query output after a ChangedKeysHeader
-/// holding their count (also in ScanCounters::query_results); sets `sp` first.
+/// list_changes.comp: the change set's keys into the query output (the map's, or the caller's
+/// range bound there) after a ChangedKeysHeader holding their count; sets `sp` first.
 void recordListChanges(Recorder& r, const gpu::ScanParams& sp);
 /// rehash_changes.comp: the keys of the old set (`old_slots` slots at `old_set`) into the bound,
 /// empty one; params must hold the new set's log2.
