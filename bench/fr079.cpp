@@ -94,7 +94,7 @@ Stream streamGraph(Context& context, const BenchOptions& o, double res,
   for (std::size_t i = 0; i < graph.size(); ++i) {
     const GraphScan& scan = graph[i];
     s.map->submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                            scan.T_world_sensor, -1.0);
+                            scan.T_world_sensor);
     if (i % 1024 == 1023) take();  // the map keeps the newest 4096
   }
   s.map->flush();

@@ -55,7 +55,7 @@ ScanTiming measureWorldScan(octomap::OcTree& tree, OccupancyMap& map,
   tree.insertPointCloud(pc, origin, max_range_m, /*lazy_eval=*/false, /*discretize=*/false);
   t.om_insert_ms = msSince(start);
   t.om_nodes = tree.size();
-  t.vk = map.insertPointCloud(points_world, origin_world, max_range_m);
+  t.vk = map.insertPointCloud(points_world, origin_world, {.max_range_m = max_range_m});
   return t;
 }
 
@@ -86,7 +86,7 @@ ScanTiming measureGraphScan(octomap::OcTree& tree, OccupancyMap& map,
   t.om_insert_ms = msSince(start);
   t.om_nodes = tree.size();
   t.vk = map.insertPointCloud(points_sensor, graph2treeSensorOrigin(T_world_sensor), T_world_sensor,
-                              max_range_m);
+                              {.max_range_m = max_range_m});
   return t;
 }
 

@@ -109,7 +109,7 @@ void runPaperRt(Context& context, const BenchOptions& o, double res,
                views.size());
       const Eigen::Vector3f origin = views[i].position.cast<float>();
       const ScanTiming t = measureWorldScan(tree, rt_map, clouds[i], origin, -1.0, false);
-      const ScanStats w = walk_map.insertPointCloud(clouds[i], origin, -1.0);
+      const ScanStats w = walk_map.insertPointCloud(clouds[i], origin);
       if (pass + 1 == kPasses) {
         rt_last.push_back(t.vk);
         walk_last.push_back(w);

@@ -150,8 +150,8 @@ TEST_P(DepthImageOracle, SameMapAsOctoMapAfterEveryImage) {
     const auto points = expectedPoints(depth, cam.width, cam, &skipped);
     oracle.insertPointCloud(toPointcloud(points), toPoint(origin_camera), toPose6D(pose),
                             c.max_range, false, c.discretize);
-    const ScanStats stats = map.insertDepthImage(cam, pose, c.max_range, origin_camera,
-                                                 c.discretize);
+    const ScanStats stats = map.insertDepthImage(
+        cam, pose, {.max_range_m = c.max_range, .discretize = c.discretize}, origin_camera);
     EXPECT_EQ(stats.points, std::size_t{cam.width} * cam.height);
     EXPECT_EQ(stats.skipped_no_depth, skipped) << "view " << view;
     EXPECT_EQ(stats.skipped_nonfinite, 0u) << "view " << view;

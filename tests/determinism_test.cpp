@@ -307,9 +307,10 @@ TEST(DeterminismTwoMaps, SameScansGiveIdenticalDeviceState) {
     }
     oracle.insertPointCloud(test::toPointcloud(pts), test::toPoint(st.origin), st.max_range, false,
                             st.discretize);
-    const ScanStats sa = a.insertPointCloud(pts, st.origin, st.max_range, st.discretize);
-    const ScanStats sb = b.insertPointCloud(pts, st.origin, st.max_range, st.discretize);
-    const ScanStats sc = c.insertPointCloud(pts, st.origin, st.max_range, st.discretize);
+    const ScanOptions options{.max_range_m = st.max_range, .discretize = st.discretize};
+    const ScanStats sa = a.insertPointCloud(pts, st.origin, options);
+    const ScanStats sb = b.insertPointCloud(pts, st.origin, options);
+    const ScanStats sc = c.insertPointCloud(pts, st.origin, options);
     ASSERT_TRUE(sameStats(sa, sb));
     ASSERT_TRUE(sameStats(sa, sc));
     EXPECT_EQ(sa.nodes, oracle.size());
@@ -398,12 +399,13 @@ void shuffledScansGiveTheSameMap(Context& ctx, bool discretize) {
     };
     OccupancyMap map(ctx, params);
     for (int rep = 0; rep < 6; ++rep)
-      map.insertPointCloud(shuffled(first, static_cast<unsigned>(rep)), o1, -1.0, discretize);
+      map.insertPointCloud(shuffled(first, static_cast<unsigned>(rep)), o1,
+                           {.discretize = discretize});
     EXPECT_TRUE(test::otBytes(*toOcTree(map)) == first_ot)
         << ".ot bytes after the shuffled first scans differ from the unshuffled map";
     const auto pts = shuffled(second, 7);
     ASSERT_NE(pts, second);
-    const ScanStats stats = map.insertPointCloud(pts, o2, -1.0, discretize);
+    const ScanStats stats = map.insertPointCloud(pts, o2, {.discretize = discretize});
     EXPECT_TRUE(sameStats(ref_stats, stats));
     const auto tree = toOcTree(map);
     EXPECT_TRUE(test::otBytes(*tree) == ref_ot) << ".ot bytes differ from the unshuffled map";

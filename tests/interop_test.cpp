@@ -143,10 +143,10 @@ TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
   });
   const ScanStats stats =
       insertPointCloudOnDevice(on_device, buffer.range(), static_cast<std::uint32_t>(points.size()),
-                               origin, pose, 2.5, false, WaitSemaphore{ready, 1});
+                               origin, pose, {.max_range_m = 2.5}, WaitSemaphore{ready, 1});
   producer.join();
   EXPECT_EQ(stats.skipped_nonfinite, 0u) << "the scan read the buffer before it was ready";
-  on_host.insertPointCloud(points, origin, pose, 2.5);
+  on_host.insertPointCloud(points, origin, pose, {.max_range_m = 2.5});
   ASSERT_TRUE(test::sameTree(*toOcTree(on_host), *toOcTree(on_device)));
 
   // A depth image in a caller's buffer (odd pixel count: the last word is half used).
@@ -162,7 +162,7 @@ TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
   CallerBuffer pixel_buffer(vk, pixels.size() * sizeof(std::uint16_t));
   std::memcpy(pixel_buffer.data(), pixels.data(), pixels.size() * sizeof(std::uint16_t));
   const ScanStats depth_stats = insertDepthImageOnDevice(
-      on_device, pixel_buffer.range(), image, pose, -1.0, Eigen::Vector3f::Zero(), false, {});
+      on_device, pixel_buffer.range(), image, pose, ScanOptions{}, Eigen::Vector3f::Zero(), {});
   image.pixels = pixels.data();
   std::size_t skipped = 0;
   on_host.insertPointCloud(unprojectDepthImage(image, &skipped), Eigen::Vector3f::Zero(), pose);

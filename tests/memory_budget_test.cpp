@@ -250,7 +250,7 @@ TEST(MemoryBudget, QueryBuffersOverCapKeepTheMap) {
   QueryResults results;
   expectCapRefusal(
       [&] {
-        map.insertPointCloud(more, Eigen::Vector3f(0.1f, 0, 0), -1.0, false,
+        map.insertPointCloud(more, Eigen::Vector3f(0.1f, 0, 0), ScanOptions{},
                              QueryRequest{lookups, {}}, results);
       },
       "query buffers");

@@ -287,7 +287,7 @@ TEST(EdgeCases, ZeroRangePointsAtOriginSignedZeroAndTinyOffsets) {
                                                    bool discretize, std::size_t* refusals) {
   const std::string before = test::otBytes(*toOcTree(map));
   try {
-    map.insertPointCloud(points, origin, max_range, discretize);
+    map.insertPointCloud(points, origin, {.max_range_m = max_range, .discretize = discretize});
   } catch (const Error& e) {
     if (e.code() != ErrorCode::kMissingFeature ||
         ctx.device().name.find("llvmpipe") == std::string::npos)
@@ -576,7 +576,7 @@ TEST_P(PoseOverload, EqualsOctoMapFrameOriginInsert) {
     oracle.insertPointCloud(toPointcloud(pts), toPoint(origin_sensor), test::toPose6D(pose),
                             c.max_range, false, c.discretize);
     const ScanStats stats =
-        map.insertPointCloud(pts, origin_sensor, pose, c.max_range, c.discretize);
+        map.insertPointCloud(pts, origin_sensor, pose, {.max_range_m = c.max_range, .discretize = c.discretize});
     EXPECT_EQ(stats.points, pts.size());
     EXPECT_EQ(stats.nodes, oracle.size());
     auto ours = toOcTree(map);

@@ -69,7 +69,8 @@ TEST_P(RtScanOracle, SameTreeAfterEveryScanWhileRaysCrossClampedFreeSpace) {
     ScanStats rt;
     ASSERT_TRUE(test::insertBoth(map, oracle, pts, origin, max_range, discretize, &rt))
         << "scan " << scan;
-    const ScanStats w = walk.insertPointCloud(pts, origin, max_range, discretize);
+    const ScanStats w =
+        walk.insertPointCloud(pts, origin, {.max_range_m = max_range, .discretize = discretize});
     EXPECT_EQ(rt.occupied_cells, w.occupied_cells) << "scan " << scan;
     EXPECT_EQ(rt.skipped_outside, w.skipped_outside);
     EXPECT_EQ(rt.skipped_nonfinite, w.skipped_nonfinite);
@@ -146,8 +147,8 @@ TEST(RtScan, NonFinitePointsAndPointsOutsideTheMap) {
     pts.emplace_back(1.0f, inf, 0.0f);
     pts.emplace_back(0.5f, 0.5f, -inf);
     oracle.insertPointCloud(test::toPointcloud(finite), test::toPoint(origin), -1.0, false, false);
-    const ScanStats rt = map.insertPointCloud(pts, origin, -1.0, false);
-    const ScanStats w = walk.insertPointCloud(pts, origin, -1.0, false);
+    const ScanStats rt = map.insertPointCloud(pts, origin);
+    const ScanStats w = walk.insertPointCloud(pts, origin);
     EXPECT_EQ(rt.skipped_nonfinite, 3u);
     EXPECT_EQ(rt.skipped_nonfinite, w.skipped_nonfinite);
     EXPECT_EQ(rt.skipped_outside, w.skipped_outside);
@@ -170,7 +171,7 @@ TEST(RtScan, StreamedScansMatchOctoMap) {
     const Eigen::Vector3f origin(0.4f * static_cast<float>(scan / 4), 0.02f, 0.03f);
     const auto pts = roomScan(rng, origin, 1200, 2.0f);
     oracle.insertPointCloud(test::toPointcloud(pts), test::toPoint(origin), 3.0, false, false);
-    map.submitPointCloud(pts, origin, 3.0, false);
+    map.submitPointCloud(pts, origin, {.max_range_m = 3.0});
   }
   map.flush();
   const auto stats = map.takeScanStats();
@@ -241,7 +242,7 @@ TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
         cam.depth_scale = 1.0f;
         cam.pixels = metres.data();
         points = unprojectDepthImage(cam);
-        stats = map.insertDepthImage(cam, pose, max_range);
+        stats = map.insertDepthImage(cam, pose, {.max_range_m = max_range});
         break;
       case 1:  // uint16 millimetres from a caller's buffer
         cam.encoding = DepthImage::Encoding::kUint16;
@@ -249,14 +250,14 @@ TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
         cam.pixels = raw.data();
         points = unprojectDepthImage(cam);
         cam.pixels = nullptr;
-        stats = insertDepthImageOnDevice(map, pixel_buffer.range(), cam, pose, max_range,
-                                         Eigen::Vector3f::Zero(), false, {});
+        stats = insertDepthImageOnDevice(map, pixel_buffer.range(), cam, pose,
+                                         {.max_range_m = max_range});
         break;
       default:  // points from a caller's buffer
         points = cloud;
         stats = insertPointCloudOnDevice(map, point_buffer.range(),
                                          static_cast<std::uint32_t>(cloud.size()),
-                                         Eigen::Vector3f::Zero(), pose, max_range, false, {});
+                                         Eigen::Vector3f::Zero(), pose, {.max_range_m = max_range});
         break;
     }
     oracle.insertPointCloud(test::toPointcloud(points), test::toPoint(Eigen::Vector3f::Zero()),
@@ -265,7 +266,8 @@ TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
     EXPECT_EQ(stats.nodes, oracle.size()) << "scan " << scan;
     auto ours = toOcTree(map);
     ASSERT_TRUE(test::sameTree(oracle, *ours)) << "scan " << scan;
-    const ScanStats w = walk.insertPointCloud(points, Eigen::Vector3f::Zero(), pose, max_range);
+    const ScanStats w =
+        walk.insertPointCloud(points, Eigen::Vector3f::Zero(), pose, {.max_range_m = max_range});
     EXPECT_EQ(stats.occupied_cells, w.occupied_cells) << "scan " << scan;
     EXPECT_LE(stats.free_cells, w.free_cells) << "scan " << scan;
     if (scan >= 6) skipped_later += w.free_cells - stats.free_cells;

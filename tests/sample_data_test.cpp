@@ -83,7 +83,7 @@ void compareGraph(Context& ctx, const std::string& graph_path, const InsertCase&
     ASSERT_EQ(scans[i].points_sensor.size(), oracle_scans[i].points_world.size());
     const ScanStats stats = map.insertPointCloud(
         scans[i].points_sensor, graph2treeSensorOrigin(scans[i].T_world_sensor),
-        scans[i].T_world_sensor, c.max_range, c.discretize);
+        scans[i].T_world_sensor, {.max_range_m = c.max_range, .discretize = c.discretize});
     oracle.insertPointCloud(oracle_scans[i].points_world, oracle_scans[i].origin_world, c.max_range,
                             false, c.discretize);
     ASSERT_EQ(stats.skipped_nonfinite, 0u);

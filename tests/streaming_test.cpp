@@ -20,6 +20,7 @@ struct Scan {
   Eigen::Vector3f origin;
   double max_range = -1.0;
   bool discretize = false;
+  ScanOptions options() const { return {.max_range_m = max_range, .discretize = discretize}; }
 };
 
 void insertOracle(octomap::OcTree& oracle, const Scan& s) {
@@ -58,7 +59,7 @@ TEST(Streaming, BackToBackEqualsOctoMapAtEverySynchronisation) {
   for (std::size_t chunk = 1; next < scans.size(); chunk = chunk % 6 + 1) {
     for (std::size_t i = 0; i < chunk && next < scans.size(); ++i, ++next) {
       const Scan& s = scans[next];
-      tickets.push_back(map.submitPointCloud(s.points, s.origin, s.max_range, s.discretize));
+      tickets.push_back(map.submitPointCloud(s.points, s.origin, s.options()));
       insertOracle(oracle, s);
     }
     map.flush();
@@ -88,8 +89,8 @@ TEST(Streaming, SubmittedEqualsBlockingNodeByNode) {
   OccupancyMap blocking(ctx, params), streamed(ctx, params);
   std::vector<std::size_t> nodes;
   for (const Scan& s : scans)
-    nodes.push_back(blocking.insertPointCloud(s.points, s.origin, s.max_range, s.discretize).nodes);
-  for (const Scan& s : scans) streamed.submitPointCloud(s.points, s.origin, s.max_range, s.discretize);
+    nodes.push_back(blocking.insertPointCloud(s.points, s.origin, s.options()).nodes);
+  for (const Scan& s : scans) streamed.submitPointCloud(s.points, s.origin, s.options());
   streamed.flush();
   const std::vector<ScanStats> stats = streamed.takeScanStats();
   ASSERT_EQ(stats.size(), scans.size());
@@ -122,7 +123,7 @@ TEST(Streaming, RefusedScanRunsAgainWithTheScansQueuedBehindIt) {
       scans.push_back({randomScan(rng, p, 400, 2.0f), p, 2.5, discretize});
     }
     for (const Scan& s : scans) {
-      map.submitPointCloud(s.points, s.origin, s.max_range, s.discretize);
+      map.submitPointCloud(s.points, s.origin, s.options());
       insertOracle(oracle, s);
     }
     map.flush();
@@ -185,11 +186,11 @@ TEST(Streaming, QueriesSeeEverySubmittedScan) {
   std::mt19937 rng(3);
   const std::vector<Scan> scans = sequence(rng, 5);
   for (const Scan& s : scans) {
-    map.submitPointCloud(s.points, s.origin, s.max_range, s.discretize);
+    map.submitPointCloud(s.points, s.origin, s.options());
     insertOracle(oracle, s);
   }
   EXPECT_EQ(map.nodeCount(), oracle.size());
-  for (const Scan& s : scans) map.submitPointCloud(s.points, s.origin, s.max_range, s.discretize);
+  for (const Scan& s : scans) map.submitPointCloud(s.points, s.origin, s.options());
   for (const Scan& s : scans) insertOracle(oracle, s);
   std::vector<Eigen::Vector3f> probes = randomScan(rng, Eigen::Vector3f::Zero(), 2000, 3.0f);
   const std::vector<Lookup> found = map.search(probes);
@@ -228,8 +229,8 @@ TEST(Streaming, DepthImagesSubmittedEqualBlocking) {
     pose.translation = Eigen::Vector3f(0.1f * static_cast<float>(i), 0.0f, 0.3f);
     pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.2f * static_cast<float>(i),
                                                          Eigen::Vector3f::UnitZ()));
-    blocking.insertDepthImage(image, pose, i % 2 ? 1.8 : -1.0);
-    streamed.submitDepthImage(image, pose, i % 2 ? 1.8 : -1.0);
+    blocking.insertDepthImage(image, pose, {.max_range_m = i % 2 ? 1.8 : -1.0});
+    streamed.submitDepthImage(image, pose, {.max_range_m = i % 2 ? 1.8 : -1.0});
     // The pixels were copied: overwriting them now changes nothing submitted.
     std::fill(pixels.begin(), pixels.end(), std::uint16_t{1});
   }
@@ -264,9 +265,10 @@ TEST(Streaming, EmptyAndInvalidScans) {
 namespace octovk {
 namespace {
 
-// ScanOptions (params.hpp) is the same call as the trailing (max_range_m, discretize) arguments:
-// blocking, submitted and depth images, node for node.
-TEST(ScanOptionsApi, EqualsThePositionalArguments) {
+// ScanOptions (params.hpp) carries OctoMap's insertPointCloud arguments after the origin (max
+// range, discretize): blocking, submitted and depth-image scans given their options in it build
+// OctoMap's map with the same arguments, byte for byte.
+TEST(ScanOptionsApi, EqualsOctoMapWithTheSameArguments) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const MapParams params = test::withResolution(0.1);
   std::mt19937 rng(17);
@@ -286,26 +288,35 @@ TEST(ScanOptionsApi, EqualsThePositionalArguments) {
   image.cy = 11.5f;
   image.depth_scale = 1.0f;
 
-  OccupancyMap positional(ctx, params), options(ctx, params);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = test::makeOracle(params);
+  // OctoMap's sensor-frame insertPointCloud(pc, sensor_origin, frame_origin, max_range, lazy_eval,
+  // discretize).
+  const auto insertOracleInSensorFrame = [&](const std::vector<Eigen::Vector3f>& points,
+                                             const Eigen::Vector3f& origin, double max_range,
+                                             bool discretize) {
+    oracle.insertPointCloud(test::toPointcloud(points), test::toPoint(origin),
+                            test::toPose6D(pose), max_range, false, discretize);
+  };
   for (std::size_t i = 0; i < scans.size(); ++i) {
     const Scan& s = scans[i];
     const ScanOptions o{.max_range_m = s.max_range, .discretize = s.discretize};
     if (i % 2 == 0) {
-      positional.insertPointCloud(s.points, s.origin, s.max_range, s.discretize);
-      options.insertPointCloud(s.points, s.origin, o);
+      map.insertPointCloud(s.points, s.origin, o);
+      insertOracle(oracle, s);
     } else {
-      positional.submitPointCloud(s.points, s.origin, pose, s.max_range, s.discretize);
-      options.submitPointCloud(s.points, s.origin, pose, o);
+      map.submitPointCloud(s.points, s.origin, pose, o);
+      insertOracleInSensorFrame(s.points, s.origin, s.max_range, s.discretize);
     }
   }
-  positional.insertDepthImage(image, pose, 0.9, Eigen::Vector3f::Zero(), true);
-  options.insertDepthImage(image, pose, {.max_range_m = 0.9, .discretize = true});
-  positional.submitDepthImage(image, pose, 0.7);
-  options.submitDepthImage(image, pose, {.max_range_m = 0.7});
-  positional.flush();
-  options.flush();
-  EXPECT_GT(positional.nodeCount(), 1u);
-  EXPECT_TRUE(test::otBytes(*toOcTree(positional)) == test::otBytes(*toOcTree(options)));
+  const std::vector<Eigen::Vector3f> image_points = unprojectDepthImage(image);
+  map.insertDepthImage(image, pose, {.max_range_m = 0.9, .discretize = true});
+  insertOracleInSensorFrame(image_points, Eigen::Vector3f::Zero(), 0.9, true);
+  map.submitDepthImage(image, pose, {.max_range_m = 0.7});
+  insertOracleInSensorFrame(image_points, Eigen::Vector3f::Zero(), 0.7, false);
+  map.flush();
+  EXPECT_GT(map.nodeCount(), 1u);
+  EXPECT_TRUE(test::otBytes(*toOcTree(map)) == test::otBytes(oracle));
 }
 
 }  // namespace

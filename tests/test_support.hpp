@@ -238,7 +238,8 @@ inline ::testing::AssertionResult insertBoth(OccupancyMap& map, octomap::OcTree&
                                              const Eigen::Vector3f& origin, double max_range,
                                              bool discretize, ScanStats* stats = nullptr) {
   oracle.insertPointCloud(toPointcloud(points), toPoint(origin), max_range, false, discretize);
-  const ScanStats s = map.insertPointCloud(points, origin, max_range, discretize);
+  const ScanStats s =
+      map.insertPointCloud(points, origin, {.max_range_m = max_range, .discretize = discretize});
   if (stats) *stats = s;
   if (s.nodes != oracle.size())
     return ::testing::AssertionFailure()

@@ -77,9 +77,9 @@ Outcome mapJob(Context& ctx, const MapParams& params, int t) {
     for (std::size_t i = 0; i < scans.size(); ++i) {
       const Scan& s = scans[i];
       if (i % 2 == 0)
-        map.insertPointCloud(s.points, s.origin, s.max_range);
+        map.insertPointCloud(s.points, s.origin, {.max_range_m = s.max_range});
       else
-        map.submitPointCloud(s.points, s.origin, s.max_range);
+        map.submitPointCloud(s.points, s.origin, {.max_range_m = s.max_range});
     }
     map.flush();
     out.lookups = map.search(probePoints(t));
@@ -167,7 +167,7 @@ TEST(Threading, QueriesOnOneMapWhileAnotherInserts) {
   REQUIRE_FRESH_CONTEXT(ctx);
   const MapParams params = test::withResolution(0.1);
   OccupancyMap queried(*ctx, params);
-  for (const Scan& s : scansOf(0, 6)) queried.insertPointCloud(s.points, s.origin, s.max_range);
+  for (const Scan& s : scansOf(0, 6)) queried.insertPointCloud(s.points, s.origin, {.max_range_m = s.max_range});
   const std::vector<Eigen::Vector3f> points = probePoints(0);
   const std::vector<Ray> rays = probeRays(0);
   const std::vector<Lookup> lookups = queried.search(points);
@@ -205,10 +205,10 @@ TEST(Threading, MapOutlivesItsContext) {
   auto map = std::make_unique<OccupancyMap>(*ctx, params);
   octomap::OcTree oracle = test::makeOracle(params);
   const std::vector<Scan> scans = scansOf(2, 4);
-  map->insertPointCloud(scans[0].points, scans[0].origin, scans[0].max_range);
+  map->insertPointCloud(scans[0].points, scans[0].origin, {.max_range_m = scans[0].max_range});
   ctx.reset();
   for (std::size_t i = 1; i < scans.size(); ++i) {
-    map->submitPointCloud(scans[i].points, scans[i].origin, scans[i].max_range);
+    map->submitPointCloud(scans[i].points, scans[i].origin, {.max_range_m = scans[i].max_range});
   }
   map->flush();
   for (const Scan& s : scans)

@@ -577,8 +577,8 @@ TEST(TumLibrary, DepthImageEqualsItsPointsAndOctomap) {
       std::size_t no_depth = 0;
       const std::vector<Eigen::Vector3f> points = octovk::unprojectDepthImage(image, &no_depth);
       const octovk::ScanStats stats =
-          by_image.insertDepthImage(image, frame.T_world_camera, max_range, origin);
-      by_points.insertPointCloud(points, origin, frame.T_world_camera, max_range);
+          by_image.insertDepthImage(image, frame.T_world_camera, {.max_range_m = max_range}, origin);
+      by_points.insertPointCloud(points, origin, frame.T_world_camera, {.max_range_m = max_range});
       oracle.insertPointCloud(octovk::test::toPointcloud(points),
                               octovk::test::toPoint(origin),
                               octovk::test::toPose6D(frame.T_world_camera), max_range);

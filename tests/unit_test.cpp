@@ -201,7 +201,8 @@ TEST(BadInput, NonFinitePointsAreSkippedAndCounted) {
         bad += 2;
         oracle.insertPointCloud(toPointcloud(finite), toPoint(origin), max_range, false,
                                 discretize);
-        const ScanStats stats = map.insertPointCloud(mixed, origin, max_range, discretize);
+        const ScanStats stats = map.insertPointCloud(
+            mixed, origin, {.max_range_m = max_range, .discretize = discretize});
         EXPECT_EQ(stats.points, mixed.size());
         EXPECT_EQ(stats.skipped_nonfinite, bad);
         EXPECT_EQ(stats.nodes, oracle.size());
@@ -286,7 +287,8 @@ TEST(BadInput, EmptyScanLeavesTheMapUnchanged) {
   const auto pts = randomScan(rng, Eigen::Vector3f::Zero(), 200, 2.0f);
   ASSERT_TRUE(insertBoth(map, oracle, pts, Eigen::Vector3f::Zero(), -1.0, false));
   const std::string before = test::otBytes(*toOcTree(map));
-  stats = map.insertPointCloud(none, Eigen::Vector3f(1.0f, 2.0f, 3.0f), 5.0, true);
+  stats = map.insertPointCloud(none, Eigen::Vector3f(1.0f, 2.0f, 3.0f),
+                               {.max_range_m = 5.0, .discretize = true});
   EXPECT_EQ(stats.points, 0u);
   EXPECT_EQ(stats.nodes, oracle.size());
   Pose pose;
@@ -371,12 +373,16 @@ TEST(BadInput, NonFiniteOriginOrMaxRangeThrowsAndLeavesTheMap) {
   expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(nan, 0.0f, 0.0f)); }, "NaN origin");
   expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(0.0f, inf, 0.0f)); },
                 "infinite origin");
-  expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f(0.0f, 0.0f, -inf), 2.0, true); },
-                "-inf origin, discretize");
+  expectInvalid(
+      [&] {
+        map.insertPointCloud(pts, Eigen::Vector3f(0.0f, 0.0f, -inf),
+                             {.max_range_m = 2.0, .discretize = true});
+      },
+      "-inf origin, discretize");
   expectInvalid(
       [&] {
         map.insertPointCloud(pts, Eigen::Vector3f::Zero(),
-                             std::numeric_limits<double>::quiet_NaN());
+                             {.max_range_m = std::numeric_limits<double>::quiet_NaN()});
       },
       "NaN max range");
   Pose bad_translation;
@@ -388,7 +394,9 @@ TEST(BadInput, NonFiniteOriginOrMaxRangeThrowsAndLeavesTheMap) {
   expectInvalid([&] { map.insertPointCloud(pts, Eigen::Vector3f::Zero(), bad_rotation); },
                 "infinite pose rotation");
   expectInvalid(
-      [&] { map.insertPointCloud(pts, Eigen::Vector3f(nan, nan, nan), Pose{}, 1.0, false); },
+      [&] {
+        map.insertPointCloud(pts, Eigen::Vector3f(nan, nan, nan), Pose{}, {.max_range_m = 1.0});
+      },
       "NaN sensor origin with a pose");
 
   // The map still works afterwards.

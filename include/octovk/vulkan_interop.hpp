@@ -60,32 +60,17 @@ struct WaitSemaphore {
 /// returns when the scan is in the map, with the same result as the host overload.
 ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
                                    std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                   const Pose& T_world_sensor, double max_range_m = -1.0,
-                                   bool discretize = false, WaitSemaphore wait = {});
+                                   const Pose& T_world_sensor,
+                                   const ScanOptions& options = {}, WaitSemaphore wait = {});
 
 /// OccupancyMap::insertDepthImage on pixels already in a device buffer: `pixels` holds
 /// image.width * image.height depths in image.encoding (image.pixels is ignored), row by row,
 /// and needs TRANSFER_SRC usage. Waits and returns as insertPointCloudOnDevice.
 ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
-                                   const Pose& T_world_camera, double max_range_m = -1.0,
+                                   const Pose& T_world_camera,
+                                   const ScanOptions& options = {},
                                    const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
-                                   bool discretize = false, WaitSemaphore wait = {});
-
-/// The two calls above with their options in one struct (ScanOptions).
-inline ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
-                                          std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                          const Pose& T_world_sensor, const ScanOptions& options,
-                                          WaitSemaphore wait = {}) {
-  return insertPointCloudOnDevice(map, points_sensor, count, origin_sensor, T_world_sensor,
-                                  options.max_range_m, options.discretize, wait);
-}
-inline ScanStats insertDepthImageOnDevice(
-    OccupancyMap& map, BufferRange pixels, const DepthImage& image, const Pose& T_world_camera,
-    const ScanOptions& options, const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
-    WaitSemaphore wait = {}) {
-  return insertDepthImageOnDevice(map, pixels, image, T_world_camera, options.max_range_m,
-                                  origin_camera, options.discretize, wait);
-}
+                                   WaitSemaphore wait = {});
 
 /// OccupancyMap::search on points already in a device buffer: `points` holds count x, y, z
 /// floats (12 B each); `results` receives count gpu::LookupResult (16 B each). The caller must

@@ -251,12 +251,4 @@ float occupancyLogOdds(const MapParams& params) {
   const double p = params.occupancy_threshold;
   return static_cast<float>(std::log(p / (1.0 - p)));
 }
-
-bool printHelpIfAsked(const std::vector<std::string>& args, void (*print)(std::ostream&)) {
-  if (!wantsHelp(args)) return false;
-  print(std::cout);
-  std::cout << "\n";
-  printEnvironmentAndExitCodes(std::cout);
-  return true;
-}
 }  // namespace octovk::cli

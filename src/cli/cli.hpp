@@ -1,6 +1,7 @@
 // The octovk program's pieces shared between its commands: usage errors, option values, help.
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <functional>
 #include <iosfwd>
@@ -20,6 +21,12 @@ class UsageError : public std::runtime_error {
  public:
   explicit UsageError(const std::string& message) : std::runtime_error(message) {}
 };
+
+/// Seconds since `start` on the steady clock, for the times the commands report.
+using Clock = std::chrono::steady_clock;
+inline double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 /// Exit codes, as documented in the help text.
 inline constexpr int kExitOk = 0;
@@ -67,31 +74,6 @@ std::vector<double> parseNumbers(const ParsedOption& option, const std::string& 
 
 /// True when `args` asks for help (-h / --help before any "--").
 bool wantsHelp(const std::vector<std::string>& args);
-
-/// If `args` ask for help, prints the command's help (`print`) and the environment and exit
-/// codes on stdout, and returns true.
-bool printHelpIfAsked(const std::vector<std::string>& args, void (*print)(std::ostream&));
-
-/// The help of `octovk integrate`: usage, every option with its default, files, exit codes.
-void printIntegrateHelp(std::ostream& out);
-/// `octovk integrate ARGS...` (without the command name). Throws UsageError or octovk::Error.
-int runIntegrate(const std::vector<std::string>& args);
-
-/// `octovk info MAP`: what a map file holds.
-void printInfoHelp(std::ostream& out);
-int runInfo(const std::vector<std::string>& args);
-
-/// `octovk render MAP -o VIEW.png`: a picture of the occupied cells, ray cast on the device.
-void printRenderHelp(std::ostream& out);
-int runRender(const std::vector<std::string>& args);
-
-/// `octovk export MAP -o CELLS.ply`: the leaf cells as a point cloud for other viewers.
-void printExportHelp(std::ostream& out);
-int runExport(const std::vector<std::string>& args);
-
-/// `octovk convert DIR -o SCANS.graph`: a TUM RGB-D folder as an OctoMap scan graph.
-void printConvertHelp(std::ostream& out);
-int runConvert(const std::vector<std::string>& args);
 
 /// The environment and exit-code sections every help text ends with.
 void printEnvironmentAndExitCodes(std::ostream& out);

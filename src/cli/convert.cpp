@@ -10,7 +10,7 @@
 #include <iostream>
 #include <sstream>
 
-#include "cli.hpp"
+#include "command.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/tum_sequence.hpp"
 
@@ -121,41 +121,6 @@ namespace {
 
 constexpr const char* kConvertUsage = "octovk convert DIR -o SCANS.graph";
 
-struct ConvertOptions {
-  std::string dir;
-  std::string output;
-  CameraIntrinsics camera;
-};
-
-ConvertOptions parseConvert(const std::vector<std::string>& args) {
-  ConvertOptions o;
-  std::vector<std::string> value_options = {"-o", "--output"};
-  for (const std::string& name : cameraValueOptions()) value_options.push_back(name);
-  ArgReader reader(args, value_options, cameraMultiValueOptions());
-  while (reader.next()) {
-    if (!reader.isOption()) {
-      if (!o.dir.empty())
-        throw UsageError("unexpected argument '" + reader.positional() +
-                         "': convert takes one folder (" + o.dir + "); the output goes after -o");
-      o.dir = reader.positional();
-      continue;
-    }
-    const ParsedOption& opt = reader.option();
-    if (opt.name == "-o" || opt.name == "--output") {
-      if (!o.output.empty())
-        throw UsageError("convert writes one scan graph; give -o once (got '" + o.output +
-                         "' and '" + opt.value + "')");
-      o.output = opt.value;
-    } else if (!parseCameraOption(opt, o.camera)) {
-      throw UsageError("unknown option '" + opt.name +
-                       "' for convert; see 'octovk convert --help' for the options");
-    }
-  }
-  return o;
-}
-
-}  // namespace
-
 void printConvertHelp(std::ostream& out) {
   out << kConvertUsage
       << " [--intrinsics FX FY CX CY] [--depth-scale S]\n"
@@ -181,41 +146,64 @@ void printConvertHelp(std::ostream& out) {
          "the file written).\n";
 }
 
-int runConvert(const std::vector<std::string>& args) {
-  if (printHelpIfAsked(args, printConvertHelp)) return kExitOk;
-  const ConvertOptions o = parseConvert(args);
-  checkTumFolder(o.dir, kConvertUsage);
-  if (o.output.empty()) throw UsageError("no output file; add -o SCANS.graph");
-  checkOutputFile(o.output, {".graph"}, ".graph (an OctoMap scan graph)");
-  // Created now: an unwritable path is found before any work.
-  OutputFiles output({o.output}, {(fs::path(o.dir) / "depth.txt").string(),
-                                  (fs::path(o.dir) / "groundtruth.txt").string()});
+class Convert final : public Command {
+ public:
+  bool option(const ParsedOption& opt) override { return parseCameraOption(opt, camera_); }
+  void check(Invocation& in) override {
+    checkTumFolder(in.input(), kConvertUsage);
+    in.checkOutputs();
+  }
+  int run(Invocation& in) override;
 
-  const TumSequence sequence = readTumSequence(o.dir);
+ private:
+  CameraIntrinsics camera_;
+};
+
+int Convert::run(Invocation& in) {
+  const TumSequence sequence = readTumSequence(in.input());
   for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
   std::size_t points = 0, no_depth = 0;
-  output.write(0, [&](const std::string& tmp) {
+  in.files().write(0, [&](const std::string& tmp) {
     StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
     writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
       const TumFrame& frame = sequence.frames[i];
       const DepthPng png = readDepthPng(frame.image_path);
       GraphScan scan;
       std::size_t skipped = 0;
-      scan.points_sensor = unprojectDepthImage(png.image(o.camera), &skipped);
+      scan.points_sensor = unprojectDepthImage(png.image(camera_), &skipped);
       scan.T_world_sensor = frame.T_world_camera;
       points += scan.points_sensor.size();
       no_depth += skipped;
       return scan;
     });
   });
-  output.commit();
+  in.files().commit();
 
   std::ostringstream s;
   s << tumImagesSummary(sequence) << "points:        " << points << " (camera frame; " << no_depth
     << " pixels without depth skipped)\n"
-    << "wrote:         " << o.output << "\n";
+    << "wrote:         " << in.output() << "\n";
   std::cout << s.str() << std::flush;
   return kExitOk;
 }
+
+}  // namespace
+
+const Subcommand kConvertCommand{
+    .name = "convert",
+    .print_help = printConvertHelp,
+    .input = "folder",
+    .second_input_hint = "; the output goes after -o",
+    .outputs = Subcommand::Outputs::kOne,
+    .output_twice = [](const std::string& first, const std::string& second) -> std::string {
+      return "convert writes one scan graph; give -o once (got '" + first + "' and '" + second +
+             "')";
+    },
+    .no_output = "no output file; add -o SCANS.graph",
+    .output_extensions = {".graph"},
+    .output_formats = ".graph (an OctoMap scan graph)",
+    .value_options = cameraValueOptions(),
+    .multi_value_options = cameraMultiValueOptions(),
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Convert>(); }};
 
 }  // namespace octovk::cli

@@ -5,7 +5,6 @@
 #include <array>
 #include <cerrno>
 #include <charconv>
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -14,15 +13,13 @@
 #include <optional>
 #include <sstream>
 
-#include "cli.hpp"
+#include "command.hpp"
 #include "octovk/octovk.hpp"
 #include "png.hpp"
 
 namespace octovk::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 constexpr const char* kExportUsage =
     "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] "
@@ -31,70 +28,9 @@ constexpr const char* kExportUsage =
 
 enum class Coloring { kHeight, kOccupancy };
 
-struct ExportOptions {
-  std::string map_path;
-  std::string output_path;
-  bool occupied_only = false;
-  std::optional<std::array<double, 6>> box;
-  Coloring coloring = Coloring::kHeight;
-  MapParams cap;  // only its max_device_bytes (--max-device-memory): the rest comes from the file
-};
-
 const Rgb kFreeGrey{190, 190, 190};
 const Rgb kOccupiedRed{210, 50, 40};
 const Rgb kFreeGreen{70, 170, 90};
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-ExportOptions parseExport(const std::vector<std::string>& args) {
-  ExportOptions o;
-  ArgReader reader(args, {"-o", "--output", "--color", kMaxDeviceMemoryOption},
-                   {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}});
-  while (reader.next()) {
-    if (!reader.isOption()) {
-      if (!o.map_path.empty())
-        throw UsageError("unexpected argument '" + reader.positional() +
-                         "': export takes one map file (" + o.map_path +
-                         "); the PLY file goes after -o");
-      o.map_path = reader.positional();
-      continue;
-    }
-    const ParsedOption& opt = reader.option();
-    if (opt.name == "-o" || opt.name == "--output") {
-      if (!o.output_path.empty()) throw UsageError("export writes one file; -o is given twice");
-      o.output_path = opt.value;
-    } else if (opt.name == "--occupied-only") {
-      o.occupied_only = true;
-    } else if (opt.name == kMaxDeviceMemoryOption) {
-      o.cap.max_device_bytes = parseByteCount(opt);
-    } else if (opt.name == "--box") {
-      const std::vector<double> v = parseNumbers(opt, "-5 -5 0 5 5 2");
-      for (int a = 0; a < 3; ++a)
-        if (v[a] > v[a + 3])
-          throw UsageError("--box: the minimum " + std::string(1, "xyz"[a]) + " (" + opt.values[a] +
-                           ") is above the maximum (" + opt.values[a + 3] +
-                           "); write --box XMIN YMIN ZMIN XMAX YMAX ZMAX");
-      o.box = std::array<double, 6>{v[0], v[1], v[2], v[3], v[4], v[5]};
-    } else if (opt.name == "--color") {
-      if (opt.value == "height")
-        o.coloring = Coloring::kHeight;
-      else if (opt.value == "occupancy")
-        o.coloring = Coloring::kOccupancy;
-      else
-        throw UsageError("--color expects 'height' or 'occupancy', got '" + opt.value + "'");
-    } else {
-      throw UsageError("unknown option '" + opt.name +
-                       "' for export; see 'octovk export --help' for the options");
-    }
-  }
-  checkMapInput(o.map_path, kExportUsage);
-  checkDeviceMemoryCap(o.cap);
-  if (o.output_path.empty()) throw UsageError("no output file; add -o CELLS.ply");
-  checkOutputFile(o.output_path, {".ply"}, ".ply (ASCII PLY point cloud)");
-  return o;
-}
 
 // A box corner clamped into the map's domain (keys 0 … 65535, centred on 0), so that a box
 // larger than the map means all of it rather than nothing.
@@ -165,8 +101,6 @@ void writePly(const std::string& path, const std::vector<OccupancyMap::LeafBoxHo
     throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
 }
 
-}  // namespace
-
 void printExportHelp(std::ostream& out) {
   out << "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only]\n"
          "              [--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy]\n"
@@ -200,15 +134,51 @@ void printExportHelp(std::ostream& out) {
          "time taken and the file written.\n";
 }
 
-int runExport(const std::vector<std::string>& args) {
-  if (printHelpIfAsked(args, printExportHelp)) return kExitOk;
-  const ExportOptions o = parseExport(args);
-  // Created now: an unwritable path is found before any work.
-  OutputFiles output({o.output_path}, {o.map_path});
+class Export final : public Command {
+ public:
+  bool option(const ParsedOption& opt) override {
+    if (opt.name == "--occupied-only") {
+      occupied_only_ = true;
+    } else if (opt.name == "--box") {
+      const std::vector<double> v = parseNumbers(opt, "-5 -5 0 5 5 2");
+      for (int a = 0; a < 3; ++a)
+        if (v[a] > v[a + 3])
+          throw UsageError("--box: the minimum " + std::string(1, "xyz"[a]) + " (" + opt.values[a] +
+                           ") is above the maximum (" + opt.values[a + 3] +
+                           "); write --box XMIN YMIN ZMIN XMAX YMAX ZMAX");
+      box_ = std::array<double, 6>{v[0], v[1], v[2], v[3], v[4], v[5]};
+    } else if (opt.name == "--color") {
+      if (opt.value == "height")
+        coloring_ = Coloring::kHeight;
+      else if (opt.value == "occupancy")
+        coloring_ = Coloring::kOccupancy;
+      else
+        throw UsageError("--color expects 'height' or 'occupancy', got '" + opt.value + "'");
+    } else {
+      return false;
+    }
+    return true;
+  }
 
-  std::unique_ptr<Context> context = createContext();
+  void check(Invocation& in) override {
+    checkMapInput(in.input(), kExportUsage);
+    in.checkDeviceMemoryCap();
+    in.checkOutputs();
+  }
+
+  int run(Invocation& in) override;
+
+ private:
+  bool occupied_only_ = false;
+  std::optional<std::array<double, 6>> box_;
+  Coloring coloring_ = Coloring::kHeight;
+};
+
+int Export::run(Invocation& in) {
+  const std::string& map_path = in.input();
+  Context& context = in.context();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(*context, o.map_path, o.cap.max_device_bytes);
+  const OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
   const double read_s = secondsSince(start);
 
   const auto select_start = Clock::now();
@@ -216,13 +186,13 @@ int runExport(const std::vector<std::string>& args) {
   const float occupied_log_odds = occupancyLogOdds(map.params());
   std::vector<OccupancyMap::LeafBoxHost> cells;
   try {
-    if (o.box) {
-      const std::array<double, 6>& b = *o.box;
+    if (box_) {
+      const std::array<double, 6>& b = *box_;
       cells = map.leavesInBox(clampToDomain(b[0], b[1], b[2], resolution),
-                              clampToDomain(b[3], b[4], b[5], resolution), o.occupied_only);
+                              clampToDomain(b[3], b[4], b[5], resolution), occupied_only_);
     } else {
       cells = map.downloadLeafBoxes();
-      if (o.occupied_only)
+      if (occupied_only_)
         std::erase_if(cells, [&](const OccupancyMap::LeafBoxHost& c) {
           return !(c.log_odds >= occupied_log_odds);
         });
@@ -244,7 +214,7 @@ int runExport(const std::vector<std::string>& args) {
   std::vector<Rgb> colours(cells.size());
   for (std::size_t i = 0; i < cells.size(); ++i) {
     const bool is_occupied = cells[i].log_odds >= occupied_log_odds;
-    if (o.coloring == Coloring::kOccupancy)
+    if (coloring_ == Coloring::kOccupancy)
       colours[i] = is_occupied ? kOccupiedRed : kFreeGreen;
     else if (!is_occupied)
       colours[i] = kFreeGrey;
@@ -253,19 +223,19 @@ int runExport(const std::vector<std::string>& args) {
           heightColor(z_max > z_min ? (cells[i].center[2] - z_min) / (z_max - z_min) : 0.5);
   }
   std::ostringstream comment;
-  comment << "octovk export of " << o.map_path << " (resolution " << resolution
+  comment << "octovk export of " << map_path << " (resolution " << resolution
           << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, colour by "
-          << (o.coloring == Coloring::kHeight ? "height" : "occupancy");
-  output.write(
+          << (coloring_ == Coloring::kHeight ? "height" : "occupancy");
+  in.files().write(
       0, [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
-  output.commit();
+  in.files().commit();
   const double write_s = secondsSince(write_start);
 
   std::ostringstream s;
-  s << "device:  " << context->device().name << " (" << context->device().type << ")\n";
-  s << "map:     " << o.map_path << "\n";
-  if (o.box) {
-    const std::array<double, 6>& b = *o.box;
+  s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
+  s << "map:     " << map_path << "\n";
+  if (box_) {
+    const std::array<double, 6>& b = *box_;
     char line[256];
     std::snprintf(line, sizeof(line), "box:     min (%g, %g, %g) max (%g, %g, %g) m\n", b[0], b[1],
                   b[2], b[3], b[4], b[5]);
@@ -277,9 +247,28 @@ int runExport(const std::vector<std::string>& args) {
   std::snprintf(line, sizeof(line),
                 "time:    %.3f s (reading and upload %.3f s, selecting %.3f s, writing %.3f s)\n",
                 read_s + select_s + write_s, read_s, select_s, write_s);
-  s << line << "wrote:   " << o.output_path << "\n";
+  s << line << "wrote:   " << in.output() << "\n";
   std::cout << s.str() << std::flush;
   return kExitOk;
 }
+
+}  // namespace
+
+const Subcommand kExportCommand{
+    .name = "export",
+    .print_help = printExportHelp,
+    .input = "map file",
+    .second_input_hint = "; the PLY file goes after -o",
+    .outputs = Subcommand::Outputs::kOne,
+    .output_twice = [](const std::string&, const std::string&) -> std::string {
+      return "export writes one file; -o is given twice";
+    },
+    .no_output = "no output file; add -o CELLS.ply",
+    .output_extensions = {".ply"},
+    .output_formats = ".ply (ASCII PLY point cloud)",
+    .max_device_memory = true,
+    .value_options = {"--color"},
+    .multi_value_options = {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Export>(); }};
 
 }  // namespace octovk::cli

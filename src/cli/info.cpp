@@ -1,25 +1,19 @@
 // octovk info: what a map file holds (resolution, nodes, leaves by state, bounds, device memory),
 // counted on the device from the map's leaf boxes.
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <limits>
 #include <sstream>
 
-#include "cli.hpp"
+#include "command.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk::cli {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr const char* kInfoUsage = "octovk info MAP.bt|MAP.ot [--max-device-memory BYTES]";
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 // Metric bounds of a set of leaves: the outer faces of their cells.
 struct Bounds {
@@ -49,8 +43,6 @@ std::string describe(const Bounds& b) {
   return text;
 }
 
-}  // namespace
-
 void printInfoHelp(std::ostream& out) {
   out << kInfoUsage
       << "\n"
@@ -75,30 +67,20 @@ void printInfoHelp(std::ostream& out) {
   out << "  -h, --help             show this help\n";
 }
 
-int runInfo(const std::vector<std::string>& args) {
-  if (printHelpIfAsked(args, printInfoHelp)) return kExitOk;
-  std::string map_path;
-  MapParams cap;  // only its max_device_bytes: the rest comes from the file
-  ArgReader reader(args, {kMaxDeviceMemoryOption});
-  while (reader.next()) {
-    if (reader.isOption() && reader.option().name == kMaxDeviceMemoryOption) {
-      cap.max_device_bytes = parseByteCount(reader.option());
-      continue;
-    }
-    if (reader.isOption())
-      throw UsageError("unknown option '" + reader.option().name +
-                       "' for info; see 'octovk info --help'");
-    if (!map_path.empty())
-      throw UsageError("unexpected argument '" + reader.positional() +
-                       "': info takes one map file (" + map_path + ")");
-    map_path = reader.positional();
+class Info final : public Command {
+ public:
+  void check(Invocation& in) override {
+    checkMapInput(in.input(), kInfoUsage);
+    in.checkDeviceMemoryCap();
   }
-  checkMapInput(map_path, kInfoUsage);
-  checkDeviceMemoryCap(cap);
+  int run(Invocation& in) override;
+};
 
-  std::unique_ptr<Context> context = createContext();
+int Info::run(Invocation& in) {
+  const std::string& map_path = in.input();
+  Context& context = in.context();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(*context, map_path, cap.max_device_bytes);
+  const OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
   const double read_s = secondsSince(start);
 
   const auto count_start = Clock::now();
@@ -129,7 +111,7 @@ int runInfo(const std::vector<std::string>& args) {
 
   std::ostringstream s;
   char line[256];
-  s << "device:          " << context->device().name << " (" << context->device().type << ")\n";
+  s << "device:          " << context.device().name << " (" << context.device().type << ")\n";
   s << "map:             " << map_path << "\n";
   std::snprintf(line, sizeof(line), "resolution:      %g m\n", map.params().resolution);
   s << line;
@@ -160,5 +142,16 @@ int runInfo(const std::vector<std::string>& args) {
   std::cout << s.str() << std::flush;
   return kExitOk;
 }
+
+}  // namespace
+
+const Subcommand kInfoCommand{.name = "info",
+                              .print_help = printInfoHelp,
+                              .input = "map file",
+                              .max_device_memory = true,
+                              .unknown_option_tail = "",
+                              .make = []() -> std::unique_ptr<Command> {
+                                return std::make_unique<Info>();
+                              }};
 
 }  // namespace octovk::cli

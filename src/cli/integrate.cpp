@@ -6,7 +6,6 @@
 #include <unistd.h>
 
 #include <cerrno>
-#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -16,7 +15,7 @@
 #include <optional>
 #include <sstream>
 
-#include "cli.hpp"
+#include "command.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
 #include "octovk/tum_sequence.hpp"
@@ -26,80 +25,6 @@ namespace octovk::cli {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-struct IntegrateOptions {
-  std::string graph_path;  ///< a scan graph, or a TUM RGB-D folder when `tum`
-  bool tum = false;
-  CameraIntrinsics camera;  ///< --intrinsics, --depth-scale (TUM folders only)
-  std::string camera_option;  ///< the first of those given, for the error on a scan graph
-  std::vector<std::string> output_paths;
-  MapParams params;
-  double max_range_m = -1.0;
-  bool discretize = false;
-  bool quiet = false;
-};
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-IntegrateOptions parseIntegrate(const std::vector<std::string>& args) {
-  IntegrateOptions o;
-  std::vector<std::string> value_options = {"-o",          "--output",      "-r",
-                                            "--resolution", "-m",           "--max-range",
-                                            "--prob-hit",   "--prob-miss",  "--clamping-min",
-                                            "--clamping-max", "--rays"};
-  value_options.push_back(kMaxDeviceMemoryOption);
-  for (const std::string& name : cameraValueOptions()) value_options.push_back(name);
-  ArgReader reader(args, value_options, cameraMultiValueOptions());
-  while (reader.next()) {
-    if (!reader.isOption()) {
-      if (!o.graph_path.empty())
-        throw UsageError("unexpected argument '" + reader.positional() +
-                         "': integrate takes one scan graph or folder (" + o.graph_path +
-                         "); outputs go after -o");
-      o.graph_path = reader.positional();
-      continue;
-    }
-    const ParsedOption& opt = reader.option();
-    if (opt.name == "-o" || opt.name == "--output")
-      o.output_paths.push_back(opt.value);
-    else if (opt.name == "-r" || opt.name == "--resolution")
-      o.params.resolution = parseNumber(opt, "0.05");
-    else if (opt.name == "-m" || opt.name == "--max-range")
-      o.max_range_m = parseNumber(opt, "10 (metres; negative: unlimited)");
-    else if (opt.name == "--prob-hit")
-      o.params.prob_hit = parseNumber(opt, "0.7");
-    else if (opt.name == "--prob-miss")
-      o.params.prob_miss = parseNumber(opt, "0.4");
-    else if (opt.name == "--clamping-min")
-      o.params.clamping_min = parseNumber(opt, "0.1192");
-    else if (opt.name == "--clamping-max")
-      o.params.clamping_max = parseNumber(opt, "0.971");
-    else if (opt.name == "--discretize")
-      o.discretize = true;
-    else if (opt.name == "--rays") {
-      if (opt.value == "walk")
-        o.params.scan_rays = ScanRays::kWalk;
-      else if (opt.value == "rt")
-        o.params.scan_rays = ScanRays::kRayTracing;
-      else
-        throw UsageError("--rays " + opt.value + ": use --rays walk (the compute walk) or --rays rt "
-                         "(ray tracing)");
-    }
-    else if (opt.name == "-q" || opt.name == "--quiet")
-      o.quiet = true;
-    else if (opt.name == kMaxDeviceMemoryOption)
-      o.params.max_device_bytes = parseByteCount(opt);
-    else if (parseCameraOption(opt, o.camera)) {
-      if (o.camera_option.empty()) o.camera_option = opt.name;
-    } else
-      throw UsageError("unknown option '" + opt.name +
-                       "' for integrate; see 'octovk integrate --help' for the options");
-  }
-  return o;
-}
 
 void checkInput(const std::string& path) {
   if (path.empty())
@@ -124,43 +49,18 @@ std::string paramFix(const std::string& why) {
   return "fix " + option + " (see 'octovk integrate --help')";
 }
 
-void validate(IntegrateOptions& o) {
-  std::error_code ec;
-  o.tum = !o.graph_path.empty() && fs::is_directory(o.graph_path, ec);
-  if (o.tum) {
-    checkTumFolder(o.graph_path, "octovk integrate DIR -o MAP.bt");
-  } else {
-    checkInput(o.graph_path);
-    if (!o.camera_option.empty())
-      throw UsageError(o.camera_option + " applies to a TUM RGB-D folder; scan graph '" +
-                       o.graph_path + "' holds 3D points already: leave " + o.camera_option +
-                       " out");
-  }
-  if (o.output_paths.empty()) throw UsageError("no output file; add -o MAP.bt and/or -o MAP.ot");
-  for (const std::string& path : o.output_paths)
-    checkOutputFile(path, {".bt", ".ot"}, ".bt (max-likelihood binary) or .ot (full log-odds)");
-  checkDeviceMemoryCap(o.params);
-  if (o.params.scan_rays == ScanRays::kRayTracing && o.params.max_device_bytes != 0)
-    throw UsageError(std::string("--rays rt cannot be capped by ") + kMaxDeviceMemoryOption +
-                     ": its acceleration structures are not held under the cap; use --rays walk "
-                     "or leave " +
-                     kMaxDeviceMemoryOption + " out");
-  const std::string why = o.params.validate();
-  if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
-}
-
 // Where scan `i` of the run comes from, to begin its errors: the graph and the scan's number
 // (from 1), or the folder and the image's timestamp and name, as depth.txt lists them.
-std::string scanPlace(const IntegrateOptions& o, const std::optional<TumSequence>& tum,
+std::string scanPlace(const std::string& input, const std::optional<TumSequence>& tum,
                       std::size_t i, std::size_t count) {
   if (!tum)
-    return o.graph_path + ": scan " + std::to_string(i + 1) + " of " + std::to_string(count);
+    return input + ": scan " + std::to_string(i + 1) + " of " + std::to_string(count);
   const TumFrame& frame = tum->frames[i];
   char stamp[64];
   std::snprintf(stamp, sizeof(stamp), "%.6f", frame.timestamp);
   const std::string name =
-      fs::path(frame.image_path).lexically_relative(fs::path(o.graph_path)).string();
-  return o.graph_path + ": depth image " + stamp + " (" + (name.empty() ? frame.image_path : name) +
+      fs::path(frame.image_path).lexically_relative(fs::path(input)).string();
+  return input + ": depth image " + stamp + " (" + (name.empty() ? frame.image_path : name) +
          ", depth.txt line " + std::to_string(frame.line) + ")";
 }
 
@@ -220,8 +120,6 @@ void writeOutputs(const OccupancyMap& map, OutputFiles& outputs) {
     outputs.write(i, [&](const std::string& temporary) { writeMap(map, temporary); });
   outputs.commit();
 }
-
-}  // namespace
 
 void printIntegrateHelp(std::ostream& out) {
   const MapParams defaults;
@@ -290,36 +188,97 @@ void printIntegrateHelp(std::ostream& out) {
          "skipped and the pixels without depth).\n";
 }
 
-int runIntegrate(const std::vector<std::string>& args) {
-  if (printHelpIfAsked(args, printIntegrateHelp)) return kExitOk;
-  IntegrateOptions o = parseIntegrate(args);
-  validate(o);
-  // Every output is created now, so an unwritable one is found before any work.
-  const std::vector<std::string> inputs =
-      o.tum ? std::vector<std::string>{(fs::path(o.graph_path) / "depth.txt").string(),
-                                       (fs::path(o.graph_path) / "groundtruth.txt").string()}
-            : std::vector<std::string>{o.graph_path};
-  OutputFiles outputs(o.output_paths, inputs);
+class Integrate final : public Command {
+ public:
+  bool option(const ParsedOption& opt) override {
+    if (opt.name == "-r" || opt.name == "--resolution")
+      params_.resolution = parseNumber(opt, "0.05");
+    else if (opt.name == "-m" || opt.name == "--max-range")
+      scan_.max_range_m = parseNumber(opt, "10 (metres; negative: unlimited)");
+    else if (opt.name == "--prob-hit")
+      params_.prob_hit = parseNumber(opt, "0.7");
+    else if (opt.name == "--prob-miss")
+      params_.prob_miss = parseNumber(opt, "0.4");
+    else if (opt.name == "--clamping-min")
+      params_.clamping_min = parseNumber(opt, "0.1192");
+    else if (opt.name == "--clamping-max")
+      params_.clamping_max = parseNumber(opt, "0.971");
+    else if (opt.name == "--discretize")
+      scan_.discretize = true;
+    else if (opt.name == "--rays") {
+      if (opt.value == "walk")
+        params_.scan_rays = ScanRays::kWalk;
+      else if (opt.value == "rt")
+        params_.scan_rays = ScanRays::kRayTracing;
+      else
+        throw UsageError("--rays " + opt.value + ": use --rays walk (the compute walk) or --rays rt "
+                         "(ray tracing)");
+    } else if (opt.name == "-q" || opt.name == "--quiet")
+      quiet_ = true;
+    else if (parseCameraOption(opt, camera_)) {
+      if (camera_option_.empty()) camera_option_ = opt.name;
+    } else
+      return false;
+    return true;
+  }
 
+  void check(Invocation& in) override;
+  int run(Invocation& in) override;
+
+ private:
+  bool tum_ = false;  ///< the input is a TUM RGB-D folder, not a scan graph
+  CameraIntrinsics camera_;  ///< --intrinsics, --depth-scale (TUM folders only)
+  std::string camera_option_;  ///< the first of those given, for the error on a scan graph
+  MapParams params_;
+  ScanOptions scan_;  ///< --max-range, --discretize
+  bool quiet_ = false;
+};
+
+void Integrate::check(Invocation& in) {
+  const std::string& graph_path = in.input();
+  params_.max_device_bytes = in.maxDeviceBytes();
+  std::error_code ec;
+  tum_ = !graph_path.empty() && fs::is_directory(graph_path, ec);
+  if (tum_) {
+    checkTumFolder(graph_path, "octovk integrate DIR -o MAP.bt");
+  } else {
+    checkInput(graph_path);
+    if (!camera_option_.empty())
+      throw UsageError(camera_option_ + " applies to a TUM RGB-D folder; scan graph '" +
+                       graph_path + "' holds 3D points already: leave " + camera_option_ +
+                       " out");
+  }
+  in.checkOutputs();
+  checkDeviceMemoryCap(params_);
+  if (params_.scan_rays == ScanRays::kRayTracing && params_.max_device_bytes != 0)
+    throw UsageError(std::string("--rays rt cannot be capped by ") + kMaxDeviceMemoryOption +
+                     ": its acceleration structures are not held under the cap; use --rays walk "
+                     "or leave " +
+                     kMaxDeviceMemoryOption + " out");
+  const std::string why = params_.validate();
+  if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
+}
+
+int Integrate::run(Invocation& in) {
+  const std::string& graph_path = in.input();
   const auto run_start = Clock::now();
   std::vector<GraphScan> scans;
   std::optional<TumSequence> tum;
-  if (o.tum) {
-    tum = readTumSequence(o.graph_path);
+  if (tum_) {
+    tum = readTumSequence(graph_path);
     // Every image's format before any work, rather than after minutes of it.
     for (const TumFrame& frame : tum->frames) checkDepthPng(frame.image_path);
   } else {
-    scans = readScanGraph(o.graph_path);
+    scans = readScanGraph(graph_path);
   }
   const std::size_t scan_count = tum ? tum->frames.size() : scans.size();
 
-  const std::unique_ptr<Context> context_owner = createContext();
-  Context& context = *context_owner;
+  Context& context = in.context();
   const DeviceInfo& device = context.device();
   std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
 
-  OccupancyMap map(context, o.params);
-  Progress progress(scan_count, !o.quiet);
+  OccupancyMap map(context, params_);
+  Progress progress(scan_count, !quiet_);
   std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0, pixels = 0, no_depth = 0;
   // Scans are submitted back to back (the next one is read and staged while the device runs
   // the last ones); their statistics are gathered as they come in.
@@ -348,13 +307,13 @@ int runIntegrate(const std::vector<std::string>& args) {
         // position.
         const TumFrame& frame = tum->frames[at];
         const DepthPng png = readDepthPng(frame.image_path);
-        ticket = map.submitDepthImage(png.image(o.camera), frame.T_world_camera, o.max_range_m,
-                                      graph2treeSensorOrigin(frame.T_world_camera), o.discretize);
+        ticket = map.submitDepthImage(png.image(camera_), frame.T_world_camera, scan_,
+                                      graph2treeSensorOrigin(frame.T_world_camera));
       } else {
         const GraphScan& scan = scans[at];
         ticket =
             map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                                 scan.T_world_sensor, o.max_range_m, o.discretize);
+                                 scan.T_world_sensor, scan_);
       }
       if (at == 0) first_ticket = ticket;
       if (at % 256 == 255) account(map.takeScanStats());
@@ -372,15 +331,15 @@ int runIntegrate(const std::vector<std::string>& args) {
     if (const std::size_t note = message.rfind(" [scan " + std::to_string(e.scan()) + " was not");
         e.scan() != 0 && note != std::string::npos)
       message.erase(note);
-    if (failed >= scan_count) throw Error(e.code(), o.graph_path + ": " + message, e.scan());
-    throw Error(e.code(), scanPlace(o, tum, failed, scan_count) + ": " + message, e.scan());
+    if (failed >= scan_count) throw Error(e.code(), graph_path + ": " + message, e.scan());
+    throw Error(e.code(), scanPlace(graph_path, tum, failed, scan_count) + ": " + message, e.scan());
   }
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();
   const std::size_t pool_bytes = map.poolBytes();
 
-  writeOutputs(map, outputs);
+  writeOutputs(map, in.files());
   const double total_s = secondsSince(run_start);
 
   const double ms_per_scan =
@@ -402,9 +361,33 @@ int runIntegrate(const std::vector<std::string>& args) {
     << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB (node pool "
     << static_cast<double>(pool_bytes) / (1024.0 * 1024.0)
     << " MiB; the rest is scan scratch and leaf boxes)\n";
-  for (const std::string& path : o.output_paths) s << "wrote:         " << path << "\n";
+  for (const std::string& path : in.outputs()) s << "wrote:         " << path << "\n";
   std::cout << s.str() << std::flush;
   return kExitOk;
 }
+
+std::vector<std::string> integrateValueOptions() {
+  std::vector<std::string> names = {"-r",         "--resolution",   "-m",
+                                    "--max-range", "--prob-hit",     "--prob-miss",
+                                    "--clamping-min", "--clamping-max", "--rays"};
+  for (const std::string& name : cameraValueOptions()) names.push_back(name);
+  return names;
+}
+
+}  // namespace
+
+const Subcommand kIntegrateCommand{
+    .name = "integrate",
+    .print_help = printIntegrateHelp,
+    .input = "scan graph or folder",
+    .second_input_hint = "; outputs go after -o",
+    .outputs = Subcommand::Outputs::kMany,
+    .no_output = "no output file; add -o MAP.bt and/or -o MAP.ot",
+    .output_extensions = {".bt", ".ot"},
+    .output_formats = ".bt (max-likelihood binary) or .ot (full log-odds)",
+    .max_device_memory = true,
+    .value_options = integrateValueOptions(),
+    .multi_value_options = cameraMultiValueOptions(),
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); }};
 
 }  // namespace octovk::cli

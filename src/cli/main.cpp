@@ -11,14 +11,28 @@
 #include <string>
 #include <vector>
 
-#include "cli.hpp"
+#include "command.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk::cli {
 namespace {
 
-// Commands that exist, for the help and for the error on an unknown one.
-constexpr const char* kCommands = "integrate, convert, info, render, export, devices, help";
+// The commands, in the order the errors list them.
+const Subcommand* const kSubcommands[] = {&kIntegrateCommand, &kConvertCommand, &kInfoCommand,
+                                          &kRenderCommand,    &kExportCommand,  &kDevicesCommand};
+
+// Their names, for the error on an unknown one: "integrate, convert, ..., devices, help".
+std::string commandNames() {
+  std::string names;
+  for (const Subcommand* command : kSubcommands) names += std::string(command->name) + ", ";
+  return names + "help";
+}
+
+const Subcommand* findSubcommand(const std::string& name) {
+  for (const Subcommand* command : kSubcommands)
+    if (name == command->name) return command;
+  return nullptr;
+}
 
 void printHelp(std::ostream& out) {
   out << "octovk: OctoMap-compatible occupancy mapping on a Vulkan device\n"
@@ -48,96 +62,34 @@ void printHelp(std::ostream& out) {
          "Each command's options: octovk COMMAND --help (or octovk help COMMAND).\n"
          "\n"
          "--- integrate ---\n";
-  printIntegrateHelp(out);
+  kIntegrateCommand.print_help(out);
   out << "\n";
   printEnvironmentAndExitCodes(out);
 }
 
-void printDevicesHelp(std::ostream& out) {
-  out << "octovk devices\n"
-         "\n"
-         "Lists the Vulkan devices (index, name, type, device-local memory, ray tracing) and the\n"
-         "one octovk would use now, which OCTOVK_DEVICE changes, with castRay's backend there.\n"
-         "\n";
-  printEnvironmentAndExitCodes(out);
-}
-
-int runDevices(const std::vector<std::string>& args) {
-  if (wantsHelp(args)) {
-    printDevicesHelp(std::cout);
-    return kExitOk;
-  }
-  if (!args.empty())
-    throw UsageError("devices takes no arguments (got '" + args.front() +
-                     "'); run 'octovk devices'");
-  const std::vector<DeviceInfo> devices = Context::listDevices();
-  if (devices.empty())
-    throw Error(ErrorCode::kNoDevice,
-                "no Vulkan device found: install Mesa's CPU driver (apt-get install "
-                "mesa-vulkan-drivers) or a GPU driver, and check 'vulkaninfo --summary'");
-  for (const DeviceInfo& d : devices) {
-    std::printf("%u: %s (%s), %.1f GiB device-local memory, %s\n", d.index, d.name.c_str(),
-                d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
-                d.ray_query ? (d.ray_tracing_pipeline ? "ray queries and ray-tracing pipelines"
-                                                      : "ray queries")
-                            : "no ray tracing");
-  }
-  // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.
-  Result<std::unique_ptr<Context>> context = Context::create();
-  if (!context) throw context.error();
-  const DeviceInfo& selected = context.value()->device();
-  // What a map with the default MapParams uses for castRay (render, the library's default).
-  const OccupancyMap probe(*context.value(), MapParams{});
-  std::printf("selected: %u: %s; castRay: %s\n", selected.index, selected.name.c_str(),
-              probe.castRayInfo().backend == CastRayBackend::kRayTracing
-                  ? "ray tracing (VK_KHR_acceleration_structure + VK_KHR_ray_query)"
-                  : "compute walk");
-  return kExitOk;
-}
-
 int runHelp(const std::vector<std::string>& args) {
-  if (args.empty()) {
+  if (args.empty() || args.front() == "help") {
     printHelp(std::cout);
-  } else if (args.front() == "integrate") {
-    printIntegrateHelp(std::cout);
-    std::cout << "\n";
-    printEnvironmentAndExitCodes(std::cout);
-  } else if (args.front() == "info" || args.front() == "render" || args.front() == "export" ||
-             args.front() == "convert") {
-    const auto print = args.front() == "info"     ? printInfoHelp
-                       : args.front() == "render" ? printRenderHelp
-                       : args.front() == "export" ? printExportHelp
-                                                  : printConvertHelp;
-    print(std::cout);
-    std::cout << "\n";
-    printEnvironmentAndExitCodes(std::cout);
-  } else if (args.front() == "devices") {
-    printDevicesHelp(std::cout);
-  } else if (args.front() == "help") {
-    printHelp(std::cout);
+  } else if (const Subcommand* command = findSubcommand(args.front())) {
+    printSubcommandHelp(*command, std::cout);
   } else {
-    throw UsageError("no help for unknown command '" + args.front() + "'; commands: " + kCommands);
+    throw UsageError("no help for unknown command '" + args.front() + "'; commands: " +
+                     commandNames());
   }
   return kExitOk;
 }
 
 int dispatch(const std::vector<std::string>& args) {
   if (args.empty())
-    throw UsageError(std::string("no command given; commands: ") + kCommands +
-                     " (see 'octovk --help')");
+    throw UsageError("no command given; commands: " + commandNames() + " (see 'octovk --help')");
   const std::string& command = args.front();
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (command == "-h" || command == "--help" || command == "help") return runHelp(rest);
-  if (command == "integrate") return runIntegrate(rest);
-  if (command == "convert") return runConvert(rest);
-  if (command == "info") return runInfo(rest);
-  if (command == "render") return runRender(rest);
-  if (command == "export") return runExport(rest);
-  if (command == "devices") return runDevices(rest);
+  if (const Subcommand* found = findSubcommand(command)) return runSubcommand(*found, rest);
   if (!command.empty() && command[0] == '-')
-    throw UsageError("unknown option '" + command + "' before a command; commands: " + kCommands +
-                     " (see 'octovk --help')");
-  throw UsageError("unknown command '" + command + "'; commands: " + kCommands +
+    throw UsageError("unknown option '" + command + "' before a command; commands: " +
+                     commandNames() + " (see 'octovk --help')");
+  throw UsageError("unknown command '" + command + "'; commands: " + commandNames() +
                    " (see 'octovk --help')");
 }
 

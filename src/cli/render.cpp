@@ -3,7 +3,6 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cerrno>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,15 +12,13 @@
 #include <sstream>
 
 #include "camera.hpp"
-#include "cli.hpp"
+#include "command.hpp"
 #include "octovk/octovk.hpp"
 #include "png.hpp"
 
 namespace octovk::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 constexpr const char* kRenderUsage =
     "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH] "
@@ -32,21 +29,6 @@ constexpr std::uint32_t kDefaultHeight = 600;
 constexpr double kDefaultFovDeg = 60.0;
 // Rays per castRays call: bounds the host and device memory of large pictures.
 constexpr std::size_t kRayBatch = std::size_t{1} << 20;
-struct RenderOptions {
-  std::string map_path;
-  std::string output_path;
-  std::optional<Vec3> eye;
-  std::optional<Vec3> look_at;
-  std::optional<double> z_max;
-  std::uint32_t width = kDefaultWidth;
-  std::uint32_t height = kDefaultHeight;
-  double fov_deg = kDefaultFovDeg;
-  MapParams cap;  // only its max_device_bytes (--max-device-memory): the rest comes from the file
-};
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 Vec3 parseVec3(const ParsedOption& option) {
   const std::vector<double> v = parseNumbers(option, "0 0 1.5");
@@ -65,58 +47,6 @@ std::uint32_t parseSide(const ParsedOption& option, const std::string& text) {
     throw UsageError(option.name + " " + option.value + ": width and height must be 1 to " +
                      std::to_string(kMaxSide) + " pixels; e.g. " + option.name + " 800x600");
   return static_cast<std::uint32_t>(value);
-}
-
-RenderOptions parseRender(const std::vector<std::string>& args) {
-  RenderOptions o;
-  ArgReader reader(args, {"-o", "--output", "--size", "--fov", "--z-max", kMaxDeviceMemoryOption},
-                   {{"--eye", "X Y Z"}, {"--look-at", "X Y Z"}});
-  while (reader.next()) {
-    if (!reader.isOption()) {
-      if (!o.map_path.empty())
-        throw UsageError("unexpected argument '" + reader.positional() +
-                         "': render takes one map file (" + o.map_path +
-                         "); the picture goes "
-                         "after -o");
-      o.map_path = reader.positional();
-      continue;
-    }
-    const ParsedOption& opt = reader.option();
-    if (opt.name == "-o" || opt.name == "--output") {
-      if (!o.output_path.empty()) throw UsageError("render writes one picture; -o is given twice");
-      o.output_path = opt.value;
-    } else if (opt.name == "--eye") {
-      o.eye = parseVec3(opt);
-    } else if (opt.name == "--look-at") {
-      o.look_at = parseVec3(opt);
-    } else if (opt.name == "--size") {
-      const std::size_t x = opt.value.find_first_of("xX");
-      if (x == std::string::npos)
-        throw UsageError(opt.name + " expects WIDTHxHEIGHT in pixels, got '" + opt.value +
-                         "'; e.g. " + opt.name + " 800x600");
-      o.width = parseSide(opt, opt.value.substr(0, x));
-      o.height = parseSide(opt, opt.value.substr(x + 1));
-    } else if (opt.name == kMaxDeviceMemoryOption) {
-      o.cap.max_device_bytes = parseByteCount(opt);
-    } else if (opt.name == "--z-max") {
-      o.z_max = parseNumber(opt, "2.0 (metres)");
-    } else if (opt.name == "--fov") {
-      o.fov_deg = parseNumber(opt, "60 (degrees, vertical)");
-      if (!(o.fov_deg >= 1.0 && o.fov_deg <= 170.0))
-        throw UsageError("--fov " + opt.value +
-                         ": the vertical field of view must be 1 to 170 degrees; e.g. --fov 60");
-    } else {
-      throw UsageError("unknown option '" + opt.name +
-                       "' for render; see 'octovk render --help' for the options");
-    }
-  }
-  checkMapInput(o.map_path, kRenderUsage);
-  checkDeviceMemoryCap(o.cap);
-  if (o.output_path.empty()) throw UsageError("no output picture; add -o VIEW.png");
-  checkOutputFile(o.output_path, {".png"}, ".png");
-  if (o.eye && o.look_at && (*o.eye - *o.look_at).norm() < 1e-9)
-    throw UsageError("--eye and --look-at are the same point; the camera needs a direction");
-  return o;
 }
 
 // What the ray of one pixel met: the depth along the ray where it entered the hit cell, the
@@ -186,8 +116,6 @@ std::string vec3Text(const Vec3& v) {
   return text;
 }
 
-}  // namespace
-
 void printRenderHelp(std::ostream& out) {
   out << "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
          "              [--fov DEG] [--z-max Z]\n"
@@ -233,41 +161,83 @@ void printRenderHelp(std::ostream& out) {
          "depth range, the time taken and the file written.\n";
 }
 
-int runRender(const std::vector<std::string>& args) {
-  if (printHelpIfAsked(args, printRenderHelp)) return kExitOk;
-  const RenderOptions o = parseRender(args);
-  // Created now: an unwritable path is found before any work.
-  OutputFiles output({o.output_path}, {o.map_path});
+class Render final : public Command {
+ public:
+  bool option(const ParsedOption& opt) override {
+    if (opt.name == "--eye") {
+      eye_ = parseVec3(opt);
+    } else if (opt.name == "--look-at") {
+      look_at_ = parseVec3(opt);
+    } else if (opt.name == "--size") {
+      const std::size_t x = opt.value.find_first_of("xX");
+      if (x == std::string::npos)
+        throw UsageError(opt.name + " expects WIDTHxHEIGHT in pixels, got '" + opt.value +
+                         "'; e.g. " + opt.name + " 800x600");
+      width_ = parseSide(opt, opt.value.substr(0, x));
+      height_ = parseSide(opt, opt.value.substr(x + 1));
+    } else if (opt.name == "--z-max") {
+      z_max_ = parseNumber(opt, "2.0 (metres)");
+    } else if (opt.name == "--fov") {
+      fov_deg_ = parseNumber(opt, "60 (degrees, vertical)");
+      if (!(fov_deg_ >= 1.0 && fov_deg_ <= 170.0))
+        throw UsageError("--fov " + opt.value +
+                         ": the vertical field of view must be 1 to 170 degrees; e.g. --fov 60");
+    } else {
+      return false;
+    }
+    return true;
+  }
 
-  std::unique_ptr<Context> context = createContext();
+  void check(Invocation& in) override {
+    checkMapInput(in.input(), kRenderUsage);
+    in.checkDeviceMemoryCap();
+    in.checkOutputs();
+    if (eye_ && look_at_ && (*eye_ - *look_at_).norm() < 1e-9)
+      throw UsageError("--eye and --look-at are the same point; the camera needs a direction");
+  }
+
+  int run(Invocation& in) override;
+
+ private:
+  std::optional<Vec3> eye_;
+  std::optional<Vec3> look_at_;
+  std::optional<double> z_max_;
+  std::uint32_t width_ = kDefaultWidth;
+  std::uint32_t height_ = kDefaultHeight;
+  double fov_deg_ = kDefaultFovDeg;
+};
+
+int Render::run(Invocation& in) {
+  const std::string& map_path = in.input();
+  Context& context = in.context();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(*context, o.map_path, o.cap.max_device_bytes);
+  const OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
   const double resolution = map.params().resolution;
   const float occupied_log_odds = occupancyLogOdds(map.params());
   // The cells that can show: occupied, and below --z-max, which cuts at the cell boundary
   // nearest it.
   const double z_cut =
-      o.z_max ? std::round(*o.z_max / resolution) * resolution : std::numeric_limits<double>::max();
+      z_max_ ? std::round(*z_max_ / resolution) * resolution : std::numeric_limits<double>::max();
   std::vector<OccupancyMap::LeafBoxHost> shown = map.downloadLeafBoxes();
   std::erase_if(shown, [&](const OccupancyMap::LeafBoxHost& c) {
     return !(c.log_odds >= occupied_log_odds) || c.center[2] - 0.5 * c.size >= z_cut;
   });
   if (shown.empty())
-    throw Error(ErrorCode::kInvalidArgument, "map '" + o.map_path + "' has no occupied cells" +
-                                                 (o.z_max ? " below --z-max" : "") +
+    throw Error(ErrorCode::kInvalidArgument, "map '" + map_path + "' has no occupied cells" +
+                                                 (z_max_ ? " below --z-max" : "") +
                                                  ": there is nothing to render");
   Box occupied;
   for (const OccupancyMap::LeafBoxHost& c : shown) occupied.add(c);
   occupied.max.z() = std::min(occupied.max.z(), z_cut);
   const double read_s = secondsSince(start);
 
-  Vec3 look_at = o.look_at.value_or(0.5 * (occupied.min + occupied.max));
+  Vec3 look_at = look_at_.value_or(0.5 * (occupied.min + occupied.max));
   Vec3 eye;
-  if (o.eye) {
-    eye = *o.eye;
+  if (eye_) {
+    eye = *eye_;
   } else {
     const Vec3 view = defaultView(occupied);
-    frame(shown, view, o.width, o.height, o.fov_deg, !o.look_at, look_at, eye);
+    frame(shown, view, width_, height_, fov_deg_, !look_at_, look_at, eye);
   }
   if ((eye - look_at).norm() < 1e-9)
     throw UsageError("--eye " + vec3Text(eye) + " is the point the camera looks at; move it");
@@ -276,13 +246,13 @@ int runRender(const std::vector<std::string>& args) {
   if (eye.cwiseAbs().maxCoeff() >= domain_m)
     throw UsageError("--eye " + vec3Text(eye) + " lies outside the map's domain (each coordinate " +
                      "within " + numberText(domain_m) + " m of the origin at this resolution)");
-  const Camera camera(eye, look_at, o.width, o.height, o.fov_deg);
+  const Camera camera(eye, look_at, width_, height_, fov_deg_);
 
   // Nothing outside the occupied cells' box stops a ray that ignores unknown space, so each ray
   // starts where it enters the box and ends where it leaves it: the same first occupied cell as
   // from the eye, without walking the empty space in front (and --z-max is exact this way).
   const auto cast_start = Clock::now();
-  const std::size_t pixels = std::size_t{o.width} * o.height;
+  const std::size_t pixels = std::size_t{width_} * height_;
   std::vector<Sample> samples(pixels);
   std::vector<Ray> rays;
   std::vector<std::size_t> ray_pixel;
@@ -298,8 +268,8 @@ int runRender(const std::vector<std::string>& args) {
     for (std::size_t i = 0; i < results.size(); ++i) {
       if (!results[i].hit) continue;
       const std::size_t p = ray_pixel[i];
-      const Vec3 dir = camera.direction(static_cast<double>(p % o.width) + 0.5,
-                                        static_cast<double>(p / o.width) + 0.5);
+      const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
+                                        static_cast<double>(p / width_) + 0.5);
       samples[p] = sampleOf(results[i], eye, dir, resolution, ray_start[i]);
       ++hits;
     }
@@ -309,8 +279,8 @@ int runRender(const std::vector<std::string>& args) {
     ray_start.clear();
   };
   for (std::size_t p = 0; p < pixels; ++p) {
-    const Vec3 dir = camera.direction(static_cast<double>(p % o.width) + 0.5,
-                                      static_cast<double>(p / o.width) + 0.5);
+    const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
+                                      static_cast<double>(p / width_) + 0.5);
     double t_in, t_out;
     if (!occupied.clip(eye, dir, t_in, t_out)) continue;
     // A hair inside the box, so that a start on a cell face lies in the cell behind it.
@@ -340,13 +310,13 @@ int runRender(const std::vector<std::string>& args) {
   // A key light over the camera's left shoulder; faces turned away still get the ambient part.
   const Vec3 light = (-camera.forward * 0.55 - camera.right * 0.4 + Vec3::UnitZ()).normalized();
   const Rgb haze{70, 76, 92};
-  const double pixel_angle = 2.0 * camera.tan_half_v / o.height;
-  RgbImage image(o.width, o.height);
-  for (std::uint32_t y = 0; y < o.height; ++y) {
-    for (std::uint32_t x = 0; x < o.width; ++x) {
-      const Sample& s = samples[std::size_t{y} * o.width + x];
+  const double pixel_angle = 2.0 * camera.tan_half_v / height_;
+  RgbImage image(width_, height_);
+  for (std::uint32_t y = 0; y < height_; ++y) {
+    for (std::uint32_t x = 0; x < width_; ++x) {
+      const Sample& s = samples[std::size_t{y} * width_ + x];
       if (s.depth < 0) {
-        image.set(x, y, background(y, o.height));
+        image.set(x, y, background(y, height_));
         continue;
       }
       Vec3 normal = Vec3::Zero();
@@ -361,13 +331,13 @@ int runRender(const std::vector<std::string>& args) {
       // Outlines where the neighbouring pixel lies much farther away (or is background).
       bool outline = false;
       const auto farther = [&](std::uint32_t nx, std::uint32_t ny) {
-        const Sample& n = samples[std::size_t{ny} * o.width + nx];
+        const Sample& n = samples[std::size_t{ny} * width_ + nx];
         return n.depth < 0 || n.depth > s.depth * 1.04 + 3.0 * resolution;
       };
       if (x > 0 && farther(x - 1, y)) outline = true;
-      if (x + 1 < o.width && farther(x + 1, y)) outline = true;
+      if (x + 1 < width_ && farther(x + 1, y)) outline = true;
       if (y > 0 && farther(x, y - 1)) outline = true;
-      if (y + 1 < o.height && farther(x, y + 1)) outline = true;
+      if (y + 1 < height_ && farther(x, y + 1)) outline = true;
       if (outline) light_f *= 0.55;
       const Rgb base = heightColor((s.z - z_low) / z_span);
       const double far =
@@ -375,19 +345,19 @@ int runRender(const std::vector<std::string>& args) {
       image.set(x, y, mix(scale(base, light_f), haze, 0.4 * far));
     }
   }
-  output.write(0, [&](const std::string& temporary) { writePng(image, temporary); });
-  output.commit();
+  in.files().write(0, [&](const std::string& temporary) { writePng(image, temporary); });
+  in.files().commit();
   const double shade_s = secondsSince(shade_start);
 
   const double fov_h_deg = 2.0 * std::atan(camera.tan_half_h) * 180.0 / M_PI;
   char line[512];
   std::ostringstream s;
-  s << "device:  " << context->device().name << " (" << context->device().type << ")\n";
-  s << "map:     " << o.map_path << "\n";
-  std::snprintf(line, sizeof(line), "image:   %ux%u px\n", o.width, o.height);
+  s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
+  s << "map:     " << map_path << "\n";
+  std::snprintf(line, sizeof(line), "image:   %ux%u px\n", width_, height_);
   s << line;
   s << "camera:  --eye " << vec3Text(eye) << " --look-at " << vec3Text(look_at);
-  std::snprintf(line, sizeof(line), " --fov %g (vertical; %.1f horizontal)\n", o.fov_deg,
+  std::snprintf(line, sizeof(line), " --fov %g (vertical; %.1f horizontal)\n", fov_deg_,
                 fov_h_deg);
   s << line;
   std::snprintf(line, sizeof(line),
@@ -405,9 +375,28 @@ int runRender(const std::vector<std::string>& args) {
       "time:    %.3f s (reading and upload %.3f s, castRays %.3f s, shading and PNG %.3f s)\n",
       read_s + cast_s + shade_s, read_s, cast_s, shade_s);
   s << line;
-  s << "wrote:   " << o.output_path << "\n";
+  s << "wrote:   " << in.output() << "\n";
   std::cout << s.str() << std::flush;
   return kExitOk;
 }
+
+}  // namespace
+
+const Subcommand kRenderCommand{
+    .name = "render",
+    .print_help = printRenderHelp,
+    .input = "map file",
+    .second_input_hint = "; the picture goes after -o",
+    .outputs = Subcommand::Outputs::kOne,
+    .output_twice = [](const std::string&, const std::string&) -> std::string {
+      return "render writes one picture; -o is given twice";
+    },
+    .no_output = "no output picture; add -o VIEW.png",
+    .output_extensions = {".png"},
+    .output_formats = ".png",
+    .max_device_memory = true,
+    .value_options = {"--size", "--fov", "--z-max"},
+    .multi_value_options = {{"--eye", "X Y Z"}, {"--look-at", "X Y Z"}},
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Render>(); }};
 
 }  // namespace octovk::cli

@@ -40,7 +40,7 @@ void checkInput(const char* call, const BufferRange& range, std::size_t bytes) {
 
 ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
                                    std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                   const Pose& T_world_sensor, double max_range_m, bool discretize,
+                                   const Pose& T_world_sensor, const ScanOptions& options,
                                    WaitSemaphore wait) {
   checkInput("insertPointCloudOnDevice", points_sensor, std::size_t{count} * 3 * sizeof(float));
   OccupancyMap::Impl::ScanSource source;
@@ -50,13 +50,12 @@ ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
   source.wait = wait.semaphore;
   source.wait_value = wait.value;
   return InteropAccess::impl(map).insert(source, T_world_sensor.transform(origin_sensor),
-                                         &T_world_sensor, {max_range_m, discretize});
+                                         &T_world_sensor, options);
 }
 
 ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
-                                   const Pose& T_world_camera, double max_range_m,
-                                   const Eigen::Vector3f& origin_camera, bool discretize,
-                                   WaitSemaphore wait) {
+                                   const Pose& T_world_camera, const ScanOptions& options,
+                                   const Eigen::Vector3f& origin_camera, WaitSemaphore wait) {
   DepthImage meta = image;
   if (meta.pixels == nullptr) meta.pixels = &meta;  // validate() asks for pixels; never read
   if (std::string why = meta.validate(); !why.empty())
@@ -71,7 +70,7 @@ ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const 
   source.wait = wait.semaphore;
   source.wait_value = wait.value;
   return InteropAccess::impl(map).insert(source, T_world_camera.transform(origin_camera),
-                                         &T_world_camera, {max_range_m, discretize});
+                                         &T_world_camera, options);
 }
 
 void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,

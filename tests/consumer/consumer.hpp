@@ -54,6 +54,18 @@ inline std::string insertWall(octovk::OccupancyMap& map) {
   if (cells.size() != 3 || cells[0].state != octovk::CellState::kOccupied ||
       cells[1].state != octovk::CellState::kFree || cells[2].state != octovk::CellState::kUnknown)
     return "search() does not see the wall occupied, the space before it free, the side unknown";
+  // A ceiling 6 m up, cut at 3 m by ScanOptions: the rays clear the space below 3 m and mark
+  // nothing occupied (OctoMap's max range).
+  std::vector<Eigen::Vector3f> ceiling;
+  for (int x = -5; x <= 5; ++x)
+    for (int y = -5; y <= 5; ++y)
+      ceiling.emplace_back(0.05f * static_cast<float>(x), 0.05f * static_cast<float>(y), 6.0f);
+  map.insertPointCloud(ceiling, Eigen::Vector3f::Zero(), {.max_range_m = 3.0});
+  const std::vector<Eigen::Vector3f> up = {{0.0f, 0.0f, 2.0f}, {0.0f, 0.0f, 6.0f}};
+  const std::vector<octovk::Lookup> above = map.search(up);
+  if (above.size() != 2 || above[0].state != octovk::CellState::kFree ||
+      above[1].state != octovk::CellState::kUnknown)
+    return "insertPointCloud(..., {.max_range_m = 3.0}) did not clear 2 m up and leave 6 m unknown";
   return {};
 }
 

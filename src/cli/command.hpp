@@ -1,0 +1,120 @@
+// The skeleton every octovk command runs in (command.cpp). A command says what is its own (a
+// Subcommand: its name, help, input, outputs and options, and a Command: how it applies its own
+// options, checks its command line and does its work); runSubcommand() does the rest the same
+// way for all: --help, the command line (the one input, -o, --max-device-memory, unknown
+// options and their errors), the output files and the Vulkan context. main.cpp dispatches to it
+// and turns every error into its line on stderr and its exit code.
+#pragma once
+
+#include <cstddef>
+#include <iosfwd>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "cli.hpp"
+
+namespace octovk::cli {
+
+struct Subcommand;
+
+/// What the driver parsed and made for one run of a command.
+class Invocation {
+ public:
+  explicit Invocation(const Subcommand& command) : command_(command) {}
+
+  /// The one positional argument (a map file, a scan graph, a folder); empty when none was given.
+  const std::string& input() const noexcept { return input_; }
+  /// Each -o / --output, in order.
+  const std::vector<std::string>& outputs() const noexcept { return outputs_; }
+  /// The first -o; empty when none was given.
+  const std::string& output() const;
+  /// --max-device-memory (MapParams::max_device_bytes; 0 = no cap).
+  std::size_t maxDeviceBytes() const noexcept { return max_device_bytes_; }
+
+  /// Refuses (UsageError) a command line without -o, or an output whose name or place the
+  /// command cannot write (checkOutputFile with the command's extensions).
+  void checkOutputs() const;
+  /// Refuses (UsageError) a --max-device-memory below what an empty map holds (default
+  /// MapParams: for the commands that read a map, whose parameters come from the file).
+  void checkDeviceMemoryCap() const;
+
+  /// The Vulkan context, created at the first call (octovk::Error when there is none).
+  Context& context();
+  /// The output files, created by the driver once Command::check passed (see OutputFiles).
+  OutputFiles& files();
+
+ private:
+  friend int runSubcommand(const Subcommand& command, const std::vector<std::string>& args);
+  const Subcommand& command_;
+  std::string input_;
+  std::vector<std::string> outputs_;
+  std::size_t max_device_bytes_ = 0;
+  std::unique_ptr<Context> context_;
+  std::optional<OutputFiles> files_;
+};
+
+/// What a command does with its command line: the driver calls option() for every option it
+/// does not know itself, then check(), creates the outputs, and calls run().
+class Command {
+ public:
+  virtual ~Command() = default;
+  /// Applies `option` if it is one of the command's own; false when it is not.
+  virtual bool option(const ParsedOption& option) {
+    (void)option;
+    return false;
+  }
+  /// Checks the whole command line before any output is created or work done (UsageError).
+  virtual void check(Invocation& invocation) { (void)invocation; }
+  /// The work; returns the exit code. Errors are thrown (UsageError, octovk::Error).
+  virtual int run(Invocation& invocation) = 0;
+};
+
+/// A command of the program as the driver and the help see it.
+struct Subcommand {
+  /// How many -o / --output it takes.
+  enum class Outputs { kNone, kOne, kMany };
+
+  const char* name;                     ///< "render"
+  void (*print_help)(std::ostream& out);  ///< its help, without the environment and exit codes
+  /// What its one positional argument is, for the error on a second one ("map file"), and what
+  /// that error adds after it ("; the picture goes after -o"). nullptr: the command takes no
+  /// arguments at all.
+  const char* input = nullptr;
+  const char* second_input_hint = "";
+  Outputs outputs = Outputs::kNone;
+  /// The error on a second -o, for Outputs::kOne (the two values given).
+  std::string (*output_twice)(const std::string& first, const std::string& second) = nullptr;
+  /// The error on no -o, the extensions an output may have and their description in words
+  /// (Invocation::checkOutputs).
+  const char* no_output = "";
+  std::vector<std::string> output_extensions;
+  const char* output_formats = "";
+  bool max_device_memory = false;  ///< takes --max-device-memory (Invocation::maxDeviceBytes)
+  /// Its own options that take one value, and those that take several (ArgReader); the names
+  /// not listed are flags.
+  std::vector<std::string> value_options;
+  std::vector<std::pair<std::string, std::string>> multi_value_options;
+  /// Ends the error on an unknown option, after "see 'octovk NAME --help'".
+  const char* unknown_option_tail = " for the options";
+  /// A fresh Command for one run.
+  std::unique_ptr<Command> (*make)();
+};
+
+/// Runs `command` on `args` (the words after its name): help, parsing, checks, outputs, work.
+int runSubcommand(const Subcommand& command, const std::vector<std::string>& args);
+
+/// Prints `command`'s help, then the environment and the exit codes.
+void printSubcommandHelp(const Subcommand& command, std::ostream& out);
+
+/// The commands (each defined in its own file).
+extern const Subcommand kIntegrateCommand;
+extern const Subcommand kConvertCommand;
+extern const Subcommand kInfoCommand;
+extern const Subcommand kRenderCommand;
+extern const Subcommand kExportCommand;
+extern const Subcommand kDevicesCommand;
+
+}  // namespace octovk::cli

@@ -1,0 +1,55 @@
+// octovk devices: the Vulkan devices octovk can use, and the one it picks.
+#include <cstdio>
+#include <iostream>
+
+#include "command.hpp"
+#include "octovk/octovk.hpp"
+
+namespace octovk::cli {
+
+namespace {
+
+void printDevicesHelp(std::ostream& out) {
+  out << "octovk devices\n"
+         "\n"
+         "Lists the Vulkan devices (index, name, type, device-local memory, ray tracing) and the\n"
+         "one octovk would use now, which OCTOVK_DEVICE changes, with castRay's backend there.\n";
+}
+
+class Devices final : public Command {
+ public:
+  int run(Invocation& in) override {
+    const std::vector<DeviceInfo> devices = Context::listDevices();
+    if (devices.empty())
+      throw Error(ErrorCode::kNoDevice,
+                  "no Vulkan device found: install Mesa's CPU driver (apt-get install "
+                  "mesa-vulkan-drivers) or a GPU driver, and check 'vulkaninfo --summary'");
+    for (const DeviceInfo& d : devices) {
+      std::printf("%u: %s (%s), %.1f GiB device-local memory, %s\n", d.index, d.name.c_str(),
+                  d.type.c_str(),
+                  static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
+                  d.ray_query ? (d.ray_tracing_pipeline ? "ray queries and ray-tracing pipelines"
+                                                        : "ray queries")
+                              : "no ray tracing");
+    }
+    // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.
+    Context& context = in.context();
+    const DeviceInfo& selected = context.device();
+    // What a map with the default MapParams uses for castRay (render, the library's default).
+    const OccupancyMap probe(context, MapParams{});
+    std::printf("selected: %u: %s; castRay: %s\n", selected.index, selected.name.c_str(),
+                probe.castRayInfo().backend == CastRayBackend::kRayTracing
+                    ? "ray tracing (VK_KHR_acceleration_structure + VK_KHR_ray_query)"
+                    : "compute walk");
+    return kExitOk;
+  }
+};
+
+}  // namespace
+
+const Subcommand kDevicesCommand{
+    .name = "devices",
+    .print_help = printDevicesHelp,
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Devices>(); }};
+
+}  // namespace octovk::cli
