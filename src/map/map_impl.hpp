@@ -89,6 +89,15 @@ class OccupancyMap::Impl {
     changes_.onDevice(out, out_offset, out_size);
   }
 
+  /// Signals a caller's semaphore (interop output) after everything submitted so far: an empty
+  /// submission on the map's stream (nothing when `semaphore` is VK_NULL_HANDLE).
+  void signal(VkSemaphore semaphore, std::uint64_t value) {
+    if (semaphore == VK_NULL_HANDLE) return;
+    core_.stream.begin(core_.buffers.bindings);
+    core_.stream.signalAfterNextSubmit(semaphore, value);
+    core_.stream.submit();
+  }
+
   // ---- the tree (TreeTransfer, MapCore), each after the scans submitted before it ----
   HostTree download();
   void upload(const HostTree& tree);
