@@ -64,6 +64,12 @@ layout(buffer_reference, std430, buffer_reference_align = 4) buffer DepthRef {
   uint words[];
 };
 #define depth_image (DepthRef(buffer_address[kBindDepth]))
+// The change set (kBindChanges): its header, then its slots (change_set.glsl).
+layout(buffer_reference, std430, buffer_reference_align = 16) buffer ChangeTableRef {
+  ChangeHeader header;
+  ChangeSlot slot[];
+};
+#define change_table (ChangeTableRef(buffer_address[kBindChanges]))
 // Query inputs and outputs (kBindQueryIn, kBindQueryOut): each query pass declares its own view
 // of them.
 

@@ -6,9 +6,13 @@
 // (alloc and link gave one to each node that had none). A child missing on the way is switched on
 // (createNodeChild: classify or alloc made its slot ready). At the leaf: add the update, clamp,
 // and list the parent for the prune pass. Live bits only grow, by atomicOr, so the cells need
-// no ordering between them.
+// no ordering between them. With change detection on, each updated leaf is noted in the change
+// set (change_set.glsl): created when this cell switched its leaf's slot on (createNodeChild: the
+// slot was made ready but not live; a leaf under an expanded pruned node was made live by alloc
+// with the pruned value, expandNode), flipped when isNodeOccupied changed.
 #include "tree_search.glsl"
 #include "tree.glsl"
+#include "change_set.glsl"
 
 
 void main() {
@@ -22,21 +26,29 @@ void main() {
   uint n = cell.node;
   uint parent = cell.parent;
   uint added = 0u;
+  bool created = false;  // this cell switched its leaf on (the last child of the walk)
   for (uint d = cell.depth; d < kTreeDepth; ++d) {
     uint child = childBlock(n) * 8u + childIndex(k, d);
+    created = false;
     if ((linkOf(child) & kFlagLive) == 0u) {
       uint before = atomicOr(nodes[child].link, kFlagLive);
-      if ((before & kFlagLive) == 0u) ++added;
+      if ((before & kFlagLive) == 0u) {
+        ++added;
+        created = true;
+      }
     }
     parent = n;
     n = child;
   }
   if (added != 0u) atomicAdd(pool.live_nodes, added);
 
-  precise float value = nodes[n].log_odds + cellUpdate(cell.slot);
+  float old_value = nodes[n].log_odds;
+  precise float value = old_value + cellUpdate(cell.slot);
   if (value < params.clamp_min_log) value = params.clamp_min_log;
   else if (value > params.clamp_max_log) value = params.clamp_max_log;
   nodes[n].log_odds = value;
+  noteChange(k, created,
+             (old_value >= params.occupancy_log) != (value >= params.occupancy_log));
   nodes[n].link = kNoChildren | kFlagLive;
   listNode(kTreeDepth - 1u, parent);
 }

@@ -95,7 +95,7 @@ void main() {
   params.trans_y = mf(121u);
   params.trans_z = mf(122u);
   params.occupancy_log = mf(123u);
-  params.pad1 = mu(124u);
+  params.changes_log2 = mu(124u);
   params.cell_capacity = mu(125u);
   params.pad0 = mu(126u);
 

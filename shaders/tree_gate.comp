@@ -10,7 +10,8 @@
 // synchronisation, grows what was short and runs the refused scans again, in order. The host
 // never has to look between the passes, nor between scans.
 // Also sets clear_args, over the slots this scan filled in the sets (cleared at its end), and
-// the count of early-aborted cells.
+// the count of early-aborted cells. With change detection on, the change set must have room for
+// every updated cell (kStatusChangesShort otherwise).
 #include "bindings.glsl"
 
 void setArgs(uint items, inout DispatchArgs args) {
@@ -31,8 +32,14 @@ void main() {
   if (counters.new_blocks > pool.capacity - pool.bump + pool.free_count)
     status |= kStatusPoolShort;
   if (active_count > params.active_capacity) status |= kStatusListsShort;
+  // Change detection: room for every updated cell to claim a slot, the set at most 3/4 full.
+  if (params.changes_log2 != 0u) {
+    uint room = (1u << params.changes_log2) - (1u << params.changes_log2) / 4u;
+    if (uint64_t(change_table.header.used) + active_count > uint64_t(room))
+      status |= kStatusChangesShort;
+  }
   if ((status & (kStatusHashFull | kStatusEndpointHashFull | kStatusRayCut | kStatusPoolShort |
-                 kStatusListsShort | kStatusHalted)) != 0u) {
+                 kStatusListsShort | kStatusHalted | kStatusChangesShort)) != 0u) {
     status |= kStatusNotApplied;
     pool.halted = 1u;
     setArgs(0u, counters.block_args);

@@ -73,9 +73,21 @@ static_assert(offsetof(ScanParams, trans_x) == 92);
 static_assert(offsetof(ScanParams, trans_y) == 96);
 static_assert(offsetof(ScanParams, trans_z) == 100);
 static_assert(offsetof(ScanParams, occupancy_log) == 104);
-static_assert(offsetof(ScanParams, pad1) == 108);
+static_assert(offsetof(ScanParams, changes_log2) == 108);
 static_assert(offsetof(ScanParams, cell_capacity) == 112);
 static_assert(offsetof(ScanParams, pad0) == 116);
+
+static_assert(sizeof(ChangeHeader) == 16);
+static_assert(offsetof(ChangeHeader, used) == 0);
+static_assert(offsetof(ChangeHeader, live) == 4);
+static_assert(sizeof(ChangeSlot) == 16);
+static_assert(offsetof(ChangeSlot, key) == 0);
+static_assert(offsetof(ChangeSlot, state) == 8);
+static_assert(sizeof(gpu::ChangedKey) == 16);
+static_assert(offsetof(gpu::ChangedKey, created) == 12);
+static_assert(sizeof(ChangedKeysHeader) == 16);
+static_assert(sizeof(ListChangesConstants) == 16);
+static_assert(sizeof(RehashChangesConstants) == 16);
 
 static_assert(sizeof(AccelHeader) == 64);
 static_assert(offsetof(AccelHeader, tlas) == 0);
@@ -294,14 +306,14 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, c
 static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox, log_odds));
 
-static_assert(kBindingCount == 20);
+static_assert(kBindingCount == 21);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 &&
               kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
               kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
               kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
               kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18 &&
-              kBindDepth == 19 && kBindAddresses == 20);
+              kBindDepth == 19 && kBindChanges == 20 && kBindAddresses == 21);
 
 TEST(Layout, HostSizesAndOffsets) {
   // The static_asserts above hold at compile time; the same facts at run time, for the report.
@@ -421,7 +433,7 @@ std::vector<Field> probedFields() {
       OCTOVK_FIELD(kBindParams, ScanParams, trans_y, F, 121),
       OCTOVK_FIELD(kBindParams, ScanParams, trans_z, F, 122),
       OCTOVK_FIELD(kBindParams, ScanParams, occupancy_log, F, 123),
-      OCTOVK_FIELD(kBindParams, ScanParams, pad1, U, 124),
+      OCTOVK_FIELD(kBindParams, ScanParams, changes_log2, U, 124),
       OCTOVK_FIELD(kBindParams, ScanParams, cell_capacity, U, 125),
       OCTOVK_FIELD(kBindParams, ScanParams, pad0, U, 126),
 
@@ -677,6 +689,7 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindSlots] = 4 * sizeof(std::uint32_t);
   sizes[kBindCellList] = 4 * sizeof(std::uint32_t);
   sizes[kBindDepth] = sizeof(DepthCamera) + 4 * sizeof(std::uint32_t);
+  sizes[kBindChanges] = sizeof(ChangeHeader) + 4 * sizeof(ChangeSlot);
 
   std::vector<vk::Buffer> buffers;
   buffers.reserve(kBindingCount);

@@ -250,7 +250,7 @@ TEST(MemoryBudget, QueryBuffersOverCapKeepTheMap) {
   QueryResults results;
   expectCapRefusal(
       [&] {
-        map.insertPointCloud(more, Eigen::Vector3f(0.1f, 0, 0), -1.0, false,
+        map.insertPointCloud(more, Eigen::Vector3f(0.1f, 0, 0), ScanOptions{},
                              QueryRequest{lookups, {}}, results);
       },
       "query buffers");
@@ -321,7 +321,8 @@ TEST(MemoryBudget, TrimReleasesScratchAndQueries) {
   EXPECT_EQ(trimmed.queries, empty.queries);
   EXPECT_EQ(trimmed.pool, grown.pool);
   EXPECT_EQ(trimmed.leaf_boxes, grown.leaf_boxes);
-  EXPECT_EQ(map.deviceBytes(), grown.pool + grown.leaf_boxes + empty.scratch + empty.queries);
+  EXPECT_EQ(map.deviceBytes(),
+            grown.pool + grown.leaf_boxes + empty.scratch + empty.queries + grown.changes);
   map.trim();  // twice: nothing more to release
   EXPECT_EQ(map.deviceBytes(), trimmed.total());
 

@@ -208,7 +208,7 @@ TEST(QueriesAfterScan, SameCommandStreamAnswersOnTheUpdatedMap) {
   std::vector<Ray> rays{{origin, {1.0f, 0.0f, 0.0f}, -1.0, false}};
   std::vector<Eigen::Vector3f> lookups{{2.5f, 0.0f, 0.05f}, {1.0f, 0.0f, 0.05f}};
   QueryResults results;
-  b.map->insertPointCloud(pts, origin, -1.0, false, {lookups, rays}, results);
+  b.map->insertPointCloud(pts, origin, ScanOptions{}, {lookups, rays}, results);
   b.oracle().insertPointCloud(test::toPointcloud(pts),
                               octomap::point3d(origin.x(), origin.y(), origin.z()));
   ASSERT_EQ(results.lookups.size(), 2u);

@@ -52,6 +52,22 @@ struct RayResult {
   float end_z;  // 4B (12)
 };
 
+// One changed key (OctoMap's KeyBoolMap entry), as the change-set readers write them into a
+// caller's buffer after a ChangedKeysHeader. 16 B.
+struct ChangedKey {
+  uint key_x;    // 4B (0)  OcTreeKey at the finest level
+  uint key_y;    // 4B (4)
+  uint key_z;    // 4B (8)
+  uint created;  // 4B (12) 1: the leaf was created (OctoMap's `true`); 0: its occupancy flipped
+};
+// What precedes the ChangedKeys in a caller's buffer. 16 B.
+struct ChangedKeysHeader {
+  uint count;  // 4B (0)  entries written after the header
+  uint pad0;   // 4B (4)
+  uint pad1;   // 4B (8)
+  uint pad2;   // 4B (12)
+};
+
 #ifdef __cplusplus
 }  // namespace octovk::gpu
 #endif

@@ -30,43 +30,24 @@ class OccupancyMap {
   const MapParams& params() const noexcept;
 
   /// OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=false, discretize) with
-  /// points and origin in the world frame. max_range_m < 0 means unlimited.
+  /// points and origin in the world frame; the options in one struct, e.g.
+  /// `map.insertPointCloud(points, origin, {.max_range_m = 5.0, .discretize = true})`
+  /// (ScanOptions: max_range_m < 0 means unlimited).
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
-                             const Eigen::Vector3f& origin_world, double max_range_m = -1.0,
-                             bool discretize = false);
+                             const Eigen::Vector3f& origin_world, const ScanOptions& options = {});
 
   /// OctoMap's insertPointCloud(points, sensor_origin, frame_origin, ...): points and sensor origin
   /// in the sensor frame; both are moved to the world by T_world_sensor, the points on the device.
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
-                             double max_range_m = -1.0, bool discretize = false);
+                             const ScanOptions& options = {});
 
   /// A depth image, unprojected on the device (DepthImage), then inserted like
-  /// insertPointCloud(points_camera, origin_camera, T_world_camera, max_range_m, discretize):
-  /// the result equals inserting unprojectDepthImage(image) with that overload.
+  /// insertPointCloud(points_camera, origin_camera, T_world_camera, options): the result equals
+  /// inserting unprojectDepthImage(image) with that overload.
   ScanStats insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                             double max_range_m = -1.0,
-                             const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
-                             bool discretize = false);
-
-  /// The three calls above with their options in one struct, e.g.
-  /// `map.insertPointCloud(points, origin, {.max_range_m = 5.0, .discretize = true})`.
-  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
-                             const Eigen::Vector3f& origin_world, const ScanOptions& options) {
-    return insertPointCloud(points_world, origin_world, options.max_range_m, options.discretize);
-  }
-  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
-                             const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
-                             const ScanOptions& options) {
-    return insertPointCloud(points_sensor, origin_sensor, T_world_sensor, options.max_range_m,
-                            options.discretize);
-  }
-  ScanStats insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                             const ScanOptions& options,
-                             const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero()) {
-    return insertDepthImage(image, T_world_camera, options.max_range_m, origin_camera,
-                            options.discretize);
-  }
+                             const ScanOptions& options = {},
+                             const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero());
 
   // ---- streaming: scans submitted back to back, no host wait per scan ----
   //
@@ -84,37 +65,18 @@ class OccupancyMap {
   // it and the scans submitted after it are not inserted (the message names its ticket, and
   // Error::scan() gives it).
 
-  /// insertPointCloud(points_world, origin_world, ...), submitted without waiting. The points
-  /// are copied before it returns: the span may be reused at once.
+  /// insertPointCloud(points_world, origin_world, options), submitted without waiting. The
+  /// points are copied before it returns: the span may be reused at once.
   ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_world,
-                              const Eigen::Vector3f& origin_world, double max_range_m = -1.0,
-                              bool discretize = false);
-  /// insertPointCloud(points_sensor, origin_sensor, T_world_sensor, ...), without waiting.
+                              const Eigen::Vector3f& origin_world, const ScanOptions& options = {});
+  /// insertPointCloud(points_sensor, origin_sensor, T_world_sensor, options), without waiting.
   ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                               const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
-                              double max_range_m = -1.0, bool discretize = false);
+                              const ScanOptions& options = {});
   /// insertDepthImage(...), without waiting. The pixels are copied before it returns.
   ScanTicket submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                              double max_range_m = -1.0,
-                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
-                              bool discretize = false);
-  /// The three submits with their options in one struct (ScanOptions).
-  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_world,
-                              const Eigen::Vector3f& origin_world, const ScanOptions& options) {
-    return submitPointCloud(points_world, origin_world, options.max_range_m, options.discretize);
-  }
-  ScanTicket submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
-                              const Eigen::Vector3f& origin_sensor, const Pose& T_world_sensor,
-                              const ScanOptions& options) {
-    return submitPointCloud(points_sensor, origin_sensor, T_world_sensor, options.max_range_m,
-                            options.discretize);
-  }
-  ScanTicket submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                              const ScanOptions& options,
-                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero()) {
-    return submitDepthImage(image, T_world_camera, options.max_range_m, origin_camera,
-                            options.discretize);
-  }
+                              const ScanOptions& options = {},
+                              const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero());
   /// Waits until every submitted scan is in the map (running refused ones again); throws as
   /// described above.
   void flush();
@@ -143,8 +105,8 @@ class OccupancyMap {
   /// The same scan, then `queries` on the updated map, recorded in the same command stream (no
   /// host round trip between the update and the queries).
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
-                             const Eigen::Vector3f& origin_world, double max_range_m,
-                             bool discretize, const QueryRequest& queries, QueryResults& results);
+                             const Eigen::Vector3f& origin_world, const ScanOptions& options,
+                             const QueryRequest& queries, QueryResults& results);
 
   /// OctoMap's search() for each point, on the device.
   std::vector<Lookup> search(std::span<const Eigen::Vector3f> points) const;
@@ -154,6 +116,21 @@ class OccupancyMap {
   /// compacted on the device and downloaded. Empty if a corner lies outside the map.
   std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
                                        bool occupied_only = false) const;
+
+  // ---- change detection: OctoMap's enableChangeDetection / changedKeys, on the device ----
+  /// Turns change detection on or off for the scans inserted or submitted after this call
+  /// (OcTree::enableChangeDetection). With it on, every leaf a scan updates is noted as OctoMap
+  /// notes it: created (`true`), or its occupancy flipped (`false`; flipped back: removed). The
+  /// set lives on the device (its bytes in deviceBytesByUse().changes, under
+  /// MapParams::max_device_bytes); turning detection off keeps the keys noted so far.
+  void enableChangeDetection(bool enable);
+  bool isChangeDetectionEnabled() const;
+  /// Empties the change set (OcTree::resetChangeDetection).
+  void resetChangeDetection();
+  /// Keys in the change set (OcTree::numChangesDetected).
+  std::size_t numChangesDetected() const;
+  /// The change set (OcTree::changedKeysBegin/End), in no particular order.
+  std::vector<ChangedKey> changedKeys() const;
 
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;
@@ -172,7 +149,8 @@ class OccupancyMap {
     /// automatically after an outsized scan).
     std::size_t scratch = 0;
     std::size_t queries = 0;  ///< query input and output, with their staging
-    std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+    std::size_t changes = 0;  ///< the change set (change detection), 16 B per slot
+    std::size_t total() const { return pool + leaf_boxes + scratch + queries + changes; }
   };
   DeviceBytes deviceBytesByUse() const;
 

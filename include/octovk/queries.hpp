@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -18,6 +19,15 @@ struct HostTree {
   };
   bool root_exists = false;
   std::vector<Node> nodes;
+};
+
+/// One entry of the change set (OctoMap's KeyBoolMap, change detection on): a finest-level key
+/// (OcTreeKey k[0], k[1], k[2]) and its flag: `created` (OctoMap's `true`: the leaf was created)
+/// or not (`false`: an existing leaf's occupancy flipped).
+struct ChangedKey {
+  std::array<std::uint16_t, 3> key{};
+  bool created = false;
+  friend bool operator==(const ChangedKey&, const ChangedKey&) = default;
 };
 
 /// State of a cell as OctoMap's search() and isNodeOccupied() see it.

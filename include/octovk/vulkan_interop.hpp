@@ -53,6 +53,16 @@ struct WaitSemaphore {
   std::uint64_t value = 0;
 };
 
+/// A semaphore octovk signals once a call's results are in the caller's buffer (and the map is
+/// updated), so that the caller's own device work can wait for them without the host in between
+/// (VK_NULL_HANDLE: none). A timeline semaphore is signalled to `value` (the caller's next value;
+/// the timelineSemaphore feature, enabled where the device has it); a binary one is signalled.
+/// The signal is on the Context's queue, after every command octovk submitted for the call.
+struct SignalSemaphore {
+  VkSemaphore semaphore = VK_NULL_HANDLE;
+  std::uint64_t value = 0;
+};
+
 /// OccupancyMap::insertPointCloud (sensor-frame overload) on points already in a device buffer:
 /// `points_sensor` holds count x, y, z floats (12 B each) and needs TRANSFER_SRC usage. octovk's
 /// first submission waits for `wait`, then copies the points on the device (nothing passes
@@ -60,38 +70,24 @@ struct WaitSemaphore {
 /// returns when the scan is in the map, with the same result as the host overload.
 ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
                                    std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                   const Pose& T_world_sensor, double max_range_m = -1.0,
-                                   bool discretize = false, WaitSemaphore wait = {});
+                                   const Pose& T_world_sensor,
+                                   const ScanOptions& options = {}, WaitSemaphore wait = {},
+                                   SignalSemaphore signal = {});
 
 /// OccupancyMap::insertDepthImage on pixels already in a device buffer: `pixels` holds
 /// image.width * image.height depths in image.encoding (image.pixels is ignored), row by row,
 /// and needs TRANSFER_SRC usage. Waits and returns as insertPointCloudOnDevice.
 ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
-                                   const Pose& T_world_camera, double max_range_m = -1.0,
+                                   const Pose& T_world_camera,
+                                   const ScanOptions& options = {},
                                    const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
-                                   bool discretize = false, WaitSemaphore wait = {});
-
-/// The two calls above with their options in one struct (ScanOptions).
-inline ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
-                                          std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                          const Pose& T_world_sensor, const ScanOptions& options,
-                                          WaitSemaphore wait = {}) {
-  return insertPointCloudOnDevice(map, points_sensor, count, origin_sensor, T_world_sensor,
-                                  options.max_range_m, options.discretize, wait);
-}
-inline ScanStats insertDepthImageOnDevice(
-    OccupancyMap& map, BufferRange pixels, const DepthImage& image, const Pose& T_world_camera,
-    const ScanOptions& options, const Eigen::Vector3f& origin_camera = Eigen::Vector3f::Zero(),
-    WaitSemaphore wait = {}) {
-  return insertDepthImageOnDevice(map, pixels, image, T_world_camera, options.max_range_m,
-                                  origin_camera, options.discretize, wait);
-}
+                                   WaitSemaphore wait = {}, SignalSemaphore signal = {});
 
 /// OccupancyMap::search on points already in a device buffer: `points` holds count x, y, z
 /// floats (12 B each); `results` receives count gpu::LookupResult (16 B each). The caller must
 /// not use either range while the call runs; the call returns when the results are written.
 void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,
-                    BufferRange results);
+                    BufferRange results, SignalSemaphore signal = {});
 
 /// Bytes castRaysOnDevice needs in `results`: the results, then the walks' scratch space.
 std::size_t castRaysResultBytes(std::uint32_t count);
@@ -101,6 +97,15 @@ std::size_t castRaysResultBytes(std::uint32_t count);
 /// (16 B each) at its start. A ray the device could not finish (a driver that limits loops and a
 /// pathological ray; OccupancyMap::castRays throws for it) has hit = gpu::kRayUnfinished.
 void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
-                      BufferRange results);
+                      BufferRange results, SignalSemaphore signal = {});
+
+/// Bytes changedKeysOnDevice needs for `count` changed keys (map.numChangesDetected()).
+std::size_t changedKeysBytes(std::size_t count);
+
+/// The map's change set (OccupancyMap::changedKeys) into a device buffer: a gpu::ChangedKeysHeader
+/// (its count), then that many gpu::ChangedKey {key x, y, z, created} (octovk/device_types.h), in
+/// no particular order; `out` must hold changedKeysBytes(map.numChangesDetected()) (else
+/// kInvalidArgument, nothing written). Waits for the scans submitted before it.
+void changedKeysOnDevice(OccupancyMap& map, BufferRange out, SignalSemaphore signal = {});
 
 }  // namespace octovk

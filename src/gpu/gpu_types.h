@@ -63,6 +63,9 @@ OCTOVK_CONST uint kStatusListsShort = 64u;  // more active cells than params.act
 // Not applied because an earlier scan was not (PoolState::halted): scans queued behind a refused
 // one leave the map alone until the host has grown what was short and replays them in order.
 OCTOVK_CONST uint kStatusHalted = 128u;
+// The change set (change detection on) might not have room for every cell the scan updates
+// (at most 3/4 of its slots may be used): the scan is not applied; the host grows the set.
+OCTOVK_CONST uint kStatusChangesShort = 256u;
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
@@ -123,7 +126,7 @@ struct ScanParams {
   float trans_y;             // 4B (96)
   float trans_z;             // 4B (100)
   float occupancy_log;       // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
-  uint pad1;                 // 4B (108)
+  uint changes_log2;         // 4B (108) change detection: log2 of the change set's slots; 0: off
   uint cell_capacity;        // 4B (112) entries of the cell list and the active-cell list
   uint pad0;                 // 4B (116)
 };
@@ -272,6 +275,29 @@ struct BoxQuery {
   uint max_z;          // 4B (20)
   uint occupied_only;  // 4B (24)
   uint pad0;           // 4B (28)
+};
+
+// ---- change detection (OctoMap's changed keys) ----
+// The change set (binding kBindChanges): a ChangeHeader, then 2^ScanParams::changes_log2
+// ChangeSlots, an open-addressing hash set of finest-level keys. A slot, once claimed by a key,
+// keeps it until the set is reset or rehashed; its state says whether the key is in OctoMap's
+// KeyBoolMap now, and with which flag. Empty slots hold kEmptyChangeKey and kChangeNone (the
+// whole buffer filled with 0xFF bytes).
+OCTOVK_CONST uint kChangeFlipped = 0u;       // in the map as `false`: its occupancy flipped
+OCTOVK_CONST uint kChangeCreated = 1u;       // in the map as `true`: its leaf was created
+OCTOVK_CONST uint kChangeNone = 0xFFFFFFFFu; // not in the map (never was, or flipped back)
+// The change set's header. 16 B.
+struct ChangeHeader {
+  uint used;  // 4B (0)  slots claimed by a key (what limits the set's load)
+  uint live;  // 4B (4)  keys in the map (numChangesDetected)
+  uint pad0;  // 4B (8)
+  uint pad1;  // 4B (12)
+};
+// One slot of the change set. 16 B.
+struct ChangeSlot {
+  uint64_t key;  // 8B (0)  packKey of the finest-level key; kEmptyChangeKey: free
+  uint state;    // 4B (8)  kChange*
+  uint pad0;     // 4B (12)
 };
 
 // ---- push constants ----
@@ -440,6 +466,25 @@ struct CastRayRtConstants {
   uint first_ray;  // 4B (12) from this one on
 };
 
+// list_changes. 16 B.
+OCTOVK_CONST uint kListChangesHeader = 0u;  // one invocation: the output header's count to 0
+OCTOVK_CONST uint kListChangesKeys = 1u;    // per slot: the keys in the set appended after it
+struct ListChangesConstants {
+  uint capacity;  // 4B (0)  slots of the change set
+  uint mode;      // 4B (4)  kListChanges*
+  uint pad1;      // 4B (8)
+  uint pad2;      // 4B (12)
+};
+
+// rehash_changes: the keys of the old change set (at old_address, old_capacity slots) into the
+// new one (kBindChanges, empty). 16 B.
+struct RehashChangesConstants {
+  uint old_address_lo;  // 4B (0)
+  uint old_address_hi;  // 4B (4)
+  uint old_capacity;    // 4B (8)
+  uint pad0;            // 4B (12)
+};
+
 // device_probe. 16 B.
 OCTOVK_CONST uint kProbeModeArithmetic = 0u;  // per case, the operations, into ProbeResults
 OCTOVK_CONST uint kProbeModeLoop = 1u;        // the iterations a loop really runs
@@ -472,20 +517,21 @@ OCTOVK_CONST uint kBindSlots =
     17u;  // the slots filled in the cell set, then those of the second set
 OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
 OCTOVK_CONST uint kBindDepth = 19u;     // a depth image: DepthCamera, then its pixels
-OCTOVK_CONST uint kBindingCount = 20u;
+OCTOVK_CONST uint kBindChanges = 20u;   // the changed keys: ChangeHeader, then ChangeSlots
+OCTOVK_CONST uint kBindingCount = 21u;
 // The map's arrays that can outgrow one descriptor's range (maxStorageBufferRange: 128 MiB on
 // lavapipe, while a 0.02 m map's node pool alone takes 454 MiB) are not bound by descriptor:
 // the shaders reach them by device address (GL_EXT_buffer_reference). Their addresses, indexed
 // by binding, are in a table bound at kBindAddresses (uint64_t[kBindingCount]; 0 elsewhere).
 // Params, counters, pool state and the two query bindings stay descriptors (small, or ranges
 // of a caller's buffers).
-OCTOVK_CONST uint kBindAddresses = 20u;
+OCTOVK_CONST uint kBindAddresses = 21u;
 OCTOVK_CONST uint kAddressedBindings =
     (1u << kBindPoints) | (1u << kBindHashKeys) | (1u << kBindHashFlags) | (1u << kBindNodes) |
     (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
     (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
     (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
-    (1u << kBindDepth);
+    (1u << kBindDepth) | (1u << kBindChanges);
 
 // Scans through ray tracing (MapParams::scan_rays = kRayTracing; scan_rays_rt.comp). Its boxes
 // are written by accel_boxes in two more modes into a boxes buffer of the same layout

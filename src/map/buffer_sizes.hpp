@@ -34,9 +34,15 @@ inline std::size_t listBytes(std::size_t active) {
 // Nodes, block parents, free stack and leaf boxes of one block.
 constexpr std::size_t kBlockBytes =
     8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
-// Params, counters, pool, and a readback region per frame.
+// The change set of 2^log2 slots (change detection on); log2 0: the one-slot set a map holds
+// while change detection was never on.
+inline std::size_t changesBytes(std::uint32_t log2) {
+  return sizeof(gpu::ChangeHeader) + (std::size_t{1} << log2) * sizeof(gpu::ChangeSlot);
+}
+// Params, counters, pool, a readback region per frame, and the idle change set.
 constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + sizeof(gpu::ScanCounters) +
-                                    sizeof(gpu::PoolState) + kFramesInFlight * kReadbackBytes;
+                                    sizeof(gpu::PoolState) + kFramesInFlight * kReadbackBytes +
+                                    sizeof(gpu::ChangeHeader) + sizeof(gpu::ChangeSlot);
 // Points on the device, their staging in each frame, the walks.
 inline std::size_t pointBytes(std::size_t count) {
   return count * 3 * sizeof(float) * (1 + kFramesInFlight) + 2 * count * sizeof(gpu::WalkState);

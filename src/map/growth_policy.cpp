@@ -1,5 +1,7 @@
 #include "map/growth_policy.hpp"
 
+#include "map/change_set.hpp"
+
 #include <algorithm>
 #include <exception>
 #include <string>
@@ -120,6 +122,10 @@ void GrowthPolicy::growForRetry(const gpu::ScanCounters& counters, const gpu::Po
   const std::uint32_t active = counters.active_cells + counters.leaf_cells;
   if (status & gpu::kStatusListsShort)
     buffers.allocateLists(std::size_t{1} << nextPow2Log2(active));
+  // Change detection: room for every cell the scan updates, and as many again for the next
+  // scans, so that the set does not grow one refused scan at a time.
+  if (status & gpu::kStatusChangesShort)
+    growChangeSet(core_, std::uint64_t{readChangeHeader(core_).used} + 2 * std::uint64_t{active});
 }
 
 // Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for

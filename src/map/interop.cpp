@@ -40,8 +40,8 @@ void checkInput(const char* call, const BufferRange& range, std::size_t bytes) {
 
 ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
                                    std::uint32_t count, const Eigen::Vector3f& origin_sensor,
-                                   const Pose& T_world_sensor, double max_range_m, bool discretize,
-                                   WaitSemaphore wait) {
+                                   const Pose& T_world_sensor, const ScanOptions& options,
+                                   WaitSemaphore wait, SignalSemaphore signal) {
   checkInput("insertPointCloudOnDevice", points_sensor, std::size_t{count} * 3 * sizeof(float));
   OccupancyMap::Impl::ScanSource source;
   source.device = points_sensor.buffer;
@@ -49,14 +49,17 @@ ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
   source.device_points = count;
   source.wait = wait.semaphore;
   source.wait_value = wait.value;
-  return InteropAccess::impl(map).insert(source, T_world_sensor.transform(origin_sensor),
-                                         &T_world_sensor, {max_range_m, discretize});
+  OccupancyMap::Impl& impl = InteropAccess::impl(map);
+  const ScanStats stats =
+      impl.insert(source, T_world_sensor.transform(origin_sensor), &T_world_sensor, options);
+  impl.signal(signal.semaphore, signal.value);
+  return stats;
 }
 
 ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
-                                   const Pose& T_world_camera, double max_range_m,
-                                   const Eigen::Vector3f& origin_camera, bool discretize,
-                                   WaitSemaphore wait) {
+                                   const Pose& T_world_camera, const ScanOptions& options,
+                                   const Eigen::Vector3f& origin_camera, WaitSemaphore wait,
+                                   SignalSemaphore signal) {
   DepthImage meta = image;
   if (meta.pixels == nullptr) meta.pixels = &meta;  // validate() asks for pixels; never read
   if (std::string why = meta.validate(); !why.empty())
@@ -70,14 +73,19 @@ ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const 
   source.device_offset = pixels.offset;
   source.wait = wait.semaphore;
   source.wait_value = wait.value;
-  return InteropAccess::impl(map).insert(source, T_world_camera.transform(origin_camera),
-                                         &T_world_camera, {max_range_m, discretize});
+  OccupancyMap::Impl& impl = InteropAccess::impl(map);
+  const ScanStats stats =
+      impl.insert(source, T_world_camera.transform(origin_camera), &T_world_camera, options);
+  impl.signal(signal.semaphore, signal.value);
+  return stats;
 }
 
 void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,
-                    BufferRange results) {
-  InteropAccess::impl(map).queryOnDevice(false, points.buffer, points.offset, points.size,
-                                         results.buffer, results.offset, results.size, count);
+                    BufferRange results, SignalSemaphore signal) {
+  OccupancyMap::Impl& impl = InteropAccess::impl(map);
+  impl.queryOnDevice(false, points.buffer, points.offset, points.size, results.buffer,
+                     results.offset, results.size, count);
+  impl.signal(signal.semaphore, signal.value);
 }
 
 std::size_t castRaysResultBytes(std::uint32_t count) {
@@ -86,14 +94,26 @@ std::size_t castRaysResultBytes(std::uint32_t count) {
 }
 
 void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
-                      BufferRange results) {
+                      BufferRange results, SignalSemaphore signal) {
   if (results.size != VK_WHOLE_SIZE && results.size < castRaysResultBytes(count))
     throw Error(ErrorCode::kInvalidArgument,
                 "castRaysOnDevice: the results range holds " + std::to_string(results.size) +
                     " bytes; castRaysResultBytes(" + std::to_string(count) +
                     ") = " + std::to_string(castRaysResultBytes(count)) + " are needed");
-  InteropAccess::impl(map).queryOnDevice(true, rays.buffer, rays.offset, rays.size, results.buffer,
-                                         results.offset, results.size, count);
+  OccupancyMap::Impl& impl = InteropAccess::impl(map);
+  impl.queryOnDevice(true, rays.buffer, rays.offset, rays.size, results.buffer, results.offset,
+                     results.size, count);
+  impl.signal(signal.semaphore, signal.value);
+}
+
+std::size_t changedKeysBytes(std::size_t count) {
+  return sizeof(gpu::ChangedKeysHeader) + count * sizeof(gpu::ChangedKey);
+}
+
+void changedKeysOnDevice(OccupancyMap& map, BufferRange out, SignalSemaphore signal) {
+  OccupancyMap::Impl& impl = InteropAccess::impl(map);
+  impl.changedKeysOnDevice(out.buffer, out.offset, out.size);
+  impl.signal(signal.semaphore, signal.value);
 }
 
 }  // namespace octovk

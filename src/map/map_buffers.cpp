@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "map/buffer_sizes.hpp"
@@ -63,6 +64,7 @@ MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint3
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
   allocateLists(kInitialActive);
   allocatePool(std::min<std::uint32_t>(kInitialBlocks, block_limit_), /*copy_old=*/false);
+  (void)replaceChanges(0);  // the last buffer: binds them all
   resetPool();
 }
 
@@ -77,6 +79,7 @@ BufferBytes MapBuffers::bytesByUse() const {
         &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
     b.scratch += x->size();
   b.scratch += uploadBytes();
+  b.changes = changes.size();
   return b;
 }
 
@@ -93,6 +96,7 @@ void MapBuffers::checkBudget(std::size_t freed, std::size_t added, const std::st
       "; it holds " + mib(b.total()) + " (node pool " + mib(b.pool) + ", leaf boxes " +
       mib(b.leaf_boxes) + ", scan scratch " + mib(b.scratch) + ", query buffers " +
       mib(b.queries - scene_bytes_) + ", acceleration structures " + mib(scene_bytes_) +
+      ", change set " + mib(b.changes) +
       "); the map is unchanged. Raise max_device_bytes, split the scan or the "
       "query batch into smaller ones, or call OccupancyMap::trim() to release scratch");
 }
@@ -362,13 +366,42 @@ void MapBuffers::ensureQueries(std::size_t in_bytes, std::size_t out_bytes) {
 
 void MapBuffers::rebind() {
   if (!nodes.valid() || !hash_keys.valid() || !touched.valid() || !query_in.valid() ||
-      !slots.valid())
+      !slots.valid() || !changes.valid())
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params,        &counters,   &pool,  &points,  &hash_keys,     &hash_flags, &nodes,
       &block_parents, &free_stack, &cells, &touched, &prefix_blocks, &leaf_boxes, &endpoint_keys,
-      &query_in,      &query_out,  &walks, &slots,   &cell_list,     &depth};
+      &query_in,      &query_out,  &walks, &slots,   &cell_list,     &depth, &changes};
   bindings.update(buffers);
+}
+
+vk::Buffer MapBuffers::replaceChanges(std::uint32_t log2) {
+  const std::size_t bytes = changesBytes(log2);
+  checkBudget(changes.size(), bytes,
+              "growing the change set to 2^" + std::to_string(log2) + " keys");
+  vk::Buffer fresh(device_, bytes, false);
+  std::swap(changes, fresh);
+  const std::uint32_t old_log2 = std::exchange(changes_log2_, log2);
+  rebind();
+  try {
+    stream_.begin(bindings);
+    stream_.fill(changes, 0xFFFFFFFFu, 0, bytes);
+    stream_.barrier();
+    stream_.fill(changes, 0u, 0, sizeof(gpu::ChangeHeader));
+    stream_.submitAndWait();
+  } catch (...) {  // the old set stays, as before the call
+    std::swap(changes, fresh);
+    changes_log2_ = old_log2;
+    rebind();
+    throw;
+  }
+  return fresh;
+}
+
+void MapBuffers::restoreChanges(vk::Buffer old, std::uint32_t log2) {
+  changes = std::move(old);
+  changes_log2_ = log2;
+  rebind();
 }
 
 }  // namespace octovk

@@ -47,8 +47,8 @@ class BudgetError : public Error {
 
 /// The map's device bytes by use (OccupancyMap::DeviceBytes).
 struct BufferBytes {
-  std::size_t pool = 0, leaf_boxes = 0, scratch = 0, queries = 0;
-  std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+  std::size_t pool = 0, leaf_boxes = 0, scratch = 0, queries = 0, changes = 0;
+  std::size_t total() const { return pool + leaf_boxes + scratch + queries + changes; }
 };
 
 // The device-memory cap (MapParams::max_device_bytes) is on the bytes the map's buffers hold
@@ -90,6 +90,13 @@ class MapBuffers {
   void ensureDepth(std::size_t bytes);
   /// Query input/output (and their staging) of at least these sizes.
   void ensureQueries(std::size_t in_bytes, std::size_t out_bytes);
+  /// A new, empty change set of 2^log2 slots (filled with 0xFF bytes, its header zero), made
+  /// under the cap (BudgetError, nothing changed) and bound in place of the old one, which is
+  /// returned so that its keys can be moved over (rehash) before it is dropped; records and
+  /// waits. log2 0: the idle one-slot set.
+  vk::Buffer replaceChanges(std::uint32_t log2);
+  /// Puts back the set replaceChanges returned (`log2` its size), dropping the current one.
+  void restoreChanges(vk::Buffer old, std::uint32_t log2);
   /// allocatePool, but when `blocks` exceeds the cap and `min_blocks` fits, the pool gets the
   /// most blocks that fit instead (growth headroom cut to the cap, never below the need).
   void allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks, bool copy_old);
@@ -121,6 +128,8 @@ class MapBuffers {
   std::size_t activeCapacity() const noexcept { return active_capacity_; }
   std::uint32_t poolBlocks() const noexcept { return pool_blocks_; }
   std::size_t pointCapacity() const noexcept { return point_capacity_; }
+  /// log2 of the change set's slots (0 while change detection was never on).
+  std::uint32_t changesLog2() const noexcept { return changes_log2_; }
   /// Whether the sets must be cleared whole before the next scan (new, or left in an unknown
   /// state by a failed scan); else only the slots the last scan filled are cleared.
   bool setsNeedFill() const noexcept { return sets_need_fill_; }
@@ -163,6 +172,7 @@ class MapBuffers {
   vk::Buffer walks;  // ray walks saved between segments (two lists of pointCapacity())
   vk::Buffer slots;  // filled slots of the cell set, then of the second set
   vk::Buffer depth;  // a depth image: gpu::DepthCamera, then its pixels
+  vk::Buffer changes;  // the change set: gpu::ChangeHeader, then gpu::ChangeSlots
 
  private:
   /// (Re)makes the sets whose size differs from 2^hash_log2 / 2^endpoint_log2 and the slot
@@ -185,6 +195,7 @@ class MapBuffers {
   std::size_t active_capacity_ = 0;
   std::uint32_t pool_blocks_ = 0;
   std::size_t point_capacity_ = 0;
+  std::uint32_t changes_log2_ = 0;
 };
 
 }  // namespace octovk

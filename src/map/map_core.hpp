@@ -48,6 +48,8 @@ struct MapCore {
   /// rebuilt when it was built from another version.
   std::uint64_t tree_version = 0;
   LeafBoxes leaf_boxes = LeafBoxes::kCurrent;
+  /// Change detection on: scans note their changed keys in the change set (ChangeSet).
+  bool change_detection = false;
 };
 
 }  // namespace octovk

@@ -6,6 +6,7 @@
 //   GrowthPolicy   (growth_policy.hpp)   what grows when: before, after and ahead of scans
 //   QueryRunner    (query_runner.hpp)    search, castRay, leaves in a box, interop batches
 //   TreeTransfer   (tree_transfer.hpp)   download, upload, leaf boxes to the host
+//   ChangeSet      (change_set.hpp)      change detection: the changed keys on the device
 //   ScanPipeline   (scan_pipeline.hpp)   recording, submitting and confirming scans
 #pragma once
 
@@ -13,6 +14,7 @@
 #include <memory>
 #include <vector>
 
+#include "map/change_set.hpp"
 #include "map/growth_policy.hpp"
 #include "map/map_core.hpp"
 #include "map/query_runner.hpp"
@@ -64,6 +66,38 @@ class OccupancyMap::Impl {
   std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
                                        bool occupied_only);
 
+  // ---- change detection (ChangeSet), each after the scans submitted before it ----
+  void enableChangeDetection(bool on) {
+    flush();
+    changes_.enable(on);
+  }
+  bool changeDetectionEnabled() const { return changes_.enabled(); }
+  void resetChangeDetection() {
+    flush();
+    changes_.reset();
+  }
+  std::size_t numChangesDetected() {
+    flush();
+    return changes_.count();
+  }
+  std::vector<ChangedKey> changedKeys() {
+    flush();
+    return changes_.keys();
+  }
+  void changedKeysOnDevice(VkBuffer out, VkDeviceSize out_offset, VkDeviceSize out_size) {
+    flush();
+    changes_.onDevice(out, out_offset, out_size);
+  }
+
+  /// Signals a caller's semaphore (interop output) after everything submitted so far: an empty
+  /// submission on the map's stream (nothing when `semaphore` is VK_NULL_HANDLE).
+  void signal(VkSemaphore semaphore, std::uint64_t value) {
+    if (semaphore == VK_NULL_HANDLE) return;
+    core_.stream.begin(core_.buffers.bindings);
+    core_.stream.signalAfterNextSubmit(semaphore, value);
+    core_.stream.submit();
+  }
+
   // ---- the tree (TreeTransfer, MapCore), each after the scans submitted before it ----
   HostTree download();
   void upload(const HostTree& tree);
@@ -92,6 +126,7 @@ class OccupancyMap::Impl {
   GrowthPolicy growth_;
   QueryRunner queries_;
   TreeTransfer transfer_;
+  ChangeSet changes_;
   ScanPipeline scans_;
 };
 

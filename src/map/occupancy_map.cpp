@@ -16,6 +16,7 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       growth_(core_),
       queries_(core_, scenes_),
       transfer_(core_, scenes_),
+      changes_(core_),
       scans_(core_, growth_, scenes_, queries_) {}
 
 OccupancyMap::Impl::~Impl() {
@@ -72,7 +73,11 @@ void OccupancyMap::Impl::refreshLeafBoxes() {
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
   const BufferBytes b = core_.buffers.bytesByUse();  // the scenes are in b.queries
-  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
+  return {.pool = b.pool,
+          .leaf_boxes = b.leaf_boxes,
+          .scratch = b.scratch,
+          .queries = b.queries,
+          .changes = b.changes};
 }
 
 void OccupancyMap::Impl::trim() {
@@ -105,76 +110,70 @@ const MapParams& OccupancyMap::params() const noexcept {
 }
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
-                                         const Eigen::Vector3f& origin_world, double max_range_m,
-                                         bool discretize) {
+                                         const Eigen::Vector3f& origin_world,
+                                         const ScanOptions& options) {
   return hostMemoryGuard("insertPointCloud", [&] {
-    return self().insert({.points = points_world}, origin_world, nullptr,
-                         {max_range_m, discretize});
+    return self().insert({.points = points_world}, origin_world, nullptr, options);
   });
 }
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                                          const Eigen::Vector3f& origin_sensor,
-                                         const Pose& T_world_sensor, double max_range_m,
-                                         bool discretize) {
+                                         const Pose& T_world_sensor,
+                                         const ScanOptions& options) {
   return hostMemoryGuard("insertPointCloud", [&] {
     const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
-    return self().insert({.points = points_sensor}, origin_world, &T_world_sensor,
-                         {max_range_m, discretize});
+    return self().insert({.points = points_sensor}, origin_world, &T_world_sensor, options);
   });
 }
 
 ScanStats OccupancyMap::insertDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                                         double max_range_m, const Eigen::Vector3f& origin_camera,
-                                         bool discretize) {
+                                         const ScanOptions& options,
+                                         const Eigen::Vector3f& origin_camera) {
   return hostMemoryGuard("insertDepthImage", [&] {
     if (std::string why = image.validate(); !why.empty())
       throw Error(ErrorCode::kInvalidArgument, "insertDepthImage: " + why);
     const Eigen::Vector3f origin_world = T_world_camera.transform(origin_camera);
-    return self().insert({.depth = &image}, origin_world, &T_world_camera,
-                         {max_range_m, discretize});
+    return self().insert({.depth = &image}, origin_world, &T_world_camera, options);
   });
 }
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
-                                         const Eigen::Vector3f& origin_world, double max_range_m,
-                                         bool discretize, const QueryRequest& queries,
+                                         const Eigen::Vector3f& origin_world,
+                                         const ScanOptions& options, const QueryRequest& queries,
                                          QueryResults& results) {
   return hostMemoryGuard("insertPointCloud", [&] {
-    return self().insert({.points = points_world}, origin_world, nullptr, {max_range_m, discretize},
-                         &queries, &results);
+    return self().insert({.points = points_world}, origin_world, nullptr, options, &queries,
+                         &results);
   });
 }
 
 ScanTicket OccupancyMap::submitPointCloud(std::span<const Eigen::Vector3f> points_world,
-                                          const Eigen::Vector3f& origin_world, double max_range_m,
-                                          bool discretize) {
+                                          const Eigen::Vector3f& origin_world,
+                                          const ScanOptions& options) {
   return hostMemoryGuard("submitPointCloud", [&] {
-    return self().submit({.points = points_world}, origin_world, nullptr,
-                         {max_range_m, discretize});
+    return self().submit({.points = points_world}, origin_world, nullptr, options);
   });
 }
 
 ScanTicket OccupancyMap::submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                                           const Eigen::Vector3f& origin_sensor,
-                                          const Pose& T_world_sensor, double max_range_m,
-                                          bool discretize) {
+                                          const Pose& T_world_sensor,
+                                          const ScanOptions& options) {
   return hostMemoryGuard("submitPointCloud", [&] {
     const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
-    return self().submit({.points = points_sensor}, origin_world, &T_world_sensor,
-                         {max_range_m, discretize});
+    return self().submit({.points = points_sensor}, origin_world, &T_world_sensor, options);
   });
 }
 
 ScanTicket OccupancyMap::submitDepthImage(const DepthImage& image, const Pose& T_world_camera,
-                                          double max_range_m, const Eigen::Vector3f& origin_camera,
-                                          bool discretize) {
+                                          const ScanOptions& options,
+                                          const Eigen::Vector3f& origin_camera) {
   return hostMemoryGuard("submitDepthImage", [&] {
     if (std::string why = image.validate(); !why.empty())
       throw Error(ErrorCode::kInvalidArgument, "submitDepthImage: " + why);
     const Eigen::Vector3f origin_world = T_world_camera.transform(origin_camera);
-    return self().submit({.depth = &image}, origin_world, &T_world_camera,
-                         {max_range_m, discretize});
+    return self().submit({.depth = &image}, origin_world, &T_world_camera, options);
   });
 }
 
@@ -211,6 +210,24 @@ std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::leavesInBox(const Eigen::Ve
                                                                  bool occupied_only) const {
   return hostMemoryGuard("leavesInBox",
                          [&] { return self().leavesInBox(min, max, occupied_only); });
+}
+
+void OccupancyMap::enableChangeDetection(bool enable) {
+  hostMemoryGuard("enableChangeDetection", [&] { self().enableChangeDetection(enable); });
+}
+
+bool OccupancyMap::isChangeDetectionEnabled() const { return self().changeDetectionEnabled(); }
+
+void OccupancyMap::resetChangeDetection() {
+  hostMemoryGuard("resetChangeDetection", [&] { self().resetChangeDetection(); });
+}
+
+std::size_t OccupancyMap::numChangesDetected() const {
+  return hostMemoryGuard("numChangesDetected", [&] { return self().numChangesDetected(); });
+}
+
+std::vector<ChangedKey> OccupancyMap::changedKeys() const {
+  return hostMemoryGuard("changedKeys", [&] { return self().changedKeys(); });
 }
 
 std::size_t OccupancyMap::nodeCount() const {

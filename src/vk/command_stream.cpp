@@ -165,6 +165,11 @@ void CommandStream::waitBeforeNextSubmit(VkSemaphore semaphore, std::uint64_t va
   wait_value_ = value;
 }
 
+void CommandStream::signalAfterNextSubmit(VkSemaphore semaphore, std::uint64_t value) {
+  signal_semaphore_ = semaphore;
+  signal_value_ = value;
+}
+
 std::uint64_t CommandStream::submit() {
   Frame& f = frames_[current_];
   OCTOVK_VK(vkEndCommandBuffer(f.cmd));
@@ -186,6 +191,18 @@ std::uint64_t CommandStream::submit() {
     submit.waitSemaphoreCount = 1;
     submit.pWaitSemaphores = &wait;
     submit.pWaitDstStageMask = &wait_stage;
+  }
+  // A caller's semaphore to signal (interop output): a semaphore signal covers every command
+  // submitted before it on the queue, so the caller's submissions that wait for it see them.
+  const VkSemaphore signal = signal_semaphore_;
+  const std::uint64_t signal_value = signal_value_;
+  signal_semaphore_ = VK_NULL_HANDLE;
+  if (signal != VK_NULL_HANDLE) {
+    timeline.signalSemaphoreValueCount = 1;
+    timeline.pSignalSemaphoreValues = &signal_value;
+    submit.pNext = &timeline;
+    submit.signalSemaphoreCount = 1;
+    submit.pSignalSemaphores = &signal;
   }
   OCTOVK_VK(vkResetFences(device_.handle(), 1, &f.fence));
   device_.submit(submit, f.fence);

@@ -56,6 +56,9 @@ class CommandStream {
   /// The next submission waits for `semaphore` (a timeline semaphore: for `value`; a binary
   /// one: signalled, and unsignalled by the wait) before any of its commands run.
   void waitBeforeNextSubmit(VkSemaphore semaphore, std::uint64_t value);
+  /// The next submission signals `semaphore` (a timeline semaphore: to `value`; a binary one:
+  /// signalled) when all of its commands, and every earlier submission's, are done.
+  void signalAfterNextSubmit(VkSemaphore semaphore, std::uint64_t value);
   /// Ends recording and submits; returns the submission's serial (1, 2, ... in order).
   std::uint64_t submit();
   /// Waits until submission `serial` (and so every earlier one) has completed.
@@ -106,6 +109,8 @@ class CommandStream {
   bool recording_ = false;
   VkSemaphore wait_semaphore_ = VK_NULL_HANDLE;
   std::uint64_t wait_value_ = 0;
+  VkSemaphore signal_semaphore_ = VK_NULL_HANDLE;
+  std::uint64_t signal_value_ = 0;
   static constexpr std::uint32_t kMaxQueries = 64;  // per frame
 };
 

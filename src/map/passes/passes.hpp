@@ -173,6 +173,17 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
 /// scan_rays_rt over the scan's points (or discretize's distinct end cells), into the cell set.
 void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, bool discretize);
 
+// ---- changes.cpp: the change set (change detection) ----
+
+/// list_changes.comp: the change set's keys into the query output (the map's, or the caller's
+/// range bound there) after a ChangedKeysHeader holding their count; sets `sp` first.
+void recordListChanges(Recorder& r, const gpu::ScanParams& sp);
+/// rehash_changes.comp: the keys of the old set (`old_slots` slots at `old_set`) into the bound,
+/// empty one; params must hold the new set's log2.
+void recordRehashChanges(Recorder& r, VkDeviceAddress old_set, std::uint32_t old_slots);
+/// Empties the change set (resetChangeDetection).
+void recordResetChanges(Recorder& r);
+
 // ---- readback.cpp ----
 
 /// Copies the counters and the pool state to the recording frame's readback region.
