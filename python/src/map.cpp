@@ -174,6 +174,18 @@ void bindMap(py::module_& m) {
                ", queries=" + std::to_string(b.queries) + ")";
       });
 
+  using CastRayInfo = OccupancyMap::CastRayInfo;
+  py::class_<CastRayInfo>(m, "CastRayInfo",
+                          "castRay's backend on a map and what its acceleration structure cost.")
+      .def_readonly("backend", &CastRayInfo::backend, "WALK or RAY_TRACING, as cast_rays runs")
+      .def_readonly("builds", &CastRayInfo::builds, "acceleration-structure builds since trim()")
+      .def_readonly("last_build_ms", &CastRayInfo::last_build_ms)
+      .def_readonly("occupied_boxes", &CastRayInfo::occupied_boxes)
+      .def_readonly("unknown_boxes", &CastRayInfo::unknown_boxes)
+      .def_readonly("device_bytes", &CastRayInfo::device_bytes)
+      .def_readonly("cap_fallbacks", &CastRayInfo::cap_fallbacks,
+                    "cast_rays calls answered by the walk because of max_device_bytes");
+
   py::class_<Map> map(m, "Map", kMapDoc);
   map.def(py::init([](double resolution, double prob_hit, double prob_miss, double clamping_min,
                       double clamping_max, double occupancy_threshold, std::size_t max_nodes,
@@ -465,6 +477,10 @@ void bindMap(py::module_& m) {
       },
       "Device bytes the map holds, by use (DeviceBytes: pool, leaf_boxes, scratch, queries, "
       "total): what max_device_bytes caps.");
+  map.def(
+      "cast_ray_info",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.castRayInfo(); }); },
+      "castRay's backend on this map and its acceleration structure (CastRayInfo).");
   map.def(
       "trim", [](Map& self) { self.run([](OccupancyMap& map) { map.trim(); }); },
       "Releases the per-scan scratch and the query buffers to an empty map's sizes (results "

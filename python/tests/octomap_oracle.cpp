@@ -34,7 +34,8 @@ void put(std::string& out, T value) {
   out.append(reinterpret_cast<const char*>(&value), sizeof(value));
 }
 
-// The deepest existing node on the key's path and its depth (OcTree::search with its depth).
+// OcTree::search(key) with the depth of the node found: the leaf on the key's path, or none where
+// the path ends at an inner node without the child it needs.
 const octomap::OcTreeNode* deepest(const octomap::OcTree& tree, const octomap::OcTreeKey& key,
                                    unsigned* depth) {
   const octomap::OcTreeNode* node = tree.getRoot();
@@ -42,7 +43,7 @@ const octomap::OcTreeNode* deepest(const octomap::OcTree& tree, const octomap::O
   if (!node) return nullptr;
   for (int level = 15; level >= 0; --level) {
     const unsigned child = octomap::computeChildIdx(key, level);
-    if (!tree.nodeChildExists(node, child)) break;
+    if (!tree.nodeChildExists(node, child)) return tree.nodeHasChildren(node) ? nullptr : node;
     node = tree.getNodeChild(node, child);
     ++*depth;
   }
@@ -69,11 +70,9 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i + 3 <= p.size(); i += 3) {
       octomap::OcTreeKey key;
       unsigned depth = 0;
-      const octomap::OcTreeNode* node =
-          tree->coordToKeyChecked(octomap::point3d(p[i], p[i + 1], p[i + 2]), key)
-              ? deepest(*tree, key, &depth)
-              : nullptr;
-      if (node && tree->search(p[i], p[i + 1], p[i + 2]) != node) {
+      const bool inside = tree->coordToKeyChecked(octomap::point3d(p[i], p[i + 1], p[i + 2]), key);
+      const octomap::OcTreeNode* node = inside ? deepest(*tree, key, &depth) : nullptr;
+      if (inside && node != tree->search(key)) {
         std::cerr << "octovk_py_oracle: own descent differs from OcTree::search\n";
         return 1;
       }
@@ -91,7 +90,7 @@ int main(int argc, char** argv) {
       put<std::uint8_t>(out, hit ? 1 : 0);
       for (int k = 0; k < 3; ++k) put<float>(out, end(k));
     }
-  } else if (command == "leaves" && argc == 12) {
+  } else if (command == "leaves" && argc == 11) {
     const octomap::point3d lo(std::strtof(argv[3], nullptr), std::strtof(argv[4], nullptr),
                               std::strtof(argv[5], nullptr));
     const octomap::point3d hi(std::strtof(argv[6], nullptr), std::strtof(argv[7], nullptr),
