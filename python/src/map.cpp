@@ -217,10 +217,12 @@ void bindMap(py::module_& m) {
           py::arg("max_nodes") = 0, py::arg("max_device_bytes") = 0,
           py::arg("cast_ray_backend") = CastRayBackend::kAuto,
           py::arg("scan_rays") = ScanRays::kWalk, py::arg("context") = py::none(),
-          "An empty map with OctoMap's sensor model (its defaults). resolution in metres; "
-          "max_nodes / max_device_bytes cap the node pool / everything the map holds on the "
-          "device (0: no cap); context: a Context (None: default_context()). Raises "
-          "InvalidArgumentError naming a bad value.");
+          "An empty map. resolution: edge of the finest cells in metres; prob_hit, prob_miss, "
+          "clamping_min, clamping_max, occupancy_threshold: OctoMap's sensor model (its "
+          "defaults); max_nodes / max_device_bytes cap the node pool / everything the map holds "
+          "on the device (0: no cap); cast_ray_backend: how cast_rays runs (AUTO: ray tracing "
+          "where the device has it); scan_rays: how scans find their cells; context: a Context "
+          "(None: default_context()). Raises InvalidArgumentError naming a bad value.");
 
   map.def_static(
       "read",
@@ -248,7 +250,7 @@ void bindMap(py::module_& m) {
         self.run([&](OccupancyMap& map) { writeMapFile(map, file); });
       },
       py::arg("path"),
-      "Writes the map as its extension says: .bt (OctoMap's writeBinary: max-likelihood, "
+      "Writes the map to path as its extension says: .bt (OctoMap's writeBinary: max-likelihood, "
       "pruned) or .ot (full log-odds). Written to a temporary file and renamed: a failed "
       "write leaves no partial file.");
 
@@ -291,7 +293,8 @@ void bindMap(py::module_& m) {
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
       py::arg("max_range") = -1.0, py::arg("discretize") = false,
-      "insert_point_cloud without waiting for the device: the points are copied before it "
+      "insert_point_cloud(points, origin, pose, max_range, discretize) without waiting for the "
+      "device: the points are copied before it "
       "returns (the array may be reused at once). Returns the scan's ticket (int). Errors the "
       "device finds are raised by the next flush() or query, naming the scan (Error.scan).");
 
@@ -314,7 +317,8 @@ void bindMap(py::module_& m) {
       "the pinhole camera fx, fy, cx, cy (pixels) and depth_scale (depth units per metre: TUM "
       "5000, metres in float 1), then inserted from the camera centre with pose "
       "T_world_camera (camera frame x right, y down, z forward). Pixels with depth 0 or "
-      "non-finite are skipped. Returns ScanStats.");
+      "non-finite are skipped. max_range and discretize as in insert_point_cloud. Returns "
+      "ScanStats.");
 
   map.def(
       "submit_depth_image",
@@ -333,7 +337,8 @@ void bindMap(py::module_& m) {
       py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
       py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range") = -1.0,
       py::arg("discretize") = false,
-      "insert_depth_image without waiting (the pixels are copied before it returns). Returns "
+      "insert_depth_image(depth, fx, fy, cx, cy, depth_scale, pose, max_range, discretize) "
+      "without waiting (the pixels are copied before it returns). Returns "
       "the scan's ticket.");
 
   map.def("flush", &Map::flush,
@@ -386,7 +391,7 @@ void bindMap(py::module_& m) {
         return py::make_tuple(state, log_odds, depth);
       },
       py::arg("points"), py::arg("out") = py::none(),
-      "OctoMap's search() for each point (float32 (N, 3)), on the device: the deepest existing "
+      "OctoMap's search() for each of points (float32 (N, 3)), on the device: the deepest existing "
       "node on the point's path. Returns (state, log_odds, depth): state uint8 (N,) "
       "(CellState: 0 unknown, 1 free, 2 occupied), log_odds float32 (N,) (0 when unknown), "
       "depth uint8 (N,) (16 = finest, 0 when unknown). out: a tuple of three such arrays to "

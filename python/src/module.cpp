@@ -215,7 +215,7 @@ void bindFiles(py::module_& m) {
         return out;
       },
       py::arg("path"),
-      "Reads an OctoMap scan graph (.graph): a list of (points, pose) with points a float32 "
+      "Reads the OctoMap scan graph (.graph) at path: a list of (points, pose) with points a float32 "
       "array (N, 3) in the sensor frame and pose the sensor's Pose in the world. Raises "
       "FormatError naming the file for a corrupt one.");
   m.def(
