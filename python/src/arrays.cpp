@@ -23,11 +23,21 @@ std::string elementName(const Element& e) {
   if (e.kind == 0) return e.other;
   std::string name;
   switch (e.kind) {
-    case 'f': name = "float"; break;
-    case 'i': name = "int"; break;
-    case 'u': name = "uint"; break;
-    case 'c': name = "complex"; break;
-    default: name = "bool"; break;
+    case 'f':
+      name = "float";
+      break;
+    case 'i':
+      name = "int";
+      break;
+    case 'u':
+      name = "uint";
+      break;
+    case 'c':
+      name = "complex";
+      break;
+    default:
+      name = "bool";
+      break;
   }
   if (e.kind != 'b') name += std::to_string(8 * e.bytes);
   if (e.foreign_order) name = "byte-swapped " + name;
@@ -36,17 +46,23 @@ std::string elementName(const Element& e) {
 
 const char* dtypeName(DType t) {
   switch (t) {
-    case DType::kFloat32: return "float32";
-    case DType::kUint16: return "uint16";
-    default: return "uint8";
+    case DType::kFloat32:
+      return "float32";
+    case DType::kUint16:
+      return "uint16";
+    default:
+      return "uint8";
   }
 }
 
 std::size_t dtypeBytes(DType t) {
   switch (t) {
-    case DType::kFloat32: return 4;
-    case DType::kUint16: return 2;
-    default: return 1;
+    case DType::kFloat32:
+      return 4;
+    case DType::kUint16:
+      return 2;
+    default:
+      return 1;
   }
 }
 
@@ -71,11 +87,16 @@ Element parseFormat(const char* format, std::size_t itemsize) {
     return e;
   }
   const char c = f[at];
-  if (c == 'f' || c == 'd' || c == 'e') e.kind = 'f';
-  else if (c == '?') e.kind = 'b';
-  else if (std::string("bhilq").find(c) != std::string::npos) e.kind = 'i';
-  else if (std::string("BHILQ").find(c) != std::string::npos) e.kind = 'u';
-  else if (c == 'Z') e.kind = 'c';
+  if (c == 'f' || c == 'd' || c == 'e')
+    e.kind = 'f';
+  else if (c == '?')
+    e.kind = 'b';
+  else if (std::string("bhilq").find(c) != std::string::npos)
+    e.kind = 'i';
+  else if (std::string("BHILQ").find(c) != std::string::npos)
+    e.kind = 'u';
+  else if (c == 'Z')
+    e.kind = 'c';
   else {
     e.kind = 0;
     e.other = "format '" + f + "'";
@@ -88,14 +109,22 @@ Element dlpackElement(const DLDataType& t) {
   Element e;
   e.bytes = t.bits / 8u;
   switch (t.code) {
-    case kDLFloat: e.kind = 'f'; break;
-    case kDLInt: e.kind = 'i'; break;
-    case kDLUInt: e.kind = 'u'; break;
-    case kDLComplex: e.kind = 'c'; break;
+    case kDLFloat:
+      e.kind = 'f';
+      break;
+    case kDLInt:
+      e.kind = 'i';
+      break;
+    case kDLUInt:
+      e.kind = 'u';
+      break;
+    case kDLComplex:
+      e.kind = 'c';
+      break;
     default:
       e.kind = 0;
-      e.other = "DLPack type code " + std::to_string(t.code) + " with " +
-                std::to_string(t.bits) + " bits";
+      e.other = "DLPack type code " + std::to_string(t.code) + " with " + std::to_string(t.bits) +
+                " bits";
   }
   if (t.lanes != 1) {
     e.kind = 0;
@@ -118,10 +147,12 @@ std::string expectedShapeText(std::initializer_list<std::ptrdiff_t> shape) {
   std::size_t i = 0;
   for (std::ptrdiff_t extent : shape) {
     s << (i ? ", " : "");
-    if (extent >= 0) s << extent;
-    else s << (shape.size() == 2 && *shape.begin() < 0 && *(shape.begin() + 1) < 0
-                   ? (i == 0 ? "H" : "W")
-                   : "N");
+    if (extent >= 0)
+      s << extent;
+    else
+      s << (shape.size() == 2 && *shape.begin() < 0 && *(shape.begin() + 1) < 0
+                ? (i == 0 ? "H" : "W")
+                : "N");
     ++i;
   }
   s << (shape.size() == 1 ? ",)" : ")");
@@ -200,13 +231,20 @@ DType checkLayout(const char* arg, const Element& element, std::initializer_list
 
 const char* deviceName(int type) {
   switch (type) {
-    case kDLCUDA: return "cuda";
-    case kDLCUDAHost: return "cuda_host";
-    case kDLROCM: return "rocm";
-    case kDLVulkan: return "vulkan";
-    case kDLMetal: return "metal";
-    case kDLOpenCL: return "opencl";
-    default: return "device";
+    case kDLCUDA:
+      return "cuda";
+    case kDLCUDAHost:
+      return "cuda_host";
+    case kDLROCM:
+      return "rocm";
+    case kDLVulkan:
+      return "vulkan";
+    case kDLMetal:
+      return "metal";
+    case kDLOpenCL:
+      return "opencl";
+    default:
+      return "device";
   }
 }
 
@@ -270,8 +308,7 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
                             "); octovk reads host memory only: pass tensor.cpu()");
   }
   capsule_ = obj.attr("__dlpack__")();
-  auto* managed =
-      static_cast<DLManagedTensor*>(PyCapsule_GetPointer(capsule_.ptr(), "dltensor"));
+  auto* managed = static_cast<DLManagedTensor*>(PyCapsule_GetPointer(capsule_.ptr(), "dltensor"));
   if (!managed) throw py::error_already_set();
   const DLTensor& t = managed->dl_tensor;
   if (t.device.device_type != kDLCPU)
@@ -285,9 +322,9 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
   std::ptrdiff_t compact = static_cast<std::ptrdiff_t>(element.bytes);
   for (int d = t.ndim; d-- > 0;) {
     strides[static_cast<std::size_t>(d)] =
-        t.strides ? static_cast<std::ptrdiff_t>(t.strides[d]) *
-                        static_cast<std::ptrdiff_t>(element.bytes)
-                  : compact;
+        t.strides
+            ? static_cast<std::ptrdiff_t>(t.strides[d]) * static_cast<std::ptrdiff_t>(element.bytes)
+            : compact;
     compact *= static_cast<std::ptrdiff_t>(t.shape[d]);
   }
   void* data = static_cast<char*>(t.data) + t.byte_offset;
@@ -315,7 +352,8 @@ Eigen::Quaternionf toQuaternion(py::handle obj, const char* arg) {
     if (py::len(obj) != 4) throw py::value_error();
     for (int i = 0; i < 4; ++i) c[i] = py::float_(obj[py::int_(i)]).cast<float>();
   } catch (const std::exception&) {
-    throw py::value_error(std::string(arg) + ": expected a quaternion of 4 numbers x, y, z, w, got " +
+    throw py::value_error(std::string(arg) +
+                          ": expected a quaternion of 4 numbers x, y, z, w, got " +
                           describeObject(obj));
   }
   const Eigen::Quaternionf q(c[3], c[0], c[1], c[2]);

@@ -24,8 +24,8 @@ std::array<ErrorClass, 9> errorClasses() {
        "No usable Vulkan device (install mesa-vulkan-drivers for the CPU device)."},
       {ErrorCode::kMissingFeature, "MISSING_FEATURE", "MissingFeatureError", nullptr,
        "The device lacks a feature octovk needs; the message names it."},
-      {ErrorCode::kInvalidArgument, "INVALID_ARGUMENT", "InvalidArgumentError",
-       PyExc_ValueError, "A parameter or input is out of its domain (also a ValueError)."},
+      {ErrorCode::kInvalidArgument, "INVALID_ARGUMENT", "InvalidArgumentError", PyExc_ValueError,
+       "A parameter or input is out of its domain (also a ValueError)."},
       {ErrorCode::kOutOfDeviceMemory, "OUT_OF_DEVICE_MEMORY", "OutOfDeviceMemoryError",
        PyExc_MemoryError,
        "The device (or max_device_bytes) could not hold the map; the map is as before the call "
@@ -36,8 +36,7 @@ std::array<ErrorClass, 9> errorClasses() {
        "A file could not be read or written (also an OSError)."},
       {ErrorCode::kFormat, "FORMAT", "FormatError", nullptr,
        "A file is not in the expected format; the message names the file and the fault."},
-      {ErrorCode::kOutOfHostMemory, "OUT_OF_HOST_MEMORY", "OutOfHostMemoryError",
-       PyExc_MemoryError,
+      {ErrorCode::kOutOfHostMemory, "OUT_OF_HOST_MEMORY", "OutOfHostMemoryError", PyExc_MemoryError,
        "The host could not allocate memory; the map is as before the call (also a MemoryError)."},
       {ErrorCode::kInternal, "INTERNAL", "InternalError", nullptr,
        "octovk broke one of its own invariants: a bug, to be reported with the input."},
@@ -81,8 +80,8 @@ void bindErrors(py::module_& m) {
     } catch (const Error& e) {
       const auto index = static_cast<std::size_t>(e.code());
       PyObject* cls = index < g_classes.size() ? g_classes[index] : g_classes.back();
-      py::object error = py::reinterpret_steal<py::object>(
-          PyObject_CallFunction(cls, "s", e.what()));
+      py::object error =
+          py::reinterpret_steal<py::object>(PyObject_CallFunction(cls, "s", e.what()));
       if (!error) return;  // the call set its own Python error
       error.attr("code") = py::handle(g_code_enum)(static_cast<int>(e.code()));
       error.attr("message") = py::str(e.what());

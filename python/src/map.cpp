@@ -91,9 +91,10 @@ template <class T>
 py::object resultColumn(py::handle out, const char* name, DType dtype,
                         std::initializer_list<std::ptrdiff_t> shape,
                         std::optional<ArrayView>& view) {
-  py::object array = out.is_none() ? py::object(py::array_t<T>(std::vector<py::ssize_t>(
-                                         shape.begin(), shape.end())))
-                                   : py::reinterpret_borrow<py::object>(out);
+  py::object array =
+      out.is_none()
+          ? py::object(py::array_t<T>(std::vector<py::ssize_t>(shape.begin(), shape.end())))
+          : py::reinterpret_borrow<py::object>(out);
   view.emplace(array, name, std::initializer_list<DType>{dtype}, shape, /*writable=*/true);
   return array;
 }
@@ -127,9 +128,8 @@ py::tuple leafArrays(std::vector<OccupancyMap::LeafBoxHost>&& leaves) {
                              reinterpret_cast<const float*>(base + offsetof(Leaf, center)), owner);
   py::array_t<float> sizes({n}, {kStride},
                            reinterpret_cast<const float*>(base + offsetof(Leaf, size)), owner);
-  py::array_t<float> log_odds({n}, {kStride},
-                              reinterpret_cast<const float*>(base + offsetof(Leaf, log_odds)),
-                              owner);
+  py::array_t<float> log_odds(
+      {n}, {kStride}, reinterpret_cast<const float*>(base + offsetof(Leaf, log_odds)), owner);
   return py::make_tuple(centers, sizes, log_odds);
 }
 
@@ -170,8 +170,8 @@ void bindMap(py::module_& m) {
       .def("__repr__", [](const OccupancyMap::DeviceBytes& b) {
         return "DeviceBytes(pool=" + std::to_string(b.pool) +
                ", leaf_boxes=" + std::to_string(b.leaf_boxes) +
-               ", scratch=" + std::to_string(b.scratch) +
-               ", queries=" + std::to_string(b.queries) + ")";
+               ", scratch=" + std::to_string(b.scratch) + ", queries=" + std::to_string(b.queries) +
+               ")";
       });
 
   using CastRayInfo = OccupancyMap::CastRayInfo;
@@ -264,8 +264,9 @@ void bindMap(py::module_& m) {
         const Pose T = toPose(pose, "pose");
         noteInput(pts.data());
         return self.run([&](OccupancyMap& map) {
-          return posed ? map.insertPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
-                       : map.insertPointCloud(pts.points(), o, scanOptions(max_range, discretize));
+          return posed
+                     ? map.insertPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
+                     : map.insertPointCloud(pts.points(), o, scanOptions(max_range, discretize));
         });
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
@@ -285,8 +286,9 @@ void bindMap(py::module_& m) {
         const Pose T = toPose(pose, "pose");
         noteInput(pts.data());
         const ScanTicket ticket = self.run([&](OccupancyMap& map) {
-          return posed ? map.submitPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
-                       : map.submitPointCloud(pts.points(), o, scanOptions(max_range, discretize));
+          return posed
+                     ? map.submitPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
+                     : map.submitPointCloud(pts.points(), o, scanOptions(max_range, discretize));
         });
         self.noteTicket(ticket);
         return ticket;
@@ -367,13 +369,14 @@ void bindMap(py::module_& m) {
       [](Map& self, py::handle points, py::handle out) {
         const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
         const auto n = static_cast<std::ptrdiff_t>(pts.extent(0));
-        const py::tuple outs = outTuple(out, 3, "(state uint8 (N,), log_odds float32 (N,), "
-                                                "depth uint8 (N,))");
+        const py::tuple outs = outTuple(out, 3,
+                                        "(state uint8 (N,), log_odds float32 (N,), "
+                                        "depth uint8 (N,))");
         std::optional<ArrayView> state_v, log_odds_v, depth_v;
-        py::object state = resultColumn<std::uint8_t>(outs[0], "out[0] (state)", DType::kUint8,
-                                                      {n}, state_v);
-        py::object log_odds = resultColumn<float>(outs[1], "out[1] (log_odds)", DType::kFloat32,
-                                                  {n}, log_odds_v);
+        py::object state =
+            resultColumn<std::uint8_t>(outs[0], "out[0] (state)", DType::kUint8, {n}, state_v);
+        py::object log_odds =
+            resultColumn<float>(outs[1], "out[1] (log_odds)", DType::kFloat32, {n}, log_odds_v);
         py::object depth =
             resultColumn<std::uint8_t>(outs[2], "out[2] (depth)", DType::kUint8, {n}, depth_v);
         noteInput(pts.data());
@@ -410,13 +413,12 @@ void bindMap(py::module_& m) {
                            std::initializer_list<std::ptrdiff_t>{n, 3});
         else
           one_origin = toVector3(origins, "origins");
-        const py::tuple outs =
-            outTuple(out, 2, "(hit uint8 (N,), end float32 (N, 3))");
+        const py::tuple outs = outTuple(out, 2, "(hit uint8 (N,), end float32 (N, 3))");
         std::optional<ArrayView> hit_v, end_v;
         py::object hit =
             resultColumn<std::uint8_t>(outs[0], "out[0] (hit)", DType::kUint8, {n}, hit_v);
-        py::object end = resultColumn<float>(outs[1], "out[1] (end)", DType::kFloat32, {n, 3},
-                                             end_v);
+        py::object end =
+            resultColumn<float>(outs[1], "out[1] (end)", DType::kFloat32, {n, 3}, end_v);
         auto* h = static_cast<std::uint8_t*>(hit_v->data());
         auto* e = static_cast<float*>(end_v->data());
         self.run([&](OccupancyMap& map) {
@@ -452,8 +454,8 @@ void bindMap(py::module_& m) {
       [](Map& self, py::handle min, py::handle max, bool occupied_only) {
         const Eigen::Vector3f lo = toVector3(min, "min");
         const Eigen::Vector3f hi = toVector3(max, "max");
-        return leafArrays(self.run(
-            [&](OccupancyMap& map) { return map.leavesInBox(lo, hi, occupied_only); }));
+        return leafArrays(
+            self.run([&](OccupancyMap& map) { return map.leavesInBox(lo, hi, occupied_only); }));
       },
       py::arg("min"), py::arg("max"), py::arg("occupied_only") = false,
       "The leaves OctoMap's leaf_bbx_iterator(min, max) visits (only the occupied ones with "
@@ -477,9 +479,7 @@ void bindMap(py::module_& m) {
       "Leaves of the tree (OcTree::getNumLeafNodes()).");
   map.def(
       "device_bytes",
-      [](Map& self) {
-        return self.run([](OccupancyMap& map) { return map.deviceBytesByUse(); });
-      },
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.deviceBytesByUse(); }); },
       "Device bytes the map holds, by use (DeviceBytes: pool, leaf_boxes, scratch, queries, "
       "total): what max_device_bytes caps.");
   map.def(
@@ -504,10 +504,11 @@ void bindMap(py::module_& m) {
                             [](const Map& self) { return self.map().params().clamping_min; });
   map.def_property_readonly("clamping_max",
                             [](const Map& self) { return self.map().params().clamping_max; });
-  map.def_property_readonly(
-      "occupancy_threshold", [](const Map& self) { return self.map().params().occupancy_threshold; });
-  map.def_property_readonly(
-      "max_device_bytes", [](const Map& self) { return self.map().params().max_device_bytes; });
+  map.def_property_readonly("occupancy_threshold", [](const Map& self) {
+    return self.map().params().occupancy_threshold;
+  });
+  map.def_property_readonly("max_device_bytes",
+                            [](const Map& self) { return self.map().params().max_device_bytes; });
   map.def("__repr__", [](const Map& self) {
     return "Map(resolution=" + std::to_string(self.map().params().resolution) + ")";
   });

@@ -55,8 +55,8 @@ void bindContext(py::module_& m) {
       .def_readonly("ray_query_enabled", &DeviceInfo::ray_query_enabled,
                     "ray queries are enabled on this Context's device")
       .def("__repr__", [](const DeviceInfo& d) {
-        return "DeviceInfo(index=" + std::to_string(d.index) + ", name='" + d.name +
-               "', type='" + d.type + "', driver='" + d.driver + "')";
+        return "DeviceInfo(index=" + std::to_string(d.index) + ", name='" + d.name + "', type='" +
+               d.type + "', driver='" + d.driver + "')";
       });
 
   py::class_<Context>(m, "Context",
@@ -79,7 +79,8 @@ void bindContext(py::module_& m) {
            "OCTOVK_VALIDATION=1 does too). `ray_query=False` never uses ray queries. Raises "
            "NoDeviceError or MissingFeatureError with the reason.")
       .def_property_readonly("device", &Context::device, "The device (DeviceInfo).")
-      .def("__repr__", [](const Context& c) { return "Context(device='" + c.device().name + "')"; });
+      .def("__repr__",
+           [](const Context& c) { return "Context(device='" + c.device().name + "')"; });
 
   m.def("devices", &Context::listDevices, "Every usable Vulkan device (list of DeviceInfo).");
   m.def("default_context", &defaultContext,
@@ -215,13 +216,13 @@ void bindFiles(py::module_& m) {
         return out;
       },
       py::arg("path"),
-      "Reads the OctoMap scan graph (.graph) at path: a list of (points, pose) with points a float32 "
+      "Reads the OctoMap scan graph (.graph) at path: a list of (points, pose) with points a "
+      "float32 "
       "array (N, 3) in the sensor frame and pose the sensor's Pose in the world. Raises "
       "FormatError naming the file for a corrupt one.");
   m.def(
       "graph2tree_sensor_origin",
-      [](const Pose& pose) { return vectorArray(graph2treeSensorOrigin(pose)); },
-      py::arg("pose"),
+      [](const Pose& pose) { return vectorArray(graph2treeSensorOrigin(pose)); }, py::arg("pose"),
       "The sensor origin OctoMap's graph2tree passes with a scan's pose (in the sensor frame): "
       "pose.inverse().transform(pose.translation).");
 }
