@@ -8,6 +8,7 @@
 #include "bindings.hpp"
 #include "errors.hpp"
 #include "octovk/octomap_io.hpp"
+#include "octovk/tum_sequence.hpp"
 
 namespace octovk::python {
 namespace {
@@ -220,6 +221,40 @@ void bindFiles(py::module_& m) {
       "float32 "
       "array (N, 3) in the sensor frame and pose the sensor's Pose in the world. Raises "
       "FormatError naming the file for a corrupt one.");
+  m.def(
+      "read_tum_sequence",
+      [](py::handle dir, double max_time_difference) {
+        const std::string folder = pathString(dir);
+        TumSequence sequence;
+        {
+          py::gil_scoped_release release;
+          sequence = readTumSequence(folder, max_time_difference);
+        }
+        py::list frames;
+        for (const TumFrame& f : sequence.frames)
+          frames.append(py::make_tuple(f.timestamp, f.image_path, f.T_world_camera));
+        return frames;
+      },
+      py::arg("dir"), py::arg("max_time_difference") = kTumMaxTimeDifference,
+      "The images of the TUM RGB-D folder dir that have a ground-truth pose, in depth.txt's "
+      "order: a list of (timestamp, image path, T_world_camera Pose). Each image takes the pose "
+      "nearest in time; images with none closer than max_time_difference seconds are left "
+      "out. Raises IoError / FormatError naming the file and line.");
+  m.def(
+      "read_depth_png",
+      [](py::handle path) {
+        const std::string file = pathString(path);
+        DepthPng png;
+        {
+          py::gil_scoped_release release;
+          png = readDepthPng(file);
+        }
+        return ownedArray(std::move(png.depths), {static_cast<py::ssize_t>(png.height),
+                                                  static_cast<py::ssize_t>(png.width)});
+      },
+      py::arg("path"),
+      "The 16-bit grayscale PNG depth image at path (TUM's format) as a uint16 array (H, W). "
+      "Raises FormatError for another bit depth or colour type, or a corrupt file.");
   m.def(
       "graph2tree_sensor_origin",
       [](const Pose& pose) { return vectorArray(graph2treeSensorOrigin(pose)); }, py::arg("pose"),
