@@ -17,7 +17,7 @@ struct ErrorClass {
   const char* doc;
 };
 
-// Filled in bindErrors (the built-in exception objects exist only once Python runs).
+// Built when the module loads (the built-in exception objects exist only once Python runs).
 std::array<ErrorClass, 9> errorClasses() {
   return {{
       {ErrorCode::kNoDevice, "NO_DEVICE", "NoDeviceError", nullptr,
@@ -42,6 +42,9 @@ std::array<ErrorClass, 9> errorClasses() {
        "octovk broke one of its own invariants: a bug, to be reported with the input."},
   }};
 }
+
+static_assert(static_cast<int>(ErrorCode::kInternal) == 8,
+              "a new octovk::ErrorCode needs its Python class in errorClasses() (and octovk.pyi)");
 
 // The classes, indexed by ErrorCode; owned by the module (kept alive by its attributes).
 std::array<PyObject*, 9> g_classes{};

@@ -3,6 +3,7 @@ scan graphs, and search / castRay / leaf_bbx_iterator against OctoMap's own answ
 map (octovk_py_oracle, python/tests/octomap_oracle.cpp), bit for bit."""
 
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -45,7 +46,7 @@ def fr079_graph(tmp_path_factory):
     d = tmp_path_factory.mktemp("fr079")
     fr079 = os.path.join(os.environ.get("OCTOVK_SOURCE_DIR", ""), "tests", "data", "fr079-2d")
     log, graph = str(d / "fr079.log"), str(d / "fr079.graph")
-    run(["python3", os.path.join(fr079, "clf2log.py"), os.path.join(fr079, "fr079.clf.bz2"),
+    run([sys.executable, os.path.join(fr079, "clf2log.py"), os.path.join(fr079, "fr079.clf.bz2"),
          log, "60"])
     run([tool("OCTOVK_LOG2GRAPH"), log, graph])
     return graph
