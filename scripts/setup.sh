@@ -15,6 +15,8 @@ packages=(
   gnuplot-nox                            # bench/plot_results.py draws the benchmark plot
   vulkan-validationlayers                # the tests run once under the Khronos validation layer
   patchelf xz-utils                      # scripts/bundle.sh: the bundle's RUNPATH, its packed data
+  python3-dev pybind11-dev libdlpack-dev # the Python module (python/)
+  python3-numpy python3-torch python3-pytest  # its tests: arrays, tensors through DLPack
 )
 
 missing=()

@@ -1,0 +1,25 @@
+// The parts of the module, each binding one header of the library (include/octovk/*.hpp).
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+namespace octovk::python {
+
+namespace py = pybind11;
+
+/// Context, DeviceInfo, devices(), default_context(), validation_message_count().
+void bindContext(py::module_& m);
+/// Pose, CellState, CastRayBackend, ScanRays, ScanStats, StageTimes.
+void bindTypes(py::module_& m);
+/// Map: scans, streaming, queries, files, memory.
+void bindMap(py::module_& m);
+/// read_scan_graph(), graph2tree_sensor_origin().
+void bindFiles(py::module_& m);
+
+/// The process's default Context (octovk.default_context()), created on first use.
+py::object defaultContext();
+
+/// os.fspath(path) as a std::string (str or os.PathLike).
+std::string pathString(py::handle path);
+
+}  // namespace octovk::python

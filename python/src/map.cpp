@@ -1,0 +1,517 @@
+// octovk.Map: the OccupancyMap with its Context, one lock, and the GIL released for device work.
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "arrays.hpp"
+#include "bindings.hpp"
+#include "octovk/octomap_io.hpp"
+
+namespace octovk::python {
+namespace {
+
+class Map {
+ public:
+  Map(py::object context, OccupancyMap map) : context_(std::move(context)), map_(std::move(map)) {}
+
+  /// Runs `work` on the map with the GIL released and the map's lock held (a map is used by one
+  /// thread at a time; Python threads sharing one are ordered here). `work` touches no Python
+  /// object.
+  template <class Work>
+  auto run(Work&& work) {
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    return work(map_);
+  }
+
+  /// Waits until every submitted scan is in the map, polling so that a signal (Ctrl-C) is
+  /// seen between polls: KeyboardInterrupt then leaves the scans in flight and the map
+  /// consistent; the next flush() or query completes them.
+  void flush() {
+    auto pause = std::chrono::microseconds(20);
+    for (;;) {
+      const bool done = run([&](OccupancyMap& m) {
+        if (m.scansInFlight() == 0) return true;
+        return m.finished(last_ticket_);
+      });
+      if (done) break;
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+      {
+        py::gil_scoped_release release;
+        std::this_thread::sleep_for(pause);
+      }
+      pause = std::min(pause * 2, std::chrono::microseconds(2000));
+    }
+    run([](OccupancyMap& m) { m.flush(); });  // nothing left: raises what finished() left
+  }
+
+  void noteTicket(ScanTicket ticket) { last_ticket_ = std::max(last_ticket_, ticket); }
+
+  const py::object& context() const { return context_; }
+  const OccupancyMap& map() const { return map_; }
+
+ private:
+  py::object context_;  // keeps the Context (and so the device) alive while the map lives
+  std::mutex mutex_;
+  OccupancyMap map_;
+  ScanTicket last_ticket_ = 0;
+};
+
+ScanOptions scanOptions(double max_range, bool discretize) {
+  return ScanOptions{.max_range_m = max_range, .discretize = discretize};
+}
+
+Context& contextOf(const py::object& context) { return context.cast<Context&>(); }
+
+py::object orDefault(py::object context) {
+  return context.is_none() ? defaultContext() : std::move(context);
+}
+
+DepthImage depthImage(const ArrayView& depth, float fx, float fy, float cx, float cy,
+                      float depth_scale) {
+  DepthImage image;
+  image.height = static_cast<std::uint32_t>(depth.extent(0));
+  image.width = static_cast<std::uint32_t>(depth.extent(1));
+  image.encoding = depth.dtype() == DType::kUint16 ? DepthImage::Encoding::kUint16
+                                                   : DepthImage::Encoding::kFloat32;
+  image.pixels = depth.data();
+  image.fx = fx;
+  image.fy = fy;
+  image.cx = cx;
+  image.cy = cy;
+  image.depth_scale = depth_scale;
+  return image;
+}
+
+// One result column: the caller's `out` array (checked) or a new one.
+template <class T>
+py::object resultColumn(py::handle out, const char* name, DType dtype,
+                        std::initializer_list<std::ptrdiff_t> shape,
+                        std::optional<ArrayView>& view) {
+  py::object array =
+      out.is_none()
+          ? py::object(py::array_t<T>(std::vector<py::ssize_t>(shape.begin(), shape.end())))
+          : py::reinterpret_borrow<py::object>(out);
+  view.emplace(array, name, std::initializer_list<DType>{dtype}, shape, /*writable=*/true);
+  return array;
+}
+
+// `out` as a tuple of `n` arrays, or None.
+py::tuple outTuple(py::handle out, std::size_t n, const char* what) {
+  if (out.is_none()) {
+    py::tuple nones(n);
+    for (std::size_t i = 0; i < n; ++i) nones[i] = py::none();
+    return nones;
+  }
+  if (!py::isinstance<py::tuple>(out) && !py::isinstance<py::list>(out))
+    throw py::type_error(std::string("out: expected a tuple ") + what);
+  py::tuple t = py::tuple(py::reinterpret_borrow<py::object>(out));
+  if (t.size() != n) throw py::value_error(std::string("out: expected a tuple ") + what);
+  for (std::size_t i = 0; i < n; ++i)
+    if (t[i].is_none()) throw py::type_error(std::string("out: expected a tuple ") + what);
+  return t;
+}
+
+py::tuple leafArrays(std::vector<OccupancyMap::LeafBoxHost>&& leaves) {
+  using Leaf = OccupancyMap::LeafBoxHost;
+  static_assert(sizeof(Leaf) == 5 * sizeof(float));
+  const auto n = static_cast<py::ssize_t>(leaves.size());
+  auto* heap = new std::vector<Leaf>(std::move(leaves));
+  py::capsule owner(heap, [](void* p) { delete static_cast<std::vector<Leaf>*>(p); });
+  const auto* base = reinterpret_cast<const char*>(heap->data());
+  constexpr py::ssize_t kStride = sizeof(Leaf);
+  constexpr py::ssize_t kFloat = sizeof(float);
+  py::array_t<float> centers({n, py::ssize_t{3}}, {kStride, kFloat},
+                             reinterpret_cast<const float*>(base + offsetof(Leaf, center)), owner);
+  py::array_t<float> sizes({n}, {kStride},
+                           reinterpret_cast<const float*>(base + offsetof(Leaf, size)), owner);
+  py::array_t<float> log_odds(
+      {n}, {kStride}, reinterpret_cast<const float*>(base + offsetof(Leaf, log_odds)), owner);
+  return py::make_tuple(centers, sizes, log_odds);
+}
+
+// An (N, 3) array of origins, or one origin (3 numbers) for every ray.
+bool isPointArray(py::handle obj) {
+  if (!py::hasattr(obj, "shape")) return false;
+  try {
+    return py::len(obj.attr("shape")) == 2;
+  } catch (const py::error_already_set&) {
+    return false;
+  }
+}
+
+constexpr const char* kMapDoc =
+    "An OctoMap-compatible occupancy octree held on a Vulkan device (octovk::OccupancyMap).\n\n"
+    "Its scans and queries give OctoMap's answers bit for bit (OcTree with lazy_eval=False). "
+    "Points are float32 arrays of shape (N, 3) (numpy arrays or torch CPU tensors, "
+    "C-contiguous: read in place, never copied); depth images float32 or uint16 (H, W); "
+    "3-vectors any 3 numbers; poses an octovk.Pose, a 4x4 rigid transform or "
+    "(translation, quaternion x y z w). Results are numpy arrays (buffer protocol and "
+    "__dlpack__: torch.from_dlpack shares their memory).\n\n"
+    "The GIL is released while the device works; one thread at a time uses a map (calls from "
+    "several threads are serialised). A map keeps its Context alive. Library errors raise "
+    "octovk.Error subclasses; a call that raises leaves the map as it was.";
+
+}  // namespace
+
+void bindMap(py::module_& m) {
+  py::class_<OccupancyMap::DeviceBytes>(m, "DeviceBytes", "Device bytes a map holds, by use.")
+      .def_readonly("pool", &OccupancyMap::DeviceBytes::pool,
+                    "nodes, block records, free-block stack")
+      .def_readonly("leaf_boxes", &OccupancyMap::DeviceBytes::leaf_boxes)
+      .def_readonly("scratch", &OccupancyMap::DeviceBytes::scratch,
+                    "per-scan buffers, sized by the largest scan since trim()")
+      .def_readonly("queries", &OccupancyMap::DeviceBytes::queries,
+                    "query input and output, castRay's acceleration structure")
+      .def_property_readonly("total", &OccupancyMap::DeviceBytes::total)
+      .def("__repr__", [](const OccupancyMap::DeviceBytes& b) {
+        return "DeviceBytes(pool=" + std::to_string(b.pool) +
+               ", leaf_boxes=" + std::to_string(b.leaf_boxes) +
+               ", scratch=" + std::to_string(b.scratch) + ", queries=" + std::to_string(b.queries) +
+               ")";
+      });
+
+  using CastRayInfo = OccupancyMap::CastRayInfo;
+  py::class_<CastRayInfo>(m, "CastRayInfo",
+                          "castRay's backend on a map and what its acceleration structure cost.")
+      .def_readonly("backend", &CastRayInfo::backend, "WALK or RAY_TRACING, as cast_rays runs")
+      .def_readonly("builds", &CastRayInfo::builds, "acceleration-structure builds since trim()")
+      .def_readonly("last_build_ms", &CastRayInfo::last_build_ms)
+      .def_readonly("occupied_boxes", &CastRayInfo::occupied_boxes)
+      .def_readonly("unknown_boxes", &CastRayInfo::unknown_boxes)
+      .def_readonly("device_bytes", &CastRayInfo::device_bytes)
+      .def_readonly("cap_fallbacks", &CastRayInfo::cap_fallbacks,
+                    "cast_rays calls answered by the walk because of max_device_bytes");
+
+  py::class_<Map> map(m, "Map", kMapDoc);
+  map.def(py::init([](double resolution, double prob_hit, double prob_miss, double clamping_min,
+                      double clamping_max, double occupancy_threshold, std::size_t max_nodes,
+                      std::size_t max_device_bytes, CastRayBackend cast_ray_backend,
+                      ScanRays scan_rays, py::object context) {
+            MapParams params;
+            params.resolution = resolution;
+            params.prob_hit = prob_hit;
+            params.prob_miss = prob_miss;
+            params.clamping_min = clamping_min;
+            params.clamping_max = clamping_max;
+            params.occupancy_threshold = occupancy_threshold;
+            params.max_nodes = max_nodes;
+            params.max_device_bytes = max_device_bytes;
+            params.cast_ray_backend = cast_ray_backend;
+            params.scan_rays = scan_rays;
+            context = orDefault(std::move(context));
+            Context& ctx = contextOf(context);
+            std::optional<OccupancyMap> made;
+            {
+              py::gil_scoped_release release;
+              made.emplace(ctx, params);
+            }
+            return std::make_unique<Map>(std::move(context), std::move(*made));
+          }),
+          py::arg("resolution") = 0.1, py::kw_only(), py::arg("prob_hit") = 0.7,
+          py::arg("prob_miss") = 0.4, py::arg("clamping_min") = 0.1192,
+          py::arg("clamping_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
+          py::arg("max_nodes") = 0, py::arg("max_device_bytes") = 0,
+          py::arg("cast_ray_backend") = CastRayBackend::kAuto,
+          py::arg("scan_rays") = ScanRays::kWalk, py::arg("context") = py::none(),
+          "An empty map. resolution: edge of the finest cells in metres; prob_hit, prob_miss, "
+          "clamping_min, clamping_max, occupancy_threshold: OctoMap's sensor model (its "
+          "defaults); max_nodes / max_device_bytes cap the node pool / everything the map holds "
+          "on the device (0: no cap); cast_ray_backend: how cast_rays runs (AUTO: ray tracing "
+          "where the device has it); scan_rays: how scans find their cells; context: a Context "
+          "(None: default_context()). Raises InvalidArgumentError naming a bad value.");
+
+  map.def_static(
+      "read",
+      [](py::handle path, py::object context, std::size_t max_device_bytes) {
+        const std::string file = pathString(path);
+        context = orDefault(std::move(context));
+        Context& ctx = contextOf(context);
+        std::optional<OccupancyMap> made;
+        {
+          py::gil_scoped_release release;
+          made.emplace(readMapFile(ctx, file, max_device_bytes));
+        }
+        return std::make_unique<Map>(std::move(context), std::move(*made));
+      },
+      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
+      py::arg("max_device_bytes") = 0,
+      "A new map from an OctoMap .bt or .ot file (the file's resolution and, for .ot, its "
+      "sensor model). Raises FormatError naming the file and the fault, IoError, or "
+      "OutOfDeviceMemoryError when it does not fit under max_device_bytes.");
+
+  map.def(
+      "write",
+      [](Map& self, py::handle path) {
+        const std::string file = pathString(path);
+        self.run([&](OccupancyMap& map) { writeMapFile(map, file); });
+      },
+      py::arg("path"),
+      "Writes the map to path as its extension says: .bt (OctoMap's writeBinary: max-likelihood, "
+      "pruned) or .ot (full log-odds). Written to a temporary file and renamed: a failed "
+      "write leaves no partial file.");
+
+  map.def(
+      "insert_point_cloud",
+      [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range,
+         bool discretize) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+        const Eigen::Vector3f o = toVector3(origin, "origin");
+        const bool posed = !pose.is_none();
+        const Pose T = toPose(pose, "pose");
+        noteInput(pts.data());
+        return self.run([&](OccupancyMap& map) {
+          return posed
+                     ? map.insertPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
+                     : map.insertPointCloud(pts.points(), o, scanOptions(max_range, discretize));
+        });
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range") = -1.0, py::arg("discretize") = false,
+      "OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=False, discretize): "
+      "points float32 (N, 3) and origin in the world frame; with `pose` (T_world_sensor) both "
+      "are in the sensor frame and moved to the world on the device. max_range in metres "
+      "(< 0: none). Returns ScanStats. Waits until the scan is in the map.");
+
+  map.def(
+      "submit_point_cloud",
+      [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range,
+         bool discretize) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+        const Eigen::Vector3f o = toVector3(origin, "origin");
+        const bool posed = !pose.is_none();
+        const Pose T = toPose(pose, "pose");
+        noteInput(pts.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) {
+          return posed
+                     ? map.submitPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
+                     : map.submitPointCloud(pts.points(), o, scanOptions(max_range, discretize));
+        });
+        self.noteTicket(ticket);
+        return ticket;
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range") = -1.0, py::arg("discretize") = false,
+      "insert_point_cloud(points, origin, pose, max_range, discretize) without waiting for the "
+      "device: the points are copied before it "
+      "returns (the array may be reused at once). Returns the scan's ticket (int). Errors the "
+      "device finds are raised by the next flush() or query, naming the scan (Error.scan).");
+
+  map.def(
+      "insert_depth_image",
+      [](Map& self, py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
+         py::handle pose, double max_range, bool discretize) {
+        const ArrayView pixels(depth, "depth", {DType::kFloat32, DType::kUint16}, {-1, -1});
+        const DepthImage image = depthImage(pixels, fx, fy, cx, cy, depth_scale);
+        const Pose T = toPose(pose, "pose");
+        noteInput(pixels.data());
+        return self.run([&](OccupancyMap& map) {
+          return map.insertDepthImage(image, T, scanOptions(max_range, discretize));
+        });
+      },
+      py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range") = -1.0,
+      py::arg("discretize") = false,
+      "A depth image (float32 or uint16, (H, W), row by row), unprojected on the device with "
+      "the pinhole camera fx, fy, cx, cy (pixels) and depth_scale (depth units per metre: TUM "
+      "5000, metres in float 1), then inserted from the camera centre with pose "
+      "T_world_camera (camera frame x right, y down, z forward). Pixels with depth 0 or "
+      "non-finite are skipped. max_range and discretize as in insert_point_cloud. Returns "
+      "ScanStats.");
+
+  map.def(
+      "submit_depth_image",
+      [](Map& self, py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
+         py::handle pose, double max_range, bool discretize) {
+        const ArrayView pixels(depth, "depth", {DType::kFloat32, DType::kUint16}, {-1, -1});
+        const DepthImage image = depthImage(pixels, fx, fy, cx, cy, depth_scale);
+        const Pose T = toPose(pose, "pose");
+        noteInput(pixels.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) {
+          return map.submitDepthImage(image, T, scanOptions(max_range, discretize));
+        });
+        self.noteTicket(ticket);
+        return ticket;
+      },
+      py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range") = -1.0,
+      py::arg("discretize") = false,
+      "insert_depth_image(depth, fx, fy, cx, cy, depth_scale, pose, max_range, discretize) "
+      "without waiting (the pixels are copied before it returns). Returns "
+      "the scan's ticket.");
+
+  map.def("flush", &Map::flush,
+          "Waits until every submitted scan is in the map; raises the error of a scan the "
+          "device refused (Error.scan names it; the scans before it stay in the map). Ctrl-C "
+          "interrupts the wait (KeyboardInterrupt) and leaves the scans in flight: the next "
+          "flush() or query completes them.");
+  map.def(
+      "finished",
+      [](Map& self, ScanTicket ticket) {
+        return self.run([&](OccupancyMap& map) { return map.finished(ticket); });
+      },
+      py::arg("ticket"), "Whether submitted scan `ticket` is in the map (does not wait).");
+  map.def(
+      "take_scan_stats",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.takeScanStats(); }); },
+      "ScanStats of the submitted scans known to be in the map since the last call, in "
+      "ticket order (does not wait).");
+  map.def_property_readonly(
+      "scans_in_flight",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.scansInFlight(); }); },
+      "Submitted scans not yet known to be in the map.");
+
+  map.def(
+      "search",
+      [](Map& self, py::handle points, py::handle out) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+        const auto n = static_cast<std::ptrdiff_t>(pts.extent(0));
+        const py::tuple outs = outTuple(out, 3,
+                                        "(state uint8 (N,), log_odds float32 (N,), "
+                                        "depth uint8 (N,))");
+        std::optional<ArrayView> state_v, log_odds_v, depth_v;
+        py::object state =
+            resultColumn<std::uint8_t>(outs[0], "out[0] (state)", DType::kUint8, {n}, state_v);
+        py::object log_odds =
+            resultColumn<float>(outs[1], "out[1] (log_odds)", DType::kFloat32, {n}, log_odds_v);
+        py::object depth =
+            resultColumn<std::uint8_t>(outs[2], "out[2] (depth)", DType::kUint8, {n}, depth_v);
+        noteInput(pts.data());
+        auto* s = static_cast<std::uint8_t*>(state_v->data());
+        auto* l = static_cast<float*>(log_odds_v->data());
+        auto* d = static_cast<std::uint8_t*>(depth_v->data());
+        self.run([&](OccupancyMap& map) {
+          const std::vector<Lookup> found = map.search(pts.points());
+          for (std::size_t i = 0; i < found.size(); ++i) {
+            s[i] = static_cast<std::uint8_t>(found[i].state);
+            l[i] = found[i].log_odds;
+            d[i] = static_cast<std::uint8_t>(found[i].depth);
+          }
+        });
+        return py::make_tuple(state, log_odds, depth);
+      },
+      py::arg("points"), py::arg("out") = py::none(),
+      "OctoMap's search() for each of points (float32 (N, 3)), on the device: the deepest existing "
+      "node on the point's path. Returns (state, log_odds, depth): state uint8 (N,) "
+      "(CellState: 0 unknown, 1 free, 2 occupied), log_odds float32 (N,) (0 when unknown), "
+      "depth uint8 (N,) (16 = finest, 0 when unknown). out: a tuple of three such arrays to "
+      "write into (returned).");
+
+  map.def(
+      "cast_rays",
+      [](Map& self, py::handle origins, py::handle directions, double max_range,
+         bool ignore_unknown, py::handle out) {
+        const ArrayView dirs(directions, "directions", {DType::kFloat32}, {-1, 3});
+        const auto n = static_cast<std::ptrdiff_t>(dirs.extent(0));
+        std::optional<ArrayView> origin_v;
+        Eigen::Vector3f one_origin = Eigen::Vector3f::Zero();
+        if (isPointArray(origins))
+          origin_v.emplace(origins, "origins", std::initializer_list<DType>{DType::kFloat32},
+                           std::initializer_list<std::ptrdiff_t>{n, 3});
+        else
+          one_origin = toVector3(origins, "origins");
+        const py::tuple outs = outTuple(out, 2, "(hit uint8 (N,), end float32 (N, 3))");
+        std::optional<ArrayView> hit_v, end_v;
+        py::object hit =
+            resultColumn<std::uint8_t>(outs[0], "out[0] (hit)", DType::kUint8, {n}, hit_v);
+        py::object end =
+            resultColumn<float>(outs[1], "out[1] (end)", DType::kFloat32, {n, 3}, end_v);
+        auto* h = static_cast<std::uint8_t*>(hit_v->data());
+        auto* e = static_cast<float*>(end_v->data());
+        self.run([&](OccupancyMap& map) {
+          std::vector<Ray> rays(static_cast<std::size_t>(n));
+          const auto* dir = static_cast<const Eigen::Vector3f*>(dirs.data());
+          const auto* org =
+              origin_v ? static_cast<const Eigen::Vector3f*>(origin_v->data()) : nullptr;
+          for (std::size_t i = 0; i < rays.size(); ++i) {
+            rays[i].origin = org ? org[i] : one_origin;
+            rays[i].direction = dir[i];
+            rays[i].max_range_m = max_range;
+            rays[i].ignore_unknown = ignore_unknown;
+          }
+          const std::vector<RayHit> hits = map.castRays(rays);
+          for (std::size_t i = 0; i < hits.size(); ++i) {
+            h[i] = hits[i].hit ? 1 : 0;
+            for (int k = 0; k < 3; ++k) e[3 * i + static_cast<std::size_t>(k)] = hits[i].end[k];
+          }
+        });
+        return py::make_tuple(hit, end);
+      },
+      py::arg("origins"), py::arg("directions"), py::arg("max_range") = -1.0,
+      py::arg("ignore_unknown") = false, py::arg("out") = py::none(),
+      "OctoMap's castRay(origin, direction, end, ignore_unknown, max_range) for each ray, on "
+      "the device. origins: float32 (N, 3), or 3 numbers for every ray; directions: float32 "
+      "(N, 3), need not be normalised; max_range in metres (<= 0: to the map's border); "
+      "ignore_unknown: unknown cells count as free. Returns (hit, end): hit uint8 (N,) (1: an "
+      "occupied cell was hit), end float32 (N, 3) (the centre of the last cell visited; the "
+      "origin where OctoMap leaves it untouched). out: a tuple of two such arrays.");
+
+  map.def(
+      "leaves_in_box",
+      [](Map& self, py::handle min, py::handle max, bool occupied_only) {
+        const Eigen::Vector3f lo = toVector3(min, "min");
+        const Eigen::Vector3f hi = toVector3(max, "max");
+        return leafArrays(
+            self.run([&](OccupancyMap& map) { return map.leavesInBox(lo, hi, occupied_only); }));
+      },
+      py::arg("min"), py::arg("max"), py::arg("occupied_only") = false,
+      "The leaves OctoMap's leaf_bbx_iterator(min, max) visits (only the occupied ones with "
+      "occupied_only), found on the device: (centers float32 (N, 3), sizes float32 (N,), "
+      "log_odds float32 (N,)), views of one buffer. Empty if a corner lies outside the map.");
+  map.def(
+      "leaves",
+      [](Map& self) {
+        return leafArrays(self.run([](OccupancyMap& map) { return map.downloadLeafBoxes(); }));
+      },
+      "Every leaf of the map: (centers float32 (N, 3), sizes float32 (N,), log_odds float32 "
+      "(N,)).");
+
+  map.def(
+      "node_count",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.nodeCount(); }); },
+      "Nodes in the tree (OcTree::size()).");
+  map.def(
+      "leaf_count",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.leafCount(); }); },
+      "Leaves of the tree (OcTree::getNumLeafNodes()).");
+  map.def(
+      "device_bytes",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.deviceBytesByUse(); }); },
+      "Device bytes the map holds, by use (DeviceBytes: pool, leaf_boxes, scratch, queries, "
+      "total): what max_device_bytes caps.");
+  map.def(
+      "cast_ray_info",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.castRayInfo(); }); },
+      "castRay's backend on this map and its acceleration structure (CastRayInfo).");
+  map.def(
+      "trim", [](Map& self) { self.run([](OccupancyMap& map) { map.trim(); }); },
+      "Releases the per-scan scratch and the query buffers to an empty map's sizes (results "
+      "do not change).");
+
+  map.def_property_readonly(
+      "context", [](const Map& self) { return self.context(); }, "The Context of the map.");
+  map.def_property_readonly(
+      "resolution", [](const Map& self) { return self.map().params().resolution; },
+      "Edge of the finest cells, in metres.");
+  map.def_property_readonly("prob_hit",
+                            [](const Map& self) { return self.map().params().prob_hit; });
+  map.def_property_readonly("prob_miss",
+                            [](const Map& self) { return self.map().params().prob_miss; });
+  map.def_property_readonly("clamping_min",
+                            [](const Map& self) { return self.map().params().clamping_min; });
+  map.def_property_readonly("clamping_max",
+                            [](const Map& self) { return self.map().params().clamping_max; });
+  map.def_property_readonly("occupancy_threshold", [](const Map& self) {
+    return self.map().params().occupancy_threshold;
+  });
+  map.def_property_readonly("max_device_bytes",
+                            [](const Map& self) { return self.map().params().max_device_bytes; });
+  map.def("__repr__", [](const Map& self) {
+    return "Map(resolution=" + std::to_string(self.map().params().resolution) + ")";
+  });
+}
+
+}  // namespace octovk::python

@@ -1,0 +1,236 @@
+"""The module's surface: the stub octovk.pyi names exactly what the module binds, with the same
+parameters; every docstring says something and names its parameters; library errors arrive as
+octovk.Error subclasses with code, message and scan; a map keeps its Context alive."""
+
+import ast
+import gc
+import os
+import pydoc
+import re
+import weakref
+
+import numpy as np
+import pytest
+
+import octovk
+
+STUB = os.path.join(os.path.dirname(octovk.__file__), "octovk.pyi")
+TYPE_ALIASES = {"ArrayLike", "Vector3", "PoseLike", "PathLike", "FloatArray", "ByteArray"}
+
+
+def stub_tree():
+    with open(STUB) as f:
+        return ast.parse(f.read())
+
+
+def public(names):
+    return {n for n in names if not n.startswith("__") and n != "_default_context"}
+
+
+def split_top_level(text):
+    """Splits a signature's parameters at commas outside brackets and quotes."""
+    parts, depth, current, quote = [], 0, "", None
+    for c in text:
+        if quote:
+            quote = None if c == quote else quote
+        elif c in "'\"":
+            quote = c
+        elif c in "([{<":
+            depth += 1
+        elif c in ")]}>":
+            depth -= 1
+        elif c == "," and depth == 0:
+            parts.append(current.strip())
+            current = ""
+            continue
+        current += c
+    if current.strip():
+        parts.append(current.strip())
+    return parts
+
+
+def bound_parameters(function):
+    """(name, has default) of each parameter in pybind11's signature line; '*' for keyword-only."""
+    first = function.__doc__.splitlines()[0]
+    inner = first[first.index("(") + 1:first.rindex(") ->")]
+    out = []
+    for p in split_top_level(inner):
+        name = p.split(":")[0].split("=")[0].strip()
+        if name != "self":
+            out.append((name, "=" in p))
+    return out
+
+
+def stub_parameters(node):
+    a = node.args
+    positional = a.posonlyargs + a.args
+    defaults = [False] * (len(positional) - len(a.defaults)) + [True] * len(a.defaults)
+    out = [(p.arg, d) for p, d in zip(positional, defaults) if p.arg != "self"]
+    if a.kwonlyargs:
+        out.append(("*", False))
+        out += [(p.arg, d is not None) for p, d in zip(a.kwonlyargs, a.kw_defaults)]
+    return out
+
+
+def test_stub_names_what_the_module_binds():
+    tree = stub_tree()
+    stub_names = set()
+    for node in tree.body:
+        if isinstance(node, (ast.ClassDef, ast.FunctionDef)):
+            stub_names.add(node.name)
+        elif isinstance(node, ast.Assign):
+            stub_names |= {t.id for t in node.targets} - TYPE_ALIASES
+    assert public(dir(octovk)) == stub_names
+
+
+def test_stub_classes_and_signatures_match_the_module():
+    checked = 0
+    for node in stub_tree().body:
+        if isinstance(node, ast.FunctionDef):
+            assert stub_parameters(node) == bound_parameters(getattr(octovk, node.name)), node.name
+            checked += 1
+        if not isinstance(node, ast.ClassDef) or issubclass(getattr(octovk, node.name), Exception):
+            continue
+        cls = getattr(octovk, node.name)
+        members = set()
+        for item in node.body:
+            if isinstance(item, ast.FunctionDef):
+                members.add(item.name)
+                if not any(isinstance(d, ast.Name) and d.id == "property"
+                           for d in item.decorator_list):
+                    bound = getattr(cls, item.name)
+                    assert stub_parameters(item) == bound_parameters(bound), \
+                        f"{node.name}.{item.name}"
+                    checked += 1
+            elif isinstance(item, ast.AnnAssign):
+                members.add(item.target.id)
+            elif isinstance(item, ast.Assign):
+                members |= {t.id for t in item.targets}
+        if hasattr(cls, "__members__"):  # an enum: its values
+            assert set(cls.__members__) == members - {"name", "value", "__int__"}, node.name
+        else:
+            bound = public(dir(cls)) - {"_pybind11_conduit_v1_"}
+            assert bound == members - {"__init__"}, node.name
+    assert checked > 25
+
+
+def test_docstrings_say_something_and_name_their_parameters():
+    described = 0
+    for name in public(dir(octovk)):
+        obj = getattr(octovk, name)
+        assert obj.__doc__ and len(obj.__doc__.strip()) > 20, name
+        functions = []
+        if isinstance(obj, type) and not issubclass(obj, Exception) and \
+                not hasattr(obj, "__members__"):  # pybind11 writes the enums' methods
+            functions = [(f"{name}.{n}", getattr(obj, n)) for n in public(dir(obj)) | {"__init__"}
+                         if callable(getattr(obj, n)) and getattr(obj, n).__doc__ and
+                         getattr(obj, n).__doc__.startswith(n + "(self")]
+        elif callable(obj) and not isinstance(obj, type):
+            functions = [(name, obj)]
+        for label, f in functions:
+            described += 1
+            lines = f.__doc__.splitlines()
+            text = "\n".join(lines[1:])
+            assert len(text.strip()) > 15, f"{label} has no description"
+            for p, _ in bound_parameters(f):
+                if p not in ("*", "out", "self"):
+                    assert re.search(r"\b" + p + r"\b", text), f"{label}'s doc does not name {p}"
+    assert described > 25
+
+
+def test_help_of_map_tells_what_it_does():
+    text = pydoc.render_doc(octovk.Map, renderer=pydoc.plaintext)
+    for words in ("insert_point_cloud(self", "OctoMap's insertPointCloud", "cast_rays(self",
+                  "castRay", "search(self", "leaves_in_box(self", "leaf_bbx_iterator",
+                  "write(self", ".bt", "read(path", "submit_point_cloud(self", "flush(self",
+                  "Ctrl-C", "GIL", "max_device_bytes", "trim(self"):
+        assert words in text, words
+
+
+# ---- errors ----
+
+def test_every_error_code_has_its_subclass():
+    classes = {octovk.NoDeviceError, octovk.MissingFeatureError, octovk.InvalidArgumentError,
+               octovk.OutOfDeviceMemoryError, octovk.VulkanError, octovk.IoError,
+               octovk.FormatError, octovk.OutOfHostMemoryError, octovk.InternalError}
+    assert len(classes) == len(octovk.ErrorCode.__members__) == 9
+    for cls in classes:
+        assert issubclass(cls, octovk.Error) and cls.__module__ == "octovk"
+    assert issubclass(octovk.InvalidArgumentError, ValueError)
+    assert issubclass(octovk.OutOfDeviceMemoryError, MemoryError)
+    assert issubclass(octovk.IoError, OSError)
+
+
+def test_library_errors_carry_code_and_message(context, tmp_path):
+    with pytest.raises(octovk.InvalidArgumentError) as e:
+        octovk.Map(resolution=-1)
+    assert e.value.code == octovk.ErrorCode.INVALID_ARGUMENT
+    assert "resolution" in e.value.message and str(e.value) == e.value.message
+    assert e.value.scan == 0
+    with pytest.raises(octovk.IoError) as e:
+        octovk.Map.read(tmp_path / "missing.bt")
+    assert e.value.code == octovk.ErrorCode.IO and "missing.bt" in e.value.message
+    (tmp_path / "bad.bt").write_bytes(b"# Octomap OcTree binary file\nnot a tree\n")
+    with pytest.raises(octovk.FormatError) as e:
+        octovk.Map.read(str(tmp_path / "bad.bt"))
+    assert e.value.code == octovk.ErrorCode.FORMAT and "bad.bt" in e.value.message
+    with pytest.raises(octovk.Error):
+        octovk.Map(0.1).write(tmp_path / "map.xyz")
+
+
+def test_a_late_error_names_its_scan_and_the_map_keeps_the_scans_before(context):
+    m = octovk.Map(0.05, max_device_bytes=3 << 20)
+    first = m.submit_point_cloud(np.float32([[0.5, 0, 0], [0, 0.5, 0]]), (0, 0, 0))
+    d = np.random.default_rng(0).normal(size=(4000, 3)).astype(np.float32)
+    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True) * np.float32(8))
+    second = m.submit_point_cloud(d, (0, 0, 0))
+    with pytest.raises(octovk.OutOfDeviceMemoryError) as e:
+        m.flush()
+    assert e.value.scan == second
+    assert "max_device_bytes" in e.value.message
+    assert [s.ticket for s in m.take_scan_stats()] == [first]
+    assert m.device_bytes().total <= 3 << 20
+    # The map keeps working.
+    m.insert_point_cloud(np.float32([[0.2, 0.2, 0]]), (0, 0, 0))
+    assert m.search(np.float32([[0.2, 0.2, 0]]))[0][0] == int(octovk.CellState.OCCUPIED)
+
+
+# ---- lifetime, parameters, memory ----
+
+def test_a_map_keeps_its_context_alive(context):
+    ctx = octovk.Context()
+    alive = weakref.ref(ctx)
+    m = octovk.Map(0.1, context=ctx)
+    del ctx
+    gc.collect()
+    assert alive() is not None and m.context is alive()
+    m.insert_point_cloud(np.float32([[1, 0, 0]]), (0, 0, 0))
+    assert m.node_count() > 16
+    del m
+    gc.collect()
+    assert alive() is None
+
+
+def test_maps_use_the_default_context_and_report_their_parameters(context):
+    m = octovk.Map(0.2, prob_hit=0.8, prob_miss=0.3, clamping_min=0.2, clamping_max=0.9,
+                   occupancy_threshold=0.6, max_device_bytes=64 << 20)
+    assert m.context is octovk.default_context() is context
+    assert (m.resolution, m.prob_hit, m.prob_miss, m.clamping_min, m.clamping_max,
+            m.occupancy_threshold, m.max_device_bytes) == (0.2, 0.8, 0.3, 0.2, 0.9, 0.6, 64 << 20)
+    assert any(d.name == context.device.name for d in octovk.devices())
+
+
+def test_counts_memory_and_trim(context):
+    m = octovk.Map(0.1)
+    empty = m.device_bytes()
+    points = np.random.default_rng(1).uniform(-2, 2, (20000, 3)).astype(np.float32)
+    m.insert_point_cloud(points, (0, 0, 0))
+    grown = m.device_bytes()
+    assert grown.scratch > empty.scratch
+    assert grown.total == grown.pool + grown.leaf_boxes + grown.scratch + grown.queries
+    leaves = m.leaf_count()
+    assert m.node_count() > leaves > 1000
+    assert len(m.leaves()[0]) == leaves
+    m.trim()
+    assert m.device_bytes().scratch < grown.scratch
+    assert m.leaf_count() == leaves
