@@ -172,7 +172,8 @@ class OccupancyMap {
     /// automatically after an outsized scan).
     std::size_t scratch = 0;
     std::size_t queries = 0;  ///< query input and output, with their staging
-    std::size_t total() const { return pool + leaf_boxes + scratch + queries; }
+    std::size_t distance_fields = 0;  ///< the DistanceFields built on this map (distance.hpp)
+    std::size_t total() const { return pool + leaf_boxes + scratch + queries + distance_fields; }
   };
   DeviceBytes deviceBytesByUse() const;
 
@@ -218,6 +219,7 @@ class OccupancyMap {
 
  private:
   friend class InteropAccess;  // vulkan_interop.hpp
+  friend class FieldAccess;    // distance.hpp (src/field/)
   /// impl_, or kInvalidArgument for a moved-from map.
   Impl& self() const;
   std::unique_ptr<Impl> impl_;

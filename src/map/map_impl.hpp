@@ -90,6 +90,12 @@ class OccupancyMap::Impl {
   void refreshLeafBoxes();
 
   vk::Device& device() { return device_; }
+  /// The map's buffers for a distance field (src/field/): after flush(), the field reads the node
+  /// pool (`pool`, `nodes`) and counts its bytes under the cap (checkBudget, noteFieldBytes). It
+  /// records on its own command stream; nothing else is shared.
+  MapBuffers& fieldBuffers() { return buffers_; }
+  /// The map's log-odds parameters (the occupancy threshold isNodeOccupied compares with).
+  const ref::LogOddsParams& logOdds() const { return logs_; }
 
   /// castRay's backend on this map (kWalk or kRayTracing) and its build statistics.
   OccupancyMap::CastRayInfo castRayInfo() const;

@@ -258,7 +258,11 @@ void OccupancyMap::Impl::upload(const HostTree& tree) {
 
 OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
   const BufferBytes b = buffers_.bytesByUse();  // the scenes are in b.queries
-  return {.pool = b.pool, .leaf_boxes = b.leaf_boxes, .scratch = b.scratch, .queries = b.queries};
+  return {.pool = b.pool,
+          .leaf_boxes = b.leaf_boxes,
+          .scratch = b.scratch,
+          .queries = b.queries,
+          .distance_fields = b.fields};
 }
 
 void OccupancyMap::Impl::trim() {
