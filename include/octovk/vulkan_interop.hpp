@@ -103,4 +103,12 @@ std::size_t castRaysResultBytes(std::uint32_t count);
 void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
                       BufferRange results);
 
+/// DistanceField::clearances on spheres already in a device buffer: `spheres` holds count
+/// centre x, y, z and radius floats (16 B each; radius 0 for DistanceField::distances' answer);
+/// `results` receives count gpu::DistanceResult (32 B each). Offsets must be multiples of
+/// VulkanHandles::offset_alignment and each range within one storage binding's reach. octovk's
+/// submission waits for `wait`; the call returns when the results are written.
+void distancesOnDevice(DistanceField& field, BufferRange spheres, std::uint32_t count,
+                       BufferRange results, WaitSemaphore wait = {});
+
 }  // namespace octovk
