@@ -24,7 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 using octovk::bench::BenchOptions;
 
-const char* const kWorkloads[] = {"paper", "scandat", "fr079", "scaling", "queries"};
+const char* const kWorkloads[] = {"paper", "scandat", "fr079", "scaling", "queries", "distance"};
 
 struct Args {
   BenchOptions bench;
@@ -54,9 +54,12 @@ void printHelp(const char* data_dir) {
       "           castRay (against OccupancyMap::castRays, 100,000 random directions from the\n"
       "           six sensor poses, ignore_unknown off and on, max range 10 m and unlimited):\n"
       "           queries per second of both and every answer compared\n"
+      "  distance DistanceField against dynamicEDT3D's DynamicEDTOctomap on the paper map at\n"
+      "           0.05 m (the building's box): from scratch, the update after each view, and\n"
+      "           --lookups points (default 100,000) of getDistanceAndClosestObstacle\n"
       "\n"
       "Options:\n"
-      "  --workload W        paper, scandat, fr079, scaling, queries or all; repeat or\n"
+      "  --workload W        paper, scandat, fr079, scaling, queries, distance or all; repeat or\n"
       "                      comma-separate to pick several (default: all)\n"
       "  --resolutions LIST  comma-separated resolutions in metres for paper, scandat and fr079\n"
       "                      (default: each workload's own, listed above)\n"
@@ -289,6 +292,7 @@ int main(int argc, char** argv) {
     if (wants(args, "fr079")) octovk::bench::runFr079(context, args.bench, json);
     if (wants(args, "scaling")) octovk::bench::runScaling(context, args.bench, json);
     if (wants(args, "queries")) octovk::bench::runQueries(context, args.bench, json);
+    if (wants(args, "distance")) octovk::bench::runDistance(context, args.bench, json);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "octovk_bench: %s\n", e.what());
     return 1;

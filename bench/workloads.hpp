@@ -31,5 +31,7 @@ void runFr079(Context& context, const BenchOptions& options, JsonWriter& json);
 void runScaling(Context& context, const BenchOptions& options, JsonWriter& json);
 /// Point lookups and castRay on the paper map at 0.05 m (in queries.cpp).
 void runQueries(Context& context, const BenchOptions& options, JsonWriter& json);
+/// DistanceField against dynamicEDT3D's DynamicEDTOctomap on the paper map at 0.05 m (distance.cpp).
+void runDistance(Context& context, const BenchOptions& options, JsonWriter& json);
 
 }  // namespace octovk::bench

@@ -9,6 +9,7 @@ packages=(
   mesa-vulkan-drivers vulkan-tools       # lavapipe (Vulkan on the CPU) and vulkaninfo
   libeigen3-dev                          # math
   liboctomap-dev octomap-tools           # .bt/.ot/.graph I/O, the test oracle, graph2tree, sample data
+  libdynamicedt3d-dev                    # the distance field's oracle in tests and bench (not the library)
   googletest libgtest-dev                # tests
   libpng-dev                             # octovk render writes PNG
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)

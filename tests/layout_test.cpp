@@ -113,6 +113,19 @@ static_assert(sizeof(ScanRaysRtConstants) == 16 && offsetof(ScanRaysRtConstants,
               offsetof(ScanRaysRtConstants, mode) == 12);
 
 static_assert(sizeof(NewBlock) == 12);
+// The distance field (src/field/, shaders/field_*.comp).
+static_assert(sizeof(FieldCell) == 8 && offsetof(FieldCell, site) == 4);
+static_assert(sizeof(FieldHeader) == 64 && offsetof(FieldHeader, cells_b) == 8 &&
+              offsetof(FieldHeader, min_key_x) == 16 && offsetof(FieldHeader, size_x) == 28 &&
+              offsetof(FieldHeader, unknown_occupied) == 40 && offsetof(FieldHeader, status) == 44 &&
+              offsetof(FieldHeader, max_distance_m) == 48);
+static_assert(sizeof(FieldRasterConstants) == 16 && offsetof(FieldRasterConstants, cell_count) == 8);
+static_assert(sizeof(FieldEdtConstants) == 16 && offsetof(FieldEdtConstants, axis) == 8 &&
+              offsetof(FieldEdtConstants, from_b) == 12);
+static_assert(sizeof(FieldQueryConstants) == 16 && offsetof(FieldQueryConstants, query_count) == 8);
+static_assert(sizeof(DistanceResult) == 32 && offsetof(DistanceResult, obstacle_x) == 4 &&
+              offsetof(DistanceResult, gradient_x) == 16 &&
+              offsetof(DistanceResult, squared_cells) == 28);
 static_assert(offsetof(NewBlock, node) == 0);
 static_assert(offsetof(NewBlock, source) == 4);
 static_assert(offsetof(NewBlock, block) == 8);

@@ -68,6 +68,26 @@ struct ChangedKeysHeader {
   uint pad2;   // 4B (12)
 };
 
+// Distance-field queries (DistanceField, octovk/distance.hpp): each query is 4 floats, a sphere's
+// centre x, y, z and radius (0 for a point); each result one DistanceResult. squared_cells is
+// one of these where the field has no distance for the query.
+OCTOVK_DEVICE_CONST uint kDistanceOutside = 0xFFFFFFFFu;     // not in the field's box (or NaN)
+OCTOVK_DEVICE_CONST uint kDistanceNoObstacle = 0xFFFFFFFEu;  // no occupied cell in the box
+
+// Result of one distance query. 32 B.
+struct DistanceResult {
+  float distance;      // 4B (0)  metres, cell centre to the nearest occupied cell's centre, capped
+                       //         at the field's max distance, minus the sphere's radius; -1 (OctoMap's
+                       //         distanceValue_Error) outside the box
+  float obstacle_x;    // 4B (4)  centre of the nearest occupied cell (NaN when there is none)
+  float obstacle_y;    // 4B (8)
+  float obstacle_z;    // 4B (12)
+  float gradient_x;    // 4B (16) unit vector from the obstacle to the cell (0 on an obstacle, at
+  float gradient_y;    // 4B (20) or beyond the max distance, outside the box)
+  float gradient_z;    // 4B (24)
+  uint squared_cells;  // 4B (28) exact squared distance in cells (not capped), or kDistance*
+};
+
 #ifdef __cplusplus
 }  // namespace octovk::gpu
 #endif

@@ -150,7 +150,10 @@ class OccupancyMap {
     std::size_t scratch = 0;
     std::size_t queries = 0;  ///< query input and output, with their staging
     std::size_t changes = 0;  ///< the change set (change detection), 16 B per slot
-    std::size_t total() const { return pool + leaf_boxes + scratch + queries + changes; }
+    std::size_t distance_fields = 0;  ///< the DistanceFields built on this map (distance.hpp)
+    std::size_t total() const {
+      return pool + leaf_boxes + scratch + queries + changes + distance_fields;
+    }
   };
   DeviceBytes deviceBytesByUse() const;
 
@@ -196,6 +199,7 @@ class OccupancyMap {
 
  private:
   friend class InteropAccess;  // vulkan_interop.hpp
+  friend class FieldAccess;    // distance.hpp (src/field/)
   /// impl_, or kInvalidArgument for a moved-from map.
   Impl& self() const;
   std::unique_ptr<Impl> impl_;

@@ -6,10 +6,12 @@
 //   octovk/scan.hpp     DepthImage, ScanStats, StageTimes
 //   octovk/queries.hpp  Lookup, Ray, RayHit, QueryRequest, HostTree
 //   octovk/map.hpp      OccupancyMap
+//   octovk/distance.hpp DistanceField: the distance to the nearest obstacle over a box
 // OctoMap files and trees: octovk/octomap_io.hpp; Vulkan buffers: octovk/vulkan_interop.hpp.
 #pragma once
 
 #include "octovk/context.hpp"
+#include "octovk/distance.hpp"
 #include "octovk/errors.hpp"
 #include "octovk/map.hpp"
 #include "octovk/params.hpp"

@@ -108,4 +108,12 @@ std::size_t changedKeysBytes(std::size_t count);
 /// kInvalidArgument, nothing written). Waits for the scans submitted before it.
 void changedKeysOnDevice(OccupancyMap& map, BufferRange out, SignalSemaphore signal = {});
 
+/// DistanceField::clearances on spheres already in a device buffer: `spheres` holds count
+/// centre x, y, z and radius floats (16 B each; radius 0 for DistanceField::distances' answer);
+/// `results` receives count gpu::DistanceResult (32 B each). Offsets must be multiples of
+/// VulkanHandles::offset_alignment and each range within one storage binding's reach. octovk's
+/// submission waits for `wait`; the call returns when the results are written.
+void distancesOnDevice(DistanceField& field, BufferRange spheres, std::uint32_t count,
+                       BufferRange results, WaitSemaphore wait = {});
+
 }  // namespace octovk

@@ -549,6 +549,57 @@ struct ScanRaysRtConstants {
   uint mode;         // 4B (12) kRayKeysPoints or kRayKeysEndCells (discretize)
 };
 
+// ---- the distance field (src/field/, shaders field_*.comp) ----
+// A box of cells at the finest depth, key min_key + (x, y, z), cell index x + size_x * (y +
+// size_y * z). Two arrays of FieldCell, A and B, reached by device address from the header
+// (the header's own address is in each pass's push constants). field_raster writes A (0 on an
+// occupied cell, kFieldFar elsewhere; the site is the cell itself); field_edt runs one axis per
+// dispatch, A -> B (x), B -> A (y), A -> B (z): B then holds the exact squared distance and the
+// nearest occupied cell of every cell.
+OCTOVK_CONST uint kFieldFar = 0xFFFFFFFFu;     // no occupied cell on the lines seen so far
+OCTOVK_CONST uint kFieldNoSite = 0xFFFFFFFFu;  // FieldCell::site with kFieldFar
+OCTOVK_CONST uint kFieldStatusCut = 1u;        // a line's loop ended early (driver loop limit)
+// One cell of the field. 8 B.
+struct FieldCell {
+  uint squared;  // 4B (0)  squared distance in cells to `site`, or kFieldFar
+  uint site;     // 4B (4)  cell index of the nearest occupied cell, or kFieldNoSite
+};
+// The field's description on the device. 64 B.
+struct FieldHeader {
+  uint64_t cells_a;        // 8B (0)  address of FieldCell[cell count]
+  uint64_t cells_b;        // 8B (8)
+  uint min_key_x;          // 4B (16) key of cell (0, 0, 0)
+  uint min_key_y;          // 4B (20)
+  uint min_key_z;          // 4B (24)
+  uint size_x;             // 4B (28) cells along each axis
+  uint size_y;             // 4B (32)
+  uint size_z;             // 4B (36)
+  uint unknown_occupied;   // 4B (40) 1: unknown cells count as occupied
+  uint status;             // 4B (44) kFieldStatus* bits
+  float max_distance_m;    // 4B (48) distances are capped here
+  uint pad0;               // 4B (52)
+  uint pad1;               // 4B (56)
+  uint pad2;               // 4B (60)
+};
+// field_raster. 16 B.
+struct FieldRasterConstants {
+  uint64_t header;  // 8B (0)  device address of the FieldHeader
+  uint cell_count;  // 4B (8)
+  uint pad0;        // 4B (12)
+};
+// field_edt. 16 B.
+struct FieldEdtConstants {
+  uint64_t header;  // 8B (0)  device address of the FieldHeader
+  uint axis;        // 4B (8)  0, 1, 2: the lines run along x, y, z
+  uint from_b;      // 4B (12) 0: A -> B, 1: B -> A
+};
+// field_query. 16 B.
+struct FieldQueryConstants {
+  uint64_t header;   // 8B (0)  device address of the FieldHeader
+  uint query_count;  // 4B (8)  spheres in the query input (4 floats each)
+  uint pad0;         // 4B (12)
+};
+
 #ifdef __cplusplus
 }  // namespace octovk::gpu
 #undef OCTOVK_CONST

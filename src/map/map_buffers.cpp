@@ -80,6 +80,7 @@ BufferBytes MapBuffers::bytesByUse() const {
     b.scratch += x->size();
   b.scratch += uploadBytes();
   b.changes = changes.size();
+  b.fields = field_bytes_;
   return b;
 }
 
@@ -96,7 +97,7 @@ void MapBuffers::checkBudget(std::size_t freed, std::size_t added, const std::st
       "; it holds " + mib(b.total()) + " (node pool " + mib(b.pool) + ", leaf boxes " +
       mib(b.leaf_boxes) + ", scan scratch " + mib(b.scratch) + ", query buffers " +
       mib(b.queries - scene_bytes_) + ", acceleration structures " + mib(scene_bytes_) +
-      ", change set " + mib(b.changes) +
+      ", change set " + mib(b.changes) + ", distance fields " + mib(b.fields) +
       "); the map is unchanged. Raise max_device_bytes, split the scan or the "
       "query batch into smaller ones, or call OccupancyMap::trim() to release scratch");
 }

@@ -47,8 +47,8 @@ class BudgetError : public Error {
 
 /// The map's device bytes by use (OccupancyMap::DeviceBytes).
 struct BufferBytes {
-  std::size_t pool = 0, leaf_boxes = 0, scratch = 0, queries = 0, changes = 0;
-  std::size_t total() const { return pool + leaf_boxes + scratch + queries + changes; }
+  std::size_t pool = 0, leaf_boxes = 0, scratch = 0, queries = 0, changes = 0, fields = 0;
+  std::size_t total() const { return pool + leaf_boxes + scratch + queries + changes + fields; }
 };
 
 // The device-memory cap (MapParams::max_device_bytes) is on the bytes the map's buffers hold
@@ -140,6 +140,11 @@ class MapBuffers {
   /// map sets it whenever a scene grows or is dropped.
   void setSceneBytes(std::size_t bytes) noexcept { scene_bytes_ = bytes; }
   std::size_t sceneBytes() const noexcept { return scene_bytes_; }
+  /// Bytes the map's distance fields hold (src/field/, each its own buffers): counted under the
+  /// cap; a field checks its growth with checkBudget first, then notes what it freed and added.
+  void noteFieldBytes(std::size_t freed, std::size_t added) noexcept {
+    field_bytes_ = field_bytes_ - freed + added;
+  }
   /// Whether the map may hold `added` more bytes once `freed` are released (no cap: always).
   bool fits(std::size_t freed, std::size_t added) const;
   /// Throws BudgetError naming `what` unless the growth fits the cap.
@@ -187,6 +192,7 @@ class MapBuffers {
   std::uint32_t block_limit_;
   std::size_t max_bytes_ = 0;
   std::size_t scene_bytes_ = 0;
+  std::size_t field_bytes_ = 0;
   std::array<std::size_t, kScanHistory> scan_points_{};  // the last scans, oldest first
   std::size_t scan_count_ = 0;                           // of them, up to kScanHistory
   std::size_t scratch_peak_points_ = 0;  // largest scan since the scratch was last released

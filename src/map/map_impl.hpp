@@ -113,6 +113,12 @@ class OccupancyMap::Impl {
   DeviceBytes deviceBytesByUse() const;
   /// Releases the per-scan scratch, the query buffers and the scenes (OccupancyMap::trim).
   void trim();
+  /// The map's buffers for a distance field (src/field/): after flush(), the field reads the node
+  /// pool (`pool`, `nodes`) and counts its bytes under the cap (checkBudget, noteFieldBytes). It
+  /// records on its own command stream; nothing else is shared.
+  MapBuffers& fieldBuffers() { return core_.buffers; }
+  /// The map's log-odds parameters (the occupancy threshold isNodeOccupied compares with).
+  const ref::LogOddsParams& logOdds() const { return core_.logs; }
   /// castRay's backend on this map (kWalk or kRayTracing) and its build statistics.
   OccupancyMap::CastRayInfo castRayInfo() const { return scenes_.castRayInfo(); }
 

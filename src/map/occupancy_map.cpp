@@ -77,7 +77,8 @@ OccupancyMap::DeviceBytes OccupancyMap::Impl::deviceBytesByUse() const {
           .leaf_boxes = b.leaf_boxes,
           .scratch = b.scratch,
           .queries = b.queries,
-          .changes = b.changes};
+          .changes = b.changes,
+          .distance_fields = b.fields};
 }
 
 void OccupancyMap::Impl::trim() {

@@ -1,0 +1,111 @@
+// octovk: The distance to the nearest obstacle: an exact Euclidean distance field over a box of a
+// map, on the device, with DynamicEDTOctomap's meaning (dynamicEDT3D), and batched queries.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "octovk/map.hpp"
+
+namespace octovk {
+
+/// How a DistanceField reads the map.
+struct DistanceFieldOptions {
+  /// Distances are capped here (metres, > 0): farther cells report this distance and no
+  /// gradient. The squared distances in cells are exact and not capped.
+  float max_distance_m = 2.0f;
+  /// Cells the map does not know count as obstacles (DynamicEDTOctomap's
+  /// treatUnknownAsOccupied); otherwise only occupied cells (isNodeOccupied) do.
+  bool treat_unknown_as_occupied = false;
+};
+
+/// One answer of DistanceField::distances / clearances.
+struct DistanceSample {
+  /// Metres from the centre of the query's cell to the centre of the nearest occupied cell of
+  /// the box, capped at max_distance_m, minus the sphere's radius (clearances). Outside the box
+  /// (or a NaN coordinate): kOutside, DynamicEDTOctomap's distanceValue_Error.
+  float distance_m = kOutside;
+  /// Centre of the nearest occupied cell; NaN where the box has none or the query is outside.
+  Eigen::Vector3f obstacle = Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());
+  /// The gradient of the distance at the query's cell: the unit vector from the nearest
+  /// obstacle's centre to the cell's centre (the derivative of the Euclidean distance to that
+  /// obstacle). Zero on an obstacle, where the distance is capped, and outside.
+  Eigen::Vector3f gradient = Eigen::Vector3f::Zero();
+  /// Exact squared distance in cells (not capped), or kOutsideCells / kNoObstacleCells.
+  std::uint32_t squared_cells = kOutsideCells;
+
+  static constexpr float kOutside = -1.0f;
+  static constexpr std::uint32_t kOutsideCells = 0xFFFFFFFFu;     ///< gpu::kDistanceOutside
+  static constexpr std::uint32_t kNoObstacleCells = 0xFFFFFFFEu;  ///< gpu::kDistanceNoObstacle
+  bool inside() const { return squared_cells != kOutsideCells; }
+};
+
+/// An exact Euclidean distance field over an axis-aligned box of an OccupancyMap, at the map's
+/// finest resolution, held on the device. The box is DynamicEDTOctomap's: the cells from the
+/// one holding `box_min` to the one holding `box_max` (OctoMap's coordToKey), both included.
+/// For every cell it holds the squared distance in cells to the nearest occupied cell of the box
+/// (obstacles outside the box do not count, as in dynamicEDT3D) and that cell; pruned leaves
+/// count as each of their finest cells. Exact: the integer minimum over all occupied cells.
+///
+/// The field reads the map when it is built and at update(); between them it answers for the
+/// map as it was. The map must outlive the field, and both are used from one thread at a time.
+/// Its device bytes count under the map's MapParams::max_device_bytes
+/// (OccupancyMap::DeviceBytes::distance_fields). A call that throws leaves the field and the
+/// map as they were.
+class DistanceField {
+ public:
+  /// Builds the field from scratch on the device. Throws kInvalidArgument for an inverted box,
+  /// a NaN corner, a corner outside the map's key range, max_distance_m <= 0 or NaN, or a box
+  /// whose lines the device cannot transform in one dispatch (named with the limit);
+  /// kOutOfDeviceMemory when the map's cap leaves no room (naming the bytes it would need).
+  DistanceField(OccupancyMap& map, const Eigen::Vector3f& box_min, const Eigen::Vector3f& box_max,
+                const DistanceFieldOptions& options = {});
+  ~DistanceField();
+  DistanceField(DistanceField&&) noexcept;
+  DistanceField& operator=(DistanceField&&) noexcept;
+
+  /// Brings the field up to the map as it is now (every scan submitted before it included): a
+  /// full recomputation of the box on the device (the map's changed cells are not tracked yet).
+  void update();
+
+  /// The distance at each point (its cell's centre), with the nearest obstacle and gradient.
+  std::vector<DistanceSample> distances(std::span<const Eigen::Vector3f> points) const;
+  /// Spheres (centre x, y, z, radius): the clearance distance - radius at each centre's cell,
+  /// with the nearest obstacle and gradient. Negative where the sphere reaches an obstacle.
+  std::vector<DistanceSample> clearances(std::span<const Eigen::Vector4f> spheres) const;
+
+  /// The whole field, downloaded: per cell (index x + size[0] * (y + size[1] * z)) the exact
+  /// squared distance in cells (kNoObstacleCells where the box has no obstacle) and the index of
+  /// the nearest occupied cell (same numbering; kNoObstacleCells where none).
+  struct Grid {
+    std::array<std::uint32_t, 3> size{};
+    std::array<std::uint32_t, 3> min_key{};  ///< OctoMap key of cell (0, 0, 0)
+    std::vector<std::uint32_t> squared_cells;
+    std::vector<std::uint32_t> nearest;
+  };
+  Grid download() const;
+
+  /// Cells along x, y, z, and the key of cell (0, 0, 0).
+  std::array<std::uint32_t, 3> size() const;
+  std::array<std::uint32_t, 3> minKey() const;
+  const DistanceFieldOptions& options() const;
+  /// Device bytes the field holds (its part of the map's cap).
+  std::size_t deviceBytes() const;
+  /// Device time of the last build or update(), in milliseconds (0 without timestamps).
+  double lastUpdateMs() const;
+
+  class Impl;
+
+ private:
+  friend class FieldInteropAccess;  // vulkan_interop.hpp
+  Impl& self() const;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace octovk

@@ -1,0 +1,341 @@
+// DistanceField (include/octovk/distance.hpp): the box's checks, the field's buffers under the
+// map's cap, build/update, queries and download.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <utility>
+
+#include "field/field_impl.hpp"
+#include "field/field_passes.hpp"
+#include "map/host_memory.hpp"
+#include "map/reference.hpp"
+
+namespace octovk {
+
+namespace {
+
+Error invalid(const std::string& what) {
+  return Error(ErrorCode::kInvalidArgument, "DistanceField: " + what);
+}
+
+std::string corner(const Eigen::Vector3f& v) {
+  std::ostringstream s;
+  s << "(" << v.x() << ", " << v.y() << ", " << v.z() << ")";
+  return s.str();
+}
+
+}  // namespace
+
+std::uint32_t maxLineCells(const vk::Device& device) {
+  // No limit seen: the cells of the whole key range. Otherwise the walk budget (the measured
+  // limit with room for the batch's other lanes) bounds one line's loop.
+  if (device.loopLimit() == 0) return 65536u;
+  const std::uint64_t budget = device.walkBudget();
+  std::uint32_t n = budget > 8 ? static_cast<std::uint32_t>((budget - 8) / 4) : 0u;
+  while (n > 0 && field::edtLoopIterations(n) > budget) --n;
+  return std::min<std::uint32_t>(n, 65536u);
+}
+
+std::size_t fieldBytes(std::size_t cells) {
+  return 2 * cells * sizeof(gpu::FieldCell) + sizeof(gpu::FieldHeader) * 2 +
+         sizeof(gpu::ScanParams) + 512;
+}
+
+FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                  const DistanceFieldOptions& options, std::uint32_t max_line_cells) {
+  if (!(options.max_distance_m > 0.0f) || !std::isfinite(options.max_distance_m))
+    throw invalid("max_distance_m is " + std::to_string(options.max_distance_m) +
+                  "; give a finite distance > 0");
+  if (!min.allFinite() || !max.allFinite())
+    throw invalid("the box " + corner(min) + " - " + corner(max) +
+                  " has a NaN or infinite corner; give finite corners");
+  static const char* kAxis[3] = {"x", "y", "z"};
+  FieldBox box;
+  const double factor = 1.0 / resolution;
+  for (int a = 0; a < 3; ++a) {
+    if (min[a] > max[a])
+      throw invalid(std::string("the box is inverted along ") + kAxis[a] + " (min " +
+                    std::to_string(min[a]) + " > max " + std::to_string(max[a]) +
+                    "); give min <= max on every axis");
+    std::uint32_t lo = 0, hi = 0;
+    if (!ref::coordToKeyChecked(factor, min[a], lo) || !ref::coordToKeyChecked(factor, max[a], hi))
+      throw invalid("the box " + corner(min) + " - " + corner(max) + " leaves the map's key range along " +
+                    kAxis[a] + " (+-" + std::to_string(32768 * resolution) +
+                    " m at this resolution); keep it inside");
+    box.min_key[a] = lo;
+    box.size[a] = hi - lo + 1;
+    if (box.size[a] > max_line_cells)
+      throw invalid(std::string("the box has ") + std::to_string(box.size[a]) + " cells along " +
+                    kAxis[a] + "; this device transforms lines of at most " +
+                    std::to_string(max_line_cells) +
+                    " cells in one dispatch (its driver ends loops early); split the box");
+  }
+  if (box.cells() >= gpu::kFieldNoSite)
+    throw invalid("the box has " + std::to_string(box.cells()) +
+                  " cells; cell indices must fit 32 bits: split the box");
+  return box;
+}
+
+DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
+                          const DistanceFieldOptions& options)
+    : map_(map), device_(map.device()), box_(box), options_(options), stream_(device_, 1) {
+  map_.flush();
+  MapBuffers& buffers = map_.fieldBuffers();
+  const std::size_t bytes = fieldBytes(box_.cells());
+  buffers.checkBudget(0, bytes,
+                      "a distance field of " + std::to_string(box_.size[0]) + " x " +
+                          std::to_string(box_.size[1]) + " x " + std::to_string(box_.size[2]) +
+                          " cells (" + std::to_string(bytes) + " bytes)");
+  bindings_ = vk::BindingSet(device_);
+  params_ = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
+  spare_ = vk::Buffer(device_, 512, false);
+  header_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), false);
+  readback_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), true);
+  cells_a_ = vk::Buffer(device_, box_.cells() * sizeof(gpu::FieldCell), false);
+  cells_b_ = vk::Buffer(device_, box_.cells() * sizeof(gpu::FieldCell), false);
+  bytes_ = bytes;
+  buffers.noteFieldBytes(0, bytes_);
+  try {
+    update();
+  } catch (...) {
+    buffers.noteFieldBytes(bytes_, 0);
+    throw;
+  }
+}
+
+DistanceField::Impl::~Impl() {
+  // The map outlives its fields (distance.hpp); its accounting forgets the field's bytes.
+  map_.fieldBuffers().noteFieldBytes(bytes_, 0);
+}
+
+std::size_t DistanceField::Impl::batchLimit() const {
+  return std::max<std::size_t>(1, device_.maxBindingBytes() / sizeof(gpu::DistanceResult));
+}
+
+void DistanceField::Impl::rebind(MapBuffers& map) {
+  std::array<const vk::Buffer*, gpu::kBindingCount> bound;
+  bound.fill(&spare_);
+  bound[gpu::kBindParams] = &params_;
+  bound[gpu::kBindPool] = &map.pool;
+  bound[gpu::kBindNodes] = &map.nodes;
+  if (query_in_.valid()) {
+    bound[gpu::kBindQueryIn] = &query_in_;
+    bound[gpu::kBindQueryOut] = &query_out_;
+  }
+  bindings_.update(bound);
+}
+
+void DistanceField::Impl::update() {
+  map_.flush();  // every scan submitted before is in the map
+  MapBuffers& map = map_.fieldBuffers();
+  rebind(map);
+  gpu::ScanParams sp{};
+  sp.resolution = map_.params().resolution;
+  sp.resolution_factor = 1.0 / map_.params().resolution;
+  sp.occupancy_log = map_.logOdds().occupancy;
+  gpu::FieldHeader h{};
+  h.cells_a = cells_a_.address();
+  h.cells_b = cells_b_.address();
+  h.min_key_x = box_.min_key[0];
+  h.min_key_y = box_.min_key[1];
+  h.min_key_z = box_.min_key[2];
+  h.size_x = box_.size[0];
+  h.size_y = box_.size[1];
+  h.size_z = box_.size[2];
+  h.unknown_occupied = options_.treat_unknown_as_occupied ? 1u : 0u;
+  h.max_distance_m = options_.max_distance_m;
+  passes::Recorder r(device_, stream_, map);
+  stream_.begin(bindings_);
+  const std::uint32_t start = stream_.timestamp();
+  stream_.update(params_, &sp, sizeof(sp));
+  stream_.update(header_, &h, sizeof(h));
+  stream_.barrier();
+  field::recordRaster(r, header_.address(), static_cast<std::uint32_t>(box_.cells()));
+  field::recordTransform(r, header_.address(), box_.size);
+  const std::uint32_t end = stream_.timestamp();
+  stream_.copy(header_, readback_, sizeof(gpu::FieldHeader));
+  stale_ = true;  // until the device says it finished
+  stream_.submitAndWait();
+  gpu::FieldHeader done;
+  std::memcpy(&done, readback_.mapped(), sizeof(done));
+  if (done.status & gpu::kFieldStatusCut)
+    throw Error(ErrorCode::kInternal,
+                "DistanceField: the device ended a line's loop early (its driver's loop limit is "
+                "lower than the device probe measured); the field is not up to date, and queries "
+                "refuse until update() succeeds. Use a box with shorter lines");
+  stale_ = false;
+  const std::vector<double> ns = stream_.timestampsNs();
+  last_ms_ = ns.size() > end ? (ns[end] - ns[start]) * 1e-6 : 0.0;
+}
+
+void DistanceField::Impl::checkFresh(const char* call) const {
+  if (stale_)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("DistanceField::") + call +
+                    ": the last update() failed on the device; call update() again first");
+}
+
+void DistanceField::Impl::ensureQueries(std::size_t count) {
+  count = std::min(count, batchLimit());
+  if (count <= query_capacity_) return;
+  const std::size_t in = count * 4 * sizeof(float), out = count * sizeof(gpu::DistanceResult);
+  const std::size_t added = 2 * (in + out);
+  const std::size_t freed = query_in_.size() + query_out_.size() + staging_in_.size() +
+                            staging_out_.size();
+  MapBuffers& map = map_.fieldBuffers();
+  map.checkBudget(freed, added,
+                  "distance-field query buffers for " + std::to_string(count) + " queries (" +
+                      std::to_string(added) + " bytes)");
+  vk::Buffer qi(device_, in, false), qo(device_, out, false), si(device_, in, true),
+      so(device_, out, true);
+  query_in_ = std::move(qi);
+  query_out_ = std::move(qo);
+  staging_in_ = std::move(si);
+  staging_out_ = std::move(so);
+  query_capacity_ = count;
+  map.noteFieldBytes(freed, added);
+  bytes_ = bytes_ - freed + added;
+}
+
+std::vector<DistanceSample> DistanceField::Impl::query(std::span<const float> spheres,
+                                                       std::size_t count) {
+  checkFresh("distances");
+  std::vector<DistanceSample> out(count);
+  if (count == 0) return out;
+  ensureQueries(count);
+  MapBuffers& map = map_.fieldBuffers();
+  rebind(map);
+  passes::Recorder r(device_, stream_, map);
+  for (std::size_t first = 0; first < count; first += query_capacity_) {
+    const std::size_t n = std::min(query_capacity_, count - first);
+    std::memcpy(staging_in_.mapped(), spheres.data() + 4 * first, n * 4 * sizeof(float));
+    stream_.begin(bindings_);
+    stream_.copy(staging_in_, query_in_, n * 4 * sizeof(float));
+    stream_.barrier();
+    field::recordQueries(r, header_.address(), static_cast<std::uint32_t>(n));
+    stream_.copy(query_out_, staging_out_, n * sizeof(gpu::DistanceResult));
+    stream_.submitAndWait();
+    const auto* res = static_cast<const gpu::DistanceResult*>(staging_out_.mapped());
+    for (std::size_t i = 0; i < n; ++i) {
+      const gpu::DistanceResult& g = res[i];
+      DistanceSample& s = out[first + i];
+      s.distance_m = g.distance;
+      s.obstacle = {g.obstacle_x, g.obstacle_y, g.obstacle_z};
+      s.gradient = {g.gradient_x, g.gradient_y, g.gradient_z};
+      s.squared_cells = g.squared_cells;
+    }
+  }
+  return out;
+}
+
+void DistanceField::Impl::queryOnDevice(VkBuffer in, VkDeviceSize in_offset, VkBuffer out,
+                                        VkDeviceSize out_offset, std::uint32_t count,
+                                        VkSemaphore wait, std::uint64_t wait_value) {
+  checkFresh("distancesOnDevice");
+  const VkDeviceSize align = device_.storageOffsetAlignment();
+  if (in == VK_NULL_HANDLE || out == VK_NULL_HANDLE)
+    throw Error(ErrorCode::kInvalidArgument, "distancesOnDevice: a buffer is VK_NULL_HANDLE");
+  if (in_offset % align != 0 || out_offset % align != 0)
+    throw Error(ErrorCode::kInvalidArgument,
+                "distancesOnDevice: buffer offsets must be multiples of " + std::to_string(align) +
+                    " (minStorageBufferOffsetAlignment)");
+  if (count == 0) return;
+  MapBuffers& map = map_.fieldBuffers();
+  rebind(map);
+  // The caller's ranges are bound in place of the field's query buffers for this submission
+  // (BindingSet refuses a range beyond one binding's reach, naming it).
+  bindings_.updateRange(gpu::kBindQueryIn, in, in_offset, VkDeviceSize{count} * 4 * sizeof(float));
+  bindings_.updateRange(gpu::kBindQueryOut, out, out_offset,
+                        VkDeviceSize{count} * sizeof(gpu::DistanceResult));
+  passes::Recorder r(device_, stream_, map);
+  if (wait != VK_NULL_HANDLE) stream_.waitBeforeNextSubmit(wait, wait_value);
+  stream_.begin(bindings_);
+  field::recordQueries(r, header_.address(), count);
+  stream_.submitAndWait();
+}
+
+DistanceField::Grid DistanceField::Impl::download() {
+  checkFresh("download");
+  Grid g;
+  g.size = box_.size;
+  g.min_key = box_.min_key;
+  const std::size_t cells = box_.cells();
+  vk::Buffer staging(device_, cells * sizeof(gpu::FieldCell), true);
+  MapBuffers& map = map_.fieldBuffers();
+  rebind(map);
+  stream_.begin(bindings_);
+  stream_.copy(cells_b_, staging, cells * sizeof(gpu::FieldCell));
+  stream_.submitAndWait();
+  g.squared_cells.resize(cells);
+  g.nearest.resize(cells);
+  const auto* c = static_cast<const gpu::FieldCell*>(staging.mapped());
+  for (std::size_t i = 0; i < cells; ++i) {
+    const bool none = c[i].squared == gpu::kFieldFar;
+    g.squared_cells[i] = none ? DistanceSample::kNoObstacleCells : c[i].squared;
+    g.nearest[i] = none ? DistanceSample::kNoObstacleCells : c[i].site;
+  }
+  return g;
+}
+
+// ---- the public class ----
+
+DistanceField::DistanceField(OccupancyMap& map, const Eigen::Vector3f& box_min,
+                             const Eigen::Vector3f& box_max, const DistanceFieldOptions& options) {
+  hostMemoryGuard("DistanceField", [&] {
+    OccupancyMap::Impl& m = FieldAccess::impl(map);
+    const FieldBox box =
+        fieldBox(m.params().resolution, box_min, box_max, options, maxLineCells(m.device()));
+    impl_ = std::make_unique<Impl>(m, box, options);
+  });
+}
+
+DistanceField::~DistanceField() = default;
+DistanceField::DistanceField(DistanceField&&) noexcept = default;
+DistanceField& DistanceField::operator=(DistanceField&&) noexcept = default;
+
+DistanceField::Impl& DistanceField::self() const {
+  if (!impl_)
+    throw Error(ErrorCode::kInvalidArgument, "DistanceField: used after it was moved from");
+  return *impl_;
+}
+
+void DistanceField::update() {
+  hostMemoryGuard("DistanceField::update", [&] { self().update(); });
+}
+
+std::vector<DistanceSample> DistanceField::distances(
+    std::span<const Eigen::Vector3f> points) const {
+  return hostMemoryGuard("DistanceField::distances", [&] {
+    std::vector<float> spheres(points.size() * 4);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      spheres[4 * i] = points[i].x();
+      spheres[4 * i + 1] = points[i].y();
+      spheres[4 * i + 2] = points[i].z();
+      spheres[4 * i + 3] = 0.0f;
+    }
+    return self().query(spheres, points.size());
+  });
+}
+
+std::vector<DistanceSample> DistanceField::clearances(
+    std::span<const Eigen::Vector4f> spheres) const {
+  static_assert(sizeof(Eigen::Vector4f) == 4 * sizeof(float));
+  return hostMemoryGuard("DistanceField::clearances", [&] {
+    if (spheres.empty()) return std::vector<DistanceSample>{};
+    return self().query(std::span<const float>(spheres.data()->data(), spheres.size() * 4),
+                        spheres.size());
+  });
+}
+
+DistanceField::Grid DistanceField::download() const {
+  return hostMemoryGuard("DistanceField::download", [&] { return self().download(); });
+}
+
+std::array<std::uint32_t, 3> DistanceField::size() const { return self().box().size; }
+std::array<std::uint32_t, 3> DistanceField::minKey() const { return self().box().min_key; }
+const DistanceFieldOptions& DistanceField::options() const { return self().options(); }
+std::size_t DistanceField::deviceBytes() const { return self().deviceBytes(); }
+double DistanceField::lastUpdateMs() const { return self().lastUpdateMs(); }
+
+}  // namespace octovk

@@ -1,0 +1,90 @@
+// DistanceField::Impl: the field's buffers (own, counted under the map's cap), its command
+// stream and binding set, and the host side of building, updating and querying it. The passes
+// it records are in field_passes.cpp; the map is only read (its node pool) through
+// OccupancyMap::Impl::fieldBuffers() after a flush.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "map/map_impl.hpp"
+#include "octovk/distance.hpp"
+#include "vk/device.hpp"
+
+namespace octovk {
+
+/// The map's Impl, for the field (OccupancyMap befriends this class).
+class FieldAccess {
+ public:
+  static OccupancyMap::Impl& impl(OccupancyMap& map) { return map.self(); }
+};
+
+/// The box of a field in keys: the cells from the key of `min` to the key of `max` (OctoMap's
+/// coordToKey, as DynamicEDTOctomap), checked; throws kInvalidArgument naming the bad input.
+struct FieldBox {
+  std::array<std::uint32_t, 3> min_key{}, size{};
+  std::size_t cells() const { return std::size_t{size[0]} * size[1] * size[2]; }
+};
+FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                  const DistanceFieldOptions& options, std::uint32_t max_line_cells);
+
+/// The most cells a line of the box may have on `device`: field_edt walks a line in one loop
+/// of edtLoopIterations(n), which must stay within the driver's loop budget.
+std::uint32_t maxLineCells(const vk::Device& device);
+
+/// Device bytes a field of `cells` cells holds without query buffers.
+std::size_t fieldBytes(std::size_t cells);
+
+class DistanceField::Impl {
+ public:
+  Impl(OccupancyMap::Impl& map, const FieldBox& box, const DistanceFieldOptions& options);
+  ~Impl();
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  /// Rasterises the map into the box and transforms it (on the device, waited for).
+  void update();
+  /// Queries of 4 floats each (centre, radius) from the host.
+  std::vector<DistanceSample> query(std::span<const float> spheres, std::size_t count);
+  /// The same between ranges of a caller's buffers (interop): `count` spheres at `in`,
+  /// DistanceResults to `out`; the first submission waits for `wait`.
+  void queryOnDevice(VkBuffer in, VkDeviceSize in_offset, VkBuffer out, VkDeviceSize out_offset,
+                     std::uint32_t count, VkSemaphore wait, std::uint64_t wait_value);
+  DistanceField::Grid download();
+
+  const FieldBox& box() const { return box_; }
+  const DistanceFieldOptions& options() const { return options_; }
+  std::size_t deviceBytes() const { return bytes_; }
+  double lastUpdateMs() const { return last_ms_; }
+
+ private:
+  /// Query buffers for `count` queries per batch (checked against the cap first).
+  void ensureQueries(std::size_t count);
+  /// Points the binding set at the field's buffers and the map's node pool as it is now.
+  void rebind(MapBuffers& map);
+  /// Spheres per submission: what one descriptor binding of results may hold.
+  std::size_t batchLimit() const;
+  void checkFresh(const char* call) const;
+
+  OccupancyMap::Impl& map_;
+  vk::Device& device_;
+  FieldBox box_;
+  DistanceFieldOptions options_;
+  vk::CommandStream stream_;
+  vk::BindingSet bindings_;
+  vk::Buffer params_;   // gpu::ScanParams: resolution and occupancy threshold (keys.glsl)
+  vk::Buffer spare_;    // bound where the passes read nothing (counters, the scan's arrays)
+  vk::Buffer header_;   // gpu::FieldHeader
+  vk::Buffer cells_a_, cells_b_;
+  vk::Buffer readback_;  // host-visible: the header after a build
+  vk::Buffer query_in_, query_out_, staging_in_, staging_out_;
+  std::size_t query_capacity_ = 0;
+  std::size_t bytes_ = 0;  // noted in the map's cap accounting
+  double last_ms_ = 0.0;
+  bool stale_ = false;  // an update failed on the device: queries refuse until one succeeds
+};
+
+}  // namespace octovk

@@ -1,0 +1,23 @@
+// The distance field's Vulkan interop (include/octovk/vulkan_interop.hpp): queries between
+// ranges of the caller's buffers.
+#include "field/field_impl.hpp"
+#include "map/host_memory.hpp"
+#include "octovk/vulkan_interop.hpp"
+
+namespace octovk {
+
+class FieldInteropAccess {
+ public:
+  static DistanceField::Impl& impl(DistanceField& field) { return field.self(); }
+};
+
+void distancesOnDevice(DistanceField& field, BufferRange spheres, std::uint32_t count,
+                       BufferRange results, WaitSemaphore wait) {
+  hostMemoryGuard("distancesOnDevice", [&] {
+    FieldInteropAccess::impl(field).queryOnDevice(spheres.buffer, spheres.offset, results.buffer,
+                                                  results.offset, count, wait.semaphore,
+                                                  wait.value);
+  });
+}
+
+}  // namespace octovk

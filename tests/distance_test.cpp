@@ -1,0 +1,416 @@
+// The distance field (octovk/distance.hpp) against the brute-force minimum over every occupied
+// cell, cell for cell, and against dynamicEDT3D's DynamicEDTOctomap (Debian's
+// libdynamicedt3d-dev) on the same maps; queries, updates after scans, bad input, the cap.
+#include <dynamicEDT3D/dynamicEDTOctomap.h>
+#include <octomap/octomap.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "octovk/distance.hpp"
+#include "test_support.hpp"
+
+namespace octovk {
+namespace {
+
+using test::toPoint;
+
+constexpr std::uint32_t kNone = DistanceSample::kNoObstacleCells;
+
+struct Box {
+  Eigen::Vector3f min, max;
+};
+
+/// The box's cells as DynamicEDTOctomap numbers them, and which are obstacles in `tree`.
+struct BruteField {
+  std::array<std::uint32_t, 3> min_key{}, size{};
+  std::vector<std::uint32_t> squared;  // brute-force minimum, kNone without obstacles
+  std::vector<char> occupied;
+};
+
+BruteField bruteForce(const octomap::OcTree& tree, const Box& box, bool unknown_occupied) {
+  BruteField b;
+  const octomap::OcTreeKey lo = tree.coordToKey(toPoint(box.min));
+  const octomap::OcTreeKey hi = tree.coordToKey(toPoint(box.max));
+  for (int a = 0; a < 3; ++a) {
+    b.min_key[a] = lo[a];
+    b.size[a] = static_cast<std::uint32_t>(hi[a] - lo[a] + 1);
+  }
+  const std::size_t n = std::size_t{b.size[0]} * b.size[1] * b.size[2];
+  b.occupied.assign(n, 0);
+  std::vector<std::array<int, 3>> sites;
+  for (std::uint32_t z = 0; z < b.size[2]; ++z)
+    for (std::uint32_t y = 0; y < b.size[1]; ++y)
+      for (std::uint32_t x = 0; x < b.size[0]; ++x) {
+        const octomap::OcTreeKey k(static_cast<std::uint16_t>(lo[0] + x),
+                                   static_cast<std::uint16_t>(lo[1] + y),
+                                   static_cast<std::uint16_t>(lo[2] + z));
+        const octomap::OcTreeNode* node = tree.search(k);
+        const bool occ = node ? tree.isNodeOccupied(node) : unknown_occupied;
+        if (occ) {
+          b.occupied[x + b.size[0] * (y + std::size_t{b.size[1]} * z)] = 1;
+          sites.push_back({int(x), int(y), int(z)});
+        }
+      }
+  b.squared.assign(n, kNone);
+  for (std::uint32_t z = 0; z < b.size[2]; ++z)
+    for (std::uint32_t y = 0; y < b.size[1]; ++y)
+      for (std::uint32_t x = 0; x < b.size[0]; ++x) {
+        std::uint32_t best = kNone;
+        for (const auto& s : sites) {
+          const int dx = s[0] - int(x), dy = s[1] - int(y), dz = s[2] - int(z);
+          best = std::min(best, static_cast<std::uint32_t>(dx * dx + dy * dy + dz * dz));
+        }
+        b.squared[x + b.size[0] * (y + std::size_t{b.size[1]} * z)] = best;
+      }
+  return b;
+}
+
+/// The field equals the brute force cell for cell, and each nearest cell is an obstacle at
+/// that squared distance.
+::testing::AssertionResult sameAsBruteForce(const DistanceField::Grid& g, const BruteField& b) {
+  if (g.size != b.size || g.min_key != b.min_key)
+    return ::testing::AssertionFailure() << "box differs: " << g.size[0] << "x" << g.size[1]
+                                         << "x" << g.size[2] << " vs " << b.size[0] << "x"
+                                         << b.size[1] << "x" << b.size[2];
+  for (std::size_t i = 0; i < b.squared.size(); ++i) {
+    if (g.squared_cells[i] != b.squared[i])
+      return ::testing::AssertionFailure() << "cell " << i << ": squared distance "
+                                           << g.squared_cells[i] << ", brute force "
+                                           << b.squared[i];
+    if (b.squared[i] == kNone) {
+      if (g.nearest[i] != kNone)
+        return ::testing::AssertionFailure() << "cell " << i << " names an obstacle in an empty box";
+      continue;
+    }
+    const std::uint32_t s = g.nearest[i];
+    if (s >= b.squared.size() || !b.occupied[s])
+      return ::testing::AssertionFailure() << "cell " << i << ": nearest cell " << s
+                                           << " is not an obstacle";
+    const auto coord = [&](std::size_t c) {
+      return std::array<long, 3>{long(c % b.size[0]), long((c / b.size[0]) % b.size[1]),
+                                 long(c / (std::size_t{b.size[0]} * b.size[1]))};
+    };
+    const auto p = coord(i), q = coord(s);
+    const long d2 = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                    (p[2] - q[2]) * (p[2] - q[2]);
+    if (d2 != long(b.squared[i]))
+      return ::testing::AssertionFailure() << "cell " << i << ": nearest cell " << s << " is at "
+                                           << d2 << ", not " << b.squared[i];
+  }
+  return ::testing::AssertionSuccess();
+}
+
+/// Builds the octovk map from `tree`, the field over `box`, and checks it against brute force.
+::testing::AssertionResult fieldMatches(Context& ctx, const octomap::OcTree& tree, const Box& box,
+                                        bool unknown_occupied) {
+  MapParams params = test::withResolution(tree.getResolution());
+  OccupancyMap map(ctx, params);
+  fromOcTree(map, tree);
+  DistanceField field(map, box.min, box.max,
+                      {.max_distance_m = 1.0f, .treat_unknown_as_occupied = unknown_occupied});
+  return sameAsBruteForce(field.download(), bruteForce(tree, box, unknown_occupied));
+}
+
+octomap::OcTree randomTree(double resolution, unsigned seed, int scans) {
+  octomap::OcTree tree(resolution);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+  for (int s = 0; s < scans; ++s) {
+    const Eigen::Vector3f origin(u(rng), u(rng), u(rng));
+    tree.insertPointCloud(test::toPointcloud(test::randomScan(rng, origin, 300, 1.6f)),
+                          toPoint(origin));
+  }
+  return tree;
+}
+
+const Box kSmallBox{{-1.0f, -1.2f, -0.6f}, {1.3f, 1.0f, 0.7f}};
+
+TEST(DistanceField, RandomMapsEqualBruteForceUnknownOffAndOn) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (unsigned seed : {1u, 2u, 3u}) {
+    const octomap::OcTree tree = randomTree(0.1, seed, 3);
+    EXPECT_TRUE(fieldMatches(ctx, tree, kSmallBox, false)) << "seed " << seed;
+    EXPECT_TRUE(fieldMatches(ctx, tree, kSmallBox, true)) << "seed " << seed << ", unknown on";
+  }
+}
+
+TEST(DistanceField, OneObstacleEmptyBoxAndObstaclesOnlyOutside) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  octomap::OcTree tree(0.1);
+  tree.updateNode(octomap::point3d(0.05f, 0.05f, 0.05f), true);
+  // One obstacle in the box.
+  EXPECT_TRUE(fieldMatches(ctx, tree, {{-0.8f, -0.5f, -0.4f}, {0.9f, 0.6f, 0.5f}}, false));
+  // A box without obstacles: every cell has none.
+  octomap::OcTree empty(0.1);
+  {
+    OccupancyMap map(ctx, test::withResolution(0.1));
+    DistanceField field(map, {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f});
+    const DistanceField::Grid g = field.download();
+    EXPECT_EQ(g.squared_cells, std::vector<std::uint32_t>(g.squared_cells.size(), kNone));
+    const auto s = field.distances(std::vector<Eigen::Vector3f>{{0.0f, 0.0f, 0.0f}});
+    EXPECT_EQ(s[0].squared_cells, kNone);
+    EXPECT_EQ(s[0].distance_m, field.options().max_distance_m);
+    EXPECT_TRUE(std::isnan(s[0].obstacle.x()));
+  }
+  // The obstacle lies outside the box: it does not count (as in DynamicEDTOctomap).
+  const Box outside{{0.3f, 0.3f, 0.3f}, {1.0f, 0.9f, 0.8f}};
+  EXPECT_TRUE(fieldMatches(ctx, tree, outside, false));
+  EXPECT_EQ(bruteForce(tree, outside, false).squared.front(), kNone);
+}
+
+TEST(DistanceField, PrunedLeavesCountAsEachOfTheirCells) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  octomap::OcTree tree(0.05);
+  // An 8 x 8 x 8 cube of occupied cells, aligned to a depth-13 node: pruned to one leaf.
+  for (int x = 0; x < 8; ++x)
+    for (int y = 0; y < 8; ++y)
+      for (int z = 0; z < 8; ++z)
+        tree.updateNode(octomap::OcTreeKey(static_cast<octomap::key_type>(32768 + x),
+                                           static_cast<octomap::key_type>(32768 + y),
+                                           static_cast<octomap::key_type>(32768 + z)),
+                        true, true);
+  tree.updateInnerOccupancy();
+  tree.prune();
+  unsigned depth = 0;
+  for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it) depth = it.getDepth();
+  ASSERT_EQ(depth, 13u) << "the cube should be one pruned leaf";
+  // The box cuts the cube.
+  EXPECT_TRUE(fieldMatches(ctx, tree, {{0.1f, -0.3f, 0.12f}, {0.9f, 0.3f, 0.6f}}, false));
+  EXPECT_TRUE(fieldMatches(ctx, tree, {{0.1f, -0.3f, 0.12f}, {0.9f, 0.3f, 0.6f}}, true));
+}
+
+TEST(DistanceField, Geb079EqualsBruteForce) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const std::string path = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
+  octomap::OcTree tree(0.1);
+  ASSERT_TRUE(tree.readBinary(path)) << path;
+  const Box box{{-2.0f, -1.5f, -0.3f}, {1.5f, 1.5f, 1.2f}};
+  EXPECT_TRUE(fieldMatches(ctx, tree, box, false));
+  EXPECT_TRUE(fieldMatches(ctx, tree, box, true));
+}
+
+TEST(DistanceField, ScanGraphMapEqualsBruteForce) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const std::string path = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+  const std::vector<GraphScan> scans = readScanGraph(path);
+  ASSERT_FALSE(scans.empty());
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  for (const GraphScan& s : scans)
+    map.insertPointCloud(s.points_sensor, graph2treeSensorOrigin(s.T_world_sensor),
+                         s.T_world_sensor);
+  const std::unique_ptr<octomap::OcTree> tree = toOcTree(map);
+  const Box box{{-1.5f, -1.5f, -0.8f}, {1.5f, 1.2f, 0.8f}};
+  DistanceField field(map, box.min, box.max);
+  EXPECT_TRUE(sameAsBruteForce(field.download(), bruteForce(*tree, box, false)));
+}
+
+// dynamicEDT3D on the same map and box: counts how many cells agree (squared distances, capped
+// at its maxDist_squared) and checks, for every disagreement, that octovk's value is the brute
+// force's (and so dynamicEDT3D's is not).
+void compareWithDynamicEdt(Context& ctx, octomap::OcTree& tree, const Box& box, bool unknown,
+                           float max_distance, const char* name) {
+  MapParams params = test::withResolution(tree.getResolution());
+  OccupancyMap map(ctx, params);
+  fromOcTree(map, tree);
+  DistanceField field(map, box.min, box.max,
+                      {.max_distance_m = max_distance, .treat_unknown_as_occupied = unknown});
+  const DistanceField::Grid g = field.download();
+  const BruteField b = bruteForce(tree, box, unknown);
+  ASSERT_TRUE(sameAsBruteForce(g, b));
+  DynamicEDTOctomap edt(max_distance, &tree, toPoint(box.min), toPoint(box.max), unknown);
+  edt.update();
+  const auto cap = static_cast<std::uint32_t>(edt.getSquaredMaxDistCells());
+  std::size_t agree = 0, differ = 0, edt_too_far = 0;
+  for (std::uint32_t z = 0; z < g.size[2]; ++z)
+    for (std::uint32_t y = 0; y < g.size[1]; ++y)
+      for (std::uint32_t x = 0; x < g.size[0]; ++x) {
+        const std::size_t i = x + g.size[0] * (y + std::size_t{g.size[1]} * z);
+        const octomap::point3d p = tree.keyToCoord(octomap::OcTreeKey(
+            static_cast<std::uint16_t>(g.min_key[0] + x), static_cast<std::uint16_t>(g.min_key[1] + y),
+            static_cast<std::uint16_t>(g.min_key[2] + z)));
+        const auto theirs = static_cast<std::uint32_t>(edt.getSquaredDistanceInCells(p));
+        const std::uint32_t ours = std::min(g.squared_cells[i], cap);
+        if (theirs == ours) {
+          ++agree;
+          continue;
+        }
+        ++differ;
+        // octovk's is the exact minimum (checked above); dynamicEDT3D's propagation found a
+        // farther obstacle (never a nearer one: there is none).
+        ASSERT_EQ(std::min(b.squared[i], cap), ours);
+        ASSERT_GT(theirs, ours) << "dynamicEDT3D reports a nearer obstacle than exists at cell " << i;
+        ++edt_too_far;
+      }
+  std::cout << "[dynamicEDT3D] " << name << ": " << agree << " of " << (agree + differ)
+            << " cells agree; " << differ << " differ, in each octovk's is the brute-force "
+            << "minimum and dynamicEDT3D's larger (" << edt_too_far << ")\n";
+  ::testing::Test::RecordProperty(std::string(name) + "_agree", static_cast<int>(agree));
+  ::testing::Test::RecordProperty(std::string(name) + "_differ", static_cast<int>(differ));
+  EXPECT_EQ(agree + differ, b.squared.size());
+}
+
+TEST(DistanceField, AgainstDynamicEdtOctomap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (unsigned seed : {4u, 5u}) {
+    octomap::OcTree tree = randomTree(0.1, seed, 3);
+    compareWithDynamicEdt(ctx, tree, kSmallBox, false, 1.0f,
+                          ("random" + std::to_string(seed)).c_str());
+    compareWithDynamicEdt(ctx, tree, kSmallBox, true, 0.6f,
+                          ("random" + std::to_string(seed) + "_unknown").c_str());
+  }
+  const std::string path = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
+  octomap::OcTree geb(0.1);
+  ASSERT_TRUE(geb.readBinary(path)) << path;
+  compareWithDynamicEdt(ctx, geb, {{-2.0f, -1.5f, -0.3f}, {1.5f, 1.5f, 1.2f}}, false, 2.0f,
+                        "geb079");
+  compareWithDynamicEdt(ctx, geb, {{-5.0f, -4.0f, -0.5f}, {3.0f, 3.0f, 1.5f}}, false, 6.0f,
+                        "geb079_large");
+}
+
+TEST(DistanceField, UpdateAfterScansEqualsFromScratch) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = test::withResolution(0.1);
+  OccupancyMap map(ctx, params);
+  DistanceField field(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = 0.8f});
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-0.4f, 0.4f);
+  for (int s = 0; s < 4; ++s) {
+    const Eigen::Vector3f origin(u(rng), u(rng), u(rng));
+    map.insertPointCloud(test::randomScan(rng, origin, 250, 1.5f), origin);
+    if (s % 2 == 1) map.submitPointCloud(test::randomScan(rng, origin, 100, 1.2f), origin);
+    field.update();  // sees the submitted scan too
+    DistanceField scratch(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = 0.8f});
+    const DistanceField::Grid a = field.download(), b = scratch.download();
+    EXPECT_EQ(a.squared_cells, b.squared_cells) << "after scan " << s;
+    EXPECT_TRUE(sameAsBruteForce(a, bruteForce(*toOcTree(map), kSmallBox, false)));
+  }
+  EXPECT_GT(field.lastUpdateMs(), 0.0);
+}
+
+TEST(DistanceField, QueriesAnswerFromTheField) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const octomap::OcTree tree = randomTree(0.1, 9, 3);
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  fromOcTree(map, tree);
+  const float max_d = 0.5f;
+  DistanceField field(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = max_d});
+  const DistanceField::Grid g = field.download();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.6f, 1.6f), ur(0.0f, 0.3f);
+  std::vector<Eigen::Vector4f> spheres;
+  for (int i = 0; i < 5000; ++i) spheres.emplace_back(u(rng), u(rng), u(rng), ur(rng));
+  spheres.emplace_back(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f, 0.0f);
+  spheres.emplace_back(1e9f, 0.0f, 0.0f, 0.0f);
+  const std::vector<DistanceSample> got = field.clearances(spheres);
+  ASSERT_EQ(got.size(), spheres.size());
+  std::size_t inside = 0, capped = 0, on_obstacle = 0;
+  for (std::size_t i = 0; i < spheres.size(); ++i) {
+    const Eigen::Vector4f& s = spheres[i];
+    const DistanceSample& r = got[i];
+    std::array<long, 3> c{};
+    bool in = true;
+    for (int a = 0; a < 3; ++a) {
+      std::uint32_t k = 0;
+      in = in && std::isfinite(s[a]) && std::abs(s[a]) < 1e6f;
+      if (!in) break;
+      k = tree.coordToKey(s[a]);
+      c[a] = long(k) - long(g.min_key[a]);
+      in = c[a] >= 0 && c[a] < long(g.size[a]);
+    }
+    if (!in) {
+      EXPECT_FALSE(r.inside()) << i;
+      EXPECT_EQ(r.distance_m, DistanceSample::kOutside);
+      EXPECT_EQ(r.gradient, Eigen::Vector3f::Zero());
+      continue;
+    }
+    ++inside;
+    const std::size_t cell = c[0] + g.size[0] * (c[1] + std::size_t{g.size[1]} * c[2]);
+    ASSERT_EQ(r.squared_cells, g.squared_cells[cell]) << i;
+    if (r.squared_cells == kNone) continue;
+    const double metres = std::sqrt(double(r.squared_cells)) * 0.1;
+    const float d = std::min(static_cast<float>(metres), max_d);
+    EXPECT_EQ(r.distance_m, d - s[3]) << i;
+    const std::uint32_t o = g.nearest[cell];
+    const std::array<long, 3> oc{long(o % g.size[0]), long((o / g.size[0]) % g.size[1]),
+                                 long(o / (std::size_t{g.size[0]} * g.size[1]))};
+    for (int a = 0; a < 3; ++a)
+      EXPECT_EQ(r.obstacle[a], static_cast<float>(tree.keyToCoord(
+                                static_cast<octomap::key_type>(g.min_key[a] + oc[a]))));
+    if (r.squared_cells == 0 || static_cast<float>(metres) >= max_d) {
+      EXPECT_EQ(r.gradient, Eigen::Vector3f::Zero()) << i;
+      ++(r.squared_cells == 0 ? on_obstacle : capped);
+    } else {
+      for (int a = 0; a < 3; ++a)
+        EXPECT_EQ(r.gradient[a],
+                  static_cast<float>(double(c[a] - oc[a]) / std::sqrt(double(r.squared_cells))));
+      EXPECT_NEAR(r.gradient.norm(), 1.0f, 1e-5f);
+    }
+  }
+  EXPECT_GT(inside, 1000u);
+  EXPECT_GT(capped, 0u);
+  EXPECT_GT(on_obstacle, 0u);
+  // distances() is clearances() with radius 0.
+  std::vector<Eigen::Vector3f> points;
+  for (const auto& s : spheres) points.push_back(s.head<3>());
+  const std::vector<DistanceSample> at = field.distances(points);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (got[i].inside() && got[i].squared_cells != kNone) {
+      EXPECT_EQ(at[i].distance_m - spheres[i][3], got[i].distance_m) << i;
+    }
+  }
+}
+
+TEST(DistanceField, BadInputIsRefusedAndNothingChanges) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  const std::size_t before = map.deviceBytes();
+  const auto refused = [&](const Eigen::Vector3f& lo, const Eigen::Vector3f& hi,
+                           DistanceFieldOptions o, const char* words) {
+    try {
+      DistanceField f(map, lo, hi, o);
+      ADD_FAILURE() << "accepted: " << words;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(map.deviceBytes(), before);
+  };
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  refused({1, 0, 0}, {0, 1, 1}, {}, "inverted along x");
+  refused({0, 0, 0}, {1, 1, nan}, {}, "NaN");
+  refused({0, 0, 0}, {1, 1, 1}, {.max_distance_m = 0.0f}, "max_distance_m");
+  refused({0, 0, 0}, {1, 1, 1}, {.max_distance_m = nan}, "max_distance_m");
+  refused({0, 0, 0}, {4000, 1, 1}, {}, "key range");
+  EXPECT_EQ(map.deviceBytesByUse().distance_fields, 0u);
+}
+
+TEST(DistanceField, CountsUnderTheMapsCapAndTooLargeIsRefused) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = test::withResolution(0.1);
+  params.max_device_bytes = MapParams{}.minDeviceBytes() + (std::size_t{1} << 20);
+  OccupancyMap map(ctx, params);
+  const std::size_t before = map.deviceBytes();
+  {
+    DistanceField small(map, {0, 0, 0}, {1.5f, 1.5f, 1.5f});
+    EXPECT_EQ(map.deviceBytesByUse().distance_fields, small.deviceBytes());
+    EXPECT_EQ(map.deviceBytes(), before + small.deviceBytes());
+    (void)small.distances(std::vector<Eigen::Vector3f>{{0.5f, 0.5f, 0.5f}});
+    EXPECT_EQ(map.deviceBytes(), before + small.deviceBytes());
+  }
+  EXPECT_EQ(map.deviceBytes(), before);
+  try {
+    DistanceField big(map, {0, 0, 0}, {6.0f, 6.0f, 6.0f});  // 61^3 cells, 16 B each: 3.6 MB
+    ADD_FAILURE() << "a field beyond the cap was built";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
+    EXPECT_NE(std::string(e.what()).find("61 x 61 x 61 cells"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("bytes"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(map.deviceBytes(), before);
+  EXPECT_EQ(map.deviceBytesByUse().distance_fields, 0u);
+}
+
+}  // namespace
+}  // namespace octovk
