@@ -166,12 +166,17 @@ void bindMap(py::module_& m) {
                     "per-scan buffers, sized by the largest scan since trim()")
       .def_readonly("queries", &OccupancyMap::DeviceBytes::queries,
                     "query input and output, castRay's acceleration structure")
+      .def_readonly("changes", &OccupancyMap::DeviceBytes::changes,
+                    "the change set (change detection)")
+      .def_readonly("distance_fields", &OccupancyMap::DeviceBytes::distance_fields,
+                    "the distance fields built on the map")
       .def_property_readonly("total", &OccupancyMap::DeviceBytes::total)
       .def("__repr__", [](const OccupancyMap::DeviceBytes& b) {
         return "DeviceBytes(pool=" + std::to_string(b.pool) +
                ", leaf_boxes=" + std::to_string(b.leaf_boxes) +
                ", scratch=" + std::to_string(b.scratch) + ", queries=" + std::to_string(b.queries) +
-               ")";
+               ", changes=" + std::to_string(b.changes) +
+               ", distance_fields=" + std::to_string(b.distance_fields) + ")";
       });
 
   using CastRayInfo = OccupancyMap::CastRayInfo;
@@ -468,6 +473,51 @@ void bindMap(py::module_& m) {
       },
       "Every leaf of the map: (centers float32 (N, 3), sizes float32 (N,), log_odds float32 "
       "(N,)).");
+
+  map.def(
+      "enable_change_detection",
+      [](Map& self, bool enable) {
+        self.run([&](OccupancyMap& map) { map.enableChangeDetection(enable); });
+      },
+      py::arg("enable"),
+      "OcTree::enableChangeDetection. enable: True turns it on for the scans inserted or "
+      "submitted after this call, which then note every leaf they update as OctoMap does "
+      "(created: True; occupancy flipped: False; flipped back: removed); False turns it off and "
+      "keeps the keys noted so far. The set lives on the device.");
+  map.def(
+      "is_change_detection_enabled",
+      [](Map& self) {
+        return self.run([](OccupancyMap& map) { return map.isChangeDetectionEnabled(); });
+      },
+      "Whether change detection is on (OcTree::isChangeDetectionEnabled).");
+  map.def(
+      "reset_change_detection",
+      [](Map& self) { self.run([](OccupancyMap& map) { map.resetChangeDetection(); }); },
+      "Empties the change set (OcTree::resetChangeDetection).");
+  map.def(
+      "num_changes_detected",
+      [](Map& self) {
+        return self.run([](OccupancyMap& map) { return map.numChangesDetected(); });
+      },
+      "Keys in the change set (OcTree::numChangesDetected).");
+  map.def(
+      "changed_keys",
+      [](Map& self) {
+        const std::vector<ChangedKey> changes =
+            self.run([](OccupancyMap& map) { return map.changedKeys(); });
+        std::vector<std::uint16_t> keys(changes.size() * 3);
+        std::vector<std::uint8_t> created(changes.size());
+        for (std::size_t i = 0; i < changes.size(); ++i) {
+          for (int c = 0; c < 3; ++c) keys[i * 3 + c] = changes[i].key[c];
+          created[i] = changes[i].created ? 1 : 0;
+        }
+        const auto n = static_cast<py::ssize_t>(changes.size());
+        return py::make_tuple(ownedArray(std::move(keys), {n, 3}),
+                              ownedArray(std::move(created), {n}));
+      },
+      "The change set (OcTree::changedKeysBegin/End), in no particular order: (keys uint16 "
+      "(N, 3), the finest-level OcTreeKeys; created uint8 (N,), 1 where the leaf was created "
+      "(OctoMap's True), 0 where its occupancy flipped (False)).");
 
   map.def(
       "node_count",

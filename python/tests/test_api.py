@@ -234,3 +234,28 @@ def test_counts_memory_and_trim(context):
     m.trim()
     assert m.device_bytes().scratch < grown.scratch
     assert m.leaf_count() == leaves
+
+
+def test_change_detection_follows_the_cpp_api(context):
+    """The change set through Python: OctoMap's semantics are checked key for key by the C++
+    oracle tests (tests/change_detection_test.cpp); here the binding's shapes, flags and counts."""
+    m = octovk.Map(0.1)
+    assert not m.is_change_detection_enabled()
+    rng = np.random.default_rng(7)
+    d = rng.normal(size=(800, 3)).astype(np.float32)
+    pts = (d / np.linalg.norm(d, axis=1, keepdims=True) * 2.0).astype(np.float32)
+    m.insert_point_cloud(pts, (0, 0, 0))
+    assert m.num_changes_detected() == 0
+    keys, created = m.changed_keys()
+    assert keys.shape == (0, 3) and created.shape == (0,)
+    m.enable_change_detection(True)
+    assert m.is_change_detection_enabled()
+    assert m.device_bytes().changes > 4096 * 16
+    m.insert_point_cloud(pts * 1.5, (0.05, 0, 0))
+    keys, created = m.changed_keys()
+    assert keys.dtype == np.uint16 and keys.shape[1] == 3 and created.dtype == np.uint8
+    assert len(keys) == m.num_changes_detected() > 100
+    assert len({tuple(k) for k in keys}) == len(keys)  # a set: each key once
+    assert set(np.unique(created)) <= {0, 1} and created.sum() > 0
+    m.reset_change_detection()
+    assert m.num_changes_detected() == 0

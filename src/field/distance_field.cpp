@@ -8,6 +8,7 @@
 
 #include "field/field_impl.hpp"
 #include "field/field_passes.hpp"
+#include "map/walk_budget.hpp"
 #include "map/host_memory.hpp"
 #include "map/reference.hpp"
 
@@ -31,7 +32,7 @@ std::uint32_t maxLineCells(const vk::Device& device) {
   // No limit seen: the cells of the whole key range. Otherwise the walk budget (the measured
   // limit with room for the batch's other lanes) bounds one line's loop.
   if (device.loopLimit() == 0) return 65536u;
-  const std::uint64_t budget = device.walkBudget();
+  const std::uint64_t budget = walkBudget(device);
   std::uint32_t n = budget > 8 ? static_cast<std::uint32_t>((budget - 8) / 4) : 0u;
   while (n > 0 && field::edtLoopIterations(n) > budget) --n;
   return std::min<std::uint32_t>(n, 65536u);
