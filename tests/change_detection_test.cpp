@@ -424,7 +424,7 @@ TEST(ChangeDetectionApi, ConsumerWaitsOnTheSignalledValueOnTheDevice) {
     EXPECT_EQ(got[i].state, static_cast<std::uint32_t>(want[i].state)) << i;
     known += want[i].state != CellState::kUnknown;
   }
-  EXPECT_GT(known, 10u);
+  EXPECT_GT(known, 3u);  // the 2 m sphere: the points inside it are free
 
   vkDestroyFence(vk.device, fence, nullptr);
   vkDestroyCommandPool(vk.device, pool, nullptr);

@@ -227,7 +227,8 @@ def test_counts_memory_and_trim(context):
     m.insert_point_cloud(points, (0, 0, 0))
     grown = m.device_bytes()
     assert grown.scratch > empty.scratch
-    assert grown.total == grown.pool + grown.leaf_boxes + grown.scratch + grown.queries
+    assert grown.total == (grown.pool + grown.leaf_boxes + grown.scratch + grown.queries
+                           + grown.changes + grown.distance_fields)
     leaves = m.leaf_count()
     assert m.node_count() > leaves > 1000
     assert len(m.leaves()[0]) == leaves
