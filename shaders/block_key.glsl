@@ -17,4 +17,13 @@ uvec3 parentKeyOfBlock(uint parent, out uint depth) {
   return depth == 0u ? uvec3(0u) : up_bits << (kTreeDepth - depth);
 }
 
+// Whether the node at `depth` with key prefix `prefix` is one OctoMap's leaf_bbx_iterator visits
+// for the box of keys [lo, hi]: its key range, as the iterator computes it from the node's centre
+// key (prefix + 32768 >> depth), overlaps the box's.
+bool nodeMeetsBox(uvec3 prefix, uint depth, uvec3 lo, uvec3 hi) {
+  int off = int(kTreeMaxVal >> depth);
+  ivec3 centre = ivec3(prefix) + ivec3(off);
+  return !any(greaterThan(ivec3(lo), centre + off)) && !any(lessThan(ivec3(hi), centre - off));
+}
+
 #endif  // OCTOVK_BLOCK_KEY_GLSL

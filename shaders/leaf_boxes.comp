@@ -18,12 +18,8 @@ layout(std430, binding = kBindQueryOut) buffer QueryOutBuf { LeafBox box_leaves[
 
 bool inBox(uvec3 prefix, uint depth, float log_odds) {
   if (box.occupied_only != 0u && log_odds < params.occupancy_log) return false;
-  // The iterator's centre key of a node at `depth` is its prefix + 32768 >> depth.
-  int off = int(kTreeMaxVal >> depth);
-  ivec3 centre = ivec3(prefix) + ivec3(off);
-  ivec3 lo = ivec3(box.min_x, box.min_y, box.min_z);
-  ivec3 hi = ivec3(box.max_x, box.max_y, box.max_z);
-  return !any(greaterThan(lo, centre + off)) && !any(lessThan(hi, centre - off));
+  return nodeMeetsBox(prefix, depth, uvec3(box.min_x, box.min_y, box.min_z),
+                      uvec3(box.max_x, box.max_y, box.max_z));
 }
 
 void emit(uvec3 key, uint depth, float log_odds) {

@@ -132,6 +132,15 @@ class OccupancyMap {
   /// The change set (OcTree::changedKeysBegin/End), in no particular order.
   std::vector<ChangedKey> changedKeys() const;
 
+  // ---- map surgery ----
+  /// octomap_server's clear_bbx on the device: every leaf OctoMap's leaf_bbx_iterator(min, max)
+  /// visits (a pruned leaf reaching into the box whole) gets the lower clamping bound's log-odds
+  /// (getClampingThresMinLog()), then the inner nodes are updated as updateInnerOccupancy does
+  /// (no pruning: later scans prune as OctoMap's would). A corner outside the map clears
+  /// nothing, as OctoMap's iterator; a NaN corner or min > max is kInvalidArgument, the map
+  /// unchanged. Not noted by change detection (clear_bbx sets values directly).
+  void clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
+
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;
   /// Device bytes held by this map's buffers (staging included): what

@@ -475,6 +475,17 @@ void bindMap(py::module_& m) {
       "(N,)).");
 
   map.def(
+      "clear_box",
+      [](Map& self, py::handle min, py::handle max) {
+        const Eigen::Vector3f lo = toVector3(min, "min");
+        const Eigen::Vector3f hi = toVector3(max, "max");
+        self.run([&](OccupancyMap& map) { map.clearBox(lo, hi); });
+      },
+      py::arg("min"), py::arg("max"),
+      "octomap_server's clear_bbx on the device: every leaf OctoMap's leaf_bbx_iterator(min, max) "
+      "visits gets the lower clamping bound's log-odds, then the inner nodes are updated as "
+      "updateInnerOccupancy does. min, max: the box's corners, 3 numbers each, min <= max.");
+  map.def(
       "enable_change_detection",
       [](Map& self, bool enable) {
         self.run([&](OccupancyMap& map) { map.enableChangeDetection(enable); });

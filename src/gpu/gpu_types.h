@@ -485,6 +485,16 @@ struct RehashChangesConstants {
   uint pad0;            // 4B (12)
 };
 
+// clear_box. 16 B.
+OCTOVK_CONST uint kClearBoxLeaves = 0u;  // the leaves in the BoxQuery to the lower clamping bound
+OCTOVK_CONST uint kClearBoxInner = 1u;   // the inner nodes at `level`: the max of their children
+struct ClearBoxConstants {
+  uint mode;   // 4B (0)  kClearBox*
+  uint level;  // 4B (4)  kClearBoxInner: depth of the nodes updated
+  uint pad0;   // 4B (8)
+  uint pad1;   // 4B (12)
+};
+
 // device_probe. 16 B.
 OCTOVK_CONST uint kProbeModeArithmetic = 0u;  // per case, the operations, into ProbeResults
 OCTOVK_CONST uint kProbeModeLoop = 1u;        // the iterations a loop really runs

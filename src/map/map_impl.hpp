@@ -7,6 +7,7 @@
 //   QueryRunner    (query_runner.hpp)    search, castRay, leaves in a box, interop batches
 //   TreeTransfer   (tree_transfer.hpp)   download, upload, leaf boxes to the host
 //   ChangeSet      (change_set.hpp)      change detection: the changed keys on the device
+//   TreeEdits      (tree_edits.hpp)      map surgery: clearing a box
 //   ScanPipeline   (scan_pipeline.hpp)   recording, submitting and confirming scans
 #pragma once
 
@@ -21,6 +22,7 @@
 #include "map/ray_scene_cache.hpp"
 #include "map/scan_pipeline.hpp"
 #include "map/scan_source.hpp"
+#include "map/tree_edits.hpp"
 #include "map/tree_transfer.hpp"
 #include "octovk/octovk.hpp"
 #include "vk/device.hpp"
@@ -98,6 +100,12 @@ class OccupancyMap::Impl {
     core_.stream.submit();
   }
 
+  // ---- map surgery (TreeEdits), after the scans submitted before it ----
+  void clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+    flush();
+    edits_.clearBox(min, max);
+  }
+
   // ---- the tree (TreeTransfer, MapCore), each after the scans submitted before it ----
   HostTree download();
   void upload(const HostTree& tree);
@@ -133,6 +141,7 @@ class OccupancyMap::Impl {
   QueryRunner queries_;
   TreeTransfer transfer_;
   ChangeSet changes_;
+  TreeEdits edits_;
   ScanPipeline scans_;
 };
 

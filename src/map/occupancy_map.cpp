@@ -17,6 +17,7 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       queries_(core_, scenes_),
       transfer_(core_, scenes_),
       changes_(core_),
+      edits_(core_),
       scans_(core_, growth_, scenes_, queries_) {}
 
 OccupancyMap::Impl::~Impl() {
@@ -229,6 +230,10 @@ std::size_t OccupancyMap::numChangesDetected() const {
 
 std::vector<ChangedKey> OccupancyMap::changedKeys() const {
   return hostMemoryGuard("changedKeys", [&] { return self().changedKeys(); });
+}
+
+void OccupancyMap::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  hostMemoryGuard("clearBox", [&] { self().clearBox(min, max); });
 }
 
 std::size_t OccupancyMap::nodeCount() const {

@@ -184,6 +184,13 @@ void recordRehashChanges(Recorder& r, VkDeviceAddress old_set, std::uint32_t old
 /// Empties the change set (resetChangeDetection).
 void recordResetChanges(Recorder& r);
 
+// ---- clear_box.cpp: map surgery ----
+
+/// octomap_server's clear_bbx: the leaves OctoMap's leaf_bbx_iterator visits for `box` (none when
+/// null: a corner outside the map) get the lower clamping bound's log-odds, then every inner node
+/// the maximum of its children, bottom-up (updateInnerOccupancy; nothing is pruned). Sets `sp`.
+void recordClearBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* box);
+
 // ---- readback.cpp ----
 
 /// Copies the counters and the pool state to the recording frame's readback region.

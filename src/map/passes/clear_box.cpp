@@ -1,0 +1,25 @@
+// Map surgery, clearing a box: clear_box.comp over every block of the pool, first the leaves in
+// the box (octomap_server's clear_bbx: setLogOdds(clamping_thres_min)), then the inner nodes level
+// by level from the deepest (updateInnerOccupancy).
+#include "map/passes/passes.hpp"
+
+namespace octovk::passes {
+
+void recordClearBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* box) {
+  MapBuffers& b = r.buffers;
+  const std::uint32_t blocks = b.poolBlocks();
+  r.setParams(sp);
+  if (box) r.stream.update(b.query_in, box, sizeof(*box));
+  r.stream.barrier();
+  if (box) {
+    r.dispatch<Shader::kClearBox>(blocks, gpu::ClearBoxConstants{.mode = gpu::kClearBoxLeaves});
+    r.stream.barrier();
+  }
+  for (std::uint32_t level = gpu::kTreeDepth; level-- > 0;) {
+    r.dispatch<Shader::kClearBox>(
+        blocks, gpu::ClearBoxConstants{.mode = gpu::kClearBoxInner, .level = level});
+    r.stream.barrier();
+  }
+}
+
+}  // namespace octovk::passes

@@ -1,0 +1,38 @@
+#include "map/tree_edits.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "map/buffer_sizes.hpp"
+
+namespace octovk {
+
+void TreeEdits::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(min[i]) || !std::isfinite(max[i]))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "clearBox: the box's corners must be finite numbers; the map is unchanged");
+    if (min[i] > max[i])
+      throw Error(ErrorCode::kInvalidArgument,
+                  "clearBox: min is above max along axis " + std::to_string(i) + " (" +
+                      std::to_string(min[i]) + " > " + std::to_string(max[i]) +
+                      "); give the lower corner first. The map is unchanged");
+  }
+  gpu::BoxQuery box{};
+  const double factor = 1.0 / core_.params.resolution;
+  // As OctoMap's iterator: a corner outside the map visits no leaf (updateInnerOccupancy runs).
+  const bool inside = ref::coordToKeyChecked(factor, min.x(), box.min_x) &&
+                      ref::coordToKeyChecked(factor, min.y(), box.min_y) &&
+                      ref::coordToKeyChecked(factor, min.z(), box.min_z) &&
+                      ref::coordToKeyChecked(factor, max.x(), box.max_x) &&
+                      ref::coordToKeyChecked(factor, max.y(), box.max_y) &&
+                      ref::coordToKeyChecked(factor, max.z(), box.max_z);
+  core_.buffers.ensureQueries(sizeof(box), sizes::kSmallQuery);
+  core_.stream.begin(core_.buffers.bindings);
+  passes::recordClearBox(core_.rec, core_.queryParams(), inside ? &box : nullptr);
+  core_.stream.submitAndWait();
+  core_.leaf_boxes = LeafBoxes::kStale;
+  ++core_.tree_version;  // castRay's scene is rebuilt before the next castRays
+}
+
+}  // namespace octovk
