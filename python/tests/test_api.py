@@ -260,3 +260,21 @@ def test_change_detection_follows_the_cpp_api(context):
     assert set(np.unique(created)) <= {0, 1} and created.sum() > 0
     m.reset_change_detection()
     assert m.num_changes_detected() == 0
+
+
+def test_clear_box_sets_the_leaves_in_it_to_the_lower_clamping_bound(context):
+    """clear_box through Python; OctoMap's clear_bbx is checked node for node by the C++ oracle
+    tests (tests/map_edit_test.cpp)."""
+    m = octovk.Map(0.1)
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(2000, 3)).astype(np.float32)
+    m.insert_point_cloud((d / np.linalg.norm(d, axis=1, keepdims=True) * 2.0).astype(np.float32),
+                         (0, 0, 0))
+    centers, sizes, log_odds = m.leaves_in_box((-2.5, -2.5, -0.3), (2.5, 2.5, 0.3))
+    assert len(log_odds) > 50 and (log_odds > -1.9).any()
+    m.clear_box((-2.5, -2.5, -0.3), (2.5, 2.5, 0.3))
+    centers, sizes, log_odds = m.leaves_in_box((-2.5, -2.5, -0.3), (2.5, 2.5, 0.3))
+    clamp_min = np.float32(np.log(0.1192 / (1 - 0.1192)))
+    assert np.allclose(log_odds, clamp_min)
+    with pytest.raises(octovk.InvalidArgumentError):
+        m.clear_box((1, 0, 0), (0, 1, 1))
