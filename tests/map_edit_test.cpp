@@ -3,7 +3,10 @@
 // node with log-odds bits, and further scans after it equal OctoMap's on the cleared tree.
 #include <octomap/octomap.h>
 
+#include <filesystem>
 #include <limits>
+#include <memory>
+#include <sstream>
 #include <random>
 #include <string>
 #include <utility>
@@ -126,6 +129,42 @@ TEST(ClearBox, BadBoxesAreRefusedAndTheMapKept) {
     }
   }
   EXPECT_EQ(test::otBytes(*toOcTree(s.map)), before);
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// `octovk edit --clear-box` writes the file OctoMap writes after clear_bbx on the same map.
+TEST(ClearBoxCli, EditWritesTheFilesOctoMapWrites) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scene s = scanned(ctx, 0.1, 21);
+  const std::string in = test::tmpPath("edit_in.ot");
+  writeMapFile(s.map, in);
+  std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(in));
+  auto* expected = dynamic_cast<octomap::OcTree*>(read.get());
+  ASSERT_NE(expected, nullptr);
+  clearOracle(*expected, {0.2f, -0.5f, -0.4f}, {1.1f, 0.7f, 0.6f});
+  clearOracle(*expected, {-3.0f, -3.0f, -0.05f}, {3.0f, 3.0f, 0.05f});
+  for (const std::string ext : {".ot", ".bt"}) {
+    const std::string out = test::tmpPath("edit_out" + ext);
+    std::filesystem::remove(out);
+    const std::string command = std::string(OCTOVK_PATH(OCTOVK_CLI)) + " edit " + in +
+                                " --clear-box 0.2 -0.5 -0.4 1.1 0.7 0.6"
+                                " --clear-box=-3,-3,-0.05,3,3,0.05 -o " + out +
+                                " >/dev/null 2>&1";
+    ASSERT_EQ(test::shell(command), 0) << command;
+    octomap::OcTree copy(*expected);  // writeBinary prunes what it writes
+    std::stringstream bytes;
+    if (ext == ".bt")
+      copy.writeBinary(bytes);
+    else
+      copy.write(bytes);
+    EXPECT_EQ(test::fileBytes(out), bytes.str()) << ext << " differs from OctoMap's";
+    if (ext == ".ot") EXPECT_NE(test::fileBytes(out), test::fileBytes(in)) << "nothing cleared";
+  }
 }
 
 }  // namespace

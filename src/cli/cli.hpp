@@ -195,4 +195,8 @@ void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails);
 /// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).
 float occupancyLogOdds(const MapParams& params);
 
+/// The map as OctoMap writes it (.bt: writeBinary, pruned max-likelihood; .ot: write), straight
+/// into `path` (an output's temporary; integrate.cpp).
+void writeMap(const OccupancyMap& map, const std::string& path);
+
 }  // namespace octovk::cli

@@ -115,6 +115,7 @@ extern const Subcommand kConvertCommand;
 extern const Subcommand kInfoCommand;
 extern const Subcommand kRenderCommand;
 extern const Subcommand kExportCommand;
+extern const Subcommand kEditCommand;
 extern const Subcommand kDevicesCommand;
 
 }  // namespace octovk::cli

@@ -99,19 +99,6 @@ class Progress {
   bool printed_ = false;
 };
 
-// The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
-// would add a temporary of its own, which a killed run would leave behind.
-void writeMap(const OccupancyMap& map, const std::string& path) {
-  std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
-  std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
-  if (!out.is_open())
-    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
-  bool ok = fs::path(path).extension() == ".bt" ? tree->writeBinary(out) : tree->write(out);
-  out.close();
-  ok = ok && out.good();
-  if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
-}
-
 // Every output is written before any is renamed into place, so that a failed write (a full
 // disk) leaves every existing file as it was.
 void writeOutputs(const OccupancyMap& map, OutputFiles& outputs) {
@@ -389,5 +376,18 @@ const Subcommand kIntegrateCommand{
     .value_options = integrateValueOptions(),
     .multi_value_options = cameraMultiValueOptions(),
     .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); }};
+
+// The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
+// would add a temporary of its own, which a killed run would leave behind.
+void writeMap(const OccupancyMap& map, const std::string& path) {
+  std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
+  std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
+  if (!out.is_open())
+    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
+  bool ok = fs::path(path).extension() == ".bt" ? tree->writeBinary(out) : tree->write(out);
+  out.close();
+  ok = ok && out.good();
+  if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+}
 
 }  // namespace octovk::cli

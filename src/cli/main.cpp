@@ -19,7 +19,8 @@ namespace {
 
 // The commands, in the order the errors list them.
 const Subcommand* const kSubcommands[] = {&kIntegrateCommand, &kConvertCommand, &kInfoCommand,
-                                          &kRenderCommand,    &kExportCommand,  &kDevicesCommand};
+                                          &kRenderCommand,    &kExportCommand,  &kEditCommand,
+                                          &kDevicesCommand};
 
 // Their names, for the error on an unknown one: "integrate, convert, ..., devices, help".
 std::string commandNames() {
@@ -45,6 +46,7 @@ void printHelp(std::ostream& out) {
          "                [--fov DEG] [--z-max Z]\n"
          "  octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] [--box X0 Y0 Z0 X1 Y1 Z1]\n"
          "                [--color height|occupancy]\n"
+         "  octovk edit MAP.bt|MAP.ot --clear-box X0 Y0 Z0 X1 Y1 Z1 [--clear-box ...] -o OUT.bt\n"
          "  octovk devices\n"
          "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
          "\n"
@@ -56,6 +58,7 @@ void printHelp(std::ostream& out) {
          "              a map file\n"
          "  render      a PNG picture of a map's occupied cells, ray cast on the device\n"
          "  export      a map's leaf cells (centre, size, log-odds, colour) as an ASCII PLY file\n"
+         "  edit        clear boxes of a map as octomap_server's clear_bbx does, and write it\n"
          "  devices     list the Vulkan devices and the one octovk picks\n"
          "  help        this help, or a command's\n"
          "\n"
