@@ -14,7 +14,9 @@ class CallerBuffer {
   CallerBuffer(const VulkanHandles& vk, VkDeviceSize bytes) : device_(vk.device) {
     VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     info.size = bytes;
-    info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+    // TRANSFER_DST too: a test's own consumer copies results into one (a caller's submission).
+    info.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+                 VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     EXPECT_EQ(vkCreateBuffer(device_, &info, nullptr, &buffer_), VK_SUCCESS);
     VkMemoryRequirements req;
     vkGetBufferMemoryRequirements(device_, buffer_, &req);
