@@ -8,6 +8,17 @@
 
 namespace octovk {
 
+bool boxKeys(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+             gpu::BoxQuery& box) {
+  const double factor = 1.0 / resolution;
+  return ref::coordToKeyChecked(factor, min.x(), box.min_x) &&
+         ref::coordToKeyChecked(factor, min.y(), box.min_y) &&
+         ref::coordToKeyChecked(factor, min.z(), box.min_z) &&
+         ref::coordToKeyChecked(factor, max.x(), box.max_x) &&
+         ref::coordToKeyChecked(factor, max.y(), box.max_y) &&
+         ref::coordToKeyChecked(factor, max.z(), box.max_z);
+}
+
 void QueryRunner::onDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDeviceSize in_size,
                            VkBuffer out, VkDeviceSize out_offset, VkDeviceSize out_size,
                            std::uint32_t count) {
@@ -70,13 +81,7 @@ std::vector<OccupancyMap::LeafBoxHost> QueryRunner::leavesInBox(const Eigen::Vec
                                                                 const Eigen::Vector3f& max,
                                                                 bool occupied_only) {
   gpu::BoxQuery box{};
-  const double factor = 1.0 / core_.params.resolution;
-  if (!ref::coordToKeyChecked(factor, min.x(), box.min_x) ||
-      !ref::coordToKeyChecked(factor, min.y(), box.min_y) ||
-      !ref::coordToKeyChecked(factor, min.z(), box.min_z) ||
-      !ref::coordToKeyChecked(factor, max.x(), box.max_x) ||
-      !ref::coordToKeyChecked(factor, max.y(), box.max_y) ||
-      !ref::coordToKeyChecked(factor, max.z(), box.max_z))
+  if (!boxKeys(core_.params.resolution, min, max, box))
     return {};  // as OctoMap's iterator: a corner outside the map gives no leaves
   box.occupied_only = occupied_only ? 1u : 0u;
   core_.buffers.ensureQueries(sizeof(box),

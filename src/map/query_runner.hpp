@@ -12,6 +12,12 @@
 
 namespace octovk {
 
+/// The key range of a box as OctoMap's leaf_bbx_iterator computes it (coordToKeyChecked on each
+/// corner) into `box` (occupied_only untouched); false when a corner lies outside the map, where
+/// the iterator visits nothing.
+bool boxKeys(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+             gpu::BoxQuery& box);
+
 class QueryRunner {
  public:
   QueryRunner(MapCore& core, RaySceneCache& scenes) : core_(core), scenes_(scenes) {}

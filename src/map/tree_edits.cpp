@@ -4,6 +4,7 @@
 #include <string>
 
 #include "map/buffer_sizes.hpp"
+#include "map/query_runner.hpp"
 
 namespace octovk {
 
@@ -19,14 +20,8 @@ void TreeEdits::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max)
                       "); give the lower corner first. The map is unchanged");
   }
   gpu::BoxQuery box{};
-  const double factor = 1.0 / core_.params.resolution;
   // As OctoMap's iterator: a corner outside the map visits no leaf (updateInnerOccupancy runs).
-  const bool inside = ref::coordToKeyChecked(factor, min.x(), box.min_x) &&
-                      ref::coordToKeyChecked(factor, min.y(), box.min_y) &&
-                      ref::coordToKeyChecked(factor, min.z(), box.min_z) &&
-                      ref::coordToKeyChecked(factor, max.x(), box.max_x) &&
-                      ref::coordToKeyChecked(factor, max.y(), box.max_y) &&
-                      ref::coordToKeyChecked(factor, max.z(), box.max_z);
+  const bool inside = boxKeys(core_.params.resolution, min, max, box);
   core_.buffers.ensureQueries(sizeof(box), sizes::kSmallQuery);
   core_.stream.begin(core_.buffers.bindings);
   passes::recordClearBox(core_.rec, core_.queryParams(), inside ? &box : nullptr);
