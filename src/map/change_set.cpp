@@ -50,9 +50,7 @@ void ChangeSet::enable(bool on) {
 }
 
 void ChangeSet::reset() {
-  core_.stream.begin(core_.buffers.bindings);
-  passes::recordResetChanges(core_.rec);
-  core_.stream.submitAndWait();
+  core_.buffers.resetChanges();
 }
 
 std::size_t ChangeSet::count() { return readChangeHeader(core_).live; }

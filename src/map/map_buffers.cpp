@@ -386,9 +386,7 @@ vk::Buffer MapBuffers::replaceChanges(std::uint32_t log2) {
   rebind();
   try {
     stream_.begin(bindings);
-    stream_.fill(changes, 0xFFFFFFFFu, 0, bytes);
-    stream_.barrier();
-    stream_.fill(changes, 0u, 0, sizeof(gpu::ChangeHeader));
+    recordEmptyChanges();
     stream_.submitAndWait();
   } catch (...) {  // the old set stays, as before the call
     std::swap(changes, fresh);
@@ -397,6 +395,19 @@ vk::Buffer MapBuffers::replaceChanges(std::uint32_t log2) {
     throw;
   }
   return fresh;
+}
+
+void MapBuffers::recordEmptyChanges() {
+  stream_.fill(changes, 0xFFFFFFFFu);
+  stream_.barrier();
+  stream_.fill(changes, 0u, 0, sizeof(gpu::ChangeHeader));
+  stream_.barrier();
+}
+
+void MapBuffers::resetChanges() {
+  stream_.begin(bindings);
+  recordEmptyChanges();
+  stream_.submitAndWait();
 }
 
 void MapBuffers::restoreChanges(vk::Buffer old, std::uint32_t log2) {

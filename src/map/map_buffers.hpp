@@ -95,6 +95,8 @@ class MapBuffers {
   /// returned so that its keys can be moved over (rehash) before it is dropped; records and
   /// waits. log2 0: the idle one-slot set.
   vk::Buffer replaceChanges(std::uint32_t log2);
+  /// Empties the change set in place (resetChangeDetection): records and waits.
+  void resetChanges();
   /// Puts back the set replaceChanges returned (`log2` its size), dropping the current one.
   void restoreChanges(vk::Buffer old, std::uint32_t log2);
   /// allocatePool, but when `blocks` exceeds the cap and `min_blocks` fits, the pool gets the
@@ -184,6 +186,9 @@ class MapBuffers {
   /// lists (grown when short; resized exactly when `exact_slots`).
   void allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots);
   /// Bytes freed and added by allocateSets with these arguments.
+  /// Records the fills that make the change set empty: every slot 0xFF bytes (kEmptyChangeKey,
+  /// kChangeNone), the header zero.
+  void recordEmptyChanges();
   void setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots,
                  std::size_t& freed, std::size_t& added) const;
 

@@ -1,5 +1,6 @@
 // The change set's passes: list_changes.comp (its keys compacted into the query output, after a
-// ChangedKeysHeader), rehash_changes.comp (its keys moved into a larger set), and its reset.
+// ChangedKeysHeader) and rehash_changes.comp (its keys moved into a larger set). Emptying it is
+// MapBuffers' (recordEmptyChanges: fills, no shader).
 #include "map/passes/passes.hpp"
 
 namespace octovk::passes {
@@ -23,14 +24,6 @@ void recordRehashChanges(Recorder& r, VkDeviceAddress old_set, std::uint32_t old
                      .old_address_lo = static_cast<std::uint32_t>(old_set),
                      .old_address_hi = static_cast<std::uint32_t>(old_set >> 32),
                      .old_capacity = old_slots});
-  r.stream.barrier();
-}
-
-void recordResetChanges(Recorder& r) {
-  MapBuffers& b = r.buffers;
-  r.stream.fill(b.changes, 0xFFFFFFFFu);
-  r.stream.barrier();
-  r.stream.fill(b.changes, 0u, 0, sizeof(gpu::ChangeHeader));
   r.stream.barrier();
 }
 

@@ -181,8 +181,6 @@ void recordListChanges(Recorder& r, const gpu::ScanParams& sp);
 /// rehash_changes.comp: the keys of the old set (`old_slots` slots at `old_set`) into the bound,
 /// empty one; params must hold the new set's log2.
 void recordRehashChanges(Recorder& r, VkDeviceAddress old_set, std::uint32_t old_slots);
-/// Empties the change set (resetChangeDetection).
-void recordResetChanges(Recorder& r);
 
 // ---- clear_box.cpp: map surgery ----
 
