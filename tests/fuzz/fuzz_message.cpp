@@ -3,29 +3,18 @@
 // is the body, read at 0.1 m as an OcTree. A refusal must be a kFormat error; an accepted tree
 // must have at most 16 levels and finite log-odds everywhere. Anything else (a crash, a sanitizer
 // report, a hang, an allocation past the limits) is a finding.
-#include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <string_view>
 
 #include "io/parse.hpp"
+#include "tree_check.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
   const bool binary = (data[0] & 1u) != 0;
   const std::string_view body(reinterpret_cast<const char*>(data + 1), size - 1);
-  std::unique_ptr<octomap::OcTree> tree;
-  try {
-    tree = octovk::io::parseTreeBody(body, binary, "OcTree", 0.1, "fuzz-input");
-  } catch (const octovk::Error& e) {
-    if (e.code() != octovk::ErrorCode::kFormat) std::abort();
-    return 0;
-  }
-  std::size_t nodes = 0;
-  for (auto it = tree->begin_tree(), end = tree->end_tree(); it != end; ++it) {
-    ++nodes;
-    if (it.getDepth() > 16 || !std::isfinite(it->getLogOdds())) std::abort();
-  }
-  if (nodes != tree->size()) std::abort();
+  octovk::fuzz::checkTreeReader([&] {
+    return octovk::io::parseTreeBody(body, binary, "OcTree", 0.1, "fuzz-input");
+  });
   return 0;
 }
