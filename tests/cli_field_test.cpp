@@ -285,6 +285,9 @@ TEST(cliDistance, BadInputIsOneErrorLineAndNoPicture) {
       "--cell-pixels", scratch);
   expectRefused({"distance", m, "--box", "0", "0", "0", "1", "1", "1", "-o", scratch / "slice.ppm"},
                 2, ".png", scratch);
+  expectRefused(
+      {"distance", m, "--box", "-30", "-2", "0", "30", "2", "1", "--cell-pixels", "64", "-o", out},
+      2, "at most 8192", scratch);
   // The library's refusals: a box beyond the map's key range (the user's to fix: exit 2), and a
   // field over the device-memory cap (exit 1, naming the bytes and the option).
   expectRefused(V{"distance", m, "--box", "0", "0", "0", "1", "1", "1e5", "-o", out}, 2,

@@ -28,7 +28,7 @@ constexpr const char* kDistanceUsage =
 
 constexpr double kDefaultMaxDistanceM = 2.0;
 constexpr std::uint32_t kMaxCellPixels = 64;
-constexpr std::uint32_t kMaxSide = 16384;
+constexpr std::uint32_t kMaxSide = 8192;  // as render's
 // The default picture's longer side, in pixels (as near as whole pixels per cell allow).
 constexpr std::uint32_t kDefaultSide = 800;
 constexpr std::uint32_t kDefaultMaxCellPixels = 16;
@@ -169,6 +169,31 @@ int Distance::run(Invocation& in) {
   const Eigen::Vector3f box_min = Eigen::Vector3d(b[0], b[1], b[2]).cast<float>();
   const Eigen::Vector3f box_max = Eigen::Vector3d(b[3], b[4], b[5]).cast<float>();
 
+  // The picture's size from the box's cells (OctoMap's coordToKey of the float corners, as the
+  // field takes them), checked before the field is built. A corner outside the key range is
+  // left for the field to refuse, with its own words.
+  const auto key = [resolution](double v) {
+    return static_cast<long>(std::floor(double(static_cast<float>(v)) * (1.0 / resolution))) +
+           32768;
+  };
+  const std::array<long, 2> box_cells{key(b[3]) - key(b[0]) + 1, key(b[4]) - key(b[1]) + 1};
+  const std::uint32_t scale =
+      cell_pixels_ != 0
+          ? cell_pixels_
+          : static_cast<std::uint32_t>(std::clamp<long>(
+                long{kDefaultSide} / std::max<long>(1, std::max(box_cells[0], box_cells[1])), 1,
+                long{kDefaultMaxCellPixels}));
+  const long width = box_cells[0] * long{scale};
+  const long slice_height = box_cells[1] * long{scale};
+  const long height = slice_height + long{kBarGap + kBarHeight + kTickHeight};
+  const bool in_range = key(b[0]) >= 0 && key(b[1]) >= 0 && key(b[3]) < 65536 && key(b[4]) < 65536;
+  if (in_range && (width > long{kMaxSide} || height > long{kMaxSide}))
+    throw UsageError("the picture would be " + std::to_string(width) + " x " +
+                     std::to_string(height) + " pixels (the box is " +
+                     std::to_string(box_cells[0]) + " x " + std::to_string(box_cells[1]) +
+                     " cells, " + std::to_string(scale) + " pixels each); at most " +
+                     std::to_string(kMaxSide) + " a side: give a smaller --box or --cell-pixels");
+
   const auto field_start = Clock::now();
   std::optional<DistanceField> field;
   try {
@@ -188,27 +213,9 @@ int Distance::run(Invocation& in) {
   const std::array<std::uint32_t, 3> min_key = field->minKey();
 
   // The slice: the layer of cells holding --z (inside the box: check() kept z within it).
-  // OctoMap's coordToKey of the height as a float, as the box's corners were given.
-  const double z_float = static_cast<float>(*z_);
-  const long z_key = static_cast<long>(std::floor(z_float * (1.0 / resolution))) + 32768;
-  const auto layer =
-      static_cast<std::uint32_t>(std::clamp<long>(z_key - long{min_key[2]}, 0, long{size[2]} - 1));
+  const auto layer = static_cast<std::uint32_t>(
+      std::clamp<long>(key(*z_) - long{min_key[2]}, 0, long{size[2]} - 1));
   const float slice_z = keyCentre(min_key[2] + layer, resolution);
-
-  const std::uint32_t longer = std::max(size[0], size[1]);
-  const std::uint32_t scale =
-      cell_pixels_ != 0
-          ? cell_pixels_
-          : std::clamp<std::uint32_t>(kDefaultSide / longer, 1, kDefaultMaxCellPixels);
-  const std::uint64_t width = std::uint64_t{size[0]} * scale;
-  const std::uint64_t slice_height = std::uint64_t{size[1]} * scale;
-  const std::uint64_t height = slice_height + kBarGap + kBarHeight + kTickHeight;
-  if (width > kMaxSide || height > kMaxSide)
-    throw UsageError("the picture would be " + std::to_string(width) + " x " +
-                     std::to_string(height) + " pixels (the box is " + std::to_string(size[0]) +
-                     " x " + std::to_string(size[1]) + " cells, " + std::to_string(scale) +
-                     " pixels each); at most " + std::to_string(kMaxSide) +
-                     " a side: give a smaller --box or --cell-pixels");
 
   const auto query_start = Clock::now();
   std::vector<Eigen::Vector3f> centres;
@@ -227,7 +234,9 @@ int Distance::run(Invocation& in) {
   }
   const double query_s = secondsSince(query_start);
 
-  RgbImage image(static_cast<std::uint32_t>(width), static_cast<std::uint32_t>(height));
+  // The field's own count of cells (the same as `box_cells` above).
+  const std::uint32_t slice_rows = size[1] * scale;
+  RgbImage image(size[0] * scale, slice_rows + kBarGap + kBarHeight + kTickHeight);
   for (std::size_t i = 0; i < image.pixels.size(); i += 3)
     std::copy(kBackground.begin(), kBackground.end(), image.pixels.begin() + std::ptrdiff_t(i));
   std::size_t occupied = 0, unknown_obstacles = 0, free_cells = 0, capped = 0;
@@ -256,7 +265,7 @@ int Distance::run(Invocation& in) {
         for (std::uint32_t c = 0; c < scale; ++c) image.set(x * scale + c, row0 + r, colour);
     }
   // The colour bar: 0 at the left edge, the maximum distance at the right, with its marks.
-  const auto bar_top = static_cast<std::uint32_t>(slice_height + kBarGap);
+  const std::uint32_t bar_top = slice_rows + kBarGap;
   for (std::uint32_t x = 0; x < image.width; ++x) {
     const double t = image.width > 1 ? double(x) / double(image.width - 1) : 0.0;
     for (std::uint32_t r = 0; r < kBarHeight; ++r) image.set(x, bar_top + r, distanceColor(t));
