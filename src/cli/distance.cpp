@@ -92,8 +92,10 @@ void printDistanceHelp(std::ostream& out) {
          "Options take their value as '--name VALUE' or '--name=VALUE'; --box also as\n"
          "'--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
-         "A box the device cannot hold (over --max-device-memory, or with more cells along a\n"
-         "line than the device transforms in one dispatch) fails with the bytes or the limit.\n"
+         "A field over --max-device-memory fails (exit 1) naming the bytes it needs; a box with\n"
+         "more cells along a line than the device transforms in one dispatch, or beyond the\n"
+         "map's key range, and a picture over "
+      << kMaxSide << " pixels a side are usage errors (exit 2).\n"
          "\n"
          "Output: the device used, then on stdout the box in cells, the slice's height, its\n"
          "obstacles and distances, the colour scale, the time taken and the file written.\n";
