@@ -495,6 +495,17 @@ struct ClearBoxConstants {
   uint pad1;   // 4B (12)
 };
 
+// keep_box. 16 B. Marks use kFlagTouched (clear between scans; keep_box clears what it set).
+OCTOVK_CONST uint kKeepBoxMark = 0u;    // per block: the leaves in the BoxQuery and every node above
+OCTOVK_CONST uint kKeepBoxSweep = 1u;   // per block: unmarked nodes deleted, their blocks freed
+OCTOVK_CONST uint kKeepBoxUnmark = 2u;  // per block: the marks of its slots (and the root) cleared
+struct KeepBoxConstants {
+  uint mode;  // 4B (0)  kKeepBox*
+  uint pad0;  // 4B (4)
+  uint pad1;  // 4B (8)
+  uint pad2;  // 4B (12)
+};
+
 // device_probe. 16 B.
 OCTOVK_CONST uint kProbeModeArithmetic = 0u;  // per case, the operations, into ProbeResults
 OCTOVK_CONST uint kProbeModeLoop = 1u;        // the iterations a loop really runs
