@@ -1,6 +1,10 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// octomap_server's clear_bbx on the device, in two modes over every block of the pool:
+// octomap_server's clear_bbx on the device, in three modes over every block of the pool:
+// kClearBoxDepths: each live block's depth (that of the node it hangs under, found by climbing
+//   block_parent once) into block_depth, so that the inner mode need not climb at every level.
+//   block_depth is the leaf-box buffer (a leaf box per slot, so at least a word per block), which
+//   the edit leaves stale anyway: the host marks the leaf boxes for a rebuild.
 // kClearBoxLeaves: every leaf OctoMap's leaf_bbx_iterator visits for the query's BoxQuery (a
 //   pruned leaf that reaches into the box included, whole) gets the lower clamping bound's
 //   log-odds (setLogOdds(clamping_thres_min)); no node is created, expanded or pruned.
@@ -15,6 +19,9 @@
 layout(push_constant) uniform PushBlock { ClearBoxConstants pc; };
 
 layout(std430, binding = kBindQueryIn) buffer QueryInBuf { BoxQuery box; };
+
+OCTOVK_ADDRESSED(BlockDepthsRef, uint, 4);
+#define block_depth (BlockDepthsRef(buffer_address[kBindLeafBoxes]).v)
 
 void main() {
   uint b = invocationIndex();
@@ -41,13 +48,17 @@ void main() {
     }
     return;
   }
-  // kClearBoxInner
   if (b == 0u) return;  // block 0 holds only the root
   uint parent = block_parent[b];
   if (parent == kNoBlock) return;
-  uint depth;
-  parentKeyOfBlock(parent, depth);
-  if (depth != pc.level) return;
+  if (pc.mode == kClearBoxDepths) {
+    uint depth;
+    parentKeyOfBlock(parent, depth);
+    block_depth[b] = depth;
+    return;
+  }
+  // kClearBoxInner
+  if (block_depth[b] != pc.level) return;
   float mx = -3.402823466e+38;  // -FLT_MAX, as getMaxChildLogOdds starts
   for (uint s = 0u; s < 8u; ++s) {
     Node child = nodes[b * 8u + s];

@@ -1,6 +1,6 @@
-// Map surgery, clearing a box: clear_box.comp over every block of the pool, first the leaves in
-// the box (octomap_server's clear_bbx: setLogOdds(clamping_thres_min)), then the inner nodes level
-// by level from the deepest (updateInnerOccupancy).
+// Map surgery, clearing a box: clear_box.comp over every block of the pool, first each block's
+// depth, then the leaves in the box (octomap_server's clear_bbx: setLogOdds(clamping_thres_min)),
+// then the inner nodes level by level from the deepest (updateInnerOccupancy).
 #include "map/passes/passes.hpp"
 
 namespace octovk::passes {
@@ -10,6 +10,8 @@ void recordClearBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery*
   const std::uint32_t blocks = b.poolBlocks();
   r.setParams(sp);
   if (box) r.stream.update(b.query_in, box, sizeof(*box));
+  r.stream.barrier();
+  r.dispatch<Shader::kClearBox>(blocks, gpu::ClearBoxConstants{.mode = gpu::kClearBoxDepths});
   r.stream.barrier();
   if (box) {
     r.dispatch<Shader::kClearBox>(blocks, gpu::ClearBoxConstants{.mode = gpu::kClearBoxLeaves});
