@@ -487,8 +487,8 @@ struct RehashChangesConstants {
 
 // clear_box. 16 B.
 OCTOVK_CONST uint kClearBoxLeaves = 0u;  // the leaves in the BoxQuery to the lower clamping bound
-OCTOVK_CONST uint kClearBoxInner = 1u;   // the inner nodes at `level`: the max of their children
-OCTOVK_CONST uint kClearBoxDepths = 2u;  // each live block's depth, for kClearBoxInner
+OCTOVK_CONST uint kClearBoxInner = 1u;   // the nodes at `level` with children: their max
+OCTOVK_CONST uint kClearBoxDepths = 2u;  // the live blocks listed by depth, for kClearBoxInner
 struct ClearBoxConstants {
   uint mode;   // 4B (0)  kClearBox*
   uint level;  // 4B (4)  kClearBoxInner: depth of the nodes updated
