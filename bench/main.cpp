@@ -24,7 +24,8 @@ namespace {
 namespace fs = std::filesystem;
 using octovk::bench::BenchOptions;
 
-const char* const kWorkloads[] = {"paper", "scandat", "fr079", "scaling", "queries", "distance"};
+const char* const kWorkloads[] = {"paper",   "scandat",  "fr079", "scaling",
+                                   "queries", "distance", "edits"};
 
 struct Args {
   BenchOptions bench;
@@ -57,10 +58,13 @@ void printHelp(const char* data_dir) {
       "  distance DistanceField against dynamicEDT3D's DynamicEDTOctomap on the paper map at\n"
       "           0.05 m (the building's box): from scratch, the update after each view, and\n"
       "           --lookups points (default 100,000) of getDistanceAndClosestObstacle\n"
+      "  edits    clearBox and keepBox on the paper map at 0.05 m against OctoMap's loops\n"
+      "           (clear_bbx: leaf_bbx_iterator + updateInnerOccupancy; keep: a tree rebuilt\n"
+      "           from leaf_bbx_iterator's leaves), four boxes, every result compared\n"
       "\n"
       "Options:\n"
-      "  --workload W        paper, scandat, fr079, scaling, queries, distance or all; repeat or\n"
-      "                      comma-separate to pick several (default: all)\n"
+      "  --workload W        paper, scandat, fr079, scaling, queries, distance, edits or all;\n"
+      "                      repeat or comma-separate to pick several (default: all)\n"
       "  --resolutions LIST  comma-separated resolutions in metres for paper, scandat and fr079\n"
       "                      (default: each workload's own, listed above)\n"
       "  --scaling-resolution M  resolution of the scaling runs (default: 0.05)\n"
@@ -147,7 +151,7 @@ Args parseArgs(int argc, char** argv) {
         for (const char* k : kWorkloads) known = known || w == k;
         if (!known)
           usageError("unknown workload '" + w +
-                     "'; use paper, scandat, fr079, scaling, queries or all");
+                     "'; use paper, scandat, fr079, scaling, queries, distance, edits or all");
         if (w == "all")
           a.workloads.assign(std::begin(kWorkloads), std::end(kWorkloads));
         else
@@ -293,6 +297,7 @@ int main(int argc, char** argv) {
     if (wants(args, "scaling")) octovk::bench::runScaling(context, args.bench, json);
     if (wants(args, "queries")) octovk::bench::runQueries(context, args.bench, json);
     if (wants(args, "distance")) octovk::bench::runDistance(context, args.bench, json);
+    if (wants(args, "edits")) octovk::bench::runEdits(context, args.bench, json);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "octovk_bench: %s\n", e.what());
     return 1;

@@ -33,5 +33,7 @@ void runScaling(Context& context, const BenchOptions& options, JsonWriter& json)
 void runQueries(Context& context, const BenchOptions& options, JsonWriter& json);
 /// DistanceField against dynamicEDT3D's DynamicEDTOctomap on the paper map at 0.05 m (distance.cpp).
 void runDistance(Context& context, const BenchOptions& options, JsonWriter& json);
+/// clearBox and keepBox against OctoMap's loops on the paper map at 0.05 m (edits.cpp).
+void runEdits(Context& context, const BenchOptions& options, JsonWriter& json);
 
 }  // namespace octovk::bench

@@ -1,14 +1,21 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// octomap_server's clear_bbx on the device, in two modes over every block of the pool:
-// kClearBoxLeaves: every leaf OctoMap's leaf_bbx_iterator visits for the query's BoxQuery (a
-//   pruned leaf that reaches into the box included, whole) gets the lower clamping bound's
-//   log-odds (setLogOdds(clamping_thres_min)); no node is created, expanded or pruned.
-// kClearBoxInner (one dispatch per level, from the deepest up): updateInnerOccupancy: every inner
-//   node at pc.level takes the maximum log-odds of its live children (getMaxChildLogOdds), the
-//   block of children hanging under it read whole. Levels run bottom-up with a barrier between,
-//   so a node's children are final when it reads them; each node is written by the one
-//   invocation of its child block.
+// octomap_server's clear_bbx on the device, in three modes:
+// kClearBoxDepths (over every block of the pool): each live block is listed under its depth (that
+//   of the node it hangs under, found by climbing block_parent once): block_lists[depth *
+//   capacity + n] for the n-th, counted in ScanCounters::touched_count[depth], with the indirect
+//   arguments touched_args[depth] kept covering the list (the prune pass's, unused between scans).
+//   block_lists is the leaf-box buffer (a box per slot: 40 words per block, 16 needed), which the
+//   edit leaves stale anyway: the host marks the leaf boxes for a rebuild.
+// kClearBoxLeaves (over every block of the pool): every leaf OctoMap's leaf_bbx_iterator visits
+//   for the query's BoxQuery (a pruned leaf that reaches into the box included, whole) gets the
+//   lower clamping bound's log-odds (setLogOdds(clamping_thres_min)); no node is created,
+//   expanded or pruned.
+// kClearBoxInner (indirect over the blocks listed at pc.level, one dispatch per level from the
+//   deepest up): updateInnerOccupancy: the node each block hangs under takes the maximum log-odds
+//   of the block's live slots (getMaxChildLogOdds), the block read whole. Levels run bottom-up
+//   with a barrier between, so a node's children are final when it reads them; each node is
+//   written by the one invocation of its child block.
 #include "tree_search.glsl"
 #include "block_key.glsl"
 
@@ -16,7 +23,22 @@ layout(push_constant) uniform PushBlock { ClearBoxConstants pc; };
 
 layout(std430, binding = kBindQueryIn) buffer QueryInBuf { BoxQuery box; };
 
+OCTOVK_ADDRESSED(BlockListsRef, uint, 4);
+#define block_lists (BlockListsRef(buffer_address[kBindLeafBoxes]).v)
+
 void main() {
+  if (pc.mode == kClearBoxInner) {
+    uint n = invocationIndex();
+    if (n >= counters.touched_count[pc.level]) return;
+    uint block = block_lists[pc.level * pool.capacity + n];
+    float mx = -3.402823466e+38;  // -FLT_MAX, as getMaxChildLogOdds starts
+    for (uint s = 0u; s < 8u; ++s) {
+      Node child = nodes[block * 8u + s];
+      if ((child.link & kFlagLive) != 0u && child.log_odds > mx) mx = child.log_odds;
+    }
+    nodes[block_parent[block]].log_odds = mx;
+    return;
+  }
   uint b = invocationIndex();
   if (b >= pool.bump) return;
   if (pc.mode == kClearBoxLeaves) {
@@ -41,17 +63,13 @@ void main() {
     }
     return;
   }
-  // kClearBoxInner
   if (b == 0u) return;  // block 0 holds only the root
   uint parent = block_parent[b];
   if (parent == kNoBlock) return;
+  // kClearBoxDepths
   uint depth;
   parentKeyOfBlock(parent, depth);
-  if (depth != pc.level) return;
-  float mx = -3.402823466e+38;  // -FLT_MAX, as getMaxChildLogOdds starts
-  for (uint s = 0u; s < 8u; ++s) {
-    Node child = nodes[b * 8u + s];
-    if ((child.link & kFlagLive) != 0u && child.log_odds > mx) mx = child.log_odds;
-  }
-  nodes[parent].log_odds = mx;
+  uint at = atomicAdd(counters.touched_count[depth], 1u);
+  block_lists[depth * pool.capacity + at] = b;
+  OCTOVK_COVER_LIST(counters.touched_args[depth], at + 1u);
 }

@@ -88,6 +88,7 @@ static_assert(offsetof(gpu::ChangedKey, created) == 12);
 static_assert(sizeof(ChangedKeysHeader) == 16);
 static_assert(sizeof(ListChangesConstants) == 16);
 static_assert(sizeof(RehashChangesConstants) == 16);
+static_assert(sizeof(KeepBoxConstants) == 16);
 
 static_assert(sizeof(AccelHeader) == 64);
 static_assert(offsetof(AccelHeader, tlas) == 0);

@@ -140,6 +140,16 @@ class OccupancyMap {
   /// nothing, as OctoMap's iterator; a NaN corner or min > max is kInvalidArgument, the map
   /// unchanged. Not noted by change detection (clear_bbx sets values directly).
   void clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
+  /// Keeps only a box (a rolling window around a robot), on the device: afterwards the map holds
+  /// exactly the leaves OctoMap's leaf_bbx_iterator(min, max) visits (same keys, depths and
+  /// log-odds; a pruned leaf reaching into the box stays whole), the inner nodes on their paths,
+  /// each the maximum of its children as updateInnerOccupancy makes it, and no other node. The
+  /// deleted nodes' blocks go back to the pool's free list: nodeCount() falls and later scans
+  /// reuse them, so a window kept around a moving sensor stays within MapParams::max_device_bytes.
+  /// A corner outside the map keeps nothing (OctoMap's iterator visits nothing); a NaN corner or
+  /// min > max is kInvalidArgument, the map unchanged. Not noted by change detection (OctoMap's
+  /// deleteNode leaves the changed keys alone: a deleted leaf's key stays in the set).
+  void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
 
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;

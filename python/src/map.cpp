@@ -437,6 +437,19 @@ void bindMap(py::module_& m) {
       "visits gets the lower clamping bound's log-odds, then the inner nodes are updated as "
       "updateInnerOccupancy does. min, max: the box's corners, 3 numbers each, min <= max.");
   map.def(
+      "keep_box",
+      [](Map& self, py::handle min, py::handle max) {
+        const Eigen::Vector3f lo = toVector3(min, "min");
+        const Eigen::Vector3f hi = toVector3(max, "max");
+        self.run([&](OccupancyMap& map) { map.keepBox(lo, hi); });
+      },
+      py::arg("min"), py::arg("max"),
+      "Keeps only a box (a rolling window), on the device: the leaves OctoMap's "
+      "leaf_bbx_iterator(min, max) visits (a pruned leaf reaching into the box stays whole) and "
+      "the inner nodes above them, each the maximum of its children; every other node is "
+      "deleted and its memory reused by later scans. A corner outside the map keeps nothing. "
+      "min, max: the box's corners, 3 numbers each, min <= max.");
+  map.def(
       "enable_change_detection",
       [](Map& self, bool enable) {
         self.run([&](OccupancyMap& map) { map.enableChangeDetection(enable); });

@@ -278,3 +278,30 @@ def test_clear_box_sets_the_leaves_in_it_to_the_lower_clamping_bound(context):
     assert np.allclose(log_odds, clamp_min)
     with pytest.raises(octovk.InvalidArgumentError):
         m.clear_box((1, 0, 0), (0, 1, 1))
+
+
+def test_keep_box_keeps_the_leaves_in_it_and_frees_the_rest(context):
+    """keep_box through Python; the tree is checked node for node against OctoMap by the C++
+    oracle tests (tests/keep_box_test.cpp)."""
+    m = octovk.Map(0.1)
+    rng = np.random.default_rng(4)
+    d = rng.normal(size=(2000, 3)).astype(np.float32)
+    m.insert_point_cloud((d / np.linalg.norm(d, axis=1, keepdims=True) * 2.0).astype(np.float32),
+                         (0, 0, 0))
+    lo, hi = (-1.0, -0.5, -0.3), (1.0, 0.5, 0.3)
+    before = m.leaves_in_box(lo, hi)
+    nodes = m.node_count()
+    m.keep_box(lo, hi)
+    assert m.node_count() < nodes
+    centers, sizes, log_odds = m.leaves()
+    kept = m.leaves_in_box(lo, hi)
+    # every leaf left is one the box's iterator visited, with its value
+    assert len(log_odds) == len(kept[2]) == len(before[2]) > 50
+    order = lambda c: np.lexsort(c.T)
+    assert np.array_equal(centers[order(centers)], before[0][order(before[0])])
+    assert np.array_equal(log_odds[order(centers)], before[2][order(before[0])])
+    with pytest.raises(octovk.InvalidArgumentError):
+        m.keep_box((0, 0, float("nan")), (1, 1, 1))
+    assert m.node_count() > 0
+    m.keep_box((-1, -1, -1), (1e6, 1, 1))  # a corner outside the map: nothing is kept
+    assert m.node_count() == 0 and len(m.leaves()[2]) == 0

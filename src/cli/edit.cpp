@@ -1,6 +1,7 @@
 // octovk edit: map surgery on a map file, on the device, written as OctoMap writes it: clearing
 // boxes as octomap_server's clear_bbx does (every leaf leaf_bbx_iterator visits set to the lower
-// clamping bound, then updateInnerOccupancy).
+// clamping bound, then updateInnerOccupancy) and keeping only a box (every node but the leaves
+// leaf_bbx_iterator visits and the inner nodes above them deleted).
 #include <Eigen/Core>
 #include <array>
 #include <cstdio>
@@ -16,53 +17,63 @@ namespace octovk::cli {
 namespace {
 
 constexpr const char* kEditUsage =
-    "octovk edit MAP.bt|MAP.ot --clear-box XMIN YMIN ZMIN XMAX YMAX ZMAX [--clear-box ...] "
+    "octovk edit MAP.bt|MAP.ot --clear-box|--keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX [...] "
     "-o OUT.bt|OUT.ot [--max-device-memory BYTES]";
 
 void printEditHelp(std::ostream& out) {
-  out << "octovk edit MAP.bt|MAP.ot --clear-box XMIN YMIN ZMIN XMAX YMAX ZMAX [--clear-box ...]\n"
+  out << "octovk edit MAP.bt|MAP.ot --clear-box|--keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX [...]\n"
          "            -o OUT.bt|OUT.ot\n"
          "\n"
          "Edits a map on the Vulkan device and writes it. --clear-box does what octomap_server's\n"
          "clear_bbx does: every leaf that OctoMap's leaf_bbx_iterator visits for the box (a\n"
          "pruned leaf reaching into it, whole) gets the lower clamping bound's log-odds, then\n"
-         "the inner nodes are updated as updateInnerOccupancy does (no pruning). The file is\n"
-         "byte-identical to OctoMap doing the same and writing it.\n"
+         "the inner nodes are updated as updateInnerOccupancy does (no pruning). --keep-box\n"
+         "keeps only a box: the leaves leaf_bbx_iterator visits for it (a pruned leaf reaching\n"
+         "into it, whole) and the inner nodes above them, each the maximum of its children;\n"
+         "every other node is deleted. A box with a corner outside the map's key range keeps\n"
+         "nothing (the iterator visits nothing) and clears nothing. The file is byte-identical\n"
+         "to OctoMap doing the same and writing it.\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      the map to write (.bt: max-likelihood, pruned, as OctoMap's\n"
          "                         writeBinary; .ot: full log-odds). Written to a temporary file\n"
          "                         beside it and renamed once complete. Required.\n"
          "      --clear-box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
-         "                         a box in metres to clear (min <= max); may be given several\n"
-         "                         times, applied in order. At least one is required.\n";
+         "                         a box in metres to clear (min <= max)\n"
+         "      --keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
+         "                         a box in metres to keep (min <= max); everything outside it\n"
+         "                         is deleted\n"
+         "                         Both may be given several times, mixed; the edits are\n"
+         "                         applied in the order given. At least one is required.\n";
   printMaxDeviceMemoryHelp(out, "The map");
   out << "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE'; --clear-box also as\n"
+         "Options take their value as '--name VALUE' or '--name=VALUE'; the boxes also as\n"
          "'--clear-box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
-         "Output: the device used, then on stdout the boxes cleared, the time taken and the file\n"
-         "written.\n";
+         "Output: the device used, then on stdout the edits made, the nodes before and after,\n"
+         "the time taken and the file written.\n";
 }
 
 class Edit final : public Command {
  public:
   bool option(const ParsedOption& opt) override {
-    if (opt.name != "--clear-box") return false;
+    const bool keep = opt.name == "--keep-box";
+    if (!keep && opt.name != "--clear-box") return false;
     const std::vector<double> v = parseNumbers(opt, "-1 -1 0 1 1 2");
     for (int a = 0; a < 3; ++a)
       if (v[a] > v[a + 3])
-        throw UsageError("--clear-box: the minimum " + std::string(1, "xyz"[a]) + " (" +
+        throw UsageError(opt.name + ": the minimum " + std::string(1, "xyz"[a]) + " (" +
                          opt.values[a] + ") is above the maximum (" + opt.values[a + 3] +
-                         "); write --clear-box XMIN YMIN ZMIN XMAX YMAX ZMAX");
-    boxes_.push_back({v[0], v[1], v[2], v[3], v[4], v[5]});
+                         "); write " + opt.name + " XMIN YMIN ZMIN XMAX YMAX ZMAX");
+    edits_.push_back({keep, {v[0], v[1], v[2], v[3], v[4], v[5]}});
     return true;
   }
 
   void check(Invocation& in) override {
     checkMapInput(in.input(), kEditUsage);
-    if (boxes_.empty())
-      throw UsageError("edit: nothing to do; give --clear-box XMIN YMIN ZMIN XMAX YMAX ZMAX");
+    if (edits_.empty())
+      throw UsageError(
+          "edit: nothing to do; give --clear-box or --keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX");
     in.checkDeviceMemoryCap();
     in.checkOutputs();
   }
@@ -72,11 +83,18 @@ class Edit final : public Command {
     const auto start = Clock::now();
     OccupancyMap map = loadMap(context, in.input(), in.maxDeviceBytes());
     const double read_s = secondsSince(start);
+    const std::size_t nodes_before = map.nodeCount();
     const auto edit_start = Clock::now();
-    for (const std::array<double, 6>& b : boxes_)
-      map.clearBox(Eigen::Vector3d(b[0], b[1], b[2]).cast<float>(),
-                   Eigen::Vector3d(b[3], b[4], b[5]).cast<float>());
+    for (const BoxEdit& e : edits_) {
+      const Eigen::Vector3f lo = Eigen::Vector3d(e.box[0], e.box[1], e.box[2]).cast<float>();
+      const Eigen::Vector3f hi = Eigen::Vector3d(e.box[3], e.box[4], e.box[5]).cast<float>();
+      if (e.keep)
+        map.keepBox(lo, hi);
+      else
+        map.clearBox(lo, hi);
+    }
     const double edit_s = secondsSince(edit_start);
+    const std::size_t nodes_after = map.nodeCount();
     const auto write_start = Clock::now();
     {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
@@ -87,12 +105,14 @@ class Edit final : public Command {
     std::ostringstream s;
     s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
     s << "map:     " << in.input() << "\n";
-    for (const std::array<double, 6>& b : boxes_) {
+    for (const BoxEdit& e : edits_) {
       char line[256];
-      std::snprintf(line, sizeof(line), "cleared: min (%g, %g, %g) max (%g, %g, %g) m\n", b[0],
-                    b[1], b[2], b[3], b[4], b[5]);
+      std::snprintf(line, sizeof(line), "%s min (%g, %g, %g) max (%g, %g, %g) m\n",
+                    e.keep ? "kept:   " : "cleared:", e.box[0], e.box[1], e.box[2], e.box[3],
+                    e.box[4], e.box[5]);
       s << line;
     }
+    s << "nodes:   " << nodes_before << " before, " << nodes_after << " after\n";
     char line[256];
     std::snprintf(line, sizeof(line),
                   "time:    %.3f s (reading and upload %.3f s, editing %.3f s, writing %.3f s)\n",
@@ -103,7 +123,11 @@ class Edit final : public Command {
   }
 
  private:
-  std::vector<std::array<double, 6>> boxes_;
+  struct BoxEdit {
+    bool keep;  // --keep-box; else --clear-box
+    std::array<double, 6> box;
+  };
+  std::vector<BoxEdit> edits_;
 };
 
 }  // namespace
@@ -121,7 +145,8 @@ const Subcommand kEditCommand{
     .output_extensions = {".bt", ".ot"},
     .output_formats = ".bt or .ot (OctoMap map)",
     .max_device_memory = true,
-    .multi_value_options = {{"--clear-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
+    .multi_value_options = {{"--clear-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"},
+                            {"--keep-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
     .make = []() -> std::unique_ptr<Command> { return std::make_unique<Edit>(); }};
 
 }  // namespace octovk::cli

@@ -487,12 +487,24 @@ struct RehashChangesConstants {
 
 // clear_box. 16 B.
 OCTOVK_CONST uint kClearBoxLeaves = 0u;  // the leaves in the BoxQuery to the lower clamping bound
-OCTOVK_CONST uint kClearBoxInner = 1u;   // the inner nodes at `level`: the max of their children
+OCTOVK_CONST uint kClearBoxInner = 1u;   // the nodes at `level` with children: their max
+OCTOVK_CONST uint kClearBoxDepths = 2u;  // the live blocks listed by depth, for kClearBoxInner
 struct ClearBoxConstants {
   uint mode;   // 4B (0)  kClearBox*
   uint level;  // 4B (4)  kClearBoxInner: depth of the nodes updated
   uint pad0;   // 4B (8)
   uint pad1;   // 4B (12)
+};
+
+// keep_box. 16 B. Marks use kFlagTouched (clear between scans; keep_box clears what it set).
+OCTOVK_CONST uint kKeepBoxMark = 0u;    // per block: the leaves in the BoxQuery and every node above
+OCTOVK_CONST uint kKeepBoxSweep = 1u;   // per block: unmarked nodes deleted, their blocks freed
+OCTOVK_CONST uint kKeepBoxUnmark = 2u;  // per block: the marks of its slots (and the root) cleared
+struct KeepBoxConstants {
+  uint mode;  // 4B (0)  kKeepBox*
+  uint pad0;  // 4B (4)
+  uint pad1;  // 4B (8)
+  uint pad2;  // 4B (12)
 };
 
 // device_probe. 16 B.

@@ -105,6 +105,10 @@ class OccupancyMap::Impl {
     flush();
     edits_.clearBox(min, max);
   }
+  void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+    flush();
+    edits_.keepBox(min, max);
+  }
 
   // ---- the tree (TreeTransfer, MapCore), each after the scans submitted before it ----
   HostTree download();

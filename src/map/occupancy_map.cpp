@@ -236,6 +236,10 @@ void OccupancyMap::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& m
   hostMemoryGuard("clearBox", [&] { self().clearBox(min, max); });
 }
 
+void OccupancyMap::keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  hostMemoryGuard("keepBox", [&] { self().keepBox(min, max); });
+}
+
 std::size_t OccupancyMap::nodeCount() const {
   return hostMemoryGuard("nodeCount", [&] {
     const gpu::PoolState pool = self().readPool();

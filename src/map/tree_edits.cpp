@@ -8,17 +8,27 @@
 
 namespace octovk {
 
-void TreeEdits::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+namespace {
+
+// The checks both edits make before anything is recorded: finite corners, min <= max.
+void checkBox(const char* call, const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(min[i]) || !std::isfinite(max[i]))
       throw Error(ErrorCode::kInvalidArgument,
-                  "clearBox: the box's corners must be finite numbers; the map is unchanged");
+                  std::string(call) + ": the box's corners must be finite numbers; the map is "
+                                      "unchanged");
     if (min[i] > max[i])
       throw Error(ErrorCode::kInvalidArgument,
-                  "clearBox: min is above max along axis " + std::to_string(i) + " (" +
-                      std::to_string(min[i]) + " > " + std::to_string(max[i]) +
+                  std::string(call) + ": min is above max along axis " + std::to_string(i) +
+                      " (" + std::to_string(min[i]) + " > " + std::to_string(max[i]) +
                       "); give the lower corner first. The map is unchanged");
   }
+}
+
+}  // namespace
+
+void TreeEdits::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  checkBox("clearBox", min, max);
   gpu::BoxQuery box{};
   // As OctoMap's iterator: a corner outside the map visits no leaf (updateInnerOccupancy runs).
   const bool inside = boxKeys(core_.params.resolution, min, max, box);
@@ -26,6 +36,23 @@ void TreeEdits::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max)
   core_.stream.begin(core_.buffers.bindings);
   passes::recordClearBox(core_.rec, core_.queryParams(), inside ? &box : nullptr);
   core_.stream.submitAndWait();
+  treeChanged();
+}
+
+void TreeEdits::keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  checkBox("keepBox", min, max);
+  gpu::BoxQuery box{};
+  // As OctoMap's iterator: a corner outside the map visits no leaf, so nothing is kept.
+  const bool inside = boxKeys(core_.params.resolution, min, max, box);
+  core_.buffers.ensureQueries(sizeof(box), sizes::kSmallQuery);
+  core_.stream.begin(core_.buffers.bindings);
+  passes::recordKeepBox(core_.rec, core_.queryParams(), inside ? &box : nullptr);
+  passes::recordClearBox(core_.rec, core_.queryParams(), nullptr);  // updateInnerOccupancy
+  core_.stream.submitAndWait();
+  treeChanged();
+}
+
+void TreeEdits::treeChanged() {
   core_.leaf_boxes = LeafBoxes::kStale;
   ++core_.tree_version;  // castRay's scene is rebuilt before the next castRays
 }

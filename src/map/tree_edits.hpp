@@ -1,4 +1,4 @@
-// Map surgery: edits of the tree that are not scans (octomap_server's clear_bbx). The caller
+// Map surgery: edits of the tree that are not scans (octomap_server's clear_bbx, keeping a box). The caller
 // takes the results of the scans in flight first (OccupancyMap::Impl does).
 #pragma once
 
@@ -16,8 +16,17 @@ class TreeEdits {
   /// the lower clamping bound's log-odds, then updateInnerOccupancy (no pruning; later scans
   /// prune as OctoMap's would). kInvalidArgument (map unchanged) for a NaN corner or min > max.
   void clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
+  /// Keeps only the leaves OctoMap's leaf_bbx_iterator(min, max) visits and the inner nodes
+  /// above them (each the maximum of its children, as updateInnerOccupancy); every other node is
+  /// deleted and its block returns to the free stack. A corner outside the map keeps nothing.
+  /// Change detection does not see it (OctoMap's deleteNode leaves the changed keys alone).
+  /// kInvalidArgument (map unchanged) for a NaN corner or min > max.
+  void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
 
  private:
+  /// The leaf boxes go stale and castRay's scene is rebuilt on its next use.
+  void treeChanged();
+
   MapCore& core_;
 };
 

@@ -187,7 +187,16 @@ void recordRehashChanges(Recorder& r, VkDeviceAddress old_set, std::uint32_t old
 /// octomap_server's clear_bbx: the leaves OctoMap's leaf_bbx_iterator visits for `box` (none when
 /// null: a corner outside the map) get the lower clamping bound's log-odds, then every inner node
 /// the maximum of its children, bottom-up (updateInnerOccupancy; nothing is pruned). Sets `sp`.
+/// With `box` null it is updateInnerOccupancy alone, as keepBox ends.
 void recordClearBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* box);
+
+// ---- keep_box.cpp: map surgery ----
+
+/// Keeping only a box: every node but the leaves OctoMap's leaf_bbx_iterator visits for `box`
+/// (none when null: a corner outside the map) and the inner nodes above them is deleted, the
+/// blocks of deleted nodes pushed on the free stack. Inner values are not updated: record
+/// recordClearBox(r, sp, nullptr) after it. Sets `sp`.
+void recordKeepBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* box);
 
 // ---- readback.cpp ----
 
