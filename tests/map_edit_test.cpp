@@ -163,7 +163,9 @@ TEST(ClearBoxCli, EditWritesTheFilesOctoMapWrites) {
     else
       copy.write(bytes);
     EXPECT_EQ(test::fileBytes(out), bytes.str()) << ext << " differs from OctoMap's";
-    if (ext == ".ot") EXPECT_NE(test::fileBytes(out), test::fileBytes(in)) << "nothing cleared";
+    if (ext == ".ot") {
+      EXPECT_NE(test::fileBytes(out), test::fileBytes(in)) << "nothing cleared";
+    }
   }
 }
 
