@@ -1,5 +1,6 @@
 // A caller's buffer for the interop tests: a host-visible, host-coherent storage buffer made with
-// the Vulkan API alone on the context's device, as an application would make one.
+// the Vulkan API alone on the context's device, as an application would make one; and a GPU
+// consumer that waits on the device for a timeline value octovk signals.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -50,6 +51,95 @@ class CallerBuffer {
   VkBuffer buffer_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   void* mapped_ = nullptr;
+};
+
+/// A GPU consumer of octovk's results: its own timeline semaphore (for octovk's SignalSemaphore
+/// or WaitSemaphore), and copyAfter(), a submission of its own that waits on the device for a
+/// value of that semaphore, then copies a caller buffer into another. What it copied is what
+/// the device held once the value was reached.
+class DeviceConsumer {
+ public:
+  DeviceConsumer(Context& context, const VulkanHandles& vk) : context_(context), vk_(vk) {
+    VkSemaphoreTypeCreateInfo type{VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
+    type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
+    VkSemaphoreCreateInfo sem_info{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
+    sem_info.pNext = &type;
+    EXPECT_EQ(vkCreateSemaphore(vk.device, &sem_info, nullptr, &timeline_), VK_SUCCESS);
+    VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+    pool_info.queueFamilyIndex = vk.queue_family;
+    EXPECT_EQ(vkCreateCommandPool(vk.device, &pool_info, nullptr, &pool_), VK_SUCCESS);
+    VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    EXPECT_EQ(vkCreateFence(vk.device, &fence_info, nullptr, &fence_), VK_SUCCESS);
+  }
+  ~DeviceConsumer() {
+    vkDestroyFence(vk_.device, fence_, nullptr);
+    vkDestroyCommandPool(vk_.device, pool_, nullptr);
+    vkDestroySemaphore(vk_.device, timeline_, nullptr);
+  }
+  DeviceConsumer(const DeviceConsumer&) = delete;
+  DeviceConsumer& operator=(const DeviceConsumer&) = delete;
+
+  VkSemaphore timeline() const { return timeline_; }
+
+  /// The host signals the timeline to `value` (a producer's stand-in).
+  void signalFromHost(std::uint64_t value) {
+    VkSemaphoreSignalInfo signal{VK_STRUCTURE_TYPE_SEMAPHORE_SIGNAL_INFO};
+    signal.semaphore = timeline_;
+    signal.value = value;
+    EXPECT_EQ(vkSignalSemaphore(vk_.device, &signal), VK_SUCCESS);
+  }
+
+  /// Waits on the device for `value`, then copies `bytes` of `from` into `to`; returns when the
+  /// copy is done (and checks that the timeline reached `value`).
+  void copyAfter(const CallerBuffer& from, const CallerBuffer& to, VkDeviceSize bytes,
+                 std::uint64_t value) {
+    VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    alloc.commandPool = pool_;
+    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    alloc.commandBufferCount = 1;
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    ASSERT_EQ(vkAllocateCommandBuffers(vk_.device, &alloc, &cmd), VK_SUCCESS);
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    ASSERT_EQ(vkBeginCommandBuffer(cmd, &begin), VK_SUCCESS);
+    const VkBufferCopy region{0, 0, bytes};
+    vkCmdCopyBuffer(cmd, from.range().buffer, to.range().buffer, 1, &region);
+    VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                         &to_host, 0, nullptr, 0, nullptr);
+    ASSERT_EQ(vkEndCommandBuffer(cmd), VK_SUCCESS);
+    VkTimelineSemaphoreSubmitInfo values{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+    values.waitSemaphoreValueCount = 1;
+    values.pWaitSemaphoreValues = &value;
+    const VkPipelineStageFlags stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
+    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    submit.pNext = &values;
+    submit.waitSemaphoreCount = 1;
+    submit.pWaitSemaphores = &timeline_;
+    submit.pWaitDstStageMask = &stage;
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &cmd;
+    {
+      // The Context's queue is shared: held while submitting.
+      const auto lock = lockQueue(context_);
+      ASSERT_EQ(vkQueueSubmit(vk_.queue, 1, &submit, fence_), VK_SUCCESS);
+    }
+    ASSERT_EQ(vkWaitForFences(vk_.device, 1, &fence_, VK_TRUE, 10'000'000'000ull), VK_SUCCESS);
+    ASSERT_EQ(vkResetFences(vk_.device, 1, &fence_), VK_SUCCESS);
+    vkFreeCommandBuffers(vk_.device, pool_, 1, &cmd);
+    std::uint64_t reached = 0;
+    ASSERT_EQ(vkGetSemaphoreCounterValue(vk_.device, timeline_, &reached), VK_SUCCESS);
+    EXPECT_GE(reached, value);
+  }
+
+ private:
+  Context& context_;
+  VulkanHandles vk_;
+  VkSemaphore timeline_ = VK_NULL_HANDLE;
+  VkCommandPool pool_ = VK_NULL_HANDLE;
+  VkFence fence_ = VK_NULL_HANDLE;
 };
 
 }  // namespace octovk::test

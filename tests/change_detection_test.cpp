@@ -335,60 +335,11 @@ namespace {
 TEST(ChangeDetectionApi, ConsumerWaitsOnTheSignalledValueOnTheDevice) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const VulkanHandles vk = vulkanHandles(ctx);
-  VkSemaphoreTypeCreateInfo type{VK_STRUCTURE_TYPE_SEMAPHORE_TYPE_CREATE_INFO};
-  type.semaphoreType = VK_SEMAPHORE_TYPE_TIMELINE;
-  VkSemaphoreCreateInfo sem_info{VK_STRUCTURE_TYPE_SEMAPHORE_CREATE_INFO};
-  sem_info.pNext = &type;
-  VkSemaphore timeline = VK_NULL_HANDLE;
-  ASSERT_EQ(vkCreateSemaphore(vk.device, &sem_info, nullptr, &timeline), VK_SUCCESS);
-  VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
-  pool_info.queueFamilyIndex = vk.queue_family;
-  VkCommandPool pool = VK_NULL_HANDLE;
-  ASSERT_EQ(vkCreateCommandPool(vk.device, &pool_info, nullptr, &pool), VK_SUCCESS);
-  VkFenceCreateInfo fence_info{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-  VkFence fence = VK_NULL_HANDLE;
-  ASSERT_EQ(vkCreateFence(vk.device, &fence_info, nullptr, &fence), VK_SUCCESS);
-
-  // The consumer: waits for `value` on the device, then copies `bytes` of `from` into `to`.
+  test::DeviceConsumer consumer(ctx, vk);
+  const VkSemaphore timeline = consumer.timeline();
   const auto consume = [&](const test::CallerBuffer& from, const test::CallerBuffer& to,
                            VkDeviceSize bytes, std::uint64_t value) {
-    VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
-    alloc.commandPool = pool;
-    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    alloc.commandBufferCount = 1;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
-    ASSERT_EQ(vkAllocateCommandBuffers(vk.device, &alloc, &cmd), VK_SUCCESS);
-    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    ASSERT_EQ(vkBeginCommandBuffer(cmd, &begin), VK_SUCCESS);
-    const VkBufferCopy region{0, 0, bytes};
-    vkCmdCopyBuffer(cmd, from.range().buffer, to.range().buffer, 1, &region);
-    VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-    to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
-    to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
-                         &to_host, 0, nullptr, 0, nullptr);
-    ASSERT_EQ(vkEndCommandBuffer(cmd), VK_SUCCESS);
-    VkTimelineSemaphoreSubmitInfo values{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
-    values.waitSemaphoreValueCount = 1;
-    values.pWaitSemaphoreValues = &value;
-    const VkPipelineStageFlags stage = VK_PIPELINE_STAGE_TRANSFER_BIT;
-    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-    submit.pNext = &values;
-    submit.waitSemaphoreCount = 1;
-    submit.pWaitSemaphores = &timeline;
-    submit.pWaitDstStageMask = &stage;
-    submit.commandBufferCount = 1;
-    submit.pCommandBuffers = &cmd;
-    {
-      const auto lock = lockQueue(ctx);  // the Context's queue is shared: held while submitting
-      ASSERT_EQ(vkQueueSubmit(vk.queue, 1, &submit, fence), VK_SUCCESS);
-    }
-    ASSERT_EQ(vkWaitForFences(vk.device, 1, &fence, VK_TRUE, 10'000'000'000ull), VK_SUCCESS);
-    ASSERT_EQ(vkResetFences(vk.device, 1, &fence), VK_SUCCESS);
-    std::uint64_t reached = 0;
-    ASSERT_EQ(vkGetSemaphoreCounterValue(vk.device, timeline, &reached), VK_SUCCESS);
-    EXPECT_GE(reached, value);
+    consumer.copyAfter(from, to, bytes, value);
   };
 
   OccupancyMap map(ctx, test::withResolution(0.1));
@@ -425,10 +376,6 @@ TEST(ChangeDetectionApi, ConsumerWaitsOnTheSignalledValueOnTheDevice) {
     known += want[i].state != CellState::kUnknown;
   }
   EXPECT_GT(known, 3u);  // the 2 m sphere: the points inside it are free
-
-  vkDestroyFence(vk.device, fence, nullptr);
-  vkDestroyCommandPool(vk.device, pool, nullptr);
-  vkDestroySemaphore(vk.device, timeline, nullptr);
 }
 
 }  // namespace

@@ -4,11 +4,16 @@
 #include <dynamicEDT3D/dynamicEDTOctomap.h>
 #include <octomap/octomap.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
+#include <thread>
 
+#include "caller_buffer.hpp"
 #include "octovk/distance.hpp"
+#include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -498,6 +503,76 @@ TEST(DistanceField, QueriesAnswerFromTheField) {
     if (got[i].inside() && got[i].squared_cells != kNone) {
       EXPECT_EQ(at[i].distance_m - spheres[i][3], got[i].distance_m) << i;
     }
+  }
+}
+
+// distancesOnDevice between a caller's buffers: it waits for the caller's semaphore before it
+// reads the spheres (a producer thread writes them, then signals), and signals the caller's
+// timeline once the results are written, which a consumer's own submission waits for on the
+// device; what the consumer copied equals the host API's answers, field for field.
+TEST(DistanceField, DistancesOnDeviceWaitAndSignalAndEqualTheHostApi) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const octomap::OcTree tree = randomTree(0.1, 13, 3);
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  fromOcTree(map, tree);
+  DistanceField field(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = 0.6f});
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> u(-1.5f, 1.5f), ur(0.0f, 0.2f);
+  std::vector<Eigen::Vector4f> spheres;
+  for (int i = 0; i < 777; ++i) spheres.emplace_back(u(rng), u(rng), u(rng), ur(rng));
+  spheres.emplace_back(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f, 0.0f);
+  const std::vector<DistanceSample> want = field.clearances(spheres);
+
+  const VulkanHandles vk = vulkanHandles(ctx);
+  test::DeviceConsumer consumer(ctx, vk);
+  const std::size_t in_bytes = spheres.size() * sizeof(Eigen::Vector4f);
+  const std::size_t out_bytes = spheres.size() * sizeof(gpu::DistanceResult);
+  test::CallerBuffer in(vk, in_bytes), out(vk, out_bytes), copy(vk, out_bytes);
+  // Outside every box until the producer writes the spheres: an early read answers kOutside.
+  std::vector<float> far(spheres.size() * 4, 1e9f);
+  std::memcpy(in.data(), far.data(), in_bytes);
+  std::memset(out.data(), 0, out_bytes);
+  std::memset(copy.data(), 0, out_bytes);
+  std::thread producer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    std::memcpy(in.data(), spheres.data(), in_bytes);
+    consumer.signalFromHost(1);
+  });
+  distancesOnDevice(field, in.range(), static_cast<std::uint32_t>(spheres.size()), out.range(),
+                    WaitSemaphore{consumer.timeline(), 1},
+                    SignalSemaphore{consumer.timeline(), 2});
+  producer.join();
+  consumer.copyAfter(out, copy, out_bytes, 2);
+  const auto* got = static_cast<const gpu::DistanceResult*>(copy.data());
+  std::size_t inside = 0, with_gradient = 0;
+  for (std::size_t i = 0; i < spheres.size(); ++i) {
+    const DistanceSample& w = want[i];
+    ASSERT_EQ(got[i].squared_cells, w.squared_cells) << i;
+    EXPECT_EQ(got[i].distance, w.distance_m) << i;
+    const Eigen::Vector3f obstacle(got[i].obstacle_x, got[i].obstacle_y, got[i].obstacle_z);
+    const Eigen::Vector3f gradient(got[i].gradient_x, got[i].gradient_y, got[i].gradient_z);
+    for (int a = 0; a < 3; ++a) {
+      if (std::isnan(w.obstacle[a]))
+        EXPECT_TRUE(std::isnan(obstacle[a])) << i;
+      else
+        EXPECT_EQ(obstacle[a], w.obstacle[a]) << i;
+    }
+    EXPECT_EQ(gradient, w.gradient) << i;
+    inside += w.inside();
+    with_gradient += !gradient.isZero();
+  }
+  EXPECT_GT(inside, 150u);  // the box is about a quarter of the points' cube
+  EXPECT_GT(with_gradient, 50u);
+  EXPECT_FALSE(want.back().inside());
+
+  // A batch of none still signals the value the caller waits for.
+  distancesOnDevice(field, in.range(), 0, out.range(), {}, SignalSemaphore{consumer.timeline(), 3});
+  consumer.copyAfter(out, copy, out_bytes, 3);
+  // A misaligned offset is refused before anything is submitted.
+  if (vk.offset_alignment > 1) {
+    BufferRange misaligned = in.range();
+    misaligned.offset = 4;
+    EXPECT_THROW(distancesOnDevice(field, misaligned, 1, out.range()), Error);
   }
 }
 

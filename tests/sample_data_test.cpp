@@ -2,8 +2,10 @@
 // inserted the way graph2tree does, compared with OctoMap after every few scans.
 #include <octomap/ScanGraph.h>
 #include <octomap/octomap.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <mutex>
 
@@ -178,7 +180,8 @@ const std::vector<Eigen::Vector3f>& scanDat() {
   static std::once_flag once;
   std::call_once(once, [] {
     const std::string src = kOctomapData + "/scan.dat.bz2";
-    const std::string dst = test::tmpPath("scan.dat");
+    // Per process: ctest -j runs the cases as separate processes, which would race on one file.
+    const std::string dst = test::tmpPath("scan.dat." + std::to_string(::getpid()));
     if (test::shell("bzip2 -dc '" + src + "' > '" + dst + "' 2>/dev/null") != 0 &&
         test::shell("python3 -c \"import bz2,sys; open(sys.argv[2],'wb').write(bz2.open("
                     "sys.argv[1]).read())\" '" +
@@ -187,6 +190,7 @@ const std::vector<Eigen::Vector3f>& scanDat() {
     std::ifstream in(dst);
     float x, y, z;
     while (in >> x >> y >> z) points.emplace_back(x, y, z);
+    std::remove(dst.c_str());
   });
   return points;
 }

@@ -112,8 +112,9 @@ void changedKeysOnDevice(OccupancyMap& map, BufferRange out, SignalSemaphore sig
 /// centre x, y, z and radius floats (16 B each; radius 0 for DistanceField::distances' answer);
 /// `results` receives count gpu::DistanceResult (32 B each). Offsets must be multiples of
 /// VulkanHandles::offset_alignment and each range within one storage binding's reach. octovk's
-/// submission waits for `wait`; the call returns when the results are written.
+/// submission waits for `wait`; the call returns when the results are written, and `signal` is
+/// signalled once they are (also for count 0), for the caller's device work to wait on.
 void distancesOnDevice(DistanceField& field, BufferRange spheres, std::uint32_t count,
-                       BufferRange results, WaitSemaphore wait = {});
+                       BufferRange results, WaitSemaphore wait = {}, SignalSemaphore signal = {});
 
 }  // namespace octovk

@@ -13,6 +13,8 @@ void bindContext(py::module_& m);
 void bindTypes(py::module_& m);
 /// Map: scans, streaming, queries, files, memory.
 void bindMap(py::module_& m);
+/// DistanceField: the exact distance field over a box of a Map, batched queries.
+void bindDistance(py::module_& m);
 /// read_scan_graph(), graph2tree_sensor_origin().
 void bindFiles(py::module_& m);
 

@@ -1,64 +1,15 @@
 // octovk.Map: the OccupancyMap with its Context, one lock, and the GIL released for device work.
 #include <pybind11/stl.h>
 
-#include <chrono>
-#include <mutex>
 #include <optional>
-#include <thread>
 
 #include "arrays.hpp"
 #include "bindings.hpp"
+#include "map.hpp"
 #include "octovk/octomap_io.hpp"
 
 namespace octovk::python {
 namespace {
-
-class Map {
- public:
-  Map(py::object context, OccupancyMap map) : context_(std::move(context)), map_(std::move(map)) {}
-
-  /// Runs `work` on the map with the GIL released and the map's lock held (a map is used by one
-  /// thread at a time; Python threads sharing one are ordered here). `work` touches no Python
-  /// object.
-  template <class Work>
-  auto run(Work&& work) {
-    py::gil_scoped_release release;
-    std::lock_guard<std::mutex> lock(mutex_);
-    return work(map_);
-  }
-
-  /// Waits until every submitted scan is in the map, polling so that a signal (Ctrl-C) is
-  /// seen between polls: KeyboardInterrupt then leaves the scans in flight and the map
-  /// consistent; the next flush() or query completes them.
-  void flush() {
-    auto pause = std::chrono::microseconds(20);
-    for (;;) {
-      const bool done = run([&](OccupancyMap& m) {
-        if (m.scansInFlight() == 0) return true;
-        return m.finished(last_ticket_);
-      });
-      if (done) break;
-      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-      {
-        py::gil_scoped_release release;
-        std::this_thread::sleep_for(pause);
-      }
-      pause = std::min(pause * 2, std::chrono::microseconds(2000));
-    }
-    run([](OccupancyMap& m) { m.flush(); });  // nothing left: raises what finished() left
-  }
-
-  void noteTicket(ScanTicket ticket) { last_ticket_ = std::max(last_ticket_, ticket); }
-
-  const py::object& context() const { return context_; }
-  const OccupancyMap& map() const { return map_; }
-
- private:
-  py::object context_;  // keeps the Context (and so the device) alive while the map lives
-  std::mutex mutex_;
-  OccupancyMap map_;
-  ScanTicket last_ticket_ = 0;
-};
 
 ScanOptions scanOptions(double max_range, bool discretize) {
   return ScanOptions{.max_range_m = max_range, .discretize = discretize};

@@ -281,5 +281,6 @@ PYBIND11_MODULE(octovk, m) {
   bindContext(m);
   bindTypes(m);
   bindMap(m);
+  bindDistance(m);
   bindFiles(m);
 }

@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <iosfwd>
 #include <memory>
@@ -191,6 +192,12 @@ void checkDeviceMemoryCap(const MapParams& params);
 Error withOptionNames(const Error& e);
 /// The help lines of --max-device-memory; `what_fails` begins the sentence on its error ("A scan").
 void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails);
+
+/// OctoMap's keyToCoord at the finest depth along one axis: the centre of the cells with `key`
+/// ((key - 32768 + 0.5) * resolution in double, then float, as OctoMap's point3d).
+inline float keyCentre(std::uint32_t key, double resolution) {
+  return static_cast<float>((static_cast<double>(key) - 32768.0 + 0.5) * resolution);
+}
 
 /// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).
 float occupancyLogOdds(const MapParams& params);

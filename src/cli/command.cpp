@@ -35,6 +35,11 @@ void Invocation::checkOutputs() const {
     checkOutputFile(path, command_.output_extensions, command_.output_formats);
 }
 
+std::size_t Invocation::addOptionOutput(const std::string& path) {
+  option_outputs_.push_back(path);
+  return outputs_.size() + option_outputs_.size() - 1;
+}
+
 void Invocation::checkDeviceMemoryCap() const {
   MapParams cap;  // only its max_device_bytes: the rest comes from the map file
   cap.max_device_bytes = max_device_bytes_;
@@ -101,7 +106,9 @@ int runSubcommand(const Subcommand& command, const std::vector<std::string>& arg
   }
   own->check(in);
   // Every output is created now, so an unwritable one is found before any work.
-  if (!in.outputs_.empty()) in.files_.emplace(in.outputs_, inputFiles(in.input_));
+  std::vector<std::string> outputs = in.outputs_;
+  outputs.insert(outputs.end(), in.option_outputs_.begin(), in.option_outputs_.end());
+  if (!outputs.empty()) in.files_.emplace(outputs, inputFiles(in.input_));
   return own->run(in);
 }
 

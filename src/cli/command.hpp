@@ -37,6 +37,10 @@ class Invocation {
   /// Refuses (UsageError) a command line without -o, or an output whose name or place the
   /// command cannot write (checkOutputFile with the command's extensions).
   void checkOutputs() const;
+  /// Adds an output named by one of the command's own options (integrate --changes), from
+  /// Command::check: created, checked against the inputs and the other outputs, and committed
+  /// with the -o outputs, all or nothing. Its index in files() is returned (after the -o ones).
+  std::size_t addOptionOutput(const std::string& path);
   /// Refuses (UsageError) a --max-device-memory below what an empty map holds (default
   /// MapParams: for the commands that read a map, whose parameters come from the file).
   void checkDeviceMemoryCap() const;
@@ -51,6 +55,7 @@ class Invocation {
   const Subcommand& command_;
   std::string input_;
   std::vector<std::string> outputs_;
+  std::vector<std::string> option_outputs_;  // addOptionOutput
   std::size_t max_device_bytes_ = 0;
   std::unique_ptr<Context> context_;
   std::optional<OutputFiles> files_;
@@ -116,6 +121,7 @@ extern const Subcommand kInfoCommand;
 extern const Subcommand kRenderCommand;
 extern const Subcommand kExportCommand;
 extern const Subcommand kEditCommand;
+extern const Subcommand kDistanceCommand;
 extern const Subcommand kDevicesCommand;
 
 }  // namespace octovk::cli

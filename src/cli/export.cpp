@@ -3,11 +3,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
-#include <cerrno>
-#include <charconv>
 #include <cstdio>
-#include <cstring>
-#include <fstream>
 #include <iostream>
 #include <limits>
 #include <optional>
@@ -15,6 +11,7 @@
 
 #include "command.hpp"
 #include "octovk/octovk.hpp"
+#include "ply.hpp"
 #include "png.hpp"
 
 namespace octovk::cli {
@@ -40,65 +37,22 @@ Eigen::Vector3f clampToDomain(double x, double y, double z, double resolution) {
   return {c(x), c(y), c(z)};
 }
 
-// Appends `value` in its shortest exact form and a separator.
-void appendNumber(std::string& out, float value, char separator) {
-  char text[32];
-  const auto [end, ec] = std::to_chars(text, text + sizeof(text), value);
-  (void)ec;  // 32 characters hold every float
-  out.append(text, end);
-  out += separator;
-}
-
-void appendByte(std::string& out, std::uint8_t value, char separator) {
-  char text[4];
-  const auto [end, ec] = std::to_chars(text, text + sizeof(text), static_cast<unsigned>(value));
-  (void)ec;
-  out.append(text, end);
-  out += separator;
-}
-
 void writePly(const std::string& path, const std::vector<OccupancyMap::LeafBoxHost>& cells,
               const std::vector<Rgb>& colours, const std::string& comment) {
-  std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
-  if (!out.is_open())
-    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
-  std::string text =
-      "ply\n"
-      "format ascii 1.0\n"
-      "comment " +
-      comment +
-      "\n"
-      "element vertex " +
-      std::to_string(cells.size()) +
-      "\n"
-      "property float x\n"
-      "property float y\n"
-      "property float z\n"
-      "property float size\n"
-      "property float log_odds\n"
-      "property uchar red\n"
-      "property uchar green\n"
-      "property uchar blue\n"
-      "end_header\n";
-  for (std::size_t i = 0; i < cells.size(); ++i) {
-    const OccupancyMap::LeafBoxHost& c = cells[i];
-    appendNumber(text, c.center[0], ' ');
-    appendNumber(text, c.center[1], ' ');
-    appendNumber(text, c.center[2], ' ');
-    appendNumber(text, c.size, ' ');
-    appendNumber(text, c.log_odds, ' ');
-    appendByte(text, colours[i][0], ' ');
-    appendByte(text, colours[i][1], ' ');
-    appendByte(text, colours[i][2], '\n');
-    if (text.size() > (1u << 20)) {
-      out.write(text.data(), static_cast<std::streamsize>(text.size()));
-      text.clear();
-    }
-  }
-  out.write(text.data(), static_cast<std::streamsize>(text.size()));
-  out.close();
-  if (!out.good())
-    throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+  writeAsciiPly(path, comment, cells.size(),
+                {"float x", "float y", "float z", "float size", "float log_odds", "uchar red",
+                 "uchar green", "uchar blue"},
+                [&](std::string& text, std::size_t i) {
+                  const OccupancyMap::LeafBoxHost& c = cells[i];
+                  appendNumber(text, c.center[0], ' ');
+                  appendNumber(text, c.center[1], ' ');
+                  appendNumber(text, c.center[2], ' ');
+                  appendNumber(text, c.size, ' ');
+                  appendNumber(text, c.log_odds, ' ');
+                  appendByte(text, colours[i][0], ' ');
+                  appendByte(text, colours[i][1], ' ');
+                  appendByte(text, colours[i][2], '\n');
+                });
 }
 
 void printExportHelp(std::ostream& out) {

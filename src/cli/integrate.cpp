@@ -5,6 +5,7 @@
 #include <octomap/OcTree.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -19,6 +20,8 @@
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
 #include "octovk/tum_sequence.hpp"
+#include "ply.hpp"
+#include "png.hpp"
 
 namespace octovk::cli {
 
@@ -99,12 +102,51 @@ class Progress {
   bool printed_ = false;
 };
 
+const Rgb kCreatedBlue{60, 120, 220};
+const Rgb kFlippedOrange{240, 140, 30};
+
+// --changes: one vertex per changed key, sorted by key: its cell centre and OctoMap's flag.
+void writeChanges(const std::string& path, std::vector<ChangedKey> changes, double resolution,
+                  const std::string& input) {
+  std::sort(changes.begin(), changes.end(),
+            [](const ChangedKey& a, const ChangedKey& b) { return a.key < b.key; });
+  std::ostringstream comment;
+  comment << "octovk integrate of " << input << " (resolution " << resolution
+          << " m): the keys changed over the whole run (OctoMap's change detection, on from the "
+             "first scan, never reset), cell centre x y z in metres; created 1 = the leaf was "
+             "created, 0 = an existing leaf's occupancy flipped; colour blue created, orange "
+             "flipped";
+  writeAsciiPly(path, comment.str(), changes.size(),
+                {"float x", "float y", "float z", "uchar created", "uchar red", "uchar green",
+                 "uchar blue"},
+                [&](std::string& text, std::size_t i) {
+                  const ChangedKey& c = changes[i];
+                  for (int a = 0; a < 3; ++a)
+                    appendNumber(text, keyCentre(c.key[a], resolution), ' ');
+                  const Rgb& colour = c.created ? kCreatedBlue : kFlippedOrange;
+                  appendByte(text, c.created ? 1 : 0, ' ');
+                  appendByte(text, colour[0], ' ');
+                  appendByte(text, colour[1], ' ');
+                  appendByte(text, colour[2], '\n');
+                });
+}
+
 // Every output is written before any is renamed into place, so that a failed write (a full
-// disk) leaves every existing file as it was.
-void writeOutputs(const OccupancyMap& map, OutputFiles& outputs) {
-  StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-  for (std::size_t i = 0; i < outputs.size(); ++i)
-    outputs.write(i, [&](const std::string& temporary) { writeMap(map, temporary); });
+// disk) leaves every existing file as it was. The maps are the -o outputs, in order; the change
+// set (`changes_output`, when there is one) follows them.
+void writeOutputs(const OccupancyMap& map, Invocation& in,
+                  const std::optional<std::size_t>& changes_output,
+                  const std::vector<ChangedKey>& changes) {
+  OutputFiles& outputs = in.files();
+  {
+    StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
+    for (std::size_t i = 0; i < in.outputs().size(); ++i)
+      outputs.write(i, [&](const std::string& temporary) { writeMap(map, temporary); });
+  }
+  if (changes_output)
+    outputs.write(*changes_output, [&](const std::string& temporary) {
+      writeChanges(temporary, changes, map.params().resolution, in.input());
+    });
   outputs.commit();
 }
 
@@ -157,6 +199,17 @@ void printIntegrateHelp(std::ostream& out) {
          "                         them (needs a device with ray queries, e.g. Mesa 25's\n"
          "                         lavapipe, and no loop limit; refused elsewhere). The map is\n"
          "                         the same either way (default: walk)\n"
+         "      --changes FILE.ply the keys changed over the whole run, as an ASCII PLY point\n"
+         "                         cloud: OctoMap's change detection on from the first scan and\n"
+         "                         never reset (the KeyBoolMap of changedKeysBegin/End at the\n"
+         "                         end), one vertex per changed finest-level cell, sorted by key:\n"
+         "                         float x, y, z (the cell's centre, metres), uchar created\n"
+         "                         (OctoMap's flag: 1 the leaf was created, 0 an existing leaf's\n"
+         "                         occupancy flipped; a run starts from an empty map, so every\n"
+         "                         key is 1 here: OctoMap keeps a created key's flag when its\n"
+         "                         occupancy flips later), uchar red, green, blue (created blue,\n"
+         "                         flipped orange). Written and renamed with the maps (default:\n"
+         "                         none)\n"
          "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
          "                         or once a run takes longer than a second)\n";
   printMaxDeviceMemoryHelp(out, "A scan");
@@ -202,6 +255,8 @@ class Integrate final : public Command {
                          "(ray tracing)");
     } else if (opt.name == "-q" || opt.name == "--quiet")
       quiet_ = true;
+    else if (opt.name == "--changes")
+      changes_path_ = opt.value;
     else if (parseCameraOption(opt, camera_)) {
       if (camera_option_.empty()) camera_option_ = opt.name;
     } else
@@ -219,6 +274,8 @@ class Integrate final : public Command {
   MapParams params_;
   ScanOptions scan_;  ///< --max-range, --discretize
   bool quiet_ = false;
+  std::string changes_path_;  ///< --changes
+  std::optional<std::size_t> changes_output_;  ///< its index in the run's output files
 };
 
 void Integrate::check(Invocation& in) {
@@ -236,6 +293,10 @@ void Integrate::check(Invocation& in) {
                        " out");
   }
   in.checkOutputs();
+  if (!changes_path_.empty()) {
+    checkOutputFile(changes_path_, {".ply"}, ".ply (ASCII PLY point cloud) for --changes");
+    changes_output_ = in.addOptionOutput(changes_path_);
+  }
   checkDeviceMemoryCap(params_);
   if (params_.scan_rays == ScanRays::kRayTracing && params_.max_device_bytes != 0)
     throw UsageError(std::string("--rays rt cannot be capped by ") + kMaxDeviceMemoryOption +
@@ -265,6 +326,7 @@ int Integrate::run(Invocation& in) {
   std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
 
   OccupancyMap map(context, params_);
+  if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   Progress progress(scan_count, !quiet_);
   std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0, pixels = 0, no_depth = 0;
   // Scans are submitted back to back (the next one is read and staged while the device runs
@@ -325,8 +387,10 @@ int Integrate::run(Invocation& in) {
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();
   const std::size_t pool_bytes = map.poolBytes();
+  std::vector<ChangedKey> changes;
+  if (changes_output_) changes = map.changedKeys();
 
-  writeOutputs(map, in.files());
+  writeOutputs(map, in, changes_output_, changes);
   const double total_s = secondsSince(run_start);
 
   const double ms_per_scan =
@@ -348,7 +412,14 @@ int Integrate::run(Invocation& in) {
     << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB (node pool "
     << static_cast<double>(pool_bytes) / (1024.0 * 1024.0)
     << " MiB; the rest is scan scratch and leaf boxes)\n";
+  if (changes_output_) {
+    const auto created = static_cast<std::size_t>(std::count_if(
+        changes.begin(), changes.end(), [](const ChangedKey& c) { return c.created; }));
+    s << "changes:       " << changes.size() << " keys (" << created << " created, "
+      << changes.size() - created << " flipped)\n";
+  }
   for (const std::string& path : in.outputs()) s << "wrote:         " << path << "\n";
+  if (changes_output_) s << "wrote:         " << changes_path_ << "\n";
   std::cout << s.str() << std::flush;
   return kExitOk;
 }
@@ -356,7 +427,7 @@ int Integrate::run(Invocation& in) {
 std::vector<std::string> integrateValueOptions() {
   std::vector<std::string> names = {"-r",         "--resolution",   "-m",
                                     "--max-range", "--prob-hit",     "--prob-miss",
-                                    "--clamping-min", "--clamping-max", "--rays"};
+                                    "--clamping-min", "--clamping-max", "--rays", "--changes"};
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
 }

@@ -20,7 +20,7 @@ namespace {
 // The commands, in the order the errors list them.
 const Subcommand* const kSubcommands[] = {&kIntegrateCommand, &kConvertCommand, &kInfoCommand,
                                           &kRenderCommand,    &kExportCommand,  &kEditCommand,
-                                          &kDevicesCommand};
+                                          &kDistanceCommand,  &kDevicesCommand};
 
 // Their names, for the error on an unknown one: "integrate, convert, ..., devices, help".
 std::string commandNames() {
@@ -47,6 +47,8 @@ void printHelp(std::ostream& out) {
          "  octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] [--box X0 Y0 Z0 X1 Y1 Z1]\n"
          "                [--color height|occupancy]\n"
          "  octovk edit MAP.bt|MAP.ot --clear-box X0 Y0 Z0 X1 Y1 Z1 [--clear-box ...] -o OUT.bt\n"
+         "  octovk distance MAP.bt|MAP.ot --box X0 Y0 Z0 X1 Y1 Z1 [--z HEIGHT] [--max-distance M]\n"
+         "                [--unknown-occupied] -o SLICE.png\n"
          "  octovk devices\n"
          "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
          "\n"
@@ -59,6 +61,8 @@ void printHelp(std::ostream& out) {
          "  render      a PNG picture of a map's occupied cells, ray cast on the device\n"
          "  export      a map's leaf cells (centre, size, log-odds, colour) as an ASCII PLY file\n"
          "  edit        clear boxes of a map as octomap_server's clear_bbx does, and write it\n"
+         "  distance    a PNG slice of the exact distance field (distance to the nearest\n"
+         "              obstacle) over a box of a map, computed on the device\n"
          "  devices     list the Vulkan devices and the one octovk picks\n"
          "  help        this help, or a command's\n"
          "\n"

@@ -1,4 +1,5 @@
-// PNG files through libpng's simplified API (no setjmp in our code), and the height colormap.
+// PNG files through libpng's simplified API (no setjmp in our code), and the height and distance
+// colormaps.
 #include "png.hpp"
 
 #include <png.h>
@@ -43,5 +44,7 @@ Rgb heightColor(double t) {
                                       110.36276771, -89.90310912, 27.34824973};
   return {poly(kRed), poly(kGreen), poly(kBlue)};
 }
+
+Rgb distanceColor(double t) { return heightColor(1.0 - std::clamp(t, 0.0, 1.0)); }
 
 }  // namespace octovk::cli

@@ -1,4 +1,5 @@
-// 8-bit RGB pictures for the octovk commands: a colormap for heights and PNG files (libpng).
+// 8-bit RGB pictures for the octovk commands: colormaps for heights and distances, and PNG files
+// (libpng).
 #pragma once
 
 #include <array>
@@ -34,5 +35,9 @@ void writePng(const RgbImage& image, const std::string& path);
 /// Colour of a height: t = 0 (lowest) … 1 (highest) through a rainbow (Turbo) that stays light
 /// enough at both ends to show shading; t is clamped.
 Rgb heightColor(double t);
+
+/// Colour of a distance to the nearest obstacle: t = 0 (at an obstacle) … 1 (the maximum
+/// distance or farther) through the same scale reversed: red near, blue far; t is clamped.
+Rgb distanceColor(double t);
 
 }  // namespace octovk::cli

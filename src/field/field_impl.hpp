@@ -69,6 +69,8 @@ class DistanceField::Impl {
                      std::uint32_t count, VkSemaphore wait, std::uint64_t wait_value);
   DistanceField::Grid download();
 
+  /// The map the field reads (interop: a caller's semaphore is signalled on its stream).
+  OccupancyMap::Impl& map() { return map_; }
   const FieldBox& box() const { return box_; }
   const DistanceFieldOptions& options() const { return options_; }
   std::size_t deviceBytes() const { return bytes_; }

@@ -12,11 +12,14 @@ class FieldInteropAccess {
 };
 
 void distancesOnDevice(DistanceField& field, BufferRange spheres, std::uint32_t count,
-                       BufferRange results, WaitSemaphore wait) {
+                       BufferRange results, WaitSemaphore wait, SignalSemaphore signal) {
   hostMemoryGuard("distancesOnDevice", [&] {
-    FieldInteropAccess::impl(field).queryOnDevice(spheres.buffer, spheres.offset, results.buffer,
-                                                  results.offset, count, wait.semaphore,
-                                                  wait.value);
+    DistanceField::Impl& impl = FieldInteropAccess::impl(field);
+    impl.queryOnDevice(spheres.buffer, spheres.offset, results.buffer, results.offset, count,
+                       wait.semaphore, wait.value);
+    // The results are written (queryOnDevice waited); the signal follows on the same queue, as
+    // the map's own *OnDevice calls signal (OccupancyMap::Impl::signal).
+    impl.map().signal(signal.semaphore, signal.value);
   });
 }
 

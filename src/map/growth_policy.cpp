@@ -19,6 +19,22 @@ std::uint32_t hashGuess(std::size_t count) {
   return std::min<std::uint32_t>(nextPow2Log2(count * 4), 20);
 }
 
+// First guess of the touched lists for a scan of `count` points: 16 cells per point (OctoMap's
+// spherical sample at 0.05 m updates 13.7 per point), at most 2^18 cells (16 MiB): a small scan
+// into a fresh map then runs once instead of being refused for its lists and run again. Larger
+// scans grow to what the device counted, as before.
+std::size_t listGuess(std::size_t count) {
+  return std::size_t{1} << std::min<std::uint32_t>(nextPow2Log2(count * 16), 18);
+}
+
+// First guess of the pool's blocks for a scan of `count` points into a map with little room: three
+// blocks per point (72 bytes each). A scan creates the whole path of blocks to every cell it
+// updates before pruning frees most of them: the spherical sample at 0.05 m asks for 21,780 new
+// blocks for 10,201 points, and keeps 2,990.
+std::uint32_t poolGuess(std::size_t count) {
+  return static_cast<std::uint32_t>(std::min<std::size_t>(count * 3, std::size_t{1} << 21));
+}
+
 }  // namespace
 
 bool GrowthPolicy::mustGrow(std::size_t count, std::size_t depth_bytes) const {
@@ -36,6 +52,22 @@ void GrowthPolicy::growFor(std::size_t count, std::size_t depth_bytes) {
   if (guess > hash_guess_tried_) {
     core_.buffers.growHashToward(guess);  // as far as MapParams::max_device_bytes allows
     hash_guess_tried_ = guess;
+    guessListsAndPool(count);
+  }
+}
+
+// Ahead of need, like growAhead: a guess the cap has no room for is dropped, and the scan that
+// needs the room grows it after the device counted (or says the cap is too small).
+void GrowthPolicy::guessListsAndPool(std::size_t count) {
+  MapBuffers& buffers = core_.buffers;
+  try {
+    const std::size_t lists = listGuess(count);
+    if (lists > buffers.activeCapacity()) buffers.allocateLists(lists);
+    const std::uint32_t blocks =
+        std::min<std::uint32_t>(poolGuess(count), static_cast<std::uint32_t>(buffers.blockLimit()));
+    if (blocks > buffers.poolBlocks())
+      buffers.allocatePoolAtLeast(blocks, buffers.poolBlocks(), /*copy_old=*/true);
+  } catch (const Error&) {  // the cap (BudgetError) or the device: left to the scan's counts
   }
 }
 

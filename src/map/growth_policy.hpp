@@ -44,6 +44,9 @@ class GrowthPolicy {
  private:
   /// Releases the per-scan scratch; the next scan guesses the cell set afresh.
   void releaseScratch();
+  /// The touched lists and the pool grown toward a first guess for a scan of `count` points, as
+  /// far as the memory cap allows.
+  void guessListsAndPool(std::size_t count);
   /// Room in the pool for `blocks` more blocks; `ahead`: for later scans, never an error.
   void reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead);
 

@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <iterator>
+#include <string_view>
 #include <string>
 #include <utility>
 
 #include "gpu/gpu_types.h"
 #include "map/walk_budget.hpp"
+#include "shader_ids.hpp"
 
 namespace octovk {
 
@@ -61,6 +64,23 @@ std::uint64_t ScanPipeline::submit(const ScanSource& source, const Eigen::Vector
   return enqueue(source, origin, pose, options, ScanCaller::kSubmit, nullptr, nullptr);
 }
 
+// Before a map's first scan: the passes every walked scan records, built side by side, the
+// longest first (ray_keys, the walk, takes llvmpipe 30-40 ms, the others 0.2-3 ms each); later
+// maps of the context find them built. The others (discretize, unproject, ray tracing, queries)
+// are built at first use.
+void ScanPipeline::buildScanPasses() {
+  if (core_.params.scan_rays != ScanRays::kWalk) return;
+  using vk::Shader;
+  static constexpr Shader kScanPasses[] = {
+      Shader::kRayKeys,   Shader::kListCells, Shader::kDescend,  Shader::kClassifyBlocks,
+      Shader::kPrune,     Shader::kClassify,  Shader::kLink,     Shader::kTransformPoints,
+      Shader::kTreeGate,  Shader::kAlloc,     Shader::kClearSets, Shader::kTreeBegin,
+      Shader::kTreeFixup};
+  std::string_view names[std::size(kScanPasses)];
+  for (std::size_t i = 0; i < std::size(kScanPasses); ++i) names[i] = vk::shaderName(kScanPasses[i]);
+  core_.device.buildPasses(names);
+}
+
 std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vector3f& origin,
                                     const Pose* pose, const ScanOptions& options, ScanCaller caller,
                                     const QueryRequest* queries, QueryResults* results) {
@@ -71,6 +91,7 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
   p.stats.points = count;
   p.caller = caller;
   if (count > 0) {
+    if (next_ticket_ == 1) buildScanPasses();
     scenes_.releaseUnderCap();  // the scan's growth comes first; castRays builds it again
     const std::size_t depth_bytes = depthBytesOf(source);
     if (growth_.mustGrow(count, depth_bytes)) {
@@ -99,20 +120,26 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
     p.count = count;
     p.queries = queries;
     p.results = results;
-    // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
-    if (source.wait != VK_NULL_HANDLE)
-      core_.stream.waitBeforeNextSubmit(source.wait, source.wait_value);
+  }
+  // The scan takes its place in the queue before it is submitted: a submitted scan changes the
+  // map, so nothing that can fail (a queue that cannot grow) may come between the two.
+  pending_.push_back(std::move(p));
+  PendingScan& q = pending_.back();  // stays valid: the deque only grows at its end meanwhile
+  if (count > 0) {
     try {
-      record(p);
+      // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
+      if (source.wait != VK_NULL_HANDLE)
+        core_.stream.waitBeforeNextSubmit(source.wait, source.wait_value);
+      record(q);
     } catch (...) {
+      pending_.pop_back();
       core_.stream.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);  // not for some later submission
       throw;
     }
   }
-  p.ticket = p.stats.ticket = next_ticket_++;  // only for a scan submitted (or empty)
-  p.stats.wall_ms = msSince(start);
-  const std::uint64_t ticket = p.ticket;
-  pending_.push_back(std::move(p));
+  q.ticket = q.stats.ticket = next_ticket_++;  // only for a scan submitted (or empty)
+  q.stats.wall_ms = msSince(start);
+  const std::uint64_t ticket = q.ticket;
   // Results already there are taken without waiting (statistics early, growth ahead asked for);
   // never this scan's own: a scan refused on the device is then always noticed after the scan
   // submitted next, which the device refused too (halted) and which runs again with it.

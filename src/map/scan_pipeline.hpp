@@ -97,6 +97,8 @@ class ScanPipeline {
   std::uint64_t enqueue(const ScanSource& source, const Eigen::Vector3f& origin, const Pose* pose,
                         const ScanOptions& options, ScanCaller caller, const QueryRequest* queries,
                         QueryResults* results);
+  /// Builds the passes of a walked scan at once, on several threads (before the first scan).
+  void buildScanPasses();
   /// Records and submits scan `p` (its queries, if any, after it): the one place a scan's
   /// passes are recorded.
   void record(PendingScan& p);

@@ -1,10 +1,13 @@
 #include "vk/device.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <thread>
 #include <utility>
+#include <vector>
 
 #include "gpu/gpu_types.h"
 #include "shader_ids.hpp"
@@ -435,6 +438,30 @@ const Pass& Device::pass(std::string_view name) {
   // A build that throws leaves the flag unset: the next caller tries again.
   std::call_once(slot->built, [&] { slot->pass.pipeline = buildPipeline(name); });
   return slot->pass;
+}
+
+void Device::buildPasses(std::span<const std::string_view> names) {
+  std::atomic<std::size_t> next{0};
+  auto build = [&]() noexcept {
+    for (std::size_t i; (i = next.fetch_add(1)) < names.size();) {
+      try {
+        pass(names[i]);
+      } catch (...) {  // pass() builds it again at first use and reports there
+      }
+    }
+  };
+  const std::size_t threads =
+      std::min<std::size_t>(names.size(), std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> helpers;
+  for (std::size_t t = 1; t < threads; ++t) {
+    try {
+      helpers.emplace_back(build);
+    } catch (...) {  // no thread: the ones started (and this one) build them all
+      break;
+    }
+  }
+  build();
+  for (std::thread& t : helpers) t.join();
 }
 
 // The cache kept between runs, loaded by the first pipeline built; VK_NULL_HANDLE when turned

@@ -12,6 +12,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -86,6 +87,12 @@ class Device {
   /// first caller from any thread (the others wait for it), through the pipeline cache kept
   /// between runs (vk/pipeline_cache.hpp) unless OCTOVK_PIPELINE_CACHE=0.
   const Pass& pass(std::string_view name);
+  /// Builds the passes `names` ahead of their first dispatch, on up to as many threads as the
+  /// machine has cores (the calling one included), longest first as listed: a driver that
+  /// compiles in vkCreateComputePipelines (llvmpipe, most GPU drivers on a first run) then
+  /// compiles them side by side. A build that fails is left to pass(), which tries again and
+  /// reports the error to its caller.
+  void buildPasses(std::span<const std::string_view> names);
 
   /// What records kept between runs are written for (vk/disk_cache.hpp): this device (vendor,
   /// device, UUIDs), its driver (name, version, pipelineCacheUUID) and the SPIR-V of this build

@@ -1,0 +1,178 @@
+// octovk.DistanceField: the exact distance field over a box of a Map (octovk/distance.hpp), with
+// batched queries returning numpy arrays. Every call runs under its Map's lock with the GIL
+// released, as the Map's own calls do; the field keeps its Map alive.
+#include <cstring>
+#include <optional>
+
+#include "arrays.hpp"
+#include "bindings.hpp"
+#include "map.hpp"
+
+namespace octovk::python {
+namespace {
+
+class Field {
+ public:
+  Field(py::object map_object, Map& map, DistanceField field)
+      : map_object_(std::move(map_object)), map_(map), field_(std::move(field)) {}
+  /// The field gives its bytes back to the map's accounting: under the map's lock.
+  ~Field() {
+    map_.run([&](OccupancyMap&) { field_.reset(); });
+  }
+  Field(const Field&) = delete;
+  Field& operator=(const Field&) = delete;
+
+  /// Runs `work` on the field under the map's lock, the GIL released.
+  template <class Work>
+  auto run(Work&& work) {
+    return map_.run([&](OccupancyMap&) { return work(*field_); });
+  }
+  const py::object& map() const { return map_object_; }
+
+ private:
+  py::object map_object_;  // keeps the Map (and its device) alive while the field lives
+  Map& map_;
+  std::optional<DistanceField> field_;
+};
+
+// The samples as (distance (N,), obstacle (N, 3), gradient (N, 3), squared_cells (N,)).
+py::tuple sampleArrays(const std::vector<DistanceSample>& samples) {
+  const std::size_t n = samples.size();
+  std::vector<float> distance(n), obstacle(3 * n), gradient(3 * n);
+  std::vector<std::uint32_t> squared(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const DistanceSample& s = samples[i];
+    distance[i] = s.distance_m;
+    for (int a = 0; a < 3; ++a) {
+      obstacle[3 * i + static_cast<std::size_t>(a)] = s.obstacle[a];
+      gradient[3 * i + static_cast<std::size_t>(a)] = s.gradient[a];
+    }
+    squared[i] = s.squared_cells;
+  }
+  const auto rows = static_cast<py::ssize_t>(n);
+  return py::make_tuple(
+      ownedArray(std::move(distance), {rows}), ownedArray(std::move(obstacle), {rows, 3}),
+      ownedArray(std::move(gradient), {rows, 3}), ownedArray(std::move(squared), {rows}));
+}
+
+constexpr const char* kFieldDoc =
+    "An exact Euclidean distance field over a box of a Map, on the device "
+    "(octovk::DistanceField), with dynamicEDT3D's DynamicEDTOctomap meaning: for every cell "
+    "of the box at the finest resolution, the distance from its centre to the centre of the "
+    "nearest occupied cell inside the box (pruned leaves count as each of their cells), "
+    "capped at max_distance; the exact squared distance in cells, not capped.\n\n"
+    "The field reads the map when it is made and at update(); between them it answers for "
+    "the map as it was. It keeps its Map alive and runs under the Map's lock; its device "
+    "bytes count under the Map's max_device_bytes (DeviceBytes.distance_fields).\n\n"
+    "Query results: distance float32 (N,) in metres (minus the radius for clearances; "
+    "OUTSIDE = -1 outside the box or for a NaN coordinate), obstacle float32 (N, 3) (the "
+    "nearest occupied cell's centre; NaN where the box has none or outside), gradient float32 "
+    "(N, 3) (the unit vector from that obstacle's centre to the query cell's centre, "
+    "(cell - obstacle) / sqrt(squared_cells): the derivative of the Euclidean distance to "
+    "that obstacle; zero on an obstacle, where the distance is capped and outside), "
+    "squared_cells uint32 (N,) (exact; OUTSIDE_CELLS or NO_OBSTACLE_CELLS).";
+
+}  // namespace
+
+void bindDistance(py::module_& m) {
+  py::class_<Field> field(m, "DistanceField", kFieldDoc);
+  field.attr("OUTSIDE") = DistanceSample::kOutside;
+  field.attr("OUTSIDE_CELLS") = DistanceSample::kOutsideCells;
+  field.attr("NO_OBSTACLE_CELLS") = DistanceSample::kNoObstacleCells;
+  field.def(
+      py::init([](py::object map_object, py::handle min, py::handle max, float max_distance,
+                  bool treat_unknown_as_occupied) {
+        Map& map = map_object.cast<Map&>();
+        const Eigen::Vector3f lo = toVector3(min, "min");
+        const Eigen::Vector3f hi = toVector3(max, "max");
+        const DistanceFieldOptions options{.max_distance_m = max_distance,
+                                           .treat_unknown_as_occupied = treat_unknown_as_occupied};
+        std::optional<DistanceField> made;
+        map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, lo, hi, options); });
+        return std::make_unique<Field>(std::move(map_object), map, std::move(*made));
+      }),
+      py::arg("map"), py::arg("min"), py::arg("max"), py::kw_only(), py::arg("max_distance") = 2.0f,
+      py::arg("treat_unknown_as_occupied") = false,
+      "Builds the field over the box of `map` from the cell holding `min` to the cell "
+      "holding `max` (3 numbers each, metres; OctoMap's coordToKey), on the device, after "
+      "every scan submitted to the map. max_distance: metres (> 0) at which distances are "
+      "capped; treat_unknown_as_occupied: cells the map does not know count as obstacles "
+      "(DynamicEDTOctomap's treatUnknownAsOccupied). Raises InvalidArgumentError for an "
+      "inverted box, a NaN corner, a corner outside the map's key range or max_distance "
+      "<= 0, OutOfDeviceMemoryError (naming the bytes) when the map's cap leaves no room.");
+  field.def(
+      "update", [](Field& self) { self.run([](DistanceField& f) { f.update(); }); },
+      "Brings the field up to the map as it is now (every scan submitted before included): the "
+      "whole box is recomputed on the device.");
+  field.def(
+      "distances",
+      [](Field& self, py::handle points) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+        noteInput(pts.data());
+        return sampleArrays(self.run([&](DistanceField& f) { return f.distances(pts.points()); }));
+      },
+      py::arg("points"),
+      "The field at each of points (float32 (N, 3)): the answer of the cell holding the point, "
+      "on the device. Returns (distance, obstacle, gradient, squared_cells) (see the class).");
+  field.def(
+      "clearances",
+      [](Field& self, py::handle spheres) {
+        const ArrayView s(spheres, "spheres", {DType::kFloat32}, {-1, 4});
+        noteInput(s.data());
+        const std::span<const Eigen::Vector4f> view(static_cast<const Eigen::Vector4f*>(s.data()),
+                                                    s.extent(0));
+        return sampleArrays(self.run([&](DistanceField& f) { return f.clearances(view); }));
+      },
+      py::arg("spheres"),
+      "spheres (float32 (N, 4): centre x, y, z and radius, metres): the clearance, the "
+      "distance at the centre's cell minus the radius (negative where the sphere reaches an "
+      "obstacle), with the nearest obstacle and gradient. Returns (distance, obstacle, "
+      "gradient, squared_cells).");
+  field.def(
+      "download",
+      [](Field& self) {
+        DistanceField::Grid g = self.run([](DistanceField& f) { return f.download(); });
+        const std::vector<py::ssize_t> shape = {g.size[2], g.size[1], g.size[0]};
+        return py::make_tuple(ownedArray(std::move(g.squared_cells), shape),
+                              ownedArray(std::move(g.nearest), shape));
+      },
+      "The whole field: (squared_cells, nearest), uint32 arrays indexed [z, y, x] from the "
+      "box's first cell: the exact squared distance in cells to the nearest occupied cell "
+      "(NO_OBSTACLE_CELLS where the box has none) and that cell's index x + size_x * (y + "
+      "size_y * z) (NO_OBSTACLE_CELLS where none).");
+  field.def_property_readonly(
+      "size",
+      [](Field& self) {
+        const auto s = self.run([](DistanceField& f) { return f.size(); });
+        return py::make_tuple(s[0], s[1], s[2]);
+      },
+      "Cells along x, y, z.");
+  field.def_property_readonly(
+      "min_key",
+      [](Field& self) {
+        const auto k = self.run([](DistanceField& f) { return f.minKey(); });
+        return py::make_tuple(k[0], k[1], k[2]);
+      },
+      "The OctoMap key of the box's first cell (x, y, z).");
+  field.def_property_readonly(
+      "max_distance",
+      [](Field& self) {
+        return self.run([](DistanceField& f) { return f.options().max_distance_m; });
+      },
+      "Metres at which distances are capped.");
+  field.def_property_readonly("treat_unknown_as_occupied", [](Field& self) {
+    return self.run([](DistanceField& f) { return f.options().treat_unknown_as_occupied; });
+  });
+  field.def(
+      "device_bytes",
+      [](Field& self) { return self.run([](DistanceField& f) { return f.deviceBytes(); }); },
+      "Device bytes the field holds (its part of the map's cap).");
+  field.def_property_readonly(
+      "last_update_ms",
+      [](Field& self) { return self.run([](DistanceField& f) { return f.lastUpdateMs(); }); },
+      "Device time of the last build or update(), in milliseconds (0 without timestamps).");
+  field.def_property_readonly(
+      "map", [](const Field& self) { return self.map(); }, "The Map the field reads.");
+}
+
+}  // namespace octovk::python
