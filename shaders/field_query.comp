@@ -1,6 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// Distance queries on the field (array B after field_edt's three axes): for each sphere (centre,
+// Distance queries on the field (its sites after field_edt along z): for each sphere (centre,
 // radius) of the query input, the cell holding the centre (OctoMap's coordToKey), its distance to
 // the nearest occupied cell's centre capped at the field's max distance, minus the radius; that
 // cell's centre; the unit vector from it to the cell (the gradient of the distance); the exact
@@ -25,14 +25,17 @@ void main() {
   if (coordToKeyChecked(s.x, k.x) && coordToKeyChecked(s.y, k.y) && coordToKeyChecked(s.z, k.z) &&
       all(greaterThanEqual(k, lo)) && all(lessThan(k - lo, size))) {
     uvec3 c = k - lo;
-    FieldCell cell = FieldCellsRef(f.h.cells_b).v[c.x + size.x * (c.y + size.y * c.z)];
+    uint site = FieldWordsRef(f.h.sites).v[c.x + size.x * (c.y + size.y * c.z)];
     float max_m = f.h.max_distance_m;
-    if (cell.squared == kFieldFar) {
+    if (site == kFieldNoSite) {
       r.distance = max_m - s.w;
       r.squared_cells = kDistanceNoObstacle;
     } else {
-      uvec3 o = fieldCell(cell.site, size);
-      precise double root = sqrt(double(cell.squared));
+      uvec3 o = fieldCell(site, size);
+      ivec3 away_cells = ivec3(c) - ivec3(o);
+      uint squared = uint(away_cells.x * away_cells.x + away_cells.y * away_cells.y +
+                          away_cells.z * away_cells.z);  // < 2^31: kFieldMaxAxisCells
+      precise double root = sqrt(double(squared));
       precise double metres = root * params.resolution;
       float d = min(toFloat(metres), max_m);
       precise float clearance = d - s.w;
@@ -40,14 +43,14 @@ void main() {
       r.obstacle_x = toFloat(keyToCoord(lo.x + o.x));
       r.obstacle_y = toFloat(keyToCoord(lo.y + o.y));
       r.obstacle_z = toFloat(keyToCoord(lo.z + o.z));
-      if (cell.squared != 0u && toFloat(metres) < max_m) {
-        dvec3 away = dvec3(ivec3(c) - ivec3(o));
+      if (squared != 0u && toFloat(metres) < max_m) {
+        dvec3 away = dvec3(away_cells);
         precise dvec3 g = away / root;
         r.gradient_x = toFloat(g.x);
         r.gradient_y = toFloat(g.y);
         r.gradient_z = toFloat(g.z);
       }
-      r.squared_cells = cell.squared;
+      r.squared_cells = squared;
     }
   }
   results[i] = r;

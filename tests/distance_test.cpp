@@ -294,6 +294,145 @@ TEST(DistanceField, UpdateAfterScansEqualsFromScratch) {
   EXPECT_GT(field.lastUpdateMs(), 0.0);
 }
 
+/// The field equals one built from scratch on the map as it is now, cell for cell (squared
+/// distances and nearest cells: each line's answer is a function of its input, so an update
+/// that redid only the changed lines leaves the same arrays as a build).
+::testing::AssertionResult sameAsScratch(OccupancyMap& map, const DistanceField& field,
+                                         const Box& box, const DistanceFieldOptions& options) {
+  const DistanceField scratch(map, box.min, box.max, options);
+  const DistanceField::Grid a = field.download(), b = scratch.download();
+  if (a.squared_cells != b.squared_cells)
+    return ::testing::AssertionFailure() << "squared distances differ from a fresh build";
+  if (a.nearest != b.nearest)
+    return ::testing::AssertionFailure() << "nearest cells differ from a fresh build";
+  return ::testing::AssertionSuccess();
+}
+
+const char* kindName(DistanceField::UpdateKind kind) {
+  switch (kind) {
+    case DistanceField::UpdateKind::kBuild: return "build";
+    case DistanceField::UpdateKind::kFromTree: return "from the tree";
+    case DistanceField::UpdateKind::kFromChanges: return "from the change set";
+  }
+  return "?";
+}
+
+// Updates from the change set (small changes) and from the tree (large ones, clearBox), with
+// unknown counted as occupied or not: after each, equal to a fresh build and to brute force.
+TEST(DistanceField, IncrementalUpdatesEqualFromScratch) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  using Kind = DistanceField::UpdateKind;
+  for (const bool unknown : {false, true}) {
+    SCOPED_TRACE(unknown ? "unknown occupied" : "unknown free");
+    OccupancyMap map(ctx, test::withResolution(0.05));  // 46 x 44 x 26 cells: 2,288 words
+    std::mt19937 rng(unknown ? 21 : 20);
+    std::uniform_real_distribution<float> u(-0.4f, 0.4f);
+    map.insertPointCloud(test::randomScan(rng, Eigen::Vector3f::Zero(), 400, 1.5f),
+                         Eigen::Vector3f::Zero());
+    const DistanceFieldOptions options{.max_distance_m = 0.8f, .treat_unknown_as_occupied = unknown};
+    DistanceField field(map, kSmallBox.min, kSmallBox.max, options);
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kBuild);
+    EXPECT_FALSE(map.isChangeDetectionEnabled());  // a field only built leaves the map alone
+    field.update();  // turns change detection on
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);
+    EXPECT_TRUE(map.isChangeDetectionEnabled());
+    bool saw_changes = false, saw_tree = false;
+    for (int s = 0; s < 8; ++s) {
+      const Eigen::Vector3f origin(u(rng), u(rng), u(rng));
+      // Small scans (a few short rays) and large ones, some submitted without waiting.
+      const bool small = s % 3 != 2;
+      const auto scan = test::randomScan(rng, origin, small ? 6 : 800, small ? 0.4f : 1.5f);
+      if (s % 2 == 1) map.submitPointCloud(scan, origin);
+      else map.insertPointCloud(scan, origin);
+      field.update();
+      SCOPED_TRACE(std::string("after scan ") + std::to_string(s) + ", an update " +
+                   kindName(field.lastUpdateKind()));
+      if (small) {
+        EXPECT_EQ(field.lastUpdateKind(), Kind::kFromChanges);
+      }
+      saw_changes |= field.lastUpdateKind() == Kind::kFromChanges;
+      saw_tree |= field.lastUpdateKind() == Kind::kFromTree;
+      EXPECT_EQ(map.numChangesDetected(), 0u);  // the field turned it on: it empties the set
+      EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
+    }
+    EXPECT_TRUE(saw_changes);
+    EXPECT_TRUE(saw_tree);  // the large scans note more keys than reading the tree costs
+    // clearBox is not in the change set: the next update reads the tree.
+    map.clearBox({-0.3f, -0.3f, -0.3f}, {0.3f, 0.2f, 0.25f});
+    field.update();
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);
+    EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
+    EXPECT_TRUE(sameAsBruteForce(field.download(), bruteForce(*toOcTree(map), kSmallBox, unknown)));
+  }
+}
+
+// A user who reads the change set: the field never empties it; a key that flipped and flipped
+// back after an update (gone from the set, still in its slot) is read again; the user's reset,
+// and change detection turned off, make the next update read the tree. The last field to go
+// leaves change detection as the user set it.
+TEST(DistanceField, IncrementalUpdatesBesideAUserOfTheChangeSet) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  using Kind = DistanceField::UpdateKind;
+  OccupancyMap map(ctx, test::withResolution(0.05));
+  map.enableChangeDetection(true);
+  std::mt19937 rng(30);
+  map.insertPointCloud(test::randomScan(rng, Eigen::Vector3f::Zero(), 400, 1.5f),
+                       Eigen::Vector3f::Zero());
+  const DistanceFieldOptions options{.max_distance_m = 0.8f};
+  {
+    DistanceField field(map, kSmallBox.min, kSmallBox.max, options);
+    const std::size_t noted = map.numChangesDetected();
+    EXPECT_GT(noted, 0u);
+    field.update();  // the set is the user's: left as it is
+    EXPECT_EQ(map.numChangesDetected(), noted);
+    map.resetChangeDetection();  // the user read it (or the set would outgrow the box's words)
+    field.update();
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);
+    // One cell made occupied, then free again over later updates (each from the change set).
+    const Eigen::Vector3f origin(0.02f, 0.03f, 0.01f), end(0.52f, 0.03f, 0.01f);
+    const std::vector<Eigen::Vector3f> hit{end};
+    for (int i = 0; i < 3; ++i) {
+      map.insertPointCloud(hit, origin);
+      field.update();
+      EXPECT_EQ(field.lastUpdateKind(), Kind::kFromChanges);
+      EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options)) << "hit " << i;
+    }
+    const std::vector<Eigen::Vector3f> beyond{Eigen::Vector3f(0.92f, 0.03f, 0.01f)};
+    for (int i = 0; i < 8; ++i) {  // the ray through `end` clears it again, one update at a time
+      map.insertPointCloud(beyond, origin);
+      field.update();
+      EXPECT_EQ(field.lastUpdateKind(), Kind::kFromChanges);
+      EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options)) << "miss " << i;
+    }
+    map.resetChangeDetection();
+    map.insertPointCloud(hit, origin);
+    field.update();
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);  // the user's reset dropped keys
+    EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
+    map.insertPointCloud(beyond, origin);
+    field.update();
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromChanges);
+    EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
+    map.enableChangeDetection(false);
+    map.insertPointCloud(hit, origin);
+    field.update();
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);  // scans no longer noted
+    EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
+    EXPECT_FALSE(map.isChangeDetectionEnabled());  // the user's choice stands
+  }
+  EXPECT_FALSE(map.isChangeDetectionEnabled());
+  // A map whose fields turned change detection on gets it off again, memory included.
+  OccupancyMap other(ctx, test::withResolution(0.05));
+  const std::size_t before = other.deviceBytes();
+  {
+    DistanceField field(other, kSmallBox.min, kSmallBox.max, options);
+    field.update();
+    EXPECT_TRUE(other.isChangeDetectionEnabled());
+  }
+  EXPECT_FALSE(other.isChangeDetectionEnabled());
+  EXPECT_EQ(other.deviceBytes(), before);
+}
+
 TEST(DistanceField, QueriesAnswerFromTheField) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const octomap::OcTree tree = randomTree(0.1, 9, 3);

@@ -115,14 +115,16 @@ static_assert(sizeof(ScanRaysRtConstants) == 16 && offsetof(ScanRaysRtConstants,
 
 static_assert(sizeof(NewBlock) == 12);
 // The distance field (src/field/, shaders/field_*.comp).
-static_assert(sizeof(FieldCell) == 8 && offsetof(FieldCell, site) == 4);
-static_assert(sizeof(FieldHeader) == 64 && offsetof(FieldHeader, cells_b) == 8 &&
-              offsetof(FieldHeader, min_key_x) == 16 && offsetof(FieldHeader, size_x) == 28 &&
-              offsetof(FieldHeader, unknown_occupied) == 40 && offsetof(FieldHeader, status) == 44 &&
-              offsetof(FieldHeader, max_distance_m) == 48);
-static_assert(sizeof(FieldRasterConstants) == 16 && offsetof(FieldRasterConstants, cell_count) == 8);
+static_assert(sizeof(FieldHeader) == 96 && offsetof(FieldHeader, line_x) == 8 &&
+              offsetof(FieldHeader, dirty) == 40 && offsetof(FieldHeader, min_key_x) == 48 &&
+              offsetof(FieldHeader, size_x) == 60 && offsetof(FieldHeader, words_per_row) == 72 &&
+              offsetof(FieldHeader, status) == 80 && offsetof(FieldHeader, max_distance_m) == 84 &&
+              offsetof(FieldHeader, dirty_z) == 92);
+static_assert(sizeof(FieldRasterConstants) == 16 && offsetof(FieldRasterConstants, word_count) == 8 &&
+              offsetof(FieldRasterConstants, compare) == 12);
+static_assert(sizeof(FieldChangesConstants) == 16 && offsetof(FieldChangesConstants, capacity) == 8);
 static_assert(sizeof(FieldEdtConstants) == 16 && offsetof(FieldEdtConstants, axis) == 8 &&
-              offsetof(FieldEdtConstants, from_b) == 12);
+              offsetof(FieldEdtConstants, full) == 12);
 static_assert(sizeof(FieldQueryConstants) == 16 && offsetof(FieldQueryConstants, query_count) == 8);
 static_assert(sizeof(DistanceResult) == 32 && offsetof(DistanceResult, obstacle_x) == 4 &&
               offsetof(DistanceResult, gradient_x) == 16 &&

@@ -70,8 +70,18 @@ class DistanceField {
   DistanceField(DistanceField&&) noexcept;
   DistanceField& operator=(DistanceField&&) noexcept;
 
-  /// Brings the field up to the map as it is now (every scan submitted before it included): a
-  /// full recomputation of the box on the device (the map's changed cells are not tracked yet).
+  /// Brings the field up to the map as it is now (every scan submitted before it included),
+  /// equal cell for cell to a field built from scratch. Incremental: the obstacles of the box
+  /// are read again, and only the lines of the transform whose input changed are redone. The
+  /// obstacles come from the map's change set (only its cells are searched again) where it
+  /// holds every cell changed since the last update and is small against the box; else from
+  /// the whole tree (after an upload, clearBox, scans with change detection off, a reset of the
+  /// set by someone else, or many changes). The first update() turns the map's change detection
+  /// on (DynamicEDTOctomap's constructor does; a field only built and queried leaves the map
+  /// as it was; the last field to go turns it off again and gives its memory back), and each
+  /// update empties the set. A map whose user turned change detection on or off
+  /// (OccupancyMap::enableChangeDetection) keeps its set as the user leaves it: the field never
+  /// empties it, and reads the whole tree after each user reset.
   void update();
 
   /// The distance at each point (its cell's centre), with the nearest obstacle and gradient.
@@ -99,6 +109,11 @@ class DistanceField {
   std::size_t deviceBytes() const;
   /// Device time of the last build or update(), in milliseconds (0 without timestamps).
   double lastUpdateMs() const;
+  /// How the last build or update() went: kBuild (every cell and line), kFromTree (the whole
+  /// tree read again, only the lines whose input changed redone), kFromChanges (only the cells
+  /// in the map's change set read again, only the lines whose input changed redone).
+  enum class UpdateKind { kBuild, kFromTree, kFromChanges };
+  UpdateKind lastUpdateKind() const;
 
   class Impl;
 

@@ -29,18 +29,20 @@ std::string corner(const Eigen::Vector3f& v) {
 }  // namespace
 
 std::uint32_t maxLineCells(const vk::Device& device) {
-  // No limit seen: the cells of the whole key range. Otherwise the walk budget (the measured
-  // limit with room for the batch's other lanes) bounds one line's loop.
-  if (device.loopLimit() == 0) return 65536u;
+  // No limit seen: the passes' integer bound. Otherwise the walk budget (the measured limit
+  // with room for the batch's other lanes) bounds one line's loop.
+  if (device.loopLimit() == 0) return gpu::kFieldMaxAxisCells;
   const std::uint64_t budget = walkBudget(device);
   std::uint32_t n = budget > 8 ? static_cast<std::uint32_t>((budget - 8) / 4) : 0u;
   while (n > 0 && field::edtLoopIterations(n) > budget) --n;
-  return std::min<std::uint32_t>(n, 65536u);
+  return std::min<std::uint32_t>(n, gpu::kFieldMaxAxisCells);
 }
 
-std::size_t fieldBytes(std::size_t cells) {
-  return 2 * cells * sizeof(gpu::FieldCell) + sizeof(gpu::FieldHeader) * 2 +
-         sizeof(gpu::ScanParams) + 512;
+std::size_t fieldBytes(const FieldBox& box) {
+  const auto dirty = box.dirtyWords();
+  return 5 * box.cells() * sizeof(std::uint32_t) +
+         (box.words() + dirty[0] + dirty[1] + dirty[2]) * sizeof(std::uint32_t) +
+         sizeof(gpu::FieldHeader) * 2 + sizeof(gpu::ScanParams) + 512;
 }
 
 FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
@@ -70,7 +72,9 @@ FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Ve
       throw invalid(std::string("the box has ") + std::to_string(box.size[a]) + " cells along " +
                     kAxis[a] + "; this device transforms lines of at most " +
                     std::to_string(max_line_cells) +
-                    " cells in one dispatch (its driver ends loops early); split the box");
+                    " cells in one dispatch (its driver's loop limit, and at most " +
+                    std::to_string(gpu::kFieldMaxAxisCells) +
+                    " for exact 32-bit integers); split the box");
   }
   if (box.cells() >= gpu::kFieldNoSite)
     throw invalid("the box has " + std::to_string(box.cells()) +
@@ -83,7 +87,7 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
     : map_(map), device_(map.device()), box_(box), options_(options), stream_(device_, 1) {
   map_.flush();
   MapBuffers& buffers = map_.fieldBuffers();
-  const std::size_t bytes = fieldBytes(box_.cells());
+  const std::size_t bytes = fieldBytes(box_);
   buffers.checkBudget(0, bytes,
                       "a distance field of " + std::to_string(box_.size[0]) + " x " +
                           std::to_string(box_.size[1]) + " x " + std::to_string(box_.size[2]) +
@@ -93,12 +97,18 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
   spare_ = vk::Buffer(device_, 512, false);
   header_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), false);
   readback_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), true);
-  cells_a_ = vk::Buffer(device_, box_.cells() * sizeof(gpu::FieldCell), false);
-  cells_b_ = vk::Buffer(device_, box_.cells() * sizeof(gpu::FieldCell), false);
+  const std::size_t cell_bytes = box_.cells() * sizeof(std::uint32_t);
+  const auto dirty = box_.dirtyWords();
+  occupancy_ = vk::Buffer(device_, box_.words() * sizeof(std::uint32_t), false);
+  line_x_ = vk::Buffer(device_, cell_bytes, false);
+  plane_xy_ = vk::Buffer(device_, cell_bytes, false);
+  sites_ = vk::Buffer(device_, cell_bytes, false);
+  envelope_ = vk::Buffer(device_, 2 * cell_bytes, false);
+  dirty_ = vk::Buffer(device_, (dirty[0] + dirty[1] + dirty[2]) * sizeof(std::uint32_t), false);
   bytes_ = bytes;
   buffers.noteFieldBytes(0, bytes_);
   try {
-    update();
+    update(/*building=*/true);
   } catch (...) {
     buffers.noteFieldBytes(bytes_, 0);
     throw;
@@ -108,6 +118,12 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
 DistanceField::Impl::~Impl() {
   // The map outlives its fields (distance.hpp); its accounting forgets the field's bytes.
   map_.fieldBuffers().noteFieldBytes(bytes_, 0);
+  if (!follows_changes_) return;
+  try {
+    map_.flush();  // the scans in flight note their changes first
+    map_.releaseChangesForField();
+  } catch (...) {  // a destructor does not throw; change detection stays on (memory kept)
+  }
 }
 
 std::size_t DistanceField::Impl::batchLimit() const {
@@ -120,6 +136,7 @@ void DistanceField::Impl::rebind(MapBuffers& map) {
   bound[gpu::kBindParams] = &params_;
   bound[gpu::kBindPool] = &map.pool;
   bound[gpu::kBindNodes] = &map.nodes;
+  if (map.changesLog2() != 0) bound[gpu::kBindChanges] = &map.changes;
   if (query_in_.valid()) {
     bound[gpu::kBindQueryIn] = &query_in_;
     bound[gpu::kBindQueryOut] = &query_out_;
@@ -127,36 +144,78 @@ void DistanceField::Impl::rebind(MapBuffers& map) {
   bindings_.update(bound);
 }
 
-void DistanceField::Impl::update() {
+bool DistanceField::Impl::fromChanges() {
+  if (!map_.changeDetectionEnabled()) return false;
+  // Anything the change set does not hold since the last update (an upload, clearBox, a scan
+  // without change detection, a reset of the set, or a growth that dropped keys flipped back
+  // after that update): the whole tree.
+  const OccupancyMap::Impl::FieldTracking now = map_.fieldTracking();
+  if (now.unnoted != tracking_.unnoted || now.epoch != tracking_.epoch ||
+      (now.rehashes != tracking_.rehashes && !reset_changes_))
+    return false;
+  MapBuffers& map = map_.fieldBuffers();
+  if (map.changesLog2() == 0) return false;
+  // Reading the tree costs about a search per occupancy word (field_raster searches once per
+  // run of cells one leaf answers, along paths the neighbouring words share); the change set a
+  // search per key (measured about 4 words' worth on the paper map: its keys' paths are
+  // scattered) and a read per slot.
+  stream_.begin(bindings_);
+  stream_.copy(map.changes, readback_, sizeof(gpu::ChangeHeader));
+  stream_.submitAndWait();
+  gpu::ChangeHeader header;
+  std::memcpy(&header, readback_.mapped(), sizeof(header));
+  return 4 * std::size_t{header.used} + (std::size_t{1} << map.changesLog2()) / 64 <=
+         box_.words();
+}
+
+void DistanceField::Impl::update(bool building) {
   map_.flush();  // every scan submitted before is in the map
   MapBuffers& map = map_.fieldBuffers();
   rebind(map);
+  // A build, or an update of the lines whose input changed, reading the obstacles from the
+  // change set or from the whole tree.
+  const bool build = !built_ || stale_;
+  const bool from_changes = !build && fromChanges();
   gpu::ScanParams sp{};
   sp.resolution = map_.params().resolution;
   sp.resolution_factor = 1.0 / map_.params().resolution;
   sp.occupancy_log = map_.logOdds().occupancy;
+  const auto dirty = box_.dirtyWords();
   gpu::FieldHeader h{};
-  h.cells_a = cells_a_.address();
-  h.cells_b = cells_b_.address();
+  h.occupancy = occupancy_.address();
+  h.line_x = line_x_.address();
+  h.plane_xy = plane_xy_.address();
+  h.sites = sites_.address();
+  h.envelope = envelope_.address();
+  h.dirty = dirty_.address();
   h.min_key_x = box_.min_key[0];
   h.min_key_y = box_.min_key[1];
   h.min_key_z = box_.min_key[2];
   h.size_x = box_.size[0];
   h.size_y = box_.size[1];
   h.size_z = box_.size[2];
+  h.words_per_row = box_.wordsPerRow();
   h.unknown_occupied = options_.treat_unknown_as_occupied ? 1u : 0u;
   h.max_distance_m = options_.max_distance_m;
+  h.dirty_y = static_cast<std::uint32_t>(dirty[0]);
+  h.dirty_z = static_cast<std::uint32_t>(dirty[0] + dirty[1]);
   passes::Recorder r(device_, stream_, map);
   stream_.begin(bindings_);
   const std::uint32_t start = stream_.timestamp();
   stream_.update(params_, &sp, sizeof(sp));
   stream_.update(header_, &h, sizeof(h));
+  if (!build) stream_.fill(dirty_, 0u);
   stream_.barrier();
-  field::recordRaster(r, header_.address(), static_cast<std::uint32_t>(box_.cells()));
-  field::recordTransform(r, header_.address(), box_.size);
+  if (from_changes)
+    field::recordChanges(r, header_.address(), std::uint32_t{1} << map.changesLog2());
+  else
+    field::recordRaster(r, header_.address(), static_cast<std::uint32_t>(box_.words()), !build);
+  field::recordNearestX(r, header_.address(), box_.size, build);
+  field::recordEdt(r, header_.address(), box_.size, build);
   const std::uint32_t end = stream_.timestamp();
   stream_.copy(header_, readback_, sizeof(gpu::FieldHeader));
   stale_ = true;  // until the device says it finished
+  built_ = false;
   stream_.submitAndWait();
   gpu::FieldHeader done;
   std::memcpy(&done, readback_.mapped(), sizeof(done));
@@ -166,6 +225,21 @@ void DistanceField::Impl::update() {
                 "lower than the device probe measured); the field is not up to date, and queries "
                 "refuse until update() succeeds. Use a box with shorter lines");
   stale_ = false;
+  built_ = true;
+  last_kind_ = build ? UpdateKind::kBuild
+                      : (from_changes ? UpdateKind::kFromChanges : UpdateKind::kFromTree);
+  // The change set's keys are in the field now: a set the fields turned on is emptied by the
+  // one field following it (resetChangesForField; a set the user turned on is left alone, and
+  // their next reset makes the next update read the tree).
+  if (!building && !follows_changes_) {
+    // From the first update() on, scans note their changed cells, which the next update starts
+    // from (DynamicEDTOctomap's constructor turns change detection on; a field that is only
+    // built and queried leaves the map as it was). See enableChangesForField.
+    map_.enableChangesForField();
+    follows_changes_ = true;
+  }
+  reset_changes_ = follows_changes_ && map_.resetChangesForField();
+  tracking_ = map_.fieldTracking();
   const std::vector<double> ns = stream_.timestampsNs();
   last_ms_ = ns.size() > end ? (ns[end] - ns[start]) * 1e-6 : 0.0;
 }
@@ -262,19 +336,32 @@ DistanceField::Grid DistanceField::Impl::download() {
   g.size = box_.size;
   g.min_key = box_.min_key;
   const std::size_t cells = box_.cells();
-  vk::Buffer staging(device_, cells * sizeof(gpu::FieldCell), true);
+  vk::Buffer staging(device_, cells * sizeof(std::uint32_t), true);
   MapBuffers& map = map_.fieldBuffers();
   rebind(map);
   stream_.begin(bindings_);
-  stream_.copy(cells_b_, staging, cells * sizeof(gpu::FieldCell));
+  stream_.copy(sites_, staging, cells * sizeof(std::uint32_t));
   stream_.submitAndWait();
   g.squared_cells.resize(cells);
   g.nearest.resize(cells);
-  const auto* c = static_cast<const gpu::FieldCell*>(staging.mapped());
+  const auto* sites = static_cast<const std::uint32_t*>(staging.mapped());
+  const std::size_t sx = box_.size[0], sy = box_.size[1];
   for (std::size_t i = 0; i < cells; ++i) {
-    const bool none = c[i].squared == gpu::kFieldFar;
-    g.squared_cells[i] = none ? DistanceSample::kNoObstacleCells : c[i].squared;
-    g.nearest[i] = none ? DistanceSample::kNoObstacleCells : c[i].site;
+    const std::uint32_t s = sites[i];
+    if (s == gpu::kFieldNoSite) {
+      g.squared_cells[i] = DistanceSample::kNoObstacleCells;
+      g.nearest[i] = DistanceSample::kNoObstacleCells;
+      continue;
+    }
+    // |cell - site|^2 < 2^31 (gpu::kFieldMaxAxisCells)
+    const auto d = [&](std::size_t a, std::size_t b) {
+      const std::int64_t v = static_cast<std::int64_t>(a) - static_cast<std::int64_t>(b);
+      return v * v;
+    };
+    g.squared_cells[i] = static_cast<std::uint32_t>(d(i % sx, s % sx) +
+                                                    d((i / sx) % sy, (s / sx) % sy) +
+                                                    d(i / (sx * sy), s / (sx * sy)));
+    g.nearest[i] = s;
   }
   return g;
 }
@@ -338,5 +425,8 @@ std::array<std::uint32_t, 3> DistanceField::minKey() const { return self().box()
 const DistanceFieldOptions& DistanceField::options() const { return self().options(); }
 std::size_t DistanceField::deviceBytes() const { return self().deviceBytes(); }
 double DistanceField::lastUpdateMs() const { return self().lastUpdateMs(); }
+DistanceField::UpdateKind DistanceField::lastUpdateKind() const {
+  return self().lastUpdateKind();
+}
 
 }  // namespace octovk

@@ -27,16 +27,26 @@ class FieldAccess {
 struct FieldBox {
   std::array<std::uint32_t, 3> min_key{}, size{};
   std::size_t cells() const { return std::size_t{size[0]} * size[1] * size[2]; }
+  /// Occupancy words of one x-line (32 cells each) and of the box.
+  std::uint32_t wordsPerRow() const { return (size[0] + 31) / 32; }
+  std::size_t words() const { return std::size_t{wordsPerRow()} * size[1] * size[2]; }
+  /// Words of the three dirty bitmaps (x-, y-, z-lines), each rounded up to whole words.
+  std::array<std::size_t, 3> dirtyWords() const {
+    const auto w = [](std::size_t bits) { return (bits + 31) / 32; };
+    return {w(std::size_t{size[1]} * size[2]), w(std::size_t{size[0]} * size[2]),
+            w(std::size_t{size[0]} * size[1])};
+  }
 };
 FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
                   const DistanceFieldOptions& options, std::uint32_t max_line_cells);
 
 /// The most cells a line of the box may have on `device`: field_edt walks a line in one loop
-/// of edtLoopIterations(n), which must stay within the driver's loop budget.
+/// of edtLoopIterations(n), which must stay within the driver's loop budget, and its integers
+/// stay below 2^31 up to gpu::kFieldMaxAxisCells.
 std::uint32_t maxLineCells(const vk::Device& device);
 
-/// Device bytes a field of `cells` cells holds without query buffers.
-std::size_t fieldBytes(std::size_t cells);
+/// Device bytes a field over `box` holds without query buffers.
+std::size_t fieldBytes(const FieldBox& box);
 
 class DistanceField::Impl {
  public:
@@ -45,8 +55,12 @@ class DistanceField::Impl {
   Impl(const Impl&) = delete;
   Impl& operator=(const Impl&) = delete;
 
-  /// Rasterises the map into the box and transforms it (on the device, waited for).
-  void update();
+  /// Brings the field up to the map (on the device, waited for): a build reads the whole tree
+  /// (field_raster) and transforms every line; an update reads the cells of the change set
+  /// (field_changes) where fromChanges(), else the whole tree again (field_raster comparing),
+  /// and transforms the lines marked dirty. The first update() after the build
+  /// turns change detection on (`building`: the constructor's, which does not).
+  void update(bool building = false);
   /// Queries of 4 floats each (centre, radius) from the host.
   std::vector<DistanceSample> query(std::span<const float> spheres, std::size_t count);
   /// The same between ranges of a caller's buffers (interop): `count` spheres at `in`,
@@ -61,6 +75,7 @@ class DistanceField::Impl {
   const DistanceFieldOptions& options() const { return options_; }
   std::size_t deviceBytes() const { return bytes_; }
   double lastUpdateMs() const { return last_ms_; }
+  DistanceField::UpdateKind lastUpdateKind() const { return last_kind_; }
 
  private:
   /// Query buffers for `count` queries per batch (checked against the cap first).
@@ -70,6 +85,8 @@ class DistanceField::Impl {
   /// Spheres per submission: what one descriptor binding of results may hold.
   std::size_t batchLimit() const;
   void checkFresh(const char* call) const;
+  /// Whether the next update may read the obstacles from the change set (else the whole tree).
+  bool fromChanges();
 
   OccupancyMap::Impl& map_;
   vk::Device& device_;
@@ -80,13 +97,19 @@ class DistanceField::Impl {
   vk::Buffer params_;   // gpu::ScanParams: resolution and occupancy threshold (keys.glsl)
   vk::Buffer spare_;    // bound where the passes read nothing (counters, the scan's arrays)
   vk::Buffer header_;   // gpu::FieldHeader
-  vk::Buffer cells_a_, cells_b_;
+  // gpu::FieldHeader's arrays: occupancy bits, line_x, plane_xy, sites, envelope, dirty bitmaps
+  vk::Buffer occupancy_, line_x_, plane_xy_, sites_, envelope_, dirty_;
   vk::Buffer readback_;  // host-visible: the header after a build
   vk::Buffer query_in_, query_out_, staging_in_, staging_out_;
   std::size_t query_capacity_ = 0;
   std::size_t bytes_ = 0;  // noted in the map's cap accounting
   double last_ms_ = 0.0;
   bool stale_ = false;  // an update failed on the device: queries refuse until one succeeds
+  bool built_ = false;  // the arrays hold the map as of `tracking_`
+  OccupancyMap::Impl::FieldTracking tracking_;
+  DistanceField::UpdateKind last_kind_ = DistanceField::UpdateKind::kBuild;
+  bool follows_changes_ = false;  // counted in the map's change_set_fields
+  bool reset_changes_ = false;    // the last update ended by emptying the change set
 };
 
 }  // namespace octovk

@@ -573,47 +573,60 @@ struct ScanRaysRtConstants {
 
 // ---- the distance field (src/field/, shaders field_*.comp) ----
 // A box of cells at the finest depth, key min_key + (x, y, z), cell index x + size_x * (y +
-// size_y * z). Two arrays of FieldCell, A and B, reached by device address from the header
-// (the header's own address is in each pass's push constants). field_raster writes A (0 on an
-// occupied cell, kFieldFar elsewhere; the site is the cell itself); field_edt runs one axis per
-// dispatch, A -> B (x), B -> A (y), A -> B (z): B then holds the exact squared distance and the
-// nearest occupied cell of every cell.
-OCTOVK_CONST uint kFieldFar = 0xFFFFFFFFu;     // no occupied cell on the lines seen so far
-OCTOVK_CONST uint kFieldNoSite = 0xFFFFFFFFu;  // FieldCell::site with kFieldFar
+// size_y * z). Its arrays are reached by device address from the header (the header's own
+// address is in each pass's push constants):
+// - occupancy: one bit per cell, bit x % 32 of word x / 32 + words_per_row * (y + size_y * z):
+//   the box's obstacles (field_raster from the tree, field_changes from the change set);
+// - line_x: per cell, the x of the nearest obstacle on its x-line (field_nearest_x);
+// - plane_xy: per cell, x | y << 16 of the nearest obstacle in its z-plane (field_edt, y);
+// - sites: per cell, the cell index of the nearest obstacle of the box (field_edt, z);
+// - envelope: field_edt's scratch, per cell one lower-envelope entry (t | v << 16, v's input);
+// - dirty: three bitmaps of lines to redo in an incremental update: x-lines (bit y + size_y *
+//   z), from word 0; y-lines (bit x + size_x * z), from word dirty_y; z-lines (bit x + size_x *
+//   y), from word dirty_z.
+// The squared distance of a cell is |cell - site|^2, computed where it is read.
+OCTOVK_CONST uint kFieldNone = 0xFFFFFFFFu;    // no obstacle (line_x, plane_xy, sites)
+OCTOVK_CONST uint kFieldNoSite = 0xFFFFFFFFu;  // sites: the box has no obstacle
 OCTOVK_CONST uint kFieldStatusCut = 1u;        // a line's loop ended early (driver loop limit)
-// One cell of the field. 8 B.
-struct FieldCell {
-  uint squared;  // 4B (0)  squared distance in cells to `site`, or kFieldFar
-  uint site;     // 4B (4)  cell index of the nearest occupied cell, or kFieldNoSite
-};
-// The field's description on the device. 64 B.
+OCTOVK_CONST uint kFieldMaxAxisCells = 16384u;  // squared distances and the passes' integers fit 31 bits
+// The field's description on the device. 96 B.
 struct FieldHeader {
-  uint64_t cells_a;        // 8B (0)  address of FieldCell[cell count]
-  uint64_t cells_b;        // 8B (8)
-  uint min_key_x;          // 4B (16) key of cell (0, 0, 0)
-  uint min_key_y;          // 4B (20)
-  uint min_key_z;          // 4B (24)
-  uint size_x;             // 4B (28) cells along each axis
-  uint size_y;             // 4B (32)
-  uint size_z;             // 4B (36)
-  uint unknown_occupied;   // 4B (40) 1: unknown cells count as occupied
-  uint status;             // 4B (44) kFieldStatus* bits
-  float max_distance_m;    // 4B (48) distances are capped here
-  uint pad0;               // 4B (52)
-  uint pad1;               // 4B (56)
-  uint pad2;               // 4B (60)
+  uint64_t occupancy;     // 8B (0)  address of uint[words_per_row * size_y * size_z]
+  uint64_t line_x;        // 8B (8)  address of uint[cell count]
+  uint64_t plane_xy;      // 8B (16) address of uint[cell count]
+  uint64_t sites;         // 8B (24) address of uint[cell count]
+  uint64_t envelope;      // 8B (32) address of uvec2[cell count]
+  uint64_t dirty;         // 8B (40) address of the three dirty bitmaps
+  uint min_key_x;         // 4B (48) key of cell (0, 0, 0)
+  uint min_key_y;         // 4B (52)
+  uint min_key_z;         // 4B (56)
+  uint size_x;            // 4B (60) cells along each axis
+  uint size_y;            // 4B (64)
+  uint size_z;            // 4B (68)
+  uint words_per_row;     // 4B (72) occupancy words per x-line: (size_x + 31) / 32
+  uint unknown_occupied;  // 4B (76) 1: unknown cells count as occupied
+  uint status;            // 4B (80) kFieldStatus* bits
+  float max_distance_m;   // 4B (84) distances are capped here
+  uint dirty_y;           // 4B (88) first word of the y-lines' dirty bitmap
+  uint dirty_z;           // 4B (92) first word of the z-lines' dirty bitmap
 };
 // field_raster. 16 B.
 struct FieldRasterConstants {
   uint64_t header;  // 8B (0)  device address of the FieldHeader
-  uint cell_count;  // 4B (8)
+  uint word_count;  // 4B (8)  occupancy words of the box
+  uint compare;     // 4B (12) 1: mark the x-lines whose words changed dirty (an update)
+};
+// field_changes. 16 B.
+struct FieldChangesConstants {
+  uint64_t header;  // 8B (0)  device address of the FieldHeader
+  uint capacity;    // 4B (8)  slots of the change set
   uint pad0;        // 4B (12)
 };
-// field_edt. 16 B.
+// field_nearest_x and field_edt. 16 B.
 struct FieldEdtConstants {
   uint64_t header;  // 8B (0)  device address of the FieldHeader
-  uint axis;        // 4B (8)  0, 1, 2: the lines run along x, y, z
-  uint from_b;      // 4B (12) 0: A -> B, 1: B -> A
+  uint axis;        // 4B (8)  field_edt: 1 or 2, the lines run along y or z
+  uint full;        // 4B (12) 1: every line (a build); 0: the dirty lines, marking the next axis's
 };
 // field_query. 16 B.
 struct FieldQueryConstants {

@@ -27,6 +27,7 @@ void growChangeSet(MapCore& core, std::uint64_t keys) {
                 "change detection: more than 2^30 changed keys; call resetChangeDetection() "
                 "after reading them");
   if (log2 == core.buffers.changesLog2()) return;
+  ++core.changes_rehashes;  // the rehash drops the keys that flipped back (MapCore)
   const std::uint32_t old_log2 = core.buffers.changesLog2();
   const std::uint32_t old_slots = std::uint32_t{1} << old_log2;
   vk::Buffer old = core.buffers.replaceChanges(log2);  // under the cap; nothing changed if not
@@ -50,7 +51,15 @@ void ChangeSet::enable(bool on) {
 }
 
 void ChangeSet::reset() {
+  ++core_.changes_epoch;
   core_.buffers.resetChanges();
+}
+
+void ChangeSet::release() {
+  core_.change_detection = false;
+  if (core_.buffers.changesLog2() == 0) return;
+  ++core_.changes_epoch;
+  (void)core_.buffers.replaceChanges(0);  // the old set goes with the returned buffer
 }
 
 std::size_t ChangeSet::count() { return readChangeHeader(core_).live; }

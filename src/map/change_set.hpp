@@ -32,6 +32,9 @@ class ChangeSet {
   bool enabled() const noexcept { return core_.change_detection; }
   /// Empties the set (resetChangeDetection).
   void reset();
+  /// Turns change detection off and gives the set's memory back (the one-slot idle set), as a
+  /// map that never had it on; for the distance fields that turned it on (map_impl.hpp).
+  void release();
   /// Keys in the set (numChangesDetected).
   std::size_t count();
   /// The keys and their flags, in no particular order.

@@ -50,6 +50,24 @@ struct MapCore {
   LeafBoxes leaf_boxes = LeafBoxes::kCurrent;
   /// Change detection on: scans note their changed keys in the change set (ChangeSet).
   bool change_detection = false;
+  /// The tree changes the change set holds: scans recorded with change detection on that
+  /// changed cells. tree_version - noted_version counts every other change (uploads, clearBox,
+  /// scans without change detection): a distance field that sees it move redoes its box.
+  std::uint64_t noted_version = 0;
+  /// Counts the resets of the change set: a distance field that sees it move since its last
+  /// update redoes its box.
+  std::uint64_t changes_epoch = 0;
+  /// Counts the growths of the change set, whose rehash drops the keys that flipped back since
+  /// the last reset: a distance field that did not reset the set itself at its last update
+  /// (the keys may predate it) redoes its box when it moved.
+  std::uint64_t changes_rehashes = 0;
+  /// The user turned change detection on or off (OccupancyMap::enableChangeDetection): the set
+  /// is theirs, and a distance field never resets it.
+  bool change_detection_by_user = false;
+  /// Distance fields following the map through the change set, and whether they (not the user)
+  /// turned change detection on: the last of them to go turns it off again.
+  std::uint32_t change_set_fields = 0;
+  bool change_detection_by_fields = false;
 };
 
 }  // namespace octovk

@@ -27,6 +27,7 @@ double msSince(std::chrono::steady_clock::time_point start) {
 void ScanPipeline::record(PendingScan& p) {
   const gpu::ScanParams sp = core_.scanParams(p.origin, p.pose ? &*p.pose : nullptr,
                                               p.options.max_range_m, p.count);  // sizes may grow
+  p.noted_changes = sp.changes_log2 != 0;
   passes::RayKeysInput input = p.input;
   if (p.input_at == ScanInput::kStaging)
     input.source = core_.buffers.uploads[p.staging_frame].handle();
@@ -189,8 +190,10 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   stats.aborted_cells = counters.aborted;
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
   last_nodes_ = stats.nodes;
-  if (counters.active_cells + counters.leaf_cells > 0)
+  if (counters.active_cells + counters.leaf_cells > 0) {
     ++core_.tree_version;  // the ray scene is rebuilt before the next castRays
+    if (p.noted_changes) ++core_.noted_version;  // the change set holds what it changed
+  }
   if (p.caller == ScanCaller::kInsert)
     blocking_stats_ = stats;  // the call's result, which must not need an allocation
   else

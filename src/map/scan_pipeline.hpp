@@ -90,6 +90,7 @@ class ScanPipeline {
     const QueryRequest* queries = nullptr;  // the blocking call's
     QueryResults* results = nullptr;
     ScanStats stats;
+    bool noted_changes = false;  ///< recorded with change detection on (MapCore::noted_version)
   };
   /// submit(); `caller` kInsert: the blocking call's scan, whose `queries` (staged here) run
   /// right after it in its submission.
