@@ -317,8 +317,8 @@ const char* kindName(DistanceField::UpdateKind kind) {
   return "?";
 }
 
-// Updates from the change set (small changes) and from the tree (large ones, clearBox), with
-// unknown counted as occupied or not: after each, equal to a fresh build and to brute force.
+// Updates from the change set (small changes) and from the tree (large ones, clearBox, keepBox),
+// with unknown counted as occupied or not: after each, equal to a fresh build and to brute force.
 TEST(DistanceField, IncrementalUpdatesEqualFromScratch) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   using Kind = DistanceField::UpdateKind;
@@ -359,6 +359,12 @@ TEST(DistanceField, IncrementalUpdatesEqualFromScratch) {
     EXPECT_TRUE(saw_tree);  // the large scans note more keys than reading the tree costs
     // clearBox is not in the change set: the next update reads the tree.
     map.clearBox({-0.3f, -0.3f, -0.3f}, {0.3f, 0.2f, 0.25f});
+    field.update();
+    EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);
+    EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
+    EXPECT_TRUE(sameAsBruteForce(field.download(), bruteForce(*toOcTree(map), kSmallBox, unknown)));
+    // keepBox deletes nodes, and deletions are not in the change set either.
+    map.keepBox({-0.5f, -0.4f, -0.35f}, {0.25f, 0.3f, 0.2f});
     field.update();
     EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);
     EXPECT_TRUE(sameAsScratch(map, field, kSmallBox, options));
