@@ -120,6 +120,37 @@ TEST(KeepBox, EqualsTheLeafIteratorsTreeNodeForNodeAndLaterScansToo) {
   }
 }
 
+// compact() after a cut gives the freed blocks back to the device: the pool's bytes fall, the
+// tree, the change set and later scans stay OctoMap's; a pool with little free room is left.
+TEST(KeepBox, CompactGivesTheFreedBlocksBack) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scene s = scanned(ctx, test::withResolution(0.05), 7, /*changes=*/true);
+  const std::size_t grown = s.map.deviceBytesByUse().pool;
+  keepBoth(s, {0.2f, -0.5f, -0.2f}, {1.1f, 0.7f, 0.0f});
+  EXPECT_EQ(s.map.deviceBytesByUse().pool, grown) << "keepBox frees blocks, not bytes";
+  const std::size_t nodes = s.map.nodeCount();
+  s.map.compact();
+  const OccupancyMap::DeviceBytes compacted = s.map.deviceBytesByUse();
+  EXPECT_LT(compacted.pool * 2, grown) << "the cut kept a small box: most of the pool is free";
+  EXPECT_LT(compacted.leaf_boxes, compacted.pool * 3) << "the leaf boxes follow the pool";
+  EXPECT_EQ(s.map.nodeCount(), nodes);
+  ASSERT_TRUE(sameTree(*s.oracle, *toOcTree(s.map)));
+  EXPECT_EQ(ourChanges(s.map), oracleChanges(*s.oracle));
+  s.map.compact();  // nothing more to give back
+  EXPECT_EQ(s.map.deviceBytesByUse().pool, compacted.pool);
+  std::mt19937 rng(13);
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3f origin(0.6f, 0.1f * static_cast<float>(i), -0.1f);
+    const auto pts = test::randomScan(rng, origin, 1500, 2.0f);
+    s.oracle->insertPointCloud(toPointcloud(pts), toPoint(origin));
+    (void)s.map.submitPointCloud(pts, origin);
+  }
+  s.map.flush();
+  EXPECT_TRUE(sameTree(*s.oracle, *toOcTree(s.map)));
+  EXPECT_EQ(ourChanges(s.map), oracleChanges(*s.oracle));
+  EXPECT_EQ(s.map.nodeCount(), s.oracle->size());
+}
+
 // Emptied and scanned again, the map is what it was, in the blocks the cut freed.
 TEST(KeepBox, ABoxOutsideTheMapKeepsNothingAndTheFreedBlocksAreReused) {
   OCTOVK_REQUIRE_CONTEXT(ctx);

@@ -150,6 +150,13 @@ class OccupancyMap {
   /// min > max is kInvalidArgument, the map unchanged. Not noted by change detection (OctoMap's
   /// deleteNode leaves the changed keys alone: a deleted leaf's key stays in the set).
   void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
+  /// Gives the pool's free blocks back to the device: the tree is moved into a pool sized for
+  /// the blocks it holds and a quarter more (at least an empty map's), so deviceBytesByUse().pool
+  /// falls after keepBox, or after scans whose pruning freed many blocks. The tree, its queries
+  /// and the change set stay as they are. It reads the tree to the host and writes it back (as
+  /// download() then upload()), so it is for an occasional call, not one per scan; a pool with
+  /// little free room is left as it is. Throws with the map unchanged where it cannot.
+  void compact();
 
   /// Nodes in the tree (read from the device's counters, no map data moves).
   std::size_t nodeCount() const;

@@ -450,6 +450,10 @@ void bindMap(py::module_& m) {
       "deleted and its memory reused by later scans. A corner outside the map keeps nothing. "
       "min, max: the box's corners, 3 numbers each, min <= max.");
   map.def(
+      "compact", [](Map& self) { self.run([&](OccupancyMap& map) { map.compact(); }); },
+      "Gives the node pool's free blocks back to the device (after keep_box, say): the tree is "
+      "moved into a pool sized for it, through the host; for an occasional call.");
+  map.def(
       "enable_change_detection",
       [](Map& self, bool enable) {
         self.run([&](OccupancyMap& map) { map.enableChangeDetection(enable); });

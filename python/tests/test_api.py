@@ -303,5 +303,12 @@ def test_keep_box_keeps_the_leaves_in_it_and_frees_the_rest(context):
     with pytest.raises(octovk.InvalidArgumentError):
         m.keep_box((0, 0, float("nan")), (1, 1, 1))
     assert m.node_count() > 0
+    pool = m.device_bytes().pool
+    m.compact()  # the freed blocks go back to the device; the tree stays
+    assert m.device_bytes().pool < pool
+    assert m.node_count() > 0
+    centers_after, _, log_odds_after = m.leaves()
+    assert np.array_equal(centers_after[order(centers_after)], centers[order(centers)])
+    assert np.array_equal(log_odds_after[order(centers_after)], log_odds[order(centers)])
     m.keep_box((-1, -1, -1), (1e6, 1, 1))  # a corner outside the map: nothing is kept
     assert m.node_count() == 0 and len(m.leaves()[2]) == 0

@@ -28,6 +28,34 @@ HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState
   return tree;
 }
 
+HostTree compactHostTree(const HostTree& tree) {
+  HostTree out;
+  out.root_exists = tree.root_exists;
+  // Block 0 holds the root (its other slots are unused), as in every pool.
+  out.nodes.assign(8, HostTree::Node{0.0f, gpu::kNoBlock, 0});
+  if (!tree.root_exists || tree.nodes.size() < 8) return out;
+  struct Move {
+    std::size_t from, to;
+  };
+  std::vector<Move> queue{{gpu::kRootNode, gpu::kRootNode}};
+  for (std::size_t next = 0; next < queue.size(); ++next) {
+    const Move m = queue[next];
+    const HostTree::Node& n = tree.nodes[m.from];
+    out.nodes[m.to] = {n.log_odds, gpu::kNoBlock, 0};
+    if ((n.mask & gpu::kChildMask) == 0) continue;
+    if (n.children == 0 || std::size_t{n.children} * 8 + 8 > tree.nodes.size() ||
+        out.nodes.size() + 8 > tree.nodes.size() + 8)
+      throw Error(ErrorCode::kInternal, "compact: the downloaded tree links outside its nodes");
+    const std::size_t block = out.nodes.size() / 8;
+    out.nodes[m.to].children = static_cast<std::uint32_t>(block);
+    out.nodes[m.to].mask = n.mask & gpu::kChildMask;
+    out.nodes.resize(out.nodes.size() + 8, HostTree::Node{0.0f, gpu::kNoBlock, 0});
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (n.mask & (1u << s)) queue.push_back({std::size_t{n.children} * 8 + s, block * 8 + s});
+  }
+  return out;
+}
+
 PoolImage poolImageFromTree(const HostTree& tree) {
   PoolImage image;
   const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);

@@ -15,6 +15,11 @@ namespace octovk {
 /// The tree that hangs from the root of a downloaded pool (`nodes`: the first pool.bump blocks).
 HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool);
 
+/// The same tree with its blocks renumbered in breadth-first order from the root, with no block
+/// that nothing points at: what compact() uploads. Throws kInternal on a tree whose links leave
+/// its nodes or come back to a block (the device's tree never does).
+HostTree compactHostTree(const HostTree& tree);
+
 /// A HostTree as the device pool holds it, ready to upload.
 struct PoolImage {
   std::vector<gpu::Node> nodes;            ///< blocks * 8

@@ -111,6 +111,10 @@ class OccupancyMap::Impl {
     flush();
     edits_.keepBox(min, max);
   }
+  void compact() {
+    flush();
+    transfer_.compact();
+  }
 
   // ---- the tree (TreeTransfer, MapCore), each after the scans submitted before it ----
   HostTree download();

@@ -240,6 +240,10 @@ void OccupancyMap::keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& ma
   hostMemoryGuard("keepBox", [&] { self().keepBox(min, max); });
 }
 
+void OccupancyMap::compact() {
+  hostMemoryGuard("compact", [&] { self().compact(); });
+}
+
 std::size_t OccupancyMap::nodeCount() const {
   return hostMemoryGuard("nodeCount", [&] {
     const gpu::PoolState pool = self().readPool();

@@ -18,7 +18,23 @@ HostTree TreeTransfer::download() {
   return hostTreeFromPool({static_cast<const gpu::Node*>(staging.mapped()), count}, pool);
 }
 
-void TreeTransfer::upload(const HostTree& tree) {
+// The pool a tree of `blocks` blocks is uploaded into: a quarter more for the next scans, at least
+// an empty map's, at most the limit.
+std::uint32_t TreeTransfer::capacityFor(std::uint64_t blocks) const {
+  return static_cast<std::uint32_t>(std::min<std::uint64_t>(
+      core_.buffers.blockLimit(), std::max<std::uint64_t>(blocks + blocks / 4, kInitialBlocks)));
+}
+
+void TreeTransfer::compact() {
+  const gpu::PoolState pool = core_.readPool();
+  const std::uint64_t held = std::uint64_t{pool.bump} - pool.free_count;
+  const std::uint32_t capacity = capacityFor(held);
+  // Worth a round trip only when it gives back a fifth of the pool or more.
+  if (std::uint64_t{capacity} * 5 > std::uint64_t{core_.buffers.poolBlocks()} * 4) return;
+  upload(compactHostTree(download()), /*shrink=*/true);
+}
+
+void TreeTransfer::upload(const HostTree& tree, bool shrink) {
   const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);
   if (blocks > core_.buffers.blockLimit())
     throw Error(ErrorCode::kOutOfDeviceMemory,
@@ -39,10 +55,8 @@ void TreeTransfer::upload(const HostTree& tree) {
   if (free_bytes)
     std::memcpy(bytes + node_bytes + meta_bytes, image.free_blocks.data(), free_bytes);
   scenes_.releaseUnderCap();
-  const std::uint32_t capacity = std::min<std::uint32_t>(
-      core_.buffers.blockLimit(),
-      std::max<std::uint32_t>(image.blocks + image.blocks / 4, kInitialBlocks));
-  if (capacity > core_.buffers.poolBlocks())
+  const std::uint32_t capacity = capacityFor(image.blocks);
+  if (capacity > core_.buffers.poolBlocks() || (shrink && capacity < core_.buffers.poolBlocks()))
     core_.buffers.allocatePoolAtLeast(capacity, std::max<std::uint32_t>(image.blocks, 2),
                                       /*copy_old=*/false);
   gpu::PoolState pool{};

@@ -18,11 +18,17 @@ class TreeTransfer {
 
   HostTree download();
   /// Replaces the tree; throws with the map unchanged where it cannot (pool limit, memory).
-  void upload(const HostTree& tree);
+  /// `shrink`: also into a smaller pool than the current one, sized for the tree (compact()).
+  void upload(const HostTree& tree, bool shrink = false);
+  /// The tree moved into a pool sized for it, when that gives back at least a fifth of the
+  /// pool's blocks (OccupancyMap::compact).
+  void compact();
   /// The leaf boxes, rebuilt first if stale.
   std::vector<OccupancyMap::LeafBoxHost> downloadLeafBoxes();
 
  private:
+  std::uint32_t capacityFor(std::uint64_t blocks) const;
+
   MapCore& core_;
   RaySceneCache& scenes_;
 };
