@@ -89,6 +89,43 @@ class DeviceConsumer {
     EXPECT_EQ(vkSignalSemaphore(vk_.device, &signal), VK_SUCCESS);
   }
 
+  /// A producer on the device: a submission that copies `bytes` of `from` into `to` and then
+  /// signals the timeline to `value`, submitted now and not waited for (finishProducer() waits).
+  /// Submitted before a call that waits for `value` on the Context's shared queue, it keeps
+  /// forward progress (a signal submitted after the wait on one queue would not).
+  void produceThenSignal(const CallerBuffer& from, const CallerBuffer& to, VkDeviceSize bytes,
+                         std::uint64_t value) {
+    VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    alloc.commandPool = pool_;
+    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    alloc.commandBufferCount = 1;
+    ASSERT_EQ(vkAllocateCommandBuffers(vk_.device, &alloc, &producer_cmd_), VK_SUCCESS);
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    ASSERT_EQ(vkBeginCommandBuffer(producer_cmd_, &begin), VK_SUCCESS);
+    const VkBufferCopy region{0, 0, bytes};
+    vkCmdCopyBuffer(producer_cmd_, from.range().buffer, to.range().buffer, 1, &region);
+    ASSERT_EQ(vkEndCommandBuffer(producer_cmd_), VK_SUCCESS);
+    VkTimelineSemaphoreSubmitInfo values{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
+    values.signalSemaphoreValueCount = 1;
+    values.pSignalSemaphoreValues = &value;
+    VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    submit.pNext = &values;
+    submit.signalSemaphoreCount = 1;
+    submit.pSignalSemaphores = &timeline_;
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &producer_cmd_;
+    const auto lock = lockQueue(context_);  // the Context's queue is shared
+    ASSERT_EQ(vkQueueSubmit(vk_.queue, 1, &submit, fence_), VK_SUCCESS);
+  }
+  /// Waits for produceThenSignal's submission.
+  void finishProducer() {
+    ASSERT_EQ(vkWaitForFences(vk_.device, 1, &fence_, VK_TRUE, 10'000'000'000ull), VK_SUCCESS);
+    ASSERT_EQ(vkResetFences(vk_.device, 1, &fence_), VK_SUCCESS);
+    vkFreeCommandBuffers(vk_.device, pool_, 1, &producer_cmd_);
+    producer_cmd_ = VK_NULL_HANDLE;
+  }
+
   /// Waits on the device for `value`, then copies `bytes` of `from` into `to`; returns when the
   /// copy is done (and checks that the timeline reached `value`).
   void copyAfter(const CallerBuffer& from, const CallerBuffer& to, VkDeviceSize bytes,
@@ -138,6 +175,7 @@ class DeviceConsumer {
   Context& context_;
   VulkanHandles vk_;
   VkSemaphore timeline_ = VK_NULL_HANDLE;
+  VkCommandBuffer producer_cmd_ = VK_NULL_HANDLE;
   VkCommandPool pool_ = VK_NULL_HANDLE;
   VkFence fence_ = VK_NULL_HANDLE;
 };

@@ -530,24 +530,28 @@ TEST(DistanceField, DistancesOnDeviceWaitAndSignalAndEqualTheHostApi) {
   const std::vector<DistanceSample> want = field.clearances(spheres);
 
   const VulkanHandles vk = vulkanHandles(ctx);
-  test::DeviceConsumer consumer(ctx, vk);
+  // The producer's timeline and the consumer's, as a perception stack would have them. The
+  // producer is a submission on the same device that writes the spheres, then signals 1; the
+  // call waits for 1 on the device. (The scans' interop test shows the wait holds a call back
+  // until a later host signal; here a host signal racing the blocked call trips the Khronos
+  // validation layer of Debian bookworm, 1.3.239, which then reports
+  // UNASSIGNED-VkSemaphore-state-timeout, "most likely a validation bug".)
+  test::DeviceConsumer producer(ctx, vk), consumer(ctx, vk);
   const std::size_t in_bytes = spheres.size() * sizeof(Eigen::Vector4f);
   const std::size_t out_bytes = spheres.size() * sizeof(gpu::DistanceResult);
-  test::CallerBuffer in(vk, in_bytes), out(vk, out_bytes), copy(vk, out_bytes);
-  // Outside every box until the producer writes the spheres: an early read answers kOutside.
+  test::CallerBuffer staged(vk, in_bytes), in(vk, in_bytes), out(vk, out_bytes),
+      copy(vk, out_bytes);
+  // `in` is outside every box until the producer's copy: a read before it answers kOutside.
   std::vector<float> far(spheres.size() * 4, 1e9f);
   std::memcpy(in.data(), far.data(), in_bytes);
+  std::memcpy(staged.data(), spheres.data(), in_bytes);
   std::memset(out.data(), 0, out_bytes);
   std::memset(copy.data(), 0, out_bytes);
-  std::thread producer([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-    std::memcpy(in.data(), spheres.data(), in_bytes);
-    consumer.signalFromHost(1);
-  });
+  producer.produceThenSignal(staged, in, in_bytes, 1);
   distancesOnDevice(field, in.range(), static_cast<std::uint32_t>(spheres.size()), out.range(),
-                    WaitSemaphore{consumer.timeline(), 1},
+                    WaitSemaphore{producer.timeline(), 1},
                     SignalSemaphore{consumer.timeline(), 2});
-  producer.join();
+  producer.finishProducer();
   consumer.copyAfter(out, copy, out_bytes, 2);
   const auto* got = static_cast<const gpu::DistanceResult*>(copy.data());
   std::size_t inside = 0, with_gradient = 0;
