@@ -28,26 +28,29 @@ void checkBox(const char* call, const Eigen::Vector3f& min, const Eigen::Vector3
 }  // namespace
 
 void TreeEdits::clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
-  checkBox("clearBox", min, max);
-  gpu::BoxQuery box{};
   // As OctoMap's iterator: a corner outside the map visits no leaf (updateInnerOccupancy runs).
-  const bool inside = boxKeys(core_.params.resolution, min, max, box);
-  core_.buffers.ensureQueries(sizeof(box), sizes::kSmallQuery);
-  core_.stream.begin(core_.buffers.bindings);
-  passes::recordClearBox(core_.rec, core_.queryParams(), inside ? &box : nullptr);
-  core_.stream.submitAndWait();
-  treeChanged();
+  edit("clearBox", min, max, [&](const gpu::BoxQuery* box) {
+    passes::recordClearBox(core_.rec, core_.queryParams(), box);
+  });
 }
 
 void TreeEdits::keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
-  checkBox("keepBox", min, max);
-  gpu::BoxQuery box{};
   // As OctoMap's iterator: a corner outside the map visits no leaf, so nothing is kept.
-  const bool inside = boxKeys(core_.params.resolution, min, max, box);
+  edit("keepBox", min, max, [&](const gpu::BoxQuery* box) {
+    passes::recordKeepBox(core_.rec, core_.queryParams(), box);
+    passes::recordClearBox(core_.rec, core_.queryParams(), nullptr);  // updateInnerOccupancy
+  });
+}
+
+template <typename Record>
+void TreeEdits::edit(const char* call, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+                     Record record) {
+  checkBox(call, min, max);
+  gpu::BoxQuery box{};
+  const bool inside = boxKeys(core_.params.resolution, min, max, box);  // false: outside the map
   core_.buffers.ensureQueries(sizeof(box), sizes::kSmallQuery);
   core_.stream.begin(core_.buffers.bindings);
-  passes::recordKeepBox(core_.rec, core_.queryParams(), inside ? &box : nullptr);
-  passes::recordClearBox(core_.rec, core_.queryParams(), nullptr);  // updateInnerOccupancy
+  record(inside ? &box : nullptr);
   core_.stream.submitAndWait();
   treeChanged();
 }

@@ -24,6 +24,11 @@ class TreeEdits {
   void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
 
  private:
+  /// One edit: the box checked and turned into keys (none when a corner is outside the map),
+  /// `record(box or nullptr)` recorded into one submission, waited for, the tree marked changed.
+  template <typename Record>
+  void edit(const char* call, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
+            Record record);
   /// The leaf boxes go stale and castRay's scene is rebuilt on its next use.
   void treeChanged();
 
