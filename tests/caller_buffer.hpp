@@ -95,16 +95,8 @@ class DeviceConsumer {
   /// forward progress (a signal submitted after the wait on one queue would not).
   void produceThenSignal(const CallerBuffer& from, const CallerBuffer& to, VkDeviceSize bytes,
                          std::uint64_t value) {
-    VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
-    alloc.commandPool = pool_;
-    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    alloc.commandBufferCount = 1;
-    ASSERT_EQ(vkAllocateCommandBuffers(vk_.device, &alloc, &producer_cmd_), VK_SUCCESS);
-    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    ASSERT_EQ(vkBeginCommandBuffer(producer_cmd_, &begin), VK_SUCCESS);
-    const VkBufferCopy region{0, 0, bytes};
-    vkCmdCopyBuffer(producer_cmd_, from.range().buffer, to.range().buffer, 1, &region);
+    producer_cmd_ = beginCopy(from, to, bytes);
+    ASSERT_NE(producer_cmd_, VK_NULL_HANDLE);
     ASSERT_EQ(vkEndCommandBuffer(producer_cmd_), VK_SUCCESS);
     VkTimelineSemaphoreSubmitInfo values{VK_STRUCTURE_TYPE_TIMELINE_SEMAPHORE_SUBMIT_INFO};
     values.signalSemaphoreValueCount = 1;
@@ -120,8 +112,7 @@ class DeviceConsumer {
   }
   /// Waits for produceThenSignal's submission.
   void finishProducer() {
-    ASSERT_EQ(vkWaitForFences(vk_.device, 1, &fence_, VK_TRUE, 10'000'000'000ull), VK_SUCCESS);
-    ASSERT_EQ(vkResetFences(vk_.device, 1, &fence_), VK_SUCCESS);
+    waitFence();
     vkFreeCommandBuffers(vk_.device, pool_, 1, &producer_cmd_);
     producer_cmd_ = VK_NULL_HANDLE;
   }
@@ -130,17 +121,8 @@ class DeviceConsumer {
   /// copy is done (and checks that the timeline reached `value`).
   void copyAfter(const CallerBuffer& from, const CallerBuffer& to, VkDeviceSize bytes,
                  std::uint64_t value) {
-    VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
-    alloc.commandPool = pool_;
-    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
-    alloc.commandBufferCount = 1;
-    VkCommandBuffer cmd = VK_NULL_HANDLE;
-    ASSERT_EQ(vkAllocateCommandBuffers(vk_.device, &alloc, &cmd), VK_SUCCESS);
-    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    ASSERT_EQ(vkBeginCommandBuffer(cmd, &begin), VK_SUCCESS);
-    const VkBufferCopy region{0, 0, bytes};
-    vkCmdCopyBuffer(cmd, from.range().buffer, to.range().buffer, 1, &region);
+    VkCommandBuffer cmd = beginCopy(from, to, bytes);
+    ASSERT_NE(cmd, VK_NULL_HANDLE);
     VkMemoryBarrier to_host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
     to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
@@ -163,8 +145,7 @@ class DeviceConsumer {
       const auto lock = lockQueue(context_);
       ASSERT_EQ(vkQueueSubmit(vk_.queue, 1, &submit, fence_), VK_SUCCESS);
     }
-    ASSERT_EQ(vkWaitForFences(vk_.device, 1, &fence_, VK_TRUE, 10'000'000'000ull), VK_SUCCESS);
-    ASSERT_EQ(vkResetFences(vk_.device, 1, &fence_), VK_SUCCESS);
+    waitFence();
     vkFreeCommandBuffers(vk_.device, pool_, 1, &cmd);
     std::uint64_t reached = 0;
     ASSERT_EQ(vkGetSemaphoreCounterValue(vk_.device, timeline_, &reached), VK_SUCCESS);
@@ -172,6 +153,35 @@ class DeviceConsumer {
   }
 
  private:
+  // A one-time command buffer from the pool, begun, holding a copy of `bytes` of `from` into
+  // `to`; VK_NULL_HANDLE (and a failure recorded) if it could not be made.
+  VkCommandBuffer beginCopy(const CallerBuffer& from, const CallerBuffer& to, VkDeviceSize bytes) {
+    VkCommandBufferAllocateInfo alloc{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+    alloc.commandPool = pool_;
+    alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+    alloc.commandBufferCount = 1;
+    VkCommandBuffer cmd = VK_NULL_HANDLE;
+    if (vkAllocateCommandBuffers(vk_.device, &alloc, &cmd) != VK_SUCCESS) {
+      ADD_FAILURE() << "vkAllocateCommandBuffers failed";
+      return VK_NULL_HANDLE;
+    }
+    VkCommandBufferBeginInfo begin{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    if (vkBeginCommandBuffer(cmd, &begin) != VK_SUCCESS) {
+      ADD_FAILURE() << "vkBeginCommandBuffer failed";
+      vkFreeCommandBuffers(vk_.device, pool_, 1, &cmd);
+      return VK_NULL_HANDLE;
+    }
+    const VkBufferCopy region{0, 0, bytes};
+    vkCmdCopyBuffer(cmd, from.range().buffer, to.range().buffer, 1, &region);
+    return cmd;
+  }
+  // Waits for this consumer's one submission in flight (10 s at most) and resets its fence.
+  void waitFence() {
+    ASSERT_EQ(vkWaitForFences(vk_.device, 1, &fence_, VK_TRUE, 10'000'000'000ull), VK_SUCCESS);
+    ASSERT_EQ(vkResetFences(vk_.device, 1, &fence_), VK_SUCCESS);
+  }
+
   Context& context_;
   VulkanHandles vk_;
   VkSemaphore timeline_ = VK_NULL_HANDLE;
