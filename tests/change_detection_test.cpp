@@ -11,6 +11,7 @@
 
 #include "caller_buffer.hpp"
 #include "octovk/vulkan_interop.hpp"
+#include "changed_keys.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -22,23 +23,9 @@ using test::toPoint;
 using test::toPointcloud;
 using test::toPose6D;
 
-using KeyFlag = std::tuple<std::uint16_t, std::uint16_t, std::uint16_t, bool>;
-
-std::vector<KeyFlag> oracleChanges(const octomap::OcTree& tree) {
-  std::vector<KeyFlag> out;
-  for (auto it = tree.changedKeysBegin(); it != tree.changedKeysEnd(); ++it)
-    out.emplace_back(it->first[0], it->first[1], it->first[2], it->second);
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::vector<KeyFlag> ourChanges(const OccupancyMap& map) {
-  std::vector<KeyFlag> out;
-  for (const ChangedKey& c : map.changedKeys())
-    out.emplace_back(c.key[0], c.key[1], c.key[2], c.created);
-  std::sort(out.begin(), out.end());
-  return out;
-}
+using test::KeyFlag;
+using test::oracleChanges;
+using test::ourChanges;
 
 ::testing::AssertionResult sameChanges(const octomap::OcTree& oracle, const OccupancyMap& map) {
   const std::vector<KeyFlag> expected = oracleChanges(oracle);

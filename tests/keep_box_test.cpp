@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "octomap_keep_box.hpp"
+#include "changed_keys.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -31,23 +32,9 @@ std::unique_ptr<octomap::OcTree> keepOracle(const octomap::OcTree& tree, const E
   return test::octomapKeepBox(tree, toPoint(min), toPoint(max));
 }
 
-using KeyFlag = std::tuple<unsigned, unsigned, unsigned, bool>;
-
-std::vector<KeyFlag> oracleChanges(const octomap::OcTree& tree) {
-  std::vector<KeyFlag> out;
-  for (auto it = tree.changedKeysBegin(); it != tree.changedKeysEnd(); ++it)
-    out.emplace_back(it->first[0], it->first[1], it->first[2], it->second);
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::vector<KeyFlag> ourChanges(const OccupancyMap& map) {
-  std::vector<KeyFlag> out;
-  for (const ChangedKey& c : map.changedKeys())
-    out.emplace_back(c.key[0], c.key[1], c.key[2], c.created != 0);
-  std::sort(out.begin(), out.end());
-  return out;
-}
+using test::KeyFlag;
+using test::oracleChanges;
+using test::ourChanges;
 
 struct Scene {
   OccupancyMap map;
