@@ -48,6 +48,9 @@ struct BufferRange {
 /// A semaphore the caller signals when its buffer is ready (VK_NULL_HANDLE: ready now). A
 /// timeline semaphore (needs the device's timelineSemaphore feature, which octovk enables where
 /// the device has it) is waited for `value`; a binary one is waited for and unsignalled.
+/// The calls return after their own work is complete, so the semaphore may then be destroyed;
+/// on Mesa drivers first hold lockQueue and call vkQueueWaitIdle (a Mesa race, seen on lavapipe
+/// 22.3: docs/architecture.md, "Change detection").
 struct WaitSemaphore {
   VkSemaphore semaphore = VK_NULL_HANDLE;
   std::uint64_t value = 0;
