@@ -103,16 +103,29 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
                         static_cast<float>(rng.uniform(lo.y(), hi.y())),
                         static_cast<float>(rng.uniform(lo.z(), hi.z())));
   (void)field->distances(points);  // sizes the query buffers
-  auto t0 = Clock::now();
+  // Five rounds, each side once per round (interleaved, so load drifts hit both alike).
+  constexpr int kRounds = 5;
   std::vector<float> theirs(points.size());
   std::vector<octomap::point3d> obstacles(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i)
-    edt->getDistanceAndClosestObstacle(octomap::point3d(points[i].x(), points[i].y(), points[i].z()),
-                                       theirs[i], obstacles[i]);
-  const double edt_ms = msSince(t0);
-  t0 = Clock::now();
-  const std::vector<DistanceSample> ours = field->distances(points);
-  const double vk_ms = msSince(t0);
+  std::vector<DistanceSample> ours;
+  std::vector<double> edt_times, vk_times;
+  for (int round = 0; round < kRounds; ++round) {
+    auto t0 = Clock::now();
+    for (std::size_t i = 0; i < points.size(); ++i)
+      edt->getDistanceAndClosestObstacle(
+          octomap::point3d(points[i].x(), points[i].y(), points[i].z()), theirs[i], obstacles[i]);
+    edt_times.push_back(msSince(t0));
+    t0 = Clock::now();
+    ours = field->distances(points);
+    vk_times.push_back(msSince(t0));
+  }
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const double edt_ms = median(edt_times), vk_ms = median(vk_times);
+  const double edt_min = *std::min_element(edt_times.begin(), edt_times.end());
+  const double vk_min = *std::min_element(vk_times.begin(), vk_times.end());
   const auto cap = static_cast<std::uint32_t>(edt->getSquaredMaxDistCells());
   std::size_t agree = 0;
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -121,10 +134,12 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
              std::min(ours[i].squared_cells, cap);
   }
   std::printf(
-      "\nQueries: %zu points uniform in the box. dynamicEDT3D: a loop of "
-      "getDistanceAndClosestObstacle, %.1f ms; octovk: one distances() call (staging, upload, "
-      "dispatch, download), %.1f ms: %.1fx. Squared distances in cells agree on %zu of %zu.\n",
-      points.size(), edt_ms, vk_ms, edt_ms / vk_ms, agree, points.size());
+      "\nQueries: %zu points uniform in the box, %d rounds. dynamicEDT3D: a loop of "
+      "getDistanceAndClosestObstacle, median %.1f ms (min %.1f); octovk: one distances() call "
+      "(staging, upload, dispatch, download), median %.1f ms (min %.1f): %.1fx on the medians. "
+      "Squared distances in cells agree on %zu of %zu.\n",
+      points.size(), kRounds, edt_ms, edt_min, vk_ms, vk_min, edt_ms / vk_ms, agree,
+      points.size());
   json.field("query_points", points.size()).field("query_dynamicedt_ms", edt_ms);
   json.field("query_octovk_ms", vk_ms).field("query_agree", agree);
   json.endObject();
