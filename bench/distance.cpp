@@ -14,13 +14,13 @@
 #include "building.hpp"
 #include "measure.hpp"
 #include "octovk/distance.hpp"
+#include "workload_common.hpp"
 #include "workloads.hpp"
 
 namespace octovk::bench {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr double kResolution = 0.05;
 constexpr float kMaxDistance = 2.0f;
 
@@ -119,10 +119,6 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
     ours = field->distances(points);
     vk_times.push_back(msSince(t0));
   }
-  const auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-  };
   const double edt_ms = median(edt_times), vk_ms = median(vk_times);
   const double edt_min = *std::min_element(edt_times.begin(), edt_times.end());
   const double vk_min = *std::min_element(vk_times.begin(), vk_times.end());
