@@ -10,6 +10,19 @@
 
 namespace octovk::test {
 
+/// Call before destroying a semaphore that octovk's calls waited on. By the spec it could go as
+/// soon as they returned: every batch that used it has completed (octovk's calls wait for their
+/// fences). But Mesa's common queue (lavapipe 22.3 at least), once a wait-before-signal has put
+/// it in threaded submit mode, releases a submission's wait on a timeline only after the driver
+/// ran it, so the fence can signal first; a semaphore destroyed in that gap leaks the driver's
+/// time point (160 + 112 bytes; LeakSanitizer saw it in 1 of 10 runs of the distance field's
+/// interop test) after the driver touches the freed semaphore. vkQueueWaitIdle goes through the
+/// same submit thread, so it returns after that release.
+inline void idleQueueBeforeDestroyingSemaphores(Context& context, const VulkanHandles& vk) {
+  const auto lock = lockQueue(context);
+  EXPECT_EQ(vkQueueWaitIdle(vk.queue), VK_SUCCESS);
+}
+
 class CallerBuffer {
  public:
   CallerBuffer(const VulkanHandles& vk, VkDeviceSize bytes) : device_(vk.device) {
@@ -72,18 +85,7 @@ class DeviceConsumer {
     EXPECT_EQ(vkCreateFence(vk.device, &fence_info, nullptr, &fence_), VK_SUCCESS);
   }
   ~DeviceConsumer() {
-    // Drains the queue before the semaphore goes. By the spec it could go now: every batch that
-    // used it has completed (octovk's calls wait for their fences, ours wait above). But Mesa's
-    // common queue (lavapipe 22.3 at least), once a wait-before-signal has put it in threaded
-    // submit mode, releases a submission's wait on a timeline only after the driver ran it, so
-    // the fence can signal first; a semaphore destroyed in that gap leaks the driver's time point
-    // (160 + 112 bytes; LeakSanitizer saw it in 1 of 10 runs of the distance field's interop
-    // test) after the driver touches the freed semaphore. vkQueueWaitIdle goes through the same
-    // submit thread, so it returns after that release.
-    {
-      const auto lock = lockQueue(context_);
-      EXPECT_EQ(vkQueueWaitIdle(vk_.queue), VK_SUCCESS);
-    }
+    idleQueueBeforeDestroyingSemaphores(context_, vk_);
     vkDestroyFence(vk_.device, fence_, nullptr);
     vkDestroyCommandPool(vk_.device, pool_, nullptr);
     vkDestroySemaphore(vk_.device, timeline_, nullptr);

@@ -175,6 +175,7 @@ TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
   small.size = 12;
   EXPECT_THROW(insertPointCloudOnDevice(on_device, small, 2, origin, pose), Error);
   EXPECT_EQ(on_device.nodeCount(), nodes);
+  test::idleQueueBeforeDestroyingSemaphores(ctx, vk);
   vkDestroySemaphore(vk.device, ready, nullptr);
 }
 
