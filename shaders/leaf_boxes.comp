@@ -38,7 +38,12 @@ void emit(uvec3 key, uint depth, float log_odds) {
   }
   LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, toFloat(size), log_odds);
   if (pc.mode == kLeafBoxesRebuild) leaf_boxes[atomicAdd(pool.leaf_count, 1u)] = leaf;
-  else box_leaves[atomicAdd(counters.query_results, 1u)] = leaf;
+  else {
+    // Every leaf is counted; those beyond the bound range are not written (the host asks again
+    // in parts of the box when the count exceeds it).
+    uint at = atomicAdd(counters.query_results, 1u);
+    if (at < uint(box_leaves.length())) box_leaves[at] = leaf;
+  }
 }
 
 void main() {

@@ -339,6 +339,14 @@ void MapBuffers::ensureDepth(std::size_t bytes) {
 void MapBuffers::ensureQueries(std::size_t in_bytes, std::size_t out_bytes) {
   in_bytes = std::max<std::size_t>(in_bytes, kSmallQuery);
   out_bytes = std::max<std::size_t>(out_bytes, kSmallQuery);
+  // Both are bound by descriptor: a size no binding may hold is refused before anything grows,
+  // so the map's bindings stay valid (QueryRunner splits its batches to stay within it).
+  const std::uint64_t binding = device_.maxBindingBytes();
+  if (in_bytes > binding || out_bytes > binding)
+    throw Error(ErrorCode::kInvalidArgument,
+                "queries need " + std::to_string(std::max(in_bytes, out_bytes)) +
+                    " bytes in one buffer binding, more than this device binds (" +
+                    std::to_string(binding) + " bytes, maxStorageBufferRange); split the request");
   const bool grow_in = query_in.size() < in_bytes, grow_out = query_out.size() < out_bytes;
   checkBudget((grow_in ? query_in.size() + query_staging_in.size() : 0) +
                   (grow_out ? query_out.size() + query_staging_out.size() : 0),
@@ -372,7 +380,7 @@ void MapBuffers::rebind() {
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params,        &counters,   &pool,  &points,  &hash_keys,     &hash_flags, &nodes,
       &block_parents, &free_stack, &cells, &touched, &prefix_blocks, &leaf_boxes, &endpoint_keys,
-      &query_in,      &query_out,  &walks, &slots,   &cell_list,     &depth, &changes};
+      &query_in,      &query_out,  &walks, &slots,   &cell_list,     &depth,      &changes};
   bindings.update(buffers);
 }
 

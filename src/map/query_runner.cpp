@@ -1,5 +1,7 @@
 #include "map/query_runner.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -53,17 +55,57 @@ void QueryRunner::onDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDev
   core_.buffers.rebind();
 }
 
+bool QueryRunner::fitsOneBatch(std::size_t rays, std::size_t lookups) const {
+  // Input and output each go through one descriptor binding (kBindQueryIn / kBindQueryOut, at
+  // most maxBindingBytes), and unfinished castRay walks are continued by indirect dispatches of
+  // one group per 64 rays. At most kMaxBatch queries a batch also keeps the query buffers (and
+  // their host staging) small however many queries a call brings.
+  const std::uint64_t binding = core_.device.maxBindingBytes();
+  return rays + lookups <= kMaxBatch &&
+         rays <= std::size_t{core_.device.maxGroupsX()} * gpu::kWorkgroupSize &&
+         rays * sizeof(gpu::RayQuery) + lookups * 3 * sizeof(float) <= binding &&
+         passes::queryOutputBytes(rays, lookups) <= binding;
+}
+
+std::size_t QueryRunner::batchLimit(bool rays) const {
+  std::size_t fits = 0, fails = kMaxBatch + 1;  // the largest n that fits, by bisection
+  while (fails - fits > 1) {
+    const std::size_t n = fits + (fails - fits) / 2;
+    (fitsOneBatch(rays ? n : 0, rays ? 0 : n) ? fits : fails) = n;
+  }
+  if (fits == 0)
+    throw Error(ErrorCode::kMissingFeature, "queries: the device '" + core_.device.info().name +
+                                                "' binds at most " +
+                                                std::to_string(core_.device.maxBindingBytes()) +
+                                                " bytes per storage buffer, too few for one query");
+  return fits;
+}
+
 QueryResults QueryRunner::run(const QueryRequest& q) {
   if (q.rays.empty() && q.lookups.empty()) return {};
-  if (q.rays.size() + q.lookups.size() > 0x7FFFFFFFu)
-    throw Error(ErrorCode::kInvalidArgument, "queries: more than 2^31 queries in one batch");
-  // Unfinished castRay walks are continued by indirect dispatches of one group per 64 rays.
-  const std::size_t max_rays = std::size_t{core_.device.maxGroupsX()} * gpu::kWorkgroupSize;
-  if (q.rays.size() > max_rays)
-    throw Error(ErrorCode::kInvalidArgument,
-                "castRays: " + std::to_string(q.rays.size()) + " rays in one batch; the device '" +
-                    core_.device.info().name + "' takes at most " + std::to_string(max_rays) +
-                    " (maxComputeWorkGroupCount x 64); split the batch");
+  // A request that fits is one batch; a larger one is split, each kind in batches of its own.
+  // Every query is answered alone, against the same tree, so the answers are the same.
+  if (fitsOneBatch(q.rays.size(), q.lookups.size())) return runBatch(q);
+  const std::size_t ray_limit = q.rays.empty() ? 0 : batchLimit(true);
+  const std::size_t lookup_limit = q.lookups.empty() ? 0 : batchLimit(false);
+  QueryResults out;
+  out.rays.reserve(q.rays.size());
+  out.lookups.reserve(q.lookups.size());
+  for (std::size_t i = 0; i < q.rays.size(); i += ray_limit) {
+    const QueryResults part = runBatch(
+        {.lookups = {}, .rays = q.rays.subspan(i, std::min(ray_limit, q.rays.size() - i))});
+    out.rays.insert(out.rays.end(), part.rays.begin(), part.rays.end());
+  }
+  for (std::size_t i = 0; i < q.lookups.size(); i += lookup_limit) {
+    const QueryResults part =
+        runBatch({.lookups = q.lookups.subspan(i, std::min(lookup_limit, q.lookups.size() - i)),
+                  .rays = {}});
+    out.lookups.insert(out.lookups.end(), part.lookups.begin(), part.lookups.end());
+  }
+  return out;
+}
+
+QueryResults QueryRunner::runBatch(const QueryRequest& q) {
   const VkDeviceAddress ray_scene = q.rays.empty() ? 0 : scenes_.castRayScene();
   std::uint32_t stop_rays = 0;
   const std::vector<std::uint32_t> order =
@@ -84,8 +126,30 @@ std::vector<OccupancyMap::LeafBoxHost> QueryRunner::leavesInBox(const Eigen::Vec
   if (!boxKeys(core_.params.resolution, min, max, box))
     return {};  // as OctoMap's iterator: a corner outside the map gives no leaves
   box.occupied_only = occupied_only ? 1u : 0u;
-  core_.buffers.ensureQueries(sizeof(box),
-                              std::size_t{core_.buffers.poolBlocks()} * 8 * sizeof(gpu::LeafBox));
+  // At most every leaf of the pool, and at most what one binding holds.
+  const std::size_t capacity =
+      std::min<std::size_t>(std::size_t{core_.buffers.poolBlocks()} * 8,
+                            core_.device.maxBindingBytes() / sizeof(gpu::LeafBox));
+  std::vector<OccupancyMap::LeafBoxHost> out;
+  if (leavesInKeyBox(box, capacity, out)) {
+    // The box was asked in parts: a leaf reaching into several came back once from each.
+    const auto bits = [](const OccupancyMap::LeafBoxHost& l) {
+      std::array<std::uint32_t, 5> b;
+      std::memcpy(b.data(), &l, sizeof(l));
+      return b;
+    };
+    std::sort(out.begin(), out.end(),
+              [&](const auto& x, const auto& y) { return bits(x) < bits(y); });
+    out.erase(std::unique(out.begin(), out.end(),
+                          [&](const auto& x, const auto& y) { return bits(x) == bits(y); }),
+              out.end());
+  }
+  return out;
+}
+
+bool QueryRunner::leavesInKeyBox(const gpu::BoxQuery& box, std::size_t capacity,
+                                 std::vector<OccupancyMap::LeafBoxHost>& out) {
+  core_.buffers.ensureQueries(sizeof(box), capacity * sizeof(gpu::LeafBox));
   core_.stream.begin(core_.buffers.bindings);
   passes::recordLeavesInBox(core_.rec, core_.queryParams(), box);
   passes::recordReadback(core_.rec);
@@ -93,15 +157,37 @@ std::vector<OccupancyMap::LeafBoxHost> QueryRunner::leavesInBox(const Eigen::Vec
   gpu::ScanCounters counters;
   gpu::PoolState pool;
   passes::readBack(core_.buffers, core_.stream.frame(), counters, pool);
-  std::vector<OccupancyMap::LeafBoxHost> out(counters.query_results);
-  if (out.empty()) return out;
-  const std::size_t bytes = out.size() * sizeof(gpu::LeafBox);
+  const std::size_t count = counters.query_results;
+  if (count > capacity) {
+    // More leaves than one binding holds: the two halves of the box along its widest axis.
+    gpu::BoxQuery lo = box, hi = box;
+    const std::array<std::uint32_t*, 3> lo_max = {&lo.max_x, &lo.max_y, &lo.max_z};
+    const std::array<std::uint32_t*, 3> hi_min = {&hi.min_x, &hi.min_y, &hi.min_z};
+    const std::array<std::uint32_t, 3> from = {box.min_x, box.min_y, box.min_z};
+    const std::array<std::uint32_t, 3> to = {box.max_x, box.max_y, box.max_z};
+    std::size_t axis = 0;
+    for (std::size_t a = 1; a < 3; ++a)
+      if (to[a] - from[a] > to[axis] - from[axis]) axis = a;
+    if (to[axis] == from[axis])
+      throw Error(ErrorCode::kInternal, "internal error: leavesInBox found " +
+                                            std::to_string(count) + " leaves in one cell");
+    const std::uint32_t middle = from[axis] + (to[axis] - from[axis]) / 2;
+    *lo_max[axis] = middle;
+    *hi_min[axis] = middle + 1;
+    leavesInKeyBox(lo, capacity, out);
+    leavesInKeyBox(hi, capacity, out);
+    return true;
+  }
+  if (count == 0) return false;
+  const std::size_t bytes = count * sizeof(gpu::LeafBox);
   core_.stream.begin(core_.buffers.bindings);
   core_.stream.copy(core_.buffers.query_out, core_.buffers.query_staging_out, bytes);
   core_.stream.submitAndWait();
   static_assert(sizeof(OccupancyMap::LeafBoxHost) == sizeof(gpu::LeafBox));
-  std::memcpy(out.data(), core_.buffers.query_staging_out.mapped(), bytes);
-  return out;
+  const std::size_t at = out.size();
+  out.resize(at + count);
+  std::memcpy(out.data() + at, core_.buffers.query_staging_out.mapped(), bytes);
+  return false;
 }
 
 }  // namespace octovk

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <iterator>
-#include <string_view>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "gpu/gpu_types.h"
@@ -72,12 +72,13 @@ void ScanPipeline::buildScanPasses() {
   if (core_.params.scan_rays != ScanRays::kWalk) return;
   using vk::Shader;
   static constexpr Shader kScanPasses[] = {
-      Shader::kRayKeys,   Shader::kListCells, Shader::kDescend,  Shader::kClassifyBlocks,
-      Shader::kPrune,     Shader::kClassify,  Shader::kLink,     Shader::kTransformPoints,
-      Shader::kTreeGate,  Shader::kAlloc,     Shader::kClearSets, Shader::kTreeBegin,
+      Shader::kRayKeys,  Shader::kListCells, Shader::kDescend,   Shader::kClassifyBlocks,
+      Shader::kPrune,    Shader::kClassify,  Shader::kLink,      Shader::kTransformPoints,
+      Shader::kTreeGate, Shader::kAlloc,     Shader::kClearSets, Shader::kTreeBegin,
       Shader::kTreeFixup};
   std::string_view names[std::size(kScanPasses)];
-  for (std::size_t i = 0; i < std::size(kScanPasses); ++i) names[i] = vk::shaderName(kScanPasses[i]);
+  for (std::size_t i = 0; i < std::size(kScanPasses); ++i)
+    names[i] = vk::shaderName(kScanPasses[i]);
   core_.device.buildPasses(names);
 }
 
@@ -87,6 +88,15 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
   const auto start = std::chrono::steady_clock::now();
   const std::size_t count = source.count();
   checkScan(core_.device, count, origin, pose, options);
+  if (queries && !queries_.fitsOneBatch(queries->rays.size(), queries->lookups.size()))
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud with queries: " + std::to_string(queries->rays.size()) +
+                    " rays and " + std::to_string(queries->lookups.size()) +
+                    " search points are more than one submission takes on this device (one "
+                    "buffer binding of " +
+                    std::to_string(core_.device.maxBindingBytes()) +
+                    " bytes each way); insert the scan, then call search() / castRays(), "
+                    "which split any batch");
   PendingScan p;
   p.stats.points = count;
   p.caller = caller;
