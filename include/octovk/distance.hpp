@@ -54,7 +54,8 @@ struct DistanceSample {
 /// count as each of their finest cells. Exact: the integer minimum over all occupied cells.
 ///
 /// The field reads the map when it is built and at update(); between them it answers for the
-/// map as it was. The map must outlive the field, and both are used from one thread at a time.
+/// map as it was. The field follows its map through moves; once the map is destroyed, its calls
+/// throw kInvalidArgument (destroying it stays safe). Both are used from one thread at a time.
 /// Its device bytes count under the map's MapParams::max_device_bytes
 /// (OccupancyMap::DeviceBytes::distance_fields). A call that throws leaves the field and the
 /// map as they were.

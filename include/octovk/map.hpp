@@ -27,7 +27,8 @@ class OccupancyMap {
   OccupancyMap(OccupancyMap&&) noexcept;
   OccupancyMap& operator=(OccupancyMap&&) noexcept;
 
-  const MapParams& params() const noexcept;
+  /// The map's parameters; kInvalidArgument for a moved-from map.
+  const MapParams& params() const;
 
   /// OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=false, discretize) with
   /// points and origin in the world frame; the options in one struct, e.g.
@@ -174,8 +175,8 @@ class OccupancyMap {
     /// depth image, counters. Sized by the largest scan since it was last released (trim(), or
     /// automatically after an outsized scan).
     std::size_t scratch = 0;
-    std::size_t queries = 0;  ///< query input and output, with their staging
-    std::size_t changes = 0;  ///< the change set (change detection), 16 B per slot
+    std::size_t queries = 0;          ///< query input and output, with their staging
+    std::size_t changes = 0;          ///< the change set (change detection), 16 B per slot
     std::size_t distance_fields = 0;  ///< the DistanceFields built on this map (distance.hpp)
     std::size_t total() const {
       return pool + leaf_boxes + scratch + queries + changes + distance_fields;

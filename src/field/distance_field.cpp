@@ -8,9 +8,9 @@
 
 #include "field/field_impl.hpp"
 #include "field/field_passes.hpp"
-#include "map/walk_budget.hpp"
 #include "map/host_memory.hpp"
 #include "map/reference.hpp"
+#include "map/walk_budget.hpp"
 
 namespace octovk {
 
@@ -63,18 +63,17 @@ FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Ve
                     "); give min <= max on every axis");
     std::uint32_t lo = 0, hi = 0;
     if (!ref::coordToKeyChecked(factor, min[a], lo) || !ref::coordToKeyChecked(factor, max[a], hi))
-      throw invalid("the box " + corner(min) + " - " + corner(max) + " leaves the map's key range along " +
-                    kAxis[a] + " (+-" + std::to_string(32768 * resolution) +
-                    " m at this resolution); keep it inside");
+      throw invalid("the box " + corner(min) + " - " + corner(max) +
+                    " leaves the map's key range along " + kAxis[a] + " (+-" +
+                    std::to_string(32768 * resolution) + " m at this resolution); keep it inside");
     box.min_key[a] = lo;
     box.size[a] = hi - lo + 1;
     if (box.size[a] > max_line_cells)
-      throw invalid(std::string("the box has ") + std::to_string(box.size[a]) + " cells along " +
-                    kAxis[a] + "; this device transforms lines of at most " +
-                    std::to_string(max_line_cells) +
-                    " cells in one dispatch (its driver's loop limit, and at most " +
-                    std::to_string(gpu::kFieldMaxAxisCells) +
-                    " for exact 32-bit integers); split the box");
+      throw invalid(
+          std::string("the box has ") + std::to_string(box.size[a]) + " cells along " + kAxis[a] +
+          "; this device transforms lines of at most " + std::to_string(max_line_cells) +
+          " cells in one dispatch (its driver's loop limit, and at most " +
+          std::to_string(gpu::kFieldMaxAxisCells) + " for exact 32-bit integers); split the box");
   }
   if (box.cells() >= gpu::kFieldNoSite)
     throw invalid("the box has " + std::to_string(box.cells()) +
@@ -84,9 +83,14 @@ FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Ve
 
 DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
                           const DistanceFieldOptions& options)
-    : map_(map), device_(map.device()), box_(box), options_(options), stream_(device_, 1) {
-  map_.flush();
-  MapBuffers& buffers = map_.fieldBuffers();
+    : device_owner_(map.deviceOwner()),
+      map_(map.link()),
+      device_(*device_owner_),
+      box_(box),
+      options_(options),
+      stream_(device_, 1) {
+  liveMap().flush();
+  MapBuffers& buffers = liveMap().fieldBuffers();
   const std::size_t bytes = fieldBytes(box_);
   buffers.checkBudget(0, bytes,
                       "a distance field of " + std::to_string(box_.size[0]) + " x " +
@@ -116,14 +120,25 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
 }
 
 DistanceField::Impl::~Impl() {
-  // The map outlives its fields (distance.hpp); its accounting forgets the field's bytes.
-  map_.fieldBuffers().noteFieldBytes(bytes_, 0);
+  // A map destroyed first has nothing left to forget; otherwise its accounting forgets the
+  // field's bytes, and change detection is released.
+  if (*map_ == nullptr) return;
+  OccupancyMap::Impl& map = **map_;
+  map.fieldBuffers().noteFieldBytes(bytes_, 0);
   if (!follows_changes_) return;
   try {
-    map_.flush();  // the scans in flight note their changes first
-    map_.releaseChangesForField();
+    map.flush();  // the scans in flight note their changes first
+    map.releaseChangesForField();
   } catch (...) {  // a destructor does not throw; change detection stays on (memory kept)
   }
+}
+
+OccupancyMap::Impl& DistanceField::Impl::liveMap() {
+  if (*map_ == nullptr)
+    throw Error(ErrorCode::kInvalidArgument,
+                "distance field: the map it was built on has been destroyed; build a new field "
+                "on a map that lives");
+  return **map_;
 }
 
 std::size_t DistanceField::Impl::batchLimit() const {
@@ -145,15 +160,15 @@ void DistanceField::Impl::rebind(MapBuffers& map) {
 }
 
 bool DistanceField::Impl::fromChanges() {
-  if (!map_.changeDetectionEnabled()) return false;
+  if (!liveMap().changeDetectionEnabled()) return false;
   // Anything the change set does not hold since the last update (an upload, clearBox, a scan
   // without change detection, a reset of the set, or a growth that dropped keys flipped back
   // after that update): the whole tree.
-  const OccupancyMap::Impl::FieldTracking now = map_.fieldTracking();
+  const OccupancyMap::Impl::FieldTracking now = liveMap().fieldTracking();
   if (now.unnoted != tracking_.unnoted || now.epoch != tracking_.epoch ||
       (now.rehashes != tracking_.rehashes && !reset_changes_))
     return false;
-  MapBuffers& map = map_.fieldBuffers();
+  MapBuffers& map = liveMap().fieldBuffers();
   if (map.changesLog2() == 0) return false;
   // Reading the tree costs about a search per occupancy word (field_raster searches once per
   // run of cells one leaf answers, along paths the neighbouring words share); the change set a
@@ -164,22 +179,21 @@ bool DistanceField::Impl::fromChanges() {
   stream_.submitAndWait();
   gpu::ChangeHeader header;
   std::memcpy(&header, readback_.mapped(), sizeof(header));
-  return 4 * std::size_t{header.used} + (std::size_t{1} << map.changesLog2()) / 64 <=
-         box_.words();
+  return 4 * std::size_t{header.used} + (std::size_t{1} << map.changesLog2()) / 64 <= box_.words();
 }
 
 void DistanceField::Impl::update(bool building) {
-  map_.flush();  // every scan submitted before is in the map
-  MapBuffers& map = map_.fieldBuffers();
+  liveMap().flush();  // every scan submitted before is in the map
+  MapBuffers& map = liveMap().fieldBuffers();
   rebind(map);
   // A build, or an update of the lines whose input changed, reading the obstacles from the
   // change set or from the whole tree.
   const bool build = !built_ || stale_;
   const bool from_changes = !build && fromChanges();
   gpu::ScanParams sp{};
-  sp.resolution = map_.params().resolution;
-  sp.resolution_factor = 1.0 / map_.params().resolution;
-  sp.occupancy_log = map_.logOdds().occupancy;
+  sp.resolution = liveMap().params().resolution;
+  sp.resolution_factor = 1.0 / liveMap().params().resolution;
+  sp.occupancy_log = liveMap().logOdds().occupancy;
   const auto dirty = box_.dirtyWords();
   gpu::FieldHeader h{};
   h.occupancy = occupancy_.address();
@@ -227,7 +241,7 @@ void DistanceField::Impl::update(bool building) {
   stale_ = false;
   built_ = true;
   last_kind_ = build ? UpdateKind::kBuild
-                      : (from_changes ? UpdateKind::kFromChanges : UpdateKind::kFromTree);
+                     : (from_changes ? UpdateKind::kFromChanges : UpdateKind::kFromTree);
   // The change set's keys are in the field now: a set the fields turned on is emptied by the
   // one field following it (resetChangesForField; a set the user turned on is left alone, and
   // their next reset makes the next update read the tree).
@@ -235,11 +249,11 @@ void DistanceField::Impl::update(bool building) {
     // From the first update() on, scans note their changed cells, which the next update starts
     // from (DynamicEDTOctomap's constructor turns change detection on; a field that is only
     // built and queried leaves the map as it was). See enableChangesForField.
-    map_.enableChangesForField();
+    liveMap().enableChangesForField();
     follows_changes_ = true;
   }
-  reset_changes_ = follows_changes_ && map_.resetChangesForField();
-  tracking_ = map_.fieldTracking();
+  reset_changes_ = follows_changes_ && liveMap().resetChangesForField();
+  tracking_ = liveMap().fieldTracking();
   const std::vector<double> ns = stream_.timestampsNs();
   last_ms_ = ns.size() > end ? (ns[end] - ns[start]) * 1e-6 : 0.0;
 }
@@ -256,9 +270,9 @@ void DistanceField::Impl::ensureQueries(std::size_t count) {
   if (count <= query_capacity_) return;
   const std::size_t in = count * 4 * sizeof(float), out = count * sizeof(gpu::DistanceResult);
   const std::size_t added = 2 * (in + out);
-  const std::size_t freed = query_in_.size() + query_out_.size() + staging_in_.size() +
-                            staging_out_.size();
-  MapBuffers& map = map_.fieldBuffers();
+  const std::size_t freed =
+      query_in_.size() + query_out_.size() + staging_in_.size() + staging_out_.size();
+  MapBuffers& map = liveMap().fieldBuffers();
   map.checkBudget(freed, added,
                   "distance-field query buffers for " + std::to_string(count) + " queries (" +
                       std::to_string(added) + " bytes)");
@@ -279,7 +293,7 @@ std::vector<DistanceSample> DistanceField::Impl::query(std::span<const float> sp
   std::vector<DistanceSample> out(count);
   if (count == 0) return out;
   ensureQueries(count);
-  MapBuffers& map = map_.fieldBuffers();
+  MapBuffers& map = liveMap().fieldBuffers();
   rebind(map);
   passes::Recorder r(device_, stream_, map);
   for (std::size_t first = 0; first < count; first += query_capacity_) {
@@ -316,7 +330,7 @@ void DistanceField::Impl::queryOnDevice(VkBuffer in, VkDeviceSize in_offset, VkB
                 "distancesOnDevice: buffer offsets must be multiples of " + std::to_string(align) +
                     " (minStorageBufferOffsetAlignment)");
   if (count == 0) return;
-  MapBuffers& map = map_.fieldBuffers();
+  MapBuffers& map = liveMap().fieldBuffers();
   rebind(map);
   // The caller's ranges are bound in place of the field's query buffers for this submission
   // (BindingSet refuses a range beyond one binding's reach, naming it).
@@ -337,7 +351,7 @@ DistanceField::Grid DistanceField::Impl::download() {
   g.min_key = box_.min_key;
   const std::size_t cells = box_.cells();
   vk::Buffer staging(device_, cells * sizeof(std::uint32_t), true);
-  MapBuffers& map = map_.fieldBuffers();
+  MapBuffers& map = liveMap().fieldBuffers();
   rebind(map);
   stream_.begin(bindings_);
   stream_.copy(sites_, staging, cells * sizeof(std::uint32_t));
@@ -358,9 +372,8 @@ DistanceField::Grid DistanceField::Impl::download() {
       const std::int64_t v = static_cast<std::int64_t>(a) - static_cast<std::int64_t>(b);
       return v * v;
     };
-    g.squared_cells[i] = static_cast<std::uint32_t>(d(i % sx, s % sx) +
-                                                    d((i / sx) % sy, (s / sx) % sy) +
-                                                    d(i / (sx * sy), s / (sx * sy)));
+    g.squared_cells[i] = static_cast<std::uint32_t>(
+        d(i % sx, s % sx) + d((i / sx) % sy, (s / sx) % sy) + d(i / (sx * sy), s / (sx * sy)));
     g.nearest[i] = s;
   }
   return g;
@@ -378,13 +391,21 @@ DistanceField::DistanceField(OccupancyMap& map, const Eigen::Vector3f& box_min,
   });
 }
 
-DistanceField::~DistanceField() = default;
+// As a map (occupancy_map.cpp): a field made before fork() is left alone in the child.
+DistanceField::~DistanceField() {
+  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+}
 DistanceField::DistanceField(DistanceField&&) noexcept = default;
-DistanceField& DistanceField::operator=(DistanceField&&) noexcept = default;
+DistanceField& DistanceField::operator=(DistanceField&& other) noexcept {
+  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+  impl_ = std::move(other.impl_);
+  return *this;
+}
 
 DistanceField::Impl& DistanceField::self() const {
   if (!impl_)
     throw Error(ErrorCode::kInvalidArgument, "DistanceField: used after it was moved from");
+  impl_->device().checkNotForked("DistanceField");
   return *impl_;
 }
 
@@ -425,8 +446,6 @@ std::array<std::uint32_t, 3> DistanceField::minKey() const { return self().box()
 const DistanceFieldOptions& DistanceField::options() const { return self().options(); }
 std::size_t DistanceField::deviceBytes() const { return self().deviceBytes(); }
 double DistanceField::lastUpdateMs() const { return self().lastUpdateMs(); }
-DistanceField::UpdateKind DistanceField::lastUpdateKind() const {
-  return self().lastUpdateKind();
-}
+DistanceField::UpdateKind DistanceField::lastUpdateKind() const { return self().lastUpdateKind(); }
 
 }  // namespace octovk

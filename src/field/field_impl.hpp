@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -69,8 +70,10 @@ class DistanceField::Impl {
                      std::uint32_t count, VkSemaphore wait, std::uint64_t wait_value);
   DistanceField::Grid download();
 
-  /// The map the field reads (interop: a caller's semaphore is signalled on its stream).
-  OccupancyMap::Impl& map() { return map_; }
+  /// The map the field reads (interop: a caller's semaphore is signalled on its stream), wherever
+  /// it was moved to; kInvalidArgument once it is destroyed.
+  OccupancyMap::Impl& map() { return liveMap(); }
+  vk::Device& device() const { return device_; }
   const FieldBox& box() const { return box_; }
   const DistanceFieldOptions& options() const { return options_; }
   std::size_t deviceBytes() const { return bytes_; }
@@ -78,6 +81,7 @@ class DistanceField::Impl {
   DistanceField::UpdateKind lastUpdateKind() const { return last_kind_; }
 
  private:
+  OccupancyMap::Impl& liveMap();
   /// Query buffers for `count` queries per batch (checked against the cap first).
   void ensureQueries(std::size_t count);
   /// Points the binding set at the field's buffers and the map's node pool as it is now.
@@ -88,15 +92,17 @@ class DistanceField::Impl {
   /// Whether the next update may read the obstacles from the change set (else the whole tree).
   bool fromChanges();
 
-  OccupancyMap::Impl& map_;
+  // First, so released last: the field's buffers and stream go before the device can.
+  std::shared_ptr<vk::Device> device_owner_;
+  std::shared_ptr<OccupancyMap::Impl*> map_;  // null once the map is destroyed
   vk::Device& device_;
   FieldBox box_;
   DistanceFieldOptions options_;
   vk::CommandStream stream_;
   vk::BindingSet bindings_;
-  vk::Buffer params_;   // gpu::ScanParams: resolution and occupancy threshold (keys.glsl)
-  vk::Buffer spare_;    // bound where the passes read nothing (counters, the scan's arrays)
-  vk::Buffer header_;   // gpu::FieldHeader
+  vk::Buffer params_;  // gpu::ScanParams: resolution and occupancy threshold (keys.glsl)
+  vk::Buffer spare_;   // bound where the passes read nothing (counters, the scan's arrays)
+  vk::Buffer header_;  // gpu::FieldHeader
   // gpu::FieldHeader's arrays: occupancy bits, line_x, plane_xy, sites, envelope, dirty bitmaps
   vk::Buffer occupancy_, line_x_, plane_xy_, sites_, envelope_, dirty_;
   vk::Buffer readback_;  // host-visible: the header after a build

@@ -1,6 +1,8 @@
 #include "map/host_tree.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <string>
 
 namespace octovk {
 
@@ -17,8 +19,7 @@ HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState
     n.log_odds = nodes[i].log_odds;
     n.children = gpu::kNoBlock;
     n.mask = 0;
-    if (block == gpu::kNoChildren || block >= pool.bump ||
-        std::size_t{block} * 8 + 8 > count)
+    if (block == gpu::kNoChildren || block >= pool.bump || std::size_t{block} * 8 + 8 > count)
       continue;
     n.children = block;
     for (std::uint32_t s = 0; s < 8; ++s)
@@ -79,6 +80,11 @@ PoolImage poolImageFromTree(const HostTree& tree) {
       stack.pop_back();
       ++image.live_nodes;
       const HostTree::Node& n = tree.nodes[it.node];
+      // As the .ot reader: a value that no update can give would make a file no reader takes.
+      if (!std::isfinite(n.log_odds))
+        throw Error(ErrorCode::kFormat, "upload: node " + std::to_string(it.node) +
+                                            " has a log-odds of " + std::to_string(n.log_odds) +
+                                            "; every node's log-odds must be a finite number");
       gpu::Node& g = image.nodes[it.node];
       g.log_odds = n.log_odds;
       g.link = gpu::kNoChildren | gpu::kFlagLive;

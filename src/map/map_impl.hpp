@@ -145,8 +145,7 @@ class OccupancyMap::Impl {
     std::uint64_t rehashes = 0;
   };
   FieldTracking fieldTracking() const {
-    return {core_.tree_version - core_.noted_version, core_.changes_epoch,
-            core_.changes_rehashes};
+    return {core_.tree_version - core_.noted_version, core_.changes_epoch, core_.changes_rehashes};
   }
   /// A distance field follows the map through the change set: turns change detection on (as
   /// DynamicEDTOctomap's constructor does) unless the user chose it either way.
@@ -181,8 +180,14 @@ class OccupancyMap::Impl {
 
   const MapParams& params() const { return core_.params; }
   vk::Device& device() { return core_.device; }
+  /// The device's owner: a distance field holds it so that its buffers can go after the map.
+  const std::shared_ptr<vk::Device>& deviceOwner() const { return device_owner_; }
+  /// Where this Impl lives, while it lives: ~Impl sets it to null. A distance field reaches its
+  /// map through it, so that it follows the map through moves and refuses once the map is gone.
+  std::shared_ptr<Impl*> link() const { return link_; }
 
  private:
+  std::shared_ptr<Impl*> link_ = std::make_shared<Impl*>(this);
   // In dependency order: each part refers only to parts declared before it.
   MapCore core_;
   RaySceneCache scenes_;

@@ -21,6 +21,7 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       scans_(core_, growth_, scenes_, queries_) {}
 
 OccupancyMap::Impl::~Impl() {
+  *link_ = nullptr;  // the fields on this map refuse from now on
   try {
     core_.stream.waitIdle();  // the buffers go before the stream: no scan may still use them
   } catch (...) {
@@ -91,25 +92,33 @@ void OccupancyMap::Impl::trim() {
 // ---- public face -----------------------------------------------------------------------------
 
 OccupancyMap::OccupancyMap(Context& context, const MapParams& params)
-    : impl_(hostMemoryGuard("OccupancyMap",
-                            [&] { return std::make_unique<Impl>(context, params); })) {}
-OccupancyMap::~OccupancyMap() = default;
+    : impl_(hostMemoryGuard("OccupancyMap", [&] {
+        ContextAccess::shared(context)->checkNotForked("OccupancyMap");
+        return std::make_unique<Impl>(context, params);
+      })) {}
+// A map made before fork() is the parent's: a forked child leaves it alone rather than destroy
+// it (that would wait on the driver's threads, which the child does not have).
+OccupancyMap::~OccupancyMap() {
+  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+}
 OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
-OccupancyMap& OccupancyMap::operator=(OccupancyMap&&) noexcept = default;
+OccupancyMap& OccupancyMap::operator=(OccupancyMap&& other) noexcept {
+  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+  impl_ = std::move(other.impl_);
+  return *this;
+}
 
 OccupancyMap::Impl& OccupancyMap::self() const {
   if (!impl_)
     throw Error(ErrorCode::kInvalidArgument,
                 "OccupancyMap: this map was moved from and holds nothing; assign a map to it "
                 "before using it again");
+  impl_->device().checkNotForked("OccupancyMap");
   return *impl_;
 }
 
-// The noexcept observers answer for a moved-from map as for an empty one.
-const MapParams& OccupancyMap::params() const noexcept {
-  static const MapParams kNone;
-  return impl_ ? impl_->params() : kNone;
-}
+// A moved-from map has no parameters: default ones would pass for a real map's.
+const MapParams& OccupancyMap::params() const { return self().params(); }
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                                          const Eigen::Vector3f& origin_world,
@@ -121,8 +130,7 @@ ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points
 
 ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                                          const Eigen::Vector3f& origin_sensor,
-                                         const Pose& T_world_sensor,
-                                         const ScanOptions& options) {
+                                         const Pose& T_world_sensor, const ScanOptions& options) {
   return hostMemoryGuard("insertPointCloud", [&] {
     const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
     return self().insert({.points = points_sensor}, origin_world, &T_world_sensor, options);
@@ -160,8 +168,7 @@ ScanTicket OccupancyMap::submitPointCloud(std::span<const Eigen::Vector3f> point
 
 ScanTicket OccupancyMap::submitPointCloud(std::span<const Eigen::Vector3f> points_sensor,
                                           const Eigen::Vector3f& origin_sensor,
-                                          const Pose& T_world_sensor,
-                                          const ScanOptions& options) {
+                                          const Pose& T_world_sensor, const ScanOptions& options) {
   return hostMemoryGuard("submitPointCloud", [&] {
     const Eigen::Vector3f origin_world = T_world_sensor.transform(origin_sensor);
     return self().submit({.points = points_sensor}, origin_world, &T_world_sensor, options);

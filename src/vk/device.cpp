@@ -1,5 +1,7 @@
 #include "vk/device.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -39,6 +41,7 @@ std::vector<DeviceInfo> Device::enumerate() {
 // ~Device, whichever step failed.
 Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   std::unique_ptr<Device> dev(new Device());
+  dev->creator_pid_ = static_cast<long>(::getpid());
   try {
     auto t = std::chrono::steady_clock::now();
     dev->createInstance(options);
@@ -388,7 +391,22 @@ void Device::createLayouts() {
   OCTOVK_VK(vkCreatePipelineLayout(device_, &pinfo, nullptr, &pipeline_layout_));
 }
 
+bool Device::forkedAway() const noexcept { return static_cast<long>(::getpid()) != creator_pid_; }
+
+void Device::checkNotForked(std::string_view what) const {
+  if (forkedAway())
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string(what) + ": its Vulkan device was made by process " +
+                    std::to_string(creator_pid_) + ", and this is a child forked from it (pid " +
+                    std::to_string(::getpid()) +
+                    "); a device cannot be used across fork(): create the Context and the map in "
+                    "the child, or fork before making them");
+}
+
 Device::~Device() {
+  // In a forked child the device is the parent's: any call could wait on the driver's threads,
+  // which the child does not have, and the pipeline cache is the parent's to save. Leave it.
+  if (forkedAway()) return;
   if (device_) {
     vkDeviceWaitIdle(device_);
     if (pipeline_cache_) {

@@ -38,6 +38,11 @@ class Device {
 
   const DeviceInfo& info() const noexcept { return info_; }
   VkDevice handle() const noexcept { return device_; }
+  /// Whether this process is a child forked after the device was made: a Vulkan device is not
+  /// usable across fork() (the driver's threads are not in the child; waits never end).
+  bool forkedAway() const noexcept;
+  /// Throws kInvalidArgument, naming `what`, in such a child.
+  void checkNotForked(std::string_view what) const;
   /// Submits to the device's one queue under its lock: every map of a Context records on its
   /// own command pool but shares this queue, which Vulkan requires externally synchronised.
   void submit(const VkSubmitInfo& info, VkFence fence);
@@ -141,7 +146,8 @@ class Device {
   std::uint32_t max_groups_x_ = 65535;
   std::uint32_t loop_limit_ = 0;
   std::uint64_t max_binding_bytes_ = 1u << 27;
-  std::mutex queue_mutex_;   // guards queue_ (vkQueueSubmit) and submissions_
+  long creator_pid_ = 0;           // the process that made the device
+  std::mutex queue_mutex_;         // guards queue_ (vkQueueSubmit) and submissions_
   std::uint64_t submissions_ = 0;  // for OCTOVK_TRACE_STARTUP only
   struct PassSlot {
     Pass pass;
@@ -154,10 +160,10 @@ class Device {
   std::string cache_name_;  // the device-and-driver part of the key, hashed: the files' names
   std::once_flag pipeline_cache_loaded_;
   std::unique_ptr<PipelineCache> pipeline_cache_;  // after the first pass, unless turned off
-  std::mutex passes_mutex_;      // guards the deque (not the builds: see pass())
-  std::deque<PassSlot> passes_;  // deque: slots never move
-  std::vector<std::string> extensions_;     // optional device extensions enabled
-  std::unique_ptr<RayQueryApi> ray_query_;  // set when ray queries are enabled
+  std::mutex passes_mutex_;                        // guards the deque (not the builds: see pass())
+  std::deque<PassSlot> passes_;                    // deque: slots never move
+  std::vector<std::string> extensions_;            // optional device extensions enabled
+  std::unique_ptr<RayQueryApi> ray_query_;         // set when ray queries are enabled
 };
 
 }  // namespace octovk::vk
