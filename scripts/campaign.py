@@ -301,7 +301,9 @@ def command(fmt, r):  # (arguments, outputs); an existing out.* must survive a f
     return r.choice([(["info", f"M.{fmt}"], []),
                      (["export", f"M.{fmt}", "-o", "out.ply", "--max-device-memory", "512M"],
                       ["out.ply"]),
-                     (["render", f"M.{fmt}", "-o", "out.png", "--size", "16x12"], ["out.png"])])
+                     (["render", f"M.{fmt}", "-o", "out.png", "--size", "16x12"], ["out.png"]),
+                     (["distance", f"M.{fmt}", "--box", "-1", "-1", "-1", "1", "1", "1", "-o",
+                       "out.png", "--max-device-memory", "512M"], ["out.png"])])
 
 
 def execute(argv, cwd, timeout):
@@ -375,6 +377,221 @@ def run_case(args, fmt, index, work):
     return cls
 
 
+# ---- attacks: fixed hostile situations, each run once (format "attack") ----
+# Each returns (class, why) with the classes above; a situation octovk must handle is built
+# around a seed, the run is classified as a mutant's, then the attack checks what it is about.
+
+SPARSE_GIB = 3
+
+
+def sparse(path, head, gib):  # `head`, then zeros to `gib` GiB that take no disk space
+    path.write_bytes(head)
+    os.truncate(path, gib << 30)
+
+
+def run_in(d, args, argv, outputs, before=None, shell_prefix=None):
+    before = before or {}
+    for name, content in before.items():
+        (d / name).write_bytes(content)
+    inputs = {str(p.relative_to(d)) for p in d.rglob("*")}
+    full = [args.octovk] + argv
+    if shell_prefix:  # e.g. 'ulimit -f 64': a limit for this run only, set by its own shell
+        full = ["sh", "-c", f"{shell_prefix}; exec {shlex.join(full)}"]
+    t0 = time.monotonic()
+    rc, out, err = execute(full, d, args.timeout)
+    cls, why = classify(rc, err, d, inputs, outputs, before)
+    return cls, why, rc, err, time.monotonic() - t0
+
+
+def attack_sparse_files(args, d):  # read whole before checked: 3.2 GB of RSS for 4 KB on disk
+    sparse(d / "big.bt", SEEDS["bt"][0], SPARSE_GIB)
+    sparse(d / "big.graph", SEEDS["graph"][0][:-4], SPARSE_GIB)
+    tum = d / "in"
+    for name, content in SEEDS["tum"][0].items():
+        (tum / name).parent.mkdir(parents=True, exist_ok=True)
+        (tum / name).write_bytes(content)
+    sparse(tum / "depth.txt", SEEDS["tum"][0]["depth.txt"], 10)
+    for argv, outputs in ((["info", "big.bt"], []), (["integrate", "big.graph", "-o", "o.bt"], ["o.bt"]),
+                          (["integrate", "in", "-o", "o.bt", "-q"], ["o.bt"])):
+        cls, why, rc, err, secs = run_in(d, args, argv, outputs)
+        if cls == "accepted":
+            return "changed", f"{argv}: a {SPARSE_GIB} GiB file of zeros was accepted"
+        if cls != "error":
+            return cls, f"{argv}: {why}"
+        if secs > 5:
+            return "hang", f"{argv}: {secs:.1f} s to refuse a file of zeros (read whole first)"
+    return "error", ""
+
+
+def attack_huge_png(args, d):  # a 16000 x 16000 header: decoded whole before the size check
+    ihdr = struct.pack(">IIBBBBB", 16000, 16000, 16, 0, 0, 0, 0)
+    rows, row = zlib.compressobj(9), b"\0" * (16000 * 2 + 1) * 500
+    data = b"".join(rows.compress(row) for _ in range(32)) + rows.flush()  # whole: 500 KB
+    png = (b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", ihdr) + png_chunk(b"IDAT", data) +
+           png_chunk(b"IEND", b""))
+    folder = dict(SEEDS["tum"][1])
+    for name in list(folder):
+        if name.endswith(".png"):
+            folder[name] = png
+    for name, content in folder.items():
+        (d / "in" / name).parent.mkdir(parents=True, exist_ok=True)
+        (d / "in" / name).write_bytes(content)
+    for argv, outputs in ((["integrate", "in", "-o", "o.bt", "-q"], ["o.bt"]),
+                          (["convert", "in", "-o", "o.graph"], ["o.graph"])):
+        cls, why, rc, err, secs = run_in(d, args, argv, outputs)
+        if cls not in ("error", "accepted"):
+            return cls, f"{argv}: {why}"
+        if secs > 5:
+            return "hang", f"{argv}: {secs:.1f} s on a 16000 x 16000 PNG (decoded before checked)"
+    return "error", ""
+
+
+def attack_file_size_limit(args, d):  # SIGXFSZ killed the run and left its temporary
+    (d / "M.graph").write_bytes(SEEDS["graph"][0])
+    cls, why, rc, err, _ = run_in(d, args, ["integrate", "M.graph", "-o", "out.ot", "-q"],
+                                  ["out.ot"], before={"out.ot": b"kept\n"},
+                                  shell_prefix="ulimit -f 1")
+    if cls == "accepted" and (d / "out.ot").stat().st_size > 1024:
+        return "changed", "a file over ulimit -f was written"
+    return cls, why
+
+
+def attack_long_names(args, d):  # names of 235-255 bytes: the temporary's name was too long
+    (d / "M.graph").write_bytes(SEEDS["graph"][0])
+    name = "m" * 250 + ".bt"
+    cls, why = run_in(d, args, ["integrate", "M.graph", "-o", name, "-q"], [name])[:2]
+    return ("no-output", f"a valid name of {len(name)} bytes was refused") if cls == "error" else \
+        (cls, why)
+
+
+def attack_output_links(args, d):  # a link was replaced by a file, a 0444 file became 0644
+    (d / "M.graph").write_bytes(SEEDS["graph"][0])
+    (d / "target.bt").write_bytes(b"old\n")
+    (d / "link.bt").symlink_to("target.bt")
+    (d / "ro.bt").write_bytes(b"old\n")
+    os.chmod(d / "ro.bt", 0o444)
+    rc, out, err = execute([args.octovk, "integrate", "M.graph", "-o", "link.bt", "-o", "ro.bt",
+                            "-q"], d, args.timeout)
+    if rc not in (0, 1):
+        return ("hang", "over the timeout") if rc is None else ("crash", f"exit {rc}")
+    if rc == 0:
+        if not (d / "link.bt").is_symlink():
+            return "changed", "writing through a symbolic link replaced the link"
+        if (d / "target.bt").read_bytes() == b"old\n":
+            return "no-output", "the link's target was not written"
+        if os.stat(d / "ro.bt").st_mode & 0o777 != 0o444:
+            return "changed", f"a 0444 output became {os.stat(d / 'ro.bt').st_mode & 0o777:o}"
+        return "accepted", ""
+    return classify(rc, err, d, {str(p.relative_to(d)) for p in d.rglob("*")}, [], {})
+
+
+def resolution_of(path):  # the 'res' line of a .bt / .ot header
+    for line in path.read_bytes().split(b"\n")[:8]:
+        if line.startswith(b"res "):
+            return float(line[4:])
+    return None
+
+
+def attack_one_output_set(args, d):  # concurrent runs on one -o set ended up mixed
+    (d / "M.graph").write_bytes(SEEDS["graph"][0])
+    for trial in range(4):
+        procs = [subprocess.Popen([args.octovk, "integrate", "M.graph", "-o", "s.bt", "-o", "s.ot",
+                                   "-q", "--resolution", res], cwd=d, stdin=subprocess.DEVNULL,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                 for res in ("0.1", "0.2", "0.3")]
+        for p in procs:
+            try:
+                p.communicate(timeout=args.timeout)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                return "hang", "a run on a shared output set"
+            if p.returncode not in (0, 1):
+                return "crash", f"exit {p.returncode} of a run on a shared output set"
+        bt, ot = resolution_of(d / "s.bt"), resolution_of(d / "s.ot")
+        if bt is None or bt != ot:
+            return "changed", f"trial {trial}: the set is mixed: .bt res {bt}, .ot res {ot}"
+    extra = sorted(p.name for p in d.iterdir()) 
+    if any(n not in ("M.graph", "s.bt", "s.ot") for n in extra):
+        return "leftover", "left " + ", ".join(extra)
+    return "accepted", ""
+
+
+PY_NEW = """
+import octovk, numpy as np
+for name in dir(octovk):
+    cls = getattr(octovk, name)
+    if not isinstance(cls, type) or not hasattr(cls, "__new__") or name.startswith("_"):
+        continue
+    try:
+        obj = cls.__new__(cls)
+    except TypeError:
+        continue
+    for attr in dir(obj):
+        if attr.startswith("__"):
+            continue
+        for call_args in ((), (np.zeros((2, 3), np.float32),), ("x.bt",)):
+            try:
+                value = getattr(obj, attr)
+                if callable(value):
+                    value(*call_args)
+            except Exception:
+                pass
+    for use in (lambda: octovk.Map(context=obj), lambda: octovk.Map(obj)):
+        try:
+            use()
+        except Exception:
+            pass
+print("done")
+"""
+
+PY_BATCH = """
+import octovk, numpy as np
+m = octovk.Map(resolution=0.1)
+m.insert_point_cloud(np.random.default_rng(1).uniform(-2, 2, (1000, 3)).astype(np.float32),
+                     np.zeros(3, np.float32))
+big = np.zeros((9_000_000, 3), np.float32)  # beyond one binding of results on lavapipe
+try:
+    assert len(m.search(big)[0]) == len(big)
+except octovk.Error:
+    pass
+assert len(m.search(big[:10])[0]) == 10, "the map stopped working after a large batch"
+print("done")
+"""
+
+
+def attack_python(args, d):  # __new__ objects crashed the interpreter; a batch broke the map
+    module = Path(args.octovk).resolve().parent / "python"
+    if not any(module.glob("octovk*.so")):
+        return "error", ""  # built without the Python module: nothing to attack
+    env = dict(os.environ, PYTHONPATH=str(module), PYTHONDONTWRITEBYTECODE="1")
+    for what, code in (("__new__ objects", PY_NEW), ("a batch beyond one binding", PY_BATCH)):
+        p = subprocess.run(["/usr/bin/python3", "-c", code], cwd=d, env=env, capture_output=True,
+                           timeout=args.timeout * 4)
+        if p.returncode < 0:
+            return "crash", f"python, {what}: signal {-p.returncode}"
+        if p.returncode != 0 or not p.stdout.strip().endswith(b"done"):
+            return "unexpected", f"python, {what}: {p.stderr.decode(errors='replace')[-300:]}"
+    return "accepted", ""
+
+
+ATTACKS = [attack_sparse_files, attack_huge_png, attack_file_size_limit, attack_long_names,
+           attack_output_links, attack_one_output_set, attack_python]
+
+
+def run_attacks(args, work, counts):
+    for attack in ATTACKS:
+        d = Path(tempfile.mkdtemp(prefix=attack.__name__ + "-", dir=work))
+        try:
+            cls, why = attack(args, d)
+        except Exception as e:  # a bug of the campaign fails it too, never passes
+            cls, why = "script-bug", repr(e)
+        finally:
+            shutil.rmtree(d, ignore_errors=True)
+        counts[cls] = counts.get(cls, 0) + 1
+        if cls in BAD:
+            print(f"campaign: {cls.upper()}: {attack.__name__}: {why}", file=sys.stderr, flush=True)
+
+
 def save(args, fmt, index, mutant, argv, before, cls, why, rc, out, err):
     d = Path(args.save) / f"{fmt}-{index}-{cls}"
     shutil.rmtree(d, ignore_errors=True)
@@ -403,6 +620,7 @@ def main():
     p.add_argument("--ulimit-mb", type=int, default=2048, help="address space of a run, MiB")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     p.add_argument("--save", default=str(ROOT / "build" / "campaign-failures"))
+    p.add_argument("--no-attacks", action="store_true", help="mutants only")
     args = p.parse_args()
     formats = [f for f in args.formats.split(",") if f]
     if not os.access(args.octovk, os.X_OK) or any(f not in FORMATS for f in formats):
@@ -429,9 +647,12 @@ def main():
                 if cls != "accepted":
                     sys.exit(f"campaign: error: seed {k} of {fmt} is not accepted ({cls}: {why}; "
                              f"{err.decode(errors='replace').strip()}): the campaign is broken")
+        counts = {f: {} for f in formats}
+        if not args.no_attacks:
+            counts["attack"] = {}
+            run_attacks(args, work, counts["attack"])
         deadline = start + args.budget_seconds
         order = ((fmt, i) for i in range(args.count or 1 << 40) for fmt in formats)
-        counts = {f: {} for f in formats}
         lock = threading.Lock()
 
         def worker():
@@ -459,10 +680,10 @@ def main():
     print(f"campaign: seed {args.seed}, {time.monotonic() - start:.0f} s, {args.jobs} jobs, "
           f"ulimit -v {args.ulimit_mb} MiB, timeout {args.timeout:g} s")
     print(f"{'format':<8}{'runs':>7}" + "".join(f"{c:>11}" for c in classes))
-    for fmt in formats:
+    for fmt in counts:
         print(f"{fmt:<8}{sum(counts[fmt].values()):>7}" +
               "".join(f"{counts[fmt].get(c, 0):>11}" for c in classes))
-    bad = sum(counts[f].get(c, 0) for f in formats for c in BAD)
+    bad = sum(counts[f].get(c, 0) for f in counts for c in BAD)
     if bad or not all(sum(counts[f].values()) for f in formats):
         print(f"campaign: FAILED: {bad} bad runs (saved in {args.save})" if bad else
               "campaign: FAILED: a format ran no mutant within the budget", file=sys.stderr)
