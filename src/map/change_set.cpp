@@ -2,24 +2,25 @@
 
 #include <algorithm>
 #include <cstring>
-#include <utility>
 #include <string>
+#include <utility>
 
 #include "map/buffer_sizes.hpp"
 
 namespace octovk {
 
-gpu::ChangeHeader readChangeHeader(MapCore& core) {
+gpu::ChangeHeader ChangeSet::header() {
+  MapCore& core = core_;
   core.stream.begin(core.buffers.bindings);
-  core.stream.copy(core.buffers.changes, core.buffers.query_staging_out,
-                   sizeof(gpu::ChangeHeader));
+  core.stream.copy(core.buffers.changes, core.buffers.query_staging_out, sizeof(gpu::ChangeHeader));
   core.stream.submitAndWait();
   gpu::ChangeHeader header;
   std::memcpy(&header, core.buffers.query_staging_out.mapped(), sizeof(header));
   return header;
 }
 
-void growChangeSet(MapCore& core, std::uint64_t keys) {
+void ChangeSet::grow(std::uint64_t keys) {
+  MapCore& core = core_;
   std::uint32_t log2 = std::max(core.buffers.changesLog2(), kInitialChangesLog2);
   while (log2 < 31 && keys > (std::uint64_t{1} << log2) - (std::uint64_t{1} << log2) / 4) ++log2;
   if (keys > (std::uint64_t{1} << log2) - (std::uint64_t{1} << log2) / 4)
@@ -27,7 +28,7 @@ void growChangeSet(MapCore& core, std::uint64_t keys) {
                 "change detection: more than 2^30 changed keys; call resetChangeDetection() "
                 "after reading them");
   if (log2 == core.buffers.changesLog2()) return;
-  ++core.changes_rehashes;  // the rehash drops the keys that flipped back (MapCore)
+  ++rehashes_;  // the rehash drops the keys that flipped back (fieldTracking)
   const std::uint32_t old_log2 = core.buffers.changesLog2();
   const std::uint32_t old_slots = std::uint32_t{1} << old_log2;
   vk::Buffer old = core.buffers.replaceChanges(log2);  // under the cap; nothing changed if not
@@ -45,27 +46,51 @@ void growChangeSet(MapCore& core, std::uint64_t keys) {
   }
 }
 
-void ChangeSet::enable(bool on) {
-  if (on && core_.buffers.changesLog2() == 0) growChangeSet(core_, 1);
-  core_.change_detection = on;
+void ChangeSet::enableByUser(bool on) {
+  if (on && core_.buffers.changesLog2() == 0) grow(1);
+  enabled_ = on;
+  by_user_ = true;
+  by_fields_ = false;
 }
 
 void ChangeSet::reset() {
-  ++core_.changes_epoch;
+  ++epoch_;
   core_.buffers.resetChanges();
 }
 
 void ChangeSet::release() {
-  core_.change_detection = false;
+  enabled_ = false;
   if (core_.buffers.changesLog2() == 0) return;
-  ++core_.changes_epoch;
+  ++epoch_;
   (void)core_.buffers.replaceChanges(0);  // the old set goes with the returned buffer
 }
 
-std::size_t ChangeSet::count() { return readChangeHeader(core_).live; }
+void ChangeSet::followByField() {
+  if (!by_user_ && !enabled_) {
+    if (core_.buffers.changesLog2() == 0) grow(1);
+    enabled_ = true;
+    by_fields_ = true;
+  }
+  ++fields_;
+}
+
+void ChangeSet::unfollowByField() {
+  if (fields_ > 0 && --fields_ == 0 && by_fields_) {
+    by_fields_ = false;
+    release();
+  }
+}
+
+bool ChangeSet::resetForField() {
+  if (!by_fields_ || fields_ != 1) return false;
+  reset();
+  return true;
+}
+
+std::size_t ChangeSet::count() { return header().live; }
 
 std::vector<ChangedKey> ChangeSet::keys() {
-  const gpu::ChangeHeader header = readChangeHeader(core_);
+  const gpu::ChangeHeader header = this->header();
   if (header.live == 0) return {};
   const std::size_t bytes = sizeof(gpu::ChangedKeysHeader) + header.live * sizeof(gpu::ChangedKey);
   core_.buffers.ensureQueries(sizes::kSmallQuery, bytes);
@@ -99,7 +124,7 @@ void ChangeSet::onDevice(VkBuffer out, VkDeviceSize out_offset, VkDeviceSize out
     throw Error(ErrorCode::kInvalidArgument,
                 "changedKeysOnDevice: the offset must be a multiple of " + std::to_string(align) +
                     " (minStorageBufferOffsetAlignment)");
-  const std::size_t live = readChangeHeader(core_).live;
+  const std::size_t live = header().live;
   const std::size_t bytes = sizeof(gpu::ChangedKeysHeader) + live * sizeof(gpu::ChangedKey);
   if (out_size < bytes)
     throw Error(ErrorCode::kInvalidArgument,

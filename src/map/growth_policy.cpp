@@ -1,11 +1,11 @@
 #include "map/growth_policy.hpp"
 
-#include "map/change_set.hpp"
-
 #include <algorithm>
 #include <exception>
 #include <string>
 #include <utility>
+
+#include "map/change_set.hpp"
 
 namespace octovk {
 
@@ -106,12 +106,28 @@ void GrowthPolicy::growAheadBestEffort() {
 void GrowthPolicy::releaseScratch() {
   core_.buffers.releaseScratch();
   hash_guess_tried_ = 0;
+  scratch_peak_points_ = 0;
 }
 
 void GrowthPolicy::trim() {
-  core_.buffers.releaseScratch();
+  releaseScratch();
   core_.buffers.releaseQueries();
-  hash_guess_tried_ = 0;
+}
+
+bool GrowthPolicy::outsizedScan(std::size_t points) noexcept {
+  if (scan_count_ == kScanHistory)
+    std::move(scan_points_.begin() + 1, scan_points_.end(), scan_points_.begin());
+  else
+    ++scan_count_;
+  scan_points_[scan_count_ - 1] = points;
+  scratch_peak_points_ = std::max(scratch_peak_points_, points);
+  std::array<std::size_t, kScanHistory> sorted = scan_points_;
+  for (std::size_t i = 1; i < scan_count_; ++i)  // insertion sort of at most 8
+    for (std::size_t j = i; j > 0 && sorted[j - 1] > sorted[j]; --j)
+      std::swap(sorted[j - 1], sorted[j]);
+  const std::size_t median = sorted[(scan_count_ - 1) / 2];  // the lower one of an even count
+  return scratch_peak_points_ > kOutsizedFactor * median &&
+         core_.buffers.bytesByUse().scratch > kAutoReleaseBytes;
 }
 
 void GrowthPolicy::noteApplied(const gpu::ScanCounters& counters, const gpu::PoolState& pool,
@@ -122,7 +138,7 @@ void GrowthPolicy::noteApplied(const gpu::ScanCounters& counters, const gpu::Poo
   const std::size_t active = std::size_t{counters.active_cells} + counters.leaf_cells;
   if (active > core_.buffers.activeCapacity() / 2)
     ahead_active_ = std::max(ahead_active_, active * 2);
-  if (core_.buffers.noteScan(points)) release_scratch_ = true;  // released once none is in flight
+  if (outsizedScan(points)) release_scratch_ = true;  // released once none is in flight
 }
 
 void GrowthPolicy::growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool) {
@@ -157,7 +173,7 @@ void GrowthPolicy::growForRetry(const gpu::ScanCounters& counters, const gpu::Po
   // Change detection: room for every cell the scan updates, and as many again for the next
   // scans, so that the set does not grow one refused scan at a time.
   if (status & gpu::kStatusChangesShort)
-    growChangeSet(core_, std::uint64_t{readChangeHeader(core_).used} + 2 * std::uint64_t{active});
+    changes_.grow(std::uint64_t{changes_.header().used} + 2 * std::uint64_t{active});
 }
 
 // Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for

@@ -5,16 +5,18 @@
 // MapBuffers allocates (under the memory cap). Every growth runs with no scan in flight.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 
+#include "map/change_set.hpp"
 #include "map/map_core.hpp"
 
 namespace octovk {
 
 class GrowthPolicy {
  public:
-  explicit GrowthPolicy(MapCore& core) : core_(core) {}
+  GrowthPolicy(MapCore& core, ChangeSet& changes) : core_(core), changes_(changes) {}
 
   /// Whether a scan of `count` points (`depth_bytes` of depth image) needs anything to grow
   /// first, or growth asked for ahead is due: then the caller waits for the scans in flight and
@@ -44,6 +46,16 @@ class GrowthPolicy {
  private:
   /// Releases the per-scan scratch; the next scan guesses the cell set afresh.
   void releaseScratch();
+  /// After each successful scan of `points` points: whether to release the scratch (once no
+  /// scan is in flight), because an outsized scan grew it, i.e. the largest scan since the
+  /// scratch was last released had more than kOutsizedFactor times the points of the median of
+  /// the last kScanHistory scans (this one included), and the scratch holds more than
+  /// kAutoReleaseBytes. Deterministic: it depends only on the sequence of point counts.
+  /// Allocates nothing: it runs after a scan is in the map, where nothing may fail.
+  bool outsizedScan(std::size_t points) noexcept;
+  static constexpr std::size_t kScanHistory = 8;
+  static constexpr std::size_t kOutsizedFactor = 4;
+  static constexpr std::size_t kAutoReleaseBytes = std::size_t{4} << 20;
   /// The touched lists and the pool grown toward a first guess for a scan of `count` points, as
   /// far as the memory cap allows.
   void guessListsAndPool(std::size_t count);
@@ -51,11 +63,15 @@ class GrowthPolicy {
   void reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead);
 
   MapCore& core_;
+  ChangeSet& changes_;
   // Growth asked for by the results of recent scans, done at the next submit (after waiting).
   std::uint64_t ahead_blocks_ = 0;
   std::size_t ahead_active_ = 0;
   bool release_scratch_ = false;
   std::uint32_t hash_guess_tried_ = 0;  // the largest first guess of the cell set tried
+  std::array<std::size_t, kScanHistory> scan_points_{};  // the last scans, oldest first
+  std::size_t scan_count_ = 0;                           // of them, up to kScanHistory
+  std::size_t scratch_peak_points_ = 0;  // largest scan since the scratch was last released
 };
 
 }  // namespace octovk

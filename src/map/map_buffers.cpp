@@ -253,7 +253,6 @@ void MapBuffers::releaseScratch() {
     point_capacity_ = 0;
     rebind();
   }
-  scratch_peak_points_ = 0;
 }
 
 void MapBuffers::releaseQueries() {
@@ -267,22 +266,6 @@ void MapBuffers::releaseQueries() {
   query_out = std::move(out);
   query_staging_out = std::move(staging_out);
   rebind();
-}
-
-bool MapBuffers::noteScan(std::size_t points) noexcept {
-  if (scan_count_ == kScanHistory)
-    std::move(scan_points_.begin() + 1, scan_points_.end(), scan_points_.begin());
-  else
-    ++scan_count_;
-  scan_points_[scan_count_ - 1] = points;
-  scratch_peak_points_ = std::max(scratch_peak_points_, points);
-  std::array<std::size_t, kScanHistory> sorted = scan_points_;
-  for (std::size_t i = 1; i < scan_count_; ++i)  // insertion sort of at most 8
-    for (std::size_t j = i; j > 0 && sorted[j - 1] > sorted[j]; --j)
-      std::swap(sorted[j - 1], sorted[j]);
-  const std::size_t median = sorted[(scan_count_ - 1) / 2];  // the lower one of an even count
-  return scratch_peak_points_ > kOutsizedFactor * median &&
-         bytesByUse().scratch > kAutoReleaseBytes;
 }
 
 void MapBuffers::resetPool() {

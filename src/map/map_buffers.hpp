@@ -107,16 +107,6 @@ class MapBuffers {
   void releaseScratch();
   /// The query buffers (and their staging) back to the constructor's sizes.
   void releaseQueries();
-  /// After each successful scan of `points` points: whether to release the scratch (once no
-  /// scan is in flight), because an outsized scan grew it, i.e. the largest scan since the
-  /// scratch was last released had more than kOutsizedFactor times the points of the median of
-  /// the last kScanHistory scans (this one included), and the scratch holds more than
-  /// kAutoReleaseBytes. Deterministic: it depends only on the sequence of point counts.
-  /// Allocates nothing: it runs after a scan is in the map, where nothing may fail.
-  bool noteScan(std::size_t points) noexcept;
-  static constexpr std::size_t kScanHistory = 8;
-  static constexpr std::size_t kOutsizedFactor = 4;
-  static constexpr std::size_t kAutoReleaseBytes = std::size_t{4} << 20;
 
   /// An empty tree in the pool and fresh counters (records and waits).
   void resetPool();
@@ -176,9 +166,9 @@ class MapBuffers {
   vk::Buffer prefix_blocks;  // gpu::NewBlock per slot of the second set
   vk::Buffer nodes, block_parents, free_stack, leaf_boxes;
   vk::Buffer query_in, query_out, query_staging_in, query_staging_out;
-  vk::Buffer walks;  // ray walks saved between segments (two lists of pointCapacity())
-  vk::Buffer slots;  // filled slots of the cell set, then of the second set
-  vk::Buffer depth;  // a depth image: gpu::DepthCamera, then its pixels
+  vk::Buffer walks;    // ray walks saved between segments (two lists of pointCapacity())
+  vk::Buffer slots;    // filled slots of the cell set, then of the second set
+  vk::Buffer depth;    // a depth image: gpu::DepthCamera, then its pixels
   vk::Buffer changes;  // the change set: gpu::ChangeHeader, then gpu::ChangeSlots
 
  private:
@@ -198,9 +188,6 @@ class MapBuffers {
   std::size_t max_bytes_ = 0;
   std::size_t scene_bytes_ = 0;
   std::size_t field_bytes_ = 0;
-  std::array<std::size_t, kScanHistory> scan_points_{};  // the last scans, oldest first
-  std::size_t scan_count_ = 0;                           // of them, up to kScanHistory
-  std::size_t scratch_peak_points_ = 0;  // largest scan since the scratch was last released
   bool sets_need_fill_ = true;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;

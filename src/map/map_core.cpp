@@ -42,7 +42,6 @@ gpu::ScanParams MapCore::scanParams(const Eigen::Vector3f& origin, const Pose* p
   sp.active_capacity = static_cast<std::uint32_t>(buffers.activeCapacity());
   sp.cell_capacity = (1u << buffers.hashLog2()) * kCellsPerBrickSlot;
   sp.occupancy_log = logs.occupancy;
-  sp.changes_log2 = change_detection ? buffers.changesLog2() : 0u;
   if (pose) {
     sp.rot_u = pose->rotation.w();
     sp.rot_x = pose->rotation.x();

@@ -1,8 +1,8 @@
 // What every part of a map shares: its device, parameters, command stream, buffers and recorder,
 // and the two facts about the tree that more than one part reads or changes (its version, for
-// castRay's scene; whether the leaf boxes are current). The parts (scan pipeline, growth policy,
-// ray-scene cache, query runner, tree transfer) each hold a reference to it; OccupancyMap::Impl
-// owns it.
+// castRay's scene and the change set; whether the leaf boxes are current). The parts (scan
+// pipeline, growth policy, ray-scene cache, query runner, tree transfer) each hold a reference to
+// it; OccupancyMap::Impl owns it.
 #pragma once
 
 #include <cstdint>
@@ -37,6 +37,9 @@ struct MapCore {
   gpu::PoolState readPool();
   /// Rebuilds the leaf boxes (waited for) if they are stale; the caller flushes first.
   void refreshLeafBoxes();
+  /// The tree changed (a scan updated cells, an upload, an edit): what was derived from the
+  /// version before (castRay's scene, a distance field not following the change set) is stale.
+  void treeChanged() noexcept { ++tree_version; }
 
   vk::Device& device;
   const MapParams params;
@@ -44,30 +47,10 @@ struct MapCore {
   vk::CommandStream stream;
   MapBuffers buffers;
   passes::Recorder rec;
-  /// Counts the changes of the tree (scans that updated cells, uploads): castRay's scene is
-  /// rebuilt when it was built from another version.
+  /// Counts the changes of the tree (treeChanged): castRay's scene is rebuilt when it was built
+  /// from another version.
   std::uint64_t tree_version = 0;
   LeafBoxes leaf_boxes = LeafBoxes::kCurrent;
-  /// Change detection on: scans note their changed keys in the change set (ChangeSet).
-  bool change_detection = false;
-  /// The tree changes the change set holds: scans recorded with change detection on that
-  /// changed cells. tree_version - noted_version counts every other change (uploads, clearBox,
-  /// scans without change detection): a distance field that sees it move redoes its box.
-  std::uint64_t noted_version = 0;
-  /// Counts the resets of the change set: a distance field that sees it move since its last
-  /// update redoes its box.
-  std::uint64_t changes_epoch = 0;
-  /// Counts the growths of the change set, whose rehash drops the keys that flipped back since
-  /// the last reset: a distance field that did not reset the set itself at its last update
-  /// (the keys may predate it) redoes its box when it moved.
-  std::uint64_t changes_rehashes = 0;
-  /// The user turned change detection on or off (OccupancyMap::enableChangeDetection): the set
-  /// is theirs, and a distance field never resets it.
-  bool change_detection_by_user = false;
-  /// Distance fields following the map through the change set, and whether they (not the user)
-  /// turned change detection on: the last of them to go turns it off again.
-  std::uint32_t change_set_fields = 0;
-  bool change_detection_by_fields = false;
 };
 
 }  // namespace octovk

@@ -71,9 +71,7 @@ class OccupancyMap::Impl {
   // ---- change detection (ChangeSet), each after the scans submitted before it ----
   void enableChangeDetection(bool on) {
     flush();
-    changes_.enable(on);
-    core_.change_detection_by_user = true;
-    core_.change_detection_by_fields = false;
+    changes_.enableByUser(on);
   }
   bool changeDetectionEnabled() const { return changes_.enabled(); }
   void resetChangeDetection() {
@@ -135,44 +133,13 @@ class OccupancyMap::Impl {
   /// pool (`pool`, `nodes`) and counts its bytes under the cap (checkBudget, noteFieldBytes). It
   /// records on its own command stream; nothing else is shared.
   MapBuffers& fieldBuffers() { return core_.buffers; }
-  /// What a distance field follows the tree by (after flush()): the changes the change set does
-  /// not hold, the set's resets and growths (MapCore). Equal `unnoted` and `epoch` since its
-  /// last update, and equal `rehashes` too unless that update ended by resetting the set, mean
-  /// the change set's slots hold every cell whose occupancy differs from then.
-  struct FieldTracking {
-    std::uint64_t unnoted = 0;
-    std::uint64_t epoch = 0;
-    std::uint64_t rehashes = 0;
-  };
-  FieldTracking fieldTracking() const {
-    return {core_.tree_version - core_.noted_version, core_.changes_epoch, core_.changes_rehashes};
-  }
-  /// A distance field follows the map through the change set: turns change detection on (as
-  /// DynamicEDTOctomap's constructor does) unless the user chose it either way.
-  void enableChangesForField() {
-    if (!core_.change_detection_by_user && !changes_.enabled()) {
-      changes_.enable(true);
-      core_.change_detection_by_fields = true;
-    }
-    ++core_.change_set_fields;
-  }
-  /// The field is gone: the last field to go turns change detection off again (giving the set's
-  /// memory back) if the fields turned it on; the map is then as if no field had been built.
-  void releaseChangesForField() {
-    if (core_.change_set_fields > 0 && --core_.change_set_fields == 0 &&
-        core_.change_detection_by_fields) {
-      core_.change_detection_by_fields = false;
-      changes_.release();
-    }
-  }
-  /// A field following the map through the change set empties it after an update if the fields
-  /// turned change detection on (one the user turned on is theirs) and no other field follows
-  /// it (whose next update needs the keys); after flush(). True when it did.
-  bool resetChangesForField() {
-    if (!core_.change_detection_by_fields || core_.change_set_fields != 1) return false;
-    changes_.reset();
-    return true;
-  }
+  // A distance field follows the map through the change set (after flush()); the policy is
+  // the change set's (change_set.hpp).
+  using FieldTracking = ChangeSet::FieldTracking;
+  FieldTracking fieldTracking() const { return changes_.fieldTracking(); }
+  void enableChangesForField() { changes_.followByField(); }
+  void releaseChangesForField() { changes_.unfollowByField(); }
+  bool resetChangesForField() { return changes_.resetForField(); }
   /// The map's log-odds parameters (the occupancy threshold isNodeOccupied compares with).
   const ref::LogOddsParams& logOdds() const { return core_.logs; }
   /// castRay's backend on this map (kWalk or kRayTracing) and its build statistics.
@@ -190,11 +157,11 @@ class OccupancyMap::Impl {
   std::shared_ptr<Impl*> link_ = std::make_shared<Impl*>(this);
   // In dependency order: each part refers only to parts declared before it.
   MapCore core_;
+  ChangeSet changes_;
   RaySceneCache scenes_;
   GrowthPolicy growth_;
   QueryRunner queries_;
   TreeTransfer transfer_;
-  ChangeSet changes_;
   TreeEdits edits_;
   ScanPipeline scans_;
 };

@@ -12,13 +12,13 @@ namespace octovk {
 OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
     : device_owner_(ContextAccess::shared(context)),
       core_(*device_owner_, params),
+      changes_(core_),
       scenes_(core_),
-      growth_(core_),
+      growth_(core_, changes_),
       queries_(core_, scenes_),
       transfer_(core_, scenes_),
-      changes_(core_),
       edits_(core_),
-      scans_(core_, growth_, scenes_, queries_) {}
+      scans_(core_, changes_, growth_, scenes_, queries_) {}
 
 OccupancyMap::Impl::~Impl() {
   *link_ = nullptr;  // the fields on this map refuse from now on

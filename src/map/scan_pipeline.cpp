@@ -25,8 +25,9 @@ double msSince(std::chrono::steady_clock::time_point start) {
 // ---- one scan ---------------------------------------------------------------------------------
 
 void ScanPipeline::record(PendingScan& p) {
-  const gpu::ScanParams sp = core_.scanParams(p.origin, p.pose ? &*p.pose : nullptr,
-                                              p.options.max_range_m, p.count);  // sizes may grow
+  gpu::ScanParams sp = core_.scanParams(p.origin, p.pose ? &*p.pose : nullptr,
+                                        p.options.max_range_m, p.count);  // sizes may grow
+  sp.changes_log2 = changes_.scanLog2();
   p.noted_changes = sp.changes_log2 != 0;
   passes::RayKeysInput input = p.input;
   if (p.input_at == ScanInput::kStaging)
@@ -201,8 +202,8 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   stats.nodes = pool.root_exists ? pool.live_nodes : 0;
   last_nodes_ = stats.nodes;
   if (counters.active_cells + counters.leaf_cells > 0) {
-    ++core_.tree_version;  // the ray scene is rebuilt before the next castRays
-    if (p.noted_changes) ++core_.noted_version;  // the change set holds what it changed
+    core_.treeChanged();
+    if (p.noted_changes) changes_.scanNoted();  // the change set holds what it changed
   }
   if (p.caller == ScanCaller::kInsert)
     blocking_stats_ = stats;  // the call's result, which must not need an allocation

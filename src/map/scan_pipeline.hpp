@@ -11,6 +11,7 @@
 #include <optional>
 #include <vector>
 
+#include "map/change_set.hpp"
 #include "map/growth_policy.hpp"
 #include "map/map_core.hpp"
 #include "map/query_runner.hpp"
@@ -48,8 +49,9 @@ enum class Gate : std::uint8_t {
 
 class ScanPipeline {
  public:
-  ScanPipeline(MapCore& core, GrowthPolicy& growth, RaySceneCache& scenes, QueryRunner& queries)
-      : core_(core), growth_(growth), scenes_(scenes), queries_(queries) {}
+  ScanPipeline(MapCore& core, ChangeSet& changes, GrowthPolicy& growth, RaySceneCache& scenes,
+               QueryRunner& queries)
+      : core_(core), changes_(changes), growth_(growth), scenes_(scenes), queries_(queries) {}
 
   /// One scan, then the queries if any, waited for: submit() and flush(), then the growth
   /// ahead (best-effort); the scan's errors thrown with the map as before it.
@@ -90,7 +92,7 @@ class ScanPipeline {
     const QueryRequest* queries = nullptr;  // the blocking call's
     QueryResults* results = nullptr;
     ScanStats stats;
-    bool noted_changes = false;  ///< recorded with change detection on (MapCore::noted_version)
+    bool noted_changes = false;  ///< recorded with change detection on (ChangeSet::scanNoted)
   };
   /// submit(); `caller` kInsert: the blocking call's scan, whose `queries` (staged here) run
   /// right after it in its submission.
@@ -114,6 +116,7 @@ class ScanPipeline {
   void recover(gpu::ScanCounters counters, gpu::PoolState pool);
 
   MapCore& core_;
+  ChangeSet& changes_;
   GrowthPolicy& growth_;
   RaySceneCache& scenes_;
   QueryRunner& queries_;

@@ -15,12 +15,13 @@ void checkBox(const char* call, const Eigen::Vector3f& min, const Eigen::Vector3
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(min[i]) || !std::isfinite(max[i]))
       throw Error(ErrorCode::kInvalidArgument,
-                  std::string(call) + ": the box's corners must be finite numbers; the map is "
-                                      "unchanged");
+                  std::string(call) +
+                      ": the box's corners must be finite numbers; the map is "
+                      "unchanged");
     if (min[i] > max[i])
       throw Error(ErrorCode::kInvalidArgument,
-                  std::string(call) + ": min is above max along axis " + std::to_string(i) +
-                      " (" + std::to_string(min[i]) + " > " + std::to_string(max[i]) +
+                  std::string(call) + ": min is above max along axis " + std::to_string(i) + " (" +
+                      std::to_string(min[i]) + " > " + std::to_string(max[i]) +
                       "); give the lower corner first. The map is unchanged");
   }
 }
@@ -57,7 +58,7 @@ void TreeEdits::edit(const char* call, const Eigen::Vector3f& min, const Eigen::
 
 void TreeEdits::treeChanged() {
   core_.leaf_boxes = LeafBoxes::kStale;
-  ++core_.tree_version;  // castRay's scene is rebuilt before the next castRays
+  core_.treeChanged();
 }
 
 }  // namespace octovk

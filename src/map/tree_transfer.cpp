@@ -77,7 +77,7 @@ void TreeTransfer::upload(const HostTree& tree, bool shrink) {
   passes::recordLeafBoxes(core_.rec);
   core_.stream.submitAndWait();
   core_.leaf_boxes = LeafBoxes::kCurrent;
-  ++core_.tree_version;  // a new tree: the ray scene is rebuilt before the next castRays
+  core_.treeChanged();  // a new tree
 }
 
 std::vector<OccupancyMap::LeafBoxHost> TreeTransfer::downloadLeafBoxes() {
