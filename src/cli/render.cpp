@@ -30,6 +30,9 @@ constexpr std::uint32_t kDefaultHeight = 600;
 constexpr double kDefaultFovDeg = 60.0;
 // Rays per castRays call: bounds the host and device memory of large pictures.
 constexpr std::size_t kRayBatch = std::size_t{1} << 20;
+// Pixels a tile of rows holds without a cap (some 40 MB of rays and samples on the host): large
+// enough batches for a GPU, small beside the picture.
+constexpr std::size_t kTilePixels = std::size_t{1} << 18;
 // Host bytes a pixel holds for the whole run: its colour before the haze (the picture itself)
 // and its depth, for the haze, which needs the depth range of all pixels.
 constexpr std::size_t kPictureBytesPerPixel = 3 + sizeof(float);
@@ -299,7 +302,7 @@ int Render::run(Invocation& in) {
   const std::size_t pixels = std::size_t{width_} * height_;
   const std::size_t cap = in.maxDeviceBytes();
   std::size_t ray_batch = kRayBatch;
-  std::size_t tile_rows = std::max<std::size_t>(1, kRayBatch / width_);
+  std::size_t tile_rows = std::max<std::size_t>(1, kTilePixels / width_);
   if (cap > 0) {
     const std::size_t held = map.deviceBytes() + shown.capacity() * sizeof(shown[0]);
     if (leastRenderBytes(width_, height_) + held > cap)
