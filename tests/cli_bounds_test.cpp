@@ -26,8 +26,8 @@ const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/sph
 using octovk::test::OctovkProcess;
 using octovk::test::quote;
 using octovk::test::runOctovk;
-using octovk::test::runShell;
 using octovk::test::RunResult;
+using octovk::test::runShell;
 using octovk::test::Scratch;
 
 // One scan of a graph: points in the sensor frame around the sensor, `count` of them on a sphere
@@ -189,9 +189,9 @@ TEST(cliDeviceMemory, RenderCastsInTilesUnderTheCap) {
   const std::string map = inputs / "map.bt";
   ASSERT_EQ(runOctovk({"integrate", kSphericalGraph, "-o", map, "-q"}, scratch.dir()).exit_code, 0);
   const auto render = [&](const std::string& size, const std::string& cap) {
-    OctovkProcess run({"render", map, "-o", scratch / "v.png", "--size", size,
-                       "--max-device-memory", cap},
-                      inputs.dir());
+    OctovkProcess run(
+        {"render", map, "-o", scratch / "v.png", "--size", size, "--max-device-memory", cap},
+        inputs.dir());
     EXPECT_TRUE(run.started());
     return run.wait();
   };
@@ -217,15 +217,18 @@ TEST(cliDeviceMemory, RenderRefusesAPictureOverTheCapBeforeAnyWork) {
   }
   // Under `timeout`: the old program took minutes and gigabytes here.
   const auto start = std::chrono::steady_clock::now();
-  const RunResult r = runShell("timeout 60 " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " render " +
-                                   quote(map) + " -o " + quote(scratch / "v.png") +
-                                   " --size 8192x8192 --max-device-memory 256M",
-                               scratch.dir());
+  const RunResult r =
+      runShell("timeout 60 " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " render " + quote(map) + " -o " +
+                   quote(scratch / "v.png") + " --size 8192x8192 --max-device-memory 256M",
+               scratch.dir());
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(20));
   expectError(r, 1,
-              {"render --size 8192x8192 needs at least ", ": 469762048 bytes (448.0 MiB) for the "
-               "picture", "for a row of rays and ", "for the map, more than ", "--max-device-memory = 268435456 bytes (256.0 MiB)",
-               "Raise --max-device-memory", "smaller --size"},
+              {"render --size 8192x8192 needs at least ",
+               ": 469762048 bytes (448.0 MiB) for the "
+               "picture",
+               "for a row of rays and ", "for the map, more than ",
+               "--max-device-memory = 268435456 bytes (256.0 MiB)", "Raise --max-device-memory",
+               "smaller --size"},
               scratch);
   EXPECT_EQ(r.out, "");
 }

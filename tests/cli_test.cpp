@@ -485,8 +485,8 @@ TEST(cliOutputs, UncreatableOutputIsExit2BeforeAnyWork) {
 // Only on lavapipe: a GPU driver is not expected to back device memory with files, and there the
 // variables are what find the driver and the bundle's libraries (run.sh of scripts/bundle.sh).
 // With `default_sigxfsz`, SIGXFSZ keeps its default action (ending the process) instead.
-RunResult runWithFileLimit(const std::vector<std::string>& args, const Scratch& scratch,
-                           int blocks, bool default_sigxfsz = false) {
+RunResult runWithFileLimit(const std::vector<std::string>& args, const Scratch& scratch, int blocks,
+                           bool default_sigxfsz = false) {
   const octovk::Context* context = octovk::test::sharedContext(nullptr);
   const bool lavapipe = context && context->device().name.find("llvmpipe") != std::string::npos;
   std::string command =
@@ -571,8 +571,7 @@ TEST(cliOutputs, EveryNameTheDirectoryTakesCanBeWritten) {
   const RunResult refused =
       runOctovk({"integrate", kSphericalGraph, "-q", "-o", too_long}, scratch.dir());
   EXPECT_EQ(refused.exit_code, 2) << refused.err;
-  EXPECT_NE(refused.err.find("cannot write '" + too_long + "'"), std::string::npos)
-      << refused.err;
+  EXPECT_NE(refused.err.find("cannot write '" + too_long + "'"), std::string::npos) << refused.err;
 }
 
 // ---- nothing lost on any failure: all-or-nothing outputs, signals, stale temporaries ----
@@ -740,7 +739,8 @@ TEST(cliNothingLost, ASymlinkedOutputKeepsItsLinkAndAReplacedFileItsMode) {
   fs::create_symlink("maps/real.bt", link);  // relative: to the link's directory
   const std::string read_only = scratch / "read_only.ot";
   std::ofstream(read_only, std::ios_base::binary) << oldContent("read_only.ot");
-  fs::permissions(read_only, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  fs::permissions(read_only,
+                  fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
   const std::string dangling = scratch / "dangling.bt";  // to a file not there yet
   fs::create_symlink("maps/made.bt", dangling);
 
@@ -813,12 +813,11 @@ TEST(cliEdit, AKeepBoxLargerThanTheMapKeepsAllOfItAndSaysSo) {
   (void)ctx;
   Scratch scratch;
   const std::string map = scratch / "map.bt";
-  ASSERT_EQ(runOctovk({"integrate", kSphericalGraph, "-q", "-o", map}, scratch.dir()).exit_code,
-            0);
+  ASSERT_EQ(runOctovk({"integrate", kSphericalGraph, "-q", "-o", map}, scratch.dir()).exit_code, 0);
   const std::string kept = scratch / "kept.bt";
-  const RunResult r = runOctovk({"edit", map, "--keep-box", "-1e6", "-1e6", "-1e6", "1e6", "1e6",
-                                 "1e6", "-o", kept},
-                                scratch.dir());
+  const RunResult r = runOctovk(
+      {"edit", map, "--keep-box", "-1e6", "-1e6", "-1e6", "1e6", "1e6", "1e6", "-o", kept},
+      scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   std::size_t before = 0, after = 0;
   const std::size_t at = r.out.find("nodes:   ");
@@ -836,9 +835,9 @@ TEST(cliEdit, AKeepBoxLargerThanTheMapKeepsAllOfItAndSaysSo) {
   EXPECT_EQ(readFile(kept), readFile(map));
   // A --clear-box as large clears every leaf: none is left occupied.
   const std::string cleared = scratch / "cleared.bt";
-  const RunResult c = runOctovk({"edit", map, "--clear-box", "-1e6", "-1e6", "-1e6", "1e6", "1e6",
-                                 "1e6", "-o", cleared},
-                                scratch.dir());
+  const RunResult c = runOctovk(
+      {"edit", map, "--clear-box", "-1e6", "-1e6", "-1e6", "1e6", "1e6", "1e6", "-o", cleared},
+      scratch.dir());
   ASSERT_EQ(c.exit_code, 0) << c.err;
   octomap::OcTree tree(0.1);
   ASSERT_TRUE(tree.readBinary(cleared));

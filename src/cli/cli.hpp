@@ -127,9 +127,9 @@ class OutputFiles {
 
  private:
   struct Entry {
-    std::string path;       // as the user gave it (messages)
-    std::string target;     // the file it names, through symlinks (renamed into place)
-    std::string ext;        // the extension of `path`, which the temporary keeps
+    std::string path;    // as the user gave it (messages)
+    std::string target;  // the file it names, through symlinks (renamed into place)
+    std::string ext;     // the extension of `path`, which the temporary keeps
     std::string temporary;
     bool written = false;
   };

@@ -119,8 +119,8 @@ class Edit final : public Command {
     for (const BoxEdit& e : edits_) {
       char line[512];
       std::snprintf(line, sizeof(line), "%s min (%g, %g, %g) max (%g, %g, %g) m",
-                    e.keep ? "kept:   " : "cleared:", e.used[0], e.used[1], e.used[2],
-                    e.used[3], e.used[4], e.used[5]);
+                    e.keep ? "kept:   " : "cleared:", e.used[0], e.used[1], e.used[2], e.used[3],
+                    e.used[4], e.used[5]);
       s << line;
       if (e.clamped) {
         std::snprintf(line, sizeof(line),
@@ -143,8 +143,8 @@ class Edit final : public Command {
 
  private:
   struct BoxEdit {
-    bool keep;  // --keep-box; else --clear-box
-    std::array<double, 6> box;  // as given
+    bool keep;                     // --keep-box; else --clear-box
+    std::array<double, 6> box;     // as given
     std::array<double, 6> used{};  // clamped to the map's domain (run)
     bool clamped = false;
   };

@@ -89,8 +89,8 @@ std::size_t nameMax(const std::string& path) {
 std::string temporaryNamePrefix(const std::string& path, const std::string& ext) {
   const std::string name = fs::path(path).filename().string();
   const std::size_t max = nameMax(path);
-  const std::size_t around =
-      1 + std::strlen(kTemporaryTag) + kPidDigits + std::max(ext.size(), std::strlen(kBackupSuffix));
+  const std::size_t around = 1 + std::strlen(kTemporaryTag) + kPidDigits +
+                             std::max(ext.size(), std::strlen(kBackupSuffix));
   std::string prefix = ".";  // appended, not "." + name: GCC 12's -Wrestrict misfires on that
   if (around + name.size() <= max) {
     prefix.append(name);

@@ -310,8 +310,10 @@ int Render::run(Invocation& in) {
     // Half for a tile's rays on the host (and the two rows around it), half for a batch of
     // them on the device.
     const std::size_t room = (cap - held - pixels * kPictureBytesPerPixel) / 2;
-    tile_rows = std::clamp<std::size_t>(
-        room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)), 3, tile_rows + 2) - 2;
+    tile_rows =
+        std::clamp<std::size_t>(room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)),
+                                3, tile_rows + 2) -
+        2;
     ray_batch = std::clamp<std::size_t>(room / deviceBytesPerRay(), 1, kRayBatch);
   }
 
@@ -410,8 +412,7 @@ int Render::run(Invocation& in) {
     const std::uint32_t tile_end =
         static_cast<std::uint32_t>(std::min<std::size_t>(height_, cast_rows + tile_rows));
     window.resize(std::size_t{tile_end - window_row} * width_);
-    for (std::size_t p = std::size_t{cast_rows} * width_; p < std::size_t{tile_end} * width_;
-         ++p) {
+    for (std::size_t p = std::size_t{cast_rows} * width_; p < std::size_t{tile_end} * width_; ++p) {
       const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
                                         static_cast<double>(p / width_) + 0.5);
       double t_in, t_out;
@@ -436,9 +437,9 @@ int Render::run(Invocation& in) {
     for (; shaded_rows < shade_end; ++shaded_rows) shade(shaded_rows);
     // The row above the next one to shade stays for its outlines.
     const std::uint32_t keep_from = shaded_rows > 0 ? shaded_rows - 1 : 0;
-    window.erase(window.begin(),
-                 window.begin() + static_cast<std::ptrdiff_t>(std::size_t{keep_from - window_row} *
-                                                              width_));
+    window.erase(
+        window.begin(),
+        window.begin() + static_cast<std::ptrdiff_t>(std::size_t{keep_from - window_row} * width_));
     window_row = keep_from;
     shade_s += secondsSince(shade_start);
   }
