@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <climits>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -233,7 +234,8 @@ class DirectoryLocks {
 };
 
 // Gives the new file `temporary` the owner (where allowed) and permission bits of the file it
-// replaces, `old`: a read-only output stays read-only. Best effort, as cp does for a non-root user.
+// replaces, `old`: a read-only output stays read-only. Best effort, as cp does for a non-root user;
+// set-id bits are not carried over to new content.
 void keepOwnerAndMode(const std::string& temporary, const struct stat& old) {
   struct stat now;
   if (::stat(temporary.c_str(), &now) != 0) return;
@@ -244,7 +246,7 @@ void keepOwnerAndMode(const std::string& temporary, const struct stat& old) {
       }
     }
   }
-  ::chmod(temporary.c_str(), old.st_mode & 07777);
+  ::chmod(temporary.c_str(), old.st_mode & 01777);
 }
 
 }  // namespace
