@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <string>
@@ -21,8 +22,12 @@
 namespace {
 
 namespace fs = std::filesystem;
+const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+using octovk::test::OctovkProcess;
+using octovk::test::quote;
 using octovk::test::runOctovk;
 using octovk::test::RunResult;
+using octovk::test::runShell;
 using octovk::test::Scratch;
 
 // One scan of a graph: points in the sensor frame around the sensor, `count` of them on a sphere
@@ -172,6 +177,60 @@ TEST(cliDeviceMemory, MapCommandsTakeTheCap) {
                 {"--max-device-memory = 921600 bytes (0.9 MiB)", "Raise --max-device-memory"},
                 scratch);
   }
+}
+
+TEST(cliDeviceMemory, RenderCastsInTilesUnderTheCap) {
+  // render held 56 bytes a pixel for the whole picture and cast a million rays at once whatever
+  // the cap: 3.6 GB for 8192x8192 under --max-device-memory 256M. It now casts tiles of rows that
+  // fit what the map and the picture leave of the cap.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch, inputs("cli-inputs");
+  const std::string map = inputs / "map.bt";
+  ASSERT_EQ(runOctovk({"integrate", kSphericalGraph, "-o", map, "-q"}, scratch.dir()).exit_code, 0);
+  const auto render = [&](const std::string& size, const std::string& cap) {
+    OctovkProcess run(
+        {"render", map, "-o", scratch / "v.png", "--size", size, "--max-device-memory", cap},
+        inputs.dir());
+    EXPECT_TRUE(run.started());
+    return run.wait();
+  };
+  const RunResult small = render("16x16", "0");
+  ASSERT_EQ(small.exit_code, 0) << small.err;
+  constexpr long kCapKb = 8 * 1024;
+  const RunResult big = render("512x512", "8M");
+  ASSERT_EQ(big.exit_code, 0) << big.err;
+  EXPECT_NE(big.out.find("image:   512x512 px"), std::string::npos) << big.out;
+  // What the larger picture added to the process stays under the cap (lavapipe's device memory
+  // is the process's too).
+  EXPECT_LT(big.max_rss_kb - small.max_rss_kb, kCapKb)
+      << "peak " << big.max_rss_kb << " KiB against " << small.max_rss_kb << " KiB for 16x16";
+}
+
+TEST(cliDeviceMemory, RenderRefusesAPictureOverTheCapBeforeAnyWork) {
+  Scratch scratch, inputs("cli-inputs");
+  const std::string map = inputs / "map.bt";
+  {
+    octomap::OcTree tree(0.1);
+    tree.updateNode(octomap::point3d(0.05f, 0.05f, 0.05f), true);
+    ASSERT_TRUE(tree.writeBinary(map));
+  }
+  // Under `timeout`: the old program took minutes and gigabytes here.
+  const auto start = std::chrono::steady_clock::now();
+  const RunResult r =
+      runShell("timeout 60 " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " render " + quote(map) + " -o " +
+                   quote(scratch / "v.png") + " --size 8192x8192 --max-device-memory 256M",
+               scratch.dir());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(20));
+  expectError(r, 1,
+              {"render --size 8192x8192 needs at least ",
+               ": 469762048 bytes (448.0 MiB) for the "
+               "picture",
+               "for a row of rays and ", "for the map, more than ",
+               "--max-device-memory = 268435456 bytes (256.0 MiB)", "Raise --max-device-memory",
+               "smaller --size"},
+              scratch);
+  EXPECT_EQ(r.out, "");
 }
 
 TEST(cliDeviceMemory, HelpDocumentsTheOptionAndTheFolderPolicy) {

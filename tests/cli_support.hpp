@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -40,6 +41,7 @@ struct RunResult {
   int exit_code = -1;
   std::string out;
   std::string err;
+  long max_rss_kb = -1;  ///< the run's peak resident memory (OctovkProcess::wait only)
 };
 
 /// Runs `command` through the shell with stdout and stderr captured in files under `dir`.
@@ -124,11 +126,13 @@ class OctovkProcess {
   /// Waits for the end: the exit status as a shell reports it (128+N for death by signal N).
   RunResult wait() {
     int status = 0;
-    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    struct rusage usage {};
+    while (::wait4(pid_, &status, 0, &usage) < 0 && errno == EINTR) {
     }
     waited_ = true;
     RunResult r;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    r.max_rss_kb = usage.ru_maxrss;
     r.out = readFile(out_);
     r.err = readFile(err_);
     fs::remove(out_);

@@ -6,6 +6,7 @@
 #include <octomap/AbstractOcTree.h>
 #include <octomap/OcTree.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -483,25 +484,33 @@ TEST(cliOutputs, UncreatableOutputIsExit2BeforeAnyWork) {
 // default driver (the Mesa 25 step's VK_DRIVER_FILES / LD_LIBRARY_PATH removed for it alone).
 // Only on lavapipe: a GPU driver is not expected to back device memory with files, and there the
 // variables are what find the driver and the bundle's libraries (run.sh of scripts/bundle.sh).
-RunResult runWithFileLimit(const std::vector<std::string>& args, const Scratch& scratch,
-                           int blocks) {
+// With `default_sigxfsz`, SIGXFSZ keeps its default action (ending the process) instead.
+RunResult runWithFileLimit(const std::vector<std::string>& args, const Scratch& scratch, int blocks,
+                           bool default_sigxfsz = false) {
   const octovk::Context* context = octovk::test::sharedContext(nullptr);
   const bool lavapipe = context && context->device().name.find("llvmpipe") != std::string::npos;
   std::string command =
-      "trap '' XFSZ; ulimit -f " + std::to_string(blocks) + "; " +
+      std::string(default_sigxfsz ? "trap - XFSZ; " : "trap '' XFSZ; ") + "ulimit -f " +
+      std::to_string(blocks) + "; " +
       (lavapipe ? "env -u VK_DRIVER_FILES -u VK_ICD_FILENAMES -u LD_LIBRARY_PATH " : "") +
       quote(OCTOVK_PATH(OCTOVK_CLI));
   for (const std::string& a : args) command += ' ' + quote(a);
   return runShell(command, scratch.dir());
 }
 
-RunResult runWithTinyFileLimit(const std::vector<std::string>& args, const Scratch& scratch) {
-  return runWithFileLimit(args, scratch, 1);
+RunResult runWithTinyFileLimit(const std::vector<std::string>& args, const Scratch& scratch,
+                               bool default_sigxfsz = false) {
+  return runWithFileLimit(args, scratch, 1, default_sigxfsz);
 }
 
-TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
+class cliFileLimit : public ::testing::TestWithParam<bool> {};
+
+// Without the parameter, SIGXFSZ is ignored by whoever starts octovk; with it, it has its
+// default action, which killed the run (exit 153) and left a temporary: octovk ignores it itself.
+TEST_P(cliFileLimit, WriteFailuresNameTheUsersPathAndLeaveNothing) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   (void)ctx;
+  const bool default_sigxfsz = GetParam();
   Scratch scratch;
   const std::string map = writeSmallMap(scratch);
   struct Case {
@@ -513,7 +522,7 @@ TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
         Case{{"render", map, "-o", scratch / "view.png"}, scratch / "view.png"},
         Case{{"integrate", kSphericalGraph, "-q", "-o", scratch / "out.bt"}, scratch / "out.bt"}}) {
     SCOPED_TRACE(c.args.front());
-    const RunResult r = runWithTinyFileLimit(c.args, scratch);
+    const RunResult r = runWithTinyFileLimit(c.args, scratch, default_sigxfsz);
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -528,6 +537,41 @@ TEST(cliOutputs, WriteFailuresNameTheUsersPathAndLeaveNothing) {
   const RunResult ok = runOctovk({"export", map, "-o", scratch / "cells.ply"}, scratch.dir());
   EXPECT_EQ(ok.exit_code, 0) << ok.err;
   EXPECT_GT(fs::file_size(scratch / "cells.ply"), 512u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Sigxfsz, cliFileLimit, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& info) {
+                           return info.param ? std::string("Default") : std::string("Ignored");
+                         });
+
+TEST(cliOutputs, EveryNameTheDirectoryTakesCanBeWritten) {
+  // Names of up to NAME_MAX bytes (255 here) were refused as "File name too long": their
+  // temporaries, ".NAME.octovk.tmp-PID.EXT", were longer.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const long name_max = ::pathconf(scratch.dir().c_str(), _PC_NAME_MAX);
+  ASSERT_GT(name_max, 40);
+  const std::size_t longest = static_cast<std::size_t>(name_max);
+  // Two names that differ only at their end, where a cut temporary name would lose them.
+  const std::string bt = scratch / (std::string(longest - 4, 'n') + "a.bt");
+  const std::string ot = scratch / (std::string(longest - 4, 'n') + "b.ot");
+  const std::string mid = scratch / (std::string(longest - 20, 'm') + ".bt");
+  const RunResult r =
+      runOctovk({"integrate", kSphericalGraph, "-q", "-o", bt, "-o", ot}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_GT(fs::file_size(bt), 0u);
+  EXPECT_GT(fs::file_size(ot), fs::file_size(bt));
+  const RunResult m = runOctovk({"integrate", kSphericalGraph, "-q", "-o", mid}, scratch.dir());
+  EXPECT_EQ(m.exit_code, 0) << m.err;
+  EXPECT_EQ(readFile(mid), readFile(bt));
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+  // One byte more than the directory takes is still refused, before any work, naming it.
+  const std::string too_long = scratch / (std::string(longest - 2, 'n') + ".bt");
+  const RunResult refused =
+      runOctovk({"integrate", kSphericalGraph, "-q", "-o", too_long}, scratch.dir());
+  EXPECT_EQ(refused.exit_code, 2) << refused.err;
+  EXPECT_NE(refused.err.find("cannot write '" + too_long + "'"), std::string::npos) << refused.err;
 }
 
 // ---- nothing lost on any failure: all-or-nothing outputs, signals, stale temporaries ----
@@ -678,6 +722,130 @@ TEST(cliNothingLost, TemporariesOfDeadRunsAreRemovedByTheNextRun) {
   EXPECT_FALSE(fs::exists(scratch / "out.ot"));
   // A backup whose output is missing (killed between moving it aside and the rename) goes back.
   EXPECT_EQ(readFile(scratch / "gone.bt"), oldContent("gone.bt"));
+}
+
+TEST(cliNothingLost, ASymlinkedOutputKeepsItsLinkAndAReplacedFileItsMode) {
+  // The link was replaced by a regular file, and a read-only (0444) file came back 0644.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const RunResult ref = runOctovk(
+      {"integrate", kSphericalGraph, "-q", "-o", scratch / "ref.bt", "-o", scratch / "ref.ot"},
+      scratch.dir());
+  ASSERT_EQ(ref.exit_code, 0) << ref.err;
+  fs::create_directory(scratch.dir() / "maps");
+  const std::string real = scratch / "maps/real.bt", link = scratch / "link.bt";
+  std::ofstream(real, std::ios_base::binary) << oldContent("real.bt");
+  fs::create_symlink("maps/real.bt", link);  // relative: to the link's directory
+  const std::string read_only = scratch / "read_only.ot";
+  std::ofstream(read_only, std::ios_base::binary) << oldContent("read_only.ot");
+  fs::permissions(read_only,
+                  fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  const std::string dangling = scratch / "dangling.bt";  // to a file not there yet
+  fs::create_symlink("maps/made.bt", dangling);
+
+  const RunResult r =
+      runOctovk({"integrate", kSphericalGraph, "-q", "-o", link, "-o", read_only}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(fs::read_symlink(link), fs::path("maps/real.bt"));
+  EXPECT_EQ(readFile(real), readFile(scratch / "ref.bt"));
+  EXPECT_EQ(readFile(read_only), readFile(scratch / "ref.ot"));
+  EXPECT_EQ(fs::status(read_only).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  const RunResult made =
+      runOctovk({"integrate", kSphericalGraph, "-q", "-o", dangling}, scratch.dir());
+  EXPECT_EQ(made.exit_code, 0) << made.err;
+  EXPECT_TRUE(fs::is_symlink(dangling));
+  EXPECT_EQ(readFile(scratch / "maps/made.bt"), readFile(scratch / "ref.bt"));
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+  EXPECT_EQ(temporariesIn(scratch.dir() / "maps"), std::vector<std::string>{});
+}
+
+TEST(cliNothingLost, RunsWritingTheSameOutputsCommitInTurn) {
+  // Three runs writing one -o set at once left it mixed (a .bt of one run beside the .ot of
+  // another) in 2 of 25 trials: their renames interleaved. A commit now holds an exclusive flock
+  // on each output's directory: while this test holds it, a run's complete set must wait.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch, inputs("cli-inputs");
+  const RunResult ref = runOctovk(
+      {"integrate", kSphericalGraph, "-q", "-o", inputs / "ref.bt", "-o", inputs / "ref.ot"},
+      inputs.dir());
+  ASSERT_EQ(ref.exit_code, 0) << ref.err;
+  const std::string ref_bt = readFile(inputs / "ref.bt"), ref_ot = readFile(inputs / "ref.ot");
+  const std::string bt = scratch / "a.bt", ot = scratch / "b.ot";
+  const int dir_fd = ::open(scratch.dir().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  ASSERT_GE(dir_fd, 0);
+  ASSERT_EQ(::flock(dir_fd, LOCK_EX), 0);
+  OctovkProcess run({"integrate", kSphericalGraph, "-q", "-o", bt, "-o", ot}, inputs.dir());
+  ASSERT_TRUE(run.started());
+  // Both temporaries complete (or, without the lock, the outputs already in place).
+  const auto written = [&] {
+    if (fs::exists(bt) || fs::exists(ot)) return true;
+    std::size_t complete = 0;
+    for (const std::string& name : temporariesIn(scratch.dir())) {
+      std::error_code ec;
+      const std::uintmax_t size = fs::file_size(scratch.dir() / name, ec);
+      if (!ec && ((name.ends_with(".bt") && size == ref_bt.size()) ||
+                  (name.ends_with(".ot") && size == ref_ot.size())))
+        ++complete;
+    }
+    return complete == 2;
+  };
+  EXPECT_TRUE(pollUntil(written, std::chrono::seconds(60)));
+  ::usleep(300 * 1000);  // time enough to rename two files, were the lock not honoured
+  EXPECT_FALSE(fs::exists(bt)) << "committed while another process held the directory's lock";
+  EXPECT_FALSE(fs::exists(ot)) << "committed while another process held the directory's lock";
+  ::flock(dir_fd, LOCK_UN);
+  ::close(dir_fd);
+  const RunResult r = run.wait();
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(readFile(bt), ref_bt);
+  EXPECT_EQ(readFile(ot), ref_ot);
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+}
+
+TEST(cliEdit, AKeepBoxLargerThanTheMapKeepsAllOfItAndSaysSo) {
+  // A --keep-box with a corner outside the key range deleted the whole map with exit 0 (OctoMap's
+  // iterator visits nothing for it); it is clamped as export --box is, and the summary says so.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch;
+  const std::string map = scratch / "map.bt";
+  ASSERT_EQ(runOctovk({"integrate", kSphericalGraph, "-q", "-o", map}, scratch.dir()).exit_code, 0);
+  const std::string kept = scratch / "kept.bt";
+  const RunResult r = runOctovk(
+      {"edit", map, "--keep-box", "-1e6", "-1e6", "-1e6", "1e6", "1e6", "1e6", "-o", kept},
+      scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::size_t before = 0, after = 0;
+  const std::size_t at = r.out.find("nodes:   ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + at, "nodes: %zu before, %zu after", &before, &after), 2)
+      << r.out;
+  EXPECT_GT(before, 1000u) << r.out;
+  EXPECT_EQ(after, before) << r.out;
+  // The box used is the domain at 0.1 m (32767.5 cells each way), and the one given is named.
+  EXPECT_NE(r.out.find("kept:    min (-3276.75, -3276.75, -3276.75) max (3276.75, 3276.75, "
+                       "3276.75) m (the box given, min (-1e+06, -1e+06, -1e+06) max (1e+06, "
+                       "1e+06, 1e+06), clamped"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(readFile(kept), readFile(map));
+  // A --clear-box as large clears every leaf: none is left occupied.
+  const std::string cleared = scratch / "cleared.bt";
+  const RunResult c = runOctovk(
+      {"edit", map, "--clear-box", "-1e6", "-1e6", "-1e6", "1e6", "1e6", "1e6", "-o", cleared},
+      scratch.dir());
+  ASSERT_EQ(c.exit_code, 0) << c.err;
+  octomap::OcTree tree(0.1);
+  ASSERT_TRUE(tree.readBinary(cleared));
+  std::size_t occupied = 0;
+  for (auto it = tree.begin_leafs(); it != tree.end_leafs(); ++it)
+    if (tree.isNodeOccupied(*it)) ++occupied;
+  EXPECT_EQ(occupied, 0u);
+  EXPECT_GT(tree.getNumLeafNodes(), 0u);
 }
 
 // Runs `args`, which must be refused with exit 2 and one error line naming `mention`, leaving

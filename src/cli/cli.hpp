@@ -1,6 +1,8 @@
 // The octovk program's pieces shared between its commands: usage errors, option values, help.
 #pragma once
 
+#include <Eigen/Core>
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -98,10 +100,15 @@ void checkOutputsDistinct(const std::vector<std::string>& outputs,
 
 /// The output files of a run, all or nothing. The constructor checks them (checkOutputsDistinct),
 /// removes what killed runs left for them, and creates each one's temporary beside it
-/// (DIR/.NAME.octovk.tmp-PID.EXT, same extension, so format-by-extension writers accept it): an
-/// output that cannot be created is a UsageError naming it before anything is read or computed.
-/// write() fills an output's temporary and syncs it; commit(), once all are written, renames them
-/// into place, and if one rename fails puts every replaced file back. Messages name the user's
+/// (DIR/.NAME.octovk.tmp-PID.EXT, same extension, so format-by-extension writers accept it; a
+/// NAME too long for that is cut and given a hash, so that every name the directory takes
+/// works): an output that cannot be created is a UsageError naming it before anything is read or
+/// computed. An output that is a symlink stays one: its target is written (the temporary beside
+/// the target). write() fills an output's temporary and syncs it; commit(), once all are written,
+/// gives each the permission bits (and, where allowed, the owner) of the file it replaces,
+/// renames them into place, and if one rename fails puts every replaced file back. commit() holds
+/// an exclusive flock on each output's directory, taken in a fixed order, so that runs writing the
+/// same outputs at once take turns and the set is always one run's. Messages name the user's
 /// path, never the temporary. Until commit() the destructor and SIGHUP / SIGINT / SIGTERM (see
 /// installSignalCleanup) remove the temporaries, so a failed run leaves every file as it was.
 class OutputFiles {
@@ -120,7 +127,9 @@ class OutputFiles {
 
  private:
   struct Entry {
-    std::string path;
+    std::string path;    // as the user gave it (messages)
+    std::string target;  // the file it names, through symlinks (renamed into place)
+    std::string ext;     // the extension of `path`, which the temporary keeps
     std::string temporary;
     bool written = false;
   };
@@ -131,7 +140,9 @@ class OutputFiles {
 };
 
 /// Makes SIGHUP, SIGINT and SIGTERM remove the temporaries of every OutputFiles and then end the
-/// process by the signal (exit status 128+N in a shell). Call first in main(), before any thread.
+/// process by the signal (exit status 128+N in a shell), and ignores SIGXFSZ, so that a file past
+/// `ulimit -f` is a write error (EFBIG) reported and cleaned up as any other. Call first in main(),
+/// before any thread.
 void installSignalCleanup();
 
 /// Flushes stdout; false when anything written to it was lost (errno says why, or is 0 when an
@@ -186,6 +197,8 @@ inline constexpr const char* kMaxDeviceMemoryOption = "--max-device-memory";
 /// --max-device-memory's value: bytes, or with K, M, G, T (KiB ... TiB; "512M", "2GiB"); 0 is no
 /// cap. A UsageError naming the option otherwise.
 std::size_t parseByteCount(const ParsedOption& option);
+/// "N bytes (X.Y MiB)", as the cap's messages write a number of bytes.
+std::string bytesText(std::size_t bytes);
 /// A UsageError when `params.max_device_bytes` is set below what an empty map holds.
 void checkDeviceMemoryCap(const MapParams& params);
 /// `e` with the library's name for the cap (MapParams::max_device_bytes) in the program's.
@@ -197,6 +210,15 @@ void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails);
 /// ((key - 32768 + 0.5) * resolution in double, then float, as OctoMap's point3d).
 inline float keyCentre(std::uint32_t key, double resolution) {
   return static_cast<float>((static_cast<double>(key) - 32768.0 + 0.5) * resolution);
+}
+
+/// A box corner clamped into the map's domain (keys 0 … 65535, centred on 0: each coordinate
+/// within 32767.5 resolutions of the origin), so that a box larger than the map means all of it
+/// rather than nothing (OctoMap's leaf_bbx_iterator visits nothing for a corner outside it).
+inline Eigen::Vector3f clampToDomain(double x, double y, double z, double resolution) {
+  const double limit = 32767.5 * resolution;  // the centre of the outermost cell
+  const auto c = [limit](double v) { return static_cast<float>(std::clamp(v, -limit, limit)); };
+  return {c(x), c(y), c(z)};
 }
 
 /// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).

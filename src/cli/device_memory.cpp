@@ -14,13 +14,6 @@ namespace octovk::cli {
 
 namespace {
 
-std::string mib(std::size_t bytes) {
-  char text[64];
-  std::snprintf(text, sizeof(text), "%zu bytes (%.1f MiB)", bytes,
-                static_cast<double>(bytes) / (1024.0 * 1024.0));
-  return text;
-}
-
 // `message` with every `from` replaced by `to`.
 std::string replacedAll(std::string message, const std::string& from, const std::string& to) {
   for (std::size_t at = message.find(from); at != std::string::npos;
@@ -30,6 +23,13 @@ std::string replacedAll(std::string message, const std::string& from, const std:
 }
 
 }  // namespace
+
+std::string bytesText(std::size_t bytes) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%zu bytes (%.1f MiB)", bytes,
+                static_cast<double>(bytes) / (1024.0 * 1024.0));
+  return text;
+}
 
 std::size_t parseByteCount(const ParsedOption& option) {
   const std::string& text = option.value;
@@ -78,9 +78,9 @@ std::size_t parseByteCount(const ParsedOption& option) {
 
 void checkDeviceMemoryCap(const MapParams& params) {
   if (params.max_device_bytes == 0 || params.max_device_bytes >= params.minDeviceBytes()) return;
-  throw UsageError(std::string(kMaxDeviceMemoryOption) + " " + mib(params.max_device_bytes) +
+  throw UsageError(std::string(kMaxDeviceMemoryOption) + " " + bytesText(params.max_device_bytes) +
                    " is less than an empty map holds on the device, " +
-                   mib(params.minDeviceBytes()) + "; raise it, or give 0 for no cap");
+                   bytesText(params.minDeviceBytes()) + "; raise it, or give 0 for no cap");
 }
 
 Error withOptionNames(const Error& e) {

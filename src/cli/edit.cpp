@@ -30,9 +30,11 @@ void printEditHelp(std::ostream& out) {
          "the inner nodes are updated as updateInnerOccupancy does (no pruning). --keep-box\n"
          "keeps only a box: the leaves leaf_bbx_iterator visits for it (a pruned leaf reaching\n"
          "into it, whole) and the inner nodes above them, each the maximum of its children;\n"
-         "every other node is deleted. A box with a corner outside the map's key range keeps\n"
-         "nothing (the iterator visits nothing) and clears nothing. The file is byte-identical\n"
-         "to OctoMap doing the same and writing it.\n"
+         "every other node is deleted. A box reaching past the map's key range (each\n"
+         "coordinate within 32767.5 cells of the origin) is clamped to it, as export --box does,\n"
+         "so that a box larger than the map keeps or clears all of it; the summary shows the\n"
+         "box used. The file is byte-identical to OctoMap doing the same with that box and\n"
+         "writing it.\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      the map to write (.bt: max-likelihood, pruned, as OctoMap's\n"
@@ -65,7 +67,7 @@ class Edit final : public Command {
         throw UsageError(opt.name + ": the minimum " + std::string(1, "xyz"[a]) + " (" +
                          opt.values[a] + ") is above the maximum (" + opt.values[a + 3] +
                          "); write " + opt.name + " XMIN YMIN ZMIN XMAX YMAX ZMAX");
-    edits_.push_back({keep, {v[0], v[1], v[2], v[3], v[4], v[5]}});
+    edits_.push_back({keep, {v[0], v[1], v[2], v[3], v[4], v[5]}, {}, false});
     return true;
   }
 
@@ -84,10 +86,19 @@ class Edit final : public Command {
     OccupancyMap map = loadMap(context, in.input(), in.maxDeviceBytes());
     const double read_s = secondsSince(start);
     const std::size_t nodes_before = map.nodeCount();
+    const double resolution = map.params().resolution;
     const auto edit_start = Clock::now();
-    for (const BoxEdit& e : edits_) {
-      const Eigen::Vector3f lo = Eigen::Vector3d(e.box[0], e.box[1], e.box[2]).cast<float>();
-      const Eigen::Vector3f hi = Eigen::Vector3d(e.box[3], e.box[4], e.box[5]).cast<float>();
+    for (BoxEdit& e : edits_) {
+      // Clamped as export --box is: OctoMap's iterator visits nothing for a corner outside the
+      // key range, which would silently delete the whole map for a generous --keep-box.
+      const Eigen::Vector3f lo = clampToDomain(e.box[0], e.box[1], e.box[2], resolution);
+      const Eigen::Vector3f hi = clampToDomain(e.box[3], e.box[4], e.box[5], resolution);
+      for (int a = 0; a < 3; ++a) {
+        e.used[a] = lo[a];
+        e.used[a + 3] = hi[a];
+        if (static_cast<float>(e.box[a]) != lo[a] || static_cast<float>(e.box[a + 3]) != hi[a])
+          e.clamped = true;
+      }
       if (e.keep)
         map.keepBox(lo, hi);
       else
@@ -106,11 +117,19 @@ class Edit final : public Command {
     s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
     s << "map:     " << in.input() << "\n";
     for (const BoxEdit& e : edits_) {
-      char line[256];
-      std::snprintf(line, sizeof(line), "%s min (%g, %g, %g) max (%g, %g, %g) m\n",
-                    e.keep ? "kept:   " : "cleared:", e.box[0], e.box[1], e.box[2], e.box[3],
-                    e.box[4], e.box[5]);
+      char line[512];
+      std::snprintf(line, sizeof(line), "%s min (%g, %g, %g) max (%g, %g, %g) m",
+                    e.keep ? "kept:   " : "cleared:", e.used[0], e.used[1], e.used[2], e.used[3],
+                    e.used[4], e.used[5]);
       s << line;
+      if (e.clamped) {
+        std::snprintf(line, sizeof(line),
+                      " (the box given, min (%g, %g, %g) max (%g, %g, %g), clamped to the "
+                      "map's domain at resolution %g)",
+                      e.box[0], e.box[1], e.box[2], e.box[3], e.box[4], e.box[5], resolution);
+        s << line;
+      }
+      s << "\n";
     }
     s << "nodes:   " << nodes_before << " before, " << nodes_after << " after\n";
     char line[256];
@@ -124,8 +143,10 @@ class Edit final : public Command {
 
  private:
   struct BoxEdit {
-    bool keep;  // --keep-box; else --clear-box
-    std::array<double, 6> box;
+    bool keep;                     // --keep-box; else --clear-box
+    std::array<double, 6> box;     // as given
+    std::array<double, 6> used{};  // clamped to the map's domain (run)
+    bool clamped = false;
   };
   std::vector<BoxEdit> edits_;
 };

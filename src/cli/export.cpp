@@ -29,14 +29,6 @@ const Rgb kFreeGrey{190, 190, 190};
 const Rgb kOccupiedRed{210, 50, 40};
 const Rgb kFreeGreen{70, 170, 90};
 
-// A box corner clamped into the map's domain (keys 0 … 65535, centred on 0), so that a box
-// larger than the map means all of it rather than nothing.
-Eigen::Vector3f clampToDomain(double x, double y, double z, double resolution) {
-  const double limit = 32767.5 * resolution;  // the centre of the outermost cell
-  const auto c = [limit](double v) { return static_cast<float>(std::clamp(v, -limit, limit)); };
-  return {c(x), c(y), c(z)};
-}
-
 void writePly(const std::string& path, const std::vector<OccupancyMap::LeafBoxHost>& cells,
               const std::vector<Rgb>& colours, const std::string& comment) {
   writeAsciiPly(path, comment, cells.size(),

@@ -1,14 +1,20 @@
 // The octovk commands' output files, all or nothing: every output is written to a temporary file
 // beside it and synced, and only then are they renamed into place, each replaced file kept under a
 // backup name until all renames are done so that a failure puts every one back. SIGHUP, SIGINT
-// and SIGTERM remove the temporaries; those of a killed run are removed by the next run.
+// and SIGTERM remove the temporaries; those of a killed run are removed by the next run. Runs
+// that commit into the same directories at once take turns (flock on the directories), so that
+// a set of outputs is always one run's. An output that is a symlink is written at its target.
 #include <fcntl.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <climits>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -62,26 +68,72 @@ void cleanUpOnSignal(sigset_t signals) {
   std::_Exit(128 + sig);
 }
 
-// ".NAME.octovk.tmp-" for the output `path` (appended, not "." + name: GCC 12's -Wrestrict
-// misfires on that).
-std::string temporaryNamePrefix(const std::string& path) {
-  std::string prefix = ".";
-  prefix.append(fs::path(path).filename().string()).append(kTemporaryTag);
-  return prefix;
+// The most digits of a process id in a temporary name (pid_t is 32 bits).
+constexpr std::size_t kPidDigits = 10;
+
+// The directory `path` is in ("." for a bare name).
+fs::path directoryOf(const std::string& path) {
+  const fs::path target(path);
+  return target.has_parent_path() ? target.parent_path() : fs::path(".");
+}
+
+// The longest file name the directory of `path` takes (NAME_MAX where it cannot say).
+std::size_t nameMax(const std::string& path) {
+  errno = 0;
+  const long max = ::pathconf(directoryOf(path).c_str(), _PC_NAME_MAX);
+  return max > 0 ? static_cast<std::size_t>(max) : std::size_t{NAME_MAX};
+}
+
+// ".NAME.octovk.tmp-" for the output `path` whose temporaries end in `ext` (or ".old"). A name
+// too long for the directory with that around it is cut, and a hash of the whole name keeps
+// outputs that share the cut part apart: the temporaries of any valid name fit.
+std::string temporaryNamePrefix(const std::string& path, const std::string& ext) {
+  const std::string name = fs::path(path).filename().string();
+  const std::size_t max = nameMax(path);
+  const std::size_t around = 1 + std::strlen(kTemporaryTag) + kPidDigits +
+                             std::max(ext.size(), std::strlen(kBackupSuffix));
+  std::string prefix = ".";  // appended, not "." + name: GCC 12's -Wrestrict misfires on that
+  if (around + name.size() <= max) {
+    prefix.append(name);
+  } else {
+    std::uint64_t hash = 14695981039346656037ull;  // FNV-1a: the same in every run
+    for (const char c : name) hash = (hash ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+    char tail[20];
+    std::snprintf(tail, sizeof(tail), "~%016llx", static_cast<unsigned long long>(hash));
+    const std::size_t keep = max > around + 17 ? max - around - 17 : 0;
+    prefix.append(name, 0, keep).append(tail);
+  }
+  return prefix.append(kTemporaryTag);
 }
 
 // "DIR/.NAME.octovk.tmp-" for the output `path`.
-std::string temporaryPrefix(const std::string& path) {
-  return (fs::path(path).parent_path() / temporaryNamePrefix(path)).string();
+std::string temporaryPrefix(const std::string& path, const std::string& ext) {
+  return (fs::path(path).parent_path() / temporaryNamePrefix(path, ext)).string();
+}
+
+// The file an output `path` names: `path`, or where its symlinks lead (a link is kept and its
+// target written, as a shell's '>' does). A loop or an unreadable link is a UsageError.
+std::string followLinks(const std::string& path) {
+  fs::path at(path);
+  for (int hops = 0; hops < 40; ++hops) {
+    struct stat st;
+    if (::lstat(at.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return at.string();
+    std::error_code ec;
+    const fs::path next = fs::read_symlink(at, ec);
+    if (ec)
+      throw UsageError("cannot write '" + path + "': " + ec.message() +
+                       "; choose another output path (nothing was done)");
+    at = next.is_absolute() ? next : at.parent_path() / next;
+  }
+  throw UsageError("cannot write '" + path + "': " + std::strerror(ELOOP) +
+                   "; choose another output path (nothing was done)");
 }
 
 // Removes what killed runs (SIGKILL, a crash, a power cut) left for `path`: temporaries and
 // backups whose process is gone. A backup whose output is missing is put back in its place.
-void removeStaleTemporaries(const std::string& path) {
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  const std::string prefix = temporaryNamePrefix(path);
-  const std::string ext = target.extension().string();
+void removeStaleTemporaries(const std::string& path, const std::string& ext) {
+  const fs::path dir = directoryOf(path);
+  const std::string prefix = temporaryNamePrefix(path, ext);
   std::error_code ec;
   std::vector<std::pair<fs::path, bool>> stale;  // path, is a backup
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
@@ -129,17 +181,80 @@ bool fileId(const std::string& path, dev_t& dev, ino_t& ino) {
 // Syncs the directory of `path`, so that the renames in it survive a power cut. Best effort: the
 // files are in place already, and some file systems cannot sync a directory.
 void syncDirectoryOf(const std::string& path) {
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  const int fd = ::open(directoryOf(path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) return;
   ::fsync(fd);
   ::close(fd);
 }
 
+// Exclusive flocks on the directories of `paths`, taken in the order of their device and inode
+// numbers (so that two runs never wait on each other), held while alive: runs that commit into
+// the same directories take turns, and a set of outputs is never half one run's, half another's.
+// Best effort: a directory that cannot be opened or locked (some network file systems) is not.
+class DirectoryLocks {
+ public:
+  explicit DirectoryLocks(const std::vector<std::string>& paths) {
+    struct Dir {
+      dev_t dev;
+      ino_t ino;
+      int fd;
+    };
+    std::vector<Dir> dirs;
+    for (const std::string& path : paths) {
+      const int fd = ::open(directoryOf(path).c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+      struct stat st;
+      if (fd < 0) continue;
+      if (::fstat(fd, &st) != 0) {
+        ::close(fd);
+        continue;
+      }
+      dirs.push_back({st.st_dev, st.st_ino, fd});
+    }
+    std::sort(dirs.begin(), dirs.end(), [](const Dir& a, const Dir& b) {
+      return a.dev != b.dev ? a.dev < b.dev : a.ino < b.ino;
+    });
+    for (std::size_t i = 0; i < dirs.size(); ++i) {
+      if (i > 0 && dirs[i].dev == dirs[i - 1].dev && dirs[i].ino == dirs[i - 1].ino) {
+        ::close(dirs[i].fd);  // the same directory: locked once
+        continue;
+      }
+      while (::flock(dirs[i].fd, LOCK_EX) != 0 && errno == EINTR) {
+      }
+      fds_.push_back(dirs[i].fd);  // locked, or not lockable: closed with the rest
+    }
+  }
+  ~DirectoryLocks() {
+    for (const int fd : fds_) ::close(fd);  // closing the last descriptor drops its lock
+  }
+  DirectoryLocks(const DirectoryLocks&) = delete;
+  DirectoryLocks& operator=(const DirectoryLocks&) = delete;
+
+ private:
+  std::vector<int> fds_;
+};
+
+// Gives the new file `temporary` the owner (where allowed) and permission bits of the file it
+// replaces, `old`: a read-only output stays read-only. Best effort, as cp does for a non-root user;
+// set-id bits are not carried over to new content.
+void keepOwnerAndMode(const std::string& temporary, const struct stat& old) {
+  struct stat now;
+  if (::stat(temporary.c_str(), &now) != 0) return;
+  if (now.st_uid != old.st_uid || now.st_gid != old.st_gid) {
+    if (::chown(temporary.c_str(), old.st_uid, old.st_gid) != 0) {
+      // Another user's file: the group alone may still be ours to give.
+      if (::chown(temporary.c_str(), static_cast<uid_t>(-1), old.st_gid) != 0) {
+      }
+    }
+  }
+  ::chmod(temporary.c_str(), old.st_mode & 01777);
+}
+
 }  // namespace
 
 void installSignalCleanup() {
+  // A file past `ulimit -f` fails its write (EFBIG), which is reported and cleaned up like any
+  // write error, instead of SIGXFSZ killing the run and leaving its temporaries behind.
+  ::signal(SIGXFSZ, SIG_IGN);
   sigset_t signals;
   sigemptyset(&signals);
   for (const int sig : {SIGHUP, SIGINT, SIGTERM}) {
@@ -208,11 +323,18 @@ OutputFiles::OutputFiles(const std::vector<std::string>& paths,
 
 void OutputFiles::claim(const std::vector<std::string>& paths) {
   for (const std::string& path : paths) {
-    removeStaleTemporaries(path);
     Entry entry;
     entry.path = path;
+    entry.target = followLinks(path);
+    // The temporary keeps the name's extension (the writers choose the format by it); the
+    // target's may differ.
+    entry.ext = fs::path(path).extension().string();
+    if (fs::path(entry.target).filename().string().size() > nameMax(entry.target))
+      throw UsageError("cannot write '" + path + "': " + std::strerror(ENAMETOOLONG) +
+                       "; choose another output path (nothing was done)");
+    removeStaleTemporaries(entry.target, entry.ext);
     entry.temporary =
-        temporaryPrefix(path) + std::to_string(::getpid()) + fs::path(path).extension().string();
+        temporaryPrefix(entry.target, entry.ext) + std::to_string(::getpid()) + entry.ext;
     // Created and listed under the lock: a signal between the two would leave it behind.
     const std::lock_guard<std::mutex> lock(cleanupMutex());
     const int fd = ::open(entry.temporary.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
@@ -257,6 +379,10 @@ void OutputFiles::commit() {
   for (const Entry& entry : entries_)
     if (!entry.written)
       throw std::logic_error("output '" + entry.path + "' committed before it was written");
+  // Taken before the signal lock: a run waiting for another's commit can still be interrupted.
+  std::vector<std::string> targets;
+  for (const Entry& entry : entries_) targets.push_back(entry.target);
+  const DirectoryLocks turn(targets);
   // Held throughout: a signal now is acted on after the renames (or the rollback).
   const std::lock_guard<std::mutex> lock(cleanupMutex());
   struct Replaced {
@@ -268,23 +394,25 @@ void OutputFiles::commit() {
   for (const Entry& entry : entries_) {
     Replaced step{&entry, {}};
     struct stat st;
-    if (::lstat(entry.path.c_str(), &st) == 0) {
-      step.backup = temporaryPrefix(entry.path) + std::to_string(::getpid()) + kBackupSuffix;
+    if (::lstat(entry.target.c_str(), &st) == 0) {
+      keepOwnerAndMode(entry.temporary, st);
+      step.backup =
+          temporaryPrefix(entry.target, entry.ext) + std::to_string(::getpid()) + kBackupSuffix;
       ::unlink(step.backup.c_str());
       // A second name for the old file (the path keeps it until the rename replaces it); where
       // hard links are not supported the old file moves aside instead.
-      if (::linkat(AT_FDCWD, entry.path.c_str(), AT_FDCWD, step.backup.c_str(), 0) != 0 &&
-          ::rename(entry.path.c_str(), step.backup.c_str()) != 0) {
+      if (::linkat(AT_FDCWD, entry.target.c_str(), AT_FDCWD, step.backup.c_str(), 0) != 0 &&
+          ::rename(entry.target.c_str(), step.backup.c_str()) != 0) {
         failure = "cannot replace '" + entry.path + "': " + std::strerror(errno);
         break;
       }
     }
-    if (::rename(entry.temporary.c_str(), entry.path.c_str()) != 0) {
+    if (::rename(entry.temporary.c_str(), entry.target.c_str()) != 0) {
       failure = "cannot write '" + entry.path + "': " + std::strerror(errno);
       if (!step.backup.empty()) {
         struct stat now;
-        if (::lstat(entry.path.c_str(), &now) != 0)
-          ::rename(step.backup.c_str(), entry.path.c_str());
+        if (::lstat(entry.target.c_str(), &now) != 0)
+          ::rename(step.backup.c_str(), entry.target.c_str());
         else
           ::unlink(step.backup.c_str());
       }
@@ -297,9 +425,10 @@ void OutputFiles::commit() {
     bool restored = true;
     for (auto it = done.rbegin(); it != done.rend(); ++it) {
       const std::string& path = it->entry->path;
+      const std::string& target = it->entry->target;
       if (it->backup.empty()) {
-        ::unlink(path.c_str());
-      } else if (::rename(it->backup.c_str(), path.c_str()) != 0) {
+        ::unlink(target.c_str());
+      } else if (::rename(it->backup.c_str(), target.c_str()) != 0) {
         failure += "; the previous '" + path + "' could not be put back and is kept as '" +
                    it->backup + "'";
         restored = false;
@@ -312,7 +441,7 @@ void OutputFiles::commit() {
   committed_ = true;
   for (const Entry& entry : entries_) {
     cleanupPaths().erase(entry.temporary);
-    syncDirectoryOf(entry.path);
+    syncDirectoryOf(entry.target);
   }
 }
 

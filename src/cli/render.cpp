@@ -14,6 +14,7 @@
 #include "camera.hpp"
 #include "command.hpp"
 #include "octovk/octovk.hpp"
+#include "octovk/vulkan_interop.hpp"
 #include "png.hpp"
 
 namespace octovk::cli {
@@ -29,6 +30,12 @@ constexpr std::uint32_t kDefaultHeight = 600;
 constexpr double kDefaultFovDeg = 60.0;
 // Rays per castRays call: bounds the host and device memory of large pictures.
 constexpr std::size_t kRayBatch = std::size_t{1} << 20;
+// Pixels a tile of rows holds without a cap (some 40 MB of rays and samples on the host): large
+// enough batches for a GPU, small beside the picture.
+constexpr std::size_t kTilePixels = std::size_t{1} << 18;
+// Host bytes a pixel holds for the whole run: its colour before the haze (the picture itself)
+// and its depth, for the haze, which needs the depth range of all pixels.
+constexpr std::size_t kPictureBytesPerPixel = 3 + sizeof(float);
 
 Vec3 parseVec3(const ParsedOption& option) {
   const std::vector<double> v = parseNumbers(option, "0 0 1.5");
@@ -59,6 +66,38 @@ struct Sample {
   double z = 0.0;
   double face_u = 0.0, face_v = 0.0;  // entry point on the face, -1..1 across the cell
 };
+
+// Host bytes a ray takes while its tile is cast: its sample, the ray, its result, its pixel and
+// start. Device bytes: the query, its result and walk state, and their staging copies.
+constexpr std::size_t kHostBytesPerRay =
+    sizeof(Sample) + sizeof(Ray) + sizeof(RayHit) + sizeof(std::size_t) + sizeof(double);
+std::size_t deviceBytesPerRay() {
+  constexpr std::uint32_t kRays = 1024;
+  return 2 * (40 + (castRaysResultBytes(kRays) + kRays - 1) / kRays);
+}
+
+// The least a picture of `width` x `height` needs under the cap besides the map: the picture,
+// and one row of rays with the rows above and below it.
+std::size_t leastRenderBytes(std::uint32_t width, std::uint32_t height) {
+  return std::size_t{width} * height * kPictureBytesPerPixel +
+         std::size_t{width} * (3 * sizeof(Sample) + kHostBytesPerRay + deviceBytesPerRay());
+}
+
+// The error of a picture too large for --max-device-memory: what it needs, and the two fixes.
+Error pictureOverCap(std::uint32_t width, std::uint32_t height, std::size_t cap,
+                     std::size_t map_bytes) {
+  const std::size_t need = leastRenderBytes(width, height) + map_bytes;
+  const std::size_t picture = std::size_t{width} * height * kPictureBytesPerPixel;
+  const std::string message =
+      "render --size " + std::to_string(width) + "x" + std::to_string(height) + " needs at least " +
+      bytesText(need) + ": " + bytesText(picture) + " for the picture (" +
+      std::to_string(kPictureBytesPerPixel) + " bytes a pixel), " +
+      bytesText(need - picture - map_bytes) + " for a row of rays and " + bytesText(map_bytes) +
+      " for the map, more than " + kMaxDeviceMemoryOption + " = " + bytesText(cap) +
+      " allows (on lavapipe it bounds the program's memory). Raise " + kMaxDeviceMemoryOption +
+      " to " + std::to_string(need) + " or more, or give a smaller --size";
+  return Error(ErrorCode::kOutOfDeviceMemory, message);
+}
 
 Sample sampleOf(const RayHit& hit, const Vec3& origin, const Vec3& dir, double resolution,
                 double t_start) {
@@ -152,6 +191,12 @@ void printRenderHelp(std::ostream& out) {
          "                         boundary nearest Z), e.g. to look into a building through\n"
          "                         its ceiling (default: nothing hidden)\n";
   printMaxDeviceMemoryHelp(out, "A map or a batch of rays");
+  out << "                         Under a cap render counts its picture too ("
+      << kPictureBytesPerPixel
+      << " bytes a\n"
+         "                         pixel) and casts its rays in tiles of rows that fit; a\n"
+         "                         --size whose picture does not fit is refused before any\n"
+         "                         work, naming the bytes it needs.\n";
   out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE'; --eye and --look-at also\n"
          "as '--eye=X,Y,Z'. Up in the picture is +z (+y when looking straight up or down).\n"
@@ -194,6 +239,11 @@ class Render final : public Command {
     in.checkOutputs();
     if (eye_ && look_at_ && (*eye_ - *look_at_).norm() < 1e-9)
       throw UsageError("--eye and --look-at are the same point; the camera needs a direction");
+    // Before the map is read: a picture that cannot fit under the cap beside an empty map.
+    const std::size_t cap = in.maxDeviceBytes();
+    const std::size_t empty_map = MapParams().minDeviceBytes();
+    if (cap > 0 && leastRenderBytes(width_, height_) + empty_map > cap)
+      throw pictureOverCap(width_, height_, cap, empty_map);
   }
 
   int run(Invocation& in) override;
@@ -248,63 +298,33 @@ int Render::run(Invocation& in) {
                      "within " + numberText(domain_m) + " m of the origin at this resolution)");
   const Camera camera(eye, look_at, width_, height_, fov_deg_);
 
+  // The memory the rays may take: under a cap, what the map and the picture leave of it.
+  const std::size_t pixels = std::size_t{width_} * height_;
+  const std::size_t cap = in.maxDeviceBytes();
+  std::size_t ray_batch = kRayBatch;
+  std::size_t tile_rows = std::max<std::size_t>(1, kTilePixels / width_);
+  if (cap > 0) {
+    const std::size_t held = map.deviceBytes() + shown.capacity() * sizeof(shown[0]);
+    if (leastRenderBytes(width_, height_) + held > cap)
+      throw pictureOverCap(width_, height_, cap, held);
+    // Half for a tile's rays on the host (and the two rows around it), half for a batch of
+    // them on the device.
+    const std::size_t room = (cap - held - pixels * kPictureBytesPerPixel) / 2;
+    tile_rows =
+        std::clamp<std::size_t>(room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)),
+                                3, tile_rows + 2) -
+        2;
+    ray_batch = std::clamp<std::size_t>(room / deviceBytesPerRay(), 1, kRayBatch);
+  }
+
   // Nothing outside the occupied cells' box stops a ray that ignores unknown space, so each ray
   // starts where it enters the box and ends where it leaves it: the same first occupied cell as
   // from the eye, without walking the empty space in front (and --z-max is exact this way).
-  const auto cast_start = Clock::now();
-  const std::size_t pixels = std::size_t{width_} * height_;
-  std::vector<Sample> samples(pixels);
-  std::vector<Ray> rays;
-  std::vector<std::size_t> ray_pixel;
-  std::vector<double> ray_start;
-  std::size_t cast = 0, hits = 0;
-  const auto flush = [&] {
-    std::vector<RayHit> results;
-    try {
-      results = map.castRays(rays);
-    } catch (const Error& e) {
-      throw withOptionNames(e);
-    }
-    for (std::size_t i = 0; i < results.size(); ++i) {
-      if (!results[i].hit) continue;
-      const std::size_t p = ray_pixel[i];
-      const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
-                                        static_cast<double>(p / width_) + 0.5);
-      samples[p] = sampleOf(results[i], eye, dir, resolution, ray_start[i]);
-      ++hits;
-    }
-    cast += rays.size();
-    rays.clear();
-    ray_pixel.clear();
-    ray_start.clear();
-  };
-  for (std::size_t p = 0; p < pixels; ++p) {
-    const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
-                                      static_cast<double>(p / width_) + 0.5);
-    double t_in, t_out;
-    if (!occupied.clip(eye, dir, t_in, t_out)) continue;
-    // A hair inside the box, so that a start on a cell face lies in the cell behind it.
-    if (t_in > 0.0) t_in += 1e-3 * resolution;
-    Ray ray;
-    ray.origin = (eye + t_in * dir).cast<float>();
-    ray.direction = dir.cast<float>();
-    ray.max_range_m = t_out - t_in + 2.0 * resolution;
-    ray.ignore_unknown = true;
-    rays.push_back(ray);
-    ray_pixel.push_back(p);
-    ray_start.push_back(t_in);
-    if (rays.size() == kRayBatch) flush();
-  }
-  if (!rays.empty()) flush();
-  const double cast_s = secondsSince(cast_start);
-
-  const auto shade_start = Clock::now();
+  // The rays are cast in tiles of rows, each shaded once the rows around it are cast; only the
+  // colours before the haze and the depths are kept for the whole picture (the haze needs the
+  // depth range of all of it).
+  double cast_s = 0.0;
   double depth_min = std::numeric_limits<double>::max(), depth_max = 0.0;
-  for (const Sample& s : samples)
-    if (s.depth >= 0) {
-      depth_min = std::min(depth_min, s.depth);
-      depth_max = std::max(depth_max, s.depth);
-    }
   const double z_low = occupied.min.z() + 0.5 * resolution;  // cell centres: z of a hit
   const double z_span = std::max(occupied.max.z() - occupied.min.z() - resolution, resolution);
   // A key light over the camera's left shoulder; faces turned away still get the ambient part.
@@ -312,9 +332,52 @@ int Render::run(Invocation& in) {
   const Rgb haze{70, 76, 92};
   const double pixel_angle = 2.0 * camera.tan_half_v / height_;
   RgbImage image(width_, height_);
-  for (std::uint32_t y = 0; y < height_; ++y) {
+  std::vector<float> depths(pixels, -1.0f);
+  std::vector<Sample> window;  // the samples of rows [window_row, cast_rows)
+  std::uint32_t window_row = 0, cast_rows = 0, shaded_rows = 0;
+  const auto sample = [&](std::uint32_t x, std::uint32_t y) -> const Sample& {
+    return window[std::size_t{y - window_row} * width_ + x];
+  };
+  std::vector<Ray> rays;
+  std::vector<std::size_t> ray_pixel;
+  std::vector<double> ray_start;
+  std::size_t cast = 0, hits = 0;
+  const auto flush = [&] {
+    std::vector<RayHit> results;
+    for (;;) {
+      try {
+        results.clear();
+        for (std::size_t at = 0; at < rays.size(); at += ray_batch) {
+          const std::size_t n = std::min(ray_batch, rays.size() - at);
+          const std::vector<RayHit> part = map.castRays(std::span(rays).subspan(at, n));
+          results.insert(results.end(), part.begin(), part.end());
+        }
+        break;
+      } catch (const Error& e) {
+        // The estimate of a ray's device bytes was short: smaller batches, down to one ray.
+        if (e.code() != ErrorCode::kOutOfDeviceMemory || ray_batch == 1) throw withOptionNames(e);
+        ray_batch /= 2;
+      }
+    }
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      if (!results[i].hit) continue;
+      const std::size_t p = ray_pixel[i];
+      const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
+                                        static_cast<double>(p / width_) + 0.5);
+      Sample& s = window[p - std::size_t{window_row} * width_];
+      s = sampleOf(results[i], eye, dir, resolution, ray_start[i]);
+      depth_min = std::min(depth_min, s.depth);
+      depth_max = std::max(depth_max, s.depth);
+      ++hits;
+    }
+    cast += rays.size();
+    rays.clear();
+    ray_pixel.clear();
+    ray_start.clear();
+  };
+  const auto shade = [&](std::uint32_t y) {
     for (std::uint32_t x = 0; x < width_; ++x) {
-      const Sample& s = samples[std::size_t{y} * width_ + x];
+      const Sample& s = sample(x, y);
       if (s.depth < 0) {
         image.set(x, y, background(y, height_));
         continue;
@@ -331,7 +394,7 @@ int Render::run(Invocation& in) {
       // Outlines where the neighbouring pixel lies much farther away (or is background).
       bool outline = false;
       const auto farther = [&](std::uint32_t nx, std::uint32_t ny) {
-        const Sample& n = samples[std::size_t{ny} * width_ + nx];
+        const Sample& n = sample(nx, ny);
         return n.depth < 0 || n.depth > s.depth * 1.04 + 3.0 * resolution;
       };
       if (x > 0 && farther(x - 1, y)) outline = true;
@@ -339,15 +402,64 @@ int Render::run(Invocation& in) {
       if (y > 0 && farther(x, y - 1)) outline = true;
       if (y + 1 < height_ && farther(x, y + 1)) outline = true;
       if (outline) light_f *= 0.55;
-      const Rgb base = heightColor((s.z - z_low) / z_span);
-      const double far =
-          depth_max > depth_min ? (s.depth - depth_min) / (depth_max - depth_min) : 0;
-      image.set(x, y, mix(scale(base, light_f), haze, 0.4 * far));
+      image.set(x, y, scale(heightColor((s.z - z_low) / z_span), light_f));
+      depths[std::size_t{y} * width_ + x] = static_cast<float>(s.depth);
     }
+  };
+  double shade_s = 0.0;
+  while (shaded_rows < height_) {
+    const auto tile_start = Clock::now();
+    const std::uint32_t tile_end =
+        static_cast<std::uint32_t>(std::min<std::size_t>(height_, cast_rows + tile_rows));
+    window.resize(std::size_t{tile_end - window_row} * width_);
+    for (std::size_t p = std::size_t{cast_rows} * width_; p < std::size_t{tile_end} * width_; ++p) {
+      const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
+                                        static_cast<double>(p / width_) + 0.5);
+      double t_in, t_out;
+      if (!occupied.clip(eye, dir, t_in, t_out)) continue;
+      // A hair inside the box, so that a start on a cell face lies in the cell behind it.
+      if (t_in > 0.0) t_in += 1e-3 * resolution;
+      Ray ray;
+      ray.origin = (eye + t_in * dir).cast<float>();
+      ray.direction = dir.cast<float>();
+      ray.max_range_m = t_out - t_in + 2.0 * resolution;
+      ray.ignore_unknown = true;
+      rays.push_back(ray);
+      ray_pixel.push_back(p);
+      ray_start.push_back(t_in);
+    }
+    if (!rays.empty()) flush();
+    cast_rows = tile_end;
+    const auto shade_start = Clock::now();
+    cast_s += std::chrono::duration<double>(shade_start - tile_start).count();
+    // A row is shaded once the rows above and below it are cast.
+    const std::uint32_t shade_end = cast_rows == height_ ? height_ : cast_rows - 1;
+    for (; shaded_rows < shade_end; ++shaded_rows) shade(shaded_rows);
+    // The row above the next one to shade stays for its outlines.
+    const std::uint32_t keep_from = shaded_rows > 0 ? shaded_rows - 1 : 0;
+    window.erase(
+        window.begin(),
+        window.begin() + static_cast<std::ptrdiff_t>(std::size_t{keep_from - window_row} * width_));
+    window_row = keep_from;
+    shade_s += secondsSince(shade_start);
   }
+  // The haze, now that the depth range is known.
+  const auto haze_start = Clock::now();
+  for (std::size_t p = 0; p < pixels; ++p) {
+    if (depths[p] < 0) continue;
+    const std::size_t at = p * 3;
+    const Rgb lit{image.pixels[at], image.pixels[at + 1], image.pixels[at + 2]};
+    const double far =
+        depth_max > depth_min ? (depths[p] - depth_min) / (depth_max - depth_min) : 0;
+    image.set(static_cast<std::uint32_t>(p % width_), static_cast<std::uint32_t>(p / width_),
+              mix(lit, haze, 0.4 * std::clamp(far, 0.0, 1.0)));
+  }
+  depths = {};
+  shade_s += secondsSince(haze_start);
+  const auto write_start = Clock::now();
   in.files().write(0, [&](const std::string& temporary) { writePng(image, temporary); });
   in.files().commit();
-  const double shade_s = secondsSince(shade_start);
+  shade_s += secondsSince(write_start);
 
   const double fov_h_deg = 2.0 * std::atan(camera.tan_half_h) * 180.0 / M_PI;
   char line[512];
