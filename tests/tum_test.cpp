@@ -577,7 +577,7 @@ TEST(TumCli, ImageLargerThanTheDeviceTakesIsACheapCleanError) {
   EXPECT_FALSE(fs::exists(scratch / "map.bt"));
   const RunResult r = runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) +
                                    " convert " + quote(seq.dir.string()) + " -o " +
-                                   quote((scratch / "scans.graph").string()),
+                                   quote(scratch / "scans.graph"),
                                scratch.dir());
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
@@ -610,7 +610,7 @@ TEST(TumCli, SparseListsAreACheapCleanError) {
     fs::resize_file(seq.dir / list, std::uintmax_t{10} << 30);
     const RunResult r = runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) +
                                      " convert " + quote(seq.dir.string()) + " -o " +
-                                     quote((scratch / "scans.graph").string()),
+                                     quote(scratch / "scans.graph"),
                                  scratch.dir());
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find("longer than 65536 bytes"), std::string::npos) << r.err;

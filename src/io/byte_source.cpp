@@ -6,6 +6,7 @@
 namespace octovk::io {
 
 bool ByteSource::more(std::uint64_t end) {
+  if (!in_) return false;  // a caller's buffer: all there is
   while (!done_ && base_ + buffer_.size() < end) {
     // One piece at a time, whatever `end` asks: a count read from the file never sizes a read.
     const std::size_t held = buffer_.size();

@@ -11,7 +11,6 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
-#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -149,14 +148,14 @@ void writeTreeFile(const OccupancyMap& map, const std::string& path) {
     throw Error(ErrorCode::kIo,
                 "cannot write '" + path + "': directory '" + dir.string() + "' does not exist");
   std::unique_ptr<octomap::OcTree> tree = buildOcTree(map);
-  std::string tmp_name = path + ".tmp-" + std::to_string(::getpid());
+  // Removed on any way out but the rename, from before it is created: opening the stream can
+  // create the file, then fail allocating its buffer.
+  TemporaryFile tmp(path + ".tmp-" + std::to_string(::getpid()));
   bool ok = false;
-  std::optional<TemporaryFile> tmp;
   {
-    std::ofstream out(tmp_name, std::ios_base::binary);
+    std::ofstream out(tmp.path(), std::ios_base::binary);
     if (!out.is_open())
       throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
-    tmp.emplace(std::move(tmp_name));  // from here on, removed on any way out but the rename
     if (ext == ".bt")
       ok = tree->writeBinary(out);  // prunes to max-likelihood first
     else
@@ -165,9 +164,9 @@ void writeTreeFile(const OccupancyMap& map, const std::string& path) {
     ok = ok && out.good();
   }
   if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
-  if (std::rename(tmp->path().c_str(), path.c_str()) != 0)
+  if (std::rename(tmp.path().c_str(), path.c_str()) != 0)
     throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
-  tmp->keep();
+  tmp.keep();
 }
 
 OccupancyMap readTreeFile(Context& context, const std::string& path,
