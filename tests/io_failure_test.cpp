@@ -109,8 +109,7 @@ TEST(IoFailure, EveryHostAllocationOfReadingAMapFile) {
     const std::size_t nodes = readMapFile(ctx, path).nodeCount();  // and its passes built
     std::size_t read_nodes = 0;
     const std::uint64_t failures = everyFailure(
-        std::string("readMapFile ") + ext,
-        [&] { read_nodes = readMapFile(ctx, path).nodeCount(); },
+        std::string("readMapFile ") + ext, [&] { read_nodes = readMapFile(ctx, path).nodeCount(); },
         [&](bool failed) {
           if (!failed) {
             EXPECT_EQ(read_nodes, nodes);

@@ -513,9 +513,8 @@ std::string paddedHugePng(const fs::path& scratch_dir, std::uint32_t side) {
   const std::uint64_t raw = std::uint64_t{side} * (1 + 2 * std::uint64_t{side});
   const auto padding = static_cast<std::uint32_t>(raw / octovk::io::kDeflateMaxRatio + 20000);
   std::string text;
-  octovk::test::appendPngChunk(text, "tEXt", "Comment" + std::string(1, '\0') +
-                                                 std::string(padding, 'x'),
-                                 padding + 8);
+  octovk::test::appendPngChunk(
+      text, "tEXt", "Comment" + std::string(1, '\0') + std::string(padding, 'x'), padding + 8);
   png.insert(png.find("IDAT") - 4, text);
   return png;
 }
@@ -575,10 +574,10 @@ TEST(TumCli, ImageLargerThanTheDeviceTakesIsACheapCleanError) {
       << m.result.err;
   EXPECT_LT(m.max_rss_kb, 400 * 1024) << "peak RSS of the run";
   EXPECT_FALSE(fs::exists(scratch / "map.bt"));
-  const RunResult r = runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) +
-                                   " convert " + quote(seq.dir.string()) + " -o " +
-                                   quote(scratch / "scans.graph"),
-                               scratch.dir());
+  const RunResult r =
+      runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " convert " +
+                   quote(seq.dir.string()) + " -o " + quote(scratch / "scans.graph"),
+               scratch.dir());
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
@@ -608,10 +607,10 @@ TEST(TumCli, SparseListsAreACheapCleanError) {
     EXPECT_LT(m.max_rss_kb, 100 * 1024) << "peak RSS of the run";
     EXPECT_LT(m.cpu_s, 1.0) << "CPU time of the run";
     fs::resize_file(seq.dir / list, std::uintmax_t{10} << 30);
-    const RunResult r = runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) +
-                                     " convert " + quote(seq.dir.string()) + " -o " +
-                                     quote(scratch / "scans.graph"),
-                                 scratch.dir());
+    const RunResult r =
+        runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " convert " +
+                     quote(seq.dir.string()) + " -o " + quote(scratch / "scans.graph"),
+                 scratch.dir());
     EXPECT_EQ(r.exit_code, 1) << r.err;
     EXPECT_NE(r.err.find("longer than 65536 bytes"), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(scratch / "scans.graph"));

@@ -46,7 +46,9 @@ struct TumSequence {
 /// DIR/groundtruth.txt (`timestamp tx ty tz qx qy qz qw` per line); '#' starts a comment line,
 /// blank lines are ignored. Each image takes the pose with the nearest timestamp (the earlier one
 /// on a tie); images with none less than `max_time_difference_s` away are skipped and counted.
-/// Checks that every image taken exists, but does not read it. Throws Error: kIo for a missing or
+/// Checks that every image taken exists, but does not read it. The lists are read a line at a
+/// time (a line over 64 KiB is malformed), and like the images they must lie inside DIR: a list
+/// or image that is a symbolic link out of it is refused (kIo). Throws Error: kIo for a missing or
 /// unreadable file, kFormat for a malformed line (the message names file and line; an absolute
 /// image name is one), a non-unit quaternion, no images, no poses, or no image with a pose.
 TumSequence readTumSequence(const std::string& dir,

@@ -1,7 +1,7 @@
-// io::ByteSource: a file read piece by piece as a parser reaches its bytes (see parse.hpp).
-#include <algorithm>
-
+// io::ByteSource: a file read piece by piece as a parser reaches its bytes (see byte_source.hpp).
 #include "io/byte_source.hpp"
+
+#include <algorithm>
 
 namespace octovk::io {
 
@@ -14,8 +14,7 @@ bool ByteSource::more(std::uint64_t end) {
     in_->read(buffer_.data() + held, static_cast<std::streamsize>(kPiece));
     const auto got = static_cast<std::size_t>(std::max<std::streamsize>(in_->gcount(), 0));
     buffer_.resize(held + got);
-    if (in_->bad())
-      throw Error(ErrorCode::kIo, "cannot read '" + name_ + "': read error");
+    if (in_->bad()) throw Error(ErrorCode::kIo, "cannot read '" + name_ + "': read error");
     if (got < kPiece) done_ = true;
   }
   view_ = buffer_;

@@ -11,7 +11,8 @@ namespace octovk {
 std::uint64_t maxDepthImagePixels(Context& context) {
   // checkScan's limit (src/map/scan_source.cpp): lists are walked by one group per 64 entries.
   return std::min<std::uint64_t>(
-      0x7FFFFFFFu, std::uint64_t{ContextAccess::device(context).maxGroupsX()} * gpu::kWorkgroupSize);
+      0x7FFFFFFFu,
+      std::uint64_t{ContextAccess::device(context).maxGroupsX()} * gpu::kWorkgroupSize);
 }
 
 }  // namespace octovk

@@ -169,8 +169,7 @@ void writeTreeFile(const OccupancyMap& map, const std::string& path) {
   tmp.keep();
 }
 
-OccupancyMap readTreeFile(Context& context, const std::string& path,
-                          std::size_t max_device_bytes) {
+OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +

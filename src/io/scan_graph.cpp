@@ -54,9 +54,7 @@ class GraphReader {
     if (!source_.has(at_ + n)) throw bad("truncated in the " + what);
   }
   // The bytes left by the file's size: counts are checked against it, never sized by it.
-  std::uint64_t remaining() const {
-    return source_.size() > at_ ? source_.size() - at_ : 0;
-  }
+  std::uint64_t remaining() const { return source_.size() > at_ ? source_.size() - at_ : 0; }
   // The bytes read so far are not needed again.
   void done() { source_.release(at_); }
   bool atEnd() { return !source_.has(at_ + 1); }
@@ -160,8 +158,7 @@ std::vector<GraphScan> readScanGraph(const std::string& path) {
                   "cannot read scan graph '" + path + "': it is not a regular file");
     std::ifstream in(path, std::ios_base::binary);
     if (!in.is_open())
-      throw Error(ErrorCode::kIo,
-                  "cannot read scan graph '" + path + "': " + std::strerror(errno));
+      throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + std::strerror(errno));
     const std::uintmax_t size = std::filesystem::file_size(path, ec);
     if (ec) throw Error(ErrorCode::kIo, "cannot read scan graph '" + path + "': " + ec.message());
     io::ByteSource source(in, size, path);

@@ -187,8 +187,8 @@ namespace {
 // recursion as `source` gives them, then read by OctoMap. `offset`: where the records start in
 // `source` (offsets in messages count from the start of what the caller names); `announced`:
 // the node count a file's header gives (a message has none).
-std::unique_ptr<octomap::OcTree> readTreeData(ByteSource& source, std::uint64_t offset,
-                                              bool binary, double resolution,
+std::unique_ptr<octomap::OcTree> readTreeData(ByteSource& source, std::uint64_t offset, bool binary,
+                                              double resolution,
                                               std::optional<std::uint64_t> announced,
                                               const Fault& bad) {
   auto tree = std::make_unique<octomap::OcTree>(resolution);

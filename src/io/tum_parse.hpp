@@ -29,7 +29,8 @@ struct GroundTruthPose {
 };
 
 /// Parses the contents of groundtruth.txt (`timestamp tx ty tz qx qy qz qw` per line; '#' comment
-/// lines and blank lines skipped, a trailing '\r' ignored), in the file's order. Throws
+/// lines and blank lines skipped, a trailing '\r' ignored, a line over 64 KiB refused), in the
+/// file's order. Throws
 /// Error(kFormat) naming `name` and the line for a malformed line or a non-unit quaternion, or
 /// when no pose is listed.
 std::vector<GroundTruthPose> parseGroundTruth(std::string_view text, const std::string& name);

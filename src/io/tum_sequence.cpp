@@ -23,6 +23,7 @@
 
 #include "io/byte_source.hpp"
 #include "io/tum_parse.hpp"
+#include "map/host_memory.hpp"
 
 namespace octovk {
 
@@ -57,8 +58,8 @@ class DataLines {
       while (source_.has(end + 1) && source_.at(end) != '\n') {
         if (++end - at_ > kMaxLineBytes)
           throw Error(ErrorCode::kFormat,
-                      "'" + path_ + "' line " + std::to_string(number_ + 1) +
-                          " is longer than " + std::to_string(kMaxLineBytes) +
+                      "'" + path_ + "' line " + std::to_string(number_ + 1) + " is longer than " +
+                          std::to_string(kMaxLineBytes) +
                           " bytes; a TUM list holds short lines 'timestamp ...' (is it a TUM "
                           "list?)");
       }
@@ -92,8 +93,7 @@ class DataLines {
 
 // A TUM list inside the folder `real_root` (canonical), opened; kIo errors name it. A list that
 // is a symbolic link out of the folder is refused, as an image's name would be.
-std::ifstream openList(const fs::path& path, const fs::path& real_root,
-                       std::uintmax_t* size) {
+std::ifstream openList(const fs::path& path, const fs::path& real_root, std::uintmax_t* size) {
   std::error_code ec;
   if (!fs::exists(path, ec))
     throw Error(ErrorCode::kIo, "'" + path.string() +
@@ -104,8 +104,7 @@ std::ifstream openList(const fs::path& path, const fs::path& real_root,
   const fs::path inside = real.lexically_relative(real_root);
   if (inside.empty() || *inside.begin() == "..")
     throw Error(ErrorCode::kIo, "'" + path.string() + "' leads through a symbolic link to '" +
-                                    real.string() + "', outside the folder '" +
-                                    real_root.string() +
+                                    real.string() + "', outside the folder '" + real_root.string() +
                                     "'; the lists are read from inside the folder only: copy "
                                     "the file into it");
   if (!fs::is_regular_file(real, ec))
@@ -372,7 +371,9 @@ TumSequence associateDepthList(ByteSource& source, std::vector<GroundTruthPose> 
 
 }  // namespace io
 
-TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
+namespace {
+
+TumSequence readSequence(const std::string& dir, double max_time_difference_s) {
   const fs::path root(dir);
   std::error_code ec;
   if (!fs::is_directory(root, ec))
@@ -395,8 +396,7 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
   std::ifstream depth = openList(names.depth, real_root, &size);
   io::ByteSource depth_bytes(depth, size, names.depth);
   return io::associateDepthList(
-      depth_bytes, std::move(poses), names, max_time_difference_s,
-      [&](const TumFrame& frame) {
+      depth_bytes, std::move(poses), names, max_time_difference_s, [&](const TumFrame& frame) {
         const std::string where = "'" + names.depth + "' line " + std::to_string(frame.line) +
                                   ": depth image '" + frame.image_path + "'";
         std::error_code exists_ec;
@@ -419,6 +419,13 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
           throw Error(ErrorCode::kIo,
                       where + " is not a regular file; check the folder is complete");
       });
+}
+
+}  // namespace
+
+TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
+  return hostMemoryGuard("readTumSequence",
+                         [&] { return readSequence(dir, max_time_difference_s); });
 }
 
 DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
@@ -490,8 +497,8 @@ void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* widt
 }
 
 // Opens the file `path` in `r` and reads its header (see readDepthPngHeader).
-void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width,
-                  png_uint_32* height, std::uint64_t max_pixels) {
+void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width, png_uint_32* height,
+                  std::uint64_t max_pixels) {
   r.file = std::fopen(path.c_str(), "rb");
   if (!r.file)
     throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': " + std::strerror(errno));
@@ -521,17 +528,21 @@ DepthPng readDepthPngPixels(PngReader& r, const std::string& path, png_uint_32 w
 }  // namespace
 
 DepthPngSize checkDepthPng(const std::string& path, std::uint64_t max_pixels) {
-  PngReader r;
-  png_uint_32 width = 0, height = 0;
-  openDepthPng(r, path, &width, &height, max_pixels);
-  return {width, height};
+  return hostMemoryGuard("checkDepthPng", [&] {
+    PngReader r;
+    png_uint_32 width = 0, height = 0;
+    openDepthPng(r, path, &width, &height, max_pixels);
+    return DepthPngSize{width, height};
+  });
 }
 
 DepthPng readDepthPng(const std::string& path, std::uint64_t max_pixels) {
-  PngReader r;
-  png_uint_32 width = 0, height = 0;
-  openDepthPng(r, path, &width, &height, max_pixels);
-  return readDepthPngPixels(r, path, width, height);
+  return hostMemoryGuard("readDepthPng", [&] {
+    PngReader r;
+    png_uint_32 width = 0, height = 0;
+    openDepthPng(r, path, &width, &height, max_pixels);
+    return readDepthPngPixels(r, path, width, height);
+  });
 }
 
 DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
