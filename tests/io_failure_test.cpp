@@ -14,6 +14,7 @@
 #include <random>
 #include <typeinfo>
 
+#include "octovk/tum_sequence.hpp"
 #include "test_support.hpp"
 
 namespace {
@@ -175,6 +176,29 @@ TEST(IoFailure, EveryHostAllocationOfAScanGraph) {
   EXPECT_GT(writes, 3u);
   EXPECT_GT(reads, 3u);
   fs::remove(path);
+}
+
+TEST(IoFailure, EveryHostAllocationOfReadingATumFolder) {
+  if (skipForValidation()) GTEST_SKIP() << "no host failures under the validation layer";
+  const fs::path dir = fs::path(test::tmpPath("alloc_tum"));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "depth");
+  test::writeBytes((dir / "groundtruth.txt").string(),
+                   "# timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n");
+  test::writeBytes((dir / "depth.txt").string(), "1.0 depth/a.png\n2.01 depth/b.png\n");
+  test::writeBytes((dir / "depth" / "a.png").string(), "");  // checked to exist, not read
+  test::writeBytes((dir / "depth" / "b.png").string(), "");
+  const std::string folder = dir.string();  // not allocated while armed
+  TumSequence read;
+  const std::uint64_t failures = everyFailure(
+      "readTumSequence", [&] { read = readTumSequence(folder); },
+      [&](bool failed) {
+        if (!failed) {
+          EXPECT_EQ(read.frames.size(), 2u);
+        }
+      });
+  EXPECT_GT(failures, 10u);
+  fs::remove_all(dir);
 }
 
 }  // namespace
