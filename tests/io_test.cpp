@@ -2,7 +2,9 @@
 // an imported map, and corrupt or missing files.
 #include <octomap/ScanGraph.h>
 #include <octomap/octomap.h>
+#include <sys/resource.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -612,6 +614,99 @@ TEST(IoHostile, DevicesNamedLikeInputsAreRefusedAtOnce) {
         ErrorCode::kIo, name);
     EXPECT_NE(message.find("not a regular file"), std::string::npos) << message;
     fs::remove(link);
+  }
+}
+
+// A sparse file of `size` bytes that starts with `prefix` (the rest reads as zeros, holding no
+// disk).
+void writeSparse(const std::string& path, const std::string& prefix, std::uintmax_t size) {
+  test::writeBytes(path, prefix);
+  fs::resize_file(path, size);
+}
+
+// The peak RSS of this process so far, in MiB.
+long peakRssMib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024;
+}
+
+TEST(IoHostile, SparseFilesFailAtTheirFirstFaultUnread) {
+  // A 2 GiB file holding 4 kB on disk was read whole before its first record was checked: 3 GiB
+  // took 17 s and 3.2 GB of RSS. Now the reader reads pieces as its checks reach them, and the
+  // zeros fail at once: memory and time follow what the file holds, not its size.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const std::uintmax_t size = std::uintmax_t{2} << 30;
+  const std::string bt_header =
+      "# Octomap OcTree binary file\nid OcTree\nsize 1000\nres 0.1\ndata\n";
+  const std::string ot_header = "# Octomap OcTree file\nid OcTree\nsize 1000\nres 0.1\ndata\n";
+  const auto u32 = [](std::uint32_t v) {  // the graph's counts, in host order
+    return std::string(reinterpret_cast<const char*>(&v), 4);
+  };
+  // Edges fill the rest exactly: 0 scans, then as many 80-byte edges as the zeros make up.
+  const std::uint32_t edges = static_cast<std::uint32_t>((size - 8) / 80);
+  struct Case {
+    const char* name;
+    std::string prefix;
+    std::uintmax_t size;
+    const char* why;
+  };
+  const std::vector<Case> cases = {
+      {"zeros.bt", "", size, "first line"},
+      {"zeros.ot", "", size, "first line"},
+      {"header.bt", bt_header, size, "bytes follow"},
+      {"header.ot", ot_header, size, "bytes follow"},
+      {"comment.bt", "# Octomap OcTree binary file\n# ", size, "longer than"},
+      {"zeros.graph", "", size, "length does not match"},
+      {"one_scan.graph", u32(1), size, "bad scan 0 pose translation record"},
+      {"edges.graph", u32(0) + u32(edges), 8 + std::uintmax_t{edges} * 80,
+       "bad edge 0 translation record"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string path = tmpPath(std::string("sparse_") + c.name);
+    writeSparse(path, c.prefix, c.size);
+    const long rss_before = peakRssMib();
+    const auto start = std::chrono::steady_clock::now();
+    const std::string message = expectError(
+        [&] {
+          if (fs::path(path).extension() == ".graph")
+            (void)readScanGraph(path);
+          else
+            (void)readMapFile(ctx, path);
+        },
+        ErrorCode::kFormat, c.name);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    fs::remove(path);
+    EXPECT_NE(message.find(c.why), std::string::npos) << message;
+    EXPECT_NE(message.find(path), std::string::npos) << message;
+    EXPECT_LT(peakRssMib() - rss_before, 64) << "MiB of RSS for a file of 2 GiB of zeros";
+    EXPECT_LT(seconds, 2.0) << "to refuse a file of 2 GiB of zeros";
+  }
+}
+
+TEST(IoHostile, TreeFilesAreCheckedAsTheyAreRead) {
+  // The streamed reader gives the buffer's verdicts: a valid file reads as OctoMap's, a byte
+  // more is refused, and a comment line too long to be one fails without being read whole.
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const TreeFiles& f = sphericalFiles();
+  for (const bool binary : {true, false}) {
+    SCOPED_TRACE(binary ? ".bt" : ".ot");
+    const std::string& bytes = binary ? f.bt : f.ot;
+    const std::string path = tmpPath(binary ? "streamed.bt" : "streamed.ot");
+    test::writeBytes(path, bytes);
+    const OccupancyMap map = readMapFile(ctx, path);
+    EXPECT_TRUE(sameTree(*toOcTree(map), *io::parseTreeFile(bytes, binary, "valid")));
+    test::writeBytes(path, bytes + '\0');
+    expectError([&] { (void)readMapFile(ctx, path); }, ErrorCode::kFormat, "a byte more");
+    std::string long_comment = bytes;
+    long_comment.insert(long_comment.find('\n') + 1, "# " + std::string(70000, 'x') + "\n");
+    const std::string message =
+        expectError([&] { (void)io::parseTreeFile(long_comment, binary, "long"); },
+                    ErrorCode::kFormat, "a 70 kB comment line");
+    EXPECT_NE(message.find("longer than 65536 bytes"), std::string::npos) << message;
+    fs::remove(path);
   }
 }
 

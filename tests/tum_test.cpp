@@ -504,6 +504,120 @@ TEST(TumCli, HugeChunkIsACheapCleanError) {
   EXPECT_FALSE(fs::exists(scratch / "map.bt"));
 }
 
+// A 16-bit PNG whose header announces `side` x `side` pixels, with an honest ancillary chunk
+// large enough that deflate could hold them (so only a size limit refuses it from its header).
+std::string paddedHugePng(const fs::path& scratch_dir, std::uint32_t side) {
+  const fs::path small = scratch_dir / "small_for_huge.png";
+  writeDepthPng(small, 4, 3, std::vector<std::uint16_t>(12, 5000));
+  std::string png = withHeaderSize(readFile(small), side, side);
+  const std::uint64_t raw = std::uint64_t{side} * (1 + 2 * std::uint64_t{side});
+  const auto padding = static_cast<std::uint32_t>(raw / octovk::io::kDeflateMaxRatio + 20000);
+  std::string text;
+  octovk::test::appendPngChunk(
+      text, "tEXt", "Comment" + std::string(1, '\0') + std::string(padding, 'x'), padding + 8);
+  png.insert(png.find("IDAT") - 4, text);
+  return png;
+}
+
+TEST(TumReader, ImageLargerThanTheLimitIsRefusedFromItsHeader) {
+  // A 530 kB PNG of 16000 x 16000 was decoded whole (554 MB, 2 s) before integrate refused its
+  // 256 million points: now its header is checked against the limit first.
+  Scratch scratch("tum");
+  const fs::path path = scratch.dir() / "huge.png";
+  std::ofstream(path, std::ios_base::binary) << paddedHugePng(scratch.dir(), 16000);
+  const octovk::DepthPngSize size = octovk::checkDepthPng(path.string());
+  EXPECT_EQ(size.width, 16000u);
+  EXPECT_EQ(size.height, 16000u);
+  const auto start = std::chrono::steady_clock::now();
+  for (int check = 0; check < 2; ++check) {
+    try {
+      if (check == 0)
+        octovk::readDepthPng(path.string(), 4194240);
+      else
+        octovk::checkDepthPng(path.string(), 4194240);
+      ADD_FAILURE() << "an image over the limit was accepted";
+    } catch (const octovk::Error& e) {
+      const std::string why = e.what();
+      EXPECT_EQ(e.code(), octovk::ErrorCode::kInvalidArgument) << why;
+      EXPECT_NE(why.find(path.string()), std::string::npos) << why;
+      EXPECT_NE(why.find("16000 x 16000 = 256000000 pixels"), std::string::npos) << why;
+      EXPECT_NE(why.find("at most 4194240"), std::string::npos) << why;
+    }
+  }
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.5);
+  // At the limit, an image is read.
+  const fs::path small = scratch.dir() / "small.png";
+  writeDepthPng(small, 4, 3, std::vector<std::uint16_t>(12, 5000));
+  EXPECT_EQ(octovk::readDepthPng(small.string(), 12).depths.size(), 12u);
+}
+
+TEST(TumCli, ImageLargerThanTheDeviceTakesIsACheapCleanError) {
+  // integrate: refused by the device's limit on a scan's points, from the header (it decoded
+  // 554 MB first). convert under `ulimit -v 4G`: refused by the host memory converting it needs
+  // (it reached 3.4 GB, then "unexpected failure: std::bad_alloc").
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  // 16000 x 16000 (lavapipe takes 4,194,240 points), or a square just over the device's limit.
+  const std::uint64_t limit = octovk::maxDepthImagePixels(ctx);
+  std::uint32_t side = 16000;
+  while (std::uint64_t{side} * side <= limit) ++side;
+  std::ofstream(seq.dir / seq.image_files[1], std::ios_base::binary | std::ios_base::trunc)
+      << paddedHugePng(scratch.dir(), side);
+  const MeasuredRun m =
+      runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
+  EXPECT_EQ(m.result.exit_code, 1) << m.result.err;
+  EXPECT_EQ(m.result.err.rfind("octovk: error: ", 0), 0u) << m.result.err;
+  EXPECT_EQ(std::count(m.result.err.begin(), m.result.err.end(), '\n'), 1) << m.result.err;
+  EXPECT_NE(m.result.err.find(seq.image_files[1]), std::string::npos) << m.result.err;
+  EXPECT_NE(m.result.err.find("at most " + std::to_string(limit)), std::string::npos)
+      << m.result.err;
+  EXPECT_LT(m.max_rss_kb, 400 * 1024) << "peak RSS of the run";
+  EXPECT_FALSE(fs::exists(scratch / "map.bt"));
+  const RunResult r =
+      runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " convert " +
+                   quote(seq.dir.string()) + " -o " + quote(scratch / "scans.graph"),
+               scratch.dir());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find(seq.image_files[1]), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("host memory"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(scratch / "scans.graph"));
+}
+
+TEST(TumCli, SparseListsAreACheapCleanError) {
+  // depth.txt or groundtruth.txt of 1 GiB of zeros (a sparse file): read whole before their
+  // first line was parsed (and one of 10 GiB under `ulimit -v 4G` ended in "unexpected failure:
+  // std::bad_alloc"). Now they are read a line at a time, and a line too long for a list fails.
+  Scratch scratch("tum");
+  for (const char* list : {"depth.txt", "groundtruth.txt"}) {
+    SCOPED_TRACE(list);
+    const Sequence seq = makeSequence(scratch.dir() / (std::string("seq_") + list));
+    std::ofstream(seq.dir / list, std::ios_base::trunc).close();
+    fs::resize_file(seq.dir / list, std::uintmax_t{1} << 30);
+    const MeasuredRun m =
+        runMeasured({"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, scratch.dir());
+    EXPECT_EQ(m.result.exit_code, 1) << m.result.err;
+    EXPECT_EQ(m.result.err.rfind("octovk: error: ", 0), 0u) << m.result.err;
+    EXPECT_EQ(std::count(m.result.err.begin(), m.result.err.end(), '\n'), 1) << m.result.err;
+    EXPECT_NE(m.result.err.find(std::string(list) + "' line 1 is longer than 65536 bytes"),
+              std::string::npos)
+        << m.result.err;
+    EXPECT_LT(m.max_rss_kb, 100 * 1024) << "peak RSS of the run";
+    EXPECT_LT(m.cpu_s, 1.0) << "CPU time of the run";
+    fs::resize_file(seq.dir / list, std::uintmax_t{10} << 30);
+    const RunResult r =
+        runShell("ulimit -v 4194304; " + quote(OCTOVK_PATH(OCTOVK_CLI)) + " convert " +
+                     quote(seq.dir.string()) + " -o " + quote(scratch / "scans.graph"),
+                 scratch.dir());
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("longer than 65536 bytes"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(scratch / "scans.graph"));
+    fs::remove_all(seq.dir);
+  }
+}
+
 TEST(TumReader, BytesInReadersMatchTheFileReaders) {
   // io::parseGroundTruth + io::associateDepthList and io::decodeDepthPng (the fuzz targets'
   // entry points) give what readTumSequence and readDepthPng give on the files.
@@ -950,6 +1064,36 @@ TEST(TumBadInput, SymlinkOutOfTheFolder) {
     const octovk::TumSequence read = octovk::readTumSequence(dir.string());
     ASSERT_EQ(read.frames.size(), 4u) << dir;
     EXPECT_EQ(octovk::readDepthPng(read.frames[0].image_path).depths, seq.depths[1]);
+  }
+}
+
+TEST(TumBadInput, ListSymlinkOutOfTheFolder) {
+  // depth.txt or groundtruth.txt as a link out of the folder was read: the lists follow the
+  // images' rule. A list linked inside the folder is read.
+  Scratch scratch("tum");
+  const Sequence seq = makeSequence(scratch.dir() / "seq");
+  fs::create_directories(scratch.dir() / "elsewhere");
+  for (const char* list : {"depth.txt", "groundtruth.txt"}) {
+    SCOPED_TRACE(list);
+    const fs::path outside = scratch.dir() / "elsewhere" / list;
+    fs::rename(seq.dir / list, outside);
+    fs::create_symlink(outside, seq.dir / list);
+    expectBothRejected(seq.dir, 1,
+                       {std::string(list) + "' leads through a symbolic link",
+                        fs::canonical(outside).string(), "outside the folder"},
+                       scratch);
+    try {
+      octovk::readTumSequence(seq.dir.string());
+      ADD_FAILURE() << "a list linked out of the folder was read";
+    } catch (const octovk::Error& e) {
+      EXPECT_EQ(e.code(), octovk::ErrorCode::kIo) << e.what();
+    }
+    fs::remove(seq.dir / list);
+    fs::rename(outside, seq.dir / "depth" / list);
+    fs::create_symlink(fs::path("depth") / list, seq.dir / list);
+    EXPECT_EQ(octovk::readTumSequence(seq.dir.string()).frames.size(), 4u);
+    fs::remove(seq.dir / list);
+    fs::rename(seq.dir / "depth" / list, seq.dir / list);
   }
 }
 

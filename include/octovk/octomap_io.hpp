@@ -23,15 +23,18 @@ void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree);
 
 /// Writes the map in the format its extension names: .bt (OctoMap's writeBinary: max-likelihood,
 /// pruned) or .ot (full log-odds). Written to a temporary file and renamed, so a failed write
-/// leaves no partial file behind.
+/// (an I/O error, or the host out of memory: kOutOfHostMemory) leaves no partial file behind and
+/// the file it was to replace as it was.
 void writeMapFile(const OccupancyMap& map, const std::string& path);
 
 /// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and, for .ot,
 /// its sensor model. The file is checked before OctoMap's reader sees it (header fields, tree type
 /// OcTree, at most 16 levels, node count, finite log-odds), so a damaged or hostile file is a
-/// kFormat error naming the file and the fault, at a cost in time and memory linear in its size.
-/// `max_device_bytes` caps the map as MapParams::max_device_bytes does (0: no cap): a file whose
-/// tree does not fit under it is a kOutOfDeviceMemory error naming the cap.
+/// kFormat error naming the file and the fault. The file is read as the checks go, so time and
+/// memory follow the bytes before the first fault (a sparse or oversized file fails at once), not
+/// its size; the host out of memory is kOutOfHostMemory. `max_device_bytes` caps the map as
+/// MapParams::max_device_bytes does (0: no cap): a file whose tree does not fit under it is a
+/// kOutOfDeviceMemory error naming the cap.
 OccupancyMap readMapFile(Context& context, const std::string& path,
                          std::size_t max_device_bytes = 0);
 
@@ -77,7 +80,8 @@ struct GraphScan {
 
 /// Reads an OctoMap ScanGraph binary file (.graph); a corrupt or truncated file, a count beyond the
 /// bytes the file holds, or a non-finite pose is a kFormat error naming the file. Points may be
-/// NaN (the mapper skips them).
+/// NaN (the mapper skips them). Read as it is parsed: memory follows the scans read, never a
+/// count or the file's size; the host out of memory is kOutOfHostMemory.
 std::vector<GraphScan> readScanGraph(const std::string& path);
 
 /// The sensor origin graph2tree uses for a scan (in the sensor frame), to pass with the pose:

@@ -46,7 +46,9 @@ struct TumSequence {
 /// DIR/groundtruth.txt (`timestamp tx ty tz qx qy qz qw` per line); '#' starts a comment line,
 /// blank lines are ignored. Each image takes the pose with the nearest timestamp (the earlier one
 /// on a tie); images with none less than `max_time_difference_s` away are skipped and counted.
-/// Checks that every image taken exists, but does not read it. Throws Error: kIo for a missing or
+/// Checks that every image taken exists, but does not read it. The lists are read a line at a
+/// time (a line over 64 KiB is malformed), and like the images they must lie inside DIR: a list
+/// or image that is a symbolic link out of it is refused (kIo). Throws Error: kIo for a missing or
 /// unreadable file, kFormat for a malformed line (the message names file and line; an absolute
 /// image name is one), a non-unit quaternion, no images, no poses, or no image with a pose.
 TumSequence readTumSequence(const std::string& dir,
@@ -66,11 +68,23 @@ struct DepthPng {
 /// are refused with a kFormat error naming the file, its bit depth and colour type; an unreadable
 /// or corrupt file is a kIo / kFormat error naming the file. A header announcing more pixels than
 /// the file's bytes can hold (deflate shrinks at most 1032:1) is refused as corrupt before any
-/// pixel memory is allocated.
-DepthPng readDepthPng(const std::string& path);
+/// pixel memory is allocated, and so is one announcing more than `max_pixels` (when not 0; e.g.
+/// maxDepthImagePixels(context)), as a kInvalidArgument error naming the limit.
+DepthPng readDepthPng(const std::string& path, std::uint64_t max_pixels = 0);
+
+/// A depth image's size, as its PNG header gives it.
+struct DepthPngSize {
+  std::uint32_t width = 0;
+  std::uint32_t height = 0;
+};
 
 /// Reads only the header of a PNG depth image, throwing what readDepthPng would for a missing,
-/// unreadable or non-PNG file or a wrong format (not for damage further in).
-void checkDepthPng(const std::string& path);
+/// unreadable or non-PNG file, a wrong format or more than `max_pixels` pixels (not for damage
+/// further in); its size.
+DepthPngSize checkDepthPng(const std::string& path, std::uint64_t max_pixels = 0);
+
+/// The most pixels a depth image may have to be inserted into a map on `context` in one scan
+/// (the device's limit on a scan's points), to check a PNG's header against before decoding it.
+std::uint64_t maxDepthImagePixels(Context& context);
 
 }  // namespace octovk

@@ -1,13 +1,18 @@
 // octovk convert: a depth-image sequence in the TUM RGB-D layout as an OctoMap scan graph, and the
 // TUM folder handling integrate shares (options, checks, help).
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cfloat>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <limits>
+#include <new>
 #include <sstream>
 
 #include "command.hpp"
@@ -159,18 +164,55 @@ class Convert final : public Command {
   CameraIntrinsics camera_;
 };
 
+// Host bytes converting an image of `pixels` pixels takes at its peak: the decoded image (2 a
+// pixel), its points (12) and OctoMap's copy of them that writes the scan (12).
+constexpr std::uint64_t kConvertBytesPerPixel = 2 + 12 + 12;
+
+// The most host memory this process can have: the machine's, or less under `ulimit -v`.
+std::uint64_t hostMemoryLimit() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+  std::uint64_t limit = pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page)
+                                              : std::numeric_limits<std::uint64_t>::max();
+  rlimit as{};
+  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
+    limit = std::min<std::uint64_t>(limit, as.rlim_cur);
+  return limit;
+}
+
+std::string mib(std::uint64_t bytes) { return std::to_string(bytes >> 20) + " MiB"; }
+
 int Convert::run(Invocation& in) {
   const TumSequence sequence = readTumSequence(in.input());
-  for (const TumFrame& frame : sequence.frames) checkDepthPng(frame.image_path);
+  // Every image's header before any work: one that cannot be converted in the host's memory is
+  // refused by its size, not after its pixels were decoded.
+  const std::uint64_t limit = hostMemoryLimit();
+  for (const TumFrame& frame : sequence.frames) {
+    const DepthPngSize size = checkDepthPng(frame.image_path);
+    const std::uint64_t needed = std::uint64_t{size.width} * size.height * kConvertBytesPerPixel;
+    if (needed > limit)
+      throw Error(ErrorCode::kOutOfHostMemory,
+                  "depth image '" + frame.image_path + "' is " + std::to_string(size.width) +
+                      " x " + std::to_string(size.height) + " pixels: converting it takes " +
+                      mib(needed) + " of host memory, more than the " + mib(limit) +
+                      " this process may have (the machine's memory or ulimit -v); scale the "
+                      "image down or crop it");
+  }
   std::size_t points = 0, no_depth = 0;
   in.files().write(0, [&](const std::string& tmp) {
     StderrSilencer silenced;  // OctoMap's Pointcloud::writeBinary reports every scan there
     writeScanGraph(tmp, sequence.frames.size(), [&](std::size_t i) {
       const TumFrame& frame = sequence.frames[i];
-      const DepthPng png = readDepthPng(frame.image_path);
       GraphScan scan;
       std::size_t skipped = 0;
-      scan.points_sensor = unprojectDepthImage(png.image(camera_), &skipped);
+      try {
+        const DepthPng png = readDepthPng(frame.image_path);
+        scan.points_sensor = unprojectDepthImage(png.image(camera_), &skipped);
+      } catch (const std::bad_alloc&) {
+        throw Error(ErrorCode::kOutOfHostMemory,
+                    "depth image '" + frame.image_path +
+                        "': the host ran out of memory converting it; free some, or scale the "
+                        "image down");
+      }
       scan.T_world_sensor = frame.T_world_camera;
       points += scan.points_sensor.size();
       no_depth += skipped;

@@ -312,10 +312,22 @@ int Integrate::run(Invocation& in) {
   const auto run_start = Clock::now();
   std::vector<GraphScan> scans;
   std::optional<TumSequence> tum;
+  std::uint64_t max_pixels = 0;
   if (tum_) {
     tum = readTumSequence(graph_path);
-    // Every image's format before any work, rather than after minutes of it.
-    for (const TumFrame& frame : tum->frames) checkDepthPng(frame.image_path);
+    // Every image's format before any work, rather than after minutes of it; then, with the
+    // device, the largest image's size from its header, before any image is decoded.
+    std::uint64_t largest = 0;
+    const TumFrame* largest_frame = nullptr;
+    for (const TumFrame& frame : tum->frames) {
+      const DepthPngSize size = checkDepthPng(frame.image_path);
+      if (std::uint64_t{size.width} * size.height > largest) {
+        largest = std::uint64_t{size.width} * size.height;
+        largest_frame = &frame;
+      }
+    }
+    max_pixels = maxDepthImagePixels(in.context());
+    if (largest_frame) checkDepthPng(largest_frame->image_path, max_pixels);
   } else {
     scans = readScanGraph(graph_path);
   }
@@ -355,7 +367,7 @@ int Integrate::run(Invocation& in) {
         // As graph2tree on convert's graph: the camera-frame points, cast from the pose's
         // position.
         const TumFrame& frame = tum->frames[at];
-        const DepthPng png = readDepthPng(frame.image_path);
+        const DepthPng png = readDepthPng(frame.image_path, max_pixels);
         ticket = map.submitDepthImage(png.image(camera_), frame.T_world_camera, scan_,
                                       graph2treeSensorOrigin(frame.T_world_camera));
       } else {

@@ -116,7 +116,26 @@ HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree) {
 
 }  // namespace
 
-void writeMapFile(const OccupancyMap& map, const std::string& path) {
+namespace {
+
+// The file `path` removed unless kept: a failed write (an error, a std::bad_alloc) leaves none.
+class TemporaryFile {
+ public:
+  explicit TemporaryFile(std::string path) : path_(std::move(path)) {}
+  ~TemporaryFile() {
+    if (!kept_) std::remove(path_.c_str());
+  }
+  TemporaryFile(const TemporaryFile&) = delete;
+  TemporaryFile& operator=(const TemporaryFile&) = delete;
+  const std::string& path() const { return path_; }
+  void keep() { kept_ = true; }
+
+ private:
+  std::string path_;
+  bool kept_ = false;
+};
+
+void writeTreeFile(const OccupancyMap& map, const std::string& path) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument,
@@ -128,11 +147,13 @@ void writeMapFile(const OccupancyMap& map, const std::string& path) {
   if (!std::filesystem::is_directory(dir))
     throw Error(ErrorCode::kIo,
                 "cannot write '" + path + "': directory '" + dir.string() + "' does not exist");
-  std::unique_ptr<octomap::OcTree> tree = toOcTree(map);
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
+  std::unique_ptr<octomap::OcTree> tree = buildOcTree(map);
+  // Removed on any way out but the rename, from before it is created: opening the stream can
+  // create the file, then fail allocating its buffer.
+  TemporaryFile tmp(path + ".tmp-" + std::to_string(::getpid()));
   bool ok = false;
   {
-    std::ofstream out(tmp, std::ios_base::binary);
+    std::ofstream out(tmp.path(), std::ios_base::binary);
     if (!out.is_open())
       throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
     if (ext == ".bt")
@@ -142,18 +163,13 @@ void writeMapFile(const OccupancyMap& map, const std::string& path) {
     out.close();
     ok = ok && out.good();
   }
-  if (!ok) {
-    std::remove(tmp.c_str());
-    throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::remove(tmp.c_str());
-    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + why);
-  }
+  if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+  if (std::rename(tmp.path().c_str(), path.c_str()) != 0)
+    throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
+  tmp.keep();
 }
 
-OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
+OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +
@@ -167,22 +183,32 @@ OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t 
   std::ifstream in(path, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + std::strerror(errno));
-  // The file once, in one buffer of its size.
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + ec.message());
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
-    throw Error(ErrorCode::kIo,
-                "cannot read '" + path + "': read error (did it change while read?)");
-  // Checked before OctoMap reads it (see tree_file.cpp), then the bytes are gone.
-  const std::unique_ptr<octomap::OcTree> tree = io::parseTreeFile(bytes, ext == ".bt", path);
-  bytes = std::string();
+  // Read as the checks go (see tree_file.cpp): memory follows the bytes that pass them, and a
+  // damaged or sparse file fails at its first fault, whatever size it claims.
+  std::unique_ptr<octomap::OcTree> tree;
+  {
+    io::ByteSource source(in, size, path);
+    tree = io::parseTreeFile(source, ext == ".bt", path);
+  }
   MapParams params;
   params.resolution = tree->getResolution();
   params.max_device_bytes = max_device_bytes;
   OccupancyMap map(context, params);
-  fromOcTree(map, *tree);
+  map.upload(hostTreeOf(map, *tree));
   return map;
+}
+
+}  // namespace
+
+void writeMapFile(const OccupancyMap& map, const std::string& path) {
+  hostMemoryGuard("writeMapFile", [&] { writeTreeFile(map, path); });
+}
+
+OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
+  return hostMemoryGuard("readMapFile",
+                         [&] { return readTreeFile(context, path, max_device_bytes); });
 }
 
 namespace {

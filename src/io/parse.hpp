@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "io/byte_source.hpp"
 #include "octovk/octomap_io.hpp"
 
 namespace octovk::io {
@@ -37,6 +38,12 @@ TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::strin
 std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
                                                const std::string& name);
 
+/// parseTreeFile on bytes read from `source` as the checks go: the header line by line (a line
+/// over 64 KiB is refused), the records one by one, so a file fails at its first fault having
+/// read little more than the bytes before it. The data section is held for OctoMap's reader.
+std::unique_ptr<octomap::OcTree> parseTreeFile(ByteSource& source, bool binary,
+                                               const std::string& name);
+
 /// Checks a message body (OctoMap's writeBinaryData (`binary`) or writeData output, the `data` of
 /// an octomap_msgs/Octomap) with the same record walk as parseTreeFile, without a header: `id`
 /// must be "OcTree" and `resolution` one a map can have; no node count is announced. Throws
@@ -49,5 +56,9 @@ std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binar
 /// against the bytes left before anything is allocated for it; poses must be finite (points may
 /// be NaN: the mapper skips those, as OctoMap does). Throws Error(kFormat) naming `name`.
 std::vector<GraphScan> parseScanGraph(std::string_view bytes, const std::string& name);
+
+/// parseScanGraph on bytes read from `source` as the parse goes (its size() the file's size,
+/// which counts are checked against); memory follows the scans read, never the counts.
+std::vector<GraphScan> parseScanGraph(ByteSource& source, const std::string& name);
 
 }  // namespace octovk::io

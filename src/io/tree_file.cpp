@@ -88,18 +88,30 @@ class ViewBuffer : public std::streambuf {
 
 }  // namespace
 
-TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::string& name) {
-  const Fault bad(name, binary);
+namespace {
+
+// The longest header line read: OctoMap writes lines of a few dozen bytes, and a line without
+// end (a sparse file's zeros after a comment's '#') must not be read whole.
+constexpr std::size_t kMaxHeaderLine = 64 * 1024;
+
+TreeHeader readHeader(ByteSource& source, bool binary, const Fault& bad) {
   const std::string_view magic = binary ? kBinaryHeader : kFullHeader;
-  std::size_t at = 0;
-  // The next line without its '\n'; `at` moves past the '\n' (or to the end).
+  std::uint64_t at = 0;
+  // The next line without its '\n' (at most kMaxHeaderLine + 1 bytes of it); `at` moves past
+  // the '\n' (or to the end). Valid until the next call.
   const auto next_line = [&]() {
-    const std::size_t end = std::min(bytes.find('\n', at), bytes.size());
-    const std::string_view line = bytes.substr(at, end - at);
-    at = std::min(end + 1, bytes.size());
+    std::uint64_t end = at;
+    while (source.has(end + 1) && source.at(end) != '\n' && end - at <= kMaxHeaderLine) ++end;
+    const std::string_view line = source.view(at, end);
+    at = source.has(end + 1) ? end + 1 : end;
     return line;
   };
-  if (bytes.empty()) throw bad("it is empty");
+  const auto too_long = [&](std::string_view line, std::uint64_t line_at) {
+    if (line.size() > kMaxHeaderLine)
+      throw bad("the header line at byte " + std::to_string(line_at) + " ('" + shown(line) +
+                "') is longer than " + std::to_string(kMaxHeaderLine) + " bytes");
+  };
+  if (!source.has(1)) throw bad("it is empty");
   const std::string_view first = next_line();
   if (first.substr(0, magic.size()) != magic) {
     if (binary && first.substr(0, kFullHeader.size()) == kFullHeader)
@@ -110,11 +122,13 @@ TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::strin
                 "'); name it .bt");
     throw bad("its first line is '" + shown(first) + "', not '" + std::string(magic) + "'");
   }
+  too_long(first, 0);
   TreeHeader h;
   bool has_id = false, has_size = false, has_res = false, has_data = false;
-  while (at < bytes.size() && !has_data) {
-    const std::size_t line_at = at;
+  while (source.has(at + 1) && !has_data) {
+    const std::uint64_t line_at = at;
     const std::string_view line = next_line();
+    too_long(line, line_at);
     const std::vector<std::string_view> w = words(line);
     if (w.empty() || w[0].front() == '#') continue;  // blank or comment
     const std::string key(w[0]);
@@ -156,21 +170,30 @@ TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::strin
               "', not a plain OcTree; octovk reads OcTree maps only");
   if (!has_size) throw bad("its header has no 'size' line, so its node data cannot be checked");
   if (!has_res) throw bad("its header has no 'res' line");
-  h.data_at = at;
+  h.data_at = static_cast<std::size_t>(at);
   return h;
+}
+
+}  // namespace
+
+TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::string& name) {
+  ByteSource source(bytes);
+  return readHeader(source, binary, Fault(name, binary));
 }
 
 namespace {
 
 // The node records of a tree (a file's data section, or a message body) walked without
-// recursion, then read by OctoMap. `offset`: where `data` starts in what the caller names (for
-// the messages); `announced`: the node count a file's header gives (a message has none).
-std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary,
+// recursion as `source` gives them, then read by OctoMap. `offset`: where the records start in
+// `source` (offsets in messages count from the start of what the caller names); `announced`:
+// the node count a file's header gives (a message has none).
+std::unique_ptr<octomap::OcTree> readTreeData(ByteSource& source, std::uint64_t offset, bool binary,
                                               double resolution,
                                               std::optional<std::uint64_t> announced,
-                                              std::size_t offset, const Fault& bad) {
+                                              const Fault& bad) {
   auto tree = std::make_unique<octomap::OcTree>(resolution);
-  if (data.empty()) {
+  const std::uint64_t apparent = source.size() > offset ? source.size() - offset : 0;
+  if (!source.has(offset + 1)) {
     // What OctoMap writes for an empty tree: no record (its header says size 0).
     if (announced && *announced != 0)
       throw bad("its header announces " + std::to_string(*announced) +
@@ -178,7 +201,7 @@ std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary
     return tree;
   }
   if (announced && *announced == 0)
-    throw bad("its header announces 0 nodes, but " + std::to_string(data.size()) +
+    throw bad("its header announces 0 nodes, but " + std::to_string(apparent) +
               " bytes of node data follow");
 
   // The walk: a stack of the nodes whose child records are still to come (at most 17).
@@ -188,19 +211,18 @@ std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary
   };
   std::array<Open, kTreeDepth + 1> open{};
   std::size_t top = 0;
-  std::size_t at = 0;
+  std::uint64_t at = offset;
   std::uint64_t nodes = binary ? 1 : 0;  // .bt: records list children; the root has none
-  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(data[i]); };
   const auto where = [&](unsigned depth) {
-    return "the node record at byte " + std::to_string(offset + at) + " (depth " +
-           std::to_string(depth) + ")";
+    return "the node record at byte " + std::to_string(at) + " (depth " + std::to_string(depth) +
+           ")";
   };
   const auto record = [&](unsigned depth) {
     if (binary) {  // 2 bits per child: 00 none, 01 occupied leaf, 10 free leaf, 11 inner node
-      if (data.size() - at < 2) throw bad(where(depth) + " runs past the end of the file");
+      if (!source.has(at + 2)) throw bad(where(depth) + " runs past the end of the file");
       unsigned inner = 0, children = 0;
       for (unsigned i = 0; i < 8; ++i) {
-        const unsigned pair = (byte(at + i / 4) >> (2 * (i % 4))) & 3u;
+        const unsigned pair = (source.at(at + i / 4) >> (2 * (i % 4))) & 3u;
         if (pair != 0) ++children;
         if (pair == 3) inner |= 1u << i;
       }
@@ -212,20 +234,25 @@ std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary
       open[top++] = {depth, inner};
       at += 2;
     } else {  // a float log-odds, then a byte with a bit per child whose record follows
-      if (data.size() - at < sizeof(float) + 1)
+      if (!source.has(at + sizeof(float) + 1))
         throw bad(where(depth) + " runs past the end of the file");
       float log_odds;
-      std::memcpy(&log_odds, data.data() + at, sizeof(float));
+      std::memcpy(&log_odds, source.view(at, at + sizeof(float)).data(), sizeof(float));
       if (!std::isfinite(log_odds))
         throw bad(where(depth) + " has log-odds " + std::to_string(log_odds) +
                   ", not a finite number");
-      const unsigned mask = byte(at + sizeof(float));
+      const unsigned mask = source.at(at + sizeof(float));
       if (mask != 0 && depth >= kTreeDepth)
         throw bad(where(depth) + " has children, deeper than a tree's 16 levels");
       ++nodes;
       open[top++] = {depth, mask};
       at += sizeof(float) + 1;
     }
+    // More nodes than announced: refused now rather than after the rest of the file.
+    if (announced && nodes > *announced)
+      throw bad("its header announces " + std::to_string(*announced) +
+                " nodes, the data holds more (" + std::to_string(nodes) + " by byte " +
+                std::to_string(at) + ")");
   };
   record(0);
   while (top > 0) {
@@ -237,15 +264,15 @@ std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary
     last.children &= last.children - 1;  // the lowest child's record is next
     record(last.depth + 1);
   }
-  if (at != data.size())
-    throw bad(std::to_string(data.size() - at) +
-              " bytes follow the tree's last node record (at byte " + std::to_string(offset + at) +
-              ")");
+  if (source.has(at + 1))
+    throw bad(std::to_string(source.size() > at ? source.size() - at : 1) +
+              " bytes follow the tree's last node record (at byte " + std::to_string(at) + ")");
   if (announced && nodes != *announced)
     throw bad("its header announces " + std::to_string(*announced) + " nodes, the data holds " +
               std::to_string(nodes));
 
   // A whole tree OctoMap can read: now OctoMap reads it.
+  const std::string_view data = source.view(offset, at);
   ViewBuffer buffer(data);
   std::istream in(&buffer);
   if (binary)
@@ -263,9 +290,16 @@ std::unique_ptr<octomap::OcTree> readTreeData(std::string_view data, bool binary
 
 std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
                                                const std::string& name) {
+  ByteSource source(bytes);
+  return parseTreeFile(source, binary, name);
+}
+
+std::unique_ptr<octomap::OcTree> parseTreeFile(ByteSource& source, bool binary,
+                                               const std::string& name) {
   const Fault bad(name, binary);
-  const TreeHeader h = parseTreeHeader(bytes, binary, name);
-  return readTreeData(bytes.substr(h.data_at), binary, h.resolution, h.size, h.data_at, bad);
+  const TreeHeader h = readHeader(source, binary, bad);
+  source.release(h.data_at);  // the header's bytes: OctoMap's reader sees the data section only
+  return readTreeData(source, h.data_at, binary, h.resolution, h.size, bad);
 }
 
 std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binary,
@@ -281,7 +315,8 @@ std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binar
     throw bad("its resolution " + std::to_string(resolution) +
               " is not a positive number of metres");
   if (const std::string why = params.validate(); !why.empty()) throw bad("its " + why);
-  return readTreeData(body, binary, resolution, std::nullopt, 0, bad);
+  ByteSource source(body);
+  return readTreeData(source, 0, binary, resolution, std::nullopt, bad);
 }
 
 }  // namespace octovk::io

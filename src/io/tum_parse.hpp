@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "io/byte_source.hpp"
 #include "octovk/tum_sequence.hpp"
 
 namespace octovk::io {
@@ -28,10 +29,13 @@ struct GroundTruthPose {
 };
 
 /// Parses the contents of groundtruth.txt (`timestamp tx ty tz qx qy qz qw` per line; '#' comment
-/// lines and blank lines skipped, a trailing '\r' ignored), in the file's order. Throws
+/// lines and blank lines skipped, a trailing '\r' ignored, a line over 64 KiB refused), in the
+/// file's order. Throws
 /// Error(kFormat) naming `name` and the line for a malformed line or a non-unit quaternion, or
 /// when no pose is listed.
 std::vector<GroundTruthPose> parseGroundTruth(std::string_view text, const std::string& name);
+/// parseGroundTruth on a file read line by line as it is parsed (readTumSequence).
+std::vector<GroundTruthPose> parseGroundTruth(ByteSource& source, const std::string& name);
 
 /// Parses the contents of depth.txt (`timestamp filename` per line) and gives each image the
 /// nearest of `poses` as readTumSequence does, with its checks and errors (kFormat, naming
@@ -39,6 +43,10 @@ std::vector<GroundTruthPose> parseGroundTruth(std::string_view text, const std::
 /// pose, in depth.txt's order, before the next line is parsed (readTumSequence checks there that
 /// the image file exists). Empty `poses` are refused as groundtruth.txt listing none.
 TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPose> poses,
+                               const TumListNames& names, double max_time_difference_s,
+                               const std::function<void(const TumFrame&)>& frame_taken = {});
+/// associateDepthList on a file read line by line as it is parsed (readTumSequence).
+TumSequence associateDepthList(ByteSource& source, std::vector<GroundTruthPose> poses,
                                const TumListNames& names, double max_time_difference_s,
                                const std::function<void(const TumFrame&)>& frame_taken = {});
 

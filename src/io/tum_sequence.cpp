@@ -21,7 +21,9 @@
 #include <string_view>
 #include <system_error>
 
+#include "io/byte_source.hpp"
 #include "io/tum_parse.hpp"
+#include "map/host_memory.hpp"
 
 namespace octovk {
 
@@ -37,54 +39,84 @@ struct Line {
   std::string text;
 };
 
-// The data lines of a TUM text file's contents: '#' comment lines and blank lines dropped, fields
-// split on spaces and tabs, a trailing '\r' (a file from Windows) ignored. Lines end at '\n' (the
-// last may lack it), as std::getline reads them.
-std::vector<Line> splitDataLines(std::string_view bytes) {
-  std::vector<Line> lines;
-  std::size_t number = 0;
-  for (std::size_t at = 0; at < bytes.size();) {
-    const std::size_t newline = bytes.find('\n', at);
-    const std::size_t line_end = newline == std::string_view::npos ? bytes.size() : newline;
-    std::string text(bytes.substr(at, line_end - at));
-    at = line_end == bytes.size() ? bytes.size() : line_end + 1;
-    ++number;
-    if (!text.empty() && text.back() == '\r') text.pop_back();
-    const std::size_t first = text.find_first_not_of(" \t");
-    if (first == std::string::npos || text[first] == '#') continue;
-    Line line;
-    line.number = number;
-    for (std::size_t field = first; field < text.size();) {
-      const std::size_t field_end = std::min(text.find_first_of(" \t", field), text.size());
-      line.fields.push_back(text.substr(field, field_end - field));
-      field = text.find_first_not_of(" \t", field_end);
-      if (field == std::string::npos) break;
-    }
-    line.text = std::move(text);
-    lines.push_back(std::move(line));
-  }
-  return lines;
-}
+// The longest line a list may have: TUM's lines hold a few dozen bytes, and a line without end
+// (a sparse file's zeros) must not be read whole.
+constexpr std::size_t kMaxLineBytes = 64 * 1024;
 
-// The whole of a TUM text file, in one buffer of its size; kIo errors name it.
-std::string readTextFile(const fs::path& path) {
+// The data lines of a TUM text file, one at a time as `source` gives them: '#' comment lines and
+// blank lines dropped, fields split on spaces and tabs, a trailing '\r' (a file from Windows)
+// ignored. Lines end at '\n' (the last may lack it), as std::getline reads them. Only the line
+// at hand is held: memory follows the lines, never the file's size.
+class DataLines {
+ public:
+  DataLines(io::ByteSource& source, const std::string& path) : source_(source), path_(path) {}
+
+  // The next data line into `line`; false at the end.
+  bool next(Line& line) {
+    while (source_.has(at_ + 1)) {
+      std::uint64_t end = at_;
+      while (source_.has(end + 1) && source_.at(end) != '\n') {
+        if (++end - at_ > kMaxLineBytes)
+          throw Error(ErrorCode::kFormat,
+                      "'" + path_ + "' line " + std::to_string(number_ + 1) + " is longer than " +
+                          std::to_string(kMaxLineBytes) +
+                          " bytes; a TUM list holds short lines 'timestamp ...' (is it a TUM "
+                          "list?)");
+      }
+      std::string text(source_.view(at_, end));
+      at_ = source_.has(end + 1) ? end + 1 : end;
+      source_.release(at_);
+      ++number_;
+      if (!text.empty() && text.back() == '\r') text.pop_back();
+      const std::size_t first = text.find_first_not_of(" \t");
+      if (first == std::string::npos || text[first] == '#') continue;
+      line.number = number_;
+      line.fields.clear();
+      for (std::size_t field = first; field < text.size();) {
+        const std::size_t field_end = std::min(text.find_first_of(" \t", field), text.size());
+        line.fields.push_back(text.substr(field, field_end - field));
+        field = text.find_first_not_of(" \t", field_end);
+        if (field == std::string::npos) break;
+      }
+      line.text = std::move(text);
+      return true;
+    }
+    return false;
+  }
+
+ private:
+  io::ByteSource& source_;
+  const std::string& path_;
+  std::uint64_t at_ = 0;
+  std::size_t number_ = 0;
+};
+
+// A TUM list inside the folder `real_root` (canonical), opened; kIo errors name it. A list that
+// is a symbolic link out of the folder is refused, as an image's name would be.
+std::ifstream openList(const fs::path& path, const fs::path& real_root, std::uintmax_t* size) {
   std::error_code ec;
   if (!fs::exists(path, ec))
     throw Error(ErrorCode::kIo, "'" + path.string() +
                                     "' does not exist; a TUM RGB-D folder holds depth.txt, "
                                     "groundtruth.txt and the depth images");
-  if (!fs::is_regular_file(path, ec))
+  const fs::path real = fs::canonical(path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot resolve '" + path.string() + "': " + ec.message());
+  const fs::path inside = real.lexically_relative(real_root);
+  if (inside.empty() || *inside.begin() == "..")
+    throw Error(ErrorCode::kIo, "'" + path.string() + "' leads through a symbolic link to '" +
+                                    real.string() + "', outside the folder '" + real_root.string() +
+                                    "'; the lists are read from inside the folder only: copy "
+                                    "the file into it");
+  if (!fs::is_regular_file(real, ec))
     throw Error(ErrorCode::kIo, "'" + path.string() + "' is not a regular file");
-  std::ifstream in(path, std::ios_base::binary);
+  // The resolved name: the one checked above is the one read.
+  std::ifstream in(real, std::ios_base::binary);
   if (!in.is_open())
     throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': " + std::strerror(errno) +
                                     "; check its permissions");
-  const std::uintmax_t size = fs::file_size(path, ec);
+  *size = fs::file_size(real, ec);
   if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': " + ec.message());
-  std::string bytes(static_cast<std::size_t>(size), '\0');
-  if (!in.read(bytes.data(), static_cast<std::streamsize>(size)))
-    throw Error(ErrorCode::kIo, "cannot read '" + path.string() + "': read failed");
-  return bytes;
+  return in;
 }
 
 Error badLine(const std::string& path, const Line& line, const std::string& why) {
@@ -214,8 +246,14 @@ const char* colorTypeName(int color_type) {
 namespace io {
 
 std::vector<GroundTruthPose> parseGroundTruth(std::string_view text, const std::string& path) {
+  ByteSource source(text);
+  return parseGroundTruth(source, path);
+}
+
+std::vector<GroundTruthPose> parseGroundTruth(ByteSource& source, const std::string& path) {
   std::vector<GroundTruthPose> poses;
-  for (const Line& line : splitDataLines(text)) {
+  DataLines lines(source, path);
+  for (Line line; lines.next(line);) {
     if (line.fields.size() != 8)
       throw badLine(path, line,
                     "expected 8 values 'timestamp tx ty tz qx qy qz qw', found " +
@@ -249,6 +287,13 @@ std::vector<GroundTruthPose> parseGroundTruth(std::string_view text, const std::
 TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPose> poses,
                                const TumListNames& names, double max_time_difference_s,
                                const std::function<void(const TumFrame&)>& frame_taken) {
+  ByteSource source(text);
+  return associateDepthList(source, std::move(poses), names, max_time_difference_s, frame_taken);
+}
+
+TumSequence associateDepthList(ByteSource& source, std::vector<GroundTruthPose> poses,
+                               const TumListNames& names, double max_time_difference_s,
+                               const std::function<void(const TumFrame&)>& frame_taken) {
   const fs::path root(names.dir);
   const std::string& depth_path = names.depth;
   TumSequence sequence;
@@ -262,13 +307,16 @@ TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPos
     return a.timestamp < b.timestamp;
   });
 
-  const std::vector<Line> lines = splitDataLines(text);
-  for (const Line& line : lines) {
+  double first = 0, last = 0;  // the images' times, for the message when none takes a pose
+  DataLines lines(source, depth_path);
+  for (Line line; lines.next(line);) {
     if (line.fields.size() != 2)
       throw badLine(depth_path, line,
                     "expected 2 fields 'timestamp filename', found " +
                         std::to_string(line.fields.size()));
     const double t = parseField<double>(depth_path, line, 0, "the timestamp");
+    first = sequence.images_listed == 0 ? t : std::min(first, t);
+    last = sequence.images_listed == 0 ? t : std::max(last, t);
     // Images are read from inside the folder only: joined with an absolute name the folder would
     // be dropped, and '..' climbs out of it, either way to any file on the machine. (Symbolic
     // links are resolved and checked where the files are: readTumSequence.)
@@ -311,14 +359,6 @@ TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPos
                     "' lists no images (only comments or blank lines); it needs lines "
                     "'timestamp filename'");
   if (sequence.frames.empty()) {
-    double first = 0, last = 0;
-    bool any = false;
-    for (const Line& line : lines) {
-      const double t = parseField<double>(depth_path, line, 0, "the timestamp");
-      first = any ? std::min(first, t) : t;
-      last = any ? std::max(last, t) : t;
-      any = true;
-    }
     throw Error(ErrorCode::kFormat,
                 "no image of '" + depth_path + "' has a ground-truth pose less than " +
                     seconds(max_time_difference_s) + " s away (images " + seconds(first) + " to " +
@@ -331,7 +371,9 @@ TumSequence associateDepthList(std::string_view text, std::vector<GroundTruthPos
 
 }  // namespace io
 
-TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
+namespace {
+
+TumSequence readSequence(const std::string& dir, double max_time_difference_s) {
   const fs::path root(dir);
   std::error_code ec;
   if (!fs::is_directory(root, ec))
@@ -341,14 +383,20 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
   names.dir = dir;
   names.groundtruth = (root / "groundtruth.txt").string();
   names.depth = (root / "depth.txt").string();
-  std::vector<io::GroundTruthPose> poses =
-      io::parseGroundTruth(readTextFile(names.groundtruth), names.groundtruth);
-  // The folder as the images are resolved against it (it may itself be reached by a link).
+  // The folder as the lists and images are resolved against it (it may itself be reached by a
+  // link).
   const fs::path real_root = fs::canonical(root, ec);
   if (ec) throw Error(ErrorCode::kIo, "cannot resolve the folder '" + dir + "': " + ec.message());
+  // The lists are read as they are parsed: memory follows their lines, not their size.
+  std::uintmax_t size = 0;
+  std::ifstream groundtruth = openList(names.groundtruth, real_root, &size);
+  io::ByteSource groundtruth_bytes(groundtruth, size, names.groundtruth);
+  std::vector<io::GroundTruthPose> poses =
+      io::parseGroundTruth(groundtruth_bytes, names.groundtruth);
+  std::ifstream depth = openList(names.depth, real_root, &size);
+  io::ByteSource depth_bytes(depth, size, names.depth);
   return io::associateDepthList(
-      readTextFile(names.depth), std::move(poses), names, max_time_difference_s,
-      [&](const TumFrame& frame) {
+      depth_bytes, std::move(poses), names, max_time_difference_s, [&](const TumFrame& frame) {
         const std::string where = "'" + names.depth + "' line " + std::to_string(frame.line) +
                                   ": depth image '" + frame.image_path + "'";
         std::error_code exists_ec;
@@ -373,6 +421,13 @@ TumSequence readTumSequence(const std::string& dir, double max_time_difference_s
       });
 }
 
+}  // namespace
+
+TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
+  return hostMemoryGuard("readTumSequence",
+                         [&] { return readSequence(dir, max_time_difference_s); });
+}
+
 DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
   DepthImage out;
   out.width = width;
@@ -390,9 +445,9 @@ DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
 namespace {
 
 // Reads the header of the PNG in `r` (its source set); throws unless it is a 16-bit grayscale PNG
-// whose pixels its bytes can hold.
+// whose pixels its bytes can hold, with at most `max_pixels` pixels (0: no limit).
 void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* width,
-                        png_uint_32* height) {
+                        png_uint_32* height, std::uint64_t max_pixels) {
   unsigned char signature[8];
   if (r.read(signature, 8) != 8 || png_sig_cmp(signature, 0, 8) != 0)
     throw Error(ErrorCode::kFormat, "depth image '" + path +
@@ -431,18 +486,26 @@ void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* widt
                     std::to_string(*width) + " x " + std::to_string(*height) +
                     " pixels, more than its " + std::to_string(r.source_size) +
                     " bytes can hold");
+  // Refused from the header, before its pixels are decoded (a 530 kB PNG can hold 16000 x 16000).
+  const std::uint64_t pixels = std::uint64_t{*width} * *height;
+  if (max_pixels != 0 && pixels > max_pixels)
+    throw Error(ErrorCode::kInvalidArgument,
+                "depth image '" + path + "' is " + std::to_string(*width) + " x " +
+                    std::to_string(*height) + " = " + std::to_string(pixels) +
+                    " pixels; a scan takes at most " + std::to_string(max_pixels) +
+                    " points on this device: scale the image down or crop it");
 }
 
 // Opens the file `path` in `r` and reads its header (see readDepthPngHeader).
-void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width,
-                  png_uint_32* height) {
+void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width, png_uint_32* height,
+                  std::uint64_t max_pixels) {
   r.file = std::fopen(path.c_str(), "rb");
   if (!r.file)
     throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': " + std::strerror(errno));
   std::error_code ec;
   if (fs::is_regular_file(path, ec)) r.source_size = fs::file_size(path, ec);
   if (ec) r.source_size = 0;
-  readDepthPngHeader(r, path, width, height);
+  readDepthPngHeader(r, path, width, height, max_pixels);
 }
 
 // Reads the pixels of the PNG in `r`, whose header has been read.
@@ -464,17 +527,22 @@ DepthPng readDepthPngPixels(PngReader& r, const std::string& path, png_uint_32 w
 
 }  // namespace
 
-void checkDepthPng(const std::string& path) {
-  PngReader r;
-  png_uint_32 width = 0, height = 0;
-  openDepthPng(r, path, &width, &height);
+DepthPngSize checkDepthPng(const std::string& path, std::uint64_t max_pixels) {
+  return hostMemoryGuard("checkDepthPng", [&] {
+    PngReader r;
+    png_uint_32 width = 0, height = 0;
+    openDepthPng(r, path, &width, &height, max_pixels);
+    return DepthPngSize{width, height};
+  });
 }
 
-DepthPng readDepthPng(const std::string& path) {
-  PngReader r;
-  png_uint_32 width = 0, height = 0;
-  openDepthPng(r, path, &width, &height);
-  return readDepthPngPixels(r, path, width, height);
+DepthPng readDepthPng(const std::string& path, std::uint64_t max_pixels) {
+  return hostMemoryGuard("readDepthPng", [&] {
+    PngReader r;
+    png_uint_32 width = 0, height = 0;
+    openDepthPng(r, path, &width, &height, max_pixels);
+    return readDepthPngPixels(r, path, width, height);
+  });
 }
 
 DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
@@ -482,7 +550,7 @@ DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
   r.memory = bytes;
   r.source_size = bytes.size();
   png_uint_32 width = 0, height = 0;
-  readDepthPngHeader(r, name, &width, &height);
+  readDepthPngHeader(r, name, &width, &height, 0);
   return readDepthPngPixels(r, name, width, height);
 }
 
