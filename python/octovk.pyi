@@ -11,7 +11,7 @@ import numpy.typing as npt
 ArrayLike = Any
 Vector3 = Union[Sequence[float], ArrayLike]
 PoseLike = Union[None, "Pose", ArrayLike, Tuple[Vector3, Sequence[float]]]
-PathLike = Union[str, os.PathLike]
+PathLike = Union[str, bytes, os.PathLike]
 FloatArray = npt.NDArray[np.float32]
 ByteArray = npt.NDArray[np.uint8]
 

@@ -307,6 +307,20 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
                             std::to_string(type) +
                             "); octovk reads host memory only: pass tensor.cpu()");
   }
+  // DLPack has no sign or conjugate flag: torch exports a lazily negated view's memory as it is,
+  // un-negated, so such a tensor would be read as other numbers than it holds.
+  struct LazyView {
+    const char* bit;
+    const char* what;
+    const char* fix;
+  };
+  for (const LazyView& lazy : {LazyView{"is_neg", "negated", "resolve_neg"},
+                               LazyView{"is_conj", "conjugated", "resolve_conj"}})
+    if (py::hasattr(obj, lazy.bit) && py::bool_(obj.attr(lazy.bit)()))
+      throw py::value_error(std::string(arg) + ": the tensor is a lazily " + lazy.what +
+                            " view (tensor." + lazy.bit + "() is True), whose memory holds " +
+                            "other numbers than it shows; pass tensor." + lazy.fix +
+                            "() (octovk never copies an input silently)");
   capsule_ = obj.attr("__dlpack__")();
   auto* managed = static_cast<DLManagedTensor*>(PyCapsule_GetPointer(capsule_.ptr(), "dltensor"));
   if (!managed) throw py::error_already_set();

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "checked.hpp"
 #include "octovk/params.hpp"
 
 namespace octovk::python {
@@ -30,7 +31,8 @@ class ArrayView {
   /// Views `obj` as a C-contiguous array of `dtype` (one of `dtypes`) with `shape` (-1: any
   /// extent), through the buffer protocol or else `__dlpack__`. `arg` names the argument in
   /// errors: TypeError for a wrong dtype or an object that is no array, ValueError for a wrong
-  /// shape, strides, alignment, device or a read-only array where `writable`.
+  /// shape, strides, alignment, device, a torch view with its negative or conjugate bit set (read
+  /// through DLPack, it would give other numbers) or a read-only array where `writable`.
   ArrayView(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
             std::initializer_list<std::ptrdiff_t> shape, bool writable = false);
   ~ArrayView();

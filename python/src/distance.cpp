@@ -35,6 +35,14 @@ class Field {
   std::optional<DistanceField> field_;
 };
 
+}  // namespace
+}  // namespace octovk::python
+
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Field)
+
+namespace octovk::python {
+namespace {
+
 // The samples as (distance (N,), obstacle (N, 3), gradient (N, 3), squared_cells (N,)).
 py::tuple sampleArrays(const std::vector<DistanceSample>& samples) {
   const std::size_t n = samples.size();

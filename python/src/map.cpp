@@ -183,7 +183,7 @@ void bindMap(py::module_& m) {
   map.def_static(
       "read",
       [](py::handle path, py::object context, std::size_t max_device_bytes) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         context = orDefault(std::move(context));
         Context& ctx = contextOf(context);
         std::optional<OccupancyMap> made;
@@ -202,7 +202,7 @@ void bindMap(py::module_& m) {
   map.def(
       "write",
       [](Map& self, py::handle path) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         self.run([&](OccupancyMap& map) { writeMapFile(map, file); });
       },
       py::arg("path"),

@@ -25,8 +25,14 @@ py::array_t<float> vectorArray(const Eigen::Vector3f& v) {
 
 }  // namespace
 
-std::string pathString(py::handle path) {
-  return py::str(py::module_::import("os").attr("fspath")(path));
+std::string pathString(py::handle path, const char* arg) {
+  const py::bytes encoded = py::module_::import("os").attr("fsencode")(path);
+  std::string file = encoded;
+  if (file.find('\0') != std::string::npos)
+    throw py::value_error(std::string(arg) + ": " + std::string(py::repr(path)) +
+                          " holds a NUL byte ('\\x00'), which no file name can hold: the file "
+                          "would be the part before it (remove the NUL; open() refuses it too)");
+  return file;
 }
 
 py::object defaultContext() {
@@ -198,7 +204,7 @@ void bindFiles(py::module_& m) {
   m.def(
       "read_scan_graph",
       [](py::handle path) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         std::vector<GraphScan> scans;
         {
           py::gil_scoped_release release;
@@ -224,7 +230,7 @@ void bindFiles(py::module_& m) {
   m.def(
       "read_tum_sequence",
       [](py::handle dir, double max_time_difference) {
-        const std::string folder = pathString(dir);
+        const std::string folder = pathString(dir, "dir");
         TumSequence sequence;
         {
           py::gil_scoped_release release;
@@ -243,7 +249,7 @@ void bindFiles(py::module_& m) {
   m.def(
       "read_depth_png",
       [](py::handle path) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         DepthPng png;
         {
           py::gil_scoped_release release;

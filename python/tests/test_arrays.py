@@ -118,6 +118,40 @@ def test_misaligned_and_foreign_device_arrays_are_refused(scanned):
         m.cast_rays((0, 0, 0), cuda)
 
 
+def test_lazily_negated_tensors_are_refused_not_read_unnegated(scanned):
+    # DLPack carries no sign bit: torch exports a negated view's memory, which holds -x.
+    m, points = scanned
+    negated = torch.from_numpy(-points)._neg_view()
+    assert negated.is_neg() and torch.equal(negated, torch.from_numpy(points))
+    nodes = m.node_count()
+    for call in (lambda p: m.insert_point_cloud(p, (0, 0, 0)),
+                 lambda p: m.submit_point_cloud(p, (0, 0, 0)), m.search,
+                 lambda p: m.cast_rays(p, p)):
+        with pytest.raises(ValueError, match=r"points|origins|directions") as raised:
+            call(negated)
+        assert "negated" in str(raised.value) and "resolve_neg()" in str(raised.value)
+    m.flush()
+    assert m.node_count() == nodes
+    # The public way to such a view: the imaginary part of a conjugated complex tensor.
+    imag = torch.zeros((4, 6), dtype=torch.complex64).conj().imag
+    assert imag.is_neg()
+    with pytest.raises(ValueError, match="resolve_neg"):
+        m.search(imag)
+    with pytest.raises(ValueError, match=r"depth: .*negated.*resolve_neg"):
+        m.insert_depth_image(torch.ones((4, 4))._neg_view(), 1, 1, 1, 1, 1)
+    n = len(points)
+    outs = (torch.empty(n, dtype=torch.uint8), torch.empty(n)._neg_view(),
+            torch.empty(n, dtype=torch.uint8))
+    with pytest.raises(ValueError, match=r"out\[1\] \(log_odds\): .*resolve_neg"):
+        m.search(points, out=outs)
+    # Resolved, the tensor reads as it shows: the same answers as the numpy points.
+    for got, want in zip(m.search(negated.resolve_neg()), m.search(points)):
+        np.testing.assert_array_equal(got, want)
+    # A conjugated view is refused the same way, before its complex type is.
+    with pytest.raises(ValueError, match="resolve_conj"):
+        m.search(torch.zeros((4, 3), dtype=torch.complex64).conj())
+
+
 def test_wrong_depth_images_are_refused(context):
     m = octovk.Map(0.1)
     with pytest.raises(TypeError, match=r"depth: expected a C-contiguous float32 or uint16 array"
