@@ -1,6 +1,7 @@
 """octovk: an OctoMap-compatible occupancy octree on a Vulkan device (type stub; the module is
 python/src/*.cpp, and python/tests/test_api.py checks that this stub names what it binds)."""
 
+import enum
 import os
 from typing import Any, ClassVar, Optional, Sequence, Tuple, Union
 
@@ -14,6 +15,8 @@ PoseLike = Union[None, "Pose", ArrayLike, Tuple[Vector3, Sequence[float]]]
 PathLike = Union[str, bytes, os.PathLike]
 FloatArray = npt.NDArray[np.float32]
 ByteArray = npt.NDArray[np.uint8]
+
+__version__: str  # the CMake project's version
 
 class ErrorCode:
     """A pybind11 enum (int(code) gives its value)."""
@@ -47,16 +50,11 @@ class FormatError(Error): ...
 class OutOfHostMemoryError(Error, MemoryError): ...
 class InternalError(Error): ...
 
-class CellState:
-    """Map.search() returns these values as uint8."""
-    UNKNOWN: ClassVar[CellState]  # 0
-    FREE: ClassVar[CellState]  # 1
-    OCCUPIED: ClassVar[CellState]  # 2
-    @property
-    def name(self) -> str: ...
-    @property
-    def value(self) -> int: ...
-    def __int__(self) -> int: ...
+class CellState(enum.IntEnum):
+    """Map.search() returns these values as uint8: `state == CellState.FREE` compares them."""
+    UNKNOWN = 0
+    FREE = 1
+    OCCUPIED = 2
 
 class CastRayBackend:
     """How castRay is answered on the device."""

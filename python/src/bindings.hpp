@@ -11,7 +11,7 @@ namespace py = pybind11;
 
 /// Context, DeviceInfo, devices(), default_context(), validation_message_count().
 void bindContext(py::module_& m);
-/// Pose, CellState, CastRayBackend, ScanRays, ScanStats, StageTimes.
+/// Pose, CellState (an IntEnum), CastRayBackend, ScanRays, ScanStats, StageTimes.
 void bindTypes(py::module_& m);
 /// Map: scans, streaming, queries, files, memory.
 void bindMap(py::module_& m);

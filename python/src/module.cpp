@@ -101,12 +101,19 @@ void bindContext(py::module_& m) {
 }
 
 void bindTypes(py::module_& m) {
-  py::enum_<CellState>(m, "CellState",
-                       "State of a cell as OctoMap's search() and isNodeOccupied() see it; "
-                       "Map.search() returns these values as uint8.")
-      .value("UNKNOWN", CellState::kUnknown)
-      .value("FREE", CellState::kFree)
-      .value("OCCUPIED", CellState::kOccupied);
+  // An IntEnum, not a pybind11 enum: search() returns states as uint8 arrays, which
+  // `state == CellState.FREE` must compare as numbers (a pybind11 enum is no number to numpy).
+  py::list states;
+  for (const auto& [name, s] : {std::pair{"UNKNOWN", CellState::kUnknown},
+                                {"FREE", CellState::kFree},
+                                {"OCCUPIED", CellState::kOccupied}})
+    states.append(py::make_tuple(name, static_cast<int>(s)));
+  py::object cell_state = py::module_::import("enum").attr("IntEnum")(
+      "CellState", states, py::arg("module") = m.attr("__name__"));
+  cell_state.attr("__doc__") =
+      "State of a cell as OctoMap's search() and isNodeOccupied() see it (an IntEnum): "
+      "Map.search() returns these values as uint8, so `state == CellState.FREE` compares them.";
+  m.attr("CellState") = cell_state;
   py::enum_<CastRayBackend>(m, "CastRayBackend", "How castRay is answered on the device.")
       .value("AUTO", CastRayBackend::kAuto, "ray tracing where available, else the walk")
       .value("WALK", CastRayBackend::kWalk, "a compute shader steps through every cell")
@@ -282,6 +289,7 @@ PYBIND11_MODULE(octovk, m) {
       "Inputs are read in place (numpy arrays, torch CPU tensors: the buffer protocol or "
       "__dlpack__); outputs are numpy arrays (buffer protocol and __dlpack__). Errors of the "
       "library are octovk.Error subclasses.";
+  m.attr("__version__") = OCTOVK_VERSION;
   m.attr("_default_context") = py::none();
   bindErrors(m);
   bindContext(m);
