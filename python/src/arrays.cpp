@@ -179,9 +179,31 @@ std::string describeObject(py::handle obj) {
   return text;
 }
 
-// Checks element type, shape and C order; throws TypeError / ValueError naming `arg`.
-DType checkLayout(const char* arg, const Element& element, std::initializer_list<DType> dtypes,
-                  const std::vector<std::size_t>& shape, const std::vector<std::ptrdiff_t>& strides,
+// Whether `obj` is a torch tensor (or a subclass, such as torch.nn.Parameter): its fixes are
+// spelt in torch's words.
+bool isTorch(py::handle obj) {
+  const std::string module = py::str(py::type::handle_of(obj).attr("__module__"));
+  return module == "torch" || module.rfind("torch.", 0) == 0;
+}
+
+// The conversion to `t` in the caller's library.
+std::string conversion(DType t, bool torch) {
+  if (!torch) return std::string(".astype(np.") + dtypeName(t) + ")";
+  switch (t) {
+    case DType::kFloat32:
+      return "tensor.float()";
+    case DType::kUint8:
+      return "tensor.byte()";
+    default:  // torch 1.13 has no uint16: through numpy
+      return "tensor.numpy().astype(np.uint16)";
+  }
+}
+
+// Checks element type, shape and C order; throws TypeError / ValueError naming `arg`, with the
+// fix in torch's words where `obj` is a torch tensor.
+DType checkLayout(py::handle obj, const char* arg, const Element& element,
+                  std::initializer_list<DType> dtypes, const std::vector<std::size_t>& shape,
+                  const std::vector<std::ptrdiff_t>& strides,
                   std::initializer_list<std::ptrdiff_t> expected_shape, const void* data) {
   const std::string expected = expectedText(dtypes, expected_shape);
   DType found = *dtypes.begin();
@@ -193,10 +215,10 @@ DType checkLayout(const char* arg, const Element& element, std::initializer_list
       break;
     }
   if (!ok)
-    throw py::type_error(std::string(arg) + ": expected " + expected + ", got a " +
-                         elementName(element) + " array of shape " + shapeText(shape) +
-                         " (convert it explicitly, e.g. with .astype(np." +
-                         dtypeName(*dtypes.begin()) + "): octovk never copies an input silently)");
+    throw py::type_error(
+        std::string(arg) + ": expected " + expected + ", got a " + elementName(element) +
+        " array of shape " + shapeText(shape) + " (convert it explicitly, e.g. with " +
+        conversion(*dtypes.begin(), isTorch(obj)) + ": octovk never copies an input silently)");
   bool shape_ok = shape.size() == expected_shape.size();
   std::size_t i = 0;
   for (std::ptrdiff_t extent : expected_shape) {
@@ -217,8 +239,10 @@ DType checkLayout(const char* arg, const Element& element, std::initializer_list
       s << arg << ": expected " << expected << ", got strides (";
       for (std::size_t k = 0; k < strides.size(); ++k) s << (k ? ", " : "") << strides[k];
       s << (strides.size() == 1 ? ",)" : ")") << " bytes for shape " << shapeText(shape)
-        << ", which is not C-contiguous (pass np.ascontiguousarray(" << arg
-        << ") or tensor.contiguous())";
+        << ", which is not C-contiguous (pass "
+        << (isTorch(obj) ? std::string("tensor.contiguous()")
+                         : "np.ascontiguousarray(" + std::string(arg) + ")")
+        << ")";
       throw py::value_error(s.str());
     }
     want *= static_cast<std::ptrdiff_t>(shape[d]);
@@ -289,7 +313,7 @@ void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_lis
     shape_.push_back(static_cast<std::size_t>(buffer_.shape[d]));
     strides.push_back(buffer_.strides[d]);
   }
-  dtype_ = checkLayout(arg, element, dtypes, shape_, strides, shape, buffer_.buf);
+  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, buffer_.buf);
   if (writable && buffer_.readonly)
     throw py::value_error(std::string(arg) + ": the array is read-only; pass a writable array");
   data_ = buffer_.buf;
@@ -342,7 +366,7 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
     compact *= static_cast<std::ptrdiff_t>(t.shape[d]);
   }
   void* data = static_cast<char*>(t.data) + t.byte_offset;
-  dtype_ = checkLayout(arg, element, dtypes, shape_, strides, shape, data);
+  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, data);
   data_ = data;
 }
 

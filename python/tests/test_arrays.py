@@ -105,6 +105,23 @@ def test_wrong_points_are_refused_naming_the_argument(scanned, bad, error, words
     assert m.node_count() == nodes
 
 
+def test_fixes_are_spelt_in_the_callers_library(scanned):
+    m, points = scanned
+    param = torch.nn.Parameter(torch.zeros((4, 3), dtype=torch.float64), requires_grad=False)
+    for bad, fix, foreign in [
+            (torch.zeros((4, 3), dtype=torch.float64), "tensor.float()", "astype"),
+            (param, "tensor.float()", "astype"),
+            (torch.zeros((3, 4)).t(), "(pass tensor.contiguous())", "ascontiguousarray"),
+            (np.zeros((4, 3)), "with .astype(np.float32)", "tensor"),
+            (np.zeros((3, 4), np.float32).T, "(pass np.ascontiguousarray(points))", "tensor")]:
+        with pytest.raises((TypeError, ValueError)) as raised:
+            m.search(bad)
+        assert fix in str(raised.value) and foreign not in str(raised.value), str(raised.value)
+    n = len(points)
+    with pytest.raises(TypeError, match=r"out\[0\] \(state\): .*tensor\.byte\(\)"):
+        m.search(points, out=(torch.empty(n), torch.empty(n), torch.empty(n, dtype=torch.uint8)))
+
+
 def test_misaligned_and_foreign_device_arrays_are_refused(scanned):
     m, _ = scanned
     raw = np.zeros(4 * 3 * 4 + 1, np.uint8)
