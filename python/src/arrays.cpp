@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 
 namespace octovk::python {
@@ -200,11 +201,13 @@ std::string conversion(DType t, bool torch) {
 }
 
 // Checks element type, shape and C order; throws TypeError / ValueError naming `arg`, with the
-// fix in torch's words where `obj` is a torch tensor.
+// fix in torch's words where `obj` is a torch tensor. Where `copy` allows it, strides or an
+// alignment that cannot be read in place set *copied instead of throwing.
 DType checkLayout(py::handle obj, const char* arg, const Element& element,
                   std::initializer_list<DType> dtypes, const std::vector<std::size_t>& shape,
                   const std::vector<std::ptrdiff_t>& strides,
-                  std::initializer_list<std::ptrdiff_t> expected_shape, const void* data) {
+                  std::initializer_list<std::ptrdiff_t> expected_shape, const void* data, Copy copy,
+                  bool* copied) {
   const std::string expected = expectedText(dtypes, expected_shape);
   DType found = *dtypes.begin();
   bool ok = false;
@@ -235,6 +238,10 @@ DType checkLayout(py::handle obj, const char* arg, const Element& element,
   std::ptrdiff_t want = item;
   for (std::size_t d = shape.size(); d-- > 0;) {
     if (shape[d] != 1 && strides[d] != want) {
+      if (copy == Copy::kAllowed) {
+        *copied = true;
+        return found;
+      }
       std::ostringstream s;
       s << arg << ": expected " << expected << ", got strides (";
       for (std::size_t k = 0; k < strides.size(); ++k) s << (k ? ", " : "") << strides[k];
@@ -242,15 +249,34 @@ DType checkLayout(py::handle obj, const char* arg, const Element& element,
         << ", which is not C-contiguous (pass "
         << (isTorch(obj) ? std::string("tensor.contiguous()")
                          : "np.ascontiguousarray(" + std::string(arg) + ")")
-        << ")";
+        << (copy == Copy::kRefused ? ", or copy=True)" : ")");
       throw py::value_error(s.str());
     }
     want *= static_cast<std::ptrdiff_t>(shape[d]);
   }
-  if (reinterpret_cast<std::uintptr_t>(data) % static_cast<std::uintptr_t>(item) != 0)
-    throw py::value_error(std::string(arg) + ": the array's data is not aligned to its " +
-                          std::to_string(item) + "-byte elements (copy it into a new array)");
+  if (reinterpret_cast<std::uintptr_t>(data) % static_cast<std::uintptr_t>(item) != 0) {
+    if (copy != Copy::kAllowed)
+      throw py::value_error(std::string(arg) + ": the array's data is not aligned to its " +
+                            std::to_string(item) + "-byte elements (copy it into a new array" +
+                            (copy == Copy::kRefused ? ", or pass copy=True)" : ")"));
+    *copied = true;
+  }
   return found;
+}
+
+// Copies the elements of a strided array into `out`, in C order.
+void gather(const char* data, const std::vector<std::size_t>& shape,
+            const std::vector<std::ptrdiff_t>& strides, std::size_t dim, std::size_t item,
+            std::byte*& out) {
+  for (std::size_t i = 0; i < shape[dim]; ++i) {
+    const char* at = data + static_cast<std::ptrdiff_t>(i) * strides[dim];
+    if (dim + 1 == shape.size()) {
+      std::memcpy(out, at, item);
+      out += item;
+    } else {
+      gather(at, shape, strides, dim + 1, item, out);
+    }
+  }
 }
 
 const char* deviceName(int type) {
@@ -280,11 +306,11 @@ void noteInput(const void* data) noexcept {
 }
 
 ArrayView::ArrayView(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                     std::initializer_list<std::ptrdiff_t> shape, bool writable) {
+                     std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy) {
   if (PyObject_CheckBuffer(obj.ptr())) {
-    fromBuffer(obj, arg, dtypes, shape, writable);
+    fromBuffer(obj, arg, dtypes, shape, writable, copy);
   } else if (py::hasattr(obj, "__dlpack__")) {
-    fromDlpack(obj, arg, dtypes, shape);
+    fromDlpack(obj, arg, dtypes, shape, copy);
   } else {
     throw py::type_error(std::string(arg) + ": expected " + expectedText(dtypes, shape) +
                          " (a numpy array or torch CPU tensor: the buffer protocol or "
@@ -297,6 +323,14 @@ ArrayView::~ArrayView() {
   if (has_buffer_) PyBuffer_Release(&buffer_);
 }
 
+void* ArrayView::copyOf(const void* data, const std::vector<std::ptrdiff_t>& strides) {
+  const std::size_t item = dtypeBytes(dtype_);
+  copied_.resize(size() * item);
+  std::byte* out = copied_.data();
+  gather(static_cast<const char*>(data), shape_, strides, 0, item, out);
+  return copied_.data();
+}
+
 std::size_t ArrayView::size() const noexcept {
   std::size_t n = 1;
   for (std::size_t e : shape_) n *= e;
@@ -304,7 +338,7 @@ std::size_t ArrayView::size() const noexcept {
 }
 
 void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                           std::initializer_list<std::ptrdiff_t> shape, bool writable) {
+                           std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy) {
   if (PyObject_GetBuffer(obj.ptr(), &buffer_, PyBUF_RECORDS_RO) != 0) throw py::error_already_set();
   has_buffer_ = true;
   const Element element = parseFormat(buffer_.format, static_cast<std::size_t>(buffer_.itemsize));
@@ -313,14 +347,16 @@ void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_lis
     shape_.push_back(static_cast<std::size_t>(buffer_.shape[d]));
     strides.push_back(buffer_.strides[d]);
   }
-  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, buffer_.buf);
+  bool copied = false;
+  dtype_ =
+      checkLayout(obj, arg, element, dtypes, shape_, strides, shape, buffer_.buf, copy, &copied);
   if (writable && buffer_.readonly)
     throw py::value_error(std::string(arg) + ": the array is read-only; pass a writable array");
-  data_ = buffer_.buf;
+  data_ = copied ? copyOf(buffer_.buf, strides) : buffer_.buf;
 }
 
 void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                           std::initializer_list<std::ptrdiff_t> shape) {
+                           std::initializer_list<std::ptrdiff_t> shape, Copy copy) {
   // Refused before export: a CUDA tensor would need its memory imported into Vulkan (not built).
   if (py::hasattr(obj, "__dlpack_device__")) {
     const py::tuple device = obj.attr("__dlpack_device__")();
@@ -366,8 +402,9 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
     compact *= static_cast<std::ptrdiff_t>(t.shape[d]);
   }
   void* data = static_cast<char*>(t.data) + t.byte_offset;
-  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, data);
-  data_ = data;
+  bool copied = false;
+  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, data, copy, &copied);
+  data_ = copied ? copyOf(data, strides) : data;
 }
 
 Eigen::Vector3f toVector3(py::handle obj, const char* arg) {
