@@ -6,8 +6,7 @@ namespace octovk::python {
 
 namespace py = pybind11;
 
-void requireInitialised(py::handle src, const std::type_info& type) {
-  py::detail::type_info* info = py::detail::get_type_info(type);
+void requireInitialised(py::handle src, const py::detail::type_info* info) {
   if (!info || !src || !PyObject_TypeCheck(src.ptr(), info->type)) return;
   auto* instance = reinterpret_cast<py::detail::instance*>(src.ptr());
   const py::detail::value_and_holder held =

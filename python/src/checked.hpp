@@ -6,22 +6,20 @@
 
 #include <pybind11/pybind11.h>
 
-#include <typeinfo>
-
 #include "octovk/octovk.hpp"
 
 namespace octovk::python {
 
 /// Raises TypeError when `src` is an instance of the bound class `type` that holds no C++ object
 /// (its __init__ never ran); returns for anything else, which the caster then judges as before.
-void requireInitialised(pybind11::handle src, const std::type_info& type);
+void requireInitialised(pybind11::handle src, const pybind11::detail::type_info* type);
 
 /// pybind11's caster for a bound class T, with requireInitialised() before every load.
 template <class T>
 class CheckedCaster : public pybind11::detail::type_caster_base<T> {
  public:
   bool load(pybind11::handle src, bool convert) {
-    requireInitialised(src, typeid(T));
+    requireInitialised(src, this->typeinfo);  // found once, when the caster was made
     return pybind11::detail::type_caster_base<T>::load(src, convert);
   }
 };
