@@ -1,6 +1,7 @@
 """octovk: an OctoMap-compatible occupancy octree on a Vulkan device (type stub; the module is
 python/src/*.cpp, and python/tests/test_api.py checks that this stub names what it binds)."""
 
+import enum
 import os
 from typing import Any, ClassVar, Optional, Sequence, Tuple, Union
 
@@ -11,9 +12,11 @@ import numpy.typing as npt
 ArrayLike = Any
 Vector3 = Union[Sequence[float], ArrayLike]
 PoseLike = Union[None, "Pose", ArrayLike, Tuple[Vector3, Sequence[float]]]
-PathLike = Union[str, os.PathLike]
+PathLike = Union[str, bytes, os.PathLike]
 FloatArray = npt.NDArray[np.float32]
 ByteArray = npt.NDArray[np.uint8]
+
+__version__: str  # the CMake project's version
 
 class ErrorCode:
     """A pybind11 enum (int(code) gives its value)."""
@@ -47,16 +50,11 @@ class FormatError(Error): ...
 class OutOfHostMemoryError(Error, MemoryError): ...
 class InternalError(Error): ...
 
-class CellState:
-    """Map.search() returns these values as uint8."""
-    UNKNOWN: ClassVar[CellState]  # 0
-    FREE: ClassVar[CellState]  # 1
-    OCCUPIED: ClassVar[CellState]  # 2
-    @property
-    def name(self) -> str: ...
-    @property
-    def value(self) -> int: ...
-    def __int__(self) -> int: ...
+class CellState(enum.IntEnum):
+    """Map.search() returns these values as uint8: `state == CellState.FREE` compares them."""
+    UNKNOWN = 0
+    FREE = 1
+    OCCUPIED = 2
 
 class CastRayBackend:
     """How castRay is answered on the device."""
@@ -168,9 +166,11 @@ class Map:
              max_device_bytes: int = 0) -> Map: ...
     def write(self, path: PathLike) -> None: ...
     def insert_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
-                           max_range: float = -1.0, discretize: bool = False) -> ScanStats: ...
+                           max_range: float = -1.0, discretize: bool = False, *,
+                           copy: bool = False) -> ScanStats: ...
     def submit_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
-                           max_range: float = -1.0, discretize: bool = False) -> int: ...
+                           max_range: float = -1.0, discretize: bool = False, *,
+                           copy: bool = False) -> int: ...
     def insert_depth_image(self, depth: ArrayLike, fx: float, fy: float, cx: float, cy: float,
                            depth_scale: float, pose: PoseLike = None, max_range: float = -1.0,
                            discretize: bool = False) -> ScanStats: ...
@@ -183,12 +183,12 @@ class Map:
     @property
     def scans_in_flight(self) -> int: ...
     def search(self, points: ArrayLike,
-               out: Optional[Tuple[ArrayLike, ArrayLike, ArrayLike]] = None
-               ) -> Tuple[ByteArray, FloatArray, ByteArray]: ...
+               out: Optional[Tuple[ArrayLike, ArrayLike, ArrayLike]] = None, *,
+               copy: bool = False) -> Tuple[ByteArray, FloatArray, ByteArray]: ...
     def cast_rays(self, origins: Union[ArrayLike, Vector3], directions: ArrayLike,
                   max_range: float = -1.0, ignore_unknown: bool = False,
-                  out: Optional[Tuple[ArrayLike, ArrayLike]] = None
-                  ) -> Tuple[ByteArray, FloatArray]: ...
+                  out: Optional[Tuple[ArrayLike, ArrayLike]] = None, *,
+                  copy: bool = False) -> Tuple[ByteArray, FloatArray]: ...
     def leaves_in_box(self, min: Vector3, max: Vector3, occupied_only: bool = False
                       ) -> Tuple[FloatArray, FloatArray, FloatArray]: ...
     def leaves(self) -> Tuple[FloatArray, FloatArray, FloatArray]: ...
@@ -229,9 +229,9 @@ class DistanceField:
     def __init__(self, map: Map, min: Vector3, max: Vector3, *, max_distance: float = 2.0,
                  treat_unknown_as_occupied: bool = False) -> None: ...
     def update(self) -> None: ...
-    def distances(self, points: ArrayLike
+    def distances(self, points: ArrayLike, *, copy: bool = False
                   ) -> Tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.uint32]]: ...
-    def clearances(self, spheres: ArrayLike
+    def clearances(self, spheres: ArrayLike, *, copy: bool = False
                    ) -> Tuple[FloatArray, FloatArray, FloatArray, npt.NDArray[np.uint32]]: ...
     def download(self) -> Tuple[npt.NDArray[np.uint32], npt.NDArray[np.uint32]]: ...
     @property

@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 
 namespace octovk::python {
@@ -179,10 +180,34 @@ std::string describeObject(py::handle obj) {
   return text;
 }
 
-// Checks element type, shape and C order; throws TypeError / ValueError naming `arg`.
-DType checkLayout(const char* arg, const Element& element, std::initializer_list<DType> dtypes,
-                  const std::vector<std::size_t>& shape, const std::vector<std::ptrdiff_t>& strides,
-                  std::initializer_list<std::ptrdiff_t> expected_shape, const void* data) {
+// Whether `obj` is a torch tensor (or a subclass, such as torch.nn.Parameter): its fixes are
+// spelt in torch's words.
+bool isTorch(py::handle obj) {
+  const std::string module = py::str(py::type::handle_of(obj).attr("__module__"));
+  return module == "torch" || module.rfind("torch.", 0) == 0;
+}
+
+// The conversion to `t` in the caller's library.
+std::string conversion(DType t, bool torch) {
+  if (!torch) return std::string(".astype(np.") + dtypeName(t) + ")";
+  switch (t) {
+    case DType::kFloat32:
+      return "tensor.float()";
+    case DType::kUint8:
+      return "tensor.byte()";
+    default:  // torch 1.13 has no uint16: through numpy
+      return "tensor.numpy().astype(np.uint16)";
+  }
+}
+
+// Checks element type, shape and C order; throws TypeError / ValueError naming `arg`, with the
+// fix in torch's words where `obj` is a torch tensor. Where `copy` allows it, strides or an
+// alignment that cannot be read in place set *copied instead of throwing.
+DType checkLayout(py::handle obj, const char* arg, const Element& element,
+                  std::initializer_list<DType> dtypes, const std::vector<std::size_t>& shape,
+                  const std::vector<std::ptrdiff_t>& strides,
+                  std::initializer_list<std::ptrdiff_t> expected_shape, const void* data, Copy copy,
+                  bool* copied) {
   const std::string expected = expectedText(dtypes, expected_shape);
   DType found = *dtypes.begin();
   bool ok = false;
@@ -193,10 +218,10 @@ DType checkLayout(const char* arg, const Element& element, std::initializer_list
       break;
     }
   if (!ok)
-    throw py::type_error(std::string(arg) + ": expected " + expected + ", got a " +
-                         elementName(element) + " array of shape " + shapeText(shape) +
-                         " (convert it explicitly, e.g. with .astype(np." +
-                         dtypeName(*dtypes.begin()) + "): octovk never copies an input silently)");
+    throw py::type_error(
+        std::string(arg) + ": expected " + expected + ", got a " + elementName(element) +
+        " array of shape " + shapeText(shape) + " (convert it explicitly, e.g. with " +
+        conversion(*dtypes.begin(), isTorch(obj)) + ": octovk never copies an input silently)");
   bool shape_ok = shape.size() == expected_shape.size();
   std::size_t i = 0;
   for (std::ptrdiff_t extent : expected_shape) {
@@ -213,20 +238,45 @@ DType checkLayout(const char* arg, const Element& element, std::initializer_list
   std::ptrdiff_t want = item;
   for (std::size_t d = shape.size(); d-- > 0;) {
     if (shape[d] != 1 && strides[d] != want) {
+      if (copy == Copy::kAllowed) {
+        *copied = true;
+        return found;
+      }
       std::ostringstream s;
       s << arg << ": expected " << expected << ", got strides (";
       for (std::size_t k = 0; k < strides.size(); ++k) s << (k ? ", " : "") << strides[k];
       s << (strides.size() == 1 ? ",)" : ")") << " bytes for shape " << shapeText(shape)
-        << ", which is not C-contiguous (pass np.ascontiguousarray(" << arg
-        << ") or tensor.contiguous())";
+        << ", which is not C-contiguous (pass "
+        << (isTorch(obj) ? std::string("tensor.contiguous()")
+                         : "np.ascontiguousarray(" + std::string(arg) + ")")
+        << (copy == Copy::kRefused ? ", or copy=True)" : ")");
       throw py::value_error(s.str());
     }
     want *= static_cast<std::ptrdiff_t>(shape[d]);
   }
-  if (reinterpret_cast<std::uintptr_t>(data) % static_cast<std::uintptr_t>(item) != 0)
-    throw py::value_error(std::string(arg) + ": the array's data is not aligned to its " +
-                          std::to_string(item) + "-byte elements (copy it into a new array)");
+  if (reinterpret_cast<std::uintptr_t>(data) % static_cast<std::uintptr_t>(item) != 0) {
+    if (copy != Copy::kAllowed)
+      throw py::value_error(std::string(arg) + ": the array's data is not aligned to its " +
+                            std::to_string(item) + "-byte elements (copy it into a new array" +
+                            (copy == Copy::kRefused ? ", or pass copy=True)" : ")"));
+    *copied = true;
+  }
   return found;
+}
+
+// Copies the elements of a strided array into `out`, in C order.
+void gather(const char* data, const std::vector<std::size_t>& shape,
+            const std::vector<std::ptrdiff_t>& strides, std::size_t dim, std::size_t item,
+            std::byte*& out) {
+  for (std::size_t i = 0; i < shape[dim]; ++i) {
+    const char* at = data + static_cast<std::ptrdiff_t>(i) * strides[dim];
+    if (dim + 1 == shape.size()) {
+      std::memcpy(out, at, item);
+      out += item;
+    } else {
+      gather(at, shape, strides, dim + 1, item, out);
+    }
+  }
 }
 
 const char* deviceName(int type) {
@@ -256,11 +306,11 @@ void noteInput(const void* data) noexcept {
 }
 
 ArrayView::ArrayView(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                     std::initializer_list<std::ptrdiff_t> shape, bool writable) {
+                     std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy) {
   if (PyObject_CheckBuffer(obj.ptr())) {
-    fromBuffer(obj, arg, dtypes, shape, writable);
+    fromBuffer(obj, arg, dtypes, shape, writable, copy);
   } else if (py::hasattr(obj, "__dlpack__")) {
-    fromDlpack(obj, arg, dtypes, shape);
+    fromDlpack(obj, arg, dtypes, shape, copy);
   } else {
     throw py::type_error(std::string(arg) + ": expected " + expectedText(dtypes, shape) +
                          " (a numpy array or torch CPU tensor: the buffer protocol or "
@@ -273,6 +323,14 @@ ArrayView::~ArrayView() {
   if (has_buffer_) PyBuffer_Release(&buffer_);
 }
 
+void* ArrayView::copyOf(const void* data, const std::vector<std::ptrdiff_t>& strides) {
+  const std::size_t item = dtypeBytes(dtype_);
+  copied_.resize(size() * item);
+  std::byte* out = copied_.data();
+  gather(static_cast<const char*>(data), shape_, strides, 0, item, out);
+  return copied_.data();
+}
+
 std::size_t ArrayView::size() const noexcept {
   std::size_t n = 1;
   for (std::size_t e : shape_) n *= e;
@@ -280,7 +338,7 @@ std::size_t ArrayView::size() const noexcept {
 }
 
 void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                           std::initializer_list<std::ptrdiff_t> shape, bool writable) {
+                           std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy) {
   if (PyObject_GetBuffer(obj.ptr(), &buffer_, PyBUF_RECORDS_RO) != 0) throw py::error_already_set();
   has_buffer_ = true;
   const Element element = parseFormat(buffer_.format, static_cast<std::size_t>(buffer_.itemsize));
@@ -289,14 +347,16 @@ void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_lis
     shape_.push_back(static_cast<std::size_t>(buffer_.shape[d]));
     strides.push_back(buffer_.strides[d]);
   }
-  dtype_ = checkLayout(arg, element, dtypes, shape_, strides, shape, buffer_.buf);
+  bool copied = false;
+  dtype_ =
+      checkLayout(obj, arg, element, dtypes, shape_, strides, shape, buffer_.buf, copy, &copied);
   if (writable && buffer_.readonly)
     throw py::value_error(std::string(arg) + ": the array is read-only; pass a writable array");
-  data_ = buffer_.buf;
+  data_ = copied ? copyOf(buffer_.buf, strides) : buffer_.buf;
 }
 
 void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                           std::initializer_list<std::ptrdiff_t> shape) {
+                           std::initializer_list<std::ptrdiff_t> shape, Copy copy) {
   // Refused before export: a CUDA tensor would need its memory imported into Vulkan (not built).
   if (py::hasattr(obj, "__dlpack_device__")) {
     const py::tuple device = obj.attr("__dlpack_device__")();
@@ -307,6 +367,20 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
                             std::to_string(type) +
                             "); octovk reads host memory only: pass tensor.cpu()");
   }
+  // DLPack has no sign or conjugate flag: torch exports a lazily negated view's memory as it is,
+  // un-negated, so such a tensor would be read as other numbers than it holds.
+  struct LazyView {
+    const char* bit;
+    const char* what;
+    const char* fix;
+  };
+  for (const LazyView& lazy : {LazyView{"is_neg", "negated", "resolve_neg"},
+                               LazyView{"is_conj", "conjugated", "resolve_conj"}})
+    if (py::hasattr(obj, lazy.bit) && py::bool_(obj.attr(lazy.bit)()))
+      throw py::value_error(std::string(arg) + ": the tensor is a lazily " + lazy.what +
+                            " view (tensor." + lazy.bit + "() is True), whose memory holds " +
+                            "other numbers than it shows; pass tensor." + lazy.fix +
+                            "() (octovk never copies an input silently)");
   capsule_ = obj.attr("__dlpack__")();
   auto* managed = static_cast<DLManagedTensor*>(PyCapsule_GetPointer(capsule_.ptr(), "dltensor"));
   if (!managed) throw py::error_already_set();
@@ -328,8 +402,9 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
     compact *= static_cast<std::ptrdiff_t>(t.shape[d]);
   }
   void* data = static_cast<char*>(t.data) + t.byte_offset;
-  dtype_ = checkLayout(arg, element, dtypes, shape_, strides, shape, data);
-  data_ = data;
+  bool copied = false;
+  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, data, copy, &copied);
+  data_ = copied ? copyOf(data, strides) : data;
 }
 
 Eigen::Vector3f toVector3(py::handle obj, const char* arg) {

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "checked.hpp"
 #include "octovk/params.hpp"
 
 namespace octovk::python {
@@ -24,15 +25,24 @@ namespace py = pybind11;
 /// Element types the module reads or writes.
 enum class DType { kFloat32, kUint16, kUint8 };
 
+/// Whether an input that cannot be read in place (strides, alignment) is copied: a call with a
+/// `copy` argument offers it, and copies where the caller passed copy=True.
+enum class Copy { kNotOffered, kRefused, kAllowed };
+inline Copy copyArgument(bool copy) { return copy ? Copy::kAllowed : Copy::kRefused; }
+
 /// A caller's array, held (and its memory pinned) while alive. Destroy it with the GIL held.
 class ArrayView {
  public:
   /// Views `obj` as a C-contiguous array of `dtype` (one of `dtypes`) with `shape` (-1: any
   /// extent), through the buffer protocol or else `__dlpack__`. `arg` names the argument in
   /// errors: TypeError for a wrong dtype or an object that is no array, ValueError for a wrong
-  /// shape, strides, alignment, device or a read-only array where `writable`.
+  /// shape, strides, alignment, device, a torch view with its negative or conjugate bit set (read
+  /// through DLPack, it would give other numbers) or a read-only array where `writable`. With
+  /// Copy::kAllowed (an input only), strides or an alignment that cannot be read in place are
+  /// copied.
   ArrayView(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-            std::initializer_list<std::ptrdiff_t> shape, bool writable = false);
+            std::initializer_list<std::ptrdiff_t> shape, bool writable = false,
+            Copy copy = Copy::kNotOffered);
   ~ArrayView();
   ArrayView(const ArrayView&) = delete;
   ArrayView& operator=(const ArrayView&) = delete;
@@ -49,9 +59,11 @@ class ArrayView {
 
  private:
   void fromBuffer(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                  std::initializer_list<std::ptrdiff_t> shape, bool writable);
+                  std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy);
   void fromDlpack(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                  std::initializer_list<std::ptrdiff_t> shape);
+                  std::initializer_list<std::ptrdiff_t> shape, Copy copy);
+  /// Copies the array at `data` with `strides` (bytes) into copied_, in C order.
+  void* copyOf(const void* data, const std::vector<std::ptrdiff_t>& strides);
 
   void* data_ = nullptr;
   DType dtype_ = DType::kFloat32;
@@ -59,6 +71,7 @@ class ArrayView {
   Py_buffer buffer_{};
   bool has_buffer_ = false;
   py::object capsule_;  // the DLPack capsule: its destructor returns the tensor to its producer
+  std::vector<std::byte> copied_;  // the elements in C order, where `copy` asked for them
 };
 
 /// The address of the memory last handed to the library as a scan's points, a depth image's

@@ -3,13 +3,15 @@
 
 #include <pybind11/pybind11.h>
 
+#include "checked.hpp"
+
 namespace octovk::python {
 
 namespace py = pybind11;
 
 /// Context, DeviceInfo, devices(), default_context(), validation_message_count().
 void bindContext(py::module_& m);
-/// Pose, CellState, CastRayBackend, ScanRays, ScanStats, StageTimes.
+/// Pose, CellState (an IntEnum), CastRayBackend, ScanRays, ScanStats, StageTimes.
 void bindTypes(py::module_& m);
 /// Map: scans, streaming, queries, files, memory.
 void bindMap(py::module_& m);
@@ -21,7 +23,8 @@ void bindFiles(py::module_& m);
 /// The process's default Context (octovk.default_context()), created on first use.
 py::object defaultContext();
 
-/// os.fspath(path) as a std::string (str or os.PathLike).
-std::string pathString(py::handle path);
+/// The file system's bytes for `path` (str, bytes or os.PathLike, as open() takes them). ValueError
+/// naming `arg` for a path with a NUL byte, which the C library would cut short there.
+std::string pathString(py::handle path, const char* arg);
 
 }  // namespace octovk::python

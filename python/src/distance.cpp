@@ -35,6 +35,14 @@ class Field {
   std::optional<DistanceField> field_;
 };
 
+}  // namespace
+}  // namespace octovk::python
+
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Field)
+
+namespace octovk::python {
+namespace {
+
 // The samples as (distance (N,), obstacle (N, 3), gradient (N, 3), squared_cells (N,)).
 py::tuple sampleArrays(const std::vector<DistanceSample>& samples) {
   const std::size_t n = samples.size();
@@ -106,27 +114,31 @@ void bindDistance(py::module_& m) {
       "whole box is recomputed on the device.");
   field.def(
       "distances",
-      [](Field& self, py::handle points) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+      [](Field& self, py::handle points, bool copy) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+                            copyArgument(copy));
         noteInput(pts.data());
         return sampleArrays(self.run([&](DistanceField& f) { return f.distances(pts.points()); }));
       },
-      py::arg("points"),
+      py::arg("points"), py::kw_only(), py::arg("copy") = false,
       "The field at each of points (float32 (N, 3)): the answer of the cell holding the point, "
-      "on the device. Returns (distance, obstacle, gradient, squared_cells) (see the class).");
+      "on the device. copy: as in Map.insert_point_cloud. Returns (distance, obstacle, gradient, "
+      "squared_cells) (see the class).");
   field.def(
       "clearances",
-      [](Field& self, py::handle spheres) {
-        const ArrayView s(spheres, "spheres", {DType::kFloat32}, {-1, 4});
+      [](Field& self, py::handle spheres, bool copy) {
+        const ArrayView s(spheres, "spheres", {DType::kFloat32}, {-1, 4}, false,
+                          copyArgument(copy));
         noteInput(s.data());
         const std::span<const Eigen::Vector4f> view(static_cast<const Eigen::Vector4f*>(s.data()),
                                                     s.extent(0));
         return sampleArrays(self.run([&](DistanceField& f) { return f.clearances(view); }));
       },
-      py::arg("spheres"),
+      py::arg("spheres"), py::kw_only(), py::arg("copy") = false,
       "spheres (float32 (N, 4): centre x, y, z and radius, metres): the clearance, the "
       "distance at the centre's cell minus the radius (negative where the sphere reaches an "
-      "obstacle), with the nearest obstacle and gradient. Returns (distance, obstacle, "
+      "obstacle), with the nearest obstacle and gradient. copy: as in Map.insert_point_cloud. "
+      "Returns (distance, obstacle, "
       "gradient, squared_cells).");
   field.def(
       "download",

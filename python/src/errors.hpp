@@ -3,6 +3,8 @@
 
 #include <pybind11/pybind11.h>
 
+#include "checked.hpp"
+
 namespace octovk::python {
 
 /// Defines octovk.ErrorCode, octovk.Error and its subclasses in `m`, and translates each

@@ -1,11 +1,12 @@
 // octovk.Map: the OccupancyMap with its Context, one lock, and the GIL released for device work.
+#include "map.hpp"
+
 #include <pybind11/stl.h>
 
 #include <optional>
 
 #include "arrays.hpp"
 #include "bindings.hpp"
-#include "map.hpp"
 #include "octovk/octomap_io.hpp"
 
 namespace octovk::python {
@@ -98,7 +99,8 @@ constexpr const char* kMapDoc =
     "An OctoMap-compatible occupancy octree held on a Vulkan device (octovk::OccupancyMap).\n\n"
     "Its scans and queries give OctoMap's answers bit for bit (OcTree with lazy_eval=False). "
     "Points are float32 arrays of shape (N, 3) (numpy arrays or torch CPU tensors, "
-    "C-contiguous: read in place, never copied); depth images float32 or uint16 (H, W); "
+    "C-contiguous: read in place, never copied; other strides, such as xyz = P4[:, :3] of "
+    "(N, 4) points, are copied only with copy=True); depth images float32 or uint16 (H, W); "
     "3-vectors any 3 numbers; poses an octovk.Pose, a 4x4 rigid transform or "
     "(translation, quaternion x y z w). Results are numpy arrays (buffer protocol and "
     "__dlpack__: torch.from_dlpack shares their memory).\n\n"
@@ -183,7 +185,7 @@ void bindMap(py::module_& m) {
   map.def_static(
       "read",
       [](py::handle path, py::object context, std::size_t max_device_bytes) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         context = orDefault(std::move(context));
         Context& ctx = contextOf(context);
         std::optional<OccupancyMap> made;
@@ -202,7 +204,7 @@ void bindMap(py::module_& m) {
   map.def(
       "write",
       [](Map& self, py::handle path) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         self.run([&](OccupancyMap& map) { writeMapFile(map, file); });
       },
       py::arg("path"),
@@ -213,8 +215,9 @@ void bindMap(py::module_& m) {
   map.def(
       "insert_point_cloud",
       [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range,
-         bool discretize) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+         bool discretize, bool copy) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+                            copyArgument(copy));
         const Eigen::Vector3f o = toVector3(origin, "origin");
         const bool posed = !pose.is_none();
         const Pose T = toPose(pose, "pose");
@@ -226,17 +229,21 @@ void bindMap(py::module_& m) {
         });
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
-      py::arg("max_range") = -1.0, py::arg("discretize") = false,
+      py::arg("max_range") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("copy") = false,
       "OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=False, discretize): "
       "points float32 (N, 3) and origin in the world frame; with `pose` (T_world_sensor) both "
       "are in the sensor frame and moved to the world on the device. max_range in metres "
-      "(< 0: none). Returns ScanStats. Waits until the scan is in the map.");
+      "(< 0: none). copy: True copies points that cannot be read in place (a strided view "
+      "such as P4[:, :3] of (N, 4) points); False refuses them. Returns ScanStats. Waits "
+      "until the scan is in the map.");
 
   map.def(
       "submit_point_cloud",
       [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range,
-         bool discretize) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+         bool discretize, bool copy) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+                            copyArgument(copy));
         const Eigen::Vector3f o = toVector3(origin, "origin");
         const bool posed = !pose.is_none();
         const Pose T = toPose(pose, "pose");
@@ -250,11 +257,12 @@ void bindMap(py::module_& m) {
         return ticket;
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
-      py::arg("max_range") = -1.0, py::arg("discretize") = false,
-      "insert_point_cloud(points, origin, pose, max_range, discretize) without waiting for the "
-      "device: the points are copied before it "
-      "returns (the array may be reused at once). Returns the scan's ticket (int). Errors the "
-      "device finds are raised by the next flush() or query, naming the scan (Error.scan).");
+      py::arg("max_range") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("copy") = false,
+      "insert_point_cloud(points, origin, pose, max_range, discretize, copy) without waiting for "
+      "the device: the points are copied before it returns (the array may be reused at once). "
+      "Returns the scan's ticket (int). Errors the device finds are raised by the next flush() "
+      "or query, naming the scan (Error.scan).");
 
   map.def(
       "insert_depth_image",
@@ -322,8 +330,9 @@ void bindMap(py::module_& m) {
 
   map.def(
       "search",
-      [](Map& self, py::handle points, py::handle out) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3});
+      [](Map& self, py::handle points, py::handle out, bool copy) {
+        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+                            copyArgument(copy));
         const auto n = static_cast<std::ptrdiff_t>(pts.extent(0));
         const py::tuple outs = outTuple(out, 3,
                                         "(state uint8 (N,), log_odds float32 (N,), "
@@ -349,24 +358,25 @@ void bindMap(py::module_& m) {
         });
         return py::make_tuple(state, log_odds, depth);
       },
-      py::arg("points"), py::arg("out") = py::none(),
+      py::arg("points"), py::arg("out") = py::none(), py::kw_only(), py::arg("copy") = false,
       "OctoMap's search() for each of points (float32 (N, 3)), on the device: the deepest existing "
       "node on the point's path. Returns (state, log_odds, depth): state uint8 (N,) "
       "(CellState: 0 unknown, 1 free, 2 occupied), log_odds float32 (N,) (0 when unknown), "
       "depth uint8 (N,) (16 = finest, 0 when unknown). out: a tuple of three such arrays to "
-      "write into (returned).");
+      "write into (returned). copy: as in insert_point_cloud.");
 
   map.def(
       "cast_rays",
       [](Map& self, py::handle origins, py::handle directions, double max_range,
-         bool ignore_unknown, py::handle out) {
-        const ArrayView dirs(directions, "directions", {DType::kFloat32}, {-1, 3});
+         bool ignore_unknown, py::handle out, bool copy) {
+        const ArrayView dirs(directions, "directions", {DType::kFloat32}, {-1, 3}, false,
+                             copyArgument(copy));
         const auto n = static_cast<std::ptrdiff_t>(dirs.extent(0));
         std::optional<ArrayView> origin_v;
         Eigen::Vector3f one_origin = Eigen::Vector3f::Zero();
         if (isPointArray(origins))
           origin_v.emplace(origins, "origins", std::initializer_list<DType>{DType::kFloat32},
-                           std::initializer_list<std::ptrdiff_t>{n, 3});
+                           std::initializer_list<std::ptrdiff_t>{n, 3}, false, copyArgument(copy));
         else
           one_origin = toVector3(origins, "origins");
         const py::tuple outs = outTuple(out, 2, "(hit uint8 (N,), end float32 (N, 3))");
@@ -397,13 +407,15 @@ void bindMap(py::module_& m) {
         return py::make_tuple(hit, end);
       },
       py::arg("origins"), py::arg("directions"), py::arg("max_range") = -1.0,
-      py::arg("ignore_unknown") = false, py::arg("out") = py::none(),
+      py::arg("ignore_unknown") = false, py::arg("out") = py::none(), py::kw_only(),
+      py::arg("copy") = false,
       "OctoMap's castRay(origin, direction, end, ignore_unknown, max_range) for each ray, on "
       "the device. origins: float32 (N, 3), or 3 numbers for every ray; directions: float32 "
       "(N, 3), need not be normalised; max_range in metres (<= 0: to the map's border); "
       "ignore_unknown: unknown cells count as free. Returns (hit, end): hit uint8 (N,) (1: an "
       "occupied cell was hit), end float32 (N, 3) (the centre of the last cell visited; the "
-      "origin where OctoMap leaves it untouched). out: a tuple of two such arrays.");
+      "origin where OctoMap leaves it untouched). out: a tuple of two such arrays. copy: as in "
+      "insert_point_cloud, for origins and directions.");
 
   map.def(
       "leaves_in_box",

@@ -9,6 +9,7 @@
 #include <mutex>
 #include <thread>
 
+#include "checked.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk::python {
@@ -63,3 +64,5 @@ class Map {
 };
 
 }  // namespace octovk::python
+
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Map)

@@ -25,8 +25,14 @@ py::array_t<float> vectorArray(const Eigen::Vector3f& v) {
 
 }  // namespace
 
-std::string pathString(py::handle path) {
-  return py::str(py::module_::import("os").attr("fspath")(path));
+std::string pathString(py::handle path, const char* arg) {
+  const py::bytes encoded = py::module_::import("os").attr("fsencode")(path);
+  std::string file = encoded;
+  if (file.find('\0') != std::string::npos)
+    throw py::value_error(std::string(arg) + ": " + std::string(py::repr(path)) +
+                          " holds a NUL byte ('\\x00'), which no file name can hold: the file "
+                          "would be the part before it (remove the NUL; open() refuses it too)");
+  return file;
 }
 
 py::object defaultContext() {
@@ -95,12 +101,19 @@ void bindContext(py::module_& m) {
 }
 
 void bindTypes(py::module_& m) {
-  py::enum_<CellState>(m, "CellState",
-                       "State of a cell as OctoMap's search() and isNodeOccupied() see it; "
-                       "Map.search() returns these values as uint8.")
-      .value("UNKNOWN", CellState::kUnknown)
-      .value("FREE", CellState::kFree)
-      .value("OCCUPIED", CellState::kOccupied);
+  // An IntEnum, not a pybind11 enum: search() returns states as uint8 arrays, which
+  // `state == CellState.FREE` must compare as numbers (a pybind11 enum is no number to numpy).
+  py::list states;
+  for (const auto& [name, s] : {std::pair{"UNKNOWN", CellState::kUnknown},
+                                {"FREE", CellState::kFree},
+                                {"OCCUPIED", CellState::kOccupied}})
+    states.append(py::make_tuple(name, static_cast<int>(s)));
+  py::object cell_state = py::module_::import("enum").attr("IntEnum")(
+      "CellState", states, py::arg("module") = m.attr("__name__"));
+  cell_state.attr("__doc__") =
+      "State of a cell as OctoMap's search() and isNodeOccupied() see it (an IntEnum): "
+      "Map.search() returns these values as uint8, so `state == CellState.FREE` compares them.";
+  m.attr("CellState") = cell_state;
   py::enum_<CastRayBackend>(m, "CastRayBackend", "How castRay is answered on the device.")
       .value("AUTO", CastRayBackend::kAuto, "ray tracing where available, else the walk")
       .value("WALK", CastRayBackend::kWalk, "a compute shader steps through every cell")
@@ -198,7 +211,7 @@ void bindFiles(py::module_& m) {
   m.def(
       "read_scan_graph",
       [](py::handle path) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         std::vector<GraphScan> scans;
         {
           py::gil_scoped_release release;
@@ -224,7 +237,7 @@ void bindFiles(py::module_& m) {
   m.def(
       "read_tum_sequence",
       [](py::handle dir, double max_time_difference) {
-        const std::string folder = pathString(dir);
+        const std::string folder = pathString(dir, "dir");
         TumSequence sequence;
         {
           py::gil_scoped_release release;
@@ -243,7 +256,7 @@ void bindFiles(py::module_& m) {
   m.def(
       "read_depth_png",
       [](py::handle path) {
-        const std::string file = pathString(path);
+        const std::string file = pathString(path, "path");
         DepthPng png;
         {
           py::gil_scoped_release release;
@@ -276,6 +289,7 @@ PYBIND11_MODULE(octovk, m) {
       "Inputs are read in place (numpy arrays, torch CPU tensors: the buffer protocol or "
       "__dlpack__); outputs are numpy arrays (buffer protocol and __dlpack__). Errors of the "
       "library are octovk.Error subclasses.";
+  m.attr("__version__") = OCTOVK_VERSION;
   m.attr("_default_context") = py::none();
   bindErrors(m);
   bindContext(m);

@@ -195,6 +195,28 @@ def test_a_late_error_names_its_scan_and_the_map_keeps_the_scans_before(context)
     assert m.search(np.float32([[0.2, 0.2, 0]]))[0][0] == int(octovk.CellState.OCCUPIED)
 
 
+def test_version_is_the_cmake_projects():
+    with open(os.path.join(os.path.dirname(__file__), "..", "..", "CMakeLists.txt")) as f:
+        version = re.search(r"project\(octovk VERSION ([0-9.]+)", f.read()).group(1)
+    assert octovk.__version__ == version
+
+
+def test_cell_states_compare_with_search_results(context):
+    # An IntEnum: numpy and torch compare their uint8 states with it as with a number.
+    import torch
+    m = octovk.Map(0.1)
+    m.insert_point_cloud(np.float32([[1.0, 0, 0]]), (0, 0, 0))
+    state, _, _ = m.search(np.float32([[1.0, 0, 0], [0.5, 0, 0], [-3, 0, 0]]))
+    np.testing.assert_array_equal(state, [2, 1, 0])
+    S = octovk.CellState
+    np.testing.assert_array_equal(state == S.OCCUPIED, [True, False, False])
+    np.testing.assert_array_equal(state == S.FREE, [False, True, False])
+    np.testing.assert_array_equal(state != S.UNKNOWN, [True, True, False])
+    assert (torch.from_dlpack(state) == S.FREE).tolist() == [False, True, False]
+    assert [S(s) for s in state] == [S.OCCUPIED, S.FREE, S.UNKNOWN]
+    assert S.FREE == 1 and S(2).name == "OCCUPIED" and isinstance(S.FREE, int)
+
+
 # ---- lifetime, parameters, memory ----
 
 def test_a_map_keeps_its_context_alive(context):

@@ -105,6 +105,66 @@ def test_wrong_points_are_refused_naming_the_argument(scanned, bad, error, words
     assert m.node_count() == nodes
 
 
+def test_fixes_are_spelt_in_the_callers_library(scanned):
+    m, points = scanned
+    param = torch.nn.Parameter(torch.zeros((4, 3), dtype=torch.float64), requires_grad=False)
+    for bad, fix, foreign in [
+            (torch.zeros((4, 3), dtype=torch.float64), "tensor.float()", "astype"),
+            (param, "tensor.float()", "astype"),
+            (torch.zeros((3, 4)).t(), "(pass tensor.contiguous()", "ascontiguousarray"),
+            (np.zeros((4, 3)), "with .astype(np.float32)", "tensor"),
+            (np.zeros((3, 4), np.float32).T, "(pass np.ascontiguousarray(points)", "tensor")]:
+        with pytest.raises((TypeError, ValueError)) as raised:
+            m.search(bad)
+        assert fix in str(raised.value) and foreign not in str(raised.value), str(raised.value)
+    n = len(points)
+    with pytest.raises(TypeError, match=r"out\[0\] \(state\): .*tensor\.byte\(\)"):
+        m.search(points, out=(torch.empty(n), torch.empty(n), torch.empty(n, dtype=torch.uint8)))
+
+
+def test_strided_points_are_copied_only_when_the_caller_says_copy(scanned, tmp_path):
+    m, points = scanned
+    p4 = np.hstack([points, np.ones((len(points), 1), np.float32)])  # x, y, z, intensity
+    xyz = p4[:, :3]
+    with pytest.raises(ValueError, match=r"strides \(16, 4\).*not C-contiguous.*, or copy=True\)"):
+        m.search(xyz)
+    with pytest.raises(ValueError) as raised:  # no copy offered for an out array
+        m.search(points, out=(np.empty(len(points), np.uint8),
+                              np.empty(2 * len(points), np.float32)[::2],
+                              np.empty(len(points), np.uint8)))
+    assert "(pass np.ascontiguousarray(out[1] (log_odds)))" in str(raised.value)
+    want = m.search(points)
+    for strided in (xyz, torch.from_numpy(p4)[:, :3]):
+        for got, w in zip(m.search(strided, copy=True), want):
+            np.testing.assert_array_equal(got, w)
+        assert octovk._last_input_address() != p4.ctypes.data  # a copy was read
+    np.testing.assert_array_equal(m.search(points[::-1], copy=True)[1], want[1][::-1])
+    raw = np.zeros(points.nbytes + 1, np.uint8)
+    misaligned = raw[1:].view(np.float32).reshape(points.shape)
+    misaligned[:] = points
+    np.testing.assert_array_equal(m.search(misaligned, copy=True)[1], want[1])
+    # Read in place where it can be, and the type is never converted.
+    m.search(points, copy=True)
+    assert octovk._last_input_address() == points.ctypes.data
+    with pytest.raises(TypeError, match="float64"):
+        m.search(p4.astype(np.float64)[:, :3], copy=True)
+    # Every call taking points: the answers of the contiguous points.
+    np.testing.assert_array_equal(m.cast_rays(xyz, xyz, copy=True)[1],
+                                  m.cast_rays(points, points)[1])
+    for name, p, copy in (("a", xyz, True), ("b", points, False)):
+        built = octovk.Map(0.1)
+        built.insert_point_cloud(p, (0, 0, 0), copy=copy)
+        built.submit_point_cloud(p[::2], (0, 0, 0), copy=True)
+        built.flush()
+        built.write(tmp_path / f"{name}.ot")
+    assert (tmp_path / "a.ot").read_bytes() == (tmp_path / "b.ot").read_bytes()
+    field = octovk.DistanceField(m, (-1, -1, -1), (1, 1, 1))
+    np.testing.assert_array_equal(field.distances(xyz, copy=True)[0], field.distances(points)[0])
+    spheres = np.hstack([points, np.full((len(points), 2), 0.1, np.float32)])[:, :4]
+    np.testing.assert_array_equal(field.clearances(spheres, copy=True)[0],
+                                  field.clearances(np.ascontiguousarray(spheres))[0])
+
+
 def test_misaligned_and_foreign_device_arrays_are_refused(scanned):
     m, _ = scanned
     raw = np.zeros(4 * 3 * 4 + 1, np.uint8)
@@ -116,6 +176,40 @@ def test_misaligned_and_foreign_device_arrays_are_refused(scanned):
         m.insert_point_cloud(cuda, (0, 0, 0))
     with pytest.raises(ValueError, match=r"directions: the tensor is on cuda:1"):
         m.cast_rays((0, 0, 0), cuda)
+
+
+def test_lazily_negated_tensors_are_refused_not_read_unnegated(scanned):
+    # DLPack carries no sign bit: torch exports a negated view's memory, which holds -x.
+    m, points = scanned
+    negated = torch.from_numpy(-points)._neg_view()
+    assert negated.is_neg() and torch.equal(negated, torch.from_numpy(points))
+    nodes = m.node_count()
+    for call in (lambda p: m.insert_point_cloud(p, (0, 0, 0)),
+                 lambda p: m.submit_point_cloud(p, (0, 0, 0)), m.search,
+                 lambda p: m.cast_rays(p, p)):
+        with pytest.raises(ValueError, match=r"points|origins|directions") as raised:
+            call(negated)
+        assert "negated" in str(raised.value) and "resolve_neg()" in str(raised.value)
+    m.flush()
+    assert m.node_count() == nodes
+    # The public way to such a view: the imaginary part of a conjugated complex tensor.
+    imag = torch.zeros((4, 6), dtype=torch.complex64).conj().imag
+    assert imag.is_neg()
+    with pytest.raises(ValueError, match="resolve_neg"):
+        m.search(imag)
+    with pytest.raises(ValueError, match=r"depth: .*negated.*resolve_neg"):
+        m.insert_depth_image(torch.ones((4, 4))._neg_view(), 1, 1, 1, 1, 1)
+    n = len(points)
+    outs = (torch.empty(n, dtype=torch.uint8), torch.empty(n)._neg_view(),
+            torch.empty(n, dtype=torch.uint8))
+    with pytest.raises(ValueError, match=r"out\[1\] \(log_odds\): .*resolve_neg"):
+        m.search(points, out=outs)
+    # Resolved, the tensor reads as it shows: the same answers as the numpy points.
+    for got, want in zip(m.search(negated.resolve_neg()), m.search(points)):
+        np.testing.assert_array_equal(got, want)
+    # A conjugated view is refused the same way, before its complex type is.
+    with pytest.raises(ValueError, match="resolve_conj"):
+        m.search(torch.zeros((4, 3), dtype=torch.complex64).conj())
 
 
 def test_wrong_depth_images_are_refused(context):
