@@ -27,8 +27,9 @@ void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree);
 /// the file it was to replace as it was.
 void writeMapFile(const OccupancyMap& map, const std::string& path);
 
-/// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and, for .ot,
-/// its sensor model. The file is checked before OctoMap's reader sees it (header fields, tree type
+/// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and
+/// MapParams' default sensor model (neither format stores one: OctoMap's readers also keep their
+/// defaults). The file is checked before OctoMap's reader sees it (header fields, tree type
 /// OcTree, at most 16 levels, node count, finite log-odds), so a damaged or hostile file is a
 /// kFormat error naming the file and the fault. The file is read as the checks go, so time and
 /// memory follow the bytes before the first fault (a sparse or oversized file fails at once), not

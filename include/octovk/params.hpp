@@ -12,8 +12,9 @@ namespace octovk {
 /// How castRay is answered on the device (MapParams::cast_ray_backend). Both give OctoMap's
 /// answers bit for bit.
 enum class CastRayBackend : std::uint32_t {
-  /// The ray-tracing backend where the device has ray queries, loops without a driver limit and
-  /// no device-memory cap is set; else the walk (docs/benchmarks.md: which is faster where).
+  /// The ray-tracing backend where the device has ray queries and loops without a driver limit,
+  /// else the walk (docs/benchmarks.md: which is faster where). Under max_device_bytes, a
+  /// castRays call whose acceleration structure would not fit answers with the walk.
   kAuto = 0,
   /// A compute shader steps through every cell along the ray, as OctoMap does.
   kWalk = 1,
