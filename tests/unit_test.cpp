@@ -664,3 +664,40 @@ TEST(Queries, SingleCellTreeHasOneLeafBox) {
 
 }  // namespace
 }  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// The public key helpers are OctoMap's coordToKeyChecked and keyToCoord at the finest depth, bit
+// for bit, at the map's edges, on cell borders, and for NaN and out-of-range coordinates.
+TEST(KeyHelpers, AreOctoMapsCoordToKeyCheckedAndKeyToCoord) {
+  for (const double resolution : {0.05, 0.1, 0.08, 1.0 / 3.0}) {
+    octomap::OcTree tree(resolution);
+    std::mt19937 rng(static_cast<unsigned>(resolution * 1000));
+    const float edge = static_cast<float>(32768 * resolution);
+    std::uniform_real_distribution<float> u(-1.01f * edge, 1.01f * edge);
+    std::vector<Eigen::Vector3f> points = {
+        {0, 0, 0},
+        {-0.0f, 1e-30f, -1e-30f},
+        {static_cast<float>(resolution), static_cast<float>(-resolution), 0.5f},
+        {edge, -edge, std::nextafter(edge, 0.0f)},
+        {std::numeric_limits<float>::quiet_NaN(), 0, 0},
+        {0, std::numeric_limits<float>::infinity(), 0}};
+    for (int i = 0; i < 20000; ++i) points.push_back({u(rng), u(rng), u(rng)});
+    for (const Eigen::Vector3f& p : points) {
+      octomap::OcTreeKey expected;
+      const bool inside = tree.coordToKeyChecked(octomap::point3d(p.x(), p.y(), p.z()), expected);
+      const std::optional<Key> key = coordToKey(resolution, p);
+      ASSERT_EQ(key.has_value(), inside) << p.transpose() << " at " << resolution;
+      if (!inside) continue;
+      for (int a = 0; a < 3; ++a) ASSERT_EQ((*key)[a], expected[a]) << p.transpose();
+      const octomap::point3d centre = tree.keyToCoord(expected);
+      const Eigen::Vector3f ours = keyToCoord(resolution, *key);
+      for (int a = 0; a < 3; ++a)
+        ASSERT_EQ(test::floatBits(ours[a]), test::floatBits(centre(a))) << p.transpose();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace octovk

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -21,11 +22,21 @@ struct HostTree {
   std::vector<Node> nodes;
 };
 
+/// A cell's key at the finest depth: OctoMap's OcTreeKey (k[0], k[1], k[2]).
+using Key = std::array<std::uint16_t, 3>;
+/// OctoMap's coordToKeyChecked at the finest depth: per axis floor(coordinate / resolution) +
+/// 32768 (the coordinate widened to double, times 1.0 / resolution); nullopt where a coordinate
+/// is NaN or the key would fall outside [0, 65536).
+std::optional<Key> coordToKey(double resolution, const Eigen::Vector3f& point);
+/// OctoMap's keyToCoord at the finest depth: the centre of the key's cell, per axis
+/// (key - 32768 + 0.5) * resolution in double, then float (OctoMap's point3d).
+Eigen::Vector3f keyToCoord(double resolution, const Key& key);
+
 /// One entry of the change set (OctoMap's KeyBoolMap, change detection on): a finest-level key
 /// (OcTreeKey k[0], k[1], k[2]) and its flag: `created` (OctoMap's `true`: the leaf was created)
 /// or not (`false`: an existing leaf's occupancy flipped).
 struct ChangedKey {
-  std::array<std::uint16_t, 3> key{};
+  Key key{};
   bool created = false;
   friend bool operator==(const ChangedKey&, const ChangedKey&) = default;
 };
