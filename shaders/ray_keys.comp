@@ -15,11 +15,9 @@
 
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 
-// The walk of this invocation's ray (ray_walk.glsl).
-int budget;
-uvec3 key_end;
-float len;
-RayWalk w;
+#include "scan_point.glsl"  // the point's set-up, shared with scan_rays_rt.comp
+
+int budget;  // loop iterations left to this invocation's walk
 
 // Direction, length, steps and tDelta of the ray o -> e (and tMax when starting), as
 // computeRayKeys computes them.
@@ -61,27 +59,6 @@ void save(uint list, vec3 e) {
                 0u);
 }
 
-// OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
-// Its start: false when an end lies outside the map (no free cells); `walking` when cells are
-// left to walk after the origin's (origin and end in one cell: none).
-bool startRay(vec3 o, vec3 e, out bool walking) {
-  walking = false;
-  uvec3 ko;
-  if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
-      !coordToKeyChecked(o.z, ko.z))
-    return false;
-  if (!coordToKeyChecked(e.x, key_end.x) || !coordToKeyChecked(e.y, key_end.y) ||
-      !coordToKeyChecked(e.z, key_end.z))
-    return false;
-  if (ko == key_end) return true;
-  markCell(ko, false);
-  w.key = ko;
-  walking = true;
-  return true;
-}
-
-vec3 scanOrigin() { return vec3(params.origin_x, params.origin_y, params.origin_z); }
-
 // A walk saved by an earlier round: its end and DDA state.
 bool resumeWalk(uint i, out vec3 e) {
   e = vec3(0.0);
@@ -95,58 +72,6 @@ bool resumeWalk(uint i, out vec3 e) {
   w.t_max = dvec3(saved.t_max_x, saved.t_max_y, saved.t_max_z);
   w.key = uvec3(saved.key_xy & 0xFFFFu, saved.key_xy >> 16, saved.key_z);
   return true;
-}
-
-// A new ray: point i's (or end cell i's) occupied cell, and the start of its walk. The end of
-// the walk goes to `e`.
-bool startPoint(uint i, out vec3 e) {
-  e = vec3(0.0);
-  vec3 p;
-  if (pc.mode == kRayKeysPoints) {
-    if (i >= pc.point_count) return false;
-    p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
-    if (!finiteBits(p)) {
-      atomicAdd(counters.skipped_nonfinite, 1u);
-      return false;
-    }
-  } else {
-    if (i >= counters.endpoint_entries) return false;
-    uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
-    p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
-  }
-  vec3 o = scanOrigin();
-  bool inserted = false;
-  precise float dx = p.x - o.x;
-  precise float dy = p.y - o.y;
-  precise float dz = p.z - o.z;
-  double dist = normOf(dx, dy, dz);
-  bool within = params.max_range < 0.0lf || dist <= params.max_range;
-  e = p;
-  if (within) {
-    uvec3 k;
-    if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
-        coordToKeyChecked(p.z, k.z)) {
-      markCell(k, true);
-      inserted = true;
-    }
-  } else {
-    // Point3d::normalized() then origin + direction * (float) maxrange.
-    if (dist > 0.0lf) {
-      float l = toFloat(dist);
-      dx = divFloat(dx, l);
-      dy = divFloat(dy, l);
-      dz = divFloat(dz, l);
-    }
-    float range = toFloat(params.max_range);
-    precise float ex = o.x + dx * range;
-    precise float ey = o.y + dy * range;
-    precise float ez = o.z + dz * range;
-    e = vec3(ex, ey, ez);
-  }
-  bool walking;
-  inserted = startRay(o, e, walking) || inserted;
-  if (!inserted) atomicAdd(counters.skipped_outside, 1u);
-  return walking;
 }
 
 // Each piece of the walk (set-up, steps, set probes) appears once in this shader, whatever the

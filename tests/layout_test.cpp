@@ -92,14 +92,12 @@ static_assert(sizeof(KeepBoxConstants) == 16);
 
 static_assert(sizeof(AccelHeader) == 64);
 static_assert(offsetof(AccelHeader, tlas) == 0);
-static_assert(offsetof(AccelHeader, occupied_count) == 8);
-static_assert(offsetof(AccelHeader, unknown_count) == 12);
-static_assert(offsetof(AccelHeader, occupied_capacity) == 16);
-static_assert(offsetof(AccelHeader, unknown_capacity) == 20);
-static_assert(offsetof(AccelHeader, lo_x) == 24);
-static_assert(offsetof(AccelHeader, hi_x) == 36);
-static_assert(offsetof(AccelHeader, bucket_bits) == 48);
-static_assert(offsetof(AccelHeader, pad3) == 60);
+static_assert(offsetof(AccelHeader, box_count) == 8);
+static_assert(offsetof(AccelHeader, box_capacity) == 12);
+static_assert(offsetof(AccelHeader, lo_x) == 16);
+static_assert(offsetof(AccelHeader, hi_x) == 28);
+static_assert(offsetof(AccelHeader, bucket_bits) == 40);
+static_assert(offsetof(AccelHeader, pad4) == 60);
 // AccelBox is what the acceleration-structure build reads: VkAabbPositionsKHR.
 static_assert(sizeof(AccelBox) == 24 && offsetof(AccelBox, min_x) == 0 &&
               offsetof(AccelBox, max_x) == 12 && offsetof(AccelBox, max_z) == 20);
