@@ -103,7 +103,7 @@ void main() {
   AccelRef s = AccelRef(pc.boxes);
   if (pc.mode == kAccelBoxesOccupied) {
     if (i >= pool.leaf_count) return;
-    LeafBox leaf = leaf_boxes[i];
+    LeafBox leaf = LEAF_BOXES[i];
     if (leaf.log_odds < params.occupancy_log) return;
     vec3 c = vec3(leaf.center_x, leaf.center_y, leaf.center_z);
     float half_size = leaf.size * 0.5;
@@ -113,22 +113,22 @@ void main() {
   if (pc.mode == kAccelBoxesScan) {
     if (i >= pool.bump) return;
     if (i == 0u) {  // block 0 holds only the root: a box when it is a leaf (the whole map)
-      if (pool.root_exists != 0u && (nodes[kRootNode].link & kBlockMask) == kNoChildren &&
-          !(nodes[kRootNode].log_odds <= params.clamp_min_log)) {
+      if (pool.root_exists != 0u && (NODES[kRootNode].link & kBlockMask) == kNoChildren &&
+          !(NODES[kRootNode].log_odds <= params.clamp_min_log)) {
         double size = params.resolution * 65536.0lf;
         vec3 lo = vec3(-0.5lf * size);
         append(s, lo, -lo, size);
       }
       return;
     }
-    uint parent = block_parent[i];
+    uint parent = BLOCK_PARENT[i];
     if (parent == kNoBlock) return;
     uint depth;
     uvec3 parent_key = parentKeyOfBlock(parent, depth);
     uint bit = 15u - depth;
     double size = params.resolution * double(1u << bit);
     for (uint slot = 0u; slot < 8u; ++slot) {
-      Node child = nodes[i * 8u + slot];
+      Node child = NODES[i * 8u + slot];
       bool live = (child.link & kFlagLive) != 0u;
       // classify's early abort for a free update: the leaf search() finds is at clamp_min_log.
       if (live && ((child.link & kBlockMask) != kNoChildren ||

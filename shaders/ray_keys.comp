@@ -10,7 +10,7 @@
 // the other (kRayKeysContinueLast, the last round, reports them instead). Where the device probe
 // measured a loop limit (Mesa 22.3's llvmpipe: 65535 iterations in total) the budget stays below
 // it; elsewhere it finishes every ray at once.
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 #include "ray_walk.glsl"
 
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
@@ -54,7 +54,7 @@ bool walk() {
 void save(uint list, vec3 e) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
-  walks[list * params.point_count + at] =
+  WALKS[list * params.point_count + at] =
       WalkState(w.t_max.x, w.t_max.y, w.t_max.z, e.x, e.y, e.z, w.key.x | (w.key.y << 16), w.key.z,
                 0u);
 }
@@ -64,7 +64,7 @@ bool resumeWalk(uint i, out vec3 e) {
   e = vec3(0.0);
   uint from = pc.from_list;
   if (i >= counters.walk_count[from]) return false;
-  WalkState saved = walks[from * params.point_count + i];
+  WalkState saved = WALKS[from * params.point_count + i];
   e = vec3(saved.end_x, saved.end_y, saved.end_z);
   coordToKeyChecked(e.x, key_end.x);
   coordToKeyChecked(e.y, key_end.y);

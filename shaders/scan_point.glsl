@@ -6,7 +6,7 @@
 #ifndef OCTOVK_SCAN_POINT_GLSL
 #define OCTOVK_SCAN_POINT_GLSL
 
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 #include "ray_walk.glsl"
 
 // The walk of this invocation's ray (ray_walk.glsl) and its end cell and length.
@@ -42,14 +42,14 @@ bool startPoint(uint i, out vec3 e) {
   vec3 p;
   if (pc.mode == kRayKeysPoints) {
     if (i >= pc.point_count) return false;
-    p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
+    p = vec3(POINTS[3u * i], POINTS[3u * i + 1u], POINTS[3u * i + 2u]);
     if (!finiteBits(p)) {
       atomicAdd(counters.skipped_nonfinite, 1u);
       return false;
     }
   } else {
     if (i >= counters.endpoint_entries) return false;
-    uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
+    uvec3 kk = unpackKey(ENDPOINT_KEYS[SLOTS[params.hash_capacity + i]]);
     p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
   }
   vec3 o = scanOrigin();

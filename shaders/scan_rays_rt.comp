@@ -20,7 +20,7 @@
 // go.
 #define OCTOVK_NODES_READ_ONLY
 #define OCTOVK_RAY_QUERY
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 #include "walk_cells.glsl"
 #include "accel_trace.glsl"
 

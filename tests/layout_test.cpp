@@ -323,7 +323,7 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox,
 
 static_assert(kBindingCount == 21);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
-              kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 &&
+              kBindCellSetKeys == 4 && kBindCellSetFlags == 5 && kBindNodes == 6 &&
               kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
               kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
               kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
@@ -493,8 +493,8 @@ std::vector<Field> probedFields() {
   }
   // Element 1 of each plain array.
   f.push_back({"points[1]", kBindPoints, 1 * sizeof(float), F, 800});
-  f.push_back({"hash_keys[1]", kBindHashKeys, 1 * sizeof(std::uint64_t), U64, 801});
-  f.push_back({"hash_flags[1]", kBindHashFlags, 1 * sizeof(std::uint32_t), U, 802});
+  f.push_back({"cell_set_keys[1]", kBindCellSetKeys, 1 * sizeof(std::uint64_t), U64, 801});
+  f.push_back({"cell_set_flags[1]", kBindCellSetFlags, 1 * sizeof(std::uint32_t), U, 802});
   f.push_back({"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803});
   f.push_back({"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804});
   f.push_back({"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805});
@@ -606,8 +606,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindCounters] = sizeof(ScanCounters);
   sizes[kBindPool] = sizeof(PoolState);
   sizes[kBindPoints] = 4 * sizeof(float);
-  sizes[kBindHashKeys] = 4 * sizeof(std::uint64_t);
-  sizes[kBindHashFlags] = 4 * sizeof(std::uint32_t);
+  sizes[kBindCellSetKeys] = 4 * sizeof(std::uint64_t);
+  sizes[kBindCellSetFlags] = 4 * sizeof(std::uint32_t);
   sizes[kBindNodes] = 4 * sizeof(Node);
   sizes[kBindBlockParents] = 4 * sizeof(std::uint32_t);
   sizes[kBindFreeStack] = 4 * sizeof(std::uint32_t);

@@ -518,8 +518,8 @@ OCTOVK_CONST uint kBindParams = 0u;
 OCTOVK_CONST uint kBindCounters = 1u;
 OCTOVK_CONST uint kBindPool = 2u;
 OCTOVK_CONST uint kBindPoints = 3u;
-OCTOVK_CONST uint kBindHashKeys = 4u;
-OCTOVK_CONST uint kBindHashFlags = 5u;
+OCTOVK_CONST uint kBindCellSetKeys = 4u;
+OCTOVK_CONST uint kBindCellSetFlags = 5u;
 OCTOVK_CONST uint kBindNodes = 6u;
 OCTOVK_CONST uint kBindBlockParents = 7u;  // per block, the node it hangs under (kNoBlock: free)
 OCTOVK_CONST uint kBindFreeStack = 8u;
@@ -545,8 +545,8 @@ OCTOVK_CONST uint kBindingCount = 21u;
 // of a caller's buffers).
 OCTOVK_CONST uint kBindAddresses = 21u;
 OCTOVK_CONST uint kAddressedBindings =
-    (1u << kBindPoints) | (1u << kBindHashKeys) | (1u << kBindHashFlags) | (1u << kBindNodes) |
-    (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
+    (1u << kBindPoints) | (1u << kBindCellSetKeys) | (1u << kBindCellSetFlags) |
+    (1u << kBindNodes) | (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
     (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
     (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
     (1u << kBindDepth) | (1u << kBindChanges);
