@@ -19,12 +19,6 @@ layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 
 int budget;  // loop iterations left to this invocation's walk
 
-// Direction, length, steps and tDelta of the ray o -> e (and tMax when starting), as
-// computeRayKeys computes them.
-void setUp(vec3 o, vec3 e, bool start) {
-  walkSetUp(w, o, rayKeysDirection(o, e, len), start, kHalfStepFloat);
-}
-
 // Steps until the ray is done (true) or the budget of loop iterations (the walk's and the set's
 // probes) is spent (false). The inner loop steps through one brick, only noting the cells it
 // marks; the brick lookup comes when the ray enters the next one. In SIMD (lavapipe runs 8 rays
@@ -87,7 +81,7 @@ void main() {
   vec3 e;
   bool walking = resumed ? resumeWalk(i, e) : startPoint(i, e);
   if (walking) {
-    setUp(scanOrigin(), e, !resumed);
+    setUpWalk(e, !resumed);
     if (!walk()) {
       // After the last continuation a walk still unfinished is an error, not a silently
       // shortened ray.

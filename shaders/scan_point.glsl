@@ -16,6 +16,13 @@ float len;
 
 vec3 scanOrigin() { return vec3(params.origin_x, params.origin_y, params.origin_z); }
 
+// Direction, length, steps and tDelta of the ray from the scan's origin to e (and tMax when
+// starting), as computeRayKeys computes them.
+void setUpWalk(vec3 e, bool start) {
+  vec3 o = scanOrigin();
+  walkSetUp(w, o, rayKeysDirection(o, e, len), start, kHalfStepFloat);
+}
+
 // OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
 // Its start: false when an end lies outside the map (no free cells); `walking` when cells are
 // left to walk after the origin's (origin and end in one cell: none).
@@ -36,7 +43,7 @@ bool startRay(vec3 o, vec3 e, out bool walking) {
 }
 
 // A new ray: point i's (or end cell i's) occupied cell, and the start of its walk (w.key; the
-// caller sets up the rest). The end of the walk goes to `e`. True when cells are left to walk.
+// caller sets up the rest, setUpWalk). The end of the walk goes to `e`. True when cells are left to walk.
 bool startPoint(uint i, out vec3 e) {
   e = vec3(0.0);
   vec3 p;

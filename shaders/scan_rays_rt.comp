@@ -92,7 +92,7 @@ void main() {
   if (pool.halted != 0u) return;
   vec3 e;
   if (startPoint(i, e)) {
-    walkSetUp(w, scanOrigin(), rayKeysDirection(scanOrigin(), e, len), true, kHalfStepFloat);
+    setUpWalk(e, true);
     walkTraced();
   }
   flushMarks();
