@@ -350,11 +350,10 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
       const double wall_ms = msSince(start);
       const OccupancyMap::CastRayInfo info = rt_map->castRayInfo();
       std::printf(
-          "\nRay-tracing backend: acceleration structure over %s occupied-leaf boxes and %s "
-          "unknown-region boxes, built on the device in %.1f ms (boxes %.1f ms, BLAS + TLAS "
-          "%.1f ms; device timestamps), %.1f MiB; first castRays call %.1f ms wall.\n",
-          grouped(static_cast<double>(info.occupied_boxes)).c_str(),
-          grouped(static_cast<double>(info.unknown_boxes)).c_str(), info.last_build_ms,
+          "\nRay-tracing backend: acceleration structure over %s occupied-leaf boxes, built on "
+          "the device in %.1f ms (boxes %.1f ms, BLAS + TLAS %.1f ms; device timestamps), "
+          "%.1f MiB; first castRays call %.1f ms wall.\n",
+          grouped(static_cast<double>(info.occupied_boxes)).c_str(), info.last_build_ms,
           info.last_boxes_ms, info.last_build_ms - info.last_boxes_ms,
           static_cast<double>(info.device_bytes) / (1 << 20), wall_ms);
       json.key("accel_build").beginObject();
@@ -362,7 +361,6 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
           .field("boxes_ms", info.last_boxes_ms)
           .field("structures_ms", info.last_build_ms - info.last_boxes_ms)
           .field("occupied_boxes", info.occupied_boxes)
-          .field("unknown_boxes", info.unknown_boxes)
           .field("device_bytes", info.device_bytes)
           .field("first_call_wall_ms", wall_ms);
       json.endObject();

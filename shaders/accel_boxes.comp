@@ -6,20 +6,18 @@
 // float test cannot miss a box that OctoMap's walk enters, then sorted along a Morton curve:
 // kAccelBoxesOccupied: the occupied leaves of the leaf-box buffer (leaf_boxes.comp's rebuild),
 //                      unsorted, with the extent of the small boxes' centres.
-// kAccelBoxesUnknown:  the unknown regions, i.e. every missing child of a node that has
-//                      children (a block's slots that are not live), one invocation per block.
 // kAccelBoxesScan:     for scans through ray tracing (scan_rays_rt.comp), one invocation per
-//                      block, all into list 0 (a scan traces both kinds): every leaf above
-//                      clamp_min_log (occupied, or free and not clamped: a free update could
-//                      change it) and the unknown regions as kAccelBoxesUnknown finds them; a
+//                      block: every leaf above clamp_min_log (occupied, or free and not clamped:
+//                      a free update could change it) and the unknown regions, i.e. every missing
+//                      child of a node that has children (a block's slots that are not live); a
 //                      leaf clamped free gets no box. A block's slots give at most 8 boxes.
 // kAccelBoxesCount, kAccelBoxesChunks, kAccelBoxesOffsets, kAccelBoxesScatter: a counting sort
-//                      of both lists on 2^(3 bucket_bits) Morton cells of that extent (the
+//                      of the list on 2^(3 bucket_bits) Morton cells of that extent (the
 //                      header's bucket_bits: kAccelBucketBits for castRay, fewer for a scan,
 //                      whose fixed cost of clearing and summing the buckets counts per scan).
-// kAccelBoxesTail:     the sorted lists' slots after their counts filled with an empty box
-//                      outside the map, so that a build over the whole capacity, recorded
-//                      before the counts are known, finds nothing more where rays go.
+// kAccelBoxesTail:     the sorted list's slots after its count filled with an empty box outside
+//                      the map, so that a build over the whole capacity, recorded before the
+//                      count is known, finds nothing more where rays go.
 // No node is written in this pass: links are read plainly (see linkOf).
 #define OCTOVK_NODES_READ_ONLY
 #include "tree_search.glsl"
@@ -35,26 +33,15 @@ layout(buffer_reference, std430, buffer_reference_align = 4) buffer UintsRef { u
 
 const uint kSmallBox = 64u;  // boxes of at most this many cells set the sort's extent
 
-uint capacityOf(AccelRef s, uint list) {
-  return list == 0u ? s.header.occupied_capacity : s.header.unknown_capacity;
-}
-uint countOf(AccelRef s, uint list) {
-  return list == 0u ? s.header.occupied_count : s.header.unknown_count;
-}
-uint sortedBase(AccelRef s, uint list) { return list == 0u ? 0u : s.header.occupied_capacity; }
-uint unsortedBase(AccelRef s, uint list) {
-  return s.header.occupied_capacity + s.header.unknown_capacity + sortedBase(s, list);
-}
+// The sorted list at box 0, the unsorted one after it, then the sort's counters.
 UintsRef bucketCounters(AccelRef s) {
-  uint64_t boxes = 2ul * uint64_t(s.header.occupied_capacity + s.header.unknown_capacity);
+  uint64_t boxes = 2ul * uint64_t(s.header.box_capacity);
   return UintsRef(pc.boxes + 64ul + boxes * 24ul);
 }
-// The chunk sums follow the counters of both lists.
-// The sort's buckets per list: 2^(3 * bucket_bits) (the header's; at most kAccelBuckets).
+// The sort's buckets: 2^(3 * bucket_bits) (the header's; at most kAccelBuckets). The chunk sums
+// follow the counters.
 uint bucketsOf(AccelRef s) { return 1u << (3u * s.header.bucket_bits); }
-uint chunkSum(AccelRef s, uint list, uint c) {
-  return 2u * bucketsOf(s) + list * kAccelChunks + c;
-}
+uint chunkSum(AccelRef s, uint c) { return bucketsOf(s) + c; }
 
 // A quarter cell for castRay's boxes; a 64th for a scan's (kAccelBoxesScan), whose walk looks
 // every cell up anyway: near surfaces a ray grazes many boxes it never enters, each a ray query,
@@ -62,7 +49,7 @@ uint chunkSum(AccelRef s, uint list, uint c) {
 float margin(vec3 centre, float size) {
   float m = max(abs(centre.x), max(abs(centre.y), abs(centre.z))) + size;
   float part = pc.mode == kAccelBoxesScan ? 1.0 / 64.0 : 0.25;
-  return float(params.resolution) * part + m * (1.0 / 65536.0);
+  return float(params.resolution) * part + m * float(kRangeMargin);
 }
 
 // The cell key of a coordinate, clamped to the map.
@@ -71,12 +58,11 @@ uvec3 clampedKey(vec3 c) {
   return uvec3(clamp(k, dvec3(0.0lf), dvec3(65535.0lf)));
 }
 
-void append(AccelRef s, uint list, vec3 lo, vec3 hi, double size) {
+void append(AccelRef s, vec3 lo, vec3 hi, double size) {
   vec3 c = 0.5 * (lo + hi);
   float m = margin(c, float(size));
-  uint at = list == 0u ? atomicAdd(s.header.occupied_count, 1u)
-                      : atomicAdd(s.header.unknown_count, 1u);
-  s.boxes[unsortedBase(s, list) + at] =
+  uint at = atomicAdd(s.header.box_count, 1u);
+  s.boxes[s.header.box_capacity + at] =
       AccelBox(lo.x - m, lo.y - m, lo.z - m, hi.x + m, hi.y + m, hi.z + m);
   if (size <= double(kSmallBox) * params.resolution) {
     uvec3 k = clampedKey(c);
@@ -117,88 +103,67 @@ void main() {
   AccelRef s = AccelRef(pc.boxes);
   if (pc.mode == kAccelBoxesOccupied) {
     if (i >= pool.leaf_count) return;
-    LeafBox leaf = leaf_boxes[i];
+    LeafBox leaf = LEAF_BOXES[i];
     if (leaf.log_odds < params.occupancy_log) return;
     vec3 c = vec3(leaf.center_x, leaf.center_y, leaf.center_z);
     float half_size = leaf.size * 0.5;
-    append(s, 0u, c - half_size, c + half_size, double(leaf.size));
-    return;
-  }
-  if (pc.mode == kAccelBoxesUnknown) {
-    // Block 0 holds only the root (an empty map needs no box: castRay stops at its origin's
-    // cell, or, ignoring unknown space, meets nothing).
-    if (i >= pool.bump || i == 0u) return;
-    uint parent = block_parent[i];
-    if (parent == kNoBlock) return;
-    uint depth;
-    uvec3 parent_key = parentKeyOfBlock(parent, depth);
-    uint bit = 15u - depth;
-    double size = params.resolution * double(1u << bit);
-    for (uint slot = 0u; slot < 8u; ++slot) {
-      if ((nodes[i * 8u + slot].link & kFlagLive) != 0u) continue;
-      uvec3 key = parent_key | (uvec3(slot & 1u, (slot >> 1) & 1u, (slot >> 2) & 1u) << bit);
-      // The region's lower corner, (key - 32768) * resolution, exact in double.
-      dvec3 lo = dvec3(ivec3(key) - ivec3(32768)) * params.resolution;
-      append(s, 1u, vec3(lo), vec3(lo + size), size);
-    }
+    append(s, c - half_size, c + half_size, double(leaf.size));
     return;
   }
   if (pc.mode == kAccelBoxesScan) {
     if (i >= pool.bump) return;
     if (i == 0u) {  // block 0 holds only the root: a box when it is a leaf (the whole map)
-      if (pool.root_exists != 0u && (nodes[kRootNode].link & kBlockMask) == kNoChildren &&
-          !(nodes[kRootNode].log_odds <= params.clamp_min_log)) {
+      if (pool.root_exists != 0u && (NODES[kRootNode].link & kBlockMask) == kNoChildren &&
+          !(NODES[kRootNode].log_odds <= params.clamp_min_log)) {
         double size = params.resolution * 65536.0lf;
         vec3 lo = vec3(-0.5lf * size);
-        append(s, 0u, lo, -lo, size);
+        append(s, lo, -lo, size);
       }
       return;
     }
-    uint parent = block_parent[i];
+    uint parent = BLOCK_PARENT[i];
     if (parent == kNoBlock) return;
     uint depth;
     uvec3 parent_key = parentKeyOfBlock(parent, depth);
     uint bit = 15u - depth;
     double size = params.resolution * double(1u << bit);
     for (uint slot = 0u; slot < 8u; ++slot) {
-      Node child = nodes[i * 8u + slot];
+      Node child = NODES[i * 8u + slot];
       bool live = (child.link & kFlagLive) != 0u;
       // classify's early abort for a free update: the leaf search() finds is at clamp_min_log.
       if (live && ((child.link & kBlockMask) != kNoChildren ||
                    child.log_odds <= params.clamp_min_log))
         continue;
       uvec3 key = parent_key | (uvec3(slot & 1u, (slot >> 1) & 1u, (slot >> 2) & 1u) << bit);
+      // The region's lower corner, (key - 32768) * resolution, exact in double.
       dvec3 lo = dvec3(ivec3(key) - ivec3(32768)) * params.resolution;
-      append(s, 0u, vec3(lo), vec3(lo + size), size);
+      append(s, vec3(lo), vec3(lo + size), size);
     }
     return;
   }
   if (pc.mode == kAccelBoxesTail) {
-    uint list = i < s.header.occupied_capacity ? 0u : 1u;
-    uint j = i - sortedBase(s, list);
-    if (list == 1u && j >= s.header.unknown_capacity) return;
-    if (j < countOf(s, list)) return;
+    if (i >= s.header.box_capacity || i < s.header.box_count) return;
     // Not the spec's inactive box (min x NaN): lavapipe copies it into its BVH, whose bounds
     // then turn NaN (MIN2(a, NaN) is NaN) and every ray misses. A point two cells outside the
     // map's lower corner instead: no ray of a scan (between two points of the map) comes near.
     float far = float(-(double(kTreeMaxVal) + 2.0lf) * params.resolution);
-    s.boxes[sortedBase(s, list) + j] = AccelBox(far, far, far, far, far, far);
+    s.boxes[i] = AccelBox(far, far, far, far, far, far);
     return;
   }
   if (pc.mode == kAccelBoxesChunks || pc.mode == kAccelBoxesOffsets) {
-    if (i >= 2u * kAccelChunks) return;
-    uint list = i / kAccelChunks, c = i % kAccelChunks;
+    if (i >= kAccelChunks) return;
+    uint c = i;
     UintsRef n = bucketCounters(s);
     const uint per_chunk = bucketsOf(s) / kAccelChunks;
-    uint first = list * bucketsOf(s) + c * per_chunk;
+    uint first = c * per_chunk;
     if (pc.mode == kAccelBoxesChunks) {
       uint sum = 0u;
       for (uint b = 0u; b < per_chunk; ++b) sum += n.v[first + b];
-      n.v[chunkSum(s, list, c)] = sum;
+      n.v[chunkSum(s, c)] = sum;
       return;
     }
     uint offset = 0u;
-    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(s, list, p)];
+    for (uint p = 0u; p < c; ++p) offset += n.v[chunkSum(s, p)];
     for (uint b = 0u; b < per_chunk; ++b) {
       uint count = n.v[first + b];
       n.v[first + b] = offset;
@@ -206,17 +171,14 @@ void main() {
     }
     return;
   }
-  // kAccelBoxesCount, kAccelBoxesScatter: one invocation per unsorted box of both lists.
-  uint list = i < s.header.occupied_capacity ? 0u : 1u;
-  uint j = i - sortedBase(s, list);
-  if (list == 1u && j >= s.header.unknown_capacity) return;
-  if (j >= countOf(s, list)) return;
-  AccelBox b = s.boxes[unsortedBase(s, list) + j];
-  uint at = list * bucketsOf(s) + bucketOf(s, b);
+  // kAccelBoxesCount, kAccelBoxesScatter: one invocation per unsorted box.
+  if (i >= s.header.box_count) return;
+  AccelBox b = s.boxes[s.header.box_capacity + i];
+  uint at = bucketOf(s, b);
   UintsRef n = bucketCounters(s);
   if (pc.mode == kAccelBoxesCount) {
     atomicAdd(n.v[at], 1u);
     return;
   }
-  s.boxes[sortedBase(s, list) + atomicAdd(n.v[at], 1u)] = b;
+  s.boxes[atomicAdd(n.v[at], 1u)] = b;
 }

@@ -13,11 +13,10 @@ layout(buffer_reference, std430, buffer_reference_align = 8) buffer AccelRef {
 };
 
 // Slack on ray parameters: the hardware's float test and our own rounding, far below the boxes'
-// enlargement (a quarter cell, see accel_boxes.comp).
+// enlargement (a quarter cell for castRay's, a 64th for a scan's: accel_boxes.comp's margin()).
 double slack(double t, vec3 org, double dir_len) {
   float m = max(abs(org.x), max(abs(org.y), abs(org.z)));
-  return (params.resolution * 0.125lf + (abs(t) * dir_len + double(m)) * (1.0lf / 65536.0lf)) /
-         dir_len;
+  return (params.resolution * 0.125lf + (abs(t) * dir_len + double(m)) * kRangeMargin) / dir_len;
 }
 
 // Parameter interval of the ray in box b (slab test in double); false when it misses.
@@ -54,7 +53,7 @@ bool holdsFixedAxes(AccelBox b, RayWalk w) {
   double m = params.resolution * 0.25lf +
              double(max(abs(c.x), max(abs(c.y), abs(c.z))) +
                     max(extent.x, max(extent.y, extent.z))) *
-                 (1.0lf / 65536.0lf);
+                 kRangeMargin;
   for (int a = 0; a < 3; ++a) {
     if (w.step[a] != 0) continue;
     double centre = keyToCoord(w.key[a]);
@@ -64,24 +63,22 @@ bool holdsFixedAxes(AccelBox b, RayWalk w) {
 }
 
 #ifdef OCTOVK_RAY_QUERY
-// The nearest box (of the masks) whose interval reaches past t_from and starts before t_to: its
+// The nearest box whose interval reaches past t_from and starts before t_to: its
 // entry (at least t_from) and exit. False when there is none. `fixed_axes`: only boxes that
 // hold the walk's cell on the axes it never steps along (holdsFixedAxes).
-bool nearestBox(AccelRef scene, RayWalk w, uint mask, double t_from, float t_to,
-                bool fixed_axes, out double t_enter, out double t_exit) {
+bool nearestBox(AccelRef scene, RayWalk w, double t_from, float t_to, bool fixed_axes,
+                out double t_enter, out double t_exit) {
   rayQueryEXT rq;
   float t_min = float(max(t_from, 0.0lf));
   rayQueryInitializeEXT(rq, accelerationStructureEXT(scene.header.tlas), gl_RayFlagsNoneEXT,
-                        mask, w.org, t_min, w.dir, t_to);
+                        0xFFu, w.org, t_min, w.dir, t_to);
   bool found = false;
   t_enter = 1.0e300lf;
   t_exit = 1.0e300lf;
-  uint unknown_first = scene.header.occupied_capacity;
   while (rayQueryProceedEXT(rq)) {
     if (rayQueryGetIntersectionTypeEXT(rq, false) != gl_RayQueryCandidateIntersectionAABBEXT)
       continue;
     uint index = rayQueryGetIntersectionPrimitiveIndexEXT(rq, false);
-    if (rayQueryGetIntersectionInstanceCustomIndexEXT(rq, false) != 0) index += unknown_first;
     double t_in, t_out;
     AccelBox b = scene.boxes[index];
     if (!boxInterval(b, w, t_in, t_out) || t_out < t_from) continue;

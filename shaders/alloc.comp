@@ -12,12 +12,12 @@
 void main() {
   uint n = invocationIndex();
   if (n >= counters.new_blocks) return;
-  uint slot = slots[params.hash_capacity + n];
-  NewBlock nb = prefix_blocks[slot];
+  uint slot = SLOTS[params.hash_capacity + n];
+  NewBlock nb = PREFIX_BLOCKS[slot];
 
   uint block;
   if (n < pool.free_count) {
-    block = free_stack[pool.free_count - 1u - n];
+    block = FREE_STACK[pool.free_count - 1u - n];
   } else {
     block = pool.bump + (n - pool.free_count);
     if (block >= pool.capacity) {  // the host sizes the pool so this cannot happen
@@ -25,14 +25,14 @@ void main() {
       return;
     }
   }
-  prefix_blocks[slot].block = block;
+  PREFIX_BLOCKS[slot].block = block;
 
   // Children of an expansion exist at once; the ones of a created node when the descent
   // switches them on.
   bool expand = nb.source != kNoBlock;
-  Node child = expand ? Node(nodes[nb.source].log_odds, kNoChildren | kFlagLive)
+  Node child = expand ? Node(NODES[nb.source].log_odds, kNoChildren | kFlagLive)
                       : Node(0.0, kNoChildren);
-  for (uint s = 0u; s < 8u; ++s) nodes[block * 8u + s] = child;
+  for (uint s = 0u; s < 8u; ++s) NODES[block * 8u + s] = child;
   if (expand) atomicAdd(pool.live_nodes, 8u);
-  block_parent[block] = kNoBlock;  // set by link
+  BLOCK_PARENT[block] = kNoBlock;  // set by link
 }

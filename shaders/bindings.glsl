@@ -1,7 +1,7 @@
 // The base of every pass: the extensions, the shared types (gpu_types.h), the exact float
 // arithmetic (exact.glsl), the workgroup size, the bindings (params, counters, pool by
 // descriptor; the map's arrays by device address), relaxed atomic loads, the cover of an
-// indirect dispatch list and the 1-D work item index. No map math: keys.glsl, hash_set.glsl and
+// indirect dispatch list and the 1-D work item index. No map math: keys.glsl, cell_set.glsl and
 // tree_search.glsl build on it. The C++ twin of the map math is src/map/reference.hpp; both follow
 // OctoMap 1.9.7 operation for operation (float where OctoMap uses float, double where it uses
 // double) and `precise` keeps the compiler from fusing them.
@@ -23,7 +23,7 @@ layout(local_size_x = 64) in;
 layout(std430, binding = kBindParams) buffer ParamsBuf { ScanParams params; };
 layout(std430, binding = kBindCounters) buffer CountersBuf { ScanCounters counters; };
 layout(std430, binding = kBindPool) buffer PoolBuf { PoolState pool; };
-// The map's arrays, by device address (see kAddressedBindings): `nodes[i]` reads
+// The map's arrays, by device address (see kAddressedBindings): `NODES[i]` reads
 // NodesRef(address of binding kBindNodes).v[i]. No descriptor range limits them.
 layout(std430, binding = kBindAddresses) restrict readonly buffer AddressBuf {
   uint64_t buffer_address[kBindingCount];
@@ -31,8 +31,8 @@ layout(std430, binding = kBindAddresses) restrict readonly buffer AddressBuf {
 #define OCTOVK_ADDRESSED(Ref, Type, align) \
   layout(buffer_reference, std430, buffer_reference_align = align) buffer Ref { Type v[]; }
 OCTOVK_ADDRESSED(PointsRef, float, 4);
-OCTOVK_ADDRESSED(HashKeysRef, uint64_t, 8);
-OCTOVK_ADDRESSED(HashFlagsRef, uint, 4);
+OCTOVK_ADDRESSED(CellSetKeysRef, uint64_t, 8);
+OCTOVK_ADDRESSED(CellSetFlagsRef, uint, 4);
 OCTOVK_ADDRESSED(NodesRef, Node, 4);
 OCTOVK_ADDRESSED(BlockParentsRef, uint, 4);
 OCTOVK_ADDRESSED(FreeStackRef, uint, 4);
@@ -44,32 +44,32 @@ OCTOVK_ADDRESSED(EndpointKeysRef, uint64_t, 8);
 OCTOVK_ADDRESSED(WalksRef, WalkState, 8);
 OCTOVK_ADDRESSED(SlotsRef, uint, 4);
 OCTOVK_ADDRESSED(CellListRef, uint, 4);
-#define points (PointsRef(buffer_address[kBindPoints]).v)
-#define hash_keys (HashKeysRef(buffer_address[kBindHashKeys]).v)
-#define hash_flags (HashFlagsRef(buffer_address[kBindHashFlags]).v)
-#define nodes (NodesRef(buffer_address[kBindNodes]).v)
-#define block_parent (BlockParentsRef(buffer_address[kBindBlockParents]).v)
-#define free_stack (FreeStackRef(buffer_address[kBindFreeStack]).v)
-#define cells (ActiveRef(buffer_address[kBindActive]).v)
-#define touched (TouchedRef(buffer_address[kBindTouched]).v)
-#define prefix_blocks (NewBlocksRef(buffer_address[kBindNewBlocks]).v)
-#define leaf_boxes (LeafBoxesRef(buffer_address[kBindLeafBoxes]).v)
-#define endpoint_keys (EndpointKeysRef(buffer_address[kBindEndpointKeys]).v)
-#define walks (WalksRef(buffer_address[kBindWalks]).v)
-#define slots (SlotsRef(buffer_address[kBindSlots]).v)
-#define cell_list (CellListRef(buffer_address[kBindCellList]).v)
+#define POINTS (PointsRef(buffer_address[kBindPoints]).v)
+#define CELL_SET_KEYS (CellSetKeysRef(buffer_address[kBindCellSetKeys]).v)
+#define CELL_SET_FLAGS (CellSetFlagsRef(buffer_address[kBindCellSetFlags]).v)
+#define NODES (NodesRef(buffer_address[kBindNodes]).v)
+#define BLOCK_PARENT (BlockParentsRef(buffer_address[kBindBlockParents]).v)
+#define FREE_STACK (FreeStackRef(buffer_address[kBindFreeStack]).v)
+#define CELLS (ActiveRef(buffer_address[kBindActive]).v)
+#define TOUCHED (TouchedRef(buffer_address[kBindTouched]).v)
+#define PREFIX_BLOCKS (NewBlocksRef(buffer_address[kBindNewBlocks]).v)
+#define LEAF_BOXES (LeafBoxesRef(buffer_address[kBindLeafBoxes]).v)
+#define ENDPOINT_KEYS (EndpointKeysRef(buffer_address[kBindEndpointKeys]).v)
+#define WALKS (WalksRef(buffer_address[kBindWalks]).v)
+#define SLOTS (SlotsRef(buffer_address[kBindSlots]).v)
+#define CELL_LIST (CellListRef(buffer_address[kBindCellList]).v)
 // A depth image: its camera, then its pixels as words (kBindDepth).
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer DepthRef {
   DepthCamera camera;
   uint words[];
 };
-#define depth_image (DepthRef(buffer_address[kBindDepth]))
+#define DEPTH_IMAGE (DepthRef(buffer_address[kBindDepth]))
 // The change set (kBindChanges): its header, then its slots (change_set.glsl).
 layout(buffer_reference, std430, buffer_reference_align = 16) buffer ChangeTableRef {
   ChangeHeader header;
   ChangeSlot slot[];
 };
-#define change_table (ChangeTableRef(buffer_address[kBindChanges]))
+#define CHANGE_TABLE (ChangeTableRef(buffer_address[kBindChanges]))
 // Query inputs and outputs (kBindQueryIn, kBindQueryOut): each query pass declares its own view
 // of them.
 

@@ -9,7 +9,7 @@
 uvec3 parentKeyOfBlock(uint parent, out uint depth) {
   uvec3 up_bits = uvec3(0u);
   depth = 0u;
-  for (uint n = parent; n != kRootNode && depth < kTreeDepth; n = block_parent[n / 8u]) {
+  for (uint n = parent; n != kRootNode && depth < kTreeDepth; n = BLOCK_PARENT[n / 8u]) {
     uint s = n % 8u;
     up_bits |= uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << depth;
     ++depth;

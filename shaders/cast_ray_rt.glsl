@@ -3,16 +3,16 @@
 // passes are built from this file: cast_ray_rt.comp (OCTOVK_CAST_RAY_TRACE: ray queries) answers
 // the rays that ignore unknown space, cast_ray_jump.comp the others, without ray queries (on
 // lavapipe a shader with ray queries costs more per invocation, and such rays mostly end within
-// a few cells, at the edge of what a sensor saw, where the unknown boxes are many and small).
+// a few cells, at the edge of what a sensor saw, where unknown regions are many and small): the
+// structure holds only the occupied leaves.
 //
 // A ray query finds the nearest box along the ray that could end the walk: an occupied leaf
-// and, unless ignore_unknown, an unknown region (instance masks kAccelMask*). The boxes are
-// enlarged (accel_boxes.comp), so every cell OctoMap's walk enters before the enlarged box's
-// entry parameter is free (or unknown with ignore_unknown), inside the map and within the max
-// range once those limits are also kept. The walk jumps there exactly (walkJumpTo: the same
-// tMax bits as stepping), then steps with tree lookups, exactly as OctoMap does, until it ends
-// or has passed the box; then the next box is traced. Inside a node a lookup found free (or
-// unknown, when ignored), the walk jumps across the node exactly, as cast_ray does
+// (unknown space does not end it). The boxes are enlarged (accel_boxes.comp), so every cell
+// OctoMap's walk enters before the enlarged box's entry parameter is free or unknown, inside the
+// map and within the max range once those limits are also kept. The walk jumps there exactly
+// (walkJumpTo: the same tMax bits as stepping), then steps with tree lookups, exactly as OctoMap
+// does, until it ends or has passed the box; then the next box is traced. Inside a node a lookup
+// found free (or unknown, when ignored), the walk jumps across the node exactly, as cast_ray does
 // (walkJumpAcrossRegion). Without ray queries (cast_ray_jump) the walk only steps and jumps
 // across such nodes. The walk, its lookups and jumps are ray_walk.glsl's and walk_cells.glsl's.
 #define OCTOVK_NODES_READ_ONLY
@@ -91,11 +91,10 @@ void main() {
     double bound = w.step[a] > 0 ? kHalfExtent : -kHalfExtent;
     t_limit = min(t_limit, (bound - double(w.org[a])) / double(w.dir[a]) - params.resolution);
   }
-  uint mask = kAccelMaskOccupied | (ignore_unknown ? 0u : kAccelMaskUnknown);
   double t_from = walkMinTMax(w) - slack(walkMinTMax(w), w.org, dir_len);
   for (;;) {
     double t_enter, t_exit;
-    bool found = nearestBox(scene, w, mask, t_from, 3.0e38, false, t_enter, t_exit);
+    bool found = nearestBox(scene, w, t_from, 3.0e38, false, t_enter, t_exit);
     double target = min(found ? t_enter : 1.0e300lf, t_limit);
     target -= slack(target, w.org, dir_len);
     int no_budget = 0;

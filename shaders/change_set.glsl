@@ -41,12 +41,12 @@ uint findOrClaimChange(ChangeTableRef table, uint64_t key, uint log2) {
 // invocation that updates it is the only one to touch its slot's state in the dispatch.
 void noteChange(uvec3 k, bool created, bool flipped) {
   if (params.changes_log2 == 0u || (!created && !flipped)) return;
-  uint s = findOrClaimChange(change_table, packKey(k), params.changes_log2);
+  uint s = findOrClaimChange(CHANGE_TABLE, packKey(k), params.changes_log2);
   if (s == 0xFFFFFFFFu) {
     atomicOr(counters.status, kStatusChangesShort);  // never expected; the host says so
     return;
   }
-  uint state = change_table.slot[s].state;
+  uint state = CHANGE_TABLE.slot[s].state;
   uint next = state;
   if (created) {
     if (state == kChangeNone) next = kChangeCreated;
@@ -56,8 +56,8 @@ void noteChange(uvec3 k, bool created, bool flipped) {
     next = kChangeNone;
   }
   if (next == state) return;
-  change_table.slot[s].state = next;
-  atomicAdd(change_table.header.live, next == kChangeNone ? 0xFFFFFFFFu : 1u);
+  CHANGE_TABLE.slot[s].state = next;
+  atomicAdd(CHANGE_TABLE.header.live, next == kChangeNone ? 0xFFFFFFFFu : 1u);
 }
 
 #endif  // OCTOVK_CHANGE_SET_GLSL

@@ -15,7 +15,7 @@ void main() {
   // A set found too small (the scan is redone): nothing to classify.
   if ((OCTOVK_LOAD(counters.status) & kStatusHashFull) != 0u) return;
   if (i >= counters.cell_entries) return;
-  uint slot = cell_list[i];
+  uint slot = CELL_LIST[i];
   // list_cells counted the free and occupied cells per brick, tree_gate the aborted ones: one
   // atomic per cell less each (per lane and masked on llvmpipe).
   float update = cellUpdate(slot);
@@ -26,22 +26,22 @@ void main() {
   // list_cells searched down to the brick's node for all cells of the brick; an open search
   // goes on from there.
   uint brick = (slot / kCellsPerBrick) * kBrickFlagWords;
-  uint n = hash_flags[brick];
-  uint shared_search = hash_flags[brick + 1u];
+  uint n = CELL_SET_FLAGS[brick];
+  uint shared_search = CELL_SET_FLAGS[brick + 1u];
   uint depth = shared_search & 0xFFu;
   bool found = (shared_search & kBrickFound) != 0u;
-  uint parent = n == kRootNode ? kNoBlock : block_parent[n / 8u];
+  uint parent = n == kRootNode ? kNoBlock : BLOCK_PARENT[n / 8u];
   if ((shared_search & kBrickOpen) != 0u &&
       searchDown(k, kTreeDepth, n, parent, depth) == kSearchMissing)
     found = false;
-  float value = nodes[n].log_odds;
+  float value = NODES[n].log_odds;
   // list_cells dropped the cells it found aborted already; the test stays (same tree, same
   // answer), so that what classify lists never depends on it.
   if (found && earlyAbort(update, value)) {
     return;
   }
   // The descent starts at the deepest existing node (the root, created by tree_begin, if none).
-  // Cells whose leaf exists need no descent: they are kept at the back of `cells`.
+  // Cells whose leaf exists need no descent: they are kept at the back of `CELLS`.
   uint at;
   if (depth == kTreeDepth) {
     at = params.cell_capacity - 1u - atomicAdd(counters.leaf_cells, 1u);
@@ -50,6 +50,6 @@ void main() {
     // classify_blocks runs over these (tree_gate sets these arguments again for descend).
     if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.active_args, at + 1u);
   }
-  cells[at] = ActiveCell(slot, n, parent, depth);
+  CELLS[at] = ActiveCell(slot, n, parent, depth);
 }
 

@@ -1,24 +1,24 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // What the descent creates, for the active cells that descend (classify put them at the front
-// of `cells`: their search ended above the finest level): the child slot the path steps into
+// of `CELLS`: their search ended above the finest level): the child slot the path steps into
 // made ready, and each node on the path that gets a block listed once in the second set, with
 // the exact count of new blocks that tree_gate checks against the pool.
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 #include "tree_search.glsl"
 #include "tree.glsl"
 
 // A child slot made ready for the descent: log-odds 0, no children, not live yet.
 void prepareChild(uint slot) {
-  nodes[slot].log_odds = 0.0;
-  atomicExchange(nodes[slot].link, kNoChildren);
+  NODES[slot].log_odds = 0.0;
+  atomicExchange(NODES[slot].link, kNoChildren);
 }
 
 void main() {
   uint i = invocationIndex();
   if ((OCTOVK_LOAD(counters.status) & kStatusHashFull) != 0u) return;
   if (i >= counters.active_cells) return;
-  ActiveCell cell = cells[i];
+  ActiveCell cell = CELLS[i];
   uvec3 k = cellKey(cell.slot);
   uint n = cell.node;
   uint depth = cell.depth;
@@ -56,6 +56,6 @@ void main() {
     if (prepare && d == depth + 1u) prepareChild(prepared);
     countEndpointEntry(atomicAdd(counters.new_blocks, 1u), prefix_slot);
     uint node = d == known_depth ? known_node : kNoBlock;
-    prefix_blocks[prefix_slot] = NewBlock(node, source, kNoBlock);
+    PREFIX_BLOCKS[prefix_slot] = NewBlock(node, source, kNoBlock);
   }
 }

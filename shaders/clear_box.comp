@@ -33,10 +33,10 @@ void main() {
     uint block = block_lists[pc.level * pool.capacity + n];
     float mx = -3.402823466e+38;  // -FLT_MAX, as getMaxChildLogOdds starts
     for (uint s = 0u; s < 8u; ++s) {
-      Node child = nodes[block * 8u + s];
+      Node child = NODES[block * 8u + s];
       if ((child.link & kFlagLive) != 0u && child.log_odds > mx) mx = child.log_odds;
     }
-    nodes[block_parent[block]].log_odds = mx;
+    NODES[BLOCK_PARENT[block]].log_odds = mx;
     return;
   }
   uint b = invocationIndex();
@@ -47,24 +47,24 @@ void main() {
     if (b == 0u) {  // the root, when it is a leaf (its box is the whole map)
       if (pool.root_exists != 0u && childBlock(kRootNode) == kNoChildren &&
           nodeMeetsBox(uvec3(0u), 0u, lo, hi))
-        nodes[kRootNode].log_odds = params.clamp_min_log;
+        NODES[kRootNode].log_odds = params.clamp_min_log;
       return;
     }
-    uint parent = block_parent[b];
+    uint parent = BLOCK_PARENT[b];
     if (parent == kNoBlock) return;
     uint depth;
     uvec3 parent_key = parentKeyOfBlock(parent, depth);
     uint bit = 15u - depth;
     for (uint s = 0u; s < 8u; ++s) {
-      uint link = nodes[b * 8u + s].link;
+      uint link = NODES[b * 8u + s].link;
       if ((link & kFlagLive) == 0u || (link & kBlockMask) != kNoChildren) continue;
       uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
-      if (nodeMeetsBox(key, depth + 1u, lo, hi)) nodes[b * 8u + s].log_odds = params.clamp_min_log;
+      if (nodeMeetsBox(key, depth + 1u, lo, hi)) NODES[b * 8u + s].log_odds = params.clamp_min_log;
     }
     return;
   }
   if (b == 0u) return;  // block 0 holds only the root
-  uint parent = block_parent[b];
+  uint parent = BLOCK_PARENT[b];
   if (parent == kNoBlock) return;
   // kClearBoxDepths
   uint depth;

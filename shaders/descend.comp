@@ -17,11 +17,11 @@
 
 void main() {
   uint i = invocationIndex();
-  // The cells that descend at the front of `cells`, the ones whose leaf existed at the back (see
+  // The cells that descend at the front of `CELLS`, the ones whose leaf existed at the back (see
   // classify); dispatched over both (tree_gate), nothing when the scan is not applied.
   uint descending = counters.active_cells;
   if (i >= descending + counters.leaf_cells) return;
-  ActiveCell cell = cells[i < descending ? i : params.cell_capacity - 1u - (i - descending)];
+  ActiveCell cell = CELLS[i < descending ? i : params.cell_capacity - 1u - (i - descending)];
   uvec3 k = cellKey(cell.slot);
   uint n = cell.node;
   uint parent = cell.parent;
@@ -31,7 +31,7 @@ void main() {
     uint child = childBlock(n) * 8u + childIndex(k, d);
     created = false;
     if ((linkOf(child) & kFlagLive) == 0u) {
-      uint before = atomicOr(nodes[child].link, kFlagLive);
+      uint before = atomicOr(NODES[child].link, kFlagLive);
       if ((before & kFlagLive) == 0u) {
         ++added;
         created = true;
@@ -42,13 +42,13 @@ void main() {
   }
   if (added != 0u) atomicAdd(pool.live_nodes, added);
 
-  float old_value = nodes[n].log_odds;
+  float old_value = NODES[n].log_odds;
   precise float value = old_value + cellUpdate(cell.slot);
   if (value < params.clamp_min_log) value = params.clamp_min_log;
   else if (value > params.clamp_max_log) value = params.clamp_max_log;
-  nodes[n].log_odds = value;
+  NODES[n].log_odds = value;
   noteChange(k, created,
              (old_value >= params.occupancy_log) != (value >= params.occupancy_log));
-  nodes[n].link = kNoChildren | kFlagLive;
+  NODES[n].link = kNoChildren | kFlagLive;
   listNode(kTreeDepth - 1u, parent);
 }

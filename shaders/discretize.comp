@@ -3,7 +3,7 @@
 // Discretize: one point per end cell (computeDiscreteUpdate). Distinct end keys go into the
 // endpoint set; ray_keys (mode 1) then shoots one ray to the centre of each. Non-finite and
 // out-of-map points are skipped and counted (OctoMap's unchecked coordToKey would wrap them).
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 
 layout(push_constant) uniform PushBlock { DiscretizeConstants pc; };
 
@@ -13,7 +13,7 @@ void main() {
   // refuses this scan too and the host runs it again later: its cells are not needed now.
   if (pool.halted != 0u) return;
   if (i >= pc.point_count) return;
-  vec3 p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
+  vec3 p = vec3(POINTS[3u * i], POINTS[3u * i + 1u], POINTS[3u * i + 2u]);
   if (!finiteBits(p)) {
     atomicAdd(counters.skipped_nonfinite, 1u);
     return;

@@ -17,7 +17,7 @@ layout(push_constant) uniform PushBlock { FieldChangesConstants pc; };
 void main() {
   uint s = invocationIndex();
   if (s >= pc.capacity) return;
-  uint64_t packed = change_table.slot[s].key;
+  uint64_t packed = CHANGE_TABLE.slot[s].key;
   if (packed == kEmptyChangeKey) return;
   FieldHeaderRef f = FieldHeaderRef(pc.header);
   uvec3 size = fieldSize(f);
@@ -29,7 +29,7 @@ void main() {
   if (pool.root_exists != 0u) {
     uint node = kRootNode, parent = kNoBlock, depth = 0u;
     if (searchDown(k, kTreeDepth, node, parent, depth) != kSearchMissing)
-      occupied = nodes[node].log_odds >= params.occupancy_log;
+      occupied = NODES[node].log_odds >= params.occupancy_log;
   }
   uint row = c.y + size.y * c.z;
   uint w = row * f.h.words_per_row + c.x / 32u;

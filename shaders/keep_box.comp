@@ -27,9 +27,9 @@ layout(std430, binding = kBindQueryIn) buffer QueryInBuf { BoxQuery box; };
 // Marks `n` and the nodes above it, up to one already marked (or the root).
 void markPath(uint n) {
   for (uint up = 0u; up <= kTreeDepth; ++up) {
-    uint old = atomicOr(nodes[n].link, kFlagTouched);
+    uint old = atomicOr(NODES[n].link, kFlagTouched);
     if ((old & kFlagTouched) != 0u || n == kRootNode) return;
-    n = block_parent[n / 8u];
+    n = BLOCK_PARENT[n / 8u];
   }
 }
 
@@ -48,16 +48,16 @@ void main() {
         markPath(kRootNode);
     } else if (pc.mode == kKeepBoxSweep) {
       if (!marked(kRootNode)) {  // nothing is kept: the tree is empty
-        atomicExchange(nodes[kRootNode].link, kNoChildren);
+        atomicExchange(NODES[kRootNode].link, kNoChildren);
         pool.root_exists = 0u;
         atomicAdd(pool.live_nodes, uint(-1));
       }
     } else {
-      nodes[kRootNode].link &= ~kFlagTouched;
+      NODES[kRootNode].link &= ~kFlagTouched;
     }
     return;
   }
-  uint parent = block_parent[b];
+  uint parent = BLOCK_PARENT[b];
   if (parent == kNoBlock) return;
   if (pc.mode == kKeepBoxMark) {
     uint depth;
@@ -71,7 +71,7 @@ void main() {
       if ((link & kFlagLive) == 0u || (link & kBlockMask) != kNoChildren) continue;
       uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
       if (!nodeMeetsBox(key, depth + 1u, lo, hi)) continue;
-      atomicOr(nodes[b * 8u + s].link, kFlagTouched);
+      atomicOr(NODES[b * 8u + s].link, kFlagTouched);
       any_kept = true;
     }
     if (any_kept) markPath(parent);
@@ -82,13 +82,13 @@ void main() {
     if (!marked(parent)) {  // the parent goes, and all of its children with it
       for (uint s = 0u; s < 8u; ++s)
         if ((linkOf(b * 8u + s) & kFlagLive) != 0u) ++deleted;
-      block_parent[b] = kNoBlock;
-      free_stack[atomicAdd(pool.free_count, 1u)] = b;
+      BLOCK_PARENT[b] = kNoBlock;
+      FREE_STACK[atomicAdd(pool.free_count, 1u)] = b;
     } else {
       for (uint s = 0u; s < 8u; ++s) {
         uint link = linkOf(b * 8u + s);
         if ((link & kFlagLive) == 0u || (link & kFlagTouched) != 0u) continue;
-        atomicExchange(nodes[b * 8u + s].link, kNoChildren);
+        atomicExchange(NODES[b * 8u + s].link, kNoChildren);
         ++deleted;
       }
     }
@@ -96,5 +96,5 @@ void main() {
     return;
   }
   // kKeepBoxUnmark: only this invocation reads or writes its block's links in this dispatch.
-  for (uint s = 0u; s < 8u; ++s) nodes[b * 8u + s].link &= ~kFlagTouched;
+  for (uint s = 0u; s < 8u; ++s) NODES[b * 8u + s].link &= ~kFlagTouched;
 }

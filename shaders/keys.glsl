@@ -5,6 +5,11 @@
 
 #include "bindings.glsl"
 
+// 2^-16: the relative margin every bound on the walks' float and double rounding uses (the max
+// range's test_after, the ray-tracing boxes and their slack), far above the errors it covers
+// (ray_walk.glsl's castRayRange says why).
+const double kRangeMargin = 1.0lf / 65536.0lf;
+
 bool coordToKeyChecked(float coord, out uint key) {
   precise double scaled = floor(params.resolution_factor * double(coord));
   key = 0u;

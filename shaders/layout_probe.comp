@@ -34,7 +34,7 @@ layout(std430, binding = kBindQueryOut) buffer QueryOutBuf {
   DeviceProbeConstants probe_device_probe;
 };
 // The saved ray walks of the ray-key pass.
-#define probe_walks walks
+#define probe_walks WALKS
 
 uint mu(uint id) { return 0xC0DE0000u + id; }
 float mf(uint id) { return float(id) + 0.5; }
@@ -42,29 +42,29 @@ double md(uint id) { return double(id) + 0.25lf; }
 uint64_t m64(uint id) { return 0xC0DE0000C0DE0000ul + uint64_t(id); }
 
 void probeNode(uint i, uint id) {
-  nodes[i].log_odds = mf(id);
-  nodes[i].link = mu(id + 1u);
+  NODES[i].log_odds = mf(id);
+  NODES[i].link = mu(id + 1u);
 }
 
 void probeActiveCell(uint i, uint id) {
-  cells[i].slot = mu(id);
-  cells[i].node = mu(id + 1u);
-  cells[i].parent = mu(id + 2u);
-  cells[i].depth = mu(id + 3u);
+  CELLS[i].slot = mu(id);
+  CELLS[i].node = mu(id + 1u);
+  CELLS[i].parent = mu(id + 2u);
+  CELLS[i].depth = mu(id + 3u);
 }
 
 void probeNewBlock(uint i, uint id) {
-  prefix_blocks[i].node = mu(id);
-  prefix_blocks[i].source = mu(id + 1u);
-  prefix_blocks[i].block = mu(id + 2u);
+  PREFIX_BLOCKS[i].node = mu(id);
+  PREFIX_BLOCKS[i].source = mu(id + 1u);
+  PREFIX_BLOCKS[i].block = mu(id + 2u);
 }
 
 void probeLeafBox(uint i, uint id) {
-  leaf_boxes[i].center_x = mf(id);
-  leaf_boxes[i].center_y = mf(id + 1u);
-  leaf_boxes[i].center_z = mf(id + 2u);
-  leaf_boxes[i].size = mf(id + 3u);
-  leaf_boxes[i].log_odds = mf(id + 4u);
+  LEAF_BOXES[i].center_x = mf(id);
+  LEAF_BOXES[i].center_y = mf(id + 1u);
+  LEAF_BOXES[i].center_z = mf(id + 2u);
+  LEAF_BOXES[i].size = mf(id + 3u);
+  LEAF_BOXES[i].log_odds = mf(id + 4u);
 }
 
 void main() {
@@ -223,24 +223,24 @@ void main() {
   }
 
   // Arrays of scalars: element 1.
-  points[1] = mf(800u);
-  hash_keys[1] = m64(801u);
-  hash_flags[1] = mu(802u);
-  free_stack[1] = mu(803u);
-  endpoint_keys[1] = m64(804u);
-  slots[1] = mu(805u);
-  cell_list[1] = mu(806u);
-  block_parent[1] = mu(807u);
+  POINTS[1] = mf(800u);
+  CELL_SET_KEYS[1] = m64(801u);
+  CELL_SET_FLAGS[1] = mu(802u);
+  FREE_STACK[1] = mu(803u);
+  ENDPOINT_KEYS[1] = m64(804u);
+  SLOTS[1] = mu(805u);
+  CELL_LIST[1] = mu(806u);
+  BLOCK_PARENT[1] = mu(807u);
   // DepthCamera at the start of the depth buffer, then its first pixel word: 810 + field index.
-  depth_image.camera.fx = mf(810u);
-  depth_image.camera.fy = mf(811u);
-  depth_image.camera.cx = mf(812u);
-  depth_image.camera.cy = mf(813u);
-  depth_image.camera.depth_scale = mf(814u);
-  depth_image.camera.width = mu(815u);
-  depth_image.camera.height = mu(816u);
-  depth_image.camera.encoding = mu(817u);
-  depth_image.words[0] = mu(818u);
+  DEPTH_IMAGE.camera.fx = mf(810u);
+  DEPTH_IMAGE.camera.fy = mf(811u);
+  DEPTH_IMAGE.camera.cx = mf(812u);
+  DEPTH_IMAGE.camera.cy = mf(813u);
+  DEPTH_IMAGE.camera.depth_scale = mf(814u);
+  DEPTH_IMAGE.camera.width = mu(815u);
+  DEPTH_IMAGE.camera.height = mu(816u);
+  DEPTH_IMAGE.camera.encoding = mu(817u);
+  DEPTH_IMAGE.words[0] = mu(818u);
 
   // The passes' push-constant structs: 1100 + 10 * struct (in gpu_types.h's order) + field.
   probe_no_constants = NoConstants(mu(1100u), mu(1101u), mu(1102u), mu(1103u));
@@ -286,12 +286,12 @@ void main() {
   probe_device_probe.pad0 = mu(1203u);
 
   // Push constants and shared constants, as the shader sees them.
-  touched[0] = pc.budget;
-  touched[1] = pc.point_count;
-  touched[2] = pc.mode;
-  touched[3] = pc.from_list;
-  touched[4] = gl_WorkGroupSize.x;
-  touched[5] = kLevelCount;
-  touched[6] = kTreeDepth;
-  touched[7] = kNoBlock;
+  TOUCHED[0] = pc.budget;
+  TOUCHED[1] = pc.point_count;
+  TOUCHED[2] = pc.mode;
+  TOUCHED[3] = pc.from_list;
+  TOUCHED[4] = gl_WorkGroupSize.x;
+  TOUCHED[5] = kLevelCount;
+  TOUCHED[6] = kTreeDepth;
+  TOUCHED[7] = kNoBlock;
 }

@@ -37,7 +37,7 @@ void emit(uvec3 key, uint depth, float log_odds) {
     centre = toFloat(c);
   }
   LeafBox leaf = LeafBox(centre.x, centre.y, centre.z, toFloat(size), log_odds);
-  if (pc.mode == kLeafBoxesRebuild) leaf_boxes[atomicAdd(pool.leaf_count, 1u)] = leaf;
+  if (pc.mode == kLeafBoxesRebuild) LEAF_BOXES[atomicAdd(pool.leaf_count, 1u)] = leaf;
   else {
     // Every leaf is counted; those beyond the bound range are not written (the host asks again
     // in parts of the box when the count exceeds it).
@@ -51,16 +51,16 @@ void main() {
   if (b >= pool.bump) return;
   if (b == 0u) {
     if (pool.root_exists != 0u && childBlock(kRootNode) == kNoChildren)
-      emit(uvec3(0u), 0u, nodes[kRootNode].log_odds);
+      emit(uvec3(0u), 0u, NODES[kRootNode].log_odds);
     return;
   }
-  uint parent = block_parent[b];
+  uint parent = BLOCK_PARENT[b];
   if (parent == kNoBlock) return;
   uint depth;
   uvec3 parent_key = parentKeyOfBlock(parent, depth);
   uint bit = 15u - depth;
   for (uint s = 0u; s < 8u; ++s) {
-    Node child = nodes[b * 8u + s];
+    Node child = NODES[b * 8u + s];
     if ((child.link & kFlagLive) == 0u || (child.link & kBlockMask) != kNoChildren) continue;
     uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
     emit(key, depth + 1u, child.log_odds);

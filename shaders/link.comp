@@ -3,15 +3,15 @@
 // Hangs each block alloc filled under its node: the node is known (it existed before alloc), or
 // it is a child in the block of the node one level up. (An expansion's children exist already;
 // a created node's children are switched on by the descent, one per path.)
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 
 void main() {
   uint n = invocationIndex();
   if (n >= counters.new_blocks) return;
-  uint slot = slots[params.hash_capacity + n];
-  NewBlock nb = prefix_blocks[slot];
+  uint slot = SLOTS[params.hash_capacity + n];
+  NewBlock nb = PREFIX_BLOCKS[slot];
   uint node = nb.node;
-  uint64_t prefix = endpoint_keys[slot];
+  uint64_t prefix = ENDPOINT_KEYS[slot];
   uint depth = uint(prefix >> 48);
   if (node == kNoBlock) {
     uvec3 k = unpackKey(prefix);
@@ -20,8 +20,8 @@ void main() {
       atomicOr(counters.status, kStatusPoolFull);
       return;
     }
-    node = prefix_blocks[up].block * 8u + childIndex(k, depth - 1u);
+    node = PREFIX_BLOCKS[up].block * 8u + childIndex(k, depth - 1u);
   }
-  nodes[node].link = (nodes[node].link & ~kBlockMask) | nb.block;
-  block_parent[nb.block] = node;
+  NODES[node].link = (NODES[node].link & ~kBlockMask) | nb.block;
+  BLOCK_PARENT[nb.block] = node;
 }

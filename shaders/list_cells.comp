@@ -14,10 +14,10 @@
 void main() {
   uint i = invocationIndex();
   if (i >= counters.brick_entries) return;
-  uint slot = slots[i];
+  uint slot = SLOTS[i];
   uint flags = slot * kBrickFlagWords;
-  uint touched_lo = hash_flags[flags], touched_hi = hash_flags[flags + 1u];
-  uint occupied_lo = hash_flags[flags + 2u], occupied_hi = hash_flags[flags + 3u];
+  uint touched_lo = CELL_SET_FLAGS[flags], touched_hi = CELL_SET_FLAGS[flags + 1u];
+  uint occupied_lo = CELL_SET_FLAGS[flags + 2u], occupied_hi = CELL_SET_FLAGS[flags + 3u];
   uvec2 marked = uvec2(touched_lo, touched_hi);
   uvec2 occupied_bits = uvec2(occupied_lo, occupied_hi);
   // The brick's occupied cells (their bits are a subset of the touched ones) and free cells.
@@ -27,7 +27,7 @@ void main() {
   if (touched_count != occupied) atomicAdd(counters.free_cells, touched_count - occupied);
 
   // The shared part of search(), on the tree as it was before the scan, to the brick's depth.
-  uvec3 k = unpackKey(hash_keys[slot]) << 2;
+  uvec3 k = unpackKey(CELL_SET_KEYS[slot]) << 2;
   uint n = kRootNode, parent = kNoBlock, depth = 0u;
   uint ended = kSearchMissing;  // no root
   if (pool.root_exists != 0u) ended = searchDown(k, kBrickDepth, n, parent, depth);
@@ -41,7 +41,7 @@ void main() {
   uvec2 keep = marked;
   float hit = params.prob_hit_log, miss = params.prob_miss_log;
   if (found && !open) {
-    float value = nodes[n].log_odds;
+    float value = NODES[n].log_odds;
     keep = (earlyAbort(miss, value) ? uvec2(0u) : marked & ~occupied_bits) |
            (earlyAbort(hit, value) ? uvec2(0u) : occupied_bits);
   } else if (found) {
@@ -56,7 +56,7 @@ void main() {
       uint cn = n, cp = parent, cd = depth;
       bool cell_found = searchDown(cell, kTreeDepth, cn, cp, cd) != kSearchMissing;
       float update = any(notEqual(occupied_bits & bit, uvec2(0u))) ? hit : miss;
-      if (cell_found && earlyAbort(update, nodes[cn].log_odds)) keep &= ~bit;
+      if (cell_found && earlyAbort(update, NODES[cn].log_odds)) keep &= ~bit;
     }
   }
 
@@ -70,18 +70,18 @@ void main() {
   }
   if (count != 0u) OCTOVK_COVER_LIST(counters.cell_args, end);
 
-  hash_flags[flags] = n;
-  hash_flags[flags + 1u] =
+  CELL_SET_FLAGS[flags] = n;
+  CELL_SET_FLAGS[flags + 1u] =
       depth | (found ? kBrickFound : 0u) | (open ? kBrickOpen : 0u);
   uint base = slot * kCellsPerBrick;
   while (keep.x != 0u) {
     int b = findLSB(keep.x);
-    cell_list[at++] = base + uint(b);
+    CELL_LIST[at++] = base + uint(b);
     keep.x &= keep.x - 1u;
   }
   while (keep.y != 0u) {
     int b = findLSB(keep.y);
-    cell_list[at++] = base + 32u + uint(b);
+    CELL_LIST[at++] = base + 32u + uint(b);
     keep.y &= keep.y - 1u;
   }
 }

@@ -21,9 +21,9 @@ void main() {
     return;
   }
   if (s >= pc.capacity) return;
-  uint state = change_table.slot[s].state;
+  uint state = CHANGE_TABLE.slot[s].state;
   if (state == kChangeNone) return;
-  uvec3 k = unpackKey(change_table.slot[s].key);
+  uvec3 k = unpackKey(CHANGE_TABLE.slot[s].key);
   changed[atomicAdd(changed_header.count, 1u)] =
       ChangedKey(k.x, k.y, k.z, state == kChangeCreated ? 1u : 0u);
 }

@@ -13,15 +13,15 @@ void main() {
   uint r = invocationIndex();
   uint level = pc.level;
   if (r >= counters.touched_count[level]) return;
-  uint n = touched[level * params.active_capacity + r];
-  uint link = nodes[n].link;
+  uint n = TOUCHED[level * params.active_capacity + r];
+  uint link = NODES[n].link;
   uint block = link & kBlockMask;
 
   bool collapsible = true;
-  float first = nodes[block * 8u].log_odds;
+  float first = NODES[block * 8u].log_odds;
   float max_value = -3.40282347e38;
   for (uint s = 0u; s < 8u; ++s) {
-    Node child = nodes[block * 8u + s];
+    Node child = NODES[block * 8u + s];
     if ((child.link & kFlagLive) == 0u) {
       collapsible = false;
       continue;
@@ -30,14 +30,14 @@ void main() {
     if (child.log_odds > max_value) max_value = child.log_odds;
   }
   if (collapsible) {
-    nodes[n] = Node(first, kNoChildren | kFlagLive);
-    block_parent[block] = kNoBlock;
+    NODES[n] = Node(first, kNoChildren | kFlagLive);
+    BLOCK_PARENT[block] = kNoBlock;
     uint at = atomicAdd(pool.free_count, 1u);
-    free_stack[at] = block;
+    FREE_STACK[at] = block;
     atomicAdd(pool.live_nodes, uint(-8));
   } else {
-    nodes[n].log_odds = max_value;
-    nodes[n].link = block | kFlagLive;
+    NODES[n].log_odds = max_value;
+    NODES[n].link = block | kFlagLive;
   }
   if (level > 0u) listParent(level - 1u, n);
 }

@@ -10,22 +10,14 @@
 // the other (kRayKeysContinueLast, the last round, reports them instead). Where the device probe
 // measured a loop limit (Mesa 22.3's llvmpipe: 65535 iterations in total) the budget stays below
 // it; elsewhere it finishes every ray at once.
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 #include "ray_walk.glsl"
 
 layout(push_constant) uniform PushBlock { RayKeysConstants pc; };
 
-// The walk of this invocation's ray (ray_walk.glsl).
-int budget;
-uvec3 key_end;
-float len;
-RayWalk w;
+#include "scan_point.glsl"  // the point's set-up, shared with scan_rays_rt.comp
 
-// Direction, length, steps and tDelta of the ray o -> e (and tMax when starting), as
-// computeRayKeys computes them.
-void setUp(vec3 o, vec3 e, bool start) {
-  walkSetUp(w, o, rayKeysDirection(o, e, len), start, kHalfStepFloat);
-}
+int budget;  // loop iterations left to this invocation's walk
 
 // Steps until the ray is done (true) or the budget of loop iterations (the walk's and the set's
 // probes) is spent (false). The inner loop steps through one brick, only noting the cells it
@@ -56,38 +48,17 @@ bool walk() {
 void save(uint list, vec3 e) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
-  walks[list * params.point_count + at] =
+  WALKS[list * params.point_count + at] =
       WalkState(w.t_max.x, w.t_max.y, w.t_max.z, e.x, e.y, e.z, w.key.x | (w.key.y << 16), w.key.z,
                 0u);
 }
-
-// OcTreeBaseImpl::computeRayKeys: Amanatides-Woo, origin cell included, end cell excluded.
-// Its start: false when an end lies outside the map (no free cells); `walking` when cells are
-// left to walk after the origin's (origin and end in one cell: none).
-bool startRay(vec3 o, vec3 e, out bool walking) {
-  walking = false;
-  uvec3 ko;
-  if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
-      !coordToKeyChecked(o.z, ko.z))
-    return false;
-  if (!coordToKeyChecked(e.x, key_end.x) || !coordToKeyChecked(e.y, key_end.y) ||
-      !coordToKeyChecked(e.z, key_end.z))
-    return false;
-  if (ko == key_end) return true;
-  markCell(ko, false);
-  w.key = ko;
-  walking = true;
-  return true;
-}
-
-vec3 scanOrigin() { return vec3(params.origin_x, params.origin_y, params.origin_z); }
 
 // A walk saved by an earlier round: its end and DDA state.
 bool resumeWalk(uint i, out vec3 e) {
   e = vec3(0.0);
   uint from = pc.from_list;
   if (i >= counters.walk_count[from]) return false;
-  WalkState saved = walks[from * params.point_count + i];
+  WalkState saved = WALKS[from * params.point_count + i];
   e = vec3(saved.end_x, saved.end_y, saved.end_z);
   coordToKeyChecked(e.x, key_end.x);
   coordToKeyChecked(e.y, key_end.y);
@@ -95,58 +66,6 @@ bool resumeWalk(uint i, out vec3 e) {
   w.t_max = dvec3(saved.t_max_x, saved.t_max_y, saved.t_max_z);
   w.key = uvec3(saved.key_xy & 0xFFFFu, saved.key_xy >> 16, saved.key_z);
   return true;
-}
-
-// A new ray: point i's (or end cell i's) occupied cell, and the start of its walk. The end of
-// the walk goes to `e`.
-bool startPoint(uint i, out vec3 e) {
-  e = vec3(0.0);
-  vec3 p;
-  if (pc.mode == kRayKeysPoints) {
-    if (i >= pc.point_count) return false;
-    p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
-    if (!finiteBits(p)) {
-      atomicAdd(counters.skipped_nonfinite, 1u);
-      return false;
-    }
-  } else {
-    if (i >= counters.endpoint_entries) return false;
-    uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
-    p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
-  }
-  vec3 o = scanOrigin();
-  bool inserted = false;
-  precise float dx = p.x - o.x;
-  precise float dy = p.y - o.y;
-  precise float dz = p.z - o.z;
-  double dist = normOf(dx, dy, dz);
-  bool within = params.max_range < 0.0lf || dist <= params.max_range;
-  e = p;
-  if (within) {
-    uvec3 k;
-    if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
-        coordToKeyChecked(p.z, k.z)) {
-      markCell(k, true);
-      inserted = true;
-    }
-  } else {
-    // Point3d::normalized() then origin + direction * (float) maxrange.
-    if (dist > 0.0lf) {
-      float l = toFloat(dist);
-      dx = divFloat(dx, l);
-      dy = divFloat(dy, l);
-      dz = divFloat(dz, l);
-    }
-    float range = toFloat(params.max_range);
-    precise float ex = o.x + dx * range;
-    precise float ey = o.y + dy * range;
-    precise float ez = o.z + dz * range;
-    e = vec3(ex, ey, ez);
-  }
-  bool walking;
-  inserted = startRay(o, e, walking) || inserted;
-  if (!inserted) atomicAdd(counters.skipped_outside, 1u);
-  return walking;
 }
 
 // Each piece of the walk (set-up, steps, set probes) appears once in this shader, whatever the
@@ -162,7 +81,7 @@ void main() {
   vec3 e;
   bool walking = resumed ? resumeWalk(i, e) : startPoint(i, e);
   if (walking) {
-    setUp(scanOrigin(), e, !resumed);
+    setUpWalk(e, !resumed);
     if (!walk()) {
       // After the last continuation a walk still unfinished is an error, not a silently
       // shortened ray.

@@ -164,8 +164,7 @@ struct CastRayRange {
 // sqrt(3) / 2 cells and the absolute errors, m the relative ones. m = 2^-16 leaves a factor of 64
 // (cast_ray had 2^-20 and cast_ray_rt 2^-16, both valid: a smaller test_after only runs more
 // exact tests and stops jumps earlier, so it cannot change an answer; the walk's cost of the
-// larger margin is 2^-16 of the range, far below a cell).
-const double kRangeMargin = 1.0lf / 65536.0lf;  // 2^-16
+// larger margin is 2^-16 of the range, far below a cell). m is kRangeMargin (keys.glsl).
 
 CastRayRange castRayRange(double max_range, RayWalk w) {
   CastRayRange r;

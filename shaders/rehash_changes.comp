@@ -15,11 +15,11 @@ void main() {
   ChangeTableRef old = ChangeTableRef(uint64_t(pc.old_address_lo) | (uint64_t(pc.old_address_hi) << 32));
   uint state = old.slot[s].state;
   if (state == kChangeNone) return;
-  uint t = findOrClaimChange(change_table, old.slot[s].key, params.changes_log2);
+  uint t = findOrClaimChange(CHANGE_TABLE, old.slot[s].key, params.changes_log2);
   if (t == 0xFFFFFFFFu) {
     atomicOr(counters.status, kStatusChangesShort);  // never expected: the new set is larger
     return;
   }
-  change_table.slot[t].state = state;
-  atomicAdd(change_table.header.live, 1u);
+  CHANGE_TABLE.slot[t].state = state;
+  atomicAdd(CHANGE_TABLE.header.live, 1u);
 }

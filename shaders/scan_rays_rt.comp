@@ -6,7 +6,7 @@
 // ray_keys.comp marks them, except cells whose leaf is clamped free: a free update there is a
 // no-op (updateNode's early abort), so those cells may be left out of the cell set exactly.
 // The boxes (accel_boxes.comp, kAccelBoxesScan) cover every other cell of the map: leaves above
-// clamp_min_log and unknown regions, each enlarged by a quarter cell. Per ray a ray query finds
+// clamp_min_log and unknown regions, each enlarged by a 64th of a cell. Per ray a ray query finds
 // the nearest box; the walk jumps exactly (walkJumpTo: the same tMax bits as stepping) to
 // just before it, then steps OctoMap's DDA, marking each cell whose node is not clamped free
 // (a tree lookup, cached per node), and traces again from the first clamped-free cell past the
@@ -15,21 +15,18 @@
 // jump's target; stepped cells are looked up). The end cell is marked occupied from the point,
 // as ray_keys does.
 //
-// The per-point checks (non-finite points, max range, keys outside the map, discretize's end
-// cells) mirror ray_keys.comp's main() line for line. Runs only where loops have no driver
-// limit (the host refuses it elsewhere), so every ray is walked in one go.
+// The per-point checks and the ray's start are ray_keys.comp's (scan_point.glsl). Runs only
+// where loops have no driver limit (the host refuses it elsewhere), so every ray is walked in one
+// go.
 #define OCTOVK_NODES_READ_ONLY
 #define OCTOVK_RAY_QUERY
-#include "hash_set.glsl"
+#include "cell_set.glsl"
 #include "walk_cells.glsl"
 #include "accel_trace.glsl"
 
 layout(push_constant) uniform PushBlock { ScanRaysRtConstants pc; };
 
-// The walk of this invocation's ray (ray_walk.glsl).
-RayWalk w;
-uvec3 key_end;
-float len;
+#include "scan_point.glsl"
 
 // Whether a free update of cell k is a no-op: search() finds a node at clamp_min_log
 // (classify's early abort). The cache answers for every cell of the node it last found.
@@ -50,20 +47,19 @@ void walkTraced() {
     return;
   }
   AccelRef scene = AccelRef(pc.boxes);
-  double dir_len = length(dvec3(w.dir));
+  double dir_len = walkDirLength(w);
   // Jumps stop two cells short of the end, so that no jump passes the end cell or the cell where
   // OctoMap's length test ends the walk (a cell entered before t_limit is left before the
   // length); the last cells are stepped.
-  double t_limit = (double(len) - 2.0lf * params.resolution - double(len) * (1.0lf / 65536.0lf)) /
-                   (dir_len * (1.0lf + 1.0lf / 65536.0lf));
+  double t_limit = (double(len) - 2.0lf * params.resolution - double(len) * kRangeMargin) /
+                   (dir_len * (1.0lf + kRangeMargin));
   // Boxes beyond the end do not matter.
   float t_to = float((double(len) + 2.0lf * params.resolution) / dir_len);
   for (;;) {
     double t_from = walkMinTMax(w) - slack(walkMinTMax(w), w.org, dir_len);
     double t_enter = 1.0e300lf, t_exit;
     bool found = t_from < double(t_to) &&
-                 nearestBox(scene, w, kAccelMaskOccupied | kAccelMaskUnknown, t_from, t_to,
-                            /*fixed_axes=*/true, t_enter, t_exit);
+                 nearestBox(scene, w, t_from, t_to, /*fixed_axes=*/true, t_enter, t_exit);
     double target = min(t_enter, t_limit);
     target -= slack(target, w.org, dir_len);
     // The cells the jump passes lie in no box (clamped free): their updates are no-ops. The
@@ -90,68 +86,14 @@ void walkTraced() {
   }
 }
 
-// ray_keys.comp's insertRay: false when an end lies outside the map (no free cells).
-bool traceRay(vec3 o, vec3 e) {
-  uvec3 ko;
-  if (!coordToKeyChecked(o.x, ko.x) || !coordToKeyChecked(o.y, ko.y) ||
-      !coordToKeyChecked(o.z, ko.z))
-    return false;
-  if (!coordToKeyChecked(e.x, key_end.x) || !coordToKeyChecked(e.y, key_end.y) ||
-      !coordToKeyChecked(e.z, key_end.z))
-    return false;
-  if (ko == key_end) return true;
-  markCell(ko, false);
-  w.key = ko;
-  walkSetUp(w, o, rayKeysDirection(o, e, len), true, kHalfStepFloat);
-  walkTraced();
-  return true;
-}
-
 void main() {
   uint i = invocationIndex();
   // Behind a scan the device refused (PoolState::halted), tree_gate refuses this scan too.
   if (pool.halted != 0u) return;
-  vec3 p;
-  if (pc.mode == kRayKeysPoints) {
-    if (i >= pc.point_count) return;
-    p = vec3(points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
-    if (!finiteBits(p)) {
-      atomicAdd(counters.skipped_nonfinite, 1u);
-      return;
-    }
-  } else {
-    if (i >= counters.endpoint_entries) return;
-    uvec3 kk = unpackKey(endpoint_keys[slots[params.hash_capacity + i]]);
-    p = vec3(toFloat(keyToCoord(kk.x)), toFloat(keyToCoord(kk.y)), toFloat(keyToCoord(kk.z)));
+  vec3 e;
+  if (startPoint(i, e)) {
+    setUpWalk(e, true);
+    walkTraced();
   }
-  vec3 o = vec3(params.origin_x, params.origin_y, params.origin_z);
-  bool inserted = false;
-  precise float dx = p.x - o.x;
-  precise float dy = p.y - o.y;
-  precise float dz = p.z - o.z;
-  double dist = normOf(dx, dy, dz);
-  if (params.max_range < 0.0lf || dist <= params.max_range) {
-    uvec3 k;
-    if (coordToKeyChecked(p.x, k.x) && coordToKeyChecked(p.y, k.y) &&
-        coordToKeyChecked(p.z, k.z)) {
-      markCell(k, true);
-      inserted = true;
-    }
-    inserted = traceRay(o, p) || inserted;
-  } else {
-    // Point3d::normalized() then origin + direction * (float) maxrange.
-    if (dist > 0.0lf) {
-      float l = toFloat(dist);
-      dx = divFloat(dx, l);
-      dy = divFloat(dy, l);
-      dz = divFloat(dz, l);
-    }
-    float range = toFloat(params.max_range);
-    precise float ex = o.x + dx * range;
-    precise float ey = o.y + dy * range;
-    precise float ez = o.z + dz * range;
-    inserted = traceRay(o, vec3(ex, ey, ez));
-  }
-  if (!inserted) atomicAdd(counters.skipped_outside, 1u);
   flushMarks();
 }

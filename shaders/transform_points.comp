@@ -19,7 +19,7 @@ void main() {
   if (i >= pc.point_count) return;
   vec4 q = vec4(params.rot_u, params.rot_x, params.rot_y, params.rot_z);
   vec4 q_inv = vec4(q.x, -q.y, -q.z, -q.w);
-  vec4 v = vec4(0.0, points[3u * i], points[3u * i + 1u], points[3u * i + 2u]);
+  vec4 v = vec4(0.0, POINTS[3u * i], POINTS[3u * i + 1u], POINTS[3u * i + 2u]);
   // A non-finite point stays as it is for the ray pass to skip: Vulkan does not promise NaN or
   // inf results from arithmetic on them.
   if (!finiteBits(v.yzw)) return;
@@ -27,7 +27,7 @@ void main() {
   precise float x = r.y + params.trans_x;
   precise float y = r.z + params.trans_y;
   precise float z = r.w + params.trans_z;
-  points[3u * i] = x;
-  points[3u * i + 1u] = y;
-  points[3u * i + 2u] = z;
+  POINTS[3u * i] = x;
+  POINTS[3u * i + 1u] = y;
+  POINTS[3u * i + 2u] = z;
 }

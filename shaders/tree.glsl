@@ -8,14 +8,14 @@
 // Key of the cell with this id in the cell set (brick slot * 64 + index).
 uvec3 cellKey(uint id) {
   uint index = id % kCellsPerBrick;
-  return (unpackKey(hash_keys[id / kCellsPerBrick]) << 2) |
+  return (unpackKey(CELL_SET_KEYS[id / kCellsPerBrick]) << 2) |
          uvec3(index & 3u, (index >> 2) & 3u, index >> 4);
 }
 
 bool cellOccupied(uint id) {
   uint index = id % kCellsPerBrick;
   uint word = (id / kCellsPerBrick) * kBrickFlagWords + 2u + (index >> 5);
-  return (hash_flags[word] & (1u << (index & 31u))) != 0u;
+  return (CELL_SET_FLAGS[word] & (1u << (index & 31u))) != 0u;
 }
 
 float cellUpdate(uint id) {
@@ -32,18 +32,18 @@ bool earlyAbort(float update, float value) {
 // Appends item to a per-level list and keeps its indirect dispatch arguments in step.
 void appendTouched(uint level, uint node) {
   uint at = atomicAdd(counters.touched_count[level], 1u);
-  touched[level * params.active_capacity + at] = node;
+  TOUCHED[level * params.active_capacity + at] = node;
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.touched_args[level], at + 1u);
 }
 
 // Lists `parent` (at depth `level`) once for the prune pass at that level.
 void listNode(uint level, uint parent) {
   if ((linkOf(parent) & kFlagTouched) != 0u) return;
-  uint old = atomicOr(nodes[parent].link, kFlagTouched);
+  uint old = atomicOr(NODES[parent].link, kFlagTouched);
   if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
 }
 
 // Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
-void listParent(uint level, uint node) { listNode(level, block_parent[node / 8u]); }
+void listParent(uint level, uint node) { listNode(level, BLOCK_PARENT[node / 8u]); }
 
 #endif  // OCTOVK_TREE_GLSL

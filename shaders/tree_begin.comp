@@ -9,8 +9,8 @@ void main() {
   if ((counters.status & kStatusNotApplied) != 0u) return;
   if (counters.active_cells + counters.leaf_cells == 0u) return;
   if (pool.root_exists == 0u) {
-    nodes[kRootNode] = Node(0.0, kNoChildren | kFlagLive);
-    block_parent[0] = kNoBlock;
+    NODES[kRootNode] = Node(0.0, kNoChildren | kFlagLive);
+    BLOCK_PARENT[0] = kNoBlock;
     pool.root_exists = 1u;
     pool.live_nodes = 1u;
   }

@@ -26,7 +26,7 @@ void main() {
   uint status = counters.status;
   uint active_count = counters.active_cells + counters.leaf_cells;
   // Every listed cell that classify did not drop at the early abort is active (at the front of
-  // `cells`) or has its leaf (at the back).
+  // `CELLS`) or has its leaf (at the back).
   counters.aborted = counters.free_cells + counters.occupied_cells - active_count;
   if (pool.halted != 0u) status |= kStatusHalted;
   if (counters.new_blocks > pool.capacity - pool.bump + pool.free_count)
@@ -35,7 +35,7 @@ void main() {
   // Change detection: room for every updated cell to claim a slot, the set at most 3/4 full.
   if (params.changes_log2 != 0u) {
     uint room = (1u << params.changes_log2) - (1u << params.changes_log2) / 4u;
-    if (uint64_t(change_table.header.used) + active_count > uint64_t(room))
+    if (uint64_t(CHANGE_TABLE.header.used) + active_count > uint64_t(room))
       status |= kStatusChangesShort;
   }
   if ((status & (kStatusHashFull | kStatusEndpointHashFull | kStatusRayCut | kStatusPoolShort |

@@ -10,9 +10,9 @@
 // A pass that writes no node (OCTOVK_NODES_READ_ONLY, defined before including this file) has no
 // racing writer and reads links plainly.
 #ifdef OCTOVK_NODES_READ_ONLY
-uint linkOf(uint n) { return nodes[n].link; }
+uint linkOf(uint n) { return NODES[n].link; }
 #else
-uint linkOf(uint n) { return OCTOVK_LOAD(nodes[n].link); }
+uint linkOf(uint n) { return OCTOVK_LOAD(NODES[n].link); }
 #endif
 
 // The block of node n's children, or kNoChildren.

@@ -21,7 +21,7 @@ void main() {
   if (i >= pc.pixel_count) return;
   // Field by field: glslang 11 does not finish compiling a whole-struct load through a buffer
   // reference.
-  DepthRef image = depth_image;
+  DepthRef image = DEPTH_IMAGE;
   float d;
   if (image.camera.encoding == kDepthUint16) {
     uint word = image.words[i >> 1u];
@@ -33,9 +33,9 @@ void main() {
   if (normalBits(d)) z = divFloat(d, image.camera.depth_scale);
   if (!normalBits(d) || !normalBits(z)) {
     atomicAdd(counters.no_depth, 1u);
-    points[3u * i] = uintBitsToFloat(0x7FC00000u);
-    points[3u * i + 1u] = uintBitsToFloat(0x7FC00000u);
-    points[3u * i + 2u] = uintBitsToFloat(0x7FC00000u);
+    POINTS[3u * i] = uintBitsToFloat(0x7FC00000u);
+    POINTS[3u * i + 1u] = uintBitsToFloat(0x7FC00000u);
+    POINTS[3u * i + 2u] = uintBitsToFloat(0x7FC00000u);
     return;
   }
   uint width = image.camera.width;
@@ -45,7 +45,7 @@ void main() {
   precise float dv = float(v) - image.camera.cy;
   precise float xz = du * z;
   precise float yz = dv * z;
-  points[3u * i] = divFloat(xz, image.camera.fx);
-  points[3u * i + 1u] = divFloat(yz, image.camera.fy);
-  points[3u * i + 2u] = z;
+  POINTS[3u * i] = divFloat(xz, image.camera.fx);
+  POINTS[3u * i + 1u] = divFloat(yz, image.camera.fy);
+  POINTS[3u * i + 2u] = z;
 }

@@ -79,7 +79,7 @@ uint walkCellState(uvec3 k, inout CellCache c, out uint cost) {
   uint covered = found ? depth : depth + 1u;
   c.shift = kTreeDepth - covered;
   c.prefix = k >> c.shift;
-  c.log_odds = found ? nodes[node].log_odds : 0.0;
+  c.log_odds = found ? NODES[node].log_odds : 0.0;
   c.state = !found ? kCellUnknown
                    : (c.log_odds >= params.occupancy_log ? kCellOccupied : kCellFree);
   return c.state;

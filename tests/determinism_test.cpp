@@ -13,6 +13,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <ostream>
+#include <string>
 
 #include "test_support.hpp"
 
@@ -415,15 +417,20 @@ void shuffledScansGiveTheSameMap(Context& ctx, bool discretize) {
   }
 }
 
-TEST(DeterminismPointOrder, ShuffledScansGiveTheSameMap) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  shuffledScansGiveTheSameMap(ctx, false);
+// The tests below run with and without discretize: Suite.Test/Plain and Suite.Test/Discretize
+// (instantiated without a prefix, so the names stay inside the Determinism* / Stress* filters).
+std::string discretizeName(const ::testing::TestParamInfo<bool>& info) {
+  return info.param ? "Discretize" : "Plain";
 }
 
-TEST(DeterminismPointOrder, ShuffledScansGiveTheSameMapDiscretize) {
+class DeterminismPointOrder : public ::testing::TestWithParam<bool> {};
+
+TEST_P(DeterminismPointOrder, ShuffledScansGiveTheSameMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  shuffledScansGiveTheSameMap(ctx, true);
+  shuffledScansGiveTheSameMap(ctx, GetParam());
 }
+
+INSTANTIATE_TEST_SUITE_P(, DeterminismPointOrder, ::testing::Bool(), discretizeName);
 
 // ---- 3. many rays on few cells
 // ---------------------------------------------------------------------
@@ -516,37 +523,24 @@ void allPointsInOneBrick(Context& ctx, bool discretize) {
   }
 }
 
-// Each with and without discretize (googletest's parameterized names would start with the
-// instantiation's prefix, outside the Determinism* / Stress* filters).
-TEST(StressFewCells, TwentyThousandPointsInThreeCells) {
+class StressFewCells : public ::testing::TestWithParam<bool> {};
+
+TEST_P(StressFewCells, TwentyThousandPointsInThreeCells) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  twentyThousandPointsInThreeCells(ctx, false);
+  twentyThousandPointsInThreeCells(ctx, GetParam());
 }
 
-TEST(StressFewCells, TwentyThousandPointsInThreeCellsDiscretize) {
+TEST_P(StressFewCells, DenseConeOfLongRays) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  twentyThousandPointsInThreeCells(ctx, true);
+  denseConeOfLongRays(ctx, GetParam());
 }
 
-TEST(StressFewCells, DenseConeOfLongRays) {
+TEST_P(StressFewCells, AllPointsInOneBrick) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  denseConeOfLongRays(ctx, false);
+  allPointsInOneBrick(ctx, GetParam());
 }
 
-TEST(StressFewCells, DenseConeOfLongRaysDiscretize) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  denseConeOfLongRays(ctx, true);
-}
-
-TEST(StressFewCells, AllPointsInOneBrick) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  allPointsInOneBrick(ctx, false);
-}
-
-TEST(StressFewCells, AllPointsInOneBrickDiscretize) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  allPointsInOneBrick(ctx, true);
-}
+INSTANTIATE_TEST_SUITE_P(, StressFewCells, ::testing::Bool(), discretizeName);
 
 // ---- 4. one scan that outgrows every set and the pool -------------------------------------------
 
@@ -625,15 +619,14 @@ void oneScanOutgrowsEverySetAndThePool(Context& ctx, bool discretize) {
   EXPECT_TRUE(test::sameLeaves(oracle, map));
 }
 
-TEST(StressGrowth, OneScanOutgrowsEverySetAndThePool) {
+class StressGrowth : public ::testing::TestWithParam<bool> {};
+
+TEST_P(StressGrowth, OneScanOutgrowsEverySetAndThePool) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  oneScanOutgrowsEverySetAndThePool(ctx, false);
+  oneScanOutgrowsEverySetAndThePool(ctx, GetParam());
 }
 
-TEST(StressGrowth, OneScanOutgrowsEverySetAndThePoolDiscretize) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  oneScanOutgrowsEverySetAndThePool(ctx, true);
-}
+INSTANTIATE_TEST_SUITE_P(, StressGrowth, ::testing::Bool(), discretizeName);
 
 // ---- 5. long sequences from moving origins
 // ----------------------------------------------------------
@@ -662,20 +655,30 @@ void fifteenScansFromMovingOrigins(Context& ctx, bool discretize, double max_ran
   EXPECT_GT(prunedLeaves(oracle), 0u);
 }
 
-TEST(StressSequence, FifteenScansFromMovingOrigins) {
+// Plain, with discretize, and with a max range (without discretize).
+struct SequenceMode {
+  const char* name;
+  bool discretize;
+  double max_range;
+};
+
+// What googletest prints for the parameter (ctest's test names carry it): its name.
+void PrintTo(const SequenceMode& mode, std::ostream* os) { *os << mode.name; }
+
+class StressSequence : public ::testing::TestWithParam<SequenceMode> {};
+
+TEST_P(StressSequence, FifteenScansFromMovingOrigins) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  fifteenScansFromMovingOrigins(ctx, false, -1.0);
+  fifteenScansFromMovingOrigins(ctx, GetParam().discretize, GetParam().max_range);
 }
 
-TEST(StressSequence, FifteenScansFromMovingOriginsDiscretize) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  fifteenScansFromMovingOrigins(ctx, true, -1.0);
-}
-
-TEST(StressSequence, FifteenScansFromMovingOriginsMaxRange) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  fifteenScansFromMovingOrigins(ctx, false, 2.0);
-}
+INSTANTIATE_TEST_SUITE_P(, StressSequence,
+                         ::testing::Values(SequenceMode{"Plain", false, -1.0},
+                                           SequenceMode{"Discretize", true, -1.0},
+                                           SequenceMode{"MaxRange", false, 2.0}),
+                         [](const ::testing::TestParamInfo<SequenceMode>& info) {
+                           return std::string(info.param.name);
+                         });
 
 }  // namespace
 }  // namespace octovk

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <initializer_list>
 #include <regex>
 #include <string>
 #include <type_traits>
@@ -92,14 +93,12 @@ static_assert(sizeof(KeepBoxConstants) == 16);
 
 static_assert(sizeof(AccelHeader) == 64);
 static_assert(offsetof(AccelHeader, tlas) == 0);
-static_assert(offsetof(AccelHeader, occupied_count) == 8);
-static_assert(offsetof(AccelHeader, unknown_count) == 12);
-static_assert(offsetof(AccelHeader, occupied_capacity) == 16);
-static_assert(offsetof(AccelHeader, unknown_capacity) == 20);
-static_assert(offsetof(AccelHeader, lo_x) == 24);
-static_assert(offsetof(AccelHeader, hi_x) == 36);
-static_assert(offsetof(AccelHeader, bucket_bits) == 48);
-static_assert(offsetof(AccelHeader, pad3) == 60);
+static_assert(offsetof(AccelHeader, box_count) == 8);
+static_assert(offsetof(AccelHeader, box_capacity) == 12);
+static_assert(offsetof(AccelHeader, lo_x) == 16);
+static_assert(offsetof(AccelHeader, hi_x) == 28);
+static_assert(offsetof(AccelHeader, bucket_bits) == 40);
+static_assert(offsetof(AccelHeader, pad4) == 60);
 // AccelBox is what the acceleration-structure build reads: VkAabbPositionsKHR.
 static_assert(sizeof(AccelBox) == 24 && offsetof(AccelBox, min_x) == 0 &&
               offsetof(AccelBox, max_x) == 12 && offsetof(AccelBox, max_z) == 20);
@@ -324,7 +323,7 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox,
 
 static_assert(kBindingCount == 21);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
-              kBindHashKeys == 4 && kBindHashFlags == 5 && kBindNodes == 6 &&
+              kBindCellSetKeys == 4 && kBindCellSetFlags == 5 && kBindNodes == 6 &&
               kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
               kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
               kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
@@ -371,13 +370,26 @@ float markerFloat(std::uint32_t id) { return static_cast<float>(id) + 0.5f; }
 double markerDouble(std::uint32_t id) { return static_cast<double>(id) + 0.25; }
 std::uint64_t markerUint64(std::uint32_t id) { return 0xC0DE0000C0DE0000ull + id; }
 
-#define OCTOVK_FIELD(binding, Struct, member, kind, id) \
-  Field { #Struct "::" #member, binding, offsetof(Struct, member), kind, id }
-#define OCTOVK_ELEMENT(binding, Struct, index, member, kind, id)      \
-  Field {                                                             \
-#Struct "[" #index "]::" #member, binding,                        \
-        (index) * sizeof(Struct) + offsetof(Struct, member), kind, id \
+// A member of a struct the probe writes: its name, offset and kind.
+struct Member {
+  const char* name;
+  std::size_t offset;
+  Kind kind;
+};
+#define OCTOVK_MEMBER(Struct, member, kind) \
+  Member { #member, offsetof(Struct, member), kind }
+
+// The members of a struct (`name`) at byte `at` of `binding`, markers id, id + 1, ... in the
+// table's order: one table per struct, the probe's marker ids following it.
+void addStruct(std::vector<Field>& f, const std::string& name, std::uint32_t binding,
+               std::size_t at, std::uint32_t id, std::initializer_list<Member> members) {
+  for (const Member& m : members) {
+    std::string field_name = name;
+    field_name += "::";
+    field_name += m.name;
+    f.push_back({field_name, binding, at + m.offset, m.kind, id++});
   }
+}
 
 // "[i]", built without operator+ on a literal (GCC 12 warns falsely on that).
 std::string subscript(std::uint32_t i) {
@@ -424,112 +436,76 @@ void addConstants(std::vector<Field>& f, const char* name, std::size_t at, std::
 
 std::vector<Field> probedFields() {
   constexpr Kind U = Kind::kUint, F = Kind::kFloat, D = Kind::kDouble, U64 = Kind::kUint64;
-  std::vector<Field> f = {
-      OCTOVK_FIELD(kBindParams, ScanParams, resolution, D, 100),
-      OCTOVK_FIELD(kBindParams, ScanParams, resolution_factor, D, 101),
-      OCTOVK_FIELD(kBindParams, ScanParams, max_range, D, 102),
-      OCTOVK_FIELD(kBindParams, ScanParams, origin_x, F, 103),
-      OCTOVK_FIELD(kBindParams, ScanParams, origin_y, F, 104),
-      OCTOVK_FIELD(kBindParams, ScanParams, origin_z, F, 105),
-      OCTOVK_FIELD(kBindParams, ScanParams, prob_hit_log, F, 106),
-      OCTOVK_FIELD(kBindParams, ScanParams, prob_miss_log, F, 107),
-      OCTOVK_FIELD(kBindParams, ScanParams, clamp_min_log, F, 108),
-      OCTOVK_FIELD(kBindParams, ScanParams, clamp_max_log, F, 109),
-      OCTOVK_FIELD(kBindParams, ScanParams, point_count, U, 110),
-      OCTOVK_FIELD(kBindParams, ScanParams, hash_capacity, U, 111),
-      OCTOVK_FIELD(kBindParams, ScanParams, hash_log2, U, 112),
-      OCTOVK_FIELD(kBindParams, ScanParams, endpoint_capacity, U, 113),
-      OCTOVK_FIELD(kBindParams, ScanParams, endpoint_log2, U, 114),
-      OCTOVK_FIELD(kBindParams, ScanParams, rot_u, F, 115),
-      OCTOVK_FIELD(kBindParams, ScanParams, rot_x, F, 116),
-      OCTOVK_FIELD(kBindParams, ScanParams, rot_y, F, 117),
-      OCTOVK_FIELD(kBindParams, ScanParams, rot_z, F, 118),
-      OCTOVK_FIELD(kBindParams, ScanParams, active_capacity, U, 119),
-      OCTOVK_FIELD(kBindParams, ScanParams, trans_x, F, 120),
-      OCTOVK_FIELD(kBindParams, ScanParams, trans_y, F, 121),
-      OCTOVK_FIELD(kBindParams, ScanParams, trans_z, F, 122),
-      OCTOVK_FIELD(kBindParams, ScanParams, occupancy_log, F, 123),
-      OCTOVK_FIELD(kBindParams, ScanParams, changes_log2, U, 124),
-      OCTOVK_FIELD(kBindParams, ScanParams, cell_capacity, U, 125),
-      OCTOVK_FIELD(kBindParams, ScanParams, pad0, U, 126),
-
-      OCTOVK_FIELD(kBindCounters, ScanCounters, status, U, 200),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, brick_entries, U, 201),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, endpoint_entries, U, 202),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, active_cells, U, 203),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, skipped_nonfinite, U, 204),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, skipped_outside, U, 205),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, occupied_cells, U, 206),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, free_cells, U, 207),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, aborted, U, 208),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, new_blocks, U, 209),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, cell_entries, U, 210),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, query_results, U, 211),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, leaf_cells, U, 212),
-      OCTOVK_FIELD(kBindCounters, ScanCounters, no_depth, U, 213),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, fx, F, 810),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, fy, F, 811),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, cx, F, 812),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, cy, F, 813),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, depth_scale, F, 814),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, width, U, 815),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, height, U, 816),
-      OCTOVK_FIELD(kBindDepth, DepthCamera, encoding, U, 817),
-      Field{"depth words[0]", kBindDepth, sizeof(DepthCamera), U, 818},
-
-      OCTOVK_FIELD(kBindPool, PoolState, bump, U, 600),
-      OCTOVK_FIELD(kBindPool, PoolState, capacity, U, 601),
-      OCTOVK_FIELD(kBindPool, PoolState, free_count, U, 602),
-      OCTOVK_FIELD(kBindPool, PoolState, halted, U, 603),
-      OCTOVK_FIELD(kBindPool, PoolState, root_exists, U, 604),
-      OCTOVK_FIELD(kBindPool, PoolState, leaf_count, U, 605),
-      OCTOVK_FIELD(kBindPool, PoolState, live_nodes, U, 606),
-      OCTOVK_FIELD(kBindPool, PoolState, pad0, U, 607),
-
-      OCTOVK_ELEMENT(kBindNodes, Node, 0, log_odds, F, 700),
-      OCTOVK_ELEMENT(kBindNodes, Node, 0, link, U, 701),
-      OCTOVK_ELEMENT(kBindNodes, Node, 1, log_odds, F, 705),
-      OCTOVK_ELEMENT(kBindNodes, Node, 1, link, U, 706),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, slot, U, 720),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, node, U, 721),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, parent, U, 722),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 0, depth, U, 723),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, slot, U, 725),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, node, U, 726),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, parent, U, 727),
-      OCTOVK_ELEMENT(kBindActive, ActiveCell, 1, depth, U, 728),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, node, U, 730),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, source, U, 731),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 0, block, U, 732),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, node, U, 735),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, source, U, 736),
-      OCTOVK_ELEMENT(kBindNewBlocks, NewBlock, 1, block, U, 737),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_x, F, 740),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_y, F, 741),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, center_z, F, 742),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, size, F, 743),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 0, log_odds, F, 744),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, center_x, F, 750),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, center_y, F, 751),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, center_z, F, 752),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, size, F, 753),
-      OCTOVK_ELEMENT(kBindLeafBoxes, LeafBox, 1, log_odds, F, 754),
-
-      Field{"points[1]", kBindPoints, 1 * sizeof(float), F, 800},
-      Field{"hash_keys[1]", kBindHashKeys, 1 * sizeof(std::uint64_t), U64, 801},
-      Field{"hash_flags[1]", kBindHashFlags, 1 * sizeof(std::uint32_t), U, 802},
-      Field{"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803},
-      Field{"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804},
-      Field{"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805},
-      Field{"cell_list[1]", kBindCellList, 1 * sizeof(std::uint32_t), U, 806},
-      Field{"block_parent[1]", kBindBlockParents, 1 * sizeof(std::uint32_t), U, 807},
-  };
+  std::vector<Field> f;
+  addStruct(
+      f, "ScanParams", kBindParams, 0, 100,
+      {OCTOVK_MEMBER(ScanParams, resolution, D),    OCTOVK_MEMBER(ScanParams, resolution_factor, D),
+       OCTOVK_MEMBER(ScanParams, max_range, D),     OCTOVK_MEMBER(ScanParams, origin_x, F),
+       OCTOVK_MEMBER(ScanParams, origin_y, F),      OCTOVK_MEMBER(ScanParams, origin_z, F),
+       OCTOVK_MEMBER(ScanParams, prob_hit_log, F),  OCTOVK_MEMBER(ScanParams, prob_miss_log, F),
+       OCTOVK_MEMBER(ScanParams, clamp_min_log, F), OCTOVK_MEMBER(ScanParams, clamp_max_log, F),
+       OCTOVK_MEMBER(ScanParams, point_count, U),   OCTOVK_MEMBER(ScanParams, hash_capacity, U),
+       OCTOVK_MEMBER(ScanParams, hash_log2, U),     OCTOVK_MEMBER(ScanParams, endpoint_capacity, U),
+       OCTOVK_MEMBER(ScanParams, endpoint_log2, U), OCTOVK_MEMBER(ScanParams, rot_u, F),
+       OCTOVK_MEMBER(ScanParams, rot_x, F),         OCTOVK_MEMBER(ScanParams, rot_y, F),
+       OCTOVK_MEMBER(ScanParams, rot_z, F),         OCTOVK_MEMBER(ScanParams, active_capacity, U),
+       OCTOVK_MEMBER(ScanParams, trans_x, F),       OCTOVK_MEMBER(ScanParams, trans_y, F),
+       OCTOVK_MEMBER(ScanParams, trans_z, F),       OCTOVK_MEMBER(ScanParams, occupancy_log, F),
+       OCTOVK_MEMBER(ScanParams, changes_log2, U),  OCTOVK_MEMBER(ScanParams, cell_capacity, U),
+       OCTOVK_MEMBER(ScanParams, pad0, U)});
+  addStruct(
+      f, "ScanCounters", kBindCounters, 0, 200,
+      {OCTOVK_MEMBER(ScanCounters, status, U), OCTOVK_MEMBER(ScanCounters, brick_entries, U),
+       OCTOVK_MEMBER(ScanCounters, endpoint_entries, U),
+       OCTOVK_MEMBER(ScanCounters, active_cells, U),
+       OCTOVK_MEMBER(ScanCounters, skipped_nonfinite, U),
+       OCTOVK_MEMBER(ScanCounters, skipped_outside, U),
+       OCTOVK_MEMBER(ScanCounters, occupied_cells, U), OCTOVK_MEMBER(ScanCounters, free_cells, U),
+       OCTOVK_MEMBER(ScanCounters, aborted, U), OCTOVK_MEMBER(ScanCounters, new_blocks, U),
+       OCTOVK_MEMBER(ScanCounters, cell_entries, U), OCTOVK_MEMBER(ScanCounters, query_results, U),
+       OCTOVK_MEMBER(ScanCounters, leaf_cells, U), OCTOVK_MEMBER(ScanCounters, no_depth, U)});
+  addStruct(f, "DepthCamera", kBindDepth, 0, 810,
+            {OCTOVK_MEMBER(DepthCamera, fx, F), OCTOVK_MEMBER(DepthCamera, fy, F),
+             OCTOVK_MEMBER(DepthCamera, cx, F), OCTOVK_MEMBER(DepthCamera, cy, F),
+             OCTOVK_MEMBER(DepthCamera, depth_scale, F), OCTOVK_MEMBER(DepthCamera, width, U),
+             OCTOVK_MEMBER(DepthCamera, height, U), OCTOVK_MEMBER(DepthCamera, encoding, U),
+             Member{"words[0]", sizeof(DepthCamera), U}});
+  addStruct(f, "PoolState", kBindPool, 0, 600,
+            {OCTOVK_MEMBER(PoolState, bump, U), OCTOVK_MEMBER(PoolState, capacity, U),
+             OCTOVK_MEMBER(PoolState, free_count, U), OCTOVK_MEMBER(PoolState, halted, U),
+             OCTOVK_MEMBER(PoolState, root_exists, U), OCTOVK_MEMBER(PoolState, leaf_count, U),
+             OCTOVK_MEMBER(PoolState, live_nodes, U), OCTOVK_MEMBER(PoolState, pad0, U)});
+  // Two elements of each array of structs.
+  for (std::uint32_t e = 0; e < 2; ++e) {
+    const std::string at = subscript(e);
+    addStruct(f, "Node" + at, kBindNodes, e * sizeof(Node), 700 + 5 * e,
+              {OCTOVK_MEMBER(Node, log_odds, F), OCTOVK_MEMBER(Node, link, U)});
+    addStruct(f, "ActiveCell" + at, kBindActive, e * sizeof(ActiveCell), 720 + 5 * e,
+              {OCTOVK_MEMBER(ActiveCell, slot, U), OCTOVK_MEMBER(ActiveCell, node, U),
+               OCTOVK_MEMBER(ActiveCell, parent, U), OCTOVK_MEMBER(ActiveCell, depth, U)});
+    addStruct(f, "NewBlock" + at, kBindNewBlocks, e * sizeof(NewBlock), 730 + 5 * e,
+              {OCTOVK_MEMBER(NewBlock, node, U), OCTOVK_MEMBER(NewBlock, source, U),
+               OCTOVK_MEMBER(NewBlock, block, U)});
+    addStruct(f, "LeafBox" + at, kBindLeafBoxes, e * sizeof(LeafBox), 740 + 10 * e,
+              {OCTOVK_MEMBER(LeafBox, center_x, F), OCTOVK_MEMBER(LeafBox, center_y, F),
+               OCTOVK_MEMBER(LeafBox, center_z, F), OCTOVK_MEMBER(LeafBox, size, F),
+               OCTOVK_MEMBER(LeafBox, log_odds, F)});
+  }
+  // Element 1 of each plain array.
+  f.push_back({"points[1]", kBindPoints, 1 * sizeof(float), F, 800});
+  f.push_back({"cell_set_keys[1]", kBindCellSetKeys, 1 * sizeof(std::uint64_t), U64, 801});
+  f.push_back({"cell_set_flags[1]", kBindCellSetFlags, 1 * sizeof(std::uint32_t), U, 802});
+  f.push_back({"free_stack[1]", kBindFreeStack, 1 * sizeof(std::uint32_t), U, 803});
+  f.push_back({"endpoint_keys[1]", kBindEndpointKeys, 1 * sizeof(std::uint64_t), U64, 804});
+  f.push_back({"slots[1]", kBindSlots, 1 * sizeof(std::uint32_t), U, 805});
+  f.push_back({"cell_list[1]", kBindCellList, 1 * sizeof(std::uint32_t), U, 806});
+  f.push_back({"block_parent[1]", kBindBlockParents, 1 * sizeof(std::uint32_t), U, 807});
   addDispatchArgs(f, "cell_args", offsetof(ScanCounters, cell_args), 390);
   addDispatchArgs(f, "brick_args", offsetof(ScanCounters, brick_args), 393);
   addDispatchArgs(f, "block_args", offsetof(ScanCounters, block_args), 396);
   addDispatchArgs(f, "clear_args", offsetof(ScanCounters, clear_args), 216);
-  f.push_back({"ScanCounters::active_args.x", kBindCounters, offsetof(ScanCounters, active_args),
-               U, 399});
+  f.push_back(
+      {"ScanCounters::active_args.x", kBindCounters, offsetof(ScanCounters, active_args), U, 399});
   f.push_back({"ScanCounters::active_args.y", kBindCounters,
                offsetof(ScanCounters, active_args) + 4, U, 214});
   f.push_back({"ScanCounters::active_args.z", kBindCounters,
@@ -540,26 +516,12 @@ std::vector<Field> probedFields() {
                  offsetof(ScanCounters, walk_count) + w * sizeof(std::uint32_t), U, 370 + w});
     addDispatchArgs(f, "walk_args" + at,
                     offsetof(ScanCounters, walk_args) + w * sizeof(DispatchArgs), 380 + 3 * w);
-    const std::size_t walk = w * sizeof(WalkState);
-    const std::uint32_t id = 1000 + 10 * w;
-    f.push_back(
-        {"WalkState" + at + "::t_max_x", kBindWalks, walk + offsetof(WalkState, t_max_x), D, id});
-    f.push_back({"WalkState" + at + "::t_max_y", kBindWalks, walk + offsetof(WalkState, t_max_y), D,
-                 id + 1});
-    f.push_back({"WalkState" + at + "::t_max_z", kBindWalks, walk + offsetof(WalkState, t_max_z), D,
-                 id + 2});
-    f.push_back(
-        {"WalkState" + at + "::end_x", kBindWalks, walk + offsetof(WalkState, end_x), F, id + 3});
-    f.push_back(
-        {"WalkState" + at + "::end_y", kBindWalks, walk + offsetof(WalkState, end_y), F, id + 4});
-    f.push_back(
-        {"WalkState" + at + "::end_z", kBindWalks, walk + offsetof(WalkState, end_z), F, id + 5});
-    f.push_back(
-        {"WalkState" + at + "::key_xy", kBindWalks, walk + offsetof(WalkState, key_xy), U, id + 6});
-    f.push_back(
-        {"WalkState" + at + "::key_z", kBindWalks, walk + offsetof(WalkState, key_z), U, id + 7});
-    f.push_back(
-        {"WalkState" + at + "::pad0", kBindWalks, walk + offsetof(WalkState, pad0), U, id + 8});
+    addStruct(f, "WalkState" + at, kBindWalks, w * sizeof(WalkState), 1000 + 10 * w,
+              {OCTOVK_MEMBER(WalkState, t_max_x, D), OCTOVK_MEMBER(WalkState, t_max_y, D),
+               OCTOVK_MEMBER(WalkState, t_max_z, D), OCTOVK_MEMBER(WalkState, end_x, F),
+               OCTOVK_MEMBER(WalkState, end_y, F), OCTOVK_MEMBER(WalkState, end_z, F),
+               OCTOVK_MEMBER(WalkState, key_xy, U), OCTOVK_MEMBER(WalkState, key_z, U),
+               OCTOVK_MEMBER(WalkState, pad0, U)});
   }
 
   // The probe's views of the query bindings: RayQuery[2], BoxQuery, RayState[2]; LookupResult[2]
@@ -569,76 +531,32 @@ std::vector<Field> probedFields() {
   const std::size_t ray_results_at = 2 * sizeof(LookupResult);
   for (std::uint32_t e = 0; e < 2; ++e) {
     const std::string at = subscript(e);
-    const std::size_t ray = e * sizeof(RayQuery);
-    const std::uint32_t id = 900 + 10 * e;
-    f.push_back({"RayQuery" + at + "::max_range", kBindQueryIn, ray + offsetof(RayQuery, max_range),
-                 D, id});
-    f.push_back({"RayQuery" + at + "::origin_x", kBindQueryIn, ray + offsetof(RayQuery, origin_x),
-                 F, id + 1});
-    f.push_back({"RayQuery" + at + "::origin_y", kBindQueryIn, ray + offsetof(RayQuery, origin_y),
-                 F, id + 2});
-    f.push_back({"RayQuery" + at + "::origin_z", kBindQueryIn, ray + offsetof(RayQuery, origin_z),
-                 F, id + 3});
-    f.push_back({"RayQuery" + at + "::direction_x", kBindQueryIn,
-                 ray + offsetof(RayQuery, direction_x), F, id + 4});
-    f.push_back({"RayQuery" + at + "::direction_y", kBindQueryIn,
-                 ray + offsetof(RayQuery, direction_y), F, id + 5});
-    f.push_back({"RayQuery" + at + "::direction_z", kBindQueryIn,
-                 ray + offsetof(RayQuery, direction_z), F, id + 6});
-    f.push_back({"RayQuery" + at + "::ignore_unknown", kBindQueryIn,
-                 ray + offsetof(RayQuery, ignore_unknown), U, id + 7});
-    f.push_back(
-        {"RayQuery" + at + "::pad0", kBindQueryIn, ray + offsetof(RayQuery, pad0), U, id + 8});
-    const std::size_t state = states_at + e * sizeof(RayState);
-    const std::uint32_t sid = 960 + 10 * e;
-    f.push_back(
-        {"RayState" + at + "::t_max_x", kBindQueryIn, state + offsetof(RayState, t_max_x), D, sid});
-    f.push_back({"RayState" + at + "::t_max_y", kBindQueryIn, state + offsetof(RayState, t_max_y),
-                 D, sid + 1});
-    f.push_back({"RayState" + at + "::t_max_z", kBindQueryIn, state + offsetof(RayState, t_max_z),
-                 D, sid + 2});
-    f.push_back(
-        {"RayState" + at + "::key_x", kBindQueryIn, state + offsetof(RayState, key_x), U, sid + 3});
-    f.push_back(
-        {"RayState" + at + "::key_y", kBindQueryIn, state + offsetof(RayState, key_y), U, sid + 4});
-    f.push_back(
-        {"RayState" + at + "::key_z", kBindQueryIn, state + offsetof(RayState, key_z), U, sid + 5});
-    f.push_back(
-        {"RayState" + at + "::done", kBindQueryIn, state + offsetof(RayState, done), U, sid + 6});
-    for (std::uint32_t l = 0; l < 2; ++l)
-      f.push_back({"RayState" + at + "::unfinished" + subscript(l), kBindQueryIn,
-                   state + offsetof(RayState, unfinished) + l * sizeof(std::uint32_t), U,
-                   sid + 7 + l});
-    const std::size_t lookup = e * sizeof(LookupResult);
-    const std::uint32_t lid = 930 + 5 * e;
-    f.push_back({"LookupResult" + at + "::state", kBindQueryOut,
-                 lookup + offsetof(LookupResult, state), U, lid});
-    f.push_back({"LookupResult" + at + "::log_odds", kBindQueryOut,
-                 lookup + offsetof(LookupResult, log_odds), F, lid + 1});
-    f.push_back({"LookupResult" + at + "::depth", kBindQueryOut,
-                 lookup + offsetof(LookupResult, depth), U, lid + 2});
-    f.push_back({"LookupResult" + at + "::pad0", kBindQueryOut,
-                 lookup + offsetof(LookupResult, pad0), U, lid + 3});
-    const std::size_t result = ray_results_at + e * sizeof(RayResult);
-    const std::uint32_t rid = 940 + 5 * e;
-    f.push_back(
-        {"RayResult" + at + "::hit", kBindQueryOut, result + offsetof(RayResult, hit), U, rid});
-    f.push_back({"RayResult" + at + "::end_x", kBindQueryOut, result + offsetof(RayResult, end_x),
-                 F, rid + 1});
-    f.push_back({"RayResult" + at + "::end_y", kBindQueryOut, result + offsetof(RayResult, end_y),
-                 F, rid + 2});
-    f.push_back({"RayResult" + at + "::end_z", kBindQueryOut, result + offsetof(RayResult, end_z),
-                 F, rid + 3});
+    addStruct(f, "RayQuery" + at, kBindQueryIn, e * sizeof(RayQuery), 900 + 10 * e,
+              {OCTOVK_MEMBER(RayQuery, max_range, D), OCTOVK_MEMBER(RayQuery, origin_x, F),
+               OCTOVK_MEMBER(RayQuery, origin_y, F), OCTOVK_MEMBER(RayQuery, origin_z, F),
+               OCTOVK_MEMBER(RayQuery, direction_x, F), OCTOVK_MEMBER(RayQuery, direction_y, F),
+               OCTOVK_MEMBER(RayQuery, direction_z, F), OCTOVK_MEMBER(RayQuery, ignore_unknown, U),
+               OCTOVK_MEMBER(RayQuery, pad0, U)});
+    addStruct(f, "RayState" + at, kBindQueryIn, states_at + e * sizeof(RayState), 960 + 10 * e,
+              {OCTOVK_MEMBER(RayState, t_max_x, D), OCTOVK_MEMBER(RayState, t_max_y, D),
+               OCTOVK_MEMBER(RayState, t_max_z, D), OCTOVK_MEMBER(RayState, key_x, U),
+               OCTOVK_MEMBER(RayState, key_y, U), OCTOVK_MEMBER(RayState, key_z, U),
+               OCTOVK_MEMBER(RayState, done, U),
+               Member{"unfinished[0]", offsetof(RayState, unfinished), U},
+               Member{"unfinished[1]", offsetof(RayState, unfinished) + sizeof(std::uint32_t), U}});
+    addStruct(f, "LookupResult" + at, kBindQueryOut, e * sizeof(LookupResult), 930 + 5 * e,
+              {OCTOVK_MEMBER(LookupResult, state, U), OCTOVK_MEMBER(LookupResult, log_odds, F),
+               OCTOVK_MEMBER(LookupResult, depth, U), OCTOVK_MEMBER(LookupResult, pad0, U)});
+    addStruct(f, "RayResult" + at, kBindQueryOut, ray_results_at + e * sizeof(RayResult),
+              940 + 5 * e,
+              {OCTOVK_MEMBER(RayResult, hit, U), OCTOVK_MEMBER(RayResult, end_x, F),
+               OCTOVK_MEMBER(RayResult, end_y, F), OCTOVK_MEMBER(RayResult, end_z, F)});
   }
-  f.push_back({"BoxQuery::min_x", kBindQueryIn, box_at + offsetof(BoxQuery, min_x), U, 920});
-  f.push_back({"BoxQuery::min_y", kBindQueryIn, box_at + offsetof(BoxQuery, min_y), U, 921});
-  f.push_back({"BoxQuery::min_z", kBindQueryIn, box_at + offsetof(BoxQuery, min_z), U, 922});
-  f.push_back({"BoxQuery::max_x", kBindQueryIn, box_at + offsetof(BoxQuery, max_x), U, 923});
-  f.push_back({"BoxQuery::max_y", kBindQueryIn, box_at + offsetof(BoxQuery, max_y), U, 924});
-  f.push_back({"BoxQuery::max_z", kBindQueryIn, box_at + offsetof(BoxQuery, max_z), U, 925});
-  f.push_back({"BoxQuery::occupied_only", kBindQueryIn, box_at + offsetof(BoxQuery, occupied_only),
-               U, 926});
-  f.push_back({"BoxQuery::pad0", kBindQueryIn, box_at + offsetof(BoxQuery, pad0), U, 927});
+  addStruct(f, "BoxQuery", kBindQueryIn, box_at, 920,
+            {OCTOVK_MEMBER(BoxQuery, min_x, U), OCTOVK_MEMBER(BoxQuery, min_y, U),
+             OCTOVK_MEMBER(BoxQuery, min_z, U), OCTOVK_MEMBER(BoxQuery, max_x, U),
+             OCTOVK_MEMBER(BoxQuery, max_y, U), OCTOVK_MEMBER(BoxQuery, max_z, U),
+             OCTOVK_MEMBER(BoxQuery, occupied_only, U), OCTOVK_MEMBER(BoxQuery, pad0, U)});
 
   // Every pass's push-constant struct, after the RayResults in the probe's output view.
   const std::size_t constants_at = ray_results_at + 2 * sizeof(RayResult);
@@ -688,8 +606,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   sizes[kBindCounters] = sizeof(ScanCounters);
   sizes[kBindPool] = sizeof(PoolState);
   sizes[kBindPoints] = 4 * sizeof(float);
-  sizes[kBindHashKeys] = 4 * sizeof(std::uint64_t);
-  sizes[kBindHashFlags] = 4 * sizeof(std::uint32_t);
+  sizes[kBindCellSetKeys] = 4 * sizeof(std::uint64_t);
+  sizes[kBindCellSetFlags] = 4 * sizeof(std::uint32_t);
   sizes[kBindNodes] = 4 * sizeof(Node);
   sizes[kBindBlockParents] = 4 * sizeof(std::uint32_t);
   sizes[kBindFreeStack] = 4 * sizeof(std::uint32_t);

@@ -406,32 +406,32 @@ struct CastRayConstants {
 
 // The ray-tracing backend of castRay (cast_ray_rt.comp): the boxes an acceleration structure is
 // built over, in one buffer reached by device address: this header, then the AABBs of the
-// occupied leaves (from the leaf-box buffer), then those of the unknown regions (the missing
-// children of the tree's inner nodes), each enlarged by a margin so that the hardware's float
-// test cannot miss a box that OctoMap's walk enters. Both lists are sorted along a Morton curve
+// occupied leaves (from the leaf-box buffer), each enlarged by a margin so that the hardware's
+// float test cannot miss a box that OctoMap's walk enters. The list is sorted along a Morton curve
 // (a counting sort on kAccelBuckets cells of the boxes' extent), because a builder may keep the
-// order it is given (lavapipe's pairs neighbours in the array). After the sorted lists: the same
-// lists unsorted, as accel_boxes writes them, then the sort's bucket counters (kAccelBuckets per
-// list) and the sums of their chunks (kAccelChunks per list). 64 B.
+// order it is given (lavapipe's pairs neighbours in the array). After the sorted list: the same
+// list unsorted, as accel_boxes writes it, then the sort's bucket counters (kAccelBuckets) and the
+// sums of their chunks (kAccelChunks). No unknown region gets a box: castRay traces only the rays
+// that ignore unknown space (cast_ray_rt.glsl). 64 B.
 OCTOVK_CONST uint kAccelBucketBits = 7u;  // per axis
 OCTOVK_CONST uint kAccelBuckets = 1u << (3u * kAccelBucketBits);
-OCTOVK_CONST uint kAccelChunks = 2048u;  // the scan of a list's counters: chunks of this many
+OCTOVK_CONST uint kAccelChunks = 2048u;  // the scan of the counters: chunks of this many
 struct AccelHeader {
-  uint64_t tlas;            // 8B (0)  device address of the top-level acceleration structure
-  uint occupied_count;      // 4B (8)  boxes of occupied leaves (written by accel_boxes)
-  uint unknown_count;       // 4B (12) boxes of unknown regions (written by accel_boxes)
-  uint occupied_capacity;   // 4B (16) room for occupied boxes; the unknown ones follow
-  uint unknown_capacity;    // 4B (20)
-  uint lo_x;                // 4B (24) smallest cell key of the small boxes' centres (sort range)
-  uint lo_y;                // 4B (28)
-  uint lo_z;                // 4B (32)
-  uint hi_x;                // 4B (36) largest
-  uint hi_y;                // 4B (40)
-  uint hi_z;                // 4B (44)
-  uint bucket_bits;         // 4B (48) the sort's Morton bits per axis, 4..kAccelBucketBits
-  uint pad1;                // 4B (52)
-  uint pad2;                // 4B (56)
-  uint pad3;                // 4B (60)
+  uint64_t tlas;      // 8B (0)  device address of the top-level acceleration structure
+  uint box_count;     // 4B (8)  boxes written (by accel_boxes)
+  uint box_capacity;  // 4B (12) room for boxes
+  uint lo_x;          // 4B (16) smallest cell key of the small boxes' centres (sort range)
+  uint lo_y;          // 4B (20)
+  uint lo_z;          // 4B (24)
+  uint hi_x;          // 4B (28) largest
+  uint hi_y;          // 4B (32)
+  uint hi_z;          // 4B (36)
+  uint bucket_bits;   // 4B (40) the sort's Morton bits per axis, 4..kAccelBucketBits
+  uint pad0;          // 4B (44)
+  uint pad1;          // 4B (48)
+  uint pad2;          // 4B (52)
+  uint pad3;          // 4B (56)
+  uint pad4;          // 4B (60)
 };
 // One box, as VkAabbPositionsKHR (the acceleration-structure build reads it). 24 B.
 struct AccelBox {
@@ -442,17 +442,13 @@ struct AccelBox {
   float max_y;  // 4B (16)
   float max_z;  // 4B (20)
 };
-// The instance masks of the two bottom-level structures in the TLAS.
-OCTOVK_CONST uint kAccelMaskOccupied = 1u;
-OCTOVK_CONST uint kAccelMaskUnknown = 2u;
 
 // accel_boxes. 16 B.
 OCTOVK_CONST uint kAccelBoxesOccupied = 0u;  // one invocation per leaf-box slot
-OCTOVK_CONST uint kAccelBoxesUnknown = 1u;   // one invocation per pool block
-OCTOVK_CONST uint kAccelBoxesCount = 2u;     // per unsorted box: count it in its bucket
-OCTOVK_CONST uint kAccelBoxesChunks = 3u;    // per chunk of buckets: its sum
-OCTOVK_CONST uint kAccelBoxesOffsets = 4u;   // per chunk: the buckets' first places
-OCTOVK_CONST uint kAccelBoxesScatter = 5u;   // per unsorted box: into its bucket's place
+OCTOVK_CONST uint kAccelBoxesCount = 1u;     // per unsorted box: count it in its bucket
+OCTOVK_CONST uint kAccelBoxesChunks = 2u;    // per chunk of buckets: its sum
+OCTOVK_CONST uint kAccelBoxesOffsets = 3u;   // per chunk: the buckets' first places
+OCTOVK_CONST uint kAccelBoxesScatter = 4u;   // per unsorted box: into its bucket's place
 struct AccelBoxesConstants {
   uint64_t boxes;  // 8B (0)  device address of the AccelHeader
   uint mode;       // 4B (8)  kAccelBoxes*
@@ -522,8 +518,8 @@ OCTOVK_CONST uint kBindParams = 0u;
 OCTOVK_CONST uint kBindCounters = 1u;
 OCTOVK_CONST uint kBindPool = 2u;
 OCTOVK_CONST uint kBindPoints = 3u;
-OCTOVK_CONST uint kBindHashKeys = 4u;
-OCTOVK_CONST uint kBindHashFlags = 5u;
+OCTOVK_CONST uint kBindCellSetKeys = 4u;
+OCTOVK_CONST uint kBindCellSetFlags = 5u;
 OCTOVK_CONST uint kBindNodes = 6u;
 OCTOVK_CONST uint kBindBlockParents = 7u;  // per block, the node it hangs under (kNoBlock: free)
 OCTOVK_CONST uint kBindFreeStack = 8u;
@@ -549,21 +545,21 @@ OCTOVK_CONST uint kBindingCount = 21u;
 // of a caller's buffers).
 OCTOVK_CONST uint kBindAddresses = 21u;
 OCTOVK_CONST uint kAddressedBindings =
-    (1u << kBindPoints) | (1u << kBindHashKeys) | (1u << kBindHashFlags) | (1u << kBindNodes) |
-    (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
+    (1u << kBindPoints) | (1u << kBindCellSetKeys) | (1u << kBindCellSetFlags) |
+    (1u << kBindNodes) | (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
     (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
     (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
     (1u << kBindDepth) | (1u << kBindChanges);
 
 // Scans through ray tracing (MapParams::scan_rays = kRayTracing; scan_rays_rt.comp). Its boxes
 // are written by accel_boxes in two more modes into a boxes buffer of the same layout
-// (AccelHeader, sorted lists, unsorted lists, sort counters): list 0 holds every leaf a free
-// update could change (log-odds above clamp_min_log: occupied leaves and free leaves not yet
-// clamped) and the unknown regions, list 1 nothing; leaves clamped free get no box (a free
-// update there is a no-op, OctoMap's early abort). Both lists are built at their capacity, the
-// slots after their counts empty boxes outside the map (kAccelBoxesTail).
-OCTOVK_CONST uint kAccelBoxesScan = 6u;  // one invocation per pool block: both lists
-OCTOVK_CONST uint kAccelBoxesTail = 7u;  // per box slot of both lists: after the count, empty
+// (AccelHeader, sorted list, unsorted list, sort counters): every leaf a free update could change
+// (log-odds above clamp_min_log: occupied leaves and free leaves not yet clamped) and the unknown
+// regions; leaves clamped free get no box (a free update there is a no-op, OctoMap's early
+// abort). The list is built at its capacity, the slots after its count empty boxes outside the
+// map (kAccelBoxesTail).
+OCTOVK_CONST uint kAccelBoxesScan = 5u;  // one invocation per pool block
+OCTOVK_CONST uint kAccelBoxesTail = 6u;  // per box slot: after the count, empty
 // scan_rays_rt. 16 B.
 struct ScanRaysRtConstants {
   uint64_t boxes;    // 8B (0)  device address of the AccelHeader

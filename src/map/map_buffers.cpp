@@ -75,8 +75,8 @@ BufferBytes MapBuffers::bytesByUse() const {
   b.queries = query_in.size() + query_out.size() + query_staging_in.size() +
               query_staging_out.size() + scene_bytes_;
   for (const vk::Buffer* x :
-       {&params, &counters, &pool, &readback, &points, &walks, &depth, &hash_keys, &hash_flags,
-        &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
+       {&params, &counters, &pool, &readback, &points, &walks, &depth, &cell_set_keys,
+        &cell_set_flags, &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
     b.scratch += x->size();
   b.scratch += uploadBytes();
   b.changes = changes.size();
@@ -105,8 +105,8 @@ void MapBuffers::checkBudget(std::size_t freed, std::size_t added, const std::st
 void MapBuffers::setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots,
                            std::size_t& freed, std::size_t& added) const {
   freed = added = 0;
-  if (!hash_keys.valid() || hash_log2 != hash_log2_) {
-    freed += hash_keys.size() + hash_flags.size() + cell_list.size() + cells.size();
+  if (!cell_set_keys.valid() || hash_log2 != hash_log2_) {
+    freed += cell_set_keys.size() + cell_set_flags.size() + cell_list.size() + cells.size();
     added += hashBytes(hash_log2);
   }
   if (!endpoint_keys.valid() || endpoint_log2 != endpoint_log2_) {
@@ -127,7 +127,7 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
   checkBudget(freed, added,
               "growing the scan's cell sets to 2^" + std::to_string(hash_log2) + " and 2^" +
                   std::to_string(endpoint_log2) + " slots");
-  const bool new_hash = !hash_keys.valid() || hash_log2 != hash_log2_;
+  const bool new_hash = !cell_set_keys.valid() || hash_log2 != hash_log2_;
   const bool new_endpoints = !endpoint_keys.valid() || endpoint_log2 != endpoint_log2_;
   const std::size_t slot_bytes = slotBytes(hash_log2, endpoint_log2);
   const bool new_slots = slots.size() < slot_bytes || (exact_slots && slots.size() != slot_bytes);
@@ -148,8 +148,8 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
   if (new_slots) s = vk::Buffer(device_, slot_bytes, false);
   // All made: nothing below throws.
   if (new_hash) {
-    hash_keys = std::move(keys);
-    hash_flags = std::move(flags);
+    cell_set_keys = std::move(keys);
+    cell_set_flags = std::move(flags);
     cell_list = std::move(list);
     cells = std::move(active);
     hash_log2_ = hash_log2;
@@ -357,13 +357,14 @@ void MapBuffers::ensureQueries(std::size_t in_bytes, std::size_t out_bytes) {
 }
 
 void MapBuffers::rebind() {
-  if (!nodes.valid() || !hash_keys.valid() || !touched.valid() || !query_in.valid() ||
+  if (!nodes.valid() || !cell_set_keys.valid() || !touched.valid() || !query_in.valid() ||
       !slots.valid() || !changes.valid())
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
-      &params,        &counters,   &pool,  &points,  &hash_keys,     &hash_flags, &nodes,
-      &block_parents, &free_stack, &cells, &touched, &prefix_blocks, &leaf_boxes, &endpoint_keys,
-      &query_in,      &query_out,  &walks, &slots,   &cell_list,     &depth,      &changes};
+      &params,     &counters,      &pool,       &points,    &cell_set_keys, &cell_set_flags,
+      &nodes,      &block_parents, &free_stack, &cells,     &touched,       &prefix_blocks,
+      &leaf_boxes, &endpoint_keys, &query_in,   &query_out, &walks,         &slots,
+      &cell_list,  &depth,         &changes};
   bindings.update(buffers);
 }
 

@@ -161,7 +161,7 @@ class MapBuffers {
   /// while earlier scans run, kept until the scan is known to be applied (a refused scan is run
   /// again from it).
   std::vector<vk::Buffer> uploads;
-  vk::Buffer hash_keys, hash_flags, cell_list, cells, endpoint_keys;
+  vk::Buffer cell_set_keys, cell_set_flags, cell_list, cells, endpoint_keys;
   vk::Buffer touched;
   vk::Buffer prefix_blocks;  // gpu::NewBlock per slot of the second set
   vk::Buffer nodes, block_parents, free_stack, leaf_boxes;

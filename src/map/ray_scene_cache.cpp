@@ -73,9 +73,8 @@ RayScene& RaySceneCache::scanScene() {
   if (!scan_scene_) scan_scene_ = std::make_unique<RayScene>(core_.device);
   RayScene& scene = *scan_scene_;
   const gpu::AccelHeader header = passes::scanSceneHeader(core_.buffers);
-  if (scene.boxes.valid() && header.occupied_capacity == scan_header_.occupied_capacity &&
-      header.unknown_capacity == scan_header_.unknown_capacity)
-    return scene;           // the same capacities: the build reuses every structure and buffer
+  if (scene.boxes.valid() && header.box_capacity == scan_header_.box_capacity)
+    return scene;           // the same capacity: the build reuses every structure and buffer
   core_.stream.waitIdle();  // the scans in flight build and trace the scene being replaced
   const std::size_t bytes = passes::accelBoxesBytes(header);
   if (!scene.boxes.valid() || scene.boxes.size() < bytes) {
@@ -138,13 +137,11 @@ VkDeviceAddress RaySceneCache::castRayScene() {
   RayScene& scene = *ray_scene_;
   if (scene.version == core_.tree_version) return scene.boxes.address();
 
-  // Room for every leaf slot (occupied ones) and 8 unknown children per block, twice (sorted and
-  // unsorted); at least one box each, for the inactive box of an empty geometry.
+  // Room for every leaf slot (occupied ones), twice (sorted and unsorted); at least one box, for
+  // the inactive box of an empty geometry.
   gpu::AccelHeader header{};
-  header.occupied_capacity = static_cast<std::uint32_t>(
+  header.box_capacity = static_cast<std::uint32_t>(
       std::max<std::size_t>(core_.buffers.leaf_boxes.size() / sizeof(gpu::LeafBox), 1));
-  header.unknown_capacity = static_cast<std::uint32_t>(
-      std::max<std::size_t>(std::size_t{core_.buffers.poolBlocks()} * 8, 1));
   const std::size_t bytes = passes::accelBoxesBytes(header);
   // Under a cap: the boxes buffer, with what the scene holds besides, must fit first (with
   // the headroom if it fits, else exactly); the structures are checked once the counts are known.
@@ -172,10 +169,9 @@ VkDeviceAddress RaySceneCache::castRayScene() {
   const double boxes_ms = spanMs(core_.stream.timestampsNs());
   std::memcpy(&header, scene.readback.mapped(), sizeof(header));
   if (core_.buffers.maxBytes() != 0) {
-    const auto geometries =
-        passes::boxGeometries(scene.boxes, header, header.occupied_count, header.unknown_count);
+    const vk::BoxGeometry geometry = passes::boxGeometry(scene.boxes, header.box_count);
     const std::size_t after =
-        scene.boxes.size() + scene.readback.size() + scene.accel.bytesAfterBuild(geometries);
+        scene.boxes.size() + scene.readback.size() + scene.accel.bytesAfterBuild({&geometry, 1});
     if (!castRaySceneFits(after, what)) return 0;
   }
 
@@ -196,8 +192,7 @@ VkDeviceAddress RaySceneCache::castRayScene() {
   scene.info.builds += 1;
   scene.info.last_boxes_ms = boxes_ms;
   scene.info.last_build_ms = boxes_ms + build_ms;
-  scene.info.occupied_boxes = header.occupied_count;
-  scene.info.unknown_boxes = header.unknown_count;
+  scene.info.occupied_boxes = header.box_count;
   return scene.boxes.address();
 }
 

@@ -22,9 +22,9 @@ struct RayScene {
   explicit RayScene(vk::Device& device)
       : accel(device), readback(device, sizeof(gpu::AccelHeader), /*host_visible=*/true) {}
 
-  vk::Buffer boxes;     ///< AccelHeader, then the occupied boxes, then the unknown ones
+  vk::Buffer boxes;     ///< AccelHeader, then the boxes (sorted, unsorted), then the sort's
   vk::BoxScene accel;   ///< built over `boxes`
-  vk::Buffer readback;  ///< the header after accel_boxes: the box counts
+  vk::Buffer readback;  ///< the header after accel_boxes: the box count
   /// MapCore::tree_version the structure was built from; none yet: ~0.
   std::uint64_t version = ~std::uint64_t{0};
   OccupancyMap::CastRayInfo info;

@@ -1,6 +1,7 @@
-// Compiled (not run) by ctest: with OCTOVK_WRONG_CONSTANTS or OCTOVK_WRONG_SHADER defined it must
-// fail to compile (tests octovk_dispatch_rejects_*), without them it must compile (the check is
-// for the right reason). See map/passes/recorder.hpp.
+// Compiled (not run) by ctest: with OCTOVK_WRONG_CONSTANTS, OCTOVK_WRONG_SHADER or
+// OCTOVK_MISSING_CONSTANTS defined it must fail to compile with the typed check's diagnostic
+// (tests octovk_dispatch_rejects_*, which match it, so that another error does not pass them);
+// without them it must compile. See map/passes/recorder.hpp.
 #include "map/passes/recorder.hpp"
 
 namespace octovk::passes {

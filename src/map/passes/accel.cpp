@@ -12,7 +12,7 @@ static_assert(sizeof(octovk::gpu::AccelBox) == sizeof(VkAabbPositionsKHR),
 namespace octovk::passes {
 
 namespace {
-// A traced scan's sort: 2^15 Morton buckets per list rather than castRay's 2^21. Clearing and
+// A traced scan's sort: 2^15 Morton buckets rather than castRay's 2^21. Clearing and
 // summing the buckets is a fixed cost of every scan (about 35 ms on lavapipe with 2^21, an empty
 // map's whole boxes stage); within a bucket the boxes keep the order the passes wrote them.
 constexpr std::uint32_t kScanBucketBits = 5;
@@ -21,22 +21,22 @@ static_assert((1u << (3 * kScanBucketBits)) % gpu::kAccelChunks == 0 &&
 }  // namespace
 
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header) {
-  const std::size_t boxes = std::size_t{header.occupied_capacity} + header.unknown_capacity;
-  return sizeof(gpu::AccelHeader) + 2 * boxes * sizeof(gpu::AccelBox) + accelSortBytes();
+  return sizeof(gpu::AccelHeader) + 2 * std::size_t{header.box_capacity} * sizeof(gpu::AccelBox) +
+         accelSortBytes();
 }
 
 std::size_t accelSortBytes() { return accelSortBytes(gpu::kAccelBucketBits); }
 
 std::size_t accelSortBytes(std::uint32_t bucket_bits) {
   const std::size_t buckets = std::size_t{1} << (3 * bucket_bits);
-  return (2 * buckets + 2 * std::size_t{gpu::kAccelChunks}) * sizeof(std::uint32_t);
+  return (buckets + std::size_t{gpu::kAccelChunks}) * sizeof(std::uint32_t);
 }
 
 void recordBoxes(Recorder& r, const vk::Buffer& boxes, const gpu::AccelHeader& header,
                  BoxesFor target) {
   const bool scan = target == BoxesFor::kScan;
   gpu::AccelHeader fresh = header;
-  fresh.occupied_count = fresh.unknown_count = 0;
+  fresh.box_count = 0;
   fresh.lo_x = fresh.lo_y = fresh.lo_z = 0xFFFFFFFFu;  // the extent, shrunk by atomics
   fresh.hi_x = fresh.hi_y = fresh.hi_z = 0;
   fresh.bucket_bits = scan ? kScanBucketBits : gpu::kAccelBucketBits;
@@ -49,18 +49,15 @@ void recordBoxes(Recorder& r, const vk::Buffer& boxes, const gpu::AccelHeader& h
         items, gpu::AccelBoxesConstants{.boxes = boxes.address(), .mode = mode});
   };
   // The boxes, unsorted; then the counting sort along the Morton curve into their places.
-  if (scan) {
+  if (scan)
     pass(gpu::kAccelBoxesScan, r.buffers.poolBlocks());
-  } else {
-    pass(gpu::kAccelBoxesOccupied, header.occupied_capacity);
-    pass(gpu::kAccelBoxesUnknown, r.buffers.poolBlocks());
-  }
-  const std::size_t all = std::size_t{header.occupied_capacity} + header.unknown_capacity;
-  pass(gpu::kAccelBoxesCount, all);
-  pass(gpu::kAccelBoxesChunks, 2 * gpu::kAccelChunks);
-  pass(gpu::kAccelBoxesOffsets, 2 * gpu::kAccelChunks);
-  pass(gpu::kAccelBoxesScatter, all);
-  if (scan) pass(gpu::kAccelBoxesTail, all);
+  else
+    pass(gpu::kAccelBoxesOccupied, header.box_capacity);
+  pass(gpu::kAccelBoxesCount, header.box_capacity);
+  pass(gpu::kAccelBoxesChunks, gpu::kAccelChunks);
+  pass(gpu::kAccelBoxesOffsets, gpu::kAccelChunks);
+  pass(gpu::kAccelBoxesScatter, header.box_capacity);
+  if (scan) pass(gpu::kAccelBoxesTail, header.box_capacity);
 }
 
 void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
@@ -70,26 +67,19 @@ void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& 
   r.stream.copy(boxes, readback, sizeof(gpu::AccelHeader));
 }
 
-std::array<vk::BoxGeometry, 2> boxGeometries(const vk::Buffer& boxes,
-                                             const gpu::AccelHeader& header, std::uint32_t occupied,
-                                             std::uint32_t unknown) {
-  const VkDeviceAddress first = boxes.address() + sizeof(gpu::AccelHeader);
-  return {vk::BoxGeometry{.data = first, .count = occupied, .mask = gpu::kAccelMaskOccupied},
-          vk::BoxGeometry{
-              .data = first + std::uint64_t{header.occupied_capacity} * sizeof(gpu::AccelBox),
-              .count = unknown,
-              .mask = gpu::kAccelMaskUnknown}};
+vk::BoxGeometry boxGeometry(const vk::Buffer& boxes, std::uint32_t count) {
+  return vk::BoxGeometry{.data = boxes.address() + sizeof(gpu::AccelHeader), .count = count};
 }
 
 void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header) {
-  const auto geometries = boxGeometries(boxes, header, header.occupied_count, header.unknown_count);
+  const vk::BoxGeometry geometry = boxGeometry(boxes, header.box_count);
   // An empty geometry is built from one inactive box (min x NaN), which the build skips.
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const gpu::AccelBox inactive{nan, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
-  for (const vk::BoxGeometry& g : geometries)
-    if (g.count == 0) r.stream.update(boxes, &inactive, sizeof(inactive), g.data - boxes.address());
-  scene.recordBuild(r.stream, geometries);
+  if (geometry.count == 0)
+    r.stream.update(boxes, &inactive, sizeof(inactive), geometry.data - boxes.address());
+  scene.recordBuild(r.stream, {&geometry, 1});
   const VkDeviceAddress tlas = scene.tlasAddress();
   r.stream.update(boxes, &tlas, sizeof(tlas), offsetof(gpu::AccelHeader, tlas));
   r.stream.barrier();

@@ -119,21 +119,18 @@ void collectQueries(const MapBuffers& buffers, const QueryRequest& q,
 
 // ---- accel.cpp: castRay's ray-tracing backend ----
 
-/// The two geometries of a box buffer (occupied boxes, then unknown ones at the occupied
-/// capacity), with `occupied` and `unknown` boxes built.
-std::array<vk::BoxGeometry, 2> boxGeometries(const vk::Buffer& boxes,
-                                             const gpu::AccelHeader& header, std::uint32_t occupied,
-                                             std::uint32_t unknown);
+/// The geometry of a box buffer (its sorted boxes, after the header), with `count` boxes built.
+vk::BoxGeometry boxGeometry(const vk::Buffer& boxes, std::uint32_t count);
 
 /// Bytes of the boxes buffer for the capacities in `header` (its layout: gpu::AccelHeader).
 std::size_t accelBoxesBytes(const gpu::AccelHeader& header);
 /// Of which the counting sort's counters and chunk sums, at its end.
 std::size_t accelSortBytes();
-/// The part of them a sort on 2^(3 bucket_bits) buckets per list uses (from the same start).
+/// The part of them a sort on 2^(3 bucket_bits) buckets uses (from the same start).
 std::size_t accelSortBytes(std::uint32_t bucket_bits);
-/// Which boxes accel_boxes.comp writes: castRay's (the occupied leaves of the leaf-box buffer and
-/// the unknown regions, counted) or a traced scan's (every box a free update can change, at the
-/// lists' capacities, the tails inactive; a smaller sort).
+/// Which boxes accel_boxes.comp writes: castRay's (the occupied leaves of the leaf-box buffer,
+/// counted) or a traced scan's (every box a free update can change, at the list's capacity, the
+/// tail inactive; a smaller sort).
 enum class BoxesFor : std::uint8_t { kCastRay, kScan };
 /// accel_boxes.comp, the one function that records it: resets `header`'s counts and extent at the
 /// start of `boxes`, writes the boxes after it and sorts them along a Morton curve.
@@ -141,8 +138,8 @@ void recordBoxes(Recorder& r, const vk::Buffer& boxes, const gpu::AccelHeader& h
                  BoxesFor target);
 /// Writes `header` (capacities, zero counts) at the start of `boxes`, then the boxes the
 /// acceleration structure is built over after it (accel_boxes.comp: the occupied leaves of the
-/// leaf-box buffer, which must be current, and the unknown regions of the pool), sorted along a
-/// Morton curve, and copies the header with the counts to `readback`.
+/// leaf-box buffer, which must be current), sorted along a Morton curve, and copies the header
+/// with the count to `readback`.
 void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header, const vk::Buffer& readback);
 /// Builds `scene` over the boxes `header` counts (as recordAccelBoxes left them) and writes the
@@ -160,12 +157,12 @@ void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRang
 
 // ---- scan_rays_rt.cpp: scans through ray tracing ----
 
-/// The capacities of a scan's boxes buffer for the map's pool: a box per slot (a leaf or an
-/// unknown region) and the root, all in the first list.
+/// The capacity of a scan's boxes buffer for the map's pool: a box per slot (a leaf or an
+/// unknown region) and the root.
 gpu::AccelHeader scanSceneHeader(const MapBuffers& buffers);
 /// Writes the boxes of the tree as the device holds it when this runs (accel_boxes.comp,
 /// kAccelBoxesScan: leaves above clamp_min_log, unknown regions; sorted; the tails inactive)
-/// into `boxes` and builds `scene` over both lists at their capacities, so that nothing of the
+/// into `boxes` and builds `scene` over the list at its capacity, so that nothing of the
 /// tree's state is needed on the host; then the top-level structure's address into the header.
 /// `params` must hold the map's parameters. Three timestamps: start, boxes done, build done.
 void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,

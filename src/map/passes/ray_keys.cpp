@@ -19,8 +19,8 @@ void recordRayKeys(Recorder& r, const gpu::ScanParams& sp, const RayKeysInput& i
     r.stream.copyFrom(in.source, in.source_offset, b.points, in.bytes);
   }
   if (in.fill_sets) {
-    r.stream.fill(b.hash_keys, 0xFFFFFFFFu);
-    r.stream.fill(b.hash_flags, 0u);
+    r.stream.fill(b.cell_set_keys, 0xFFFFFFFFu);
+    r.stream.fill(b.cell_set_flags, 0u);
     r.stream.fill(b.endpoint_keys, 0xFFFFFFFFu);
   }
   if (in.resume) r.stream.fill(b.pool, 0u, offsetof(gpu::PoolState, halted), 4);

@@ -1,6 +1,6 @@
 // Scans through ray tracing (ScanRays::kRayTracing): accel_boxes.comp (kAccelBoxesScan) writes
 // the boxes a free update can change, the acceleration structure is built over them in the
-// scan's own submission (at the lists' capacities, the tails inactive, so the host needs no box
+// scan's own submission (at the list's capacity, the tail inactive, so the host needs no box
 // count), and scan_rays_rt.comp traces the scan's rays through it into the cell set.
 #include "map/passes/passes.hpp"
 
@@ -8,10 +8,8 @@ namespace octovk::passes {
 
 gpu::AccelHeader scanSceneHeader(const MapBuffers& buffers) {
   gpu::AccelHeader header{};
-  // Every box in the first list: a leaf or an unknown region per slot, and the root. The second
-  // list stays empty (one empty box outside the map, kAccelBoxesTail).
-  header.occupied_capacity = static_cast<std::uint32_t>(std::size_t{buffers.poolBlocks()} * 8 + 1);
-  header.unknown_capacity = 1;
+  // A leaf or an unknown region per slot, and the root.
+  header.box_capacity = static_cast<std::uint32_t>(std::size_t{buffers.poolBlocks()} * 8 + 1);
   return header;
 }
 
@@ -20,10 +18,9 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   r.stamp(Stamp::kBoxesStart);
   recordBoxes(r, boxes, header, BoxesFor::kScan);
   r.stamp(Stamp::kBoxesEnd);
-  // Both lists at their capacities: the counts stay on the device.
-  const auto geometries =
-      boxGeometries(boxes, header, header.occupied_capacity, header.unknown_capacity);
-  scene.recordBuild(r.stream, geometries);
+  // The list at its capacity: the count stays on the device.
+  const vk::BoxGeometry geometry = boxGeometry(boxes, header.box_capacity);
+  scene.recordBuild(r.stream, {&geometry, 1});
   const VkDeviceAddress tlas = scene.tlasAddress();
   r.stream.update(boxes, &tlas, sizeof(tlas), offsetof(gpu::AccelHeader, tlas));
   r.stream.barrier();

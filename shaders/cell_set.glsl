@@ -1,8 +1,8 @@
 // The scan's two hash sets: bricks of cells (ray_keys marks the cells a ray crosses), and nodes
 // (discretize's end cells, then the prefixes of nodes that get a block). Has mutable globals
 // (probes_spent, the marked brick): only the passes that fill or read the sets include it.
-#ifndef OCTOVK_HASH_SET_GLSL
-#define OCTOVK_HASH_SET_GLSL
+#ifndef OCTOVK_CELL_SET_GLSL
+#define OCTOVK_CELL_SET_GLSL
 
 #include "keys.glsl"
 
@@ -43,15 +43,15 @@ uint insertBrick(uint64_t brick) {
     ++probes_spent;
     // A read first (atomic load, no write): most lookups find their brick already there (rays
     // share the bricks near the sensor), and reading avoids a compare-and-swap on a hot slot.
-    uint64_t seen = OCTOVK_LOAD(hash_keys[s]);
+    uint64_t seen = OCTOVK_LOAD(CELL_SET_KEYS[s]);
     if (seen == brick) return s;
     // Off the fast path: once the set is known to be too small the scan is redone with a larger
     // one, so stop rather than probe a crowded table.
     if (probe == 0u && (OCTOVK_LOAD(counters.status) & kStatusHashFull) != 0u) return 0xFFFFFFFFu;
-    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(hash_keys[s], kEmptyKey, brick) : seen;
+    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(CELL_SET_KEYS[s], kEmptyKey, brick) : seen;
     if (prev == kEmptyKey) {
       uint n = atomicAdd(counters.brick_entries, 1u);
-      slots[n] = s;
+      SLOTS[n] = s;
       if (n % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.brick_args, n + 1u);
       if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusHashFull);
       return s;
@@ -85,8 +85,8 @@ void flushMarks() {
   uint base = marked_slot * kBrickFlagWords;
   for (uint w = 0u; w < 2u; ++w) {
     uint bits = marked_bits[w];
-    if (bits != 0u && (OCTOVK_LOAD(hash_flags[base + w]) & bits) != bits)
-      atomicOr(hash_flags[base + w], bits);
+    if (bits != 0u && (OCTOVK_LOAD(CELL_SET_FLAGS[base + w]) & bits) != bits)
+      atomicOr(CELL_SET_FLAGS[base + w], bits);
   }
   marked_bits = uvec2(0u);
 }
@@ -107,8 +107,8 @@ bool markCell(uvec3 k, bool occupied) {
     uint index = brickCellIndex(k);
     uint word = marked_slot * kBrickFlagWords + (index >> 5);
     uint bit = 1u << (index & 31u);
-    atomicOr(hash_flags[word], bit);
-    atomicOr(hash_flags[word + 2u], bit);
+    atomicOr(CELL_SET_FLAGS[word], bit);
+    atomicOr(CELL_SET_FLAGS[word + 2u], bit);
   } else {
     noteMark(k);
   }
@@ -122,9 +122,9 @@ uint insertEndpoint(uint64_t k, out uint slot) {
   if ((OCTOVK_LOAD(counters.status) & kStatusEndpointHashFull) != 0u) return 2u;
   uint s = endpointSlot(k, params.endpoint_log2);
   for (uint probe = 0u; probe < 4096u; ++probe) {
-    uint64_t seen = OCTOVK_LOAD(endpoint_keys[s]);
+    uint64_t seen = OCTOVK_LOAD(ENDPOINT_KEYS[s]);
     if (seen == k) return 0u;
-    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(endpoint_keys[s], kEmptyKey, k) : seen;
+    uint64_t prev = seen == kEmptyKey ? atomicCompSwap(ENDPOINT_KEYS[s], kEmptyKey, k) : seen;
     slot = s;
     if (prev == kEmptyKey) return 1u;
     if (prev == k) return 0u;
@@ -145,7 +145,7 @@ uint findEndpoint(uint64_t key) {
   uint cap = params.endpoint_capacity;
   uint s = endpointSlot(key, params.endpoint_log2);
   for (uint probe = 0u; probe < cap; ++probe) {
-    uint64_t seen = OCTOVK_LOAD(endpoint_keys[s]);
+    uint64_t seen = OCTOVK_LOAD(ENDPOINT_KEYS[s]);
     if (seen == key) return s;
     if (seen == kEmptyKey) break;
     s = (s + 1u) & (cap - 1u);
@@ -155,9 +155,9 @@ uint findEndpoint(uint64_t key) {
 
 // Records the n-th entry of the second set, at `slot`; flags the set full beyond three quarters.
 void countEndpointEntry(uint n, uint slot) {
-  slots[params.hash_capacity + n] = slot;
+  SLOTS[params.hash_capacity + n] = slot;
   uint cap = params.endpoint_capacity;
   if (n >= cap - (cap >> 2)) atomicOr(counters.status, kStatusEndpointHashFull);
 }
 
-#endif  // OCTOVK_HASH_SET_GLSL
+#endif  // OCTOVK_CELL_SET_GLSL
