@@ -149,7 +149,6 @@ class CastRayInfo:
     builds: int
     last_build_ms: float
     occupied_boxes: int
-    unknown_boxes: int
     device_bytes: int
     cap_fallbacks: int
 

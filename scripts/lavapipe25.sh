@@ -8,7 +8,7 @@
 # Usage: scripts/lavapipe25.sh [DIR]   (default: build/mesa25)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
-dir="${1:-$root/build/mesa25}"
+dir="$(realpath -m "${1:-$root/build/mesa25}")"  # apt needs absolute paths
 version="25.0.7-2~bpo12+1"
 packages=(mesa-vulkan-drivers mesa-libgallium libdrm2 libdrm-amdgpu1 libdrm-intel1)
 

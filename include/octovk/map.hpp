@@ -190,10 +190,9 @@ class OccupancyMap {
     std::size_t builds = 0;  ///< acceleration-structure builds (lazily, by castRays) since trim()
     double last_build_ms = 0.0;      ///< device time of the last: the boxes, then the structures
     double last_boxes_ms = 0.0;      ///< of which the boxes (leaf boxes if stale, accel_boxes)
-    std::size_t occupied_boxes = 0;  ///< boxes of the last build: its occupied leaves
-    /// Always 0: the structure holds no unknown regions (castRay traces only the rays that
-    /// ignore unknown space). Kept for source compatibility; to be removed.
-    std::size_t unknown_boxes = 0;
+    /// Boxes of the last build: its occupied leaves (castRay traces only the rays that ignore
+    /// unknown space, so the structure holds no unknown regions).
+    std::size_t occupied_boxes = 0;
     std::size_t device_bytes = 0;    ///< boxes, structures, scratch (in deviceBytesByUse().queries)
     /// castRays calls answered by the walk because, under MapParams::max_device_bytes, the
     /// structure would not have fitted (kAuto only; kRayTracing throws kOutOfDeviceMemory).

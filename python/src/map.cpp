@@ -139,7 +139,6 @@ void bindMap(py::module_& m) {
       .def_readonly("builds", &CastRayInfo::builds, "acceleration-structure builds since trim()")
       .def_readonly("last_build_ms", &CastRayInfo::last_build_ms)
       .def_readonly("occupied_boxes", &CastRayInfo::occupied_boxes)
-      .def_readonly("unknown_boxes", &CastRayInfo::unknown_boxes)
       .def_readonly("device_bytes", &CastRayInfo::device_bytes)
       .def_readonly("cap_fallbacks", &CastRayInfo::cap_fallbacks,
                     "cast_rays calls answered by the walk because of max_device_bytes");
