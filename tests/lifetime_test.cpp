@@ -25,10 +25,7 @@ using test::randomScan;
 // batch grew the query buffers past the binding, failed, and every later query failed too.
 TEST(QueryBatches, LargerThanOneBindingAreSplitAndTheMapKeepsWorking) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  ContextOptions options;
-  options.selector = std::to_string(ctx.device().index);
-  options.max_binding_bytes = 1u << 20;
-  auto small = Context::create(options);
+  auto small = test::contextWithBindingLimit(ctx, 1u << 20);
   ASSERT_TRUE(small) << small.error().what();
   OccupancyMap map(*small.value(), test::withResolution(0.05));
   std::mt19937 rng(5);

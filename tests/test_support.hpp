@@ -41,6 +41,16 @@ inline Context* sharedContext(std::string* why) {
   return context.get();
 }
 
+/// A context on the shared one's device with one descriptor binding's range forced down to
+/// `bytes` (ContextOptions::max_binding_bytes): the limit's paths, cheaply.
+inline Result<std::unique_ptr<Context>> contextWithBindingLimit(const Context& ctx,
+                                                                std::uint64_t bytes) {
+  ContextOptions options;
+  options.selector = std::to_string(ctx.device().index);
+  options.max_binding_bytes = bytes;
+  return Context::create(options);
+}
+
 inline bool runningInCi() {
   const char* ci = std::getenv("CI");
   return ci && *ci && std::string(ci) != "0" && std::string(ci) != "false";

@@ -542,10 +542,7 @@ TEST(Context, ValidationMessagesReachTheCallback) {
 // reached by device address; a descriptor range beyond the limit is refused, not bound.
 TEST(BindingRange, MapsLargerThanOneBindingWithTheLimitForcedLow) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  ContextOptions options;
-  options.selector = std::to_string(ctx.device().index);
-  options.max_binding_bytes = 1u << 20;
-  auto small = Context::create(options);
+  auto small = test::contextWithBindingLimit(ctx, 1u << 20);
   ASSERT_TRUE(small) << small.error().what();
   EXPECT_EQ(ContextAccess::device(*small.value()).maxBindingBytes(), 1u << 20);
   const MapParams params = withResolution(0.01);
