@@ -1,0 +1,138 @@
+// cli_user_test: what a new user of the octovk program meets first: --version, OctoMap's option
+// spellings, a map given where a scan graph belongs, an empty graph, and integrate's summary.
+// Small inputs only: each test runs in well under a second on lavapipe.
+#include <gtest/gtest.h>
+#include <octomap/OcTree.h>
+#include <octomap/ScanGraph.h>
+
+#include <algorithm>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "cli_support.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using octovk::test::runOctovk;
+using octovk::test::RunResult;
+using octovk::test::Scratch;
+
+// One error line, exit `exit_code`, naming each of `mentions`, and no map left behind.
+void expectOneError(const RunResult& r, int exit_code, const std::vector<std::string>& mentions,
+                    const Scratch& scratch) {
+  EXPECT_EQ(r.exit_code, exit_code) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  for (const std::string& mention : mentions)
+    EXPECT_NE(r.err.find(mention), std::string::npos)
+        << "expected '" << mention << "' in: " << r.err;
+  EXPECT_EQ(r.out, "");
+  for (const auto& entry : fs::directory_iterator(scratch.dir())) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_FALSE(name.starts_with("out.") || name.find(".tmp") != std::string::npos)
+        << "left behind: " << name;
+  }
+}
+
+// A scan graph of `scans` scans of `points` points each, written by OctoMap.
+std::string writeGraph(const Scratch& scratch, int scans, int points) {
+  octomap::ScanGraph graph;
+  for (int s = 0; s < scans; ++s) {
+    auto* cloud = new octomap::Pointcloud();
+    for (int p = 0; p < points; ++p)
+      cloud->push_back(1.0f + 0.1f * static_cast<float>(p), 0.5f, 0.2f);
+    graph.addNode(cloud, octomath::Pose6D(0.1f * static_cast<float>(s), 0, 0, 0, 0, 0));
+  }
+  const std::string path = scratch / "scans.graph";
+  EXPECT_TRUE(graph.writeBinary(path));
+  return path;
+}
+
+TEST(cliUser, VersionPrintsTheProjectVersion) {
+  Scratch scratch;
+  for (const char* spelling : {"--version", "version"}) {
+    const RunResult r = runOctovk({spelling}, scratch.dir());
+    EXPECT_EQ(r.exit_code, 0) << spelling << ": " << r.err;
+    EXPECT_EQ(r.out, std::string("octovk ") + OCTOVK_VERSION + "\n") << spelling;
+    EXPECT_EQ(r.err, "") << spelling;
+  }
+  const RunResult help = runOctovk({"--help"}, scratch.dir());
+  EXPECT_NE(help.out.find("--version"), std::string::npos);
+}
+
+TEST(cliUser, Graph2treeSpellingsGetTheOptionToUse) {
+  Scratch scratch;
+  const std::string graph = writeGraph(scratch, 1, 3);
+  const std::string out = scratch / "out.bt";
+  struct Case {
+    std::vector<std::string> args;
+    std::string mention;
+  };
+  const std::vector<Case> cases = {
+      {{"integrate", graph, "-o", out, "-res", "0.1"}, "did you mean --resolution?"},
+      {{"integrate", graph, "-o", out, "--resoluton", "0.1"}, "did you mean --resolution?"},
+      {{"integrate", graph, "-o", out, "-discretize"}, "did you mean --discretize?"},
+      {{"integrate", graph, "-o", out, "--max_range", "5"}, "did you mean --max-range?"},
+      {{"integrate", graph, "-o", out, "-clamping", "0.1", "0.9"},
+       "did you mean --clamping-min A and --clamping-max B?"},
+      {{"integrate", "-i", graph, "-o", out}, "needs no option"},
+      {{"distance", "map.bt", "--max-dist", "2"}, "did you mean --max-distance?"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.args[c.args.size() > 4 ? 4 : 1]);
+    expectOneError(runOctovk(c.args, scratch.dir()), 2, {c.mention}, scratch);
+  }
+  // Nothing close: no guess.
+  const RunResult bogus = runOctovk({"integrate", graph, "-o", out, "--bogus"}, scratch.dir());
+  expectOneError(bogus, 2, {"'--bogus'"}, scratch);
+  EXPECT_EQ(bogus.err.find("did you mean"), std::string::npos) << bogus.err;
+}
+
+TEST(cliUser, AMapGivenToIntegrateIsNamedAsAMap) {
+  Scratch scratch;
+  octomap::OcTree tree(0.1);
+  tree.updateNode(octomap::point3d(0.05f, 0.05f, 0.05f), true);
+  // Named as graphs, too: the header decides, not the extension.
+  const std::string bt = scratch / "map_bt.graph";
+  const std::string ot = scratch / "map_ot.graph";
+  ASSERT_TRUE(tree.writeBinary(bt));
+  ASSERT_TRUE(tree.write(ot));
+  expectOneError(runOctovk({"integrate", bt, "-o", scratch / "out.bt"}, scratch.dir()), 2,
+                 {"'" + bt + "' is an OctoMap map (.bt), not a scan graph", "octovk info"},
+                 scratch);
+  expectOneError(runOctovk({"integrate", ot, "-o", scratch / "out.bt"}, scratch.dir()), 2,
+                 {"'" + ot + "' is an OctoMap map (.ot), not a scan graph"}, scratch);
+}
+
+TEST(cliUser, AnEmptyScanGraphIsAnError) {
+  Scratch scratch;
+  {
+    const std::string graph = writeGraph(scratch, 0, 0);
+    expectOneError(runOctovk({"integrate", graph, "-o", scratch / "out.bt"}, scratch.dir()), 1,
+                   {"'" + graph + "' holds no scans"}, scratch);
+  }
+  {
+    const std::string graph = writeGraph(scratch, 2, 0);
+    expectOneError(runOctovk({"integrate", graph, "-o", scratch / "out.bt"}, scratch.dir()), 1,
+                   {"'" + graph + "' holds 2 scan(s) but no points"}, scratch);
+  }
+}
+
+TEST(cliUser, IntegratePrintsTheDeviceOnce) {
+  Scratch scratch;
+  const std::string graph = writeGraph(scratch, 2, 5);
+  const RunResult r =
+      runOctovk({"integrate", graph, "-o", scratch / "map.bt", "--quiet"}, scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::size_t count = 0;
+  for (std::size_t at = r.out.find("device:"); at != std::string::npos;
+       at = r.out.find("device:", at + 1))
+    ++count;
+  EXPECT_EQ(count, 1u) << r.out;
+  EXPECT_EQ(r.out.rfind("device: ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find("scans:         2\n"), std::string::npos) << r.out;
+}
+
+}  // namespace
