@@ -135,4 +135,30 @@ TEST(cliUser, IntegratePrintsTheDeviceOnce) {
   EXPECT_NE(r.out.find("scans:         2\n"), std::string::npos) << r.out;
 }
 
+TEST(cliUser, EditSaysWhichNodesItCountsAndInfoAgrees) {
+  Scratch scratch;
+  // A 16 x 16 floor of occupied cells: writeBinary prunes its uniform blocks, so the .bt holds
+  // fewer nodes than the map in memory.
+  octomap::OcTree tree(0.1);
+  for (int x = 0; x < 16; ++x)
+    for (int y = 0; y < 16; ++y)
+      tree.updateNode(octomap::point3d(0.05f + 0.1f * static_cast<float>(x),
+                                       0.05f + 0.1f * static_cast<float>(y), 0.05f),
+                      true);
+  const std::string map = scratch / "in.bt";
+  ASSERT_TRUE(tree.writeBinary(map));
+  const std::string out = scratch / "edited.bt";
+  const RunResult r = runOctovk(
+      {"edit", map, "--clear-box", "0", "0", "-1", "0.4", "0.4", "1", "-o", out}, scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  octomap::OcTree written(0.1);
+  ASSERT_TRUE(written.readBinary(out));
+  const std::string counted = std::to_string(written.size()) + " in " + out;
+  EXPECT_NE(r.out.find("after (in memory, unpruned); " + counted), std::string::npos) << r.out;
+  const RunResult info = runOctovk({"info", out}, scratch.dir());
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  const std::string info_nodes = "nodes:           " + std::to_string(written.size());
+  EXPECT_NE(info.out.find(info_nodes), std::string::npos) << info.out;
+}
+
 }  // namespace

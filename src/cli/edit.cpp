@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <vector>
@@ -52,8 +53,9 @@ void printEditHelp(std::ostream& out) {
          "Options take their value as '--name VALUE' or '--name=VALUE'; the boxes also as\n"
          "'--clear-box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
-         "Output: the device used, then on stdout the edits made, the nodes before and after,\n"
-         "the time taken and the file written.\n";
+         "Output: the device used, then on stdout the edits made, the nodes before and after\n"
+         "(in memory, unpruned) and in the file written (a .bt is pruned to max-likelihood, so\n"
+         "it holds fewer: the count 'octovk info' shows), the time taken and the file written.\n";
 }
 
 class Edit final : public Command {
@@ -107,9 +109,12 @@ class Edit final : public Command {
     const double edit_s = secondsSince(edit_start);
     const std::size_t nodes_after = map.nodeCount();
     const auto write_start = Clock::now();
+    std::size_t nodes_written = 0;
     {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-      in.files().write(0, [&](const std::string& temporary) { writeMap(map, temporary); });
+      in.files().write(0, [&](const std::string& temporary) {
+        nodes_written = writeMap(map, temporary);
+      });
       in.files().commit();
     }
     const double write_s = secondsSince(write_start);
@@ -131,7 +136,12 @@ class Edit final : public Command {
       }
       s << "\n";
     }
-    s << "nodes:   " << nodes_before << " before, " << nodes_after << " after\n";
+    // The map in memory is unpruned; a .bt is written pruned, so 'octovk info' counts fewer.
+    s << "nodes:   " << nodes_before << " before, " << nodes_after
+      << " after (in memory, unpruned); " << nodes_written << " in " << in.output()
+      << (std::filesystem::path(in.output()).extension() == ".bt" ? " (pruned max-likelihood, as 'octovk info' counts)"
+                                             : " (as 'octovk info' counts)")
+      << "\n";
     char line[256];
     std::snprintf(line, sizeof(line),
                   "time:    %.3f s (reading and upload %.3f s, editing %.3f s, writing %.3f s)\n",

@@ -489,7 +489,7 @@ const Subcommand kIntegrateCommand{
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.
-void writeMap(const OccupancyMap& map, const std::string& path) {
+std::size_t writeMap(const OccupancyMap& map, const std::string& path) {
   std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
   std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
   if (!out.is_open())
@@ -498,6 +498,7 @@ void writeMap(const OccupancyMap& map, const std::string& path) {
   out.close();
   ok = ok && out.good();
   if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+  return tree->size();
 }
 
 }  // namespace octovk::cli
