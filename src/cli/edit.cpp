@@ -54,8 +54,8 @@ void printEditHelp(std::ostream& out) {
          "'--clear-box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
          "Output: the device used, then on stdout the edits made, the nodes before and after\n"
-         "(in memory, unpruned) and in the file written (a .bt is pruned to max-likelihood, so\n"
-         "it holds fewer: the count 'octovk info' shows), the time taken and the file written.\n";
+         "in memory and in the file written (a .bt is max-likelihood and pruned, so it may hold\n"
+         "fewer: the count 'octovk info' shows), the time taken and the file written.\n";
 }
 
 class Edit final : public Command {
@@ -136,11 +136,13 @@ class Edit final : public Command {
       }
       s << "\n";
     }
-    // The map in memory is unpruned; a .bt is written pruned, so 'octovk info' counts fewer.
-    s << "nodes:   " << nodes_before << " before, " << nodes_after
-      << " after (in memory, unpruned); " << nodes_written << " in " << in.output()
-      << (std::filesystem::path(in.output()).extension() == ".bt" ? " (pruned max-likelihood, as 'octovk info' counts)"
-                                             : " (as 'octovk info' counts)")
+    // Edits do not prune the map in memory; a .bt is written pruned, so 'octovk info' counts
+    // fewer nodes than the map held.
+    const bool pruned = std::filesystem::path(in.output()).extension() == ".bt";
+    s << "nodes:   " << nodes_before << " before, " << nodes_after << " after, in memory; "
+      << nodes_written << " in " << in.output()
+      << (pruned ? " (max-likelihood, pruned: as 'octovk info' counts)"
+                 : " (as 'octovk info' counts)")
       << "\n";
     char line[256];
     std::snprintf(line, sizeof(line),
