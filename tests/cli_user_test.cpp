@@ -135,7 +135,7 @@ TEST(cliUser, IntegratePrintsTheDeviceOnce) {
   EXPECT_NE(r.out.find("scans:         2\n"), std::string::npos) << r.out;
 }
 
-TEST(cliUser, EditSaysWhichNodesItCountsAndInfoAgrees) {
+TEST(cliUser, EditSaysWhatItClearedAndWhichNodesItCounts) {
   Scratch scratch;
   // A 16 x 16 floor of occupied cells: writeBinary prunes its uniform blocks, so the .bt holds
   // fewer nodes than the map in memory.
@@ -151,6 +151,16 @@ TEST(cliUser, EditSaysWhichNodesItCountsAndInfoAgrees) {
   const RunResult r = runOctovk(
       {"edit", map, "--clear-box", "0", "0", "-1", "0.4", "0.4", "1", "-o", out}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  // The leaves OctoMap's leaf_bbx_iterator visits for the box: the 5 x 5 occupied cells.
+  std::size_t in_box = 0;
+  for (auto it = tree.begin_leafs_bbx(octomap::point3d(0, 0, -1), octomap::point3d(0.4f, 0.4f, 1));
+       it != tree.end_leafs_bbx(); ++it)
+    ++in_box;
+  EXPECT_EQ(in_box, 25u);
+  EXPECT_NE(r.out.find(": " + std::to_string(in_box) + " leaves set free (" +
+                       std::to_string(in_box) + " of them were occupied)"),
+            std::string::npos)
+      << r.out;
   octomap::OcTree written(0.1);
   ASSERT_TRUE(written.readBinary(out));
   const std::string counted = std::to_string(written.size()) + " in " + out;

@@ -3,6 +3,7 @@
 // clamping bound, then updateInnerOccupancy) and keeping only a box (every node but the leaves
 // leaf_bbx_iterator visits and the inner nodes above them deleted).
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -53,7 +54,8 @@ void printEditHelp(std::ostream& out) {
          "Options take their value as '--name VALUE' or '--name=VALUE'; the boxes also as\n"
          "'--clear-box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
-         "Output: the device used, then on stdout the edits made, the nodes before and after\n"
+         "Output: the device used, then on stdout the edits made (for --clear-box the leaves set\n"
+         "free, and how many of them were occupied), the nodes before and after\n"
          "in memory and in the file written (a .bt is max-likelihood and pruned, so it may hold\n"
          "fewer: the count 'octovk info' shows), the time taken and the file written.\n";
 }
@@ -103,8 +105,16 @@ class Edit final : public Command {
       }
       if (e.keep)
         map.keepBox(lo, hi);
-      else
+      else {
+        // Counted before: clearing keeps every leaf it visits, so afterwards none reads occupied.
+        const std::vector<OccupancyMap::LeafBoxHost> leaves = map.leavesInBox(lo, hi);
+        const float occupied = occupancyLogOdds(map.params());
+        e.leaves = leaves.size();
+        e.occupied = static_cast<std::size_t>(std::count_if(
+            leaves.begin(), leaves.end(),
+            [&](const OccupancyMap::LeafBoxHost& c) { return c.log_odds >= occupied; }));
         map.clearBox(lo, hi);
+      }
     }
     const double edit_s = secondsSince(edit_start);
     const std::size_t nodes_after = map.nodeCount();
@@ -134,6 +144,8 @@ class Edit final : public Command {
                       e.box[0], e.box[1], e.box[2], e.box[3], e.box[4], e.box[5], resolution);
         s << line;
       }
+      if (!e.keep)
+        s << ": " << e.leaves << " leaves set free (" << e.occupied << " of them were occupied)";
       s << "\n";
     }
     // Edits do not prune the map in memory; a .bt is written pruned, so 'octovk info' counts
@@ -159,6 +171,8 @@ class Edit final : public Command {
     std::array<double, 6> box;     // as given
     std::array<double, 6> used{};  // clamped to the map's domain (run)
     bool clamped = false;
+    std::size_t leaves = 0;    // --clear-box: the leaves it set free (run)
+    std::size_t occupied = 0;  // of them, those that were occupied
   };
   std::vector<BoxEdit> edits_;
 };
