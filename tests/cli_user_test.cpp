@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,55 @@ TEST(cliUser, VersionPrintsTheProjectVersion) {
   }
   const RunResult help = runOctovk({"--help"}, scratch.dir());
   EXPECT_NE(help.out.find("--version"), std::string::npos);
+}
+
+// The environment and exit codes are described once, not in every command's help.
+TEST(cliUser, EnvironmentAndExitCodesAreOneHelpTopic) {
+  Scratch scratch;
+  const RunResult env = runOctovk({"help", "environment"}, scratch.dir());
+  EXPECT_EQ(env.exit_code, 0) << env.err;
+  for (const char* word : {"OCTOVK_DEVICE", "LP_NUM_THREADS", "OCTOVK_CACHE_DIR", "Exit codes",
+                           "128+N"})
+    EXPECT_NE(env.out.find(word), std::string::npos) << word;
+  for (const char* command :
+       {"integrate", "convert", "info", "render", "export", "edit", "distance", "devices"}) {
+    const RunResult r = runOctovk({command, "--help"}, scratch.dir());
+    EXPECT_EQ(r.exit_code, 0) << command;
+    EXPECT_EQ(r.out.find("OCTOVK_CACHE_DIR"), std::string::npos) << command;
+    EXPECT_NE(r.out.find("octovk help environment"), std::string::npos) << command;
+  }
+}
+
+// Every command's help ends with examples, and each example's options are ones the command
+// takes (run in an empty folder, each stops at its missing input, after parsing every option).
+TEST(cliUser, EveryCommandsHelpHasExamplesThatParse) {
+  Scratch scratch;
+  for (const std::string command :
+       {"integrate", "convert", "info", "render", "export", "edit", "distance", "devices"}) {
+    const RunResult help = runOctovk({command, "--help"}, scratch.dir());
+    const std::size_t at = help.out.find("\nExamples:\n");
+    ASSERT_NE(at, std::string::npos) << command;
+    std::istringstream lines(help.out.substr(at + 11));
+    std::vector<std::string> examples;
+    for (std::string line; std::getline(lines, line) && !line.empty();) {
+      if (line.rfind("    ", 0) == 0 && !examples.empty())
+        examples.back() += line;  // a continuation
+      else
+        examples.push_back(line);
+    }
+    EXPECT_GE(examples.size(), 2u) << command;
+    for (const std::string& example : examples) {
+      std::istringstream words(example);
+      std::vector<std::string> args;
+      for (std::string word; words >> word;) args.push_back(word);
+      if (args.empty() || args.front() != "octovk") continue;  // e.g. VAR=value octovk ...
+      args.erase(args.begin());
+      EXPECT_EQ(args.front(), command) << example;
+      const RunResult r = runOctovk(args, scratch.dir());
+      for (const char* parse_error : {"unknown option", "needs", "expects", "takes no"})
+        EXPECT_EQ(r.err.find(parse_error), std::string::npos) << example << ": " << r.err;
+    }
+  }
 }
 
 TEST(cliUser, Graph2treeSpellingsGetTheOptionToUse) {

@@ -194,6 +194,9 @@ const Subcommand kEditCommand{
     .max_device_memory = true,
     .multi_value_options = {{"--clear-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"},
                             {"--keep-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Edit>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Edit>(); },
+    .examples =
+        "  octovk edit map.bt --clear-box 0 0 0 1 1 2 -o cleared.bt\n"
+        "  octovk edit map.bt --keep-box -5 -5 -1 5 5 3 -o window.bt\n"};
 
 }  // namespace octovk::cli

@@ -152,6 +152,9 @@ const Subcommand kInfoCommand{.name = "info",
                               .unknown_option_tail = "",
                               .make = []() -> std::unique_ptr<Command> {
                                 return std::make_unique<Info>();
-                              }};
+                              },
+                              .examples =
+                                  "  octovk info map.bt\n"
+                                  "  octovk info map.ot --max-device-memory 512M\n"};
 
 }  // namespace octovk::cli

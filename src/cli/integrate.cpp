@@ -485,7 +485,11 @@ const Subcommand kIntegrateCommand{
     .max_device_memory = true,
     .value_options = integrateValueOptions(),
     .multi_value_options = cameraMultiValueOptions(),
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); },
+    .examples =
+        "  octovk integrate scans.graph -o map.bt -o map.ot -r 0.05\n"
+        "  octovk integrate rgbd_dataset_freiburg1_xyz -o map.bt\n"
+        "  octovk integrate scans.graph -o map.bt --max-range 10 --changes changes.ply\n"};
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.

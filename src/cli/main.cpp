@@ -51,6 +51,7 @@ void printHelp(std::ostream& out) {
          "                [--unknown-occupied] -o SLICE.png\n"
          "  octovk devices\n"
          "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
+         "  octovk help environment    exit codes and environment variables\n"
          "  octovk --version           (also: octovk version)\n"
          "\n"
          "Commands:\n"
@@ -71,20 +72,27 @@ void printHelp(std::ostream& out) {
          "\n"
          "Each command's options: octovk COMMAND --help (or octovk help COMMAND).\n"
          "\n"
+         "Examples:\n"
+         "  octovk integrate scans.graph -o map.bt -r 0.05\n"
+         "  octovk info map.bt\n"
+         "  octovk render map.bt -o view.png\n"
+         "\n"
          "--- integrate ---\n";
   kIntegrateCommand.print_help(out);
   out << "\n";
-  printEnvironmentAndExitCodes(out);
+  printEnvironmentPointer(out);
 }
 
 int runHelp(const std::vector<std::string>& args) {
   if (args.empty() || args.front() == "help") {
     printHelp(std::cout);
+  } else if (args.front() == "environment" || args.front() == "exit-codes") {
+    printEnvironmentAndExitCodes(std::cout);
   } else if (const Subcommand* command = findSubcommand(args.front())) {
     printSubcommandHelp(*command, std::cout);
   } else {
     throw UsageError("no help for unknown command '" + args.front() + "'; commands: " +
-                     commandNames());
+                     commandNames() + "; also: octovk help environment");
   }
   return kExitOk;
 }
