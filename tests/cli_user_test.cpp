@@ -68,8 +68,8 @@ TEST(cliUser, EnvironmentAndExitCodesAreOneHelpTopic) {
   Scratch scratch;
   const RunResult env = runOctovk({"help", "environment"}, scratch.dir());
   EXPECT_EQ(env.exit_code, 0) << env.err;
-  for (const char* word : {"OCTOVK_DEVICE", "LP_NUM_THREADS", "OCTOVK_CACHE_DIR", "Exit codes",
-                           "128+N"})
+  for (const char* word :
+       {"OCTOVK_DEVICE", "LP_NUM_THREADS", "OCTOVK_CACHE_DIR", "Exit codes", "128+N"})
     EXPECT_NE(env.out.find(word), std::string::npos) << word;
   for (const char* command :
        {"integrate", "convert", "info", "render", "export", "edit", "distance", "devices"}) {

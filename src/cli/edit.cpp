@@ -122,9 +122,8 @@ class Edit final : public Command {
     std::size_t nodes_written = 0;
     {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-      in.files().write(0, [&](const std::string& temporary) {
-        nodes_written = writeMap(map, temporary);
-      });
+      in.files().write(
+          0, [&](const std::string& temporary) { nodes_written = writeMap(map, temporary); });
       in.files().commit();
     }
     const double write_s = secondsSince(write_start);

@@ -91,8 +91,8 @@ int runHelp(const std::vector<std::string>& args) {
   } else if (const Subcommand* command = findSubcommand(args.front())) {
     printSubcommandHelp(*command, std::cout);
   } else {
-    throw UsageError("no help for unknown command '" + args.front() + "'; commands: " +
-                     commandNames() + "; also: octovk help environment");
+    throw UsageError("no help for unknown command '" + args.front() +
+                     "'; commands: " + commandNames() + "; also: octovk help environment");
   }
   return kExitOk;
 }
