@@ -2,6 +2,8 @@
 // the Vulkan context, then the command's own work (command.hpp).
 #include "command.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <iostream>
 
@@ -20,6 +22,98 @@ std::vector<std::string> inputFiles(const std::string& input) {
   if (!input.empty() && fs::is_directory(input, ec))
     return {(fs::path(input) / "depth.txt").string(), (fs::path(input) / "groundtruth.txt").string()};
   return {input};
+}
+
+// The option names `command` takes: those its help lists at the start of a line (flags are known
+// only there), the value options, -o and --max-device-memory.
+std::vector<std::string> knownOptions(const Subcommand& command) {
+  std::ostringstream help;
+  command.print_help(help);
+  std::vector<std::string> names = command.value_options;
+  for (const auto& multi : command.multi_value_options) names.push_back(multi.first);
+  if (command.outputs != Subcommand::Outputs::kNone) names.insert(names.end(), {"-o", "--output"});
+  if (command.max_device_memory) names.push_back(kMaxDeviceMemoryOption);
+  std::istringstream lines(help.str());
+  for (std::string line; std::getline(lines, line);) {
+    // "  -r, --resolution M" or "      --prob-hit P"; deeper lines continue a description.
+    const std::size_t start = line.find_first_not_of(' ');
+    if (start == 0 || start == std::string::npos || start > 6 || line[start] != '-') continue;
+    std::istringstream words(line.substr(start));
+    for (std::string word; words >> word && word.size() > 1 && word[0] == '-';) {
+      const bool more = word.back() == ',';
+      if (more) word.pop_back();
+      names.push_back(word.substr(0, word.find_first_of("=[|")));
+      if (!more) break;
+    }
+  }
+  std::sort(names.begin(), names.end());
+  names.erase(std::unique(names.begin(), names.end()), names.end());
+  return names;
+}
+
+// Edits (insert, delete, replace, swap two neighbours) that turn `a` into `b`.
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min(
+          {d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+std::string stripDashes(const std::string& name) {
+  return name.substr(std::min(name.find_first_not_of('-'), name.size()));
+}
+
+// "did you mean --resolution?" for an unknown option: OctoMap's graph2tree spellings (-res,
+// -discretize, -clamping, -sensor, -i), a long name with one dash, a prefix or a near miss.
+std::string suggestion(const Subcommand& command, const std::string& unknown) {
+  const std::vector<std::string> known = knownOptions(command);
+  const auto has = [&](const std::string& name) {
+    return std::find(known.begin(), known.end(), name) != known.end();
+  };
+  const auto ask = [](const std::vector<std::string>& names, const char* join) {
+    std::string text = "did you mean ";
+    for (std::size_t i = 0; i < names.size(); ++i)
+      text += (i == 0 ? "" : i + 1 == names.size() ? join : ", ") + names[i];
+    return text + "?";
+  };
+  if (unknown == "-i" && command.input != nullptr)
+    return std::string("the ") + command.input + " needs no option: write 'octovk " + command.name +
+           " INPUT ...', not graph2tree's -i INPUT";
+  if (unknown == "-clamping" && has("--clamping-min"))
+    return ask({"--clamping-min A", "--clamping-max B"}, " and ");
+  if (unknown == "-sensor" && has("--prob-hit"))
+    return ask({"--prob-miss A", "--prob-hit B"}, " and ");
+  std::string bare = stripDashes(unknown);
+  std::transform(bare.begin(), bare.end(), bare.begin(), [](unsigned char c) {
+    return c == '_' ? '-' : static_cast<char>(std::tolower(c));
+  });
+  if (bare.empty()) return "";
+  if (has("--" + bare)) return ask({"--" + bare}, " or ");
+  if (bare.size() == 1 && has("-" + bare)) return ask({"-" + bare}, " or ");
+  std::vector<std::string> found;
+  if (bare.size() >= 2)
+    for (const std::string& name : known)
+      if (name.rfind("--" + bare, 0) == 0) found.push_back(name);
+  if (!found.empty()) return ask(found, " or ");
+  std::size_t best = bare.size() / 3 + 1;  // beyond that, a guess would mislead
+  best = std::min<std::size_t>(best, 3);
+  for (const std::string& name : known) {
+    if (name.rfind("--", 0) != 0) continue;
+    const std::size_t d = editDistance(bare, stripDashes(name));
+    if (d < best) {
+      found.clear();
+      best = d;
+    }
+    if (d == best) found.push_back(name);
+  }
+  return found.empty() ? "" : ask(found, " or ");
 }
 
 }  // namespace
@@ -58,8 +152,14 @@ OutputFiles& Invocation::files() {
 
 void printSubcommandHelp(const Subcommand& command, std::ostream& out) {
   command.print_help(out);
-  out << "\n";
-  printEnvironmentAndExitCodes(out);
+  out << "\nExamples:\n" << command.examples << "\n";
+  printEnvironmentPointer(out);
+}
+
+void printEnvironmentPointer(std::ostream& out) {
+  // Once for the program, not in every command's help: about 35 lines each.
+  out << "Exit codes (0 success, 1 failure, 2 usage error, 128+N signal N) and environment\n"
+         "variables (OCTOVK_DEVICE, LP_NUM_THREADS, ...): octovk help environment\n";
 }
 
 int runSubcommand(const Subcommand& command, const std::vector<std::string>& args) {
@@ -100,6 +200,9 @@ int runSubcommand(const Subcommand& command, const std::vector<std::string>& arg
     } else if (command.max_device_memory && option.name == kMaxDeviceMemoryOption) {
       in.max_device_bytes_ = parseByteCount(option);
     } else if (!own->option(option)) {
+      if (const std::string guess = suggestion(command, option.name); !guess.empty())
+        throw UsageError("unknown option '" + option.name + "' for " + name + "; " + guess +
+                         " (see 'octovk " + name + " --help')");
       throw UsageError("unknown option '" + option.name + "' for " + name + "; see 'octovk " +
                        name + " --help'" + command.unknown_option_tail);
     }

@@ -106,13 +106,18 @@ struct Subcommand {
   const char* unknown_option_tail = " for the options";
   /// A fresh Command for one run.
   std::unique_ptr<Command> (*make)();
+  /// Two or three command lines a user can start from, one per line, printed by the help.
+  const char* examples = "";
 };
 
 /// Runs `command` on `args` (the words after its name): help, parsing, checks, outputs, work.
 int runSubcommand(const Subcommand& command, const std::vector<std::string>& args);
 
-/// Prints `command`'s help, then the environment and the exit codes.
+/// Prints `command`'s help, then where the environment and the exit codes are described.
 void printSubcommandHelp(const Subcommand& command, std::ostream& out);
+
+/// The line that points to 'octovk help environment' (printEnvironmentAndExitCodes).
+void printEnvironmentPointer(std::ostream& out);
 
 /// The commands (each defined in its own file).
 extern const Subcommand kIntegrateCommand;

@@ -246,6 +246,9 @@ const Subcommand kConvertCommand{
     .output_formats = ".graph (an OctoMap scan graph)",
     .value_options = cameraValueOptions(),
     .multi_value_options = cameraMultiValueOptions(),
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Convert>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Convert>(); },
+    .examples =
+        "  octovk convert rgbd_dataset_freiburg1_xyz -o scans.graph\n"
+        "  octovk convert DIR -o scans.graph --intrinsics 517.3 516.5 318.6 255.3\n"};
 
 }  // namespace octovk::cli

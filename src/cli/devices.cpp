@@ -50,6 +50,9 @@ class Devices final : public Command {
 const Subcommand kDevicesCommand{
     .name = "devices",
     .print_help = printDevicesHelp,
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Devices>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Devices>(); },
+    .examples =
+        "  octovk devices\n"
+        "  OCTOVK_DEVICE=1 octovk devices\n"};
 
 }  // namespace octovk::cli

@@ -345,6 +345,10 @@ const Subcommand kDistanceCommand{
     .max_device_memory = true,
     .value_options = {"--z", "--max-distance", "--cell-pixels"},
     .multi_value_options = {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Distance>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Distance>(); },
+    .examples =
+        "  octovk distance map.bt --box -5 -5 0 5 5 2 --z 0.5 -o slice.png\n"
+        "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown-occupied\n"
+        "                  -o safe.png\n"};
 
 }  // namespace octovk::cli

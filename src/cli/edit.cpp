@@ -3,8 +3,10 @@
 // clamping bound, then updateInnerOccupancy) and keeping only a box (every node but the leaves
 // leaf_bbx_iterator visits and the inner nodes above them deleted).
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <vector>
@@ -52,8 +54,10 @@ void printEditHelp(std::ostream& out) {
          "Options take their value as '--name VALUE' or '--name=VALUE'; the boxes also as\n"
          "'--clear-box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
          "\n"
-         "Output: the device used, then on stdout the edits made, the nodes before and after,\n"
-         "the time taken and the file written.\n";
+         "Output: the device used, then on stdout the edits made (for --clear-box the leaves set\n"
+         "free, and how many of them were occupied), the nodes before and after\n"
+         "in memory and in the file written (a .bt is max-likelihood and pruned, so it may hold\n"
+         "fewer: the count 'octovk info' shows), the time taken and the file written.\n";
 }
 
 class Edit final : public Command {
@@ -101,15 +105,25 @@ class Edit final : public Command {
       }
       if (e.keep)
         map.keepBox(lo, hi);
-      else
+      else {
+        // Counted before: clearing keeps every leaf it visits, so afterwards none reads occupied.
+        const std::vector<OccupancyMap::LeafBoxHost> leaves = map.leavesInBox(lo, hi);
+        const float occupied = occupancyLogOdds(map.params());
+        e.leaves = leaves.size();
+        e.occupied = static_cast<std::size_t>(std::count_if(
+            leaves.begin(), leaves.end(),
+            [&](const OccupancyMap::LeafBoxHost& c) { return c.log_odds >= occupied; }));
         map.clearBox(lo, hi);
+      }
     }
     const double edit_s = secondsSince(edit_start);
     const std::size_t nodes_after = map.nodeCount();
     const auto write_start = Clock::now();
+    std::size_t nodes_written = 0;
     {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-      in.files().write(0, [&](const std::string& temporary) { writeMap(map, temporary); });
+      in.files().write(
+          0, [&](const std::string& temporary) { nodes_written = writeMap(map, temporary); });
       in.files().commit();
     }
     const double write_s = secondsSince(write_start);
@@ -129,9 +143,18 @@ class Edit final : public Command {
                       e.box[0], e.box[1], e.box[2], e.box[3], e.box[4], e.box[5], resolution);
         s << line;
       }
+      if (!e.keep)
+        s << ": " << e.leaves << " leaves set free (" << e.occupied << " of them were occupied)";
       s << "\n";
     }
-    s << "nodes:   " << nodes_before << " before, " << nodes_after << " after\n";
+    // Edits do not prune the map in memory; a .bt is written pruned, so 'octovk info' counts
+    // fewer nodes than the map held.
+    const bool pruned = std::filesystem::path(in.output()).extension() == ".bt";
+    s << "nodes:   " << nodes_before << " before, " << nodes_after << " after, in memory; "
+      << nodes_written << " in " << in.output()
+      << (pruned ? " (max-likelihood, pruned: as 'octovk info' counts)"
+                 : " (as 'octovk info' counts)")
+      << "\n";
     char line[256];
     std::snprintf(line, sizeof(line),
                   "time:    %.3f s (reading and upload %.3f s, editing %.3f s, writing %.3f s)\n",
@@ -147,6 +170,8 @@ class Edit final : public Command {
     std::array<double, 6> box;     // as given
     std::array<double, 6> used{};  // clamped to the map's domain (run)
     bool clamped = false;
+    std::size_t leaves = 0;    // --clear-box: the leaves it set free (run)
+    std::size_t occupied = 0;  // of them, those that were occupied
   };
   std::vector<BoxEdit> edits_;
 };
@@ -168,6 +193,9 @@ const Subcommand kEditCommand{
     .max_device_memory = true,
     .multi_value_options = {{"--clear-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"},
                             {"--keep-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Edit>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Edit>(); },
+    .examples =
+        "  octovk edit map.bt --clear-box 0 0 0 1 1 2 -o cleared.bt\n"
+        "  octovk edit map.bt --keep-box -5 -5 -1 5 5 3 -o window.bt\n"};
 
 }  // namespace octovk::cli

@@ -215,6 +215,9 @@ const Subcommand kExportCommand{
     .max_device_memory = true,
     .value_options = {"--color"},
     .multi_value_options = {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Export>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Export>(); },
+    .examples =
+        "  octovk export map.bt -o cells.ply --occupied-only\n"
+        "  octovk export map.bt -o box.ply --box -2 -2 0 2 2 2 --color occupancy\n"};
 
 }  // namespace octovk::cli

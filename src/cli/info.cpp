@@ -145,13 +145,15 @@ int Info::run(Invocation& in) {
 
 }  // namespace
 
-const Subcommand kInfoCommand{.name = "info",
-                              .print_help = printInfoHelp,
-                              .input = "map file",
-                              .max_device_memory = true,
-                              .unknown_option_tail = "",
-                              .make = []() -> std::unique_ptr<Command> {
-                                return std::make_unique<Info>();
-                              }};
+const Subcommand kInfoCommand{
+    .name = "info",
+    .print_help = printInfoHelp,
+    .input = "map file",
+    .max_device_memory = true,
+    .unknown_option_tail = "",
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Info>(); },
+    .examples =
+        "  octovk info map.bt\n"
+        "  octovk info map.ot --max-device-memory 512M\n"};
 
 }  // namespace octovk::cli

@@ -35,6 +35,19 @@ void checkInput(const std::string& path) {
         "no scan graph or folder given; usage: octovk integrate SCANS.graph|DIR -o MAP.bt");
   checkRegularInput(path, "scan graph",
                     "give an OctoMap scan graph (.graph) or a TUM RGB-D folder");
+  // A map given for a graph would otherwise fail deep in the graph reader, with counts read
+  // from its header text; OctoMap's files start with a header line, whatever their name.
+  char head[32] = {};
+  std::ifstream in(path, std::ios_base::binary);
+  in.read(head, sizeof(head) - 1);
+  const std::string start(head, static_cast<std::size_t>(in.gcount()));
+  if (start.rfind("# Octomap OcTree", 0) == 0) {
+    const char* kind = start.rfind("# Octomap OcTree binary file", 0) == 0 ? ".bt" : ".ot";
+    throw UsageError("'" + path + "' is an OctoMap map (" + kind +
+                     "), not a scan graph: integrate takes a .graph or a TUM RGB-D folder; to "
+                     "look at the map use 'octovk info " +
+                     path + "'");
+  }
 }
 
 // validate() names MapParams fields; the user knows them as options.
@@ -223,6 +236,9 @@ void printIntegrateHelp(std::ostream& out) {
          "--clamping-min A --clamping-max B = -clamping A B, --prob-miss A --prob-hit B =\n"
          "-sensor A B.\n"
          "\n"
+         "A graph without scans or points is an error (exit 1): no empty map is written. An\n"
+         "OctoMap map (.bt / .ot) given as the input is refused (exit 2); 'octovk info' reads it.\n"
+         "\n"
          "Output: the device used, then a summary on stdout (scans, points, skipped points,\n"
          "insert time, nodes, device memory, files written; for DIR also the images used and\n"
          "skipped and the pixels without depth).\n";
@@ -330,6 +346,18 @@ int Integrate::run(Invocation& in) {
     if (largest_frame) checkDepthPng(largest_frame->image_path, max_pixels);
   } else {
     scans = readScanGraph(graph_path);
+    // An empty map written with exit 0 looks like success; it is almost always a wrong file.
+    if (scans.empty())
+      throw Error(ErrorCode::kInvalidArgument,
+                  "scan graph '" + graph_path +
+                      "' holds no scans: there is nothing to integrate and no map was written; "
+                      "give a graph with scans (OctoMap's log2graph writes one)");
+    if (std::none_of(scans.begin(), scans.end(),
+                     [](const GraphScan& scan) { return !scan.points_sensor.empty(); }))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "scan graph '" + graph_path + "' holds " + std::to_string(scans.size()) +
+                      " scan(s) but no points: there is nothing to integrate and no map was "
+                      "written; give a graph whose scans hold points");
   }
   const std::size_t scan_count = tum ? tum->frames.size() : scans.size();
 
@@ -418,7 +446,6 @@ int Integrate::run(Invocation& in) {
     << " outside the map)\n"
     << "insert time:   " << std::setprecision(3) << insert_s << " s, " << ms_per_scan
     << " ms/scan (run total " << total_s << " s, with reading and writing)\n"
-    << "device:        " << device.name << " (" << device.type << ")\n"
     << "nodes:         " << nodes << "\n"
     << "device memory: " << std::setprecision(1)
     << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB (node pool "
@@ -458,11 +485,15 @@ const Subcommand kIntegrateCommand{
     .max_device_memory = true,
     .value_options = integrateValueOptions(),
     .multi_value_options = cameraMultiValueOptions(),
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); },
+    .examples =
+        "  octovk integrate scans.graph -o map.bt -o map.ot -r 0.05\n"
+        "  octovk integrate rgbd_dataset_freiburg1_xyz -o map.bt\n"
+        "  octovk integrate scans.graph -o map.bt --max-range 10 --changes changes.ply\n"};
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.
-void writeMap(const OccupancyMap& map, const std::string& path) {
+std::size_t writeMap(const OccupancyMap& map, const std::string& path) {
   std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
   std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
   if (!out.is_open())
@@ -471,6 +502,7 @@ void writeMap(const OccupancyMap& map, const std::string& path) {
   out.close();
   ok = ok && out.good();
   if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+  return tree->size();
 }
 
 }  // namespace octovk::cli

@@ -26,7 +26,7 @@ const Subcommand* const kSubcommands[] = {&kIntegrateCommand, &kConvertCommand, 
 std::string commandNames() {
   std::string names;
   for (const Subcommand* command : kSubcommands) names += std::string(command->name) + ", ";
-  return names + "help";
+  return names + "help, version";
 }
 
 const Subcommand* findSubcommand(const std::string& name) {
@@ -51,6 +51,8 @@ void printHelp(std::ostream& out) {
          "                [--unknown-occupied] -o SLICE.png\n"
          "  octovk devices\n"
          "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
+         "  octovk help environment    exit codes and environment variables\n"
+         "  octovk --version           (also: octovk version)\n"
          "\n"
          "Commands:\n"
          "  integrate   insert a scan graph, or a TUM RGB-D depth-image folder (DIR), into a map\n"
@@ -66,23 +68,31 @@ void printHelp(std::ostream& out) {
          "              obstacle) over a box of a map, computed on the device\n"
          "  devices     list the Vulkan devices and the one octovk picks\n"
          "  help        this help, or a command's\n"
+         "  version     the program's version, as 'octovk X.Y.Z'\n"
          "\n"
          "Each command's options: octovk COMMAND --help (or octovk help COMMAND).\n"
+         "\n"
+         "Examples:\n"
+         "  octovk integrate scans.graph -o map.bt -r 0.05\n"
+         "  octovk info map.bt\n"
+         "  octovk render map.bt -o view.png\n"
          "\n"
          "--- integrate ---\n";
   kIntegrateCommand.print_help(out);
   out << "\n";
-  printEnvironmentAndExitCodes(out);
+  printEnvironmentPointer(out);
 }
 
 int runHelp(const std::vector<std::string>& args) {
   if (args.empty() || args.front() == "help") {
     printHelp(std::cout);
+  } else if (args.front() == "environment" || args.front() == "exit-codes") {
+    printEnvironmentAndExitCodes(std::cout);
   } else if (const Subcommand* command = findSubcommand(args.front())) {
     printSubcommandHelp(*command, std::cout);
   } else {
-    throw UsageError("no help for unknown command '" + args.front() + "'; commands: " +
-                     commandNames());
+    throw UsageError("no help for unknown command '" + args.front() +
+                     "'; commands: " + commandNames() + "; also: octovk help environment");
   }
   return kExitOk;
 }
@@ -93,6 +103,13 @@ int dispatch(const std::vector<std::string>& args) {
   const std::string& command = args.front();
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (command == "-h" || command == "--help" || command == "help") return runHelp(rest);
+  if (command == "--version" || command == "version") {
+    if (!rest.empty())
+      throw UsageError(command + " takes no arguments (got '" + rest.front() +
+                       "'); run 'octovk --version'");
+    std::cout << "octovk " << OCTOVK_VERSION << "\n";
+    return kExitOk;
+  }
   if (const Subcommand* found = findSubcommand(command)) return runSubcommand(*found, rest);
   if (!command.empty() && command[0] == '-')
     throw UsageError("unknown option '" + command + "' before a command; commands: " +

@@ -509,6 +509,10 @@ const Subcommand kRenderCommand{
     .max_device_memory = true,
     .value_options = {"--size", "--fov", "--z-max"},
     .multi_value_options = {{"--eye", "X Y Z"}, {"--look-at", "X Y Z"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Render>(); }};
+    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Render>(); },
+    .examples =
+        "  octovk render map.bt -o view.png\n"
+        "  octovk render map.bt -o view.png --eye 10 -10 8 --look-at 0 0 1 --size 1024x768\n"
+        "  octovk render map.bt -o inside.png --z-max 2\n"};
 
 }  // namespace octovk::cli
