@@ -5,17 +5,21 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <functional>
 #include <initializer_list>
+#include <iterator>
 #include <regex>
+#include <set>
 #include <string>
 #include <type_traits>
 #include <utility>
 
 #include "gpu/gpu_types.h"
+#include "map/context_access.hpp"
 #include "test_paths.hpp"
 #include "test_support.hpp"
-#include "map/context_access.hpp"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -119,9 +123,11 @@ static_assert(sizeof(FieldHeader) == 96 && offsetof(FieldHeader, line_x) == 8 &&
               offsetof(FieldHeader, size_x) == 60 && offsetof(FieldHeader, words_per_row) == 72 &&
               offsetof(FieldHeader, status) == 80 && offsetof(FieldHeader, max_distance_m) == 84 &&
               offsetof(FieldHeader, dirty_z) == 92);
-static_assert(sizeof(FieldRasterConstants) == 16 && offsetof(FieldRasterConstants, word_count) == 8 &&
+static_assert(sizeof(FieldRasterConstants) == 16 &&
+              offsetof(FieldRasterConstants, word_count) == 8 &&
               offsetof(FieldRasterConstants, compare) == 12);
-static_assert(sizeof(FieldChangesConstants) == 16 && offsetof(FieldChangesConstants, capacity) == 8);
+static_assert(sizeof(FieldChangesConstants) == 16 &&
+              offsetof(FieldChangesConstants, capacity) == 8);
 static_assert(sizeof(FieldEdtConstants) == 16 && offsetof(FieldEdtConstants, axis) == 8 &&
               offsetof(FieldEdtConstants, full) == 12);
 static_assert(sizeof(FieldQueryConstants) == 16 && offsetof(FieldQueryConstants, query_count) == 8);
@@ -327,8 +333,8 @@ static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindP
               kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
               kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
               kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
-              kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18 &&
-              kBindDepth == 19 && kBindChanges == 20 && kBindAddresses == 21);
+              kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18 && kBindDepth == 19 &&
+              kBindChanges == 20 && kBindAddresses == 21);
 
 TEST(Layout, HostSizesAndOffsets) {
   // The static_asserts above hold at compile time; the same facts at run time, for the report.
@@ -648,8 +654,8 @@ TEST(Layout, ShaderWritesEveryFieldAtTheHostOffset) {
   EXPECT_EQ(fields.size(), 25u + 13u + 8u + 28u + 5u + 2u * (9u + 9u + 4u + 4u) + 8u +
                                2u * (4u + 9u) + 4u * kLevelCount + 1u /* slots */ +
                                3u /* cell_args */ + 2u /* ScanParams */ +
-                               5u /* brick_args, cell_list, block_parent */ +
-                               1u /* no_depth */ + 9u /* DepthCamera, its first word */ +
+                               5u /* brick_args, cell_list, block_parent */ + 1u /* no_depth */ +
+                               9u /* DepthCamera, its first word */ +
                                9u /* block_args, active_args, clear_args */ +
                                4u * kProbedConstants /* push-constant structs */);
   for (const Field& f : fields) {
@@ -726,13 +732,14 @@ TEST(Layout, ArchitectureDocSizesAreTheCode) {
   std::ifstream in(OCTOVK_PATH(OCTOVK_SOURCE_DIR) + "/docs/architecture.md");
   ASSERT_TRUE(in.is_open()) << "cannot read docs/architecture.md";
   const std::vector<std::pair<std::string, std::size_t>> sizes = {
-      {"ScanParams", sizeof(gpu::ScanParams)},     {"ScanCounters", sizeof(gpu::ScanCounters)},
-      {"PoolState", sizeof(gpu::PoolState)},       {"Node", sizeof(gpu::Node)},
-      {"ActiveCell", sizeof(gpu::ActiveCell)},     {"NewBlock", sizeof(gpu::NewBlock)},
-      {"LeafBox", sizeof(gpu::LeafBox)},           {"WalkState", sizeof(gpu::WalkState)},
+      {"ScanParams", sizeof(gpu::ScanParams)},  {"ScanCounters", sizeof(gpu::ScanCounters)},
+      {"PoolState", sizeof(gpu::PoolState)},    {"Node", sizeof(gpu::Node)},
+      {"ActiveCell", sizeof(gpu::ActiveCell)},  {"NewBlock", sizeof(gpu::NewBlock)},
+      {"LeafBox", sizeof(gpu::LeafBox)},        {"WalkState", sizeof(gpu::WalkState)},
       {"DepthCamera", sizeof(gpu::DepthCamera)}};
   // A table row: "| binding | `buffer` | ... `Struct` ... | N B..." (the first struct named).
-  const std::regex row(R"(^\| [0-9, ]+ \| `[a-z_]+` \| [^|`]*`([A-Z][A-Za-z]+)`[^|]*\| ([0-9]+) B)");
+  const std::regex row(
+      R"(^\| [0-9, ]+ \| `[a-z_]+` \| [^|`]*`([A-Z][A-Za-z]+)`[^|]*\| ([0-9]+) B)");
   const std::regex readback(R"(\(`ScanCounters` \+ `PoolState`, ([0-9]+) bytes)");
   std::size_t rows = 0;
   bool readback_seen = false;
@@ -754,6 +761,55 @@ TEST(Layout, ArchitectureDocSizesAreTheCode) {
   }
   EXPECT_EQ(rows, sizes.size()) << "a struct's row is missing from the buffer table";
   EXPECT_TRUE(readback_seen) << "the readback size is no longer stated";
+}
+
+// The names and counts docs/architecture.md gives exist in the code: every `kConstant` it names
+// is defined somewhere in src/, shaders/, include/ or python/src/, every shader file it names is in
+// shaders/, and its binding count and address-table binding are gpu_types.h's (it had named a
+// kLengthMargin that never existed, 21 bindings where the layout has 22, and the table at 20).
+TEST(Layout, ArchitectureDocNamesWhatExists) {
+  namespace fs = std::filesystem;
+  const fs::path root = OCTOVK_PATH(OCTOVK_SOURCE_DIR);
+  std::ifstream in(root / "docs/architecture.md");
+  ASSERT_TRUE(in.is_open()) << "cannot read docs/architecture.md";
+  const std::string doc((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string code;
+  for (const char* dir : {"src", "shaders", "include", "python/src"})
+    for (const auto& entry : fs::recursive_directory_iterator(root / dir))
+      if (entry.is_regular_file()) {
+        std::ifstream f(entry.path());
+        code.append(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+      }
+  const auto each = [&](const std::regex& re, const std::function<void(const std::string&)>& f) {
+    for (std::sregex_iterator it(doc.begin(), doc.end(), re), end; it != end; ++it) f((*it)[1]);
+  };
+  std::set<std::string> defined;  // every kName token of the code
+  const std::regex constant("\\bk[A-Z][A-Za-z0-9_]*");
+  for (std::sregex_iterator it(code.begin(), code.end(), constant), end; it != end; ++it)
+    defined.insert(it->str());
+  std::size_t constants = 0, shaders = 0;
+  each(std::regex("`(k[A-Z][A-Za-z0-9_]*)`"), [&](const std::string& name) {
+    ++constants;
+    EXPECT_TRUE(defined.count(name))
+        << "docs/architecture.md names `" << name << "`, which the code does not define";
+  });
+  each(std::regex("`([a-z0-9_]+[.](glsl|comp))`"), [&](const std::string& file) {
+    ++shaders;
+    EXPECT_TRUE(fs::exists(root / "shaders" / file))
+        << "docs/architecture.md names `" << file << "`, which is not in shaders/";
+  });
+  EXPECT_GT(constants, 20u);
+  EXPECT_GT(shaders, 20u);
+  std::size_t counts = 0;
+  each(std::regex("([0-9]+) storage-buffer bindings"), [&](const std::string& n) {
+    ++counts;
+    EXPECT_EQ(std::stoul(n), gpu::kBindingCount + 1) << "the map's bindings and the address table";
+  });
+  each(std::regex("`kBindAddresses` \\(([0-9]+)\\)"), [&](const std::string& n) {
+    ++counts;
+    EXPECT_EQ(std::stoul(n), gpu::kBindAddresses);
+  });
+  EXPECT_EQ(counts, 2u) << "the binding count or the address table's binding is no longer stated";
 }
 
 }  // namespace
