@@ -222,3 +222,23 @@ TEST(cliUser, EditSaysWhatItClearedAndWhichNodesItCounts) {
 }
 
 }  // namespace
+
+namespace {
+
+// A second -o for a command that writes one file names the command, what it writes and both
+// paths, for every such command, in one line (exit 2), before any work.
+TEST(cliUser, ASecondOutputIsNamedForEveryOneOutputCommand) {
+  Scratch scratch;
+  const std::vector<std::vector<std::string>> runs = {
+      {"render", "m.bt", "-o", "a.png", "-o", "b.png"},
+      {"distance", "m.bt", "--box", "0", "0", "0", "1", "1", "1", "-o", "a.png", "-o", "b.png"},
+      {"export", "m.bt", "-o", "a.ply", "-o", "b.ply"},
+      {"edit", "m.bt", "--clear-box", "0", "0", "0", "1", "1", "1", "-o", "a.bt", "-o", "b.bt"},
+      {"convert", "folder", "-o", "a.graph", "-o", "b.graph"}};
+  for (const auto& args : runs) {
+    const RunResult r = runOctovk(args, scratch.dir());
+    expectOneError(r, 2, {args[0] + " writes one", "give -o once", "'a.", "'b."}, scratch);
+  }
+}
+
+}  // namespace

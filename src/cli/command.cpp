@@ -20,7 +20,8 @@ bool isOutputOption(const std::string& name) { return name == "-o" || name == "-
 std::vector<std::string> inputFiles(const std::string& input) {
   std::error_code ec;
   if (!input.empty() && fs::is_directory(input, ec))
-    return {(fs::path(input) / "depth.txt").string(), (fs::path(input) / "groundtruth.txt").string()};
+    return {(fs::path(input) / "depth.txt").string(),
+            (fs::path(input) / "groundtruth.txt").string()};
   return {input};
 }
 
@@ -146,7 +147,8 @@ Context& Invocation::context() {
 }
 
 OutputFiles& Invocation::files() {
-  if (!files_) throw Error(ErrorCode::kInternal, std::string(command_.name) + " has no output files");
+  if (!files_)
+    throw Error(ErrorCode::kInternal, std::string(command_.name) + " has no output files");
   return *files_;
 }
 
@@ -195,7 +197,9 @@ int runSubcommand(const Subcommand& command, const std::vector<std::string>& arg
       in.outputs_.push_back(option.value);
     } else if (command.outputs == Subcommand::Outputs::kOne && isOutputOption(option.name)) {
       // An empty value counts as none given (checkOutputs asks for one).
-      if (!in.outputs_.empty()) throw UsageError(command.output_twice(in.output(), option.value));
+      if (!in.outputs_.empty())
+        throw UsageError(std::string(command.name) + " writes " + command.writes +
+                         "; give -o once (got '" + in.output() + "' and '" + option.value + "')");
       if (!option.value.empty()) in.outputs_.push_back(option.value);
     } else if (command.max_device_memory && option.name == kMaxDeviceMemoryOption) {
       in.max_device_bytes_ = parseByteCount(option);

@@ -82,7 +82,7 @@ struct Subcommand {
   /// How many -o / --output it takes.
   enum class Outputs { kNone, kOne, kMany };
 
-  const char* name;                     ///< "render"
+  const char* name;                       ///< "render"
   void (*print_help)(std::ostream& out);  ///< its help, without the environment and exit codes
   /// What its one positional argument is, for the error on a second one ("map file"), and what
   /// that error adds after it ("; the picture goes after -o"). nullptr: the command takes no
@@ -90,8 +90,8 @@ struct Subcommand {
   const char* input = nullptr;
   const char* second_input_hint = "";
   Outputs outputs = Outputs::kNone;
-  /// The error on a second -o, for Outputs::kOne (the two values given).
-  std::string (*output_twice)(const std::string& first, const std::string& second) = nullptr;
+  /// What its one output is, for Outputs::kOne ("one picture"): the error on a second -o says so.
+  const char* writes = "";
   /// The error on no -o, the extensions an output may have and their description in words
   /// (Invocation::checkOutputs).
   const char* no_output = "";

@@ -237,10 +237,7 @@ const Subcommand kConvertCommand{
     .input = "folder",
     .second_input_hint = "; the output goes after -o",
     .outputs = Subcommand::Outputs::kOne,
-    .output_twice = [](const std::string& first, const std::string& second) -> std::string {
-      return "convert writes one scan graph; give -o once (got '" + first + "' and '" + second +
-             "')";
-    },
+    .writes = "one scan graph",
     .no_output = "no output file; add -o SCANS.graph",
     .output_extensions = {".graph"},
     .output_formats = ".graph (an OctoMap scan graph)",

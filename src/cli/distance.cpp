@@ -336,9 +336,7 @@ const Subcommand kDistanceCommand{
     .input = "map file",
     .second_input_hint = "; the picture goes after -o",
     .outputs = Subcommand::Outputs::kOne,
-    .output_twice = [](const std::string&, const std::string&) -> std::string {
-      return "distance writes one picture; -o is given twice";
-    },
+    .writes = "one picture",
     .no_output = "no output file; add -o SLICE.png",
     .output_extensions = {".png"},
     .output_formats = ".png (8-bit RGB picture)",

@@ -184,9 +184,7 @@ const Subcommand kEditCommand{
     .input = "map file",
     .second_input_hint = "; the edited map goes after -o",
     .outputs = Subcommand::Outputs::kOne,
-    .output_twice = [](const std::string&, const std::string&) -> std::string {
-      return "edit writes one map; -o is given twice";
-    },
+    .writes = "one map",
     .no_output = "no output file; add -o OUT.bt or -o OUT.ot",
     .output_extensions = {".bt", ".ot"},
     .output_formats = ".bt or .ot (OctoMap map)",

@@ -206,9 +206,7 @@ const Subcommand kExportCommand{
     .input = "map file",
     .second_input_hint = "; the PLY file goes after -o",
     .outputs = Subcommand::Outputs::kOne,
-    .output_twice = [](const std::string&, const std::string&) -> std::string {
-      return "export writes one file; -o is given twice";
-    },
+    .writes = "one file",
     .no_output = "no output file; add -o CELLS.ply",
     .output_extensions = {".ply"},
     .output_formats = ".ply (ASCII PLY point cloud)",

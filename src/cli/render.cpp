@@ -500,9 +500,7 @@ const Subcommand kRenderCommand{
     .input = "map file",
     .second_input_hint = "; the picture goes after -o",
     .outputs = Subcommand::Outputs::kOne,
-    .output_twice = [](const std::string&, const std::string&) -> std::string {
-      return "render writes one picture; -o is given twice";
-    },
+    .writes = "one picture",
     .no_output = "no output picture; add -o VIEW.png",
     .output_extensions = {".png"},
     .output_formats = ".png",
