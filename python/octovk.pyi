@@ -69,8 +69,8 @@ class CastRayBackend:
 
 class ScanRays:
     """How a scan's rays find their cells."""
-    WALK: ClassVar[ScanRays]  # 0
-    RAY_TRACING: ClassVar[ScanRays]  # 1
+    WALK: ClassVar[ScanRays]  # 1
+    RAY_TRACING: ClassVar[ScanRays]  # 2
     @property
     def name(self) -> str: ...
     @property

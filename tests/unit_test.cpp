@@ -8,10 +8,10 @@
 #include <cstring>
 #include <limits>
 
-#include "test_support.hpp"
-#include "map/device_probe.hpp"
 #include "gpu/gpu_types.h"
 #include "map/context_access.hpp"
+#include "map/device_probe.hpp"
+#include "test_support.hpp"
 #include "vk/device.hpp"
 
 namespace octovk {
@@ -141,6 +141,14 @@ std::vector<BadParams> badParams() {
   });
   add("occupancy_threshold_one", "occupancy_threshold",
       [](MapParams& p) { p.occupancy_threshold = 1.0; });
+  // The backend enums are numbered alike; 0 is CastRayBackend::kAuto and no ScanRays.
+  static_assert(static_cast<std::uint32_t>(ScanRays::kWalk) ==
+                    static_cast<std::uint32_t>(CastRayBackend::kWalk) &&
+                static_cast<std::uint32_t>(ScanRays::kRayTracing) ==
+                    static_cast<std::uint32_t>(CastRayBackend::kRayTracing));
+  add("scan_rays_zero", "scan_rays", [](MapParams& p) { p.scan_rays = static_cast<ScanRays>(0); });
+  add("cast_ray_backend_three", "cast_ray_backend",
+      [](MapParams& p) { p.cast_ray_backend = static_cast<CastRayBackend>(3); });
   return out;
 }
 

@@ -18,16 +18,17 @@ enum class CastRayBackend : std::uint32_t {
   kAuto = 0,
   /// A compute shader steps through every cell along the ray, as OctoMap does.
   kWalk = 1,
-  /// Ray queries against an acceleration structure over the map's occupied and unknown boxes
-  /// find where the walk can end; the walk jumps there exactly and decides with OctoMap's steps.
+  /// Ray queries against an acceleration structure over the map's occupied leaves find where
+  /// the walk can end; the walk jumps there exactly and decides with OctoMap's steps.
   /// Needs VK_KHR_acceleration_structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled).
   kRayTracing = 2,
 };
 
 /// How a scan's rays find their cells (MapParams::scan_rays). Both give OctoMap's map bit for bit.
+/// Numbered as CastRayBackend (0 is no value here: a scan has no automatic choice).
 enum class ScanRays : std::uint32_t {
   /// A compute shader steps OctoMap's DDA (computeRayKeys) through every cell of every ray.
-  kWalk = 0,
+  kWalk = 1,
   /// The paper's way: ray queries against an acceleration structure over the boxes a free
   /// update can change (occupied leaves, free leaves not yet clamped, unknown space), built on
   /// the device in each scan's own submission; OctoMap's DDA steps only through the boxes a ray
@@ -35,7 +36,7 @@ enum class ScanRays : std::uint32_t {
   /// aborts (ScanStats::free_cells then leaves those cells out). Needs VK_KHR_acceleration_
   /// structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled) and loops without a driver
   /// limit.
-  kRayTracing = 1,
+  kRayTracing = 2,
 };
 
 /// The sensor model and grid, with OctoMap's defaults.

@@ -34,10 +34,9 @@ std::string MapParams::validate() const {
              static_cast<std::uint32_t>(CastRayBackend::kRayTracing)) {
     why << "cast_ray_backend " << static_cast<std::uint32_t>(cast_ray_backend)
         << " is not a CastRayBackend (kAuto, kWalk, kRayTracing)";
-  } else if (static_cast<std::uint32_t>(scan_rays) >
-             static_cast<std::uint32_t>(ScanRays::kRayTracing)) {
+  } else if (scan_rays != ScanRays::kWalk && scan_rays != ScanRays::kRayTracing) {
     why << "scan_rays " << static_cast<std::uint32_t>(scan_rays)
-        << " is not a ScanRays (kWalk, kRayTracing)";
+        << " is not a ScanRays (kWalk = 1, kRayTracing = 2)";
   } else if (max_device_bytes != 0 && max_device_bytes < minDeviceBytes()) {
     why << "max_device_bytes " << max_device_bytes << " is less than an empty map holds on the "
         << "device: at least " << minDeviceBytes() << " bytes (MapParams::minDeviceBytes()); "
