@@ -51,6 +51,16 @@ inline Result<std::unique_ptr<Context>> contextWithBindingLimit(const Context& c
   return Context::create(options);
 }
 
+/// Whether this executable is built with AddressSanitizer (scripts/sanitize.sh): the programs it
+/// runs reserve terabytes of shadow memory, so `ulimit -v` stops them at start, and their RSS is
+/// ASan's, not the program's. Tests leave out those limits and measurements there; the other
+/// steps of scripts/test.sh make them.
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kAddressSanitizer = true;
+#else
+inline constexpr bool kAddressSanitizer = false;
+#endif
+
 inline bool runningInCi() {
   const char* ci = std::getenv("CI");
   return ci && *ci && std::string(ci) != "0" && std::string(ci) != "false";
@@ -83,14 +93,14 @@ inline bool rayQueryExpected() {
 
 /// Skips a test of castRay's ray-tracing backend, with the reason, on a device without ray
 /// queries; fails it there when the run expects them (OCTOVK_EXPECT_RAY_QUERY).
-#define OCTOVK_REQUIRE_RAY_QUERY(ctx)                                                          \
-  if (!(ctx).device().ray_query_enabled) {                                                     \
-    if (::octovk::test::rayQueryExpected())                                                    \
-      FAIL() << "OCTOVK_EXPECT_RAY_QUERY is set but device '" << (ctx).device().name << "' ("  \
-             << (ctx).device().driver << ") has no ray queries enabled";                       \
+#define OCTOVK_REQUIRE_RAY_QUERY(ctx)                                                         \
+  if (!(ctx).device().ray_query_enabled) {                                                    \
+    if (::octovk::test::rayQueryExpected())                                                   \
+      FAIL() << "OCTOVK_EXPECT_RAY_QUERY is set but device '" << (ctx).device().name << "' (" \
+             << (ctx).device().driver << ") has no ray queries enabled";                      \
     GTEST_SKIP() << "device '" << (ctx).device().name << "' (" << (ctx).device().driver       \
                  << ") has no VK_KHR_acceleration_structure + VK_KHR_ray_query: the "         \
-                 << "ray-tracing backend is not tested here (Mesa 25 lavapipe has them)";      \
+                 << "ray-tracing backend is not tested here (Mesa 25 lavapipe has them)";     \
   }
 
 namespace octovk::test {
@@ -200,8 +210,8 @@ inline octomap::OcTree makeOracle(const MapParams& p) {
 #include <octomap/math/Pose6D.h>
 
 #include <algorithm>
-#include <cmath>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
