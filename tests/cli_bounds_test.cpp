@@ -23,6 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
+using octovk::test::expectOneErrorLine;
 using octovk::test::OctovkProcess;
 using octovk::test::quote;
 using octovk::test::runOctovk;
@@ -62,12 +63,7 @@ std::string writeGraph(const Scratch& scratch, const std::string& name,
 // and no map left behind in the scratch folder.
 void expectError(const RunResult& r, int exit_code, const std::vector<std::string>& mentions,
                  const Scratch& scratch) {
-  EXPECT_EQ(r.exit_code, exit_code) << r.err;
-  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  for (const std::string& mention : mentions)
-    EXPECT_NE(r.err.find(mention), std::string::npos)
-        << "expected '" << mention << "' in: " << r.err;
+  expectOneErrorLine(r, exit_code, mentions);
   for (const auto& entry : fs::directory_iterator(scratch.dir())) {
     const std::string file = entry.path().filename().string();
     EXPECT_FALSE(file.ends_with(".bt") || file.ends_with(".ot") || file.ends_with(".png") ||

@@ -66,6 +66,18 @@ inline RunResult runOctovk(const std::vector<std::string>& args, const fs::path&
   return runShell(command, dir);
 }
 
+/// The run ended with `exit_code` and one stderr line "octovk: error: ..." naming each of
+/// `mentions`.
+inline void expectOneErrorLine(const RunResult& r, int exit_code,
+                               const std::vector<std::string>& mentions) {
+  EXPECT_EQ(r.exit_code, exit_code) << r.err;
+  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  for (const std::string& mention : mentions)
+    EXPECT_NE(r.err.find(mention), std::string::npos)
+        << "expected '" << mention << "' in: " << r.err;
+}
+
 /// The names in `dir` that only a fault leaves: octovk's temporaries and backups
 /// (".NAME.octovk.tmp-PID.EXT", ".NAME.octovk.tmp-PID.old") and any other "*.tmp*" file.
 inline std::vector<std::string> temporariesIn(const fs::path& dir) {

@@ -16,6 +16,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using octovk::test::expectOneErrorLine;
 using octovk::test::runOctovk;
 using octovk::test::RunResult;
 using octovk::test::Scratch;
@@ -23,12 +24,7 @@ using octovk::test::Scratch;
 // One error line, exit `exit_code`, naming each of `mentions`, and no map left behind.
 void expectOneError(const RunResult& r, int exit_code, const std::vector<std::string>& mentions,
                     const Scratch& scratch) {
-  EXPECT_EQ(r.exit_code, exit_code) << r.err;
-  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  for (const std::string& mention : mentions)
-    EXPECT_NE(r.err.find(mention), std::string::npos)
-        << "expected '" << mention << "' in: " << r.err;
+  expectOneErrorLine(r, exit_code, mentions);
   EXPECT_EQ(r.out, "");
   for (const auto& entry : fs::directory_iterator(scratch.dir())) {
     const std::string name = entry.path().filename().string();

@@ -38,6 +38,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using octovk::test::expectOneErrorLine;
 using octovk::test::quote;
 using octovk::test::readFile;
 using octovk::test::runOctovk;
@@ -855,12 +856,7 @@ void expectRejected(const std::vector<std::string>& args, int exit_code,
                     const std::vector<std::string>& mentions, const Scratch& scratch,
                     bool mid_run = false) {
   const RunResult r = runOctovk(args, scratch.dir());
-  EXPECT_EQ(r.exit_code, exit_code) << r.err;
-  EXPECT_EQ(r.err.rfind("octovk: error: ", 0), 0u) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  for (const std::string& mention : mentions)
-    EXPECT_NE(r.err.find(mention), std::string::npos)
-        << "expected '" << mention << "' in: " << r.err;
+  expectOneErrorLine(r, exit_code, mentions);
   if (mid_run && args.front() == "integrate")
     EXPECT_TRUE(r.out.empty() || (r.out.starts_with("device: ") &&
                                   std::count(r.out.begin(), r.out.end(), '\n') == 1))
