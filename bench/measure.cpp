@@ -95,7 +95,7 @@ std::size_t poolBytesPerBlock() {
   return 8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t);
 }
 
-MemoryReport memoryReport(const octomap::OcTree& tree, const OccupancyMap& map) {
+MemoryReport memoryReport(const octomap::OcTree& tree, OccupancyMap& map) {
   MemoryReport m;
   m.om_nodes = tree.size();
   m.om_bytes = tree.memoryUsage();

@@ -310,7 +310,7 @@ TEST(BadInput, EmptyScanLeavesTheMapUnchanged) {
 // Runs `call`, which must throw octovk::Error with `code`, and checks that the map still holds
 // the tree it had: the same .ot bytes (`before`) and OctoMap's node count (`nodes`).
 template <typename Call>
-void expectRefusedMapKept(Call&& call, ErrorCode code, const char* what, const OccupancyMap& map,
+void expectRefusedMapKept(Call&& call, ErrorCode code, const char* what, OccupancyMap& map,
                           const std::string& before, std::size_t nodes) {
   try {
     call();

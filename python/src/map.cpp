@@ -27,9 +27,15 @@ DepthImage depthImage(const ArrayView& depth, float fx, float fy, float cx, floa
   DepthImage image;
   image.height = static_cast<std::uint32_t>(depth.extent(0));
   image.width = static_cast<std::uint32_t>(depth.extent(1));
-  image.encoding = depth.dtype() == DType::kUint16 ? DepthImage::Encoding::kUint16
-                                                   : DepthImage::Encoding::kFloat32;
-  image.pixels = depth.data();
+  const std::size_t n = depth.size();
+  if (depth.dtype() == DType::kUint16) {
+    image.encoding = DepthImage::Encoding::kUint16;
+    image.depths =
+        std::span<const std::uint16_t>(static_cast<const std::uint16_t*>(depth.data()), n);
+  } else {
+    image.encoding = DepthImage::Encoding::kFloat32;
+    image.depths = std::span<const float>(static_cast<const float*>(depth.data()), n);
+  }
   image.fx = fx;
   image.fy = fy;
   image.cx = cx;

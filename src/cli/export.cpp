@@ -124,7 +124,7 @@ int Export::run(Invocation& in) {
   const std::string& map_path = in.input();
   Context& context = in.context();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
+  OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
   const double read_s = secondsSince(start);
 
   const auto select_start = Clock::now();

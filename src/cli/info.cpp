@@ -80,7 +80,7 @@ int Info::run(Invocation& in) {
   const std::string& map_path = in.input();
   Context& context = in.context();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
+  OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
   const double read_s = secondsSince(start);
 
   const auto count_start = Clock::now();

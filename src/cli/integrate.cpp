@@ -147,7 +147,7 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
 // Every output is written before any is renamed into place, so that a failed write (a full
 // disk) leaves every existing file as it was. The maps are the -o outputs, in order; the change
 // set (`changes_output`, when there is one) follows them.
-void writeOutputs(const OccupancyMap& map, Invocation& in,
+void writeOutputs(OccupancyMap& map, Invocation& in,
                   const std::optional<std::size_t>& changes_output,
                   const std::vector<ChangedKey>& changes) {
   OutputFiles& outputs = in.files();
@@ -493,7 +493,7 @@ const Subcommand kIntegrateCommand{
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.
-std::size_t writeMap(const OccupancyMap& map, const std::string& path) {
+std::size_t writeMap(OccupancyMap& map, const std::string& path) {
   std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
   std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
   if (!out.is_open())

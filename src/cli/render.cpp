@@ -261,7 +261,7 @@ int Render::run(Invocation& in) {
   const std::string& map_path = in.input();
   Context& context = in.context();
   const auto start = Clock::now();
-  const OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
+  OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
   const double resolution = map.params().resolution;
   const float occupied_log_odds = occupancyLogOdds(map.params());
   // The cells that can show: occupied, and below --z-max, which cuts at the cell boundary
