@@ -416,8 +416,10 @@ PYBIND11_MODULE(octovk, m) {
       "    state, log_odds, depth = m.search(queries)\n"
       "    m.write('map.bt')\n\n"
       "Inputs are read in place (numpy arrays, torch CPU tensors: the buffer protocol or "
-      "__dlpack__); outputs are numpy arrays (buffer protocol and __dlpack__). Errors of the "
-      "library are octovk.Error subclasses.";
+      "__dlpack__); outputs are numpy arrays (buffer protocol and __dlpack__), or torch tensors "
+      "sharing their memory where a query was given a tensor. Names are the C++ library's in "
+      "snake_case, with their units (max_range_m). Errors of the library are octovk.Error "
+      "subclasses.";
   m.attr("__version__") = OCTOVK_VERSION;
   m.attr("_default_context") = py::none();
   bindErrors(m);
