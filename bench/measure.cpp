@@ -128,7 +128,7 @@ void writeJson(JsonWriter& json, const StageTimes& s) {
       .field("tree_update_ms", s.tree_update_ms)
       .field("prune_ms", s.prune_ms)
       .field("leaf_boxes_ms", s.leaf_boxes_ms)
-      .field("total_ms", s.total())
+      .field("total_ms", s.total_ms())
       .endObject();
 }
 

@@ -71,7 +71,7 @@ void runPaperRt(Context& context, const BenchOptions& o, double res,
     const double build = med(i, [](const ScanStats& s) { return s.device.scan_build_ms; });
     const double trace = med(i, [](const ScanStats& s) { return s.device.scan_trace_ms; });
     const double rest = med(i, [](const ScanStats& s) {
-      return s.device.total() - s.device.scan_boxes_ms - s.device.scan_build_ms -
+      return s.device.total_ms() - s.device.scan_boxes_ms - s.device.scan_build_ms -
              s.device.scan_trace_ms;
     });
     const ScanStats& first = runs.front()[i];

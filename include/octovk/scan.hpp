@@ -25,9 +25,12 @@ struct StageTimes {
   double scan_boxes_ms = 0;
   double scan_build_ms = 0;
   double scan_trace_ms = 0;
-  double total() const {
+  /// The stages' sum (the scan_* parts are inside ray_keys_ms).
+  double total_ms() const {
     return upload_ms + ray_keys_ms + classify_ms + tree_update_ms + prune_ms + leaf_boxes_ms;
   }
+  /// The old name of total_ms(), kept for one release (the unit is in every other field's name).
+  [[deprecated("StageTimes::total() is total_ms()")]] double total() const { return total_ms(); }
 };
 
 /// A scan submitted with OccupancyMap::submitPointCloud / submitDepthImage: 1, 2, 3, ... in

@@ -294,7 +294,7 @@ void bindTypes(py::module_& m) {
       .def_readonly("tree_update_ms", &StageTimes::tree_update_ms)
       .def_readonly("prune_ms", &StageTimes::prune_ms)
       .def_readonly("leaf_boxes_ms", &StageTimes::leaf_boxes_ms)
-      .def_property_readonly("total_ms", &StageTimes::total);
+      .def_property_readonly("total_ms", &StageTimes::total_ms);
 
   py::class_<ScanStats>(m, "ScanStats", "What one scan did (octovk::ScanStats).")
       .def_readonly("ticket", &ScanStats::ticket, "the scan's place in the map's order")
