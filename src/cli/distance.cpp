@@ -69,15 +69,16 @@ void printDistanceHelp(std::ostream& out) {
          "\n"
          "Colours:\n"
          "  black                  an occupied cell (OctoMap's isNodeOccupied)\n"
+         "  light grey             a cell the map does not know: no distance is drawn there,\n"
+         "                         since the space may hold anything\n"
          "  dark grey              an unknown cell counted as an obstacle (--unknown-occupied)\n"
          "  red ... yellow ... green ... blue\n"
          "                         the distance to the nearest obstacle, from 0 (red) to\n"
          "                         --max-distance or farther (blue), on a reversed Turbo scale;\n"
          "                         a box without obstacles is all blue\n"
-         "  the bar below the slice shows the scale from 0 (left) to --max-distance (right),\n"
-         "  with white marks at 0, 1/4, 1/2, 3/4 and all of it (also printed on stdout)\n"
-         "\n"
-         "Options:\n"
+         "  the bar below the slice shows the scale from 0 m (left) to --max-distance (right),\n"
+         "  with its distances in metres; the axes give x and y in metres, the title z\n"
+         "\n"         "Options:\n"
          "  -o, --output FILE      the .png picture to write. Written to a temporary file beside\n"
          "                         it and renamed once complete. Required.\n"
          "      --box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
@@ -110,7 +111,8 @@ void printDistanceHelp(std::ostream& out) {
       << kMaxSide << " pixels a side are usage errors (exit 2).\n"
          "\n"
          "Output: the device used, then on stdout the box in cells, the slice's height, its\n"
-         "obstacles and distances, the colour scale, the time taken and the file written.\n";
+         "obstacles, unknown cells and distances, the colour scale, where the slice and the bar\n"
+         "lie in the picture, the time taken and the file written.\n";
 }
 
 namespace {
@@ -331,21 +333,21 @@ void Distance::drawLegend(Canvas& canvas, const Layout& at, const Slice& slice,
   canvas.line(left - 0.5, top, left - 0.5, bottom + 1, kTickWhite);
   canvas.line(left - 1, bottom + 0.5, right, bottom + 0.5, kTickWhite);
   double step = 1.0;
-  for (const double x : niceTicks(x_lo, x_hi, std::max(2, int(at.slice_w / 70)), &step)) {
+  for (const double x : niceTicks(x_lo, x_hi, std::max(3, int(at.slice_w / 45)), &step)) {
     const double px = left + (x - x_lo) * cell_px;
     canvas.line(px, bottom + 1, px, bottom + 6, kTickWhite);
     canvas.text(tickText(x, step), px, bottom + 14, 11, kTickWhite, Canvas::Align::kCentre);
   }
   canvas.text("x (m)", left + 0.5 * at.slice_w, bottom + 30, 11, kTickWhite,
               Canvas::Align::kCentre);
-  for (const double y : niceTicks(y_lo, y_hi, std::max(2, int(at.slice_h / 40)), &step)) {
+  for (const double y : niceTicks(y_lo, y_hi, std::max(3, int(at.slice_h / 30)), &step)) {
     const double py = bottom - (y - y_lo) * cell_px;
     canvas.line(left - 6, py, left - 1, py, kTickWhite);
     canvas.text(tickText(y, step), left - 9, py, 11, kTickWhite, Canvas::Align::kEnd);
   }
   canvas.text("y (m)", left - 9, top - 12, 11, kTickWhite, Canvas::Align::kEnd);
-  canvas.text(format("z = %g m", static_cast<double>(slice.z)), right, top - 12, 11, kTickWhite,
-              Canvas::Align::kEnd);
+  canvas.text(format("slice at z = %g m", static_cast<double>(slice.z)), left, top - 12, 11,
+              kTickWhite);
 
   // The colour bar: 0 at the left end, the maximum distance at the right, ticks in metres.
   canvas.text("distance to the nearest obstacle", at.bar_x0, at.bar_y - 10, 11, kTickWhite);

@@ -39,6 +39,13 @@ constexpr std::size_t kTilePixels = std::size_t{1} << 18;
 // and its depth, for the haze, which needs the depth range of all pixels.
 constexpr std::size_t kPictureBytesPerPixel = 3 + sizeof(float);
 
+// The legend beside the view: a strip on the right with the height colour bar and a scale bar,
+// on pictures large enough to read it; narrower ones are all view.
+constexpr std::uint32_t kLegendWidth = 140;
+constexpr std::uint32_t kLegendMinWidth = 400, kLegendMinHeight = 200;
+const Rgb kLegendBackground{30, 33, 40};
+const Rgb kLegendText{230, 232, 236};
+
 Vec3 parseVec3(const ParsedOption& option) {
   const std::vector<double> v = parseNumbers(option, "0 0 1.5");
   return {v[0], v[1], v[2]};
@@ -170,7 +177,12 @@ void printRenderHelp(std::ostream& out) {
          "The picture is coloured by the height of the cell hit (blue low, red high, over the\n"
          "z range of the occupied cells shown), lit by the face of the cell the ray entered,\n"
          "hazier with distance, with outlines where depth jumps; rays that hit nothing show\n"
-         "the background.\n"
+         "the background. A picture of "
+      << kLegendMinWidth << "x" << kLegendMinHeight << " pixels or more keeps a strip of "
+      << kLegendWidth
+      << " pixels on\n"
+         "the right for the legend: the height colour bar in metres and a scale bar (a round\n"
+         "length as it appears at the look-at point; nearer things look larger).\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Written to a\n"
@@ -207,7 +219,8 @@ void printRenderHelp(std::ostream& out) {
          "\n"
          "Output: the device used, then on stdout the picture size, the camera (eye, look-at,\n"
          "field of view, to repeat or adjust with --eye / --look-at), how many rays hit, the\n"
-         "depth range, the time taken and the file written.\n";
+         "depth range, the heights the colours span, the scale bar, the time taken and the\n"
+         "file written.\n";
 }
 
 namespace {
@@ -280,13 +293,6 @@ class Render final : public Command {
   std::uint32_t height_ = kDefaultHeight;
   double fov_deg_ = kDefaultFovDeg;
 };
-
-// The legend beside the view: a strip on the right with the height colour bar and a scale bar,
-// on pictures large enough to read it; narrower ones are all view.
-constexpr std::uint32_t kLegendWidth = 140;
-constexpr std::uint32_t kLegendMinWidth = 400, kLegendMinHeight = 200;
-const Rgb kLegendBackground{30, 33, 40};
-const Rgb kLegendText{230, 232, 236};
 
 bool hasLegend(std::uint32_t width, std::uint32_t height) {
   return width >= kLegendMinWidth && height >= kLegendMinHeight;
