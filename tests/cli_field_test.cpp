@@ -179,9 +179,8 @@ Layout layoutOf(const std::string& out) {
   at.found = std::sscanf(out.c_str() + line,
                          "picture: %u x %u pixels, %u per cell; the slice at (%u, %u) to (%u, "
                          "%u), axes in metres; the colour bar from (%u, %u) to (%u, %u)",
-                         &at.width, &at.height, &at.scale, &at.slice_x0, &at.slice_y0,
-                         &at.slice_x1, &at.slice_y1, &at.bar_x0, &at.bar_y, &at.bar_x1,
-                         &at.bar_y1) == 11;
+                         &at.width, &at.height, &at.scale, &at.slice_x0, &at.slice_y0, &at.slice_x1,
+                         &at.slice_y1, &at.bar_x0, &at.bar_y, &at.bar_x1, &at.bar_y1) == 11;
   return at;
 }
 
@@ -377,11 +376,10 @@ TEST(cliDistance, HelpSaysWhatThePictureShows) {
   Scratch scratch("clifield");
   const RunResult r = runOctovk({"distance", "--help"}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const char* words :
-       {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
-        "--unknown-occupied", "--cell-pixels N", "--max-device-memory", "DynamicEDTOctomap",
-        "black", "light grey", "dark grey", "red", "blue", "the bar below", "in metres", "y up",
-        "Exit codes"})
+  for (const char* words : {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
+                            "--unknown-occupied", "--cell-pixels N", "--max-device-memory",
+                            "DynamicEDTOctomap", "black", "light grey", "dark grey", "red", "blue",
+                            "the bar below", "in metres", "y up", "Exit codes"})
     EXPECT_NE(r.out.find(words), std::string::npos) << words;
   const RunResult top = runOctovk({"--help"}, scratch.dir());
   EXPECT_NE(top.out.find("\n  distance   "), std::string::npos) << top.out;

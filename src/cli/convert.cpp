@@ -114,10 +114,11 @@ void printCameraOptionsHelp(std::ostream& out) {
 }
 
 std::string tumImagesText(const TumSequence& sequence) {
-  return format("%zu used of %zu in depth.txt (%zu skipped: no ground-truth pose less than %g s "
-                "away)",
-                sequence.frames.size(), sequence.images_listed, sequence.skipped_no_pose,
-                kTumMaxTimeDifference);
+  return format(
+      "%zu used of %zu in depth.txt (%zu skipped: no ground-truth pose less than %g s "
+      "away)",
+      sequence.frames.size(), sequence.images_listed, sequence.skipped_no_pose,
+      kTumMaxTimeDifference);
 }
 
 // ---- octovk convert ----
@@ -227,8 +228,8 @@ int Convert::run(Invocation& in) {
 
   return Report(15)
       .line("images", tumImagesText(sequence))
-      .line("points", format("%zu (camera frame; %zu pixels without depth skipped)", points,
-                             no_depth))
+      .line("points",
+            format("%zu (camera frame; %zu pixels without depth skipped)", points, no_depth))
       .wrote(in.output())
       .print();
 }

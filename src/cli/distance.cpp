@@ -78,7 +78,8 @@ void printDistanceHelp(std::ostream& out) {
          "                         a box without obstacles is all blue\n"
          "  the bar below the slice shows the scale from 0 m (left) to --max-distance (right),\n"
          "  with its distances in metres; the axes give x and y in metres, the title z\n"
-         "\n"         "Options:\n"
+         "\n"
+         "Options:\n"
          "  -o, --output FILE      the .png picture to write. Written to a temporary file beside\n"
          "                         it and renamed once complete. Required.\n"
          "      --box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
@@ -108,7 +109,8 @@ void printDistanceHelp(std::ostream& out) {
          "A field over --max-device-memory fails (exit 1) naming the bytes it needs; a box with\n"
          "more cells along a line than the device transforms in one dispatch, or beyond the\n"
          "map's key range, and a picture over "
-      << kMaxSide << " pixels a side are usage errors (exit 2).\n"
+      << kMaxSide
+      << " pixels a side are usage errors (exit 2).\n"
          "\n"
          "Output: the device used, then on stdout the box in cells, the slice's height, its\n"
          "obstacles, unknown cells and distances, the colour scale, where the slice and the bar\n"
@@ -125,7 +127,9 @@ struct Layout {
   std::uint32_t width = 0, height = 0, bar_x0 = 0, bar_x1 = 0, bar_y = 0;
 
   Layout(std::uint32_t cells_x, std::uint32_t cells_y, std::uint32_t pixels_per_cell)
-      : scale(pixels_per_cell), slice_w(cells_x * pixels_per_cell), slice_h(cells_y * pixels_per_cell) {
+      : scale(pixels_per_cell),
+        slice_w(cells_x * pixels_per_cell),
+        slice_h(cells_y * pixels_per_cell) {
     width = std::max(slice_x + slice_w + kRightMargin, kMinWidth);
     height = slice_y + slice_h + kBelowSlice;
     bar_x0 = slice_x;
@@ -214,9 +218,9 @@ class Distance final : public Command {
 
 std::uint32_t Distance::cellPixels(long cells_x, long cells_y) const {
   if (cell_pixels_ != 0) return cell_pixels_;
-  return static_cast<std::uint32_t>(std::clamp<long>(
-      long{kDefaultSide} / std::max<long>(1, std::max(cells_x, cells_y)), 1,
-      long{kDefaultMaxCellPixels}));
+  return static_cast<std::uint32_t>(
+      std::clamp<long>(long{kDefaultSide} / std::max<long>(1, std::max(cells_x, cells_y)), 1,
+                       long{kDefaultMaxCellPixels}));
 }
 
 void Distance::checkPictureSize(double resolution) const {
@@ -262,7 +266,8 @@ Slice Distance::slice(const OccupancyMap& map, const DistanceField& field) const
   const std::array<std::uint32_t, 3> size = field.size();
   const std::array<std::uint32_t, 3> min_key = field.minKey();
   const auto key = [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-    return Key{static_cast<std::uint16_t>(min_key[0] + x), static_cast<std::uint16_t>(min_key[1] + y),
+    return Key{static_cast<std::uint16_t>(min_key[0] + x),
+               static_cast<std::uint16_t>(min_key[1] + y),
                static_cast<std::uint16_t>(min_key[2] + z)};
   };
   // The layer of cells holding --z (inside the box: check() kept z within it).
@@ -362,15 +367,14 @@ void Distance::drawLegend(Canvas& canvas, const Layout& at, const Slice& slice,
               at.bar_y + kBarHeight + kTickHeight, kTickWhite);
   canvas.text(cap, at.bar_x1, tick_y, 11, kTickWhite, Canvas::Align::kEnd);
   const double cap_left = at.bar_x1 - canvas.textWidth(cap, 11);
-  for (const double d :
-       niceTicks(0.0, max_distance_m_, std::clamp(int(bar_w / 60), 2, 9), &step)) {
+  for (const double d : niceTicks(0.0, max_distance_m_, std::clamp(int(bar_w / 60), 2, 9), &step)) {
     if (d >= max_distance_m_ * (1 - 1e-9)) continue;
     const double px = at.bar_x0 + d / max_distance_m_ * bar_w + 0.5;
     const std::string words = tickText(d, step, "m");
     canvas.line(px, at.bar_y + kBarHeight, px, at.bar_y + kBarHeight + kTickHeight, kTickWhite);
     if (px + 0.5 * canvas.textWidth(words, 11) + 8 < cap_left)
-      canvas.text(words, px, tick_y, 11, kTickWhite, d == 0.0 ? Canvas::Align::kStart
-                                                                : Canvas::Align::kCentre);
+      canvas.text(words, px, tick_y, 11, kTickWhite,
+                  d == 0.0 ? Canvas::Align::kStart : Canvas::Align::kCentre);
   }
   // The cells drawn without a distance colour.
   const double y = at.bar_y + kBarHeight + kTickHeight + 30;
@@ -391,9 +395,8 @@ void Distance::drawLegend(Canvas& canvas, const Layout& at, const Slice& slice,
 
 int Distance::run(Invocation& in) {
   Steps steps;
-  OccupancyMap map = steps.run("reading and upload", [&] {
-    return loadMap(in.context(), in.input(), in.maxDeviceBytes());
-  });
+  OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const double resolution = map.params().resolution;
   checkPictureSize(resolution);
   const DistanceField distances = steps.run("field", [&] { return field(map); });
@@ -415,17 +418,18 @@ int Distance::run(Invocation& in) {
   Report report(11);
   report.device(in.context())
       .line("map", in.input() + format(" (resolution %g m)", resolution))
-      .line("box", boxText(b) + format(" m: %u x %u x %u cells, %.1f MiB on the device", size[0],
-                                       size[1], size[2],
-                                       static_cast<double>(distances.deviceBytes()) /
-                                           (1024.0 * 1024.0)))
+      .line("box",
+            boxText(b) + format(" m: %u x %u x %u cells, %.1f MiB on the device", size[0], size[1],
+                                size[2],
+                                static_cast<double>(distances.deviceBytes()) / (1024.0 * 1024.0)))
       .line("slice", format("z = %g m (cell layer %u of %u, centre %g m)", *z_, cut.layer + 1,
                             size[2], static_cast<double>(cut.z)));
-  std::string cells = format("%zu in the slice: %zu occupied", std::size_t{size[0]} * size[1],
-                             counts.occupied);
+  std::string cells =
+      format("%zu in the slice: %zu occupied", std::size_t{size[0]} * size[1], counts.occupied);
   if (counts.unknown_obstacles > 0 || unknown_occupied_)
     cells += format(", %zu unknown counted as obstacles", counts.unknown_obstacles);
-  if (counts.unknown > 0) cells += format(", %zu unknown (grey: no distance shown)", counts.unknown);
+  if (counts.unknown > 0)
+    cells += format(", %zu unknown (grey: no distance shown)", counts.unknown);
   report.line("cells", cells + format(", %zu free of obstacles (%zu at or beyond --max-distance)",
                                       counts.free_cells, counts.capped));
   if (counts.free_cells > 0)

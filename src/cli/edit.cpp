@@ -92,7 +92,8 @@ class Edit final : public Command {
     const std::size_t nodes_written = steps.run("writing", [&] {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
       std::size_t written = 0;
-      in.files().write(0, [&](const std::string& temporary) { written = writeMap(map, temporary); });
+      in.files().write(0,
+                       [&](const std::string& temporary) { written = writeMap(map, temporary); });
       in.files().commit();
       return written;
     });
@@ -145,9 +146,9 @@ class Edit final : public Command {
       const std::vector<OccupancyMap::LeafBoxHost> leaves = map.leavesInBox(lo, hi);
       const float occupied = occupancyLogOdds(map.params());
       e.leaves = leaves.size();
-      e.occupied = static_cast<std::size_t>(
-          std::count_if(leaves.begin(), leaves.end(),
-                        [&](const OccupancyMap::LeafBoxHost& c) { return c.log_odds >= occupied; }));
+      e.occupied = static_cast<std::size_t>(std::count_if(
+          leaves.begin(), leaves.end(),
+          [&](const OccupancyMap::LeafBoxHost& c) { return c.log_odds >= occupied; }));
       map.clearBox(lo, hi);
     }
   }
@@ -157,7 +158,8 @@ class Edit final : public Command {
   static std::string editText(const BoxEdit& e, const OccupancyMap& map) {
     std::string text = boxText(e.used) + " m";
     if (e.clamped)
-      text += " (the box given, " + boxText(e.box) + ", clamped to the map's domain at resolution " +
+      text += " (the box given, " + boxText(e.box) +
+              ", clamped to the map's domain at resolution " +
               format("%g", map.params().resolution) + ")";
     if (!e.keep)
       text += ": " + std::to_string(e.leaves) + " leaves set free (" + std::to_string(e.occupied) +

@@ -104,9 +104,7 @@ class Export final : public Command {
     return true;
   }
 
-  void check(Invocation& in) override {
-    in.checkMapCommand(kExportUsage);
-  }
+  void check(Invocation& in) override { in.checkMapCommand(kExportUsage); }
 
   int run(Invocation& in) override;
 
@@ -124,9 +122,8 @@ class Export final : public Command {
 
 int Export::run(Invocation& in) {
   Steps steps;
-  const OccupancyMap map = steps.run("reading and upload", [&] {
-    return loadMap(in.context(), in.input(), in.maxDeviceBytes());
-  });
+  const OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const std::vector<OccupancyMap::LeafBoxHost> cells =
       steps.run("selecting", [&] { return select(map); });
   const std::size_t occupied = steps.run("writing", [&] { return write(in, map, cells); });

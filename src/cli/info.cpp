@@ -70,9 +70,7 @@ namespace {
 
 class Info final : public Command {
  public:
-  void check(Invocation& in) override {
-    in.checkMapCommand(kInfoUsage);
-  }
+  void check(Invocation& in) override { in.checkMapCommand(kInfoUsage); }
   int run(Invocation& in) override;
 };
 
@@ -110,9 +108,8 @@ LeafCounts countLeaves(const OccupancyMap& map) {
 
 int Info::run(Invocation& in) {
   Steps steps;
-  const OccupancyMap map = steps.run("reading and upload", [&] {
-    return loadMap(in.context(), in.input(), in.maxDeviceBytes());
-  });
+  const OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const LeafCounts c = steps.run("counting", [&] { return countLeaves(map); });
 
   const OccupancyMap::DeviceBytes bytes = map.deviceBytesByUse();

@@ -147,21 +147,34 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
 
 // Every output is written before any is renamed into place, so that a failed write (a full
 // disk) leaves every existing file as it was. The maps are the -o outputs, in order; the change
-// set (`changes_output`, when there is one) follows them.
-void writeOutputs(const OccupancyMap& map, Invocation& in,
-                  const std::optional<std::size_t>& changes_output,
-                  const std::vector<ChangedKey>& changes) {
+// set (`changes_output`, when there is one) follows them. Returns the nodes each map file holds.
+std::vector<std::size_t> writeOutputs(const OccupancyMap& map, Invocation& in,
+                                      const std::optional<std::size_t>& changes_output,
+                                      const std::vector<ChangedKey>& changes) {
   OutputFiles& outputs = in.files();
+  std::vector<std::size_t> nodes(in.outputs().size());
   {
     StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
     for (std::size_t i = 0; i < in.outputs().size(); ++i)
-      outputs.write(i, [&](const std::string& temporary) { writeMap(map, temporary); });
+      outputs.write(i, [&](const std::string& temporary) { nodes[i] = writeMap(map, temporary); });
   }
   if (changes_output)
     outputs.write(*changes_output, [&](const std::string& temporary) {
       writeChanges(temporary, changes, map.params().resolution, in.input());
     });
   outputs.commit();
+  return nodes;
+}
+
+// The nodes each map file holds, as 'octovk info' counts them: a .bt is written max-likelihood
+// and pruned, so it may hold fewer than the map in memory.
+std::string fileNodesText(const std::vector<std::string>& paths,
+                          const std::vector<std::size_t>& nodes) {
+  std::string text;
+  for (std::size_t i = 0; i < paths.size(); ++i)
+    text += (i == 0 ? "" : ", ") + paths[i] + " " + std::to_string(nodes[i]) +
+            (fs::path(paths[i]).extension() == ".bt" ? " (max-likelihood, pruned)" : "");
+  return text + ": as 'octovk info' counts them";
 }
 
 }  // namespace
@@ -465,7 +478,7 @@ int Integrate::run(Invocation& in) {
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
   if (changes_output_) changes = map.changedKeys();
-  writeOutputs(map, in, changes_output_, changes);
+  const std::vector<std::size_t> file_nodes = writeOutputs(map, in, changes_output_, changes);
   const double total_s = secondsSince(run_start);
 
   const std::size_t scans = sources.count();
@@ -473,8 +486,7 @@ int Integrate::run(Invocation& in) {
   Report report(15);
   if (sources.tum)
     report.line("images", tumImagesText(*sources.tum))
-        .line("pixels",
-                format("%zu (%zu without depth, skipped)", totals.pixels, totals.no_depth));
+        .line("pixels", format("%zu (%zu without depth, skipped)", totals.pixels, totals.no_depth));
   report.line("scans", std::to_string(scans))
       .line("points", format("%zu (%zu skipped: %zu non-finite, %zu outside the map)",
                              totals.points, totals.skipped_nonfinite + totals.skipped_outside,
@@ -482,7 +494,8 @@ int Integrate::run(Invocation& in) {
       .line("insert time",
             format("%.3f s, %.3f ms/scan (run total %.3f s, with reading and writing)", insert_s,
                    scans == 0 ? 0.0 : insert_s * 1e3 / static_cast<double>(scans), total_s))
-      .line("nodes", std::to_string(nodes))
+      .line("nodes", std::to_string(nodes) + " in memory (graph2tree's 'Tree size')")
+      .line("file nodes", fileNodesText(in.outputs(), file_nodes))
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));

@@ -503,9 +503,9 @@ void drawLegend(Canvas& canvas, std::uint32_t x0, const Scene& scene, const Scal
   for (double y = top; y < bottom; ++y)
     canvas.fill(left, y, bar_w, 1, heightColor((bottom - y - 0.5) / (bottom - top)));
   double step = 1.0;
-  const std::vector<double> ticks = niceTicks(
-      scene.z_low, scene.z_low + scene.z_span,
-      std::clamp(static_cast<int>((bottom - top) / 26.0), 2, 10), &step);
+  const std::vector<double> ticks =
+      niceTicks(scene.z_low, scene.z_low + scene.z_span,
+                std::clamp(static_cast<int>((bottom - top) / 26.0), 2, 10), &step);
   for (const double z : ticks) {
     const double y = bottom - (z - scene.z_low) / scene.z_span * (bottom - top);
     canvas.line(left + bar_w, y, left + bar_w + 5, y, kLegendText);
@@ -542,8 +542,7 @@ Scene Render::scene(const OccupancyMap& map, const std::string& map_path) const 
   for (const OccupancyMap::LeafBoxHost& c : scene.shown) scene.occupied.add(c);
   scene.occupied.max.z() = std::min(scene.occupied.max.z(), z_cut);
   scene.z_low = scene.occupied.min.z() + 0.5 * resolution;  // cell centres: z of a hit
-  scene.z_span =
-      std::max(scene.occupied.max.z() - scene.occupied.min.z() - resolution, resolution);
+  scene.z_span = std::max(scene.occupied.max.z() - scene.occupied.min.z() - resolution, resolution);
   return scene;
 }
 
@@ -580,8 +579,8 @@ RayBudget Render::budget(const Invocation& in, const OccupancyMap& map, const Sc
   // the device.
   const std::size_t room = (cap - held - std::size_t{width_} * height_ * kPictureBytesPerPixel) / 2;
   budget.tile_rows =
-      std::clamp<std::size_t>(room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)),
-                              3, budget.tile_rows + 2) -
+      std::clamp<std::size_t>(room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)), 3,
+                              budget.tile_rows + 2) -
       2;
   budget.ray_batch = std::clamp<std::size_t>(room / deviceBytesPerRay(), 1, kRayBatch);
   return budget;
@@ -589,9 +588,8 @@ RayBudget Render::budget(const Invocation& in, const OccupancyMap& map, const Sc
 
 int Render::run(Invocation& in) {
   Steps steps;
-  const OccupancyMap map = steps.run("reading and upload", [&] {
-    return loadMap(in.context(), in.input(), in.maxDeviceBytes());
-  });
+  const OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const Scene shown = steps.run("reading and upload", [&] { return scene(map, in.input()); });
   const bool legend = hasLegend(width_, height_);
   const std::uint32_t view_width = legend ? width_ - kLegendWidth : width_;
@@ -611,11 +609,11 @@ int Render::run(Invocation& in) {
   Report report(9);
   report.device(in.context())
       .line("map", in.input())
-      .line("image", format("%ux%u px", width_, height_) +
-                         (legend ? format(": the view %ux%u, the legend %u px on the right",
-                                          view_width, height_, kLegendWidth)
-                                 : format(" (no legend below %ux%u px)", kLegendMinWidth,
-                                          kLegendMinHeight)))
+      .line("image",
+            format("%ux%u px", width_, height_) +
+                (legend ? format(": the view %ux%u, the legend %u px on the right", view_width,
+                                 height_, kLegendWidth)
+                        : format(" (no legend below %ux%u px)", kLegendMinWidth, kLegendMinHeight)))
       .line("camera", "--eye " + vec3Text(view.eye) + " --look-at " + vec3Text(view.look_at) +
                           format(" --fov %g (vertical; %.1f horizontal)", fov_deg_,
                                  2.0 * std::atan(view.tan_half_h) * 180.0 / M_PI))
