@@ -337,18 +337,26 @@ void Distance::drawLegend(Canvas& canvas, const Layout& at, const Slice& slice,
   const double bottom = top + at.slice_h, right = left + at.slice_w;
   canvas.line(left - 0.5, top, left - 0.5, bottom + 1, kTickWhite);
   canvas.line(left - 1, bottom + 0.5, right, bottom + 0.5, kTickWhite);
-  double step = 1.0;
+  // Every tick gets its mark; its number where it does not run into the one before.
+  double step = 1.0, free_from = -1e9;
   for (const double x : niceTicks(x_lo, x_hi, std::max(3, int(at.slice_w / 45)), &step)) {
     const double px = left + (x - x_lo) * cell_px;
+    const std::string words = tickText(x, step);
+    const double half = 0.5 * canvas.textWidth(words, 11);
     canvas.line(px, bottom + 1, px, bottom + 6, kTickWhite);
-    canvas.text(tickText(x, step), px, bottom + 14, 11, kTickWhite, Canvas::Align::kCentre);
+    if (px - half < free_from) continue;
+    canvas.text(words, px, bottom + 14, 11, kTickWhite, Canvas::Align::kCentre);
+    free_from = px + half + 6;
   }
   canvas.text("x (m)", left + 0.5 * at.slice_w, bottom + 30, 11, kTickWhite,
               Canvas::Align::kCentre);
+  free_from = 1e9;
   for (const double y : niceTicks(y_lo, y_hi, std::max(3, int(at.slice_h / 30)), &step)) {
     const double py = bottom - (y - y_lo) * cell_px;
     canvas.line(left - 6, py, left - 1, py, kTickWhite);
+    if (py + 7 > free_from) continue;
     canvas.text(tickText(y, step), left - 9, py, 11, kTickWhite, Canvas::Align::kEnd);
+    free_from = py - 7;
   }
   canvas.text("y (m)", left - 9, top - 12, 11, kTickWhite, Canvas::Align::kEnd);
   canvas.text(format("slice at z = %g m", static_cast<double>(slice.z)), left, top - 12, 11,
