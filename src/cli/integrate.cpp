@@ -256,8 +256,9 @@ void printIntegrateHelp(std::ostream& out) {
          "OctoMap map (.bt / .ot) given as the input is refused (exit 2); 'octovk info' reads it.\n"
          "\n"
          "Output: the device used, then a summary on stdout (scans, points, skipped points,\n"
-         "insert time, nodes, device memory, files written; for DIR also the images used and\n"
-         "skipped and the pixels without depth).\n";
+         "insert time, nodes in memory and in each file as 'octovk info' counts them (a .bt is\n"
+         "max-likelihood and pruned, so it may hold fewer), device memory, files written; for\n"
+         "DIR also the images used and skipped and the pixels without depth).\n";
 }
 
 namespace {
