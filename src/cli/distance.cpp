@@ -1,6 +1,7 @@
 // octovk distance: a horizontal slice of the exact distance field over a box of a map
 // (octovk/distance.hpp), computed on the device and drawn as a PNG: each cell of the slice
-// coloured by its distance to the nearest obstacle, obstacles marked, a colour bar below.
+// coloured by its distance to the nearest obstacle, obstacles and unknown cells marked, axes in
+// metres and a colour bar below with its distances.
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>

@@ -1,5 +1,6 @@
 // octovk render: a picture of a map's occupied cells, one castRay per pixel on the device, shaded
-// on the host by height (colour), the face each ray entered (light) and distance (haze).
+// on the host by height (colour), the face each ray entered (light) and distance (haze), with a
+// legend that gives the heights in metres and a scale bar.
 #include <Eigen/Core>
 #include <algorithm>
 #include <cerrno>
