@@ -1,6 +1,6 @@
 """The example python/examples/tum_integrate.py on a synthetic TUM RGB-D folder: its .bt equals
-`octovk integrate DIR` byte for byte, its picture is a PNG with its numbers, and read_depth_png reads back the
-16-bit PNGs it and the folder use exactly."""
+`octovk integrate DIR` byte for byte, its picture is a PNG that carries its numbers, and
+read_depth_png reads back the 16-bit PNGs it and the folder use exactly."""
 
 import os
 import subprocess
