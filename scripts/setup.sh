@@ -12,7 +12,7 @@ packages=(
   libdynamicedt3d-dev                    # the distance field's oracle in tests and bench (not the library)
   googletest libgtest-dev                # tests
   libpng-dev                             # TUM RGB-D depth images
-  libcairo2-dev fonts-dejavu-core        # octovk render / distance draw their pictures (text, PNG)
+  libcairo2-dev libfontconfig-dev fonts-dejavu-core  # octovk render / distance: pictures, text
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
   gnuplot-nox                            # bench/plot_results.py draws the benchmark plot
   vulkan-validationlayers                # the tests run once under the Khronos validation layer
