@@ -230,6 +230,6 @@ float occupancyLogOdds(const MapParams& params);
 /// The map as OctoMap writes it (.bt: writeBinary, pruned max-likelihood; .ot: write), straight
 /// into `path` (an output's temporary; integrate.cpp). Returns the nodes the file holds, as
 /// OctoMap's size() counts them when it reads the file back (a .bt's after pruning).
-std::size_t writeMap(const OccupancyMap& map, const std::string& path);
+std::size_t writeMap(OccupancyMap& map, const std::string& path);
 
 }  // namespace octovk::cli

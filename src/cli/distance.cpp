@@ -205,7 +205,7 @@ class Distance final : public Command {
   // Refuses (UsageError) a box whose picture would be over kMaxSide, before the field is built.
   void checkPictureSize(double resolution) const;
   DistanceField field(OccupancyMap& map) const;
-  Slice slice(const OccupancyMap& map, const DistanceField& field) const;
+  Slice slice(OccupancyMap& map, const DistanceField& field) const;
   RgbImage drawCells(const Slice& slice, std::uint32_t cells_x, std::uint32_t cells_y,
                      std::uint32_t scale, SliceCounts& counts) const;
   void drawLegend(Canvas& canvas, const Layout& at, const Slice& slice, double resolution) const;
@@ -262,7 +262,7 @@ DistanceField Distance::field(OccupancyMap& map) const {
   }
 }
 
-Slice Distance::slice(const OccupancyMap& map, const DistanceField& field) const {
+Slice Distance::slice(OccupancyMap& map, const DistanceField& field) const {
   const double resolution = map.params().resolution;
   const std::array<std::uint32_t, 3> size = field.size();
   const std::array<std::uint32_t, 3> min_key = field.minKey();

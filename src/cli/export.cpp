@@ -110,9 +110,9 @@ class Export final : public Command {
 
  private:
   // The cells to write: all, the occupied ones, or those in the box.
-  std::vector<OccupancyMap::LeafBoxHost> select(const OccupancyMap& map) const;
+  std::vector<OccupancyMap::LeafBoxHost> select(OccupancyMap& map) const;
   // Colours the cells and writes them (-o); returns how many are occupied.
-  std::size_t write(Invocation& in, const OccupancyMap& map,
+  std::size_t write(Invocation& in, OccupancyMap& map,
                     const std::vector<OccupancyMap::LeafBoxHost>& cells) const;
 
   bool occupied_only_ = false;
@@ -122,7 +122,7 @@ class Export final : public Command {
 
 int Export::run(Invocation& in) {
   Steps steps;
-  const OccupancyMap map = steps.run(
+  OccupancyMap map = steps.run(
       "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const std::vector<OccupancyMap::LeafBoxHost> cells =
       steps.run("selecting", [&] { return select(map); });
@@ -137,7 +137,7 @@ int Export::run(Invocation& in) {
       .finish(steps, in.outputs());
 }
 
-std::vector<OccupancyMap::LeafBoxHost> Export::select(const OccupancyMap& map) const {
+std::vector<OccupancyMap::LeafBoxHost> Export::select(OccupancyMap& map) const {
   try {
     if (box_) {
       const std::array<double, 6>& b = *box_;
@@ -157,7 +157,7 @@ std::vector<OccupancyMap::LeafBoxHost> Export::select(const OccupancyMap& map) c
   }
 }
 
-std::size_t Export::write(Invocation& in, const OccupancyMap& map,
+std::size_t Export::write(Invocation& in, OccupancyMap& map,
                           const std::vector<OccupancyMap::LeafBoxHost>& cells) const {
   const float occupied_log_odds = occupancyLogOdds(map.params());
   std::size_t occupied = 0;

@@ -81,7 +81,7 @@ struct LeafCounts {
   Bounds all, occupied_bounds;
 };
 
-LeafCounts countLeaves(const OccupancyMap& map) {
+LeafCounts countLeaves(OccupancyMap& map) {
   LeafCounts counts;
   std::vector<OccupancyMap::LeafBoxHost> leaves;
   try {
@@ -108,7 +108,7 @@ LeafCounts countLeaves(const OccupancyMap& map) {
 
 int Info::run(Invocation& in) {
   Steps steps;
-  const OccupancyMap map = steps.run(
+  OccupancyMap map = steps.run(
       "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const LeafCounts c = steps.run("counting", [&] { return countLeaves(map); });
 

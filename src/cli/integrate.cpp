@@ -148,7 +148,7 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
 // Every output is written before any is renamed into place, so that a failed write (a full
 // disk) leaves every existing file as it was. The maps are the -o outputs, in order; the change
 // set (`changes_output`, when there is one) follows them. Returns the nodes each map file holds.
-std::vector<std::size_t> writeOutputs(const OccupancyMap& map, Invocation& in,
+std::vector<std::size_t> writeOutputs(OccupancyMap& map, Invocation& in,
                                       const std::optional<std::size_t>& changes_output,
                                       const std::vector<ChangedKey>& changes) {
   OutputFiles& outputs = in.files();
@@ -525,7 +525,7 @@ std::vector<std::string> integrateValueOptions() {
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.
-std::size_t writeMap(const OccupancyMap& map, const std::string& path) {
+std::size_t writeMap(OccupancyMap& map, const std::string& path) {
   std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
   std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
   if (!out.is_open())

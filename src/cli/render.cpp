@@ -281,11 +281,11 @@ class Render final : public Command {
 
  private:
   // The occupied cells below --z-max and the heights their colours span.
-  Scene scene(const OccupancyMap& map, const std::string& map_path) const;
+  Scene scene(OccupancyMap& map, const std::string& map_path) const;
   // The camera: --eye and --look-at, or the default framing of the scene in the view.
   Camera camera(const Scene& scene, double resolution, std::uint32_t view_width) const;
   // Tile rows and ray batches that fit --max-device-memory beside the map and the picture.
-  RayBudget budget(const Invocation& in, const OccupancyMap& map, const Scene& scene) const;
+  RayBudget budget(const Invocation& in, OccupancyMap& map, const Scene& scene) const;
 
   std::optional<Vec3> eye_;
   std::optional<Vec3> look_at_;
@@ -304,7 +304,7 @@ bool hasLegend(std::uint32_t width, std::uint32_t height) {
 // view. Only the colours before the haze and the depths are kept for the whole view.
 class Tracer {
  public:
-  Tracer(const OccupancyMap& map, const Scene& scene, const Camera& camera, RayBudget budget)
+  Tracer(OccupancyMap& map, const Scene& scene, const Camera& camera, RayBudget budget)
       : map_(map),
         scene_(scene),
         camera_(camera),
@@ -458,7 +458,7 @@ class Tracer {
     depths_ = {};
   }
 
-  const OccupancyMap& map_;
+  OccupancyMap& map_;
   const Scene& scene_;
   const Camera& camera_;
   RayBudget budget_;
@@ -524,7 +524,7 @@ void drawLegend(Canvas& canvas, std::uint32_t x0, const Scene& scene, const Scal
               kLegendText, Canvas::Align::kCentre);
 }
 
-Scene Render::scene(const OccupancyMap& map, const std::string& map_path) const {
+Scene Render::scene(OccupancyMap& map, const std::string& map_path) const {
   const double resolution = map.params().resolution;
   const float occupied_log_odds = occupancyLogOdds(map.params());
   // The cells that can show: occupied, and below --z-max, which cuts at the cell boundary
@@ -568,7 +568,7 @@ Camera Render::camera(const Scene& scene, double resolution, std::uint32_t view_
 }
 
 // The memory the rays may take: under a cap, what the map and the picture leave of it.
-RayBudget Render::budget(const Invocation& in, const OccupancyMap& map, const Scene& scene) const {
+RayBudget Render::budget(const Invocation& in, OccupancyMap& map, const Scene& scene) const {
   RayBudget budget;
   budget.tile_rows = std::max<std::size_t>(1, kTilePixels / width_);
   const std::size_t cap = in.maxDeviceBytes();
@@ -589,7 +589,7 @@ RayBudget Render::budget(const Invocation& in, const OccupancyMap& map, const Sc
 
 int Render::run(Invocation& in) {
   Steps steps;
-  const OccupancyMap map = steps.run(
+  OccupancyMap map = steps.run(
       "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const Scene shown = steps.run("reading and upload", [&] { return scene(map, in.input()); });
   const bool legend = hasLegend(width_, height_);
