@@ -21,9 +21,12 @@ namespace {
 Error refused(const Error& e, std::size_t bytes, bool host_visible) {
   if (e.code() != ErrorCode::kOutOfDeviceMemory) return e;
   char text[160];
-  std::snprintf(text, sizeof(text), "could not allocate %zu bytes (%.1f MiB) of %s memory",
-                bytes, static_cast<double>(bytes) / (1024.0 * 1024.0),
-                host_visible ? "host-visible" : "device");
+  const char* memory = host_visible ? "host-visible" : "device";
+  if (bytes < (std::size_t{1} << 20))
+    std::snprintf(text, sizeof(text), "could not allocate %zu bytes of %s memory", bytes, memory);
+  else
+    std::snprintf(text, sizeof(text), "could not allocate %zu bytes (%.1f MiB) of %s memory",
+                  bytes, static_cast<double>(bytes) / (1024.0 * 1024.0), memory);
   return Error(e.code(), e.message() + ": " + text, e.scan(), e.detail());
 }
 
