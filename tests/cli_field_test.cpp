@@ -324,8 +324,9 @@ TEST(cliDistance, UnknownSpaceIsAnObstacleUnlessToldOtherwise) {
   Scratch scratch("clifield");
   const std::string m = writeRoomMap(scratch);
   const auto run = [&](std::vector<std::string> extra) {
-    std::vector<std::string> args = {"distance", m,     "--box", "-2.5", "-2", "-0.2", "2.5",
-                                     "2",        "1.4", "--z",   "0.55", "-o", scratch / "s.png"};
+    std::vector<std::string> args = {
+        "distance", m,     "--box", "-2.5", "-2", "-0.2",           "2.5",
+        "2",        "1.4", "--z",   "0.55", "-o", scratch / "s.png"};
     args.insert(args.end(), extra.begin(), extra.end());
     const RunResult r = runOctovk(args, scratch.dir());
     EXPECT_EQ(r.exit_code, 0) << r.err;
@@ -356,16 +357,15 @@ TEST(cliDistance, OutOfMemorySaysWhatToChange) {
   (void)ctx;
   Scratch scratch("clifield");
   const std::string m = writeRoomMap(scratch);
-  const std::vector<std::string> huge = {"distance", m,     "--box", "-100", "-100", "-10",
-                                         "100",      "100", "10",    "-o",   scratch / "slice.png"};
-  expectRefusedText(huge, 1,
-                    {"2001 x 2001 x 201 cells", "GiB", "Shrink --box", "--max-device-memory"},
-                    scratch);
+  const std::vector<std::string> huge = {
+      "distance",           m, "--box", "-100", "-100", "-10", "100", "100", "10", "-o",
+      scratch / "slice.png"};
+  expectRefusedText(
+      huge, 1, {"2001 x 2001 x 201 cells", "GiB", "Shrink --box", "--max-device-memory"}, scratch);
   std::vector<std::string> capped = huge;
   capped.insert(capped.end(), {"--max-device-memory", "100M"});
-  expectRefusedText(capped, 1,
-                    {"2001 x 2001 x 201 cells", "Shrink --box", "raise --max-device-memory"},
-                    scratch);
+  expectRefusedText(
+      capped, 1, {"2001 x 2001 x 201 cells", "Shrink --box", "raise --max-device-memory"}, scratch);
 }
 
 TEST(cliDistance, HelpSaysWhatThePictureShows) {

@@ -149,8 +149,7 @@ std::uint64_t everyFailure(Context& ctx, Hook hook, const std::string& what,
     }
     // What asked for the memory and what to change, cap or no cap.
     if (hook == Hook::kDevice && (what == "scan" || what == "query batch")) {
-      EXPECT_NE(error.find(what == "scan" ? "Split the scan" : "Ask for fewer"),
-                std::string::npos)
+      EXPECT_NE(error.find(what == "scan" ? "Split the scan" : "Ask for fewer"), std::string::npos)
           << error;
       EXPECT_NE(error.find("max_device_bytes"), std::string::npos) << error;
     }

@@ -20,8 +20,8 @@ enum class ErrorCode {
   /// An unexpected Vulkan failure; the message says it in words, Error::detail() names the
   /// call, its VkResult and the source place.
   kVulkan,
-  kIo,                 ///< a file could not be read or written
-  kFormat,             ///< a file is not in the expected format
+  kIo,      ///< a file could not be read or written
+  kFormat,  ///< a file is not in the expected format
   /// The host could not allocate memory (std::bad_alloc inside octovk); the map is as before
   /// the call and keeps working.
   kOutOfHostMemory,
@@ -48,7 +48,7 @@ class Error : public std::runtime_error {
       : std::runtime_error(message), code_(code), scan_(scan) {}
   Error(ErrorCode code, const std::string& message, std::uint64_t scan, const std::string& detail)
       : std::runtime_error(detail.empty() || !debugErrors() ? message
-                                                             : message + " [" + detail + "]"),
+                                                            : message + " [" + detail + "]"),
         code_(code),
         scan_(scan),
         detail_(detail.empty() ? nullptr

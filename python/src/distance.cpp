@@ -141,41 +141,41 @@ void bindDistance(py::module_& m) {
   field.attr("OUTSIDE") = DistanceSample::kOutside;
   field.attr("OUTSIDE_CELLS") = DistanceSample::kOutsideCells;
   field.attr("NO_OBSTACLE_CELLS") = DistanceSample::kNoObstacleCells;
-  field.def(
-      py::init([](py::object map_object, py::handle min, py::handle max, float max_distance,
-                  bool treat_unknown_as_occupied) {
-        Map& map = map_object.cast<Map&>();
-        if (min.is_none() != max.is_none())
-          throw Error(ErrorCode::kInvalidArgument,
-                      std::string("DistanceField: ") + (min.is_none() ? "max" : "min") +
-                          " is given without " + (min.is_none() ? "min" : "max") +
-                          "; give both corners of the box, or neither for the map's bounds");
-        const DistanceFieldOptions options{.max_distance_m = max_distance,
-                                           .treat_unknown_as_occupied = treat_unknown_as_occupied};
-        std::optional<DistanceField> made;
-        if (min.is_none()) {
-          map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, options); });
-        } else {
-          const Eigen::Vector3f lo = toVector3(min, "min");
-          const Eigen::Vector3f hi = toVector3(max, "max");
-          map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, lo, hi, options); });
-        }
-        return std::make_unique<Field>(std::move(map_object), map, std::move(*made));
-      }),
-      py::arg("map"), py::arg("min") = py::none(), py::arg("max") = py::none(), py::kw_only(),
-      py::arg("max_distance") = 2.0f, py::arg("treat_unknown_as_occupied") = true,
-      "Builds the field over the box of `map` from the cell holding `min` to the cell "
-      "holding `max` (3 numbers each, metres; OctoMap's coordToKey), on the device, after "
-      "every scan submitted to the map; without min and max, over the map's bounds (every "
-      "cell of its leaves) and one cell around them. max_distance: metres (> 0) at which "
-      "distances are capped. treat_unknown_as_occupied (DynamicEDTOctomap's "
-      "treatUnknownAsOccupied): True (the default) counts the cells the map does not know as "
-      "obstacles, so no distance promises clearance through space no sensor saw (unseen "
-      "space reads 0); False counts only occupied cells, and unknown space reads as free. "
-      "Raises InvalidArgumentError for an inverted box, a NaN corner, a corner outside the "
-      "map's key range, one corner without the other, an empty map without a box or "
-      "max_distance <= 0; OutOfDeviceMemoryError (naming the box, the bytes and what to "
-      "change) when the map's max_device_bytes or the device leaves no room.");
+  field.def(py::init([](py::object map_object, py::handle min, py::handle max, float max_distance,
+                        bool treat_unknown_as_occupied) {
+              Map& map = map_object.cast<Map&>();
+              if (min.is_none() != max.is_none())
+                throw Error(ErrorCode::kInvalidArgument,
+                            std::string("DistanceField: ") + (min.is_none() ? "max" : "min") +
+                                " is given without " + (min.is_none() ? "min" : "max") +
+                                "; give both corners of the box, or neither for the map's bounds");
+              const DistanceFieldOptions options{
+                  .max_distance_m = max_distance,
+                  .treat_unknown_as_occupied = treat_unknown_as_occupied};
+              std::optional<DistanceField> made;
+              if (min.is_none()) {
+                map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, options); });
+              } else {
+                const Eigen::Vector3f lo = toVector3(min, "min");
+                const Eigen::Vector3f hi = toVector3(max, "max");
+                map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, lo, hi, options); });
+              }
+              return std::make_unique<Field>(std::move(map_object), map, std::move(*made));
+            }),
+            py::arg("map"), py::arg("min") = py::none(), py::arg("max") = py::none(), py::kw_only(),
+            py::arg("max_distance") = 2.0f, py::arg("treat_unknown_as_occupied") = true,
+            "Builds the field over the box of `map` from the cell holding `min` to the cell "
+            "holding `max` (3 numbers each, metres; OctoMap's coordToKey), on the device, after "
+            "every scan submitted to the map; without min and max, over the map's bounds (every "
+            "cell of its leaves) and one cell around them. max_distance: metres (> 0) at which "
+            "distances are capped. treat_unknown_as_occupied (DynamicEDTOctomap's "
+            "treatUnknownAsOccupied): True (the default) counts the cells the map does not know as "
+            "obstacles, so no distance promises clearance through space no sensor saw (unseen "
+            "space reads 0); False counts only occupied cells, and unknown space reads as free. "
+            "Raises InvalidArgumentError for an inverted box, a NaN corner, a corner outside the "
+            "map's key range, one corner without the other, an empty map without a box or "
+            "max_distance <= 0; OutOfDeviceMemoryError (naming the box, the bytes and what to "
+            "change) when the map's max_device_bytes or the device leaves no room.");
   field.def(
       "update", [](Field& self) { self.run([](DistanceField& f) { f.update(); }); },
       "Brings the field up to the map as it is now (every scan submitted before included): the "
@@ -256,8 +256,8 @@ void bindDistance(py::module_& m) {
       "torch_distances",
       [](Field& self, py::object points) {
         // The Python object of `self` (its registered instance), for the Function's forward.
-        return autogradFunction().attr("apply")(
-            points, py::cast(self, py::return_value_policy::reference));
+        return autogradFunction().attr("apply")(points,
+                                                py::cast(self, py::return_value_policy::reference));
       },
       py::arg("points"),
       "The distance at points (a torch tensor (..., 3), any float dtype and device), "

@@ -116,12 +116,11 @@ FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Ve
     box.min_key[a] = lo;
     box.size[a] = hi - lo + 1;
     if (box.size[a] > max_line_cells)
-      throw invalid(
-          name + " has " + std::to_string(box.size[a]) + " cells along " + kAxis[a] +
-          "; this device transforms lines of at most " + std::to_string(max_line_cells) +
-          " cells in one dispatch (its driver's loop limit, and at most " +
-          std::to_string(gpu::kFieldMaxAxisCells) + " for exact 32-bit integers); " +
-          (name == "the box" ? "split the box" : "give a smaller box"));
+      throw invalid(name + " has " + std::to_string(box.size[a]) + " cells along " + kAxis[a] +
+                    "; this device transforms lines of at most " + std::to_string(max_line_cells) +
+                    " cells in one dispatch (its driver's loop limit, and at most " +
+                    std::to_string(gpu::kFieldMaxAxisCells) + " for exact 32-bit integers); " +
+                    (name == "the box" ? "split the box" : "give a smaller box"));
   }
   if (box.cells() >= gpu::kFieldNoSite)
     throw invalid(name + " has " + std::to_string(box.cells()) +
@@ -143,17 +142,17 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
   const std::size_t bytes = fieldBytes(box_);
   // What was asked and what it needs, then why it cannot be had and what to change: the box,
   // or the cap (whether or not one is set), never the scans or query batches of the map.
-  const std::string asked = "DistanceField: a field over a box of " + cellsText(box_) +
-                            " needs " + bytesText(bytes) + " of device memory (" +
+  const std::string asked = "DistanceField: a field over a box of " + cellsText(box_) + " needs " +
+                            bytesText(bytes) + " of device memory (" +
                             std::to_string(bytes / std::max<std::size_t>(box_.cells(), 1)) +
                             " bytes per cell)";
   const std::size_t cap = buffers.maxBytes();
   if (!buffers.fits(0, bytes)) {
     const std::size_t held = buffers.deviceBytes();
-    throw BudgetError(asked + "; the map's device-memory cap (MapParams::max_device_bytes = " +
-                      bytesText(cap) + ") leaves " + bytesText(cap > held ? cap - held : 0) +
-                      " beside the " + bytesText(held) + " the map holds. " + capAdvice(cap) +
-                      "; the map is unchanged");
+    throw BudgetError(
+        asked + "; the map's device-memory cap (MapParams::max_device_bytes = " + bytesText(cap) +
+        ") leaves " + bytesText(cap > held ? cap - held : 0) + " beside the " + bytesText(held) +
+        " the map holds. " + capAdvice(cap) + "; the map is unchanged");
   }
   // More than the device has in all is refused before any of it is asked for (on a CPU device
   // the driver would first hand out gigabytes of host memory).
@@ -180,8 +179,7 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
     if (e.code() != ErrorCode::kOutOfDeviceMemory) throw;
     throw Error(ErrorCode::kOutOfDeviceMemory,
                 asked + "; " + e.message() + " (the device has " + bytesText(device_bytes) +
-                    " in all). " + capAdvice(cap) +
-                    "; the map is unchanged",
+                    " in all). " + capAdvice(cap) + "; the map is unchanged",
                 0, e.detail());
   }
   bytes_ = bytes;
@@ -369,7 +367,8 @@ void DistanceField::Impl::ensureQueries(std::size_t count) {
   try {
     vk::Buffer qi(device_, n * 4 * sizeof(float), false),
         qo(device_, n * sizeof(gpu::DistanceResult), false),
-        si(device_, n * 4 * sizeof(float), true), so(device_, n * sizeof(gpu::DistanceResult), true);
+        si(device_, n * 4 * sizeof(float), true),
+        so(device_, n * sizeof(gpu::DistanceResult), true);
     query_in_ = std::move(qi);
     query_out_ = std::move(qo);
     staging_in_ = std::move(si);
@@ -505,15 +504,16 @@ DistanceField::DistanceField(OccupancyMap& map, const DistanceFieldOptions& opti
     OccupancyMap::Impl& m = FieldAccess::impl(map);
     std::array<std::uint32_t, 3> lo{}, hi{};
     if (!leafKeyBounds(map, lo, hi))
-      throw invalid("the map has no cells yet, so no bounds for the field to cover; insert a "
-                    "scan first or give a box");
+      throw invalid(
+          "the map has no cells yet, so no bounds for the field to cover; insert a "
+          "scan first or give a box");
     // One cell more on each side (within the key range): the unknown space around the map.
     Eigen::Vector3f min, max;
     const double res = m.params().resolution;
     for (int a = 0; a < 3; ++a) {
       min[a] = static_cast<float>((double(lo[a] > 0 ? lo[a] - 1 : 0) - 32768.0 + 0.5) * res);
-      max[a] = static_cast<float>((double(hi[a] < 65535 ? hi[a] + 1 : 65535) - 32768.0 + 0.5) *
-                                  res);
+      max[a] =
+          static_cast<float>((double(hi[a] < 65535 ? hi[a] + 1 : 65535) - 32768.0 + 0.5) * res);
     }
     const FieldBox box = fieldBox(res, min, max, options, maxLineCells(m.device()),
                                   "the map's bounds (and one cell around them)");

@@ -46,8 +46,8 @@ class ScanOutOfMemory : public Error {
                   "range (ScanOptions::max_range_m)" +
                   (cap == 0 ? std::string(" (MapParams::max_device_bytes is not set: only the "
                                           "device limits the map)")
-                            : ", or lower MapParams::max_device_bytes (now " +
-                                  std::to_string(cap) + " bytes) to what the device holds"),
+                            : ", or lower MapParams::max_device_bytes (now " + std::to_string(cap) +
+                                  " bytes) to what the device holds"),
               0, e.detail()) {}
 };
 

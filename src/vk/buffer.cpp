@@ -25,15 +25,16 @@ Error refused(const Error& e, std::size_t bytes, bool host_visible) {
   if (bytes < (std::size_t{1} << 20))
     std::snprintf(text, sizeof(text), "could not allocate %zu bytes of %s memory", bytes, memory);
   else
-    std::snprintf(text, sizeof(text), "could not allocate %zu bytes (%.1f MiB) of %s memory",
-                  bytes, static_cast<double>(bytes) / (1024.0 * 1024.0), memory);
+    std::snprintf(text, sizeof(text), "could not allocate %zu bytes (%.1f MiB) of %s memory", bytes,
+                  static_cast<double>(bytes) / (1024.0 * 1024.0), memory);
   return Error(e.code(), e.message() + ": " + text, e.scan(), e.detail());
 }
 
 }  // namespace
 
-Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsageFlags extra_usage)
-try : device_(&device) {
+Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible,
+               VkBufferUsageFlags extra_usage) try
+    : device_(&device) {
   bytes_ = std::max<std::size_t>(bytes, 16);
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
   info.size = bytes_;
