@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -731,6 +732,7 @@ TEST(DistanceField, CountsUnderTheMapsCapAndTooLargeIsRefused) {
 
 TEST(DistanceField, OutOfDeviceMemorySaysTheBoxTheBytesAndWhatToChange) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
+  unsetenv("OCTOVK_DEBUG");  // the words a user reads (the test sets it at the end)
   OccupancyMap map(ctx, test::withResolution(0.1));
   map.insertPointCloud(std::vector<Eigen::Vector3f>{{0.5f, 0.2f, 0.1f}}, Eigen::Vector3f::Zero());
   const std::size_t before = map.deviceBytes();
@@ -773,6 +775,21 @@ TEST(DistanceField, OutOfDeviceMemorySaysTheBoxTheBytesAndWhatToChange) {
     EXPECT_EQ(map.deviceBytes(), before) << "allocation " << n;
   }
   EXPECT_GE(failed, 10u);  // every buffer of the build, the four query buffers, the download
+  // A developer who sets OCTOVK_DEBUG gets the driver's call and the source place in what() too.
+  ASSERT_EQ(setenv("OCTOVK_DEBUG", "1", 1), 0);
+  vk::fault::failDeviceAllocation(1);
+  try {
+    DistanceField f(map, {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f});
+    ADD_FAILURE() << "the first allocation was to fail";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("Shrink the box"), std::string::npos) << what;
+    EXPECT_NE(what.find("VK_ERROR_OUT_OF_DEVICE_MEMORY"), std::string::npos) << what;
+    EXPECT_NE(what.find("buffer.cpp"), std::string::npos) << what;
+    EXPECT_EQ(e.message().find("VK_ERROR"), std::string::npos) << e.message();
+  }
+  vk::fault::failDeviceAllocation(0);
+  unsetenv("OCTOVK_DEBUG");
 }
 
 // A query batch whose buffers the cap has no room for runs in smaller batches (it was refused,
