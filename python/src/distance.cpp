@@ -178,8 +178,9 @@ void bindDistance(py::module_& m) {
             "change) when the map's max_device_bytes or the device leaves no room.");
   field.def(
       "update", [](Field& self) { self.run([](DistanceField& f) { f.update(); }); },
-      "Brings the field up to the map as it is now (every scan submitted before included): the "
-      "whole box is recomputed on the device.");
+      "Brings the field up to the map as it is now (every scan submitted before included), "
+      "equal cell for cell to a field built afresh: on the device, redoing only the lines "
+      "whose obstacles changed (octovk::DistanceField::update).");
   field.def(
       "distances",
       [](Field& self, py::handle points, bool copy) {
