@@ -121,17 +121,17 @@ class DistanceFunction(torch.autograd.Function):
 )";
 
 py::object autogradFunction() {
-  // Built once, kept on the class (the interpreter owns it; no static Python object to outlive
-  // it).
-  py::object cls = py::type::of<Field>();
-  if (py::hasattr(cls, "_autograd_function")) return cls.attr("_autograd_function");
-  py::dict scope;
-  scope["__builtins__"] = py::module_::import("builtins");
-  scope["__name__"] = "octovk";
-  py::exec(kTorchSource, scope);
-  py::object fn = scope["DistanceFunction"];
-  cls.attr("_autograd_function") = fn;
-  return fn;
+  // Built once (under the GIL) and never destroyed: a static py::object would be released after
+  // the interpreter is gone, and an attribute would show in the class's members.
+  static py::object* function = nullptr;
+  if (function == nullptr) {
+    py::dict scope;
+    scope["__builtins__"] = py::module_::import("builtins");
+    scope["__name__"] = "octovk";
+    py::exec(kTorchSource, scope);
+    function = new py::object(scope["DistanceFunction"]);
+  }
+  return *function;
 }
 
 }  // namespace
