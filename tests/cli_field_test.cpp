@@ -19,6 +19,7 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -212,7 +213,7 @@ void expectSlice(const std::string& map, const std::array<double, 6>& box, doubl
   for (double v : box) args.push_back(std::to_string(v));
   args.insert(args.end(), {"--z", std::to_string(z), "--max-distance", std::to_string(max_distance),
                            "--cell-pixels", std::to_string(kCell), "-o", png});
-  if (unknown_occupied) args.push_back("--unknown-occupied");
+  args.insert(args.end(), {"--unknown", unknown_occupied ? "occupied" : "free"});
   const RunResult r = runOctovk(args, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("wrote:     " + png), std::string::npos) << r.out;
@@ -327,6 +328,19 @@ void expectRefused(const std::vector<std::string>& args, int exit_code, const st
   EXPECT_TRUE(octovk::test::temporariesIn(scratch.dir()).empty());
 }
 
+// As expectRefused, with several mentions, and never a Vulkan call, a source path or the
+// library's names for what the program calls an option.
+void expectRefusedText(const std::vector<std::string>& args, int exit_code,
+                       const std::vector<std::string>& mentions, const Scratch& scratch) {
+  for (const std::string& m : mentions) expectRefused(args, exit_code, m, scratch);
+  const RunResult r = runOctovk(args, scratch.dir());
+  EXPECT_FALSE(std::regex_search(r.err, std::regex("vk[A-Z]"))) << r.err;
+  EXPECT_EQ(r.err.find("src/"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("MapParams"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("DistanceField"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("split the scan"), std::string::npos) << r.err;
+}
+
 TEST(cliDistance, BadInputIsOneErrorLineAndNoPicture) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   (void)ctx;  // the program makes its own; this requires the device as the other tests do
@@ -372,14 +386,67 @@ TEST(cliDistance, BadInputIsOneErrorLineAndNoPicture) {
   EXPECT_NE(capped.err.find("401 x 401 x 101 cells"), std::string::npos) << capped.err;
 }
 
+// Issue 30.5: without --unknown, the cells the map does not know are obstacles (the safe rule);
+// --unknown free asks for the other, and the old flag --unknown-occupied still means the default.
+TEST(cliDistance, UnknownSpaceIsAnObstacleUnlessToldOtherwise) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch("clifield");
+  const std::string m = writeRoomMap(scratch);
+  const auto run = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = {
+        "distance", m,     "--box", "-2.5", "-2", "-0.2",           "2.5",
+        "2",        "1.4", "--z",   "0.55", "-o", scratch / "s.png"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const RunResult r = runOctovk(args, scratch.dir());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.out;
+  };
+  // The counts of the slice's cells (the line without the timings).
+  const auto cells = [](const std::string& out) {
+    const std::size_t at = out.find("cells:");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  const std::string safe = cells(run({}));
+  EXPECT_NE(safe.find("unknown counted as obstacles"), std::string::npos) << safe;
+  EXPECT_EQ(safe.find(" 0 unknown"), std::string::npos) << safe;
+  EXPECT_EQ(cells(run({"--unknown", "occupied"})), safe);
+  EXPECT_EQ(cells(run({"--unknown-occupied"})), safe);
+  const std::string free = cells(run({"--unknown", "free"}));
+  EXPECT_FALSE(free.empty());
+  EXPECT_EQ(free.find("unknown counted as obstacles"), std::string::npos) << free;
+  expectRefusedText({"distance", m, "--box", "0", "0", "0", "1", "1", "1", "--unknown", "maybe",
+                     "-o", scratch / "slice.png"},
+                    2, {"--unknown maybe", "occupied", "free"}, scratch);
+}
+
+// Issue 30.4: a field the device or the cap cannot hold is one line in the user's words (no
+// Vulkan call, no source path), naming the box, the bytes and both options, cap or no cap.
+TEST(cliDistance, OutOfMemorySaysWhatToChange) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch("clifield");
+  const std::string m = writeRoomMap(scratch);
+  const std::vector<std::string> huge = {
+      "distance",           m, "--box", "-100", "-100", "-10", "100", "100", "10", "-o",
+      scratch / "slice.png"};
+  expectRefusedText(
+      huge, 1, {"2001 x 2001 x 201 cells", "GiB", "Shrink --box", "--max-device-memory"}, scratch);
+  std::vector<std::string> capped = huge;
+  capped.insert(capped.end(), {"--max-device-memory", "100M"});
+  expectRefusedText(
+      capped, 1, {"2001 x 2001 x 201 cells", "Shrink --box", "raise --max-device-memory"}, scratch);
+}
+
 TEST(cliDistance, HelpSaysWhatThePictureShows) {
   Scratch scratch("clifield");
   const RunResult r = runOctovk({"distance", "--help"}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const char* words : {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
-                            "--unknown-occupied", "--cell-pixels N", "--max-device-memory",
-                            "DynamicEDTOctomap", "black", "light grey", "dark grey", "red", "blue",
-                            "the bar below", "in metres", "y up", "Exit codes"})
+  for (const char* words :
+       {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
+        "--unknown occupied|free", "--cell-pixels N", "--max-device-memory", "DynamicEDTOctomap",
+        "black", "light grey", "dark grey", "red", "blue", "the bar below", "in metres", "y up",
+        "Exit codes"})
     EXPECT_NE(r.out.find(words), std::string::npos) << words;
   const RunResult top = runOctovk({"--help"}, scratch.dir());
   EXPECT_NE(top.out.find("\n  distance   "), std::string::npos) << top.out;

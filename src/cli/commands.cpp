@@ -108,13 +108,13 @@ const Subcommand kSubcommands[] = {
      .output_extensions = {".png"},
      .output_formats = ".png (8-bit RGB picture)",
      .max_device_memory = true,
-     .value_options = {"--z", "--max-distance", "--cell-pixels"},
+     .value_options = {"--z", "--max-distance", "--cell-pixels", "--unknown"},
      .multi_value_options = {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
      .make = makeDistance,
      .examples =
          "  octovk distance map.bt --box -5 -5 0 5 5 2 --z 0.5 -o slice.png\n"
-         "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown-occupied\n"
-         "                  -o safe.png\n"},
+         "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown free\n"
+         "                  -o optimistic.png\n"},
     {.name = "devices",
      .summary = "the Vulkan devices and the one octovk picks",
      .print_help = printDevicesHelp,

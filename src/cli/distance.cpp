@@ -26,7 +26,7 @@ namespace {
 
 constexpr const char* kDistanceUsage =
     "octovk distance MAP.bt|MAP.ot --box XMIN YMIN ZMIN XMAX YMAX ZMAX [--z HEIGHT] "
-    "[--max-distance M] [--unknown-occupied] [--cell-pixels N] -o SLICE.png "
+    "[--max-distance M] [--unknown occupied|free] [--cell-pixels N] -o SLICE.png "
     "[--max-device-memory BYTES]";
 
 constexpr double kDefaultMaxDistanceM = 2.0;
@@ -58,7 +58,7 @@ const Rgb kTickWhite{235, 235, 235};
 
 void printDistanceHelp(std::ostream& out) {
   out << "octovk distance MAP.bt|MAP.ot --box XMIN YMIN ZMIN XMAX YMAX ZMAX [--z HEIGHT]\n"
-         "                [--max-distance M] [--unknown-occupied] [--cell-pixels N]\n"
+         "                [--max-distance M] [--unknown occupied|free] [--cell-pixels N]\n"
          "                -o SLICE.png\n"
          "\n"
          "Computes the exact Euclidean distance field over a box of a map on the Vulkan device\n"
@@ -70,9 +70,10 @@ void printDistanceHelp(std::ostream& out) {
          "\n"
          "Colours:\n"
          "  black                  an occupied cell (OctoMap's isNodeOccupied)\n"
-         "  light grey             a cell the map does not know: no distance is drawn there,\n"
-         "                         since the space may hold anything\n"
-         "  dark grey              an unknown cell counted as an obstacle (--unknown-occupied)\n"
+         "  light grey             a cell the map does not know (--unknown free): no distance is\n"
+         "                         drawn there, since the space may hold anything\n"
+         "  dark grey              an unknown cell counted as an obstacle (--unknown occupied,\n"
+         "                         the default)\n"
          "  red ... yellow ... green ... blue\n"
          "                         the distance to the nearest obstacle, from 0 (red) to\n"
          "                         --max-distance or farther (blue), on a reversed Turbo scale;\n"
@@ -92,9 +93,11 @@ void printDistanceHelp(std::ostream& out) {
          "      --max-distance M   distances are capped at M metres, M > 0 (default: "
       << kDefaultMaxDistanceM
       << ")\n"
-         "      --unknown-occupied cells the map does not know count as obstacles\n"
-         "                         (DynamicEDTOctomap's treatUnknownAsOccupied; default: only\n"
-         "                         occupied cells do)\n"
+         "      --unknown occupied|free\n"
+         "                         what cells the map does not know are (DynamicEDTOctomap's\n"
+         "                         treatUnknownAsOccupied). occupied (default): obstacles, so no\n"
+         "                         distance promises clearance through unseen space; free: only\n"
+         "                         occupied cells are obstacles\n"
          "      --cell-pixels N    pixels per cell side, 1 to "
       << kMaxCellPixels
       << " (default: the most, up to\n"
@@ -166,7 +169,13 @@ class Distance final : public Command {
       if (!(max_distance_m_ > 0.0) || !std::isfinite(static_cast<float>(max_distance_m_)))
         throw UsageError("--max-distance " + opt.value +
                          ": give a distance in metres above 0, e.g. --max-distance 2");
-    } else if (opt.name == "--unknown-occupied") {
+    } else if (opt.name == "--unknown") {
+      if (opt.value != "occupied" && opt.value != "free")
+        throw UsageError("--unknown " + opt.value +
+                         ": give --unknown occupied (unknown cells are obstacles, the default) "
+                         "or --unknown free");
+      unknown_occupied_ = opt.value == "occupied";
+    } else if (opt.name == "--unknown-occupied") {  // the spelling before --unknown
       unknown_occupied_ = true;
     } else if (opt.name == "--cell-pixels") {
       const double n = parseNumber(opt, "4");
@@ -213,7 +222,7 @@ class Distance final : public Command {
   std::optional<std::array<double, 6>> box_;
   std::optional<double> z_;
   double max_distance_m_ = kDefaultMaxDistanceM;
-  bool unknown_occupied_ = false;
+  bool unknown_occupied_ = true;  // DistanceFieldOptions' default: unknown space is no clearance
   std::uint32_t cell_pixels_ = 0;  // 0: chosen from the box
 };
 
@@ -255,6 +264,16 @@ DistanceField Distance::field(OccupancyMap& map) const {
   } catch (const Error& e) {
     // The box's own faults (beyond the map's key range, lines longer than the device
     // transforms) are the user's to fix; the cap's are a failure of the run (exit 1).
+    if (e.code() == ErrorCode::kOutOfDeviceMemory) {
+      // The library's remedy "Shrink the box" is --box here, its class name no user's word.
+      const Error named = withOptionNames(e);
+      std::string why = named.what();
+      if (why.rfind("DistanceField: ", 0) == 0) why.erase(0, 15);
+      for (std::size_t at = why.find("Shrink the box"); at != std::string::npos;
+           at = why.find("Shrink the box", at))
+        why.replace(at, 14, "Shrink --box");
+      throw Error(e.code(), why, e.scan());
+    }
     if (e.code() != ErrorCode::kInvalidArgument) throw withOptionNames(e);
     std::string why = e.what();
     if (why.rfind("DistanceField: ", 0) == 0) why.erase(0, 15);
