@@ -11,13 +11,15 @@ packages=(
   liboctomap-dev octomap-tools           # .bt/.ot/.graph I/O, the test oracle, graph2tree, sample data
   libdynamicedt3d-dev                    # the distance field's oracle in tests and bench (not the library)
   googletest libgtest-dev                # tests
-  libpng-dev                             # octovk render writes PNG
+  libpng-dev                             # TUM RGB-D depth images
+  libcairo2-dev libfontconfig-dev fonts-dejavu-core  # octovk render / distance: pictures, text
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
   gnuplot-nox                            # bench/plot_results.py draws the benchmark plot
   vulkan-validationlayers                # the tests run once under the Khronos validation layer
   patchelf xz-utils                      # scripts/bundle.sh: the bundle's RUNPATH, its packed data
   python3-dev pybind11-dev libdlpack-dev # the Python module (python/)
   python3-numpy python3-torch python3-pytest  # its tests: arrays, tensors through DLPack
+  python3-cairo                          # python/examples/tum_integrate.py --picture
 )
 
 missing=()

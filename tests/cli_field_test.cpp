@@ -12,12 +12,14 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <memory>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -160,6 +162,47 @@ ExpectedSlice expectedSlice(const octomap::OcTree& tree, const std::array<double
   return e;
 }
 
+// Light grey: what the slice shows for unknown cells that are not obstacles.
+const Rgb kUnknownGrey{178, 178, 178};
+
+// Where the picture's parts lie, from the summary's "picture:" line.
+struct Layout {
+  bool found = false;
+  std::uint32_t width = 0, height = 0, scale = 0;
+  std::uint32_t slice_x0 = 0, slice_y0 = 0, slice_x1 = 0, slice_y1 = 0;
+  std::uint32_t bar_x0 = 0, bar_y = 0, bar_x1 = 0, bar_y1 = 0;
+};
+
+Layout layoutOf(const std::string& out) {
+  Layout at;
+  const std::size_t line = out.find("picture:");
+  if (line == std::string::npos) return at;
+  at.found = std::sscanf(out.c_str() + line,
+                         "picture: %u x %u pixels, %u per cell; the slice at (%u, %u) to (%u, "
+                         "%u), axes in metres; the colour bar from (%u, %u) to (%u, %u)",
+                         &at.width, &at.height, &at.scale, &at.slice_x0, &at.slice_y0, &at.slice_x1,
+                         &at.slice_y1, &at.bar_x0, &at.bar_y, &at.bar_x1, &at.bar_y1) == 11;
+  return at;
+}
+
+// Pixels brighter than 150 on every channel in the rectangle [x0, x1] x [y0, y1] (text).
+std::size_t lightPixels(const Picture& p, std::uint32_t x0, std::uint32_t y0, std::uint32_t x1,
+                        std::uint32_t y1) {
+  std::size_t n = 0;
+  for (std::uint32_t y = y0; y <= y1 && y < p.height; ++y)
+    for (std::uint32_t x = x0; x <= x1 && x < p.width; ++x) {
+      const Rgb c = p.at(x, y);
+      n += c[0] > 150 && c[1] > 150 && c[2] > 150;
+    }
+  return n;
+}
+
+std::string formatG(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", v);
+  return text;
+}
+
 // Runs `octovk distance` on `map` and checks every cell of the slice (the centre pixel of its
 // square) and the picture's size.
 void expectSlice(const std::string& map, const std::array<double, 6>& box, double z,
@@ -170,7 +213,7 @@ void expectSlice(const std::string& map, const std::array<double, 6>& box, doubl
   for (double v : box) args.push_back(std::to_string(v));
   args.insert(args.end(), {"--z", std::to_string(z), "--max-distance", std::to_string(max_distance),
                            "--cell-pixels", std::to_string(kCell), "-o", png});
-  if (unknown_occupied) args.push_back("--unknown-occupied");
+  args.insert(args.end(), {"--unknown", unknown_occupied ? "occupied" : "free"});
   const RunResult r = runOctovk(args, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("wrote:     " + png), std::string::npos) << r.out;
@@ -181,10 +224,18 @@ void expectSlice(const std::string& map, const std::array<double, 6>& box, doubl
   const ExpectedSlice e = expectedSlice(*tree, box, z, unknown_occupied);
   const Picture p = readPng(png);
   ASSERT_TRUE(p.error.empty()) << p.error;
-  ASSERT_EQ(p.width, e.size[0] * kCell);
-  ASSERT_EQ(p.height, e.size[1] * kCell + 24);  // the gap, the colour bar and its marks
+  // Where the program says the slice and the colour bar lie: the slice's cells, kCell pixels
+  // each, with room around them for the axes and the bar.
+  const Layout at = layoutOf(r.out);
+  ASSERT_TRUE(at.found) << r.out;
+  ASSERT_EQ(p.width, at.width);
+  ASSERT_EQ(p.height, at.height);
+  ASSERT_EQ(at.slice_x1 - at.slice_x0 + 1, std::uint32_t(e.size[0]) * kCell) << r.out;
+  ASSERT_EQ(at.slice_y1 - at.slice_y0 + 1, std::uint32_t(e.size[1]) * kCell) << r.out;
+  ASSERT_GE(at.slice_x0, 40u) << "no room for the y axis's numbers: " << r.out;
+  ASSERT_GE(at.bar_y, at.slice_y1 + 30) << "no room for the x axis's numbers: " << r.out;
   const double resolution = tree->getResolution();
-  std::size_t occupied = 0, unknown = 0, free_cells = 0, capped = 0;
+  std::size_t occupied = 0, unknown_obstacles = 0, unknown = 0, free_cells = 0, capped = 0;
   std::vector<float> distances;
   for (int ky = 0; ky < e.size[1]; ++ky)
     for (int kx = 0; kx < e.size[0]; ++kx) {
@@ -192,7 +243,11 @@ void expectSlice(const std::string& map, const std::array<double, 6>& box, doubl
       Rgb want;
       if (e.squared[i] == 0) {
         want = e.occupied[i] ? Rgb{0, 0, 0} : Rgb{96, 96, 96};
-        ++(e.occupied[i] ? occupied : unknown);
+        ++(e.occupied[i] ? occupied : unknown_obstacles);
+      } else if (e.unknown[i]) {
+        // Space the map never saw has no distance colour: it may hold anything.
+        want = kUnknownGrey;
+        ++unknown;
       } else {
         float d = static_cast<float>(max_distance);
         if (e.squared[i] != std::numeric_limits<std::uint32_t>::max())
@@ -203,8 +258,8 @@ void expectSlice(const std::string& map, const std::array<double, 6>& box, doubl
         distances.push_back(d);
       }
       // y up: the top row of the picture is the box's last row of cells.
-      const std::uint32_t px = std::uint32_t(kx) * kCell + kCell / 2;
-      const std::uint32_t py = std::uint32_t(e.size[1] - 1 - ky) * kCell + kCell / 2;
+      const std::uint32_t px = at.slice_x0 + std::uint32_t(kx) * kCell + kCell / 2;
+      const std::uint32_t py = at.slice_y0 + std::uint32_t(e.size[1] - 1 - ky) * kCell + kCell / 2;
       ASSERT_EQ(show(p.at(px, py)), show(want))
           << "cell (" << kx << ", " << ky << ") of the slice, squared distance " << e.squared[i]
           << (e.occupied[i] ? ", occupied" : "") << (e.unknown[i] ? ", unknown" : "");
@@ -218,15 +273,31 @@ void expectSlice(const std::string& map, const std::array<double, 6>& box, doubl
   std::sort(distances.begin(), distances.end());
   distances.erase(std::unique(distances.begin(), distances.end()), distances.end());
   EXPECT_GT(distances.size(), 5u);
+  // The room's unknown pocket and the space around it: obstacles with --unknown-occupied, else
+  // light grey, and never a distance colour.
   if (unknown_occupied) {
-    EXPECT_GT(unknown, 0u);
-  } else {
+    EXPECT_GT(unknown_obstacles, 0u);
     EXPECT_EQ(unknown, 0u);
+  } else {
+    EXPECT_EQ(unknown_obstacles, 0u);
+    EXPECT_GT(unknown, 0u);
+    EXPECT_NE(r.out.find(std::to_string(unknown) + " unknown (grey"), std::string::npos) << r.out;
   }
-  // The colour bar: 0 m at the left, the maximum at the right.
-  const std::uint32_t bar = e.size[1] * kCell + 4 + 7;
-  EXPECT_EQ(show(p.at(0, bar)), show(distanceColor(0.0)));
-  EXPECT_EQ(show(p.at(p.width - 1, bar)), show(distanceColor(1.0)));
+  for (std::uint32_t t = 0; t <= 20; ++t)
+    EXPECT_NE(show(distanceColor(t / 20.0)), show(kUnknownGrey)) << "unknown looks like a distance";
+  // The colour bar: 0 m at its left end, the maximum at its right.
+  EXPECT_EQ(show(p.at(at.bar_x0, at.bar_y + 7)), show(distanceColor(0.0)));
+  EXPECT_EQ(show(p.at(at.bar_x1, at.bar_y + 7)), show(distanceColor(1.0)));
+  // The numbers: text (light pixels on the dark background) left of the slice (the y axis),
+  // below it (the x axis) and below the bar (its distances).
+  EXPECT_GT(lightPixels(p, 0, at.slice_y0, at.slice_x0 - 8, at.slice_y1), 20u);
+  EXPECT_GT(lightPixels(p, at.slice_x0, at.slice_y1 + 8, at.slice_x1, at.slice_y1 + 22), 20u);
+  EXPECT_GT(lightPixels(p, at.bar_x0, at.bar_y + 21, at.bar_x1, at.bar_y + 35), 20u);
+  // The units the picture and the summary give.
+  EXPECT_NE(r.out.find("axes in metres"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(std::string("the bar below runs 0 to ") + formatG(max_distance) + " m"),
+            std::string::npos)
+      << r.out;
 }
 
 // The room and some unknown space around it; the slice at 0.55 m.
@@ -255,6 +326,19 @@ void expectRefused(const std::vector<std::string>& args, int exit_code, const st
   EXPECT_NE(r.err.find(mention), std::string::npos) << "'" << mention << "' not in: " << r.err;
   EXPECT_FALSE(fs::exists(scratch / "slice.png"));
   EXPECT_TRUE(octovk::test::temporariesIn(scratch.dir()).empty());
+}
+
+// As expectRefused, with several mentions, and never a Vulkan call, a source path or the
+// library's names for what the program calls an option.
+void expectRefusedText(const std::vector<std::string>& args, int exit_code,
+                       const std::vector<std::string>& mentions, const Scratch& scratch) {
+  for (const std::string& m : mentions) expectRefused(args, exit_code, m, scratch);
+  const RunResult r = runOctovk(args, scratch.dir());
+  EXPECT_FALSE(std::regex_search(r.err, std::regex("vk[A-Z]"))) << r.err;
+  EXPECT_EQ(r.err.find("src/"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("MapParams"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("DistanceField"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("split the scan"), std::string::npos) << r.err;
 }
 
 TEST(cliDistance, BadInputIsOneErrorLineAndNoPicture) {
@@ -302,17 +386,70 @@ TEST(cliDistance, BadInputIsOneErrorLineAndNoPicture) {
   EXPECT_NE(capped.err.find("401 x 401 x 101 cells"), std::string::npos) << capped.err;
 }
 
+// Issue 30.5: without --unknown, the cells the map does not know are obstacles (the safe rule);
+// --unknown free asks for the other, and the old flag --unknown-occupied still means the default.
+TEST(cliDistance, UnknownSpaceIsAnObstacleUnlessToldOtherwise) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch("clifield");
+  const std::string m = writeRoomMap(scratch);
+  const auto run = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = {
+        "distance", m,     "--box", "-2.5", "-2", "-0.2",           "2.5",
+        "2",        "1.4", "--z",   "0.55", "-o", scratch / "s.png"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const RunResult r = runOctovk(args, scratch.dir());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.out;
+  };
+  // The counts of the slice's cells (the line without the timings).
+  const auto cells = [](const std::string& out) {
+    const std::size_t at = out.find("cells:");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  const std::string safe = cells(run({}));
+  EXPECT_NE(safe.find("unknown counted as obstacles"), std::string::npos) << safe;
+  EXPECT_EQ(safe.find(" 0 unknown"), std::string::npos) << safe;
+  EXPECT_EQ(cells(run({"--unknown", "occupied"})), safe);
+  EXPECT_EQ(cells(run({"--unknown-occupied"})), safe);
+  const std::string free = cells(run({"--unknown", "free"}));
+  EXPECT_FALSE(free.empty());
+  EXPECT_EQ(free.find("unknown counted as obstacles"), std::string::npos) << free;
+  expectRefusedText({"distance", m, "--box", "0", "0", "0", "1", "1", "1", "--unknown", "maybe",
+                     "-o", scratch / "slice.png"},
+                    2, {"--unknown maybe", "occupied", "free"}, scratch);
+}
+
+// Issue 30.4: a field the device or the cap cannot hold is one line in the user's words (no
+// Vulkan call, no source path), naming the box, the bytes and both options, cap or no cap.
+TEST(cliDistance, OutOfMemorySaysWhatToChange) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  Scratch scratch("clifield");
+  const std::string m = writeRoomMap(scratch);
+  const std::vector<std::string> huge = {
+      "distance",           m, "--box", "-100", "-100", "-10", "100", "100", "10", "-o",
+      scratch / "slice.png"};
+  expectRefusedText(
+      huge, 1, {"2001 x 2001 x 201 cells", "GiB", "Shrink --box", "--max-device-memory"}, scratch);
+  std::vector<std::string> capped = huge;
+  capped.insert(capped.end(), {"--max-device-memory", "100M"});
+  expectRefusedText(
+      capped, 1, {"2001 x 2001 x 201 cells", "Shrink --box", "raise --max-device-memory"}, scratch);
+}
+
 TEST(cliDistance, HelpSaysWhatThePictureShows) {
   Scratch scratch("clifield");
   const RunResult r = runOctovk({"distance", "--help"}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* words :
        {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
-        "--unknown-occupied", "--cell-pixels N", "--max-device-memory", "DynamicEDTOctomap",
-        "black", "dark grey", "red", "blue", "the bar below", "y up", "Exit codes"})
+        "--unknown occupied|free", "--cell-pixels N", "--max-device-memory", "DynamicEDTOctomap",
+        "black", "light grey", "dark grey", "red", "blue", "the bar below", "in metres", "y up",
+        "Exit codes"})
     EXPECT_NE(r.out.find(words), std::string::npos) << words;
   const RunResult top = runOctovk({"--help"}, scratch.dir());
-  EXPECT_NE(top.out.find("octovk distance MAP.bt"), std::string::npos) << top.out;
+  EXPECT_NE(top.out.find("\n  distance   "), std::string::npos) << top.out;
 }
 
 // ---- integrate --changes ----

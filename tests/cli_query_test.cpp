@@ -207,6 +207,33 @@ std::uint32_t bigEndian32(const std::string& bytes, std::size_t at) {
   return ::testing::AssertionSuccess();
 }
 
+// What the legend strip of a picture (the columns from `x0` on) holds: the colours of the
+// height bar (saturated pixels) and the light pixels of its text.
+struct Legend {
+  std::size_t bar_colours = 0, text_pixels = 0;
+};
+
+Legend legendOf(const fs::path& path, std::uint32_t x0) {
+  Legend legend;
+  const std::string bytes = readFile(path);
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_memory(&image, bytes.data(), bytes.size())) return legend;
+  image.format = PNG_FORMAT_RGB;
+  std::vector<std::uint8_t> pixels(PNG_IMAGE_SIZE(image));
+  if (!png_image_finish_read(&image, nullptr, pixels.data(), 0, nullptr)) return legend;
+  std::set<std::uint32_t> colours;
+  for (std::uint32_t y = 0; y < image.height; ++y)
+    for (std::uint32_t x = x0; x < image.width; ++x) {
+      const std::uint8_t* c = &pixels[(std::size_t{y} * image.width + x) * 3];
+      const int lo = std::min({c[0], c[1], c[2]}), hi = std::max({c[0], c[1], c[2]});
+      if (hi - lo > 80) colours.insert(std::uint32_t{c[0]} << 16 | std::uint32_t{c[1]} << 8 | c[2]);
+      legend.text_pixels += lo > 150;
+    }
+  legend.bar_colours = colours.size();
+  return legend;
+}
+
 // A small map made once per test process by `octovk integrate` of the spherical scan at 0.2 m,
 // as .bt and .ot; and one whose beams are all cut by --max-range, so it holds no occupied cell.
 class SmallMaps {
@@ -395,6 +422,21 @@ TEST(cliQueryRender, Geb079DefaultCamera) {
   EXPECT_LT(hits, 400u * 250u) << r.out;
   EXPECT_NE(field(r.out, "camera:").find("--eye"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("wrote:   " + png), std::string::npos) << r.out;
+  // The numbers the picture carries, on stdout too: the heights its colours span and the scale.
+  double z_lo = 0, z_hi = 0, bar_m = 0, bar_px = 0;
+  EXPECT_EQ(std::sscanf(field(r.out, "heights:").c_str(), "%lf to %lf m", &z_lo, &z_hi), 2)
+      << r.out;
+  EXPECT_LT(z_lo, z_hi) << r.out;
+  EXPECT_EQ(std::sscanf(field(r.out, "scale:").c_str(), "%lf m = %lf px", &bar_m, &bar_px), 2)
+      << r.out;
+  EXPECT_GT(bar_m, 0.0) << r.out;
+  EXPECT_GT(bar_px, 10.0) << r.out;
+  // The legend strip on the right: the height colour bar, and text.
+  const Legend legend = legendOf(png, 400 - 140);
+  EXPECT_GT(legend.bar_colours, 40u) << "the colour bar";
+  EXPECT_GT(legend.text_pixels, 200u) << "the legend's numbers";
+  EXPECT_NE(field(r.out, "image:").find("the legend 140 px on the right"), std::string::npos)
+      << r.out;
 }
 
 TEST(cliQueryRender, DefaultSizeIs800x600) {
@@ -427,6 +469,9 @@ TEST(cliQueryRender, ExplicitCameraOnSmallMap) {
   EXPECT_NE(field(r.out, "camera:").find("--eye 0.000 -0.500 12.000 --look-at 0.000 0.000 0.000"),
             std::string::npos)
       << r.out;
+  // Too small for a legend: all view, and the summary says so.
+  EXPECT_NE(field(r.out, "image:").find("no legend"), std::string::npos) << r.out;
+  EXPECT_NE(field(r.out, "heights:").find(" m"), std::string::npos) << r.out;
 }
 
 // ---- bad input: one error line, the right exit code, nothing written ----
@@ -599,7 +644,8 @@ TEST(cliQueryHelp, TopLevelHelpListsTheCommands) {
   Scratch scratch;
   const RunResult r = runOctovk({"--help"}, scratch.dir());
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* word : {"octovk info", "octovk render", "octovk export", "integrate", "devices"})
+  for (const char* word : {"\n  info ", "\n  render ", "\n  export ", "\n  integrate ",
+                           "\n  devices ", "octovk info map.bt", "octovk render map.bt"})
     EXPECT_NE(r.out.find(word), std::string::npos) << "top-level help lacks '" << word << "'";
   const RunResult unknown = runOctovk({"frobnicate"}, scratch.dir());
   EXPECT_EQ(unknown.exit_code, 2);

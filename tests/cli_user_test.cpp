@@ -2,13 +2,16 @@
 // spellings, a map given where a scan graph belongs, an empty graph, and integrate's summary.
 // Small inputs only: each test runs in well under a second on lavapipe.
 #include <gtest/gtest.h>
+#include <octomap/AbstractOcTree.h>
 #include <octomap/OcTree.h>
 #include <octomap/ScanGraph.h>
 
 #include <algorithm>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_support.hpp"
@@ -215,6 +218,46 @@ TEST(cliUser, EditSaysWhatItClearedAndWhichNodesItCounts) {
   ASSERT_EQ(info.exit_code, 0) << info.err;
   const std::string info_nodes = "nodes:           " + std::to_string(written.size());
   EXPECT_NE(info.out.find(info_nodes), std::string::npos) << info.out;
+}
+
+// integrate's counts say what they count: the nodes in memory (graph2tree's "Tree size") and
+// those in each file as 'octovk info' counts them; a .bt is max-likelihood and pruned, so it can
+// hold fewer. Two scans hit the 8 cells of a block, the second only half of them: in memory
+// they differ and stay apart; in the .bt all are occupied and merge.
+TEST(cliUser, IntegrateCountsTheNodesOfEachFile) {
+  Scratch scratch;
+  octomap::ScanGraph graph;
+  for (int s = 0; s < 2; ++s) {
+    auto* cloud = new octomap::Pointcloud();
+    for (int i = 0; i < 8; ++i)
+      if (s == 0 || i % 2 == 0)
+        cloud->push_back(2.05f + 0.1f * float(i & 1), 0.05f + 0.1f * float((i >> 1) & 1),
+                         0.05f + 0.1f * float(i >> 2));
+    graph.addNode(cloud, octomath::Pose6D(0, 0, 0, 0, 0, 0));
+  }
+  const std::string path = scratch / "block.graph";
+  ASSERT_TRUE(graph.writeBinary(path));
+  const std::string bt = scratch / "m.bt", ot = scratch / "m.ot";
+  const RunResult r =
+      runOctovk({"integrate", path, "-r", "0.1", "-o", bt, "-o", ot, "-q"}, scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  octomap::OcTree from_bt(0.1);
+  ASSERT_TRUE(from_bt.readBinary(bt));
+  std::unique_ptr<octomap::AbstractOcTree> from_ot(octomap::AbstractOcTree::read(ot));
+  ASSERT_TRUE(from_ot);
+  EXPECT_LT(from_bt.size(), from_ot->size()) << "the test needs a .bt that prunes further";
+  EXPECT_NE(r.out.find("nodes:         " + std::to_string(from_ot->size()) + " in memory"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find(bt + " " + std::to_string(from_bt.size()) + " (max-likelihood, pruned), " +
+                       ot + " " + std::to_string(from_ot->size()) + ": as 'octovk info' counts"),
+            std::string::npos)
+      << r.out;
+  for (const auto& [file, size] : {std::pair{bt, from_bt.size()}, {ot, from_ot->size()}}) {
+    const RunResult info = runOctovk({"info", file}, scratch.dir());
+    EXPECT_NE(info.out.find("nodes:           " + std::to_string(size) + "\n"), std::string::npos)
+        << info.out;
+  }
 }
 
 }  // namespace

@@ -6,15 +6,19 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <random>
+#include <regex>
 #include <thread>
 
 #include "caller_buffer.hpp"
 #include "octovk/distance.hpp"
 #include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
+#include "vk/fault_injection.hpp"
 
 namespace octovk {
 namespace {
@@ -151,7 +155,8 @@ TEST(DistanceField, OneObstacleEmptyBoxAndObstaclesOnlyOutside) {
   octomap::OcTree empty(0.1);
   {
     OccupancyMap map(ctx, test::withResolution(0.1));
-    DistanceField field(map, {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f});
+    DistanceField field(map, {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f},
+                        {.treat_unknown_as_occupied = false});
     const DistanceField::Grid g = field.download();
     EXPECT_EQ(g.squared_cells, std::vector<std::uint32_t>(g.squared_cells.size(), kNone));
     const auto s = field.distances(std::vector<Eigen::Vector3f>{{0.0f, 0.0f, 0.0f}});
@@ -207,20 +212,24 @@ TEST(DistanceField, ScanGraphMapEqualsBruteForce) {
                          s.T_world_sensor);
   const std::unique_ptr<octomap::OcTree> tree = toOcTree(map);
   const Box box{{-1.5f, -1.5f, -0.8f}, {1.5f, 1.2f, 0.8f}};
-  DistanceField field(map, box.min, box.max);
+  DistanceField field(map, box.min, box.max, {.treat_unknown_as_occupied = false});
   EXPECT_TRUE(sameAsBruteForce(field.download(), bruteForce(*tree, box, false)));
 }
 
 // dynamicEDT3D on the same map and box: counts how many cells agree (squared distances, capped
 // at its maxDist_squared) and checks, for every disagreement, that octovk's value is the brute
 // force's (and so dynamicEDT3D's is not).
-void compareWithDynamicEdt(Context& ctx, octomap::OcTree& tree, const Box& box, bool unknown,
-                           float max_distance, const char* name) {
+// `rule`: the unknown-space rule given to both; none: the field's default, and dynamicEDT3D told
+// to treat unknown cells as occupied (the default must be that, the safe rule).
+void compareWithDynamicEdt(Context& ctx, octomap::OcTree& tree, const Box& box,
+                           std::optional<bool> rule, float max_distance, const char* name) {
   MapParams params = test::withResolution(tree.getResolution());
   OccupancyMap map(ctx, params);
   fromOcTree(map, tree);
-  DistanceField field(map, box.min, box.max,
-                      {.max_distance_m = max_distance, .treat_unknown_as_occupied = unknown});
+  const bool unknown = rule.value_or(true);
+  DistanceFieldOptions options{.max_distance_m = max_distance};
+  if (rule) options.treat_unknown_as_occupied = *rule;
+  DistanceField field(map, box.min, box.max, options);
   const DistanceField::Grid g = field.download();
   const BruteField b = bruteForce(tree, box, unknown);
   ASSERT_TRUE(sameAsBruteForce(g, b));
@@ -274,11 +283,78 @@ TEST(DistanceField, AgainstDynamicEdtOctomap) {
                         "geb079_large");
 }
 
+// Issue 30.5: a field over space the map never saw must not read as clearance. By default unknown
+// cells are obstacles (dynamicEDT3D's treatUnknownAsOccupied = true): the field equals
+// dynamicEDT3D so told, and a cell no sensor saw reads 0; only the explicit rule reads it free.
+TEST(DistanceField, UnknownSpaceIsAnObstacleByDefaultAsDynamicEdtTreatsIt) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  EXPECT_TRUE(DistanceFieldOptions{}.treat_unknown_as_occupied);
+  octomap::OcTree tree = randomTree(0.1, 6, 2);
+  const Box box{{-1.2f, -1.2f, -0.6f}, {1.4f, 1.1f, 0.9f}};
+  compareWithDynamicEdt(ctx, tree, box, std::nullopt, 0.6f, "random6_default");
+  // A cell of the box the map does not know, away from every known one.
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  fromOcTree(map, tree);
+  const Eigen::Vector3f unseen(1.35f, 1.05f, 0.85f);
+  ASSERT_EQ(tree.search(toPoint(unseen)), nullptr) << "the test needs an unknown cell there";
+  DistanceField safe(map, box.min, box.max, {.max_distance_m = 0.6f});
+  DistanceField optimistic(map, box.min, box.max,
+                           {.max_distance_m = 0.6f, .treat_unknown_as_occupied = false});
+  const std::vector<Eigen::Vector3f> at{unseen};
+  EXPECT_EQ(safe.distances(at)[0].distance_m, 0.0f);
+  EXPECT_EQ(safe.distances(at)[0].squared_cells, 0u);
+  EXPECT_GT(optimistic.distances(at)[0].distance_m, 0.0f);
+  DynamicEDTOctomap edt(0.6f, &tree, toPoint(box.min), toPoint(box.max), true);
+  edt.update();
+  EXPECT_EQ(edt.getDistance(toPoint(unseen)), 0.0f);
+}
+
+// Issue 30.5: without a box the field covers the map's bounds (OctoMap's getMetricMin/Max: every
+// leaf's cells) and one cell around them, whose unknown cells bound the distances at the edge.
+TEST(DistanceField, DefaultBoxIsTheMapsBoundsAndOneCellAround) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  octomap::OcTree tree(0.1);
+  std::mt19937 rng(12);
+  const Eigen::Vector3f origin(0.2f, -0.1f, 0.05f);
+  tree.insertPointCloud(test::toPointcloud(test::randomScan(rng, origin, 60, 0.6f)),
+                        toPoint(origin));
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  fromOcTree(map, tree);
+  const DistanceField field(map, {.max_distance_m = 0.5f});
+  double lo[3], hi[3];
+  tree.getMetricMin(lo[0], lo[1], lo[2]);
+  tree.getMetricMax(hi[0], hi[1], hi[2]);
+  Box box;
+  for (int a = 0; a < 3; ++a) {
+    const std::uint32_t first = tree.coordToKey(lo[a] + 0.05) - 1u;
+    const std::uint32_t last = tree.coordToKey(hi[a] - 0.05) + 1u;
+    EXPECT_EQ(field.minKey()[a], first) << "axis " << a;
+    EXPECT_EQ(field.size()[a], last - first + 1u) << "axis " << a;
+    box.min[a] = static_cast<float>(tree.keyToCoord(static_cast<octomap::key_type>(first)));
+    box.max[a] = static_cast<float>(tree.keyToCoord(static_cast<octomap::key_type>(last)));
+  }
+  EXPECT_TRUE(field.options().treat_unknown_as_occupied);
+  const BruteField b = bruteForce(tree, box, true);
+  EXPECT_TRUE(sameAsBruteForce(field.download(), b));
+  // The ring around the bounds is unknown: every cell of the box's faces is an obstacle.
+  EXPECT_EQ(b.occupied.front(), 1);
+  EXPECT_EQ(b.occupied.back(), 1);
+  OccupancyMap empty(ctx, test::withResolution(0.1));
+  try {
+    DistanceField f(empty);
+    ADD_FAILURE() << "a field over the bounds of an empty map was built";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+    EXPECT_NE(std::string(e.what()).find("give a box"), std::string::npos) << e.what();
+  }
+}
+
 TEST(DistanceField, UpdateAfterScansEqualsFromScratch) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   MapParams params = test::withResolution(0.1);
   OccupancyMap map(ctx, params);
-  DistanceField field(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = 0.8f});
+  const DistanceFieldOptions options{.max_distance_m = 0.8f, .treat_unknown_as_occupied = false};
+  DistanceField field(map, kSmallBox.min, kSmallBox.max, options);
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-0.4f, 0.4f);
   for (int s = 0; s < 4; ++s) {
@@ -286,7 +362,7 @@ TEST(DistanceField, UpdateAfterScansEqualsFromScratch) {
     map.insertPointCloud(test::randomScan(rng, origin, 250, 1.5f), origin);
     if (s % 2 == 1) map.submitPointCloud(test::randomScan(rng, origin, 100, 1.2f), origin);
     field.update();  // sees the submitted scan too
-    DistanceField scratch(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = 0.8f});
+    DistanceField scratch(map, kSmallBox.min, kSmallBox.max, options);
     const DistanceField::Grid a = field.download(), b = scratch.download();
     EXPECT_EQ(a.squared_cells, b.squared_cells) << "after scan " << s;
     EXPECT_TRUE(sameAsBruteForce(a, bruteForce(*toOcTree(map), kSmallBox, false)));
@@ -445,7 +521,8 @@ TEST(DistanceField, QueriesAnswerFromTheField) {
   OccupancyMap map(ctx, test::withResolution(0.1));
   fromOcTree(map, tree);
   const float max_d = 0.5f;
-  DistanceField field(map, kSmallBox.min, kSmallBox.max, {.max_distance_m = max_d});
+  DistanceField field(map, kSmallBox.min, kSmallBox.max,
+                      {.max_distance_m = max_d, .treat_unknown_as_occupied = false});
   const DistanceField::Grid g = field.download();
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> u(-1.6f, 1.6f), ur(0.0f, 0.3f);
@@ -610,6 +687,8 @@ TEST(DistanceField, BadInputIsRefusedAndNothingChanges) {
   EXPECT_EQ(map.deviceBytesByUse().distance_fields, 0u);
 }
 
+::testing::AssertionResult inUsersWords(const Error& e, std::vector<std::string> mentions);
+
 TEST(DistanceField, CountsUnderTheMapsCapAndTooLargeIsRefused) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   MapParams params = test::withResolution(0.1);
@@ -625,15 +704,116 @@ TEST(DistanceField, CountsUnderTheMapsCapAndTooLargeIsRefused) {
   }
   EXPECT_EQ(map.deviceBytes(), before);
   try {
-    DistanceField big(map, {0, 0, 0}, {6.0f, 6.0f, 6.0f});  // 61^3 cells, 16 B each: 3.6 MB
+    DistanceField big(map, {0, 0, 0}, {6.0f, 6.0f, 6.0f});  // 61^3 cells, 20 B each: 4.5 MB
     ADD_FAILURE() << "a field beyond the cap was built";
   } catch (const Error& e) {
     EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
-    EXPECT_NE(std::string(e.what()).find("61 x 61 x 61 cells"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("bytes"), std::string::npos) << e.what();
+    EXPECT_TRUE(inUsersWords(e, {"61 x 61 x 61 cells", "needs 4.4 MiB", "Shrink the box",
+                                 "raise MapParams::max_device_bytes"}));
   }
   EXPECT_EQ(map.deviceBytes(), before);
   EXPECT_EQ(map.deviceBytesByUse().distance_fields, 0u);
+}
+
+// Issue 30.4: an out-of-memory names what was asked, what it needs and what to change (the box,
+// the cap), with or without a cap; never a Vulkan call or a source path (those are in detail()).
+::testing::AssertionResult inUsersWords(const Error& e, std::vector<std::string> mentions) {
+  const std::string what = e.what();
+  if (std::regex_search(what, std::regex("vk[A-Z]")) || what.find("src/") != std::string::npos ||
+      what.find(".cpp") != std::string::npos)
+    return ::testing::AssertionFailure() << "a Vulkan call or source path: " << what;
+  if (what.find("split the scan") != std::string::npos)
+    return ::testing::AssertionFailure() << "a scan's advice for a field: " << what;
+  for (const std::string& m : mentions)
+    if (what.find(m) == std::string::npos)
+      return ::testing::AssertionFailure() << "'" << m << "' not in: " << what;
+  return ::testing::AssertionSuccess();
+}
+
+TEST(DistanceField, OutOfDeviceMemorySaysTheBoxTheBytesAndWhatToChange) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  unsetenv("OCTOVK_DEBUG");  // the words a user reads (the test sets it at the end)
+  OccupancyMap map(ctx, test::withResolution(0.1));
+  map.insertPointCloud(std::vector<Eigen::Vector3f>{{0.5f, 0.2f, 0.1f}}, Eigen::Vector3f::Zero());
+  const std::size_t before = map.deviceBytes();
+  // More than the device has: refused before anything is allocated.
+  try {
+    DistanceField huge(map, {-100, -100, -10}, {100, 100, 10});
+    ADD_FAILURE() << "a field of 15 GiB was built";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
+    EXPECT_TRUE(inUsersWords(e, {"2001 x 2001 x 201 cells", "GiB", "the device has",
+                                 "Shrink the box", "MapParams::max_device_bytes is not set"}));
+  }
+  EXPECT_EQ(map.deviceBytes(), before);
+  // Each allocation of a build, of the query buffers and of a download failing as a driver out of
+  // memory does: the user's words, the driver's call in detail(), the map as it was.
+  std::size_t failed = 0;
+  for (std::uint64_t n = 1; n < 64; ++n) {
+    vk::fault::failDeviceAllocation(n);
+    try {
+      DistanceField f(map, {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f});
+      (void)f.distances(std::vector<Eigen::Vector3f>(100, Eigen::Vector3f::Zero()));
+      (void)f.download();
+      const bool ran_whole = vk::fault::deviceAllocations() < n;
+      vk::fault::failDeviceAllocation(0);
+      if (ran_whole) break;
+    } catch (const Error& e) {
+      vk::fault::failDeviceAllocation(0);
+      ++failed;
+      EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
+      EXPECT_NE(e.detail().find("VK_ERROR_OUT_OF_DEVICE_MEMORY"), std::string::npos) << e.detail();
+      const std::string what = e.what();
+      if (what.find("queries") != std::string::npos)
+        EXPECT_TRUE(inUsersWords(e, {"100 queries", "Query fewer points"}));
+      else if (what.find("download") != std::string::npos)
+        EXPECT_TRUE(inUsersWords(e, {"11 x 11 x 11 cells", "distances()", "shrink the box"}));
+      else
+        EXPECT_TRUE(inUsersWords(e, {"11 x 11 x 11 cells", "needs", "could not allocate",
+                                     "Shrink the box", "max_device_bytes"}));
+    }
+    EXPECT_EQ(map.deviceBytes(), before) << "allocation " << n;
+  }
+  EXPECT_GE(failed, 10u);  // every buffer of the build, the four query buffers, the download
+  // A developer who sets OCTOVK_DEBUG gets the driver's call and the source place in what() too.
+  ASSERT_EQ(setenv("OCTOVK_DEBUG", "1", 1), 0);
+  vk::fault::failDeviceAllocation(1);
+  try {
+    DistanceField f(map, {-0.5f, -0.5f, -0.5f}, {0.5f, 0.5f, 0.5f});
+    ADD_FAILURE() << "the first allocation was to fail";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("Shrink the box"), std::string::npos) << what;
+    EXPECT_NE(what.find("VK_ERROR_OUT_OF_DEVICE_MEMORY"), std::string::npos) << what;
+    EXPECT_NE(what.find("buffer.cpp"), std::string::npos) << what;
+    EXPECT_EQ(e.message().find("VK_ERROR"), std::string::npos) << e.message();
+  }
+  vk::fault::failDeviceAllocation(0);
+  unsetenv("OCTOVK_DEBUG");
+}
+
+// A query batch whose buffers the cap has no room for runs in smaller batches (it was refused,
+// with the advice to split "the scan or the query batch").
+TEST(DistanceField, QueriesUnderATightCapRunInSmallerBatches) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const octomap::OcTree tree = randomTree(0.1, 9, 1);
+  MapParams params = test::withResolution(0.1);
+  params.max_device_bytes = MapParams{}.minDeviceBytes() + (std::size_t{1} << 20);
+  OccupancyMap map(ctx, params);
+  fromOcTree(map, tree);
+  DistanceField field(map, kSmallBox.min, kSmallBox.max);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Eigen::Vector3f> points(30000);  // 96 bytes each with staging: 2.7 MiB at once
+  for (auto& p : points) p = Eigen::Vector3f(u(rng), u(rng), u(rng));
+  const std::vector<DistanceSample> all = field.distances(points);
+  ASSERT_EQ(all.size(), points.size());
+  EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+  for (std::size_t i = 0; i < points.size(); i += 997) {
+    const DistanceSample one = field.distances(std::span(&points[i], 1))[0];
+    EXPECT_EQ(one.squared_cells, all[i].squared_cells) << i;
+    EXPECT_EQ(one.distance_m, all[i].distance_m) << i;
+  }
 }
 
 }  // namespace

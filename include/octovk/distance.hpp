@@ -20,9 +20,12 @@ struct DistanceFieldOptions {
   /// Distances are capped here (metres, > 0): farther cells report this distance and no
   /// gradient. The squared distances in cells are exact and not capped.
   float max_distance_m = 2.0f;
-  /// Cells the map does not know count as obstacles (DynamicEDTOctomap's
-  /// treatUnknownAsOccupied); otherwise only occupied cells (isNodeOccupied) do.
-  bool treat_unknown_as_occupied = false;
+  /// The unknown-space rule (DynamicEDTOctomap's treatUnknownAsOccupied, which it has every
+  /// caller choose). true (the default): cells the map does not know count as obstacles, so a
+  /// distance never promises clearance through space no sensor saw; a field over unseen space
+  /// reads 0 (the cell is its own obstacle). false: only occupied cells (isNodeOccupied) are
+  /// obstacles and unknown space reads as free, as far as the nearest occupied cell (capped).
+  bool treat_unknown_as_occupied = true;
 };
 
 /// One answer of DistanceField::distances / clearances.
@@ -48,7 +51,8 @@ struct DistanceSample {
 
 /// An exact Euclidean distance field over an axis-aligned box of an OccupancyMap, at the map's
 /// finest resolution, held on the device. The box is DynamicEDTOctomap's: the cells from the
-/// one holding `box_min` to the one holding `box_max` (OctoMap's coordToKey), both included.
+/// one holding `box_min` to the one holding `box_max` (OctoMap's coordToKey), both included;
+/// by default the map's bounds and one cell around them.
 /// For every cell it holds the squared distance in cells to the nearest occupied cell of the box
 /// (obstacles outside the box do not count, as in dynamicEDT3D) and that cell; pruned leaves
 /// count as each of their finest cells. Exact: the integer minimum over all occupied cells.
@@ -64,9 +68,14 @@ class DistanceField {
   /// Builds the field from scratch on the device. Throws kInvalidArgument for an inverted box,
   /// a NaN corner, a corner outside the map's key range, max_distance_m <= 0 or NaN, or a box
   /// whose lines the device cannot transform in one dispatch (named with the limit);
-  /// kOutOfDeviceMemory when the map's cap leaves no room (naming the bytes it would need).
+  /// kOutOfDeviceMemory when the map's cap (MapParams::max_device_bytes) leaves no room or the
+  /// device cannot allocate it (naming the box, the bytes it needs and what to change).
   DistanceField(OccupancyMap& map, const Eigen::Vector3f& box_min, const Eigen::Vector3f& box_max,
                 const DistanceFieldOptions& options = {});
+  /// The same over the map's bounds: every cell of every leaf the map knows (free or occupied),
+  /// and one cell more on each side, so that with treat_unknown_as_occupied the unknown space
+  /// around the map bounds the distances at its edge. kInvalidArgument for a map with no leaf.
+  explicit DistanceField(OccupancyMap& map, const DistanceFieldOptions& options = {});
   ~DistanceField();
   DistanceField(DistanceField&&) noexcept;
   DistanceField& operator=(DistanceField&&) noexcept;
@@ -86,6 +95,7 @@ class DistanceField {
   void update();
 
   /// The distance at each point (its cell's centre), with the nearest obstacle and gradient.
+  /// Batches whose query buffers the map's cap has no room for run in smaller batches.
   std::vector<DistanceSample> distances(std::span<const Eigen::Vector3f> points) const;
   /// Spheres (centre x, y, z, radius): the clearance distance - radius at each centre's cell,
   /// with the nearest obstacle and gradient. Negative where the sphere reaches an obstacle.

@@ -1,8 +1,12 @@
 // octovk.DistanceField: the exact distance field over a box of a Map (octovk/distance.hpp), with
-// batched queries returning numpy arrays. Every call runs under its Map's lock with the GIL
-// released, as the Map's own calls do; the field keeps its Map alive.
+// batched queries returning numpy arrays, and a differentiable query for torch. Every call runs
+// under its Map's lock with the GIL released, as the Map's own calls do; the field keeps its Map
+// alive.
+#include <pybind11/eval.h>
+
 #include <cstring>
 #include <optional>
+#include <string>
 
 #include "arrays.hpp"
 #include "bindings.hpp"
@@ -80,6 +84,56 @@ constexpr const char* kFieldDoc =
     "that obstacle; zero on an obstacle, where the distance is capped and outside), "
     "squared_cells uint32 (N,) (exact; OUTSIDE_CELLS or NO_OBSTACLE_CELLS).";
 
+// DistanceField.autograd_function(): a torch.autograd.Function whose forward is the field's
+// distance and whose backward is the field's gradient (as nvblox_torch's ESDF query). Python
+// source, run once torch is asked for: the module itself does not import torch.
+constexpr const char* kTorchSource = R"(
+import torch
+
+
+class DistanceFunction(torch.autograd.Function):
+    """Differentiable distance to the nearest obstacle: DistanceFunction.apply(points, field).
+
+    points: a tensor (..., 3) of any float dtype and device; returns the field's distance at each
+    point (metres, the shape of points without its last axis, points' dtype and device). Its
+    gradient with respect to points is the field's gradient: the unit vector from the nearest
+    obstacle's centre to the point's cell centre, zero on an obstacle, where the distance is
+    capped and outside the box (which reads DistanceField.OUTSIDE, -1). The field answers per
+    cell, so the distance is constant within a cell; the gradient is that of the Euclidean
+    distance to the nearest obstacle, which finite differences over whole cells follow.
+    """
+
+    @staticmethod
+    def forward(ctx, points, field):
+        if points.shape[-1:] != (3,):
+            raise ValueError("points must have shape (..., 3), got " + str(tuple(points.shape)))
+        flat = points.detach().reshape(-1, 3).to(device="cpu", dtype=torch.float32).contiguous()
+        distance, _, gradient, _ = field.distances(flat)
+        distance = torch.from_numpy(distance).to(device=points.device, dtype=points.dtype)
+        gradient = torch.from_numpy(gradient).to(device=points.device, dtype=points.dtype)
+        ctx.save_for_backward(gradient.reshape(points.shape))
+        return distance.reshape(points.shape[:-1])
+
+    @staticmethod
+    def backward(ctx, grad_distance):
+        (gradient,) = ctx.saved_tensors
+        return grad_distance.unsqueeze(-1) * gradient, None
+)";
+
+py::object autogradFunction() {
+  // Built once (under the GIL) and never destroyed: a static py::object would be released after
+  // the interpreter is gone, and an attribute would show in the class's members.
+  static py::object* function = nullptr;
+  if (function == nullptr) {
+    py::dict scope;
+    scope["__builtins__"] = py::module_::import("builtins");
+    scope["__name__"] = "octovk";
+    py::exec(kTorchSource, scope);
+    function = new py::object(scope["DistanceFunction"]);
+  }
+  return *function;
+}
+
 }  // namespace
 
 void bindDistance(py::module_& m) {
@@ -87,31 +141,46 @@ void bindDistance(py::module_& m) {
   field.attr("OUTSIDE") = DistanceSample::kOutside;
   field.attr("OUTSIDE_CELLS") = DistanceSample::kOutsideCells;
   field.attr("NO_OBSTACLE_CELLS") = DistanceSample::kNoObstacleCells;
-  field.def(
-      py::init([](py::object map_object, py::handle min, py::handle max, float max_distance,
-                  bool treat_unknown_as_occupied) {
-        Map& map = map_object.cast<Map&>();
-        const Eigen::Vector3f lo = toVector3(min, "min");
-        const Eigen::Vector3f hi = toVector3(max, "max");
-        const DistanceFieldOptions options{.max_distance_m = max_distance,
-                                           .treat_unknown_as_occupied = treat_unknown_as_occupied};
-        std::optional<DistanceField> made;
-        map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, lo, hi, options); });
-        return std::make_unique<Field>(std::move(map_object), map, std::move(*made));
-      }),
-      py::arg("map"), py::arg("min"), py::arg("max"), py::kw_only(), py::arg("max_distance") = 2.0f,
-      py::arg("treat_unknown_as_occupied") = false,
-      "Builds the field over the box of `map` from the cell holding `min` to the cell "
-      "holding `max` (3 numbers each, metres; OctoMap's coordToKey), on the device, after "
-      "every scan submitted to the map. max_distance: metres (> 0) at which distances are "
-      "capped; treat_unknown_as_occupied: cells the map does not know count as obstacles "
-      "(DynamicEDTOctomap's treatUnknownAsOccupied). Raises InvalidArgumentError for an "
-      "inverted box, a NaN corner, a corner outside the map's key range or max_distance "
-      "<= 0, OutOfDeviceMemoryError (naming the bytes) when the map's cap leaves no room.");
+  field.def(py::init([](py::object map_object, py::handle min, py::handle max, float max_distance,
+                        bool treat_unknown_as_occupied) {
+              Map& map = map_object.cast<Map&>();
+              if (min.is_none() != max.is_none())
+                throw Error(ErrorCode::kInvalidArgument,
+                            std::string("DistanceField: ") + (min.is_none() ? "max" : "min") +
+                                " is given without " + (min.is_none() ? "min" : "max") +
+                                "; give both corners of the box, or neither for the map's bounds");
+              const DistanceFieldOptions options{
+                  .max_distance_m = max_distance,
+                  .treat_unknown_as_occupied = treat_unknown_as_occupied};
+              std::optional<DistanceField> made;
+              if (min.is_none()) {
+                map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, options); });
+              } else {
+                const Eigen::Vector3f lo = toVector3(min, "min");
+                const Eigen::Vector3f hi = toVector3(max, "max");
+                map.run([&](OccupancyMap& occupancy) { made.emplace(occupancy, lo, hi, options); });
+              }
+              return std::make_unique<Field>(std::move(map_object), map, std::move(*made));
+            }),
+            py::arg("map"), py::arg("min") = py::none(), py::arg("max") = py::none(), py::kw_only(),
+            py::arg("max_distance") = 2.0f, py::arg("treat_unknown_as_occupied") = true,
+            "Builds the field over the box of `map` from the cell holding `min` to the cell "
+            "holding `max` (3 numbers each, metres; OctoMap's coordToKey), on the device, after "
+            "every scan submitted to the map; without min and max, over the map's bounds (every "
+            "cell of its leaves) and one cell around them. max_distance: metres (> 0) at which "
+            "distances are capped. treat_unknown_as_occupied (DynamicEDTOctomap's "
+            "treatUnknownAsOccupied): True (the default) counts the cells the map does not know as "
+            "obstacles, so no distance promises clearance through space no sensor saw (unseen "
+            "space reads 0); False counts only occupied cells, and unknown space reads as free. "
+            "Raises InvalidArgumentError for an inverted box, a NaN corner, a corner outside the "
+            "map's key range, one corner without the other, an empty map without a box or "
+            "max_distance <= 0; OutOfDeviceMemoryError (naming the box, the bytes and what to "
+            "change) when the map's max_device_bytes or the device leaves no room.");
   field.def(
       "update", [](Field& self) { self.run([](DistanceField& f) { f.update(); }); },
-      "Brings the field up to the map as it is now (every scan submitted before included): the "
-      "whole box is recomputed on the device.");
+      "Brings the field up to the map as it is now (every scan submitted before included), "
+      "equal cell for cell to a field built afresh: on the device, redoing only the lines "
+      "whose obstacles changed (octovk::DistanceField::update).");
   field.def(
       "distances",
       [](Field& self, py::handle points, bool copy) {
@@ -172,9 +241,31 @@ void bindDistance(py::module_& m) {
         return self.run([](DistanceField& f) { return f.options().max_distance_m; });
       },
       "Metres at which distances are capped.");
-  field.def_property_readonly("treat_unknown_as_occupied", [](Field& self) {
-    return self.run([](DistanceField& f) { return f.options().treat_unknown_as_occupied; });
-  });
+  field.def_property_readonly(
+      "treat_unknown_as_occupied",
+      [](Field& self) {
+        return self.run([](DistanceField& f) { return f.options().treat_unknown_as_occupied; });
+      },
+      "Whether unknown cells count as obstacles (the unknown-space rule the field was built "
+      "with).");
+  field.def_static(
+      "autograd_function", &autogradFunction,
+      "The torch.autograd.Function behind torch_distances (imports torch): "
+      "apply(points, field) gives the field's distance at points (..., 3) and, backward, the "
+      "field's gradient.");
+  field.def(
+      "torch_distances",
+      [](Field& self, py::object points) {
+        // The Python object of `self` (its registered instance), for the Function's forward.
+        return autogradFunction().attr("apply")(points,
+                                                py::cast(self, py::return_value_policy::reference));
+      },
+      py::arg("points"),
+      "The distance at points (a torch tensor (..., 3), any float dtype and device), "
+      "differentiable: a tensor of points' dtype and device and shape without the last axis, "
+      "whose gradient with respect to points is the field's gradient (the unit vector from "
+      "the nearest obstacle to the point's cell; zero on an obstacle, where capped and "
+      "outside the box, which reads OUTSIDE). For spheres, subtract the radius in torch.");
   field.def(
       "device_bytes",
       [](Field& self) { return self.run([](DistanceField& f) { return f.deviceBytes(); }); },

@@ -2,6 +2,7 @@
 
 #include <array>
 #include <string>
+#include <utility>
 
 #include "octovk/errors.hpp"
 
@@ -31,7 +32,8 @@ std::array<ErrorClass, 9> errorClasses() {
        "The device (or max_device_bytes) could not hold the map; the map is as before the call "
        "(also a MemoryError)."},
       {ErrorCode::kVulkan, "VULKAN", "VulkanError", nullptr,
-       "An unexpected Vulkan failure; the message names the call and the VkResult."},
+       "An unexpected Vulkan failure, said in words; detail names the driver call and its "
+       "VkResult."},
       {ErrorCode::kIo, "IO", "IoError", PyExc_OSError,
        "A file could not be read or written (also an OSError)."},
       {ErrorCode::kFormat, "FORMAT", "FormatError", nullptr,
@@ -50,6 +52,23 @@ static_assert(static_cast<int>(ErrorCode::kInternal) == 8,
 std::array<PyObject*, 9> g_classes{};
 PyObject* g_code_enum = nullptr;
 
+// The library's message in the module's words: its C++ names of what a Python caller sets or
+// calls (the Map's max_device_bytes argument, Map.trim()).
+std::string inPythonWords(std::string message) {
+  static const std::array<std::pair<const char*, const char*>, 3> kNames{{
+      {"MapParams::max_device_bytes", "the Map's max_device_bytes"},
+      {"OccupancyMap::trim()", "Map.trim()"},
+      {"DistanceField::", "DistanceField."},
+  }};
+  for (const auto& [from, to] : kNames) {
+    const std::string f(from), t(to);
+    for (std::size_t at = message.find(f); at != std::string::npos;
+         at = message.find(f, at + t.size()))
+      message.replace(at, f.size(), t);
+  }
+  return message;
+}
+
 }  // namespace
 
 void bindErrors(py::module_& m) {
@@ -61,9 +80,11 @@ void bindErrors(py::module_& m) {
   PyObject* base = PyErr_NewExceptionWithDoc(
       "octovk.Error",
       "An error of the octovk library. Attributes: code (octovk.ErrorCode), message (the "
-      "library's message: what failed, why and the fix) and scan (for an error found by a "
-      "synchronisation in a scan submitted earlier, that scan's ticket; else 0). Each code has "
-      "its subclass (NoDeviceError, InvalidArgumentError, ...).",
+      "library's message: what failed, why and the fix), scan (for an error found by a "
+      "synchronisation in a scan submitted earlier, that scan's ticket; else 0) and detail "
+      "(for developers: the Vulkan call that failed, its VkResult and the source place, or ''; "
+      "part of the message only when OCTOVK_DEBUG is set). Each code has its subclass "
+      "(NoDeviceError, InvalidArgumentError, ...).",
       PyExc_RuntimeError, nullptr);
   if (!base) throw py::error_already_set();
   m.add_object("Error", py::reinterpret_steal<py::object>(base));
@@ -83,12 +104,14 @@ void bindErrors(py::module_& m) {
     } catch (const Error& e) {
       const auto index = static_cast<std::size_t>(e.code());
       PyObject* cls = index < g_classes.size() ? g_classes[index] : g_classes.back();
+      const std::string message = inPythonWords(e.what());
       py::object error =
-          py::reinterpret_steal<py::object>(PyObject_CallFunction(cls, "s", e.what()));
+          py::reinterpret_steal<py::object>(PyObject_CallFunction(cls, "s", message.c_str()));
       if (!error) return;  // the call set its own Python error
       error.attr("code") = py::handle(g_code_enum)(static_cast<int>(e.code()));
-      error.attr("message") = py::str(e.what());
+      error.attr("message") = py::str(message);
       error.attr("scan") = py::int_(e.scan());
+      error.attr("detail") = py::str(e.detail());
       PyErr_SetObject(cls, error.ptr());
     }
   });

@@ -9,7 +9,7 @@ namespace octovk::python {
 
 /// Defines octovk.ErrorCode, octovk.Error and its subclasses in `m`, and translates each
 /// octovk::Error thrown through the module into the subclass of its code, with `code`,
-/// `message` and `scan` attributes.
+/// `message`, `scan` and `detail` attributes.
 void bindErrors(pybind11::module_& m);
 
 }  // namespace octovk::python

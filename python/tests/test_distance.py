@@ -4,6 +4,7 @@ batched queries (distance, nearest obstacle, gradient, clearance of spheres) cel
 tests (tests/distance_test.cpp) compare the same field with brute force and dynamicEDT3D."""
 
 import gc
+import re
 import weakref
 
 import numpy as np
@@ -83,7 +84,8 @@ def test_every_cell_equals_brute_force(context, unknown_occupied):
 def test_queries_equal_brute_force(context):
     m = make_map()
     max_d = 0.5
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=max_d)
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=max_d,
+                                 treat_unknown_as_occupied=False)
     brute = Brute(m, False)
     _, nearest = field.download()
     nearest = nearest.ravel()
@@ -137,13 +139,15 @@ def test_queries_equal_brute_force(context):
 
 def test_update_after_scans_equals_a_field_from_scratch(context):
     m = make_map(scans=1)
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.8)
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.8,
+                                 treat_unknown_as_occupied=False)
     before, _ = field.download()
     for points, origin in room_scans(seed=9, scans=2, points=400):
         m.submit_point_cloud(points, origin)
     field.update()  # sees the submitted scans
     after, _ = field.download()
-    scratch, _ = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.8).download()
+    scratch, _ = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.8,
+                                      treat_unknown_as_occupied=False).download()
     np.testing.assert_array_equal(after, scratch)
     assert not np.array_equal(before, after)
     np.testing.assert_array_equal(after.ravel(), Brute(m, False).squared)
@@ -170,14 +174,18 @@ def test_bad_input_and_memory(context):
         field.clearances(np.zeros((3, 3), np.float32))
     distance, obstacle, _, squared = field.distances(np.zeros((0, 3), np.float32))
     assert distance.shape == (0,) and obstacle.shape == (0, 3)
-    # An empty map: no obstacle anywhere in the box.
+    # An empty map: all unknown, so every cell is an obstacle by default; with unknown space
+    # free, no obstacle anywhere in the box.
     _, _, _, squared = field.distances(np.full((1, 3), 0.5, np.float32))
+    assert squared[0] == 0
+    free = octovk.DistanceField(m, (0, 0, 0), (1, 1, 1), treat_unknown_as_occupied=False)
+    _, _, _, squared = free.distances(np.full((1, 3), 0.5, np.float32))
     assert squared[0] == octovk.DistanceField.NO_OBSTACLE_CELLS
-    # Too large for the cap: refused, naming the bytes.
-    capped = octovk.Map(RES, max_device_bytes=base + (1 << 20))
-    with pytest.raises(octovk.OutOfDeviceMemoryError, match="bytes"):
-        octovk.DistanceField(capped, (0, 0, 0), (6, 6, 6))
-    del field
+    with pytest.raises(octovk.InvalidArgumentError, match="give a box"):
+        octovk.DistanceField(m)  # an empty map has no bounds
+    with pytest.raises(octovk.InvalidArgumentError, match="min is given without max"):
+        octovk.DistanceField(m, (0, 0, 0))
+    del field, free
     gc.collect()
     assert m.device_bytes().total == base
 
@@ -195,3 +203,128 @@ def test_the_field_keeps_its_map_alive(context):
     del field
     gc.collect()
     assert ref() is None
+
+
+def test_unknown_space_is_an_obstacle_by_default(context):
+    """Issue 30.5: space the map never saw is no clearance unless the caller says so."""
+    m = make_map()
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.7)
+    assert field.treat_unknown_as_occupied
+    squared, _ = field.download()
+    np.testing.assert_array_equal(squared.ravel(), Brute(m, True).squared)
+    brute = Brute(m, False)
+    centres = np.ascontiguousarray(centre_of(brute.min_key + brute.cells))
+    state, _, _ = m.search(centres)
+    unseen = centres[state == int(octovk.CellState.UNKNOWN)]
+    assert len(unseen) > 100, "the test map should leave unknown cells in the box"
+    assert (field.distances(unseen)[0] == 0.0).all()
+    optimistic = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.7,
+                                      treat_unknown_as_occupied=False)
+    assert (optimistic.distances(unseen)[0] > 0.0).any()
+
+
+def test_the_default_box_is_the_maps_bounds_and_one_cell_around(context):
+    m = make_map(scans=1)
+    field = octovk.DistanceField(m, max_distance=0.5)
+    centres, sizes, _ = m.leaves()
+    half = (sizes[:, None].astype(np.float64) - RES) / 2
+    lo = np.floor((centres - half) / RES).astype(np.int64).min(axis=0) + 32768 - 1
+    hi = np.floor((centres + half) / RES).astype(np.int64).max(axis=0) + 32768 + 1
+    assert field.min_key == tuple(int(k) for k in lo)
+    assert field.size == tuple(int(n) for n in hi - lo + 1)
+    # The ring around the bounds is unknown: obstacles by default.
+    squared, _ = field.download()
+    assert (squared[0] == 0).all() and (squared[:, :, -1] == 0).all()
+
+
+def no_internals(message):
+    """An error text in the user's words: no Vulkan call, no source path, no C++ names."""
+    assert not re.search(r"vk[A-Z]", message), message
+    assert "src/" not in message and ".cpp" not in message, message
+    assert "MapParams::" not in message and "split the scan" not in message, message
+
+
+def test_out_of_memory_names_the_box_the_bytes_and_what_to_change(context):
+    """Issue 30.4, with a cap and without one."""
+    m = make_map(scans=1)
+    capped = octovk.Map(RES, max_device_bytes=m.device_bytes().total + (1 << 20))
+    capped.insert_point_cloud(np.float32([[0.5, 0.2, 0.1]]), (0, 0, 0))
+    with pytest.raises(octovk.OutOfDeviceMemoryError) as e:
+        octovk.DistanceField(capped, (0, 0, 0), (6, 6, 6))
+    no_internals(e.value.message)
+    for words in ("61 x 61 x 61 cells", "MiB", "Shrink the box", "raise the Map's max_device_bytes"):
+        assert words in e.value.message, e.value.message
+    assert e.value.detail == ""  # the cap refused it, not the driver
+    with pytest.raises(octovk.OutOfDeviceMemoryError) as e:
+        octovk.DistanceField(m, (-100, -100, -10), (100, 100, 10))
+    no_internals(e.value.message)
+    for words in ("2001 x 2001 x 201 cells", "GiB", "the device has", "Shrink the box",
+                  "max_device_bytes is not set"):
+        assert words in e.value.message, e.value.message
+
+
+# ---- torch: the differentiable distance (issue 30.2) ----
+
+def smooth_cells(field, points):
+    """The points whose distance is uncapped and at least 4 cells, and whose nearest obstacle stays
+    the same one cell away along each axis: where the distance is a smooth function."""
+    distance, obstacle, _, squared = field.distances(points)
+    keep = (squared >= 16) & (squared != octovk.DistanceField.NO_OBSTACLE_CELLS) & (
+        distance < field.max_distance - 2 * RES)
+    for a in range(3):
+        for sign in (-1, 1):
+            moved = points.copy()
+            moved[:, a] += sign * RES
+            _, near, _, _ = field.distances(moved)
+            keep &= (near == obstacle).all(axis=1)
+    return points[keep]
+
+
+def test_torch_distances_are_the_field_and_differentiable(context):
+    import torch  # Debian's python3-torch, as test_arrays.py
+    m = make_map()
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=1.0,
+                                 treat_unknown_as_occupied=False)
+    rng = np.random.default_rng(4)
+    brute = Brute(m, False)
+    points = np.ascontiguousarray(centre_of(brute.min_key + brute.cells))  # every cell's centre
+    distance, _, gradient, _ = field.distances(points)
+
+    # Forward: the field's distance, in the input's dtype; backward: grad_out times the gradient.
+    p = torch.tensor(points, dtype=torch.float64, requires_grad=True)
+    d = field.torch_distances(p)
+    assert d.dtype == torch.float64 and d.shape == (len(points),)
+    np.testing.assert_array_equal(d.detach().numpy(), distance.astype(np.float64))
+    weights = torch.tensor(rng.normal(size=len(points)))
+    (grad,) = torch.autograd.grad(d, p, grad_outputs=weights)
+    np.testing.assert_allclose(grad.numpy(), weights.numpy()[:, None] * gradient, rtol=1e-6)
+    # The same class through autograd_function(), with points of shape (..., 3).
+    fn = octovk.DistanceField.autograd_function()
+    assert issubclass(fn, torch.autograd.Function)
+    p2 = torch.tensor(points[:12].reshape(3, 4, 3), requires_grad=True)
+    d2 = fn.apply(p2, field)
+    assert d2.shape == (3, 4) and d2.dtype == torch.float32
+    d2.sum().backward()
+    np.testing.assert_array_equal(p2.grad.reshape(12, 3).numpy(), gradient[:12])
+
+    # Finite differences over one cell where the field is smooth (gradcheck's idea; the field
+    # is constant within a cell, so the step is a whole cell): the central difference of the
+    # distance follows the gradient.
+    smooth = smooth_cells(field, points)
+    assert len(smooth) > 50, "too few smooth cells to check"
+    _, _, g, _ = field.distances(smooth)
+    for a in range(3):
+        step = np.zeros(3, np.float32)
+        step[a] = RES
+        ahead = field.torch_distances(torch.from_numpy(smooth + step))
+        behind = field.torch_distances(torch.from_numpy(smooth - step))
+        central = ((ahead - behind) / (2 * RES)).numpy()
+        np.testing.assert_allclose(central, g[:, a], atol=0.05)
+
+    # Through a chain: moving the points along the gradient raises their distance.
+    shift = torch.zeros(3, requires_grad=True)
+    loss = field.torch_distances(torch.from_numpy(smooth) + shift).sum()
+    loss.backward()
+    np.testing.assert_allclose(shift.grad.numpy(), g.sum(axis=0, dtype=np.float64), atol=1e-4)
+    with pytest.raises(ValueError, match=r"\(\.\.\., 3\)"):
+        field.torch_distances(torch.zeros(4, 2))

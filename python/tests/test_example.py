@@ -1,6 +1,6 @@
 """The example python/examples/tum_integrate.py on a synthetic TUM RGB-D folder: its .bt equals
-`octovk integrate DIR` byte for byte, its picture is a PNG, and read_depth_png reads back the
-16-bit PNGs it and the folder use exactly."""
+`octovk integrate DIR` byte for byte, its picture is a PNG that carries its numbers, and
+read_depth_png reads back the 16-bit PNGs it and the folder use exactly."""
 
 import os
 import subprocess
@@ -52,5 +52,17 @@ def test_example_writes_what_octovk_integrate_writes(context, tmp_path):
     assert "4 images with a pose" in out and "wrote" in out
     run([tool("OCTOVK_CLI"), "integrate", str(folder), "-o", str(tmp_path / "cli.bt"), *options])
     assert (tmp_path / "example.bt").read_bytes() == (tmp_path / "cli.bt").read_bytes()
-    picture = (tmp_path / "top.png").read_bytes()
-    assert picture.startswith(b"\x89PNG\r\n\x1a\n") and len(picture) > 100
+    # The picture is large enough to read (it was 63x63 px of grey) and carries its numbers: the
+    # size and heights it reports, axes and a colour bar drawn beside the view.
+    import cairo
+    picture = cairo.ImageSurface.create_from_png(str(tmp_path / "top.png"))
+    width, height = picture.get_width(), picture.get_height()
+    assert width >= 500 and height >= 300, (width, height)
+    assert f"{width}x{height} px" in out and "heights" in out and " m" in out
+    pixels = np.ndarray((height, picture.get_stride() // 4), np.uint32, picture.get_data())
+    rgb = np.stack([(pixels >> s) & 0xFF for s in (16, 8, 0)], axis=-1)[:, :width]
+    light = (rgb > 200).all(axis=-1)
+    assert light[:, :60].sum() > 50, "no y axis numbers"
+    assert light[-80:, :].sum() > 100, "no x axis numbers or scale bar"
+    saturated = rgb.max(axis=-1).astype(int) - rgb.min(axis=-1) > 80
+    assert len(np.unique(rgb[:, -150:][saturated[:, -150:]], axis=0)) > 30, "no colour bar"

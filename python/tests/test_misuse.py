@@ -68,6 +68,7 @@ ARGUMENTS = {
     "enable_change_detection": (True,),
     "distances": ("P",),
     "clearances": ("S",),
+    "torch_distances": ("P",),
     "transform": ((1, 2, 3),),
     "__eq__": ("E",),  # an enum compares only with its own type
     "__ne__": ("E",),
@@ -166,3 +167,30 @@ def test_uninitialised_objects_raise_instead_of_crashing(context):
         f"exit {done.returncode}; last call: {done.stdout.strip().splitlines()[-1:]}\n"
         f"{done.stderr[-3000:]}")
     assert done.stdout.strip().splitlines()[-1] == f"checked {expected}", done.stdout[-2000:]
+
+
+def test_out_of_memory_is_said_in_the_users_words(context):
+    """Issue 30.4: a scan, a query batch and a distance field over the Map's max_device_bytes
+    each say what needs the memory and what to change, in the module's words: no Vulkan call, no
+    source path, no C++ name; the driver's detail, if any, is in Error.detail."""
+    import re
+
+    def users_words(error, *mentions):
+        message = error.message
+        assert str(error) == message
+        assert not re.search(r"vk[A-Z]", message), message
+        assert "src/" not in message and ".cpp" not in message, message
+        assert "MapParams::" not in message and "OccupancyMap::" not in message, message
+        for words in mentions:
+            assert words in message, message
+
+    m = octovk.Map(0.05, max_device_bytes=3 << 20)
+    d = np.random.default_rng(0).normal(size=(4000, 3)).astype(np.float32)
+    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True) * np.float32(8))
+    with pytest.raises(octovk.OutOfDeviceMemoryError) as e:
+        m.insert_point_cloud(d, (0, 0, 0))
+    users_words(e.value, "the Map's max_device_bytes", "split the scan")
+    m.insert_point_cloud(np.float32([[0.5, 0.2, 0.1]]), (0, 0, 0))
+    with pytest.raises(octovk.OutOfDeviceMemoryError) as e:
+        octovk.DistanceField(m, (-2, -2, -2), (2, 2, 2))
+    users_words(e.value, "81 x 81 x 81 cells", "Shrink the box", "the Map's max_device_bytes")

@@ -117,6 +117,16 @@ std::vector<double> parseNumbers(const ParsedOption& option, const std::string& 
   return out;
 }
 
+std::array<double, 6> parseBox(const ParsedOption& option, const std::string& example) {
+  const std::vector<double> v = parseNumbers(option, example);
+  for (int a = 0; a < 3; ++a)
+    if (v[a] > v[a + 3])
+      throw UsageError(option.name + ": the minimum " + std::string(1, "xyz"[a]) + " (" +
+                       option.values[a] + ") is above the maximum (" + option.values[a + 3] +
+                       "); write " + option.name + " XMIN YMIN ZMIN XMAX YMAX ZMAX");
+  return {v[0], v[1], v[2], v[3], v[4], v[5]};
+}
+
 bool wantsHelp(const std::vector<std::string>& args) {
   for (const std::string& arg : args) {
     if (arg == "--") return false;

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -74,6 +75,10 @@ double parseNumber(const ParsedOption& option, const std::string& example);
 
 /// Every value of a multi-value option as a finite double (see parseNumber).
 std::vector<double> parseNumbers(const ParsedOption& option, const std::string& example);
+
+/// A box option's six values XMIN YMIN ZMIN XMAX YMAX ZMAX (--box, --clear-box), each a finite
+/// number and min <= max on every axis (a UsageError naming the option otherwise).
+std::array<double, 6> parseBox(const ParsedOption& option, const std::string& example);
 
 /// True when `args` asks for help (-h / --help before any "--").
 bool wantsHelp(const std::vector<std::string>& args);
@@ -187,8 +192,8 @@ void checkTumFolder(const std::string& dir, const std::string& usage);
 /// The help text of DIR and of the camera options (for integrate and convert).
 void printTumFolderHelp(std::ostream& out);
 void printCameraOptionsHelp(std::ostream& out);
-/// The summary line of a sequence: images listed, used, skipped for want of a pose.
-std::string tumImagesSummary(const TumSequence& sequence);
+/// The summary's words on a sequence: images listed, used, skipped for want of a pose.
+std::string tumImagesText(const TumSequence& sequence);
 
 // ---- the device-memory cap, for the commands that build a map (device_memory.cpp) ----
 
@@ -206,19 +211,17 @@ Error withOptionNames(const Error& e);
 /// The help lines of --max-device-memory; `what_fails` begins the sentence on its error ("A scan").
 void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails);
 
-/// OctoMap's keyToCoord at the finest depth along one axis: the centre of the cells with `key`
-/// ((key - 32768 + 0.5) * resolution in double, then float, as OctoMap's point3d).
-inline float keyCentre(std::uint32_t key, double resolution) {
-  return static_cast<float>((static_cast<double>(key) - 32768.0 + 0.5) * resolution);
-}
-
-/// A box corner clamped into the map's domain (keys 0 … 65535, centred on 0: each coordinate
-/// within 32767.5 resolutions of the origin), so that a box larger than the map means all of it
-/// rather than nothing (OctoMap's leaf_bbx_iterator visits nothing for a corner outside it).
+/// A box corner clamped into the map's domain (the centres of the cells with keys 0 and 65535,
+/// keyToCoord), so that a box larger than the map means all of it rather than nothing
+/// (OctoMap's leaf_bbx_iterator visits nothing for a corner outside it).
 inline Eigen::Vector3f clampToDomain(double x, double y, double z, double resolution) {
-  const double limit = 32767.5 * resolution;  // the centre of the outermost cell
-  const auto c = [limit](double v) { return static_cast<float>(std::clamp(v, -limit, limit)); };
-  return {c(x), c(y), c(z)};
+  const Eigen::Vector3f lo = keyToCoord(resolution, Key{0, 0, 0});
+  const Eigen::Vector3f hi = keyToCoord(resolution, Key{65535, 65535, 65535});
+  const Eigen::Vector3d p(x, y, z);
+  Eigen::Vector3f clamped;
+  for (int a = 0; a < 3; ++a)
+    clamped[a] = static_cast<float>(std::clamp(p[a], double{lo[a]}, double{hi[a]}));
+  return clamped;
 }
 
 /// The log-odds at and above which a node is occupied (OctoMap's occ_prob_thres_log, in float).

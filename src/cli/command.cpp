@@ -135,6 +135,12 @@ std::size_t Invocation::addOptionOutput(const std::string& path) {
   return outputs_.size() + option_outputs_.size() - 1;
 }
 
+void Invocation::checkMapCommand(const std::string& usage) const {
+  checkMapInput(input_, usage);
+  checkDeviceMemoryCap();
+  if (command_.outputs != Subcommand::Outputs::kNone) checkOutputs();
+}
+
 void Invocation::checkDeviceMemoryCap() const {
   MapParams cap;  // only its max_device_bytes: the rest comes from the map file
   cap.max_device_bytes = max_device_bytes_;

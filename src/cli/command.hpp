@@ -10,6 +10,7 @@
 #include <iosfwd>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -41,6 +42,10 @@ class Invocation {
   /// Command::check: created, checked against the inputs and the other outputs, and committed
   /// with the -o outputs, all or nothing. Its index in files() is returned (after the -o ones).
   std::size_t addOptionOutput(const std::string& path);
+  /// The checks of a command that reads a map file: the map (checkMapInput, with the command's
+  /// `usage` line), --max-device-memory (checkDeviceMemoryCap) and the outputs (checkOutputs),
+  /// if it writes any.
+  void checkMapCommand(const std::string& usage) const;
   /// Refuses (UsageError) a --max-device-memory below what an empty map holds (default
   /// MapParams: for the commands that read a map, whose parameters come from the file).
   void checkDeviceMemoryCap() const;
@@ -83,6 +88,8 @@ struct Subcommand {
   enum class Outputs { kNone, kOne, kMany };
 
   const char* name;                       ///< "render"
+  /// What it does, in one line of the program's help ("a PNG picture of a map's occupied cells").
+  const char* summary = "";
   void (*print_help)(std::ostream& out);  ///< its help, without the environment and exit codes
   /// What its one positional argument is, for the error on a second one ("map file"), and what
   /// that error adds after it ("; the picture goes after -o"). nullptr: the command takes no
@@ -119,14 +126,28 @@ void printSubcommandHelp(const Subcommand& command, std::ostream& out);
 /// The line that points to 'octovk help environment' (printEnvironmentAndExitCodes).
 void printEnvironmentPointer(std::ostream& out);
 
-/// The commands (each defined in its own file).
-extern const Subcommand kIntegrateCommand;
-extern const Subcommand kConvertCommand;
-extern const Subcommand kInfoCommand;
-extern const Subcommand kRenderCommand;
-extern const Subcommand kExportCommand;
-extern const Subcommand kEditCommand;
-extern const Subcommand kDistanceCommand;
-extern const Subcommand kDevicesCommand;
+/// Each command's help (without the environment and exit codes) and a fresh Command for one run,
+/// defined in the command's own file (render.cpp: printRenderHelp, makeRender).
+void printIntegrateHelp(std::ostream& out);
+void printConvertHelp(std::ostream& out);
+void printInfoHelp(std::ostream& out);
+void printRenderHelp(std::ostream& out);
+void printExportHelp(std::ostream& out);
+void printEditHelp(std::ostream& out);
+void printDistanceHelp(std::ostream& out);
+void printDevicesHelp(std::ostream& out);
+std::unique_ptr<Command> makeIntegrate();
+std::unique_ptr<Command> makeConvert();
+std::unique_ptr<Command> makeInfo();
+std::unique_ptr<Command> makeRender();
+std::unique_ptr<Command> makeExport();
+std::unique_ptr<Command> makeEdit();
+std::unique_ptr<Command> makeDistance();
+std::unique_ptr<Command> makeDevices();
+/// integrate's options that take one value (integrate.cpp).
+std::vector<std::string> integrateValueOptions();
+
+/// The program's commands, in the order the help and the errors list them (commands.cpp).
+std::span<const Subcommand> subcommands();
 
 }  // namespace octovk::cli

@@ -18,6 +18,7 @@
 #include "command.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/tum_sequence.hpp"
+#include "report.hpp"
 
 namespace octovk::cli {
 
@@ -112,12 +113,12 @@ void printCameraOptionsHelp(std::ostream& out) {
          "      --depth-scale S    depth units per metre in DIR's images (default: 5000)\n";
 }
 
-std::string tumImagesSummary(const TumSequence& sequence) {
-  std::ostringstream s;
-  s << "images:        " << sequence.frames.size() << " used of " << sequence.images_listed
-    << " in depth.txt (" << sequence.skipped_no_pose << " skipped: no ground-truth pose less than "
-    << kTumMaxTimeDifference << " s away)\n";
-  return s.str();
+std::string tumImagesText(const TumSequence& sequence) {
+  return format(
+      "%zu used of %zu in depth.txt (%zu skipped: no ground-truth pose less than %g s "
+      "away)",
+      sequence.frames.size(), sequence.images_listed, sequence.skipped_no_pose,
+      kTumMaxTimeDifference);
 }
 
 // ---- octovk convert ----
@@ -125,6 +126,8 @@ std::string tumImagesSummary(const TumSequence& sequence) {
 namespace {
 
 constexpr const char* kConvertUsage = "octovk convert DIR -o SCANS.graph";
+
+}  // namespace
 
 void printConvertHelp(std::ostream& out) {
   out << kConvertUsage
@@ -150,6 +153,8 @@ void printConvertHelp(std::ostream& out) {
          "Output: a summary on stdout (images used and skipped, points, pixels without depth,\n"
          "the file written).\n";
 }
+
+namespace {
 
 class Convert final : public Command {
  public:
@@ -221,31 +226,16 @@ int Convert::run(Invocation& in) {
   });
   in.files().commit();
 
-  std::ostringstream s;
-  s << tumImagesSummary(sequence) << "points:        " << points << " (camera frame; " << no_depth
-    << " pixels without depth skipped)\n"
-    << "wrote:         " << in.output() << "\n";
-  std::cout << s.str() << std::flush;
-  return kExitOk;
+  return Report(15)
+      .line("images", tumImagesText(sequence))
+      .line("points",
+            format("%zu (camera frame; %zu pixels without depth skipped)", points, no_depth))
+      .wrote(in.output())
+      .print();
 }
 
 }  // namespace
 
-const Subcommand kConvertCommand{
-    .name = "convert",
-    .print_help = printConvertHelp,
-    .input = "folder",
-    .second_input_hint = "; the output goes after -o",
-    .outputs = Subcommand::Outputs::kOne,
-    .writes = "one scan graph",
-    .no_output = "no output file; add -o SCANS.graph",
-    .output_extensions = {".graph"},
-    .output_formats = ".graph (an OctoMap scan graph)",
-    .value_options = cameraValueOptions(),
-    .multi_value_options = cameraMultiValueOptions(),
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Convert>(); },
-    .examples =
-        "  octovk convert rgbd_dataset_freiburg1_xyz -o scans.graph\n"
-        "  octovk convert DIR -o scans.graph --intrinsics 517.3 516.5 318.6 255.3\n"};
+std::unique_ptr<Command> makeConvert() { return std::make_unique<Convert>(); }
 
 }  // namespace octovk::cli

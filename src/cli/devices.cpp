@@ -7,14 +7,14 @@
 
 namespace octovk::cli {
 
-namespace {
-
 void printDevicesHelp(std::ostream& out) {
   out << "octovk devices\n"
          "\n"
          "Lists the Vulkan devices (index, name, type, device-local memory, ray tracing) and the\n"
          "one octovk would use now, which OCTOVK_DEVICE changes, with castRay's backend there.\n";
 }
+
+namespace {
 
 class Devices final : public Command {
  public:
@@ -47,12 +47,6 @@ class Devices final : public Command {
 
 }  // namespace
 
-const Subcommand kDevicesCommand{
-    .name = "devices",
-    .print_help = printDevicesHelp,
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Devices>(); },
-    .examples =
-        "  octovk devices\n"
-        "  OCTOVK_DEVICE=1 octovk devices\n"};
+std::unique_ptr<Command> makeDevices() { return std::make_unique<Devices>(); }
 
 }  // namespace octovk::cli

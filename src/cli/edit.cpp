@@ -5,14 +5,13 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <sstream>
 #include <vector>
 
 #include "command.hpp"
 #include "octovk/octovk.hpp"
+#include "report.hpp"
 
 namespace octovk::cli {
 
@@ -21,6 +20,8 @@ namespace {
 constexpr const char* kEditUsage =
     "octovk edit MAP.bt|MAP.ot --clear-box|--keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX [...] "
     "-o OUT.bt|OUT.ot [--max-device-memory BYTES]";
+
+}  // namespace
 
 void printEditHelp(std::ostream& out) {
   out << "octovk edit MAP.bt|MAP.ot --clear-box|--keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX [...]\n"
@@ -60,18 +61,14 @@ void printEditHelp(std::ostream& out) {
          "fewer: the count 'octovk info' shows), the time taken and the file written.\n";
 }
 
+namespace {
+
 class Edit final : public Command {
  public:
   bool option(const ParsedOption& opt) override {
     const bool keep = opt.name == "--keep-box";
     if (!keep && opt.name != "--clear-box") return false;
-    const std::vector<double> v = parseNumbers(opt, "-1 -1 0 1 1 2");
-    for (int a = 0; a < 3; ++a)
-      if (v[a] > v[a + 3])
-        throw UsageError(opt.name + ": the minimum " + std::string(1, "xyz"[a]) + " (" +
-                         opt.values[a] + ") is above the maximum (" + opt.values[a + 3] +
-                         "); write " + opt.name + " XMIN YMIN ZMIN XMAX YMAX ZMAX");
-    edits_.push_back({keep, {v[0], v[1], v[2], v[3], v[4], v[5]}, {}, false});
+    edits_.push_back({keep, parseBox(opt, "-1 -1 0 1 1 2"), {}, false});
     return true;
   }
 
@@ -85,83 +82,35 @@ class Edit final : public Command {
   }
 
   int run(Invocation& in) override {
-    Context& context = in.context();
-    const auto start = Clock::now();
-    OccupancyMap map = loadMap(context, in.input(), in.maxDeviceBytes());
-    const double read_s = secondsSince(start);
+    Steps steps;
+    OccupancyMap map = steps.run("reading and upload", [&] {
+      return loadMap(in.context(), in.input(), in.maxDeviceBytes());
+    });
     const std::size_t nodes_before = map.nodeCount();
-    const double resolution = map.params().resolution;
-    const auto edit_start = Clock::now();
-    for (BoxEdit& e : edits_) {
-      // Clamped as export --box is: OctoMap's iterator visits nothing for a corner outside the
-      // key range, which would silently delete the whole map for a generous --keep-box.
-      const Eigen::Vector3f lo = clampToDomain(e.box[0], e.box[1], e.box[2], resolution);
-      const Eigen::Vector3f hi = clampToDomain(e.box[3], e.box[4], e.box[5], resolution);
-      for (int a = 0; a < 3; ++a) {
-        e.used[a] = lo[a];
-        e.used[a + 3] = hi[a];
-        if (static_cast<float>(e.box[a]) != lo[a] || static_cast<float>(e.box[a + 3]) != hi[a])
-          e.clamped = true;
-      }
-      if (e.keep)
-        map.keepBox(lo, hi);
-      else {
-        // Counted before: clearing keeps every leaf it visits, so afterwards none reads occupied.
-        const std::vector<OccupancyMap::LeafBoxHost> leaves = map.leavesInBox(lo, hi);
-        const float occupied = occupancyLogOdds(map.params());
-        e.leaves = leaves.size();
-        e.occupied = static_cast<std::size_t>(std::count_if(
-            leaves.begin(), leaves.end(),
-            [&](const OccupancyMap::LeafBoxHost& c) { return c.log_odds >= occupied; }));
-        map.clearBox(lo, hi);
-      }
-    }
-    const double edit_s = secondsSince(edit_start);
+    steps.run("editing", [&] { applyEdits(map); });
     const std::size_t nodes_after = map.nodeCount();
-    const auto write_start = Clock::now();
-    std::size_t nodes_written = 0;
-    {
+    const std::size_t nodes_written = steps.run("writing", [&] {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-      in.files().write(
-          0, [&](const std::string& temporary) { nodes_written = writeMap(map, temporary); });
+      std::size_t written = 0;
+      in.files().write(0,
+                       [&](const std::string& temporary) { written = writeMap(map, temporary); });
       in.files().commit();
-    }
-    const double write_s = secondsSince(write_start);
-    std::ostringstream s;
-    s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
-    s << "map:     " << in.input() << "\n";
-    for (const BoxEdit& e : edits_) {
-      char line[512];
-      std::snprintf(line, sizeof(line), "%s min (%g, %g, %g) max (%g, %g, %g) m",
-                    e.keep ? "kept:   " : "cleared:", e.used[0], e.used[1], e.used[2], e.used[3],
-                    e.used[4], e.used[5]);
-      s << line;
-      if (e.clamped) {
-        std::snprintf(line, sizeof(line),
-                      " (the box given, min (%g, %g, %g) max (%g, %g, %g), clamped to the "
-                      "map's domain at resolution %g)",
-                      e.box[0], e.box[1], e.box[2], e.box[3], e.box[4], e.box[5], resolution);
-        s << line;
-      }
-      if (!e.keep)
-        s << ": " << e.leaves << " leaves set free (" << e.occupied << " of them were occupied)";
-      s << "\n";
-    }
+      return written;
+    });
+
+    Report report(9);
+    report.device(in.context()).line("map", in.input());
+    for (const BoxEdit& e : edits_) report.line(e.keep ? "kept" : "cleared", editText(e, map));
     // Edits do not prune the map in memory; a .bt is written pruned, so 'octovk info' counts
     // fewer nodes than the map held.
     const bool pruned = std::filesystem::path(in.output()).extension() == ".bt";
-    s << "nodes:   " << nodes_before << " before, " << nodes_after << " after, in memory; "
-      << nodes_written << " in " << in.output()
-      << (pruned ? " (max-likelihood, pruned: as 'octovk info' counts)"
-                 : " (as 'octovk info' counts)")
-      << "\n";
-    char line[256];
-    std::snprintf(line, sizeof(line),
-                  "time:    %.3f s (reading and upload %.3f s, editing %.3f s, writing %.3f s)\n",
-                  read_s + edit_s + write_s, read_s, edit_s, write_s);
-    s << line << "wrote:   " << in.output() << "\n";
-    std::cout << s.str() << std::flush;
-    return kExitOk;
+    return report
+        .line("nodes", std::to_string(nodes_before) + " before, " + std::to_string(nodes_after) +
+                           " after, in memory; " + std::to_string(nodes_written) + " in " +
+                           in.output() +
+                           (pruned ? " (max-likelihood, pruned: as 'octovk info' counts)"
+                                   : " (as 'octovk info' counts)"))
+        .finish(steps, in.outputs());
   }
 
  private:
@@ -174,26 +123,53 @@ class Edit final : public Command {
     std::size_t occupied = 0;  // of them, those that were occupied
   };
   std::vector<BoxEdit> edits_;
+
+  // Applies the edits in order, each box clamped to the map's domain (noted in its BoxEdit).
+  void applyEdits(OccupancyMap& map) {
+    const double resolution = map.params().resolution;
+    for (BoxEdit& e : edits_) {
+      // Clamped as export --box is: OctoMap's iterator visits nothing for a corner outside the
+      // key range, which would silently delete the whole map for a generous --keep-box.
+      const Eigen::Vector3f lo = clampToDomain(e.box[0], e.box[1], e.box[2], resolution);
+      const Eigen::Vector3f hi = clampToDomain(e.box[3], e.box[4], e.box[5], resolution);
+      for (int a = 0; a < 3; ++a) {
+        e.used[a] = lo[a];
+        e.used[a + 3] = hi[a];
+        if (static_cast<float>(e.box[a]) != lo[a] || static_cast<float>(e.box[a + 3]) != hi[a])
+          e.clamped = true;
+      }
+      if (e.keep) {
+        map.keepBox(lo, hi);
+        continue;
+      }
+      // Counted before: clearing keeps every leaf it visits, so afterwards none reads occupied.
+      const std::vector<OccupancyMap::LeafBoxHost> leaves = map.leavesInBox(lo, hi);
+      const float occupied = occupancyLogOdds(map.params());
+      e.leaves = leaves.size();
+      e.occupied = static_cast<std::size_t>(std::count_if(
+          leaves.begin(), leaves.end(),
+          [&](const OccupancyMap::LeafBoxHost& c) { return c.log_odds >= occupied; }));
+      map.clearBox(lo, hi);
+    }
+  }
+
+  // The report's words on one edit: the box used, the box given where it was clamped, and for
+  // --clear-box the leaves it set free.
+  static std::string editText(const BoxEdit& e, const OccupancyMap& map) {
+    std::string text = boxText(e.used) + " m";
+    if (e.clamped)
+      text += " (the box given, " + boxText(e.box) +
+              ", clamped to the map's domain at resolution " +
+              format("%g", map.params().resolution) + ")";
+    if (!e.keep)
+      text += ": " + std::to_string(e.leaves) + " leaves set free (" + std::to_string(e.occupied) +
+              " of them were occupied)";
+    return text;
+  }
 };
 
 }  // namespace
 
-const Subcommand kEditCommand{
-    .name = "edit",
-    .print_help = printEditHelp,
-    .input = "map file",
-    .second_input_hint = "; the edited map goes after -o",
-    .outputs = Subcommand::Outputs::kOne,
-    .writes = "one map",
-    .no_output = "no output file; add -o OUT.bt or -o OUT.ot",
-    .output_extensions = {".bt", ".ot"},
-    .output_formats = ".bt or .ot (OctoMap map)",
-    .max_device_memory = true,
-    .multi_value_options = {{"--clear-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"},
-                            {"--keep-box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Edit>(); },
-    .examples =
-        "  octovk edit map.bt --clear-box 0 0 0 1 1 2 -o cleared.bt\n"
-        "  octovk edit map.bt --keep-box -5 -5 -1 5 5 3 -o window.bt\n"};
+std::unique_ptr<Command> makeEdit() { return std::make_unique<Edit>(); }
 
 }  // namespace octovk::cli

@@ -3,7 +3,6 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
-#include <cstdio>
 #include <iostream>
 #include <limits>
 #include <optional>
@@ -13,6 +12,7 @@
 #include "octovk/octovk.hpp"
 #include "ply.hpp"
 #include "png.hpp"
+#include "report.hpp"
 
 namespace octovk::cli {
 
@@ -47,6 +47,8 @@ void writePly(const std::string& path, const std::vector<OccupancyMap::LeafBoxHo
                 });
 }
 
+}  // namespace
+
 void printExportHelp(std::ostream& out) {
   out << "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only]\n"
          "              [--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy]\n"
@@ -80,19 +82,15 @@ void printExportHelp(std::ostream& out) {
          "time taken and the file written.\n";
 }
 
+namespace {
+
 class Export final : public Command {
  public:
   bool option(const ParsedOption& opt) override {
     if (opt.name == "--occupied-only") {
       occupied_only_ = true;
     } else if (opt.name == "--box") {
-      const std::vector<double> v = parseNumbers(opt, "-5 -5 0 5 5 2");
-      for (int a = 0; a < 3; ++a)
-        if (v[a] > v[a + 3])
-          throw UsageError("--box: the minimum " + std::string(1, "xyz"[a]) + " (" + opt.values[a] +
-                           ") is above the maximum (" + opt.values[a + 3] +
-                           "); write --box XMIN YMIN ZMIN XMAX YMAX ZMAX");
-      box_ = std::array<double, 6>{v[0], v[1], v[2], v[3], v[4], v[5]};
+      box_ = parseBox(opt, "-5 -5 0 5 5 2");
     } else if (opt.name == "--color") {
       if (opt.value == "height")
         coloring_ = Coloring::kHeight;
@@ -106,49 +104,62 @@ class Export final : public Command {
     return true;
   }
 
-  void check(Invocation& in) override {
-    checkMapInput(in.input(), kExportUsage);
-    in.checkDeviceMemoryCap();
-    in.checkOutputs();
-  }
+  void check(Invocation& in) override { in.checkMapCommand(kExportUsage); }
 
   int run(Invocation& in) override;
 
  private:
+  // The cells to write: all, the occupied ones, or those in the box.
+  std::vector<OccupancyMap::LeafBoxHost> select(OccupancyMap& map) const;
+  // Colours the cells and writes them (-o); returns how many are occupied.
+  std::size_t write(Invocation& in, OccupancyMap& map,
+                    const std::vector<OccupancyMap::LeafBoxHost>& cells) const;
+
   bool occupied_only_ = false;
   std::optional<std::array<double, 6>> box_;
   Coloring coloring_ = Coloring::kHeight;
 };
 
 int Export::run(Invocation& in) {
-  const std::string& map_path = in.input();
-  Context& context = in.context();
-  const auto start = Clock::now();
-  OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
-  const double read_s = secondsSince(start);
+  Steps steps;
+  OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
+  const std::vector<OccupancyMap::LeafBoxHost> cells =
+      steps.run("selecting", [&] { return select(map); });
+  const std::size_t occupied = steps.run("writing", [&] { return write(in, map, cells); });
 
-  const auto select_start = Clock::now();
-  const double resolution = map.params().resolution;
-  const float occupied_log_odds = occupancyLogOdds(map.params());
-  std::vector<OccupancyMap::LeafBoxHost> cells;
+  Report report(9);
+  report.device(in.context()).line("map", in.input());
+  if (box_) report.line("box", boxText(*box_) + " m");
+  return report
+      .line("cells", format("%zu leaves (%zu occupied, %zu free)", cells.size(), occupied,
+                            cells.size() - occupied))
+      .finish(steps, in.outputs());
+}
+
+std::vector<OccupancyMap::LeafBoxHost> Export::select(OccupancyMap& map) const {
   try {
     if (box_) {
       const std::array<double, 6>& b = *box_;
-      cells = map.leavesInBox(clampToDomain(b[0], b[1], b[2], resolution),
-                              clampToDomain(b[3], b[4], b[5], resolution), occupied_only_);
-    } else {
-      cells = map.downloadLeafBoxes();
-      if (occupied_only_)
-        std::erase_if(cells, [&](const OccupancyMap::LeafBoxHost& c) {
-          return !(c.log_odds >= occupied_log_odds);
-        });
+      const double resolution = map.params().resolution;
+      return map.leavesInBox(clampToDomain(b[0], b[1], b[2], resolution),
+                             clampToDomain(b[3], b[4], b[5], resolution), occupied_only_);
     }
+    std::vector<OccupancyMap::LeafBoxHost> cells = map.downloadLeafBoxes();
+    const float occupied_log_odds = occupancyLogOdds(map.params());
+    if (occupied_only_)
+      std::erase_if(cells, [&](const OccupancyMap::LeafBoxHost& c) {
+        return !(c.log_odds >= occupied_log_odds);
+      });
+    return cells;
   } catch (const Error& e) {
     throw withOptionNames(e);
   }
-  const double select_s = secondsSince(select_start);
+}
 
-  const auto write_start = Clock::now();
+std::size_t Export::write(Invocation& in, OccupancyMap& map,
+                          const std::vector<OccupancyMap::LeafBoxHost>& cells) const {
+  const float occupied_log_odds = occupancyLogOdds(map.params());
   std::size_t occupied = 0;
   float z_min = std::numeric_limits<float>::max(), z_max = std::numeric_limits<float>::lowest();
   for (const OccupancyMap::LeafBoxHost& c : cells) {
@@ -169,53 +180,17 @@ int Export::run(Invocation& in) {
           heightColor(z_max > z_min ? (cells[i].center[2] - z_min) / (z_max - z_min) : 0.5);
   }
   std::ostringstream comment;
-  comment << "octovk export of " << map_path << " (resolution " << resolution
+  comment << "octovk export of " << in.input() << " (resolution " << map.params().resolution
           << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, colour by "
           << (coloring_ == Coloring::kHeight ? "height" : "occupancy");
   in.files().write(
       0, [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
   in.files().commit();
-  const double write_s = secondsSince(write_start);
-
-  std::ostringstream s;
-  s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
-  s << "map:     " << map_path << "\n";
-  if (box_) {
-    const std::array<double, 6>& b = *box_;
-    char line[256];
-    std::snprintf(line, sizeof(line), "box:     min (%g, %g, %g) max (%g, %g, %g) m\n", b[0], b[1],
-                  b[2], b[3], b[4], b[5]);
-    s << line;
-  }
-  s << "cells:   " << cells.size() << " leaves (" << occupied << " occupied, "
-    << cells.size() - occupied << " free)\n";
-  char line[256];
-  std::snprintf(line, sizeof(line),
-                "time:    %.3f s (reading and upload %.3f s, selecting %.3f s, writing %.3f s)\n",
-                read_s + select_s + write_s, read_s, select_s, write_s);
-  s << line << "wrote:   " << in.output() << "\n";
-  std::cout << s.str() << std::flush;
-  return kExitOk;
+  return occupied;
 }
 
 }  // namespace
 
-const Subcommand kExportCommand{
-    .name = "export",
-    .print_help = printExportHelp,
-    .input = "map file",
-    .second_input_hint = "; the PLY file goes after -o",
-    .outputs = Subcommand::Outputs::kOne,
-    .writes = "one file",
-    .no_output = "no output file; add -o CELLS.ply",
-    .output_extensions = {".ply"},
-    .output_formats = ".ply (ASCII PLY point cloud)",
-    .max_device_memory = true,
-    .value_options = {"--color"},
-    .multi_value_options = {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Export>(); },
-    .examples =
-        "  octovk export map.bt -o cells.ply --occupied-only\n"
-        "  octovk export map.bt -o box.ply --box -2 -2 0 2 2 2 --color occupancy\n"};
+std::unique_ptr<Command> makeExport() { return std::make_unique<Export>(); }
 
 }  // namespace octovk::cli

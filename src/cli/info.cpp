@@ -1,13 +1,13 @@
 // octovk info: what a map file holds (resolution, nodes, leaves by state, bounds, device memory),
 // counted on the device from the map's leaf boxes.
 #include <algorithm>
-#include <cstdio>
 #include <iostream>
 #include <limits>
-#include <sstream>
+#include <vector>
 
 #include "command.hpp"
 #include "octovk/octovk.hpp"
+#include "report.hpp"
 
 namespace octovk::cli {
 
@@ -35,13 +35,12 @@ struct Bounds {
 
 std::string describe(const Bounds& b) {
   if (b.empty) return "none";
-  char text[256];
-  std::snprintf(text, sizeof(text),
-                "min (%.3f, %.3f, %.3f) max (%.3f, %.3f, %.3f) m, size %.3f x %.3f x %.3f m",
+  return format("min (%.3f, %.3f, %.3f) max (%.3f, %.3f, %.3f) m, size %.3f x %.3f x %.3f m",
                 b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2], b.max[0] - b.min[0],
                 b.max[1] - b.min[1], b.max[2] - b.min[2]);
-  return text;
 }
+
+}  // namespace
 
 void printInfoHelp(std::ostream& out) {
   out << kInfoUsage
@@ -67,93 +66,74 @@ void printInfoHelp(std::ostream& out) {
   out << "  -h, --help             show this help\n";
 }
 
+namespace {
+
 class Info final : public Command {
  public:
-  void check(Invocation& in) override {
-    checkMapInput(in.input(), kInfoUsage);
-    in.checkDeviceMemoryCap();
-  }
+  void check(Invocation& in) override { in.checkMapCommand(kInfoUsage); }
   int run(Invocation& in) override;
 };
 
-int Info::run(Invocation& in) {
-  const std::string& map_path = in.input();
-  Context& context = in.context();
-  const auto start = Clock::now();
-  OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
-  const double read_s = secondsSince(start);
+// What the leaves hold, by state.
+struct LeafCounts {
+  std::size_t nodes = 0, leaves = 0, occupied = 0;
+  double occupied_m3 = 0.0, free_m3 = 0.0;
+  Bounds all, occupied_bounds;
+};
 
-  const auto count_start = Clock::now();
-  std::size_t nodes = 0;
+LeafCounts countLeaves(OccupancyMap& map) {
+  LeafCounts counts;
   std::vector<OccupancyMap::LeafBoxHost> leaves;
   try {
-    nodes = map.nodeCount();
+    counts.nodes = map.nodeCount();
     leaves = map.downloadLeafBoxes();
   } catch (const Error& e) {
     throw withOptionNames(e);
   }
+  counts.leaves = leaves.size();
   const float occupied_log_odds = occupancyLogOdds(map.params());
-  std::size_t occupied = 0;
-  double occupied_m3 = 0.0, free_m3 = 0.0;
-  Bounds all, occupied_bounds;
   for (const OccupancyMap::LeafBoxHost& leaf : leaves) {
     const double volume = static_cast<double>(leaf.size) * leaf.size * leaf.size;
-    all.add(leaf);
+    counts.all.add(leaf);
     if (leaf.log_odds >= occupied_log_odds) {
-      ++occupied;
-      occupied_m3 += volume;
-      occupied_bounds.add(leaf);
+      ++counts.occupied;
+      counts.occupied_m3 += volume;
+      counts.occupied_bounds.add(leaf);
     } else {
-      free_m3 += volume;
+      counts.free_m3 += volume;
     }
   }
-  const double count_s = secondsSince(count_start);
+  return counts;
+}
 
-  std::ostringstream s;
-  char line[256];
-  s << "device:          " << context.device().name << " (" << context.device().type << ")\n";
-  s << "map:             " << map_path << "\n";
-  std::snprintf(line, sizeof(line), "resolution:      %g m\n", map.params().resolution);
-  s << line;
-  s << "nodes:           " << nodes << "\n"
-    << "leaves:          " << leaves.size() << "\n";
-  std::snprintf(line, sizeof(line), "occupied:        %zu leaves, %.3f m^3\n", occupied,
-                occupied_m3);
-  s << line;
-  std::snprintf(line, sizeof(line), "free:            %zu leaves, %.3f m^3\n",
-                leaves.size() - occupied, free_m3);
-  s << line;
-  s << "bounds:          " << describe(all) << "\n"
-    << "occupied bounds: " << describe(occupied_bounds) << "\n";
+int Info::run(Invocation& in) {
+  Steps steps;
+  OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
+  const LeafCounts c = steps.run("counting", [&] { return countLeaves(map); });
+
   const OccupancyMap::DeviceBytes bytes = map.deviceBytesByUse();
-  constexpr double kMiB = 1024.0 * 1024.0;
-  std::snprintf(line, sizeof(line),
-                "device memory:   %.1f MiB (node pool %.1f MiB, leaf boxes %.1f MiB, scan "
-                "scratch %.1f MiB, query buffers %.1f MiB)\n",
-                static_cast<double>(bytes.total()) / kMiB, static_cast<double>(bytes.pool) / kMiB,
-                static_cast<double>(bytes.leaf_boxes) / kMiB,
-                static_cast<double>(bytes.scratch) / kMiB,
-                static_cast<double>(bytes.queries) / kMiB);
-  s << line;
-  std::snprintf(line, sizeof(line),
-                "time:            %.3f s (reading and upload %.3f s, counting %.3f s)\n",
-                read_s + count_s, read_s, count_s);
-  s << line;
-  std::cout << s.str() << std::flush;
-  return kExitOk;
+  const auto mib = [](std::size_t n) { return static_cast<double>(n) / (1024.0 * 1024.0); };
+  return Report(17)
+      .device(in.context())
+      .line("map", in.input())
+      .line("resolution", format("%g m", map.params().resolution))
+      .line("nodes", std::to_string(c.nodes))
+      .line("leaves", std::to_string(c.leaves))
+      .line("occupied", format("%zu leaves, %.3f m^3", c.occupied, c.occupied_m3))
+      .line("free", format("%zu leaves, %.3f m^3", c.leaves - c.occupied, c.free_m3))
+      .line("bounds", describe(c.all))
+      .line("occupied bounds", describe(c.occupied_bounds))
+      .line("device memory",
+            format("%.1f MiB (node pool %.1f MiB, leaf boxes %.1f MiB, scan scratch %.1f MiB, "
+                   "query buffers %.1f MiB)",
+                   mib(bytes.total()), mib(bytes.pool), mib(bytes.leaf_boxes), mib(bytes.scratch),
+                   mib(bytes.queries)))
+      .finish(steps);
 }
 
 }  // namespace
 
-const Subcommand kInfoCommand{
-    .name = "info",
-    .print_help = printInfoHelp,
-    .input = "map file",
-    .max_device_memory = true,
-    .unknown_option_tail = "",
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Info>(); },
-    .examples =
-        "  octovk info map.bt\n"
-        "  octovk info map.ot --max-device-memory 512M\n"};
+std::unique_ptr<Command> makeInfo() { return std::make_unique<Info>(); }
 
 }  // namespace octovk::cli

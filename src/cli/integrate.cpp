@@ -22,6 +22,7 @@
 #include "octovk/tum_sequence.hpp"
 #include "ply.hpp"
 #include "png.hpp"
+#include "report.hpp"
 
 namespace octovk::cli {
 
@@ -134,8 +135,8 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
                  "uchar blue"},
                 [&](std::string& text, std::size_t i) {
                   const ChangedKey& c = changes[i];
-                  for (int a = 0; a < 3; ++a)
-                    appendNumber(text, keyCentre(c.key[a], resolution), ' ');
+                  const Eigen::Vector3f centre = keyToCoord(resolution, c.key);
+                  for (int a = 0; a < 3; ++a) appendNumber(text, centre[a], ' ');
                   const Rgb& colour = c.created ? kCreatedBlue : kFlippedOrange;
                   appendByte(text, c.created ? 1 : 0, ' ');
                   appendByte(text, colour[0], ' ');
@@ -146,22 +147,37 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
 
 // Every output is written before any is renamed into place, so that a failed write (a full
 // disk) leaves every existing file as it was. The maps are the -o outputs, in order; the change
-// set (`changes_output`, when there is one) follows them.
-void writeOutputs(OccupancyMap& map, Invocation& in,
-                  const std::optional<std::size_t>& changes_output,
-                  const std::vector<ChangedKey>& changes) {
+// set (`changes_output`, when there is one) follows them. Returns the nodes each map file holds.
+std::vector<std::size_t> writeOutputs(OccupancyMap& map, Invocation& in,
+                                      const std::optional<std::size_t>& changes_output,
+                                      const std::vector<ChangedKey>& changes) {
   OutputFiles& outputs = in.files();
+  std::vector<std::size_t> nodes(in.outputs().size());
   {
     StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
     for (std::size_t i = 0; i < in.outputs().size(); ++i)
-      outputs.write(i, [&](const std::string& temporary) { writeMap(map, temporary); });
+      outputs.write(i, [&](const std::string& temporary) { nodes[i] = writeMap(map, temporary); });
   }
   if (changes_output)
     outputs.write(*changes_output, [&](const std::string& temporary) {
       writeChanges(temporary, changes, map.params().resolution, in.input());
     });
   outputs.commit();
+  return nodes;
 }
+
+// The nodes each map file holds, as 'octovk info' counts them: a .bt is written max-likelihood
+// and pruned, so it may hold fewer than the map in memory.
+std::string fileNodesText(const std::vector<std::string>& paths,
+                          const std::vector<std::size_t>& nodes) {
+  std::string text;
+  for (std::size_t i = 0; i < paths.size(); ++i)
+    text += (i == 0 ? "" : ", ") + paths[i] + " " + std::to_string(nodes[i]) +
+            (fs::path(paths[i]).extension() == ".bt" ? " (max-likelihood, pruned)" : "");
+  return text + ": as 'octovk info' counts them";
+}
+
+}  // namespace
 
 void printIntegrateHelp(std::ostream& out) {
   const MapParams defaults;
@@ -240,9 +256,12 @@ void printIntegrateHelp(std::ostream& out) {
          "OctoMap map (.bt / .ot) given as the input is refused (exit 2); 'octovk info' reads it.\n"
          "\n"
          "Output: the device used, then a summary on stdout (scans, points, skipped points,\n"
-         "insert time, nodes, device memory, files written; for DIR also the images used and\n"
-         "skipped and the pixels without depth).\n";
+         "insert time, nodes in memory and in each file as 'octovk info' counts them (a .bt is\n"
+         "max-likelihood and pruned, so it may hold fewer), device memory, files written; for\n"
+         "DIR also the images used and skipped and the pixels without depth).\n";
 }
+
+namespace {
 
 class Integrate final : public Command {
  public:
@@ -284,6 +303,13 @@ class Integrate final : public Command {
   int run(Invocation& in) override;
 
  private:
+  struct Sources;
+  struct Totals;
+  // The scans or images of the input, checked before any is inserted.
+  Sources readSources(Invocation& in) const;
+  // Inserts every scan into `map`; errors name the scan that failed.
+  Totals insert(OccupancyMap& map, const Sources& sources, const std::string& input) const;
+
   bool tum_ = false;  ///< the input is a TUM RGB-D folder, not a scan graph
   CameraIntrinsics camera_;  ///< --intrinsics, --depth-scale (TUM folders only)
   std::string camera_option_;  ///< the first of those given, for the error on a scan graph
@@ -323,55 +349,18 @@ void Integrate::check(Invocation& in) {
   if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
 }
 
-int Integrate::run(Invocation& in) {
-  const std::string& graph_path = in.input();
-  const auto run_start = Clock::now();
+// What a run reads: a scan graph's scans, or a TUM RGB-D folder's images (read one by one).
+struct Integrate::Sources {
   std::vector<GraphScan> scans;
   std::optional<TumSequence> tum;
-  std::uint64_t max_pixels = 0;
-  if (tum_) {
-    tum = readTumSequence(graph_path);
-    // Every image's format before any work, rather than after minutes of it; then, with the
-    // device, the largest image's size from its header, before any image is decoded.
-    std::uint64_t largest = 0;
-    const TumFrame* largest_frame = nullptr;
-    for (const TumFrame& frame : tum->frames) {
-      const DepthPngSize size = checkDepthPng(frame.image_path);
-      if (std::uint64_t{size.width} * size.height > largest) {
-        largest = std::uint64_t{size.width} * size.height;
-        largest_frame = &frame;
-      }
-    }
-    max_pixels = maxDepthImagePixels(in.context());
-    if (largest_frame) checkDepthPng(largest_frame->image_path, max_pixels);
-  } else {
-    scans = readScanGraph(graph_path);
-    // An empty map written with exit 0 looks like success; it is almost always a wrong file.
-    if (scans.empty())
-      throw Error(ErrorCode::kInvalidArgument,
-                  "scan graph '" + graph_path +
-                      "' holds no scans: there is nothing to integrate and no map was written; "
-                      "give a graph with scans (OctoMap's log2graph writes one)");
-    if (std::none_of(scans.begin(), scans.end(),
-                     [](const GraphScan& scan) { return !scan.points_sensor.empty(); }))
-      throw Error(ErrorCode::kInvalidArgument,
-                  "scan graph '" + graph_path + "' holds " + std::to_string(scans.size()) +
-                      " scan(s) but no points: there is nothing to integrate and no map was "
-                      "written; give a graph whose scans hold points");
-  }
-  const std::size_t scan_count = tum ? tum->frames.size() : scans.size();
+  std::uint64_t max_pixels = 0;  // the device's largest depth image (TUM folders)
+  std::size_t count() const { return tum ? tum->frames.size() : scans.size(); }
+};
 
-  Context& context = in.context();
-  const DeviceInfo& device = context.device();
-  std::cout << "device: " << device.name << " (" << device.type << ")" << std::endl;
-
-  OccupancyMap map(context, params_);
-  if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
-  Progress progress(scan_count, !quiet_);
+// The points the scans held, as ScanStats count them over the run.
+struct Integrate::Totals {
   std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0, pixels = 0, no_depth = 0;
-  // Scans are submitted back to back (the next one is read and staged while the device runs
-  // the last ones); their statistics are gathered as they come in.
-  auto account = [&](const std::vector<ScanStats>& finished) {
+  void add(const std::vector<ScanStats>& finished, bool tum) {
     for (ScanStats stats : finished) {
       if (tum) {
         pixels += stats.points;
@@ -382,8 +371,53 @@ int Integrate::run(Invocation& in) {
       skipped_nonfinite += stats.skipped_nonfinite;
       skipped_outside += stats.skipped_outside;
     }
-  };
-  const auto insert_start = Clock::now();
+  }
+};
+
+Integrate::Sources Integrate::readSources(Invocation& in) const {
+  const std::string& graph_path = in.input();
+  Sources sources;
+  if (tum_) {
+    sources.tum = readTumSequence(graph_path);
+    // Every image's format before any work, rather than after minutes of it; then, with the
+    // device, the largest image's size from its header, before any image is decoded.
+    std::uint64_t largest = 0;
+    const TumFrame* largest_frame = nullptr;
+    for (const TumFrame& frame : sources.tum->frames) {
+      const DepthPngSize size = checkDepthPng(frame.image_path);
+      if (std::uint64_t{size.width} * size.height > largest) {
+        largest = std::uint64_t{size.width} * size.height;
+        largest_frame = &frame;
+      }
+    }
+    sources.max_pixels = maxDepthImagePixels(in.context());
+    if (largest_frame) checkDepthPng(largest_frame->image_path, sources.max_pixels);
+    return sources;
+  }
+  sources.scans = readScanGraph(graph_path);
+  // An empty map written with exit 0 looks like success; it is almost always a wrong file.
+  if (sources.scans.empty())
+    throw Error(ErrorCode::kInvalidArgument,
+                "scan graph '" + graph_path +
+                    "' holds no scans: there is nothing to integrate and no map was written; "
+                    "give a graph with scans (OctoMap's log2graph writes one)");
+  if (std::none_of(sources.scans.begin(), sources.scans.end(),
+                   [](const GraphScan& scan) { return !scan.points_sensor.empty(); }))
+    throw Error(ErrorCode::kInvalidArgument,
+                "scan graph '" + graph_path + "' holds " + std::to_string(sources.scans.size()) +
+                    " scan(s) but no points: there is nothing to integrate and no map was "
+                    "written; give a graph whose scans hold points");
+  return sources;
+}
+
+Integrate::Totals Integrate::insert(OccupancyMap& map, const Sources& sources,
+                                    const std::string& input) const {
+  const std::size_t scan_count = sources.count();
+  const bool tum = sources.tum.has_value();
+  Progress progress(scan_count, !quiet_);
+  // Scans are submitted back to back (the next one is read and staged while the device runs
+  // the last ones); their statistics are gathered as they come in.
+  Totals totals;
   // Errors say which scan failed: the one being submitted, or (Error::scan()) one submitted
   // earlier whose failure a synchronisation found. Tickets count the submissions from the first.
   std::size_t at = 0;
@@ -394,22 +428,22 @@ int Integrate::run(Invocation& in) {
       if (tum) {
         // As graph2tree on convert's graph: the camera-frame points, cast from the pose's
         // position.
-        const TumFrame& frame = tum->frames[at];
-        const DepthPng png = readDepthPng(frame.image_path, max_pixels);
+        const TumFrame& frame = sources.tum->frames[at];
+        const DepthPng png = readDepthPng(frame.image_path, sources.max_pixels);
         ticket = map.submitDepthImage(png.image(camera_), frame.T_world_camera, scan_,
                                       graph2treeSensorOrigin(frame.T_world_camera));
       } else {
-        const GraphScan& scan = scans[at];
+        const GraphScan& scan = sources.scans[at];
         ticket =
             map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
                                  scan.T_world_sensor, scan_);
       }
       if (at == 0) first_ticket = ticket;
-      if (at % 256 == 255) account(map.takeScanStats());
+      if (at % 256 == 255) totals.add(map.takeScanStats(), tum);
       progress.update(at + 1);
     }
     map.flush();
-    account(map.takeScanStats());
+    totals.add(map.takeScanStats(), tum);
   } catch (const Error& e) {
     const std::size_t failed = e.scan() >= first_ticket && e.scan() != 0
                                    ? static_cast<std::size_t>(e.scan() - first_ticket)
@@ -420,48 +454,66 @@ int Integrate::run(Invocation& in) {
     if (const std::size_t note = message.rfind(" [scan " + std::to_string(e.scan()) + " was not");
         e.scan() != 0 && note != std::string::npos)
       message.erase(note);
-    if (failed >= scan_count) throw Error(e.code(), graph_path + ": " + message, e.scan());
-    throw Error(e.code(), scanPlace(graph_path, tum, failed, scan_count) + ": " + message, e.scan());
+    if (failed >= scan_count) throw Error(e.code(), input + ": " + message, e.scan());
+    throw Error(e.code(), scanPlace(input, sources.tum, failed, scan_count) + ": " + message,
+                e.scan());
   }
+  return totals;
+}
+
+int Integrate::run(Invocation& in) {
+  const auto run_start = Clock::now();
+  const Sources sources = readSources(in);
+  // Once, before the work: the progress lines that follow on stderr are the device's.
+  Context& context = in.context();
+  std::cout << "device: " << context.device().name << " (" << context.device().type << ")"
+            << std::endl;
+
+  OccupancyMap map(context, params_);
+  if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
+  const auto insert_start = Clock::now();
+  const Totals totals = insert(map, sources, in.input());
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
   if (changes_output_) changes = map.changedKeys();
-
-  writeOutputs(map, in, changes_output_, changes);
+  const std::vector<std::size_t> file_nodes = writeOutputs(map, in, changes_output_, changes);
   const double total_s = secondsSince(run_start);
 
-  const double ms_per_scan =
-      scan_count == 0 ? 0.0 : insert_s * 1e3 / static_cast<double>(scan_count);
-  std::ostringstream s;
-  s << std::fixed;
-  if (tum)
-    s << tumImagesSummary(*tum) << "pixels:        " << pixels << " (" << no_depth
-      << " without depth, skipped)\n";
-  s << "scans:         " << scan_count << "\n"
-    << "points:        " << points << " (" << skipped_nonfinite + skipped_outside
-    << " skipped: " << skipped_nonfinite << " non-finite, " << skipped_outside
-    << " outside the map)\n"
-    << "insert time:   " << std::setprecision(3) << insert_s << " s, " << ms_per_scan
-    << " ms/scan (run total " << total_s << " s, with reading and writing)\n"
-    << "nodes:         " << nodes << "\n"
-    << "device memory: " << std::setprecision(1)
-    << static_cast<double>(device_bytes) / (1024.0 * 1024.0) << " MiB (node pool "
-    << static_cast<double>(pool_bytes) / (1024.0 * 1024.0)
-    << " MiB; the rest is scan scratch and leaf boxes)\n";
+  const std::size_t scans = sources.count();
+  const auto mib = [](std::size_t n) { return static_cast<double>(n) / (1024.0 * 1024.0); };
+  Report report(15);
+  if (sources.tum)
+    report.line("images", tumImagesText(*sources.tum))
+        .line("pixels", format("%zu (%zu without depth, skipped)", totals.pixels, totals.no_depth));
+  report.line("scans", std::to_string(scans))
+      .line("points", format("%zu (%zu skipped: %zu non-finite, %zu outside the map)",
+                             totals.points, totals.skipped_nonfinite + totals.skipped_outside,
+                             totals.skipped_nonfinite, totals.skipped_outside))
+      .line("insert time",
+            format("%.3f s, %.3f ms/scan (run total %.3f s, with reading and writing)", insert_s,
+                   scans == 0 ? 0.0 : insert_s * 1e3 / static_cast<double>(scans), total_s))
+      .line("nodes", std::to_string(nodes) + " in memory (graph2tree's 'Tree size')")
+      .line("file nodes", fileNodesText(in.outputs(), file_nodes))
+      .line("device memory",
+            format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
+                   mib(device_bytes), mib(pool_bytes)));
   if (changes_output_) {
     const auto created = static_cast<std::size_t>(std::count_if(
         changes.begin(), changes.end(), [](const ChangedKey& c) { return c.created; }));
-    s << "changes:       " << changes.size() << " keys (" << created << " created, "
-      << changes.size() - created << " flipped)\n";
+    report.line("changes", format("%zu keys (%zu created, %zu flipped)", changes.size(), created,
+                                  changes.size() - created));
   }
-  for (const std::string& path : in.outputs()) s << "wrote:         " << path << "\n";
-  if (changes_output_) s << "wrote:         " << changes_path_ << "\n";
-  std::cout << s.str() << std::flush;
-  return kExitOk;
+  report.wrote(in.outputs());
+  if (changes_output_) report.wrote(changes_path_);
+  return report.print();
 }
+
+}  // namespace
+
+std::unique_ptr<Command> makeIntegrate() { return std::make_unique<Integrate>(); }
 
 std::vector<std::string> integrateValueOptions() {
   std::vector<std::string> names = {"-r",         "--resolution",   "-m",
@@ -470,26 +522,6 @@ std::vector<std::string> integrateValueOptions() {
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
 }
-
-}  // namespace
-
-const Subcommand kIntegrateCommand{
-    .name = "integrate",
-    .print_help = printIntegrateHelp,
-    .input = "scan graph or folder",
-    .second_input_hint = "; outputs go after -o",
-    .outputs = Subcommand::Outputs::kMany,
-    .no_output = "no output file; add -o MAP.bt and/or -o MAP.ot",
-    .output_extensions = {".bt", ".ot"},
-    .output_formats = ".bt (max-likelihood binary) or .ot (full log-odds)",
-    .max_device_memory = true,
-    .value_options = integrateValueOptions(),
-    .multi_value_options = cameraMultiValueOptions(),
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Integrate>(); },
-    .examples =
-        "  octovk integrate scans.graph -o map.bt -o map.ot -r 0.05\n"
-        "  octovk integrate rgbd_dataset_freiburg1_xyz -o map.bt\n"
-        "  octovk integrate scans.graph -o map.bt --max-range 10 --changes changes.ply\n"};
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -17,69 +18,42 @@
 namespace octovk::cli {
 namespace {
 
-// The commands, in the order the errors list them.
-const Subcommand* const kSubcommands[] = {&kIntegrateCommand, &kConvertCommand, &kInfoCommand,
-                                          &kRenderCommand,    &kExportCommand,  &kEditCommand,
-                                          &kDistanceCommand,  &kDevicesCommand};
-
-// Their names, for the error on an unknown one: "integrate, convert, ..., devices, help".
+// The commands' names, for the error on an unknown one: "integrate, convert, ..., help, version".
 std::string commandNames() {
   std::string names;
-  for (const Subcommand* command : kSubcommands) names += std::string(command->name) + ", ";
+  for (const Subcommand& command : subcommands()) names += std::string(command.name) + ", ";
   return names + "help, version";
 }
 
 const Subcommand* findSubcommand(const std::string& name) {
-  for (const Subcommand* command : kSubcommands)
-    if (name == command->name) return command;
+  for (const Subcommand& command : subcommands())
+    if (name == command.name) return &command;
   return nullptr;
 }
 
+// What octovk is, its commands one line each, where to start and where to read on; each
+// command's options are in its own help.
 void printHelp(std::ostream& out) {
-  out << "octovk: OctoMap-compatible occupancy mapping on a Vulkan device\n"
+  out << "octovk: OctoMap-compatible occupancy mapping on a Vulkan device (a GPU, or the CPU\n"
+         "through Mesa's lavapipe). Maps are OctoMap's .bt / .ot files, byte for byte.\n"
          "\n"
-         "Usage:\n"
-         "  octovk integrate SCANS.graph|DIR -o MAP.bt [-o MAP.ot] [options]\n"
-         "  octovk convert DIR -o SCANS.graph [--intrinsics FX FY CX CY] [--depth-scale S]\n"
-         "  octovk info MAP.bt|MAP.ot\n"
-         "  octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
-         "                [--fov DEG] [--z-max Z]\n"
-         "  octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] [--box X0 Y0 Z0 X1 Y1 Z1]\n"
-         "                [--color height|occupancy]\n"
-         "  octovk edit MAP.bt|MAP.ot --clear-box|--keep-box X0 Y0 Z0 X1 Y1 Z1 [...] -o OUT.bt\n"
-         "  octovk distance MAP.bt|MAP.ot --box X0 Y0 Z0 X1 Y1 Z1 [--z HEIGHT] [--max-distance M]\n"
-         "                [--unknown-occupied] -o SLICE.png\n"
-         "  octovk devices\n"
-         "  octovk help [COMMAND]      (also: octovk --help, octovk COMMAND --help)\n"
-         "  octovk help environment    exit codes and environment variables\n"
-         "  octovk --version           (also: octovk version)\n"
+         "Usage: octovk COMMAND [ARGS] [OPTIONS]\n"
          "\n"
-         "Commands:\n"
-         "  integrate   insert a scan graph, or a TUM RGB-D depth-image folder (DIR), into a map\n"
-         "              and write .bt / .ot files, byte-identical to OctoMap's graph2tree\n"
-         "  convert     write a TUM RGB-D folder as an OctoMap scan graph (.graph)\n"
-         "  info        resolution, nodes, leaves (occupied / free), bounds and device memory of\n"
-         "              a map file\n"
-         "  render      a PNG picture of a map's occupied cells, ray cast on the device\n"
-         "  export      a map's leaf cells (centre, size, log-odds, colour) as an ASCII PLY file\n"
-         "  edit        clear boxes of a map as octomap_server's clear_bbx does, or keep only\n"
-         "              a box (a rolling window), and write it\n"
-         "  distance    a PNG slice of the exact distance field (distance to the nearest\n"
-         "              obstacle) over a box of a map, computed on the device\n"
-         "  devices     list the Vulkan devices and the one octovk picks\n"
-         "  help        this help, or a command's\n"
-         "  version     the program's version, as 'octovk X.Y.Z'\n"
-         "\n"
-         "Each command's options: octovk COMMAND --help (or octovk help COMMAND).\n"
+         "Commands:\n";
+  for (const Subcommand& command : subcommands()) {
+    std::string name = command.name;
+    name.resize(std::max<std::size_t>(name.size() + 1, 11), ' ');
+    out << "  " << name << command.summary << "\n";
+  }
+  out << "  help       this help, a command's (octovk help COMMAND), or 'octovk help environment'\n"
+         "  version    the program's version (also: octovk --version)\n"
          "\n"
          "Examples:\n"
          "  octovk integrate scans.graph -o map.bt -r 0.05\n"
          "  octovk info map.bt\n"
          "  octovk render map.bt -o view.png\n"
          "\n"
-         "--- integrate ---\n";
-  kIntegrateCommand.print_help(out);
-  out << "\n";
+         "Each command's options and examples: octovk COMMAND --help.\n";
   printEnvironmentPointer(out);
 }
 

@@ -1,28 +1,9 @@
-// PNG files through libpng's simplified API (no setjmp in our code), and the height and distance
-// colormaps.
+// The height and distance colormaps.
 #include "png.hpp"
-
-#include <png.h>
 
 #include <algorithm>
 
-#include "octovk/octovk.hpp"
-
 namespace octovk::cli {
-
-void writePng(const RgbImage& image, const std::string& path) {
-  png_image png{};
-  png.version = PNG_IMAGE_VERSION;
-  png.width = image.width;
-  png.height = image.height;
-  png.format = PNG_FORMAT_RGB;
-  const auto stride = static_cast<png_int_32>(image.width * 3);
-  if (!png_image_write_to_file(&png, path.c_str(), 0, image.pixels.data(), stride, nullptr)) {
-    const std::string why = png.message;
-    png_image_free(&png);
-    throw Error(ErrorCode::kIo, "cannot write PNG '" + path + "': " + why);
-  }
-}
 
 Rgb heightColor(double t) {
   // Google's polynomial fit of Turbo (Mikhailov 2019), over [0.08, 0.92]: its ends are too dark

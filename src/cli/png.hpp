@@ -1,11 +1,10 @@
-// 8-bit RGB pictures for the octovk commands: colormaps for heights and distances, and PNG files
-// (libpng).
+// 8-bit RGB pictures for the octovk commands and their colormaps for heights and distances
+// (picture.hpp draws around them and writes them as PNG).
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <string>
 #include <vector>
 
 namespace octovk::cli {
@@ -27,10 +26,6 @@ struct RgbImage {
     pixels[at + 2] = c[2];
   }
 };
-
-/// Writes `image` as an 8-bit RGB PNG at `path` (this file, not a temporary one). Throws
-/// octovk::Error (kIo) with libpng's reason.
-void writePng(const RgbImage& image, const std::string& path);
 
 /// Colour of a height: t = 0 (lowest) … 1 (highest) through a rainbow (Turbo) that stays light
 /// enough at both ends to show shading; t is clamped.

@@ -1,5 +1,6 @@
 // octovk render: a picture of a map's occupied cells, one castRay per pixel on the device, shaded
-// on the host by height (colour), the face each ray entered (light) and distance (haze).
+// on the host by height (colour), the face each ray entered (light) and distance (haze), with a
+// legend that gives the heights in metres and a scale bar.
 #include <Eigen/Core>
 #include <algorithm>
 #include <cerrno>
@@ -15,7 +16,9 @@
 #include "command.hpp"
 #include "octovk/octovk.hpp"
 #include "octovk/vulkan_interop.hpp"
+#include "picture.hpp"
 #include "png.hpp"
+#include "report.hpp"
 
 namespace octovk::cli {
 
@@ -36,6 +39,13 @@ constexpr std::size_t kTilePixels = std::size_t{1} << 18;
 // Host bytes a pixel holds for the whole run: its colour before the haze (the picture itself)
 // and its depth, for the haze, which needs the depth range of all pixels.
 constexpr std::size_t kPictureBytesPerPixel = 3 + sizeof(float);
+
+// The legend beside the view: a strip on the right with the height colour bar and a scale bar,
+// on pictures large enough to read it; narrower ones are all view.
+constexpr std::uint32_t kLegendWidth = 140;
+constexpr std::uint32_t kLegendMinWidth = 400, kLegendMinHeight = 200;
+const Rgb kLegendBackground{30, 33, 40};
+const Rgb kLegendText{230, 232, 236};
 
 Vec3 parseVec3(const ParsedOption& option) {
   const std::vector<double> v = parseNumbers(option, "0 0 1.5");
@@ -155,6 +165,8 @@ std::string vec3Text(const Vec3& v) {
   return text;
 }
 
+}  // namespace
+
 void printRenderHelp(std::ostream& out) {
   out << "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
          "              [--fov DEG] [--z-max Z]\n"
@@ -166,7 +178,12 @@ void printRenderHelp(std::ostream& out) {
          "The picture is coloured by the height of the cell hit (blue low, red high, over the\n"
          "z range of the occupied cells shown), lit by the face of the cell the ray entered,\n"
          "hazier with distance, with outlines where depth jumps; rays that hit nothing show\n"
-         "the background.\n"
+         "the background. A picture of "
+      << kLegendMinWidth << "x" << kLegendMinHeight << " pixels or more keeps a strip of "
+      << kLegendWidth
+      << " pixels on\n"
+         "the right for the legend: the height colour bar in metres and a scale bar (a round\n"
+         "length as it appears at the look-at point; nearer things look larger).\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Written to a\n"
@@ -203,8 +220,24 @@ void printRenderHelp(std::ostream& out) {
          "\n"
          "Output: the device used, then on stdout the picture size, the camera (eye, look-at,\n"
          "field of view, to repeat or adjust with --eye / --look-at), how many rays hit, the\n"
-         "depth range, the time taken and the file written.\n";
+         "depth range, the heights the colours span, the scale bar, the time taken and the\n"
+         "file written.\n";
 }
+
+namespace {
+
+// The occupied cells a picture can show (below --z-max), their box, and the heights that the
+// colours span (cell centres: blue at z_low, red at z_low + z_span).
+struct Scene {
+  std::vector<OccupancyMap::LeafBoxHost> shown;
+  Box occupied;
+  double z_low = 0.0, z_span = 1.0;
+};
+
+// How the rays are cast: rows per tile, rays per castRays call.
+struct RayBudget {
+  std::size_t tile_rows = 1, ray_batch = kRayBatch;
+};
 
 class Render final : public Command {
  public:
@@ -234,9 +267,7 @@ class Render final : public Command {
   }
 
   void check(Invocation& in) override {
-    checkMapInput(in.input(), kRenderUsage);
-    in.checkDeviceMemoryCap();
-    in.checkOutputs();
+    in.checkMapCommand(kRenderUsage);
     if (eye_ && look_at_ && (*eye_ - *look_at_).norm() < 1e-9)
       throw UsageError("--eye and --look-at are the same point; the camera needs a direction");
     // Before the map is read: a picture that cannot fit under the cap beside an empty map.
@@ -249,6 +280,13 @@ class Render final : public Command {
   int run(Invocation& in) override;
 
  private:
+  // The occupied cells below --z-max and the heights their colours span.
+  Scene scene(OccupancyMap& map, const std::string& map_path) const;
+  // The camera: --eye and --look-at, or the default framing of the scene in the view.
+  Camera camera(const Scene& scene, double resolution, std::uint32_t view_width) const;
+  // Tile rows and ray batches that fit --max-device-memory beside the map and the picture.
+  RayBudget budget(const Invocation& in, OccupancyMap& map, const Scene& scene) const;
+
   std::optional<Vec3> eye_;
   std::optional<Vec3> look_at_;
   std::optional<double> z_max_;
@@ -257,260 +295,346 @@ class Render final : public Command {
   double fov_deg_ = kDefaultFovDeg;
 };
 
-int Render::run(Invocation& in) {
-  const std::string& map_path = in.input();
-  Context& context = in.context();
-  const auto start = Clock::now();
-  OccupancyMap map = loadMap(context, map_path, in.maxDeviceBytes());
+bool hasLegend(std::uint32_t width, std::uint32_t height) {
+  return width >= kLegendMinWidth && height >= kLegendMinHeight;
+}
+
+// Casts one ray per pixel of the view in tiles of rows and shades each row once the rows around
+// it are cast (its outlines look at them); the haze, last, needs the depth range of the whole
+// view. Only the colours before the haze and the depths are kept for the whole view.
+class Tracer {
+ public:
+  Tracer(OccupancyMap& map, const Scene& scene, const Camera& camera, RayBudget budget)
+      : map_(map),
+        scene_(scene),
+        camera_(camera),
+        budget_(budget),
+        resolution_(map.params().resolution),
+        width_(camera.width),
+        height_(camera.height),
+        image_(camera.width, camera.height),
+        depths_(std::size_t{camera.width} * camera.height, -1.0f),
+        // A key light over the camera's left shoulder; faces turned away still get the ambient
+        // part.
+        light_((-camera.forward * 0.55 - camera.right * 0.4 + Vec3::UnitZ()).normalized()),
+        pixel_angle_(2.0 * camera.tan_half_v / camera.height) {}
+
+  // Casts and shades every row; the times go to `steps` ("castRays", "shading").
+  void run(Steps& steps) {
+    while (shaded_rows_ < height_) {
+      const auto tile_end = static_cast<std::uint32_t>(
+          std::min<std::size_t>(height_, cast_rows_ + budget_.tile_rows));
+      steps.run("castRays", [&] { castRows(tile_end); });
+      steps.run("shading", [&] { shadeCastRows(); });
+    }
+    steps.run("shading", [&] { addHaze(); });
+  }
+
+  const RgbImage& image() const { return image_; }
+  std::size_t cast() const { return cast_; }
+  std::size_t hits() const { return hits_; }
+  double depthMin() const { return depth_min_; }
+  double depthMax() const { return depth_max_; }
+
+ private:
+  const Sample& sample(std::uint32_t x, std::uint32_t y) const {
+    return window_[std::size_t{y - window_row_} * width_ + x];
+  }
+
+  // Nothing outside the occupied cells' box stops a ray that ignores unknown space, so each ray
+  // starts where it enters the box and ends where it leaves it: the same first occupied cell as
+  // from the eye, without walking the empty space in front (and --z-max is exact this way).
+  void castRows(std::uint32_t tile_end) {
+    window_.resize(std::size_t{tile_end - window_row_} * width_);
+    for (std::size_t p = std::size_t{cast_rows_} * width_; p < std::size_t{tile_end} * width_;
+         ++p) {
+      const Vec3 dir = camera_.direction(static_cast<double>(p % width_) + 0.5,
+                                         static_cast<double>(p / width_) + 0.5);
+      double t_in, t_out;
+      if (!scene_.occupied.clip(camera_.eye, dir, t_in, t_out)) continue;
+      // A hair inside the box, so that a start on a cell face lies in the cell behind it.
+      if (t_in > 0.0) t_in += 1e-3 * resolution_;
+      Ray ray;
+      ray.origin = (camera_.eye + t_in * dir).cast<float>();
+      ray.direction = dir.cast<float>();
+      ray.max_range_m = t_out - t_in + 2.0 * resolution_;
+      ray.ignore_unknown = true;
+      rays_.push_back(ray);
+      ray_pixel_.push_back(p);
+      ray_start_.push_back(t_in);
+    }
+    if (!rays_.empty()) flush();
+    cast_rows_ = tile_end;
+  }
+
+  void flush() {
+    std::vector<RayHit> results;
+    for (;;) {
+      try {
+        results.clear();
+        for (std::size_t at = 0; at < rays_.size(); at += budget_.ray_batch) {
+          const std::size_t n = std::min(budget_.ray_batch, rays_.size() - at);
+          const std::vector<RayHit> part = map_.castRays(std::span(rays_).subspan(at, n));
+          results.insert(results.end(), part.begin(), part.end());
+        }
+        break;
+      } catch (const Error& e) {
+        // The estimate of a ray's device bytes was short: smaller batches, down to one ray.
+        if (e.code() != ErrorCode::kOutOfDeviceMemory || budget_.ray_batch == 1)
+          throw withOptionNames(e);
+        budget_.ray_batch /= 2;
+      }
+    }
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      if (!results[i].hit) continue;
+      const std::size_t p = ray_pixel_[i];
+      const Vec3 dir = camera_.direction(static_cast<double>(p % width_) + 0.5,
+                                         static_cast<double>(p / width_) + 0.5);
+      Sample& s = window_[p - std::size_t{window_row_} * width_];
+      s = sampleOf(results[i], camera_.eye, dir, resolution_, ray_start_[i]);
+      depth_min_ = std::min(depth_min_, s.depth);
+      depth_max_ = std::max(depth_max_, s.depth);
+      ++hits_;
+    }
+    cast_ += rays_.size();
+    rays_.clear();
+    ray_pixel_.clear();
+    ray_start_.clear();
+  }
+
+  // Shades the rows whose neighbours are cast, and drops the samples no row needs any more.
+  void shadeCastRows() {
+    const std::uint32_t shade_end = cast_rows_ == height_ ? height_ : cast_rows_ - 1;
+    for (; shaded_rows_ < shade_end; ++shaded_rows_) shadeRow(shaded_rows_);
+    // The row above the next one to shade stays for its outlines.
+    const std::uint32_t keep_from = shaded_rows_ > 0 ? shaded_rows_ - 1 : 0;
+    window_.erase(window_.begin(),
+                  window_.begin() +
+                      static_cast<std::ptrdiff_t>(std::size_t{keep_from - window_row_} * width_));
+    window_row_ = keep_from;
+  }
+
+  void shadeRow(std::uint32_t y) {
+    for (std::uint32_t x = 0; x < width_; ++x) {
+      const Sample& s = sample(x, y);
+      if (s.depth < 0) {
+        image_.set(x, y, background(y, height_));
+        continue;
+      }
+      Vec3 normal = Vec3::Zero();
+      normal[s.axis] = s.normal_sign;
+      double light_f = 0.38 + 0.62 * std::max(0.0, normal.dot(light_));
+      // Cell edges where a cell spans several pixels, so that single voxels can be told apart.
+      const double cell_px = resolution_ / std::max(s.depth * pixel_angle_, 1e-12);
+      if (cell_px > 5.0) {
+        const double edge = 1.0 - 2.4 / cell_px;
+        if (std::max(std::abs(s.face_u), std::abs(s.face_v)) > edge) light_f *= 0.72;
+      }
+      // Outlines where the neighbouring pixel lies much farther away (or is background).
+      const auto farther = [&](std::uint32_t nx, std::uint32_t ny) {
+        const Sample& n = sample(nx, ny);
+        return n.depth < 0 || n.depth > s.depth * 1.04 + 3.0 * resolution_;
+      };
+      if ((x > 0 && farther(x - 1, y)) || (x + 1 < width_ && farther(x + 1, y)) ||
+          (y > 0 && farther(x, y - 1)) || (y + 1 < height_ && farther(x, y + 1)))
+        light_f *= 0.55;
+      image_.set(x, y, scale(heightColor((s.z - scene_.z_low) / scene_.z_span), light_f));
+      depths_[std::size_t{y} * width_ + x] = static_cast<float>(s.depth);
+    }
+  }
+
+  // The haze, now that the depth range is known.
+  void addHaze() {
+    const Rgb haze{70, 76, 92};
+    for (std::size_t p = 0; p < depths_.size(); ++p) {
+      if (depths_[p] < 0) continue;
+      const std::size_t at = p * 3;
+      const Rgb lit{image_.pixels[at], image_.pixels[at + 1], image_.pixels[at + 2]};
+      const double far =
+          depth_max_ > depth_min_ ? (depths_[p] - depth_min_) / (depth_max_ - depth_min_) : 0;
+      image_.set(static_cast<std::uint32_t>(p % width_), static_cast<std::uint32_t>(p / width_),
+                 mix(lit, haze, 0.4 * std::clamp(far, 0.0, 1.0)));
+    }
+    depths_ = {};
+  }
+
+  OccupancyMap& map_;
+  const Scene& scene_;
+  const Camera& camera_;
+  RayBudget budget_;
+  double resolution_;
+  std::uint32_t width_, height_;
+  RgbImage image_;
+  std::vector<float> depths_;
+  Vec3 light_;
+  double pixel_angle_;
+  std::vector<Sample> window_;  // the samples of rows [window_row_, cast_rows_)
+  std::uint32_t window_row_ = 0, cast_rows_ = 0, shaded_rows_ = 0;
+  std::vector<Ray> rays_;
+  std::vector<std::size_t> ray_pixel_;
+  std::vector<double> ray_start_;
+  std::size_t cast_ = 0, hits_ = 0;
+  double depth_min_ = std::numeric_limits<double>::max(), depth_max_ = 0.0;
+};
+
+// The scale bar: a round length and its pixels at the look-at point's depth, where the
+// picture's scale is what the bar says (nearer things are larger, farther ones smaller).
+struct ScaleBar {
+  double metres = 1.0, pixels = 0.0, depth_m = 0.0;
+};
+
+ScaleBar scaleBar(const Camera& camera, double most_pixels) {
+  ScaleBar bar;
+  bar.depth_m = (camera.look_at - camera.eye).dot(camera.forward);
+  const double metres_per_pixel = 2.0 * bar.depth_m * camera.tan_half_v / camera.height;
+  bar.metres = roundLength(most_pixels * metres_per_pixel);
+  bar.pixels = bar.metres / metres_per_pixel;
+  return bar;
+}
+
+// The legend strip at x0 of `canvas`: the height colour bar with its heights in metres, then the
+// scale bar.
+void drawLegend(Canvas& canvas, std::uint32_t x0, const Scene& scene, const ScaleBar& bar) {
+  const double h = canvas.height();
+  canvas.fill(x0, 0, kLegendWidth, h, kLegendBackground);
+  const double left = x0 + 12.0;
+  canvas.text("height", left, 16, 13, kLegendText);
+  // The colour bar, highest at the top; its ticks at round heights.
+  const double top = 34, bottom = h - 96, bar_w = 16;
+  for (double y = top; y < bottom; ++y)
+    canvas.fill(left, y, bar_w, 1, heightColor((bottom - y - 0.5) / (bottom - top)));
+  double step = 1.0;
+  const std::vector<double> ticks =
+      niceTicks(scene.z_low, scene.z_low + scene.z_span,
+                std::clamp(static_cast<int>((bottom - top) / 26.0), 2, 10), &step);
+  for (const double z : ticks) {
+    const double y = bottom - (z - scene.z_low) / scene.z_span * (bottom - top);
+    canvas.line(left + bar_w, y, left + bar_w + 5, y, kLegendText);
+    canvas.text(tickText(z, step, "m"), left + bar_w + 9, y, 11, kLegendText);
+  }
+  // The scale bar, with what it measures.
+  const double y = h - 60;
+  canvas.text("scale at the look-at", left, y - 26, 11, kLegendText);
+  canvas.text(format("point, %s m away", tickText(bar.depth_m, 0.1).c_str()), left, y - 12, 11,
+              kLegendText);
+  canvas.fill(left, y, bar.pixels, 6, kLegendText);
+  canvas.line(left + 0.5, y - 3, left + 0.5, y + 9, kLegendText);
+  canvas.line(left + bar.pixels - 0.5, y - 3, left + bar.pixels - 0.5, y + 9, kLegendText);
+  canvas.text(tickText(bar.metres, bar.metres, "m"), left + 0.5 * bar.pixels, y + 20, 12,
+              kLegendText, Canvas::Align::kCentre);
+}
+
+Scene Render::scene(OccupancyMap& map, const std::string& map_path) const {
   const double resolution = map.params().resolution;
   const float occupied_log_odds = occupancyLogOdds(map.params());
   // The cells that can show: occupied, and below --z-max, which cuts at the cell boundary
   // nearest it.
   const double z_cut =
       z_max_ ? std::round(*z_max_ / resolution) * resolution : std::numeric_limits<double>::max();
-  std::vector<OccupancyMap::LeafBoxHost> shown = map.downloadLeafBoxes();
-  std::erase_if(shown, [&](const OccupancyMap::LeafBoxHost& c) {
+  Scene scene;
+  scene.shown = map.downloadLeafBoxes();
+  std::erase_if(scene.shown, [&](const OccupancyMap::LeafBoxHost& c) {
     return !(c.log_odds >= occupied_log_odds) || c.center[2] - 0.5 * c.size >= z_cut;
   });
-  if (shown.empty())
+  if (scene.shown.empty())
     throw Error(ErrorCode::kInvalidArgument, "map '" + map_path + "' has no occupied cells" +
                                                  (z_max_ ? " below --z-max" : "") +
                                                  ": there is nothing to render");
-  Box occupied;
-  for (const OccupancyMap::LeafBoxHost& c : shown) occupied.add(c);
-  occupied.max.z() = std::min(occupied.max.z(), z_cut);
-  const double read_s = secondsSince(start);
+  for (const OccupancyMap::LeafBoxHost& c : scene.shown) scene.occupied.add(c);
+  scene.occupied.max.z() = std::min(scene.occupied.max.z(), z_cut);
+  scene.z_low = scene.occupied.min.z() + 0.5 * resolution;  // cell centres: z of a hit
+  scene.z_span = std::max(scene.occupied.max.z() - scene.occupied.min.z() - resolution, resolution);
+  return scene;
+}
 
-  Vec3 look_at = look_at_.value_or(0.5 * (occupied.min + occupied.max));
+Camera Render::camera(const Scene& scene, double resolution, std::uint32_t view_width) const {
+  Vec3 look_at = look_at_.value_or(0.5 * (scene.occupied.min + scene.occupied.max));
   Vec3 eye;
   if (eye_) {
     eye = *eye_;
   } else {
-    const Vec3 view = defaultView(occupied);
-    frame(shown, view, width_, height_, fov_deg_, !look_at_, look_at, eye);
+    const Vec3 view = defaultView(scene.occupied);
+    frame(scene.shown, view, view_width, height_, fov_deg_, !look_at_, look_at, eye);
   }
   if ((eye - look_at).norm() < 1e-9)
     throw UsageError("--eye " + vec3Text(eye) + " is the point the camera looks at; move it");
-  // castRay needs its origin inside the map: keys 0 … 65535, centred on 0.
-  const double domain_m = 32767.0 * resolution;
-  if (eye.cwiseAbs().maxCoeff() >= domain_m)
+  // castRay needs its origin inside the map: a cell with a key.
+  if (!coordToKey(resolution, eye.cast<float>())) {
+    const double edge = 0.5 * resolution - keyToCoord(resolution, Key{0, 0, 0}).x();
     throw UsageError("--eye " + vec3Text(eye) + " lies outside the map's domain (each coordinate " +
-                     "within " + numberText(domain_m) + " m of the origin at this resolution)");
-  const Camera camera(eye, look_at, width_, height_, fov_deg_);
+                     "within " + numberText(edge) + " m of the origin at this resolution)");
+  }
+  return Camera(eye, look_at, view_width, height_, fov_deg_);
+}
 
-  // The memory the rays may take: under a cap, what the map and the picture leave of it.
-  const std::size_t pixels = std::size_t{width_} * height_;
+// The memory the rays may take: under a cap, what the map and the picture leave of it.
+RayBudget Render::budget(const Invocation& in, OccupancyMap& map, const Scene& scene) const {
+  RayBudget budget;
+  budget.tile_rows = std::max<std::size_t>(1, kTilePixels / width_);
   const std::size_t cap = in.maxDeviceBytes();
-  std::size_t ray_batch = kRayBatch;
-  std::size_t tile_rows = std::max<std::size_t>(1, kTilePixels / width_);
-  if (cap > 0) {
-    const std::size_t held = map.deviceBytes() + shown.capacity() * sizeof(shown[0]);
-    if (leastRenderBytes(width_, height_) + held > cap)
-      throw pictureOverCap(width_, height_, cap, held);
-    // Half for a tile's rays on the host (and the two rows around it), half for a batch of
-    // them on the device.
-    const std::size_t room = (cap - held - pixels * kPictureBytesPerPixel) / 2;
-    tile_rows =
-        std::clamp<std::size_t>(room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)),
-                                3, tile_rows + 2) -
-        2;
-    ray_batch = std::clamp<std::size_t>(room / deviceBytesPerRay(), 1, kRayBatch);
-  }
+  if (cap == 0) return budget;
+  const std::size_t held = map.deviceBytes() + scene.shown.capacity() * sizeof(scene.shown[0]);
+  if (leastRenderBytes(width_, height_) + held > cap)
+    throw pictureOverCap(width_, height_, cap, held);
+  // Half for a tile's rays on the host (and the two rows around it), half for a batch of them on
+  // the device.
+  const std::size_t room = (cap - held - std::size_t{width_} * height_ * kPictureBytesPerPixel) / 2;
+  budget.tile_rows =
+      std::clamp<std::size_t>(room / (std::size_t{width_} * (sizeof(Sample) + kHostBytesPerRay)), 3,
+                              budget.tile_rows + 2) -
+      2;
+  budget.ray_batch = std::clamp<std::size_t>(room / deviceBytesPerRay(), 1, kRayBatch);
+  return budget;
+}
 
-  // Nothing outside the occupied cells' box stops a ray that ignores unknown space, so each ray
-  // starts where it enters the box and ends where it leaves it: the same first occupied cell as
-  // from the eye, without walking the empty space in front (and --z-max is exact this way).
-  // The rays are cast in tiles of rows, each shaded once the rows around it are cast; only the
-  // colours before the haze and the depths are kept for the whole picture (the haze needs the
-  // depth range of all of it).
-  double cast_s = 0.0;
-  double depth_min = std::numeric_limits<double>::max(), depth_max = 0.0;
-  const double z_low = occupied.min.z() + 0.5 * resolution;  // cell centres: z of a hit
-  const double z_span = std::max(occupied.max.z() - occupied.min.z() - resolution, resolution);
-  // A key light over the camera's left shoulder; faces turned away still get the ambient part.
-  const Vec3 light = (-camera.forward * 0.55 - camera.right * 0.4 + Vec3::UnitZ()).normalized();
-  const Rgb haze{70, 76, 92};
-  const double pixel_angle = 2.0 * camera.tan_half_v / height_;
-  RgbImage image(width_, height_);
-  std::vector<float> depths(pixels, -1.0f);
-  std::vector<Sample> window;  // the samples of rows [window_row, cast_rows)
-  std::uint32_t window_row = 0, cast_rows = 0, shaded_rows = 0;
-  const auto sample = [&](std::uint32_t x, std::uint32_t y) -> const Sample& {
-    return window[std::size_t{y - window_row} * width_ + x];
-  };
-  std::vector<Ray> rays;
-  std::vector<std::size_t> ray_pixel;
-  std::vector<double> ray_start;
-  std::size_t cast = 0, hits = 0;
-  const auto flush = [&] {
-    std::vector<RayHit> results;
-    for (;;) {
-      try {
-        results.clear();
-        for (std::size_t at = 0; at < rays.size(); at += ray_batch) {
-          const std::size_t n = std::min(ray_batch, rays.size() - at);
-          const std::vector<RayHit> part = map.castRays(std::span(rays).subspan(at, n));
-          results.insert(results.end(), part.begin(), part.end());
-        }
-        break;
-      } catch (const Error& e) {
-        // The estimate of a ray's device bytes was short: smaller batches, down to one ray.
-        if (e.code() != ErrorCode::kOutOfDeviceMemory || ray_batch == 1) throw withOptionNames(e);
-        ray_batch /= 2;
-      }
-    }
-    for (std::size_t i = 0; i < results.size(); ++i) {
-      if (!results[i].hit) continue;
-      const std::size_t p = ray_pixel[i];
-      const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
-                                        static_cast<double>(p / width_) + 0.5);
-      Sample& s = window[p - std::size_t{window_row} * width_];
-      s = sampleOf(results[i], eye, dir, resolution, ray_start[i]);
-      depth_min = std::min(depth_min, s.depth);
-      depth_max = std::max(depth_max, s.depth);
-      ++hits;
-    }
-    cast += rays.size();
-    rays.clear();
-    ray_pixel.clear();
-    ray_start.clear();
-  };
-  const auto shade = [&](std::uint32_t y) {
-    for (std::uint32_t x = 0; x < width_; ++x) {
-      const Sample& s = sample(x, y);
-      if (s.depth < 0) {
-        image.set(x, y, background(y, height_));
-        continue;
-      }
-      Vec3 normal = Vec3::Zero();
-      normal[s.axis] = s.normal_sign;
-      double light_f = 0.38 + 0.62 * std::max(0.0, normal.dot(light));
-      // Cell edges where a cell spans several pixels, so that single voxels can be told apart.
-      const double cell_px = resolution / std::max(s.depth * pixel_angle, 1e-12);
-      if (cell_px > 5.0) {
-        const double edge = 1.0 - 2.4 / cell_px;
-        if (std::max(std::abs(s.face_u), std::abs(s.face_v)) > edge) light_f *= 0.72;
-      }
-      // Outlines where the neighbouring pixel lies much farther away (or is background).
-      bool outline = false;
-      const auto farther = [&](std::uint32_t nx, std::uint32_t ny) {
-        const Sample& n = sample(nx, ny);
-        return n.depth < 0 || n.depth > s.depth * 1.04 + 3.0 * resolution;
-      };
-      if (x > 0 && farther(x - 1, y)) outline = true;
-      if (x + 1 < width_ && farther(x + 1, y)) outline = true;
-      if (y > 0 && farther(x, y - 1)) outline = true;
-      if (y + 1 < height_ && farther(x, y + 1)) outline = true;
-      if (outline) light_f *= 0.55;
-      image.set(x, y, scale(heightColor((s.z - z_low) / z_span), light_f));
-      depths[std::size_t{y} * width_ + x] = static_cast<float>(s.depth);
-    }
-  };
-  double shade_s = 0.0;
-  while (shaded_rows < height_) {
-    const auto tile_start = Clock::now();
-    const std::uint32_t tile_end =
-        static_cast<std::uint32_t>(std::min<std::size_t>(height_, cast_rows + tile_rows));
-    window.resize(std::size_t{tile_end - window_row} * width_);
-    for (std::size_t p = std::size_t{cast_rows} * width_; p < std::size_t{tile_end} * width_; ++p) {
-      const Vec3 dir = camera.direction(static_cast<double>(p % width_) + 0.5,
-                                        static_cast<double>(p / width_) + 0.5);
-      double t_in, t_out;
-      if (!occupied.clip(eye, dir, t_in, t_out)) continue;
-      // A hair inside the box, so that a start on a cell face lies in the cell behind it.
-      if (t_in > 0.0) t_in += 1e-3 * resolution;
-      Ray ray;
-      ray.origin = (eye + t_in * dir).cast<float>();
-      ray.direction = dir.cast<float>();
-      ray.max_range_m = t_out - t_in + 2.0 * resolution;
-      ray.ignore_unknown = true;
-      rays.push_back(ray);
-      ray_pixel.push_back(p);
-      ray_start.push_back(t_in);
-    }
-    if (!rays.empty()) flush();
-    cast_rows = tile_end;
-    const auto shade_start = Clock::now();
-    cast_s += std::chrono::duration<double>(shade_start - tile_start).count();
-    // A row is shaded once the rows above and below it are cast.
-    const std::uint32_t shade_end = cast_rows == height_ ? height_ : cast_rows - 1;
-    for (; shaded_rows < shade_end; ++shaded_rows) shade(shaded_rows);
-    // The row above the next one to shade stays for its outlines.
-    const std::uint32_t keep_from = shaded_rows > 0 ? shaded_rows - 1 : 0;
-    window.erase(
-        window.begin(),
-        window.begin() + static_cast<std::ptrdiff_t>(std::size_t{keep_from - window_row} * width_));
-    window_row = keep_from;
-    shade_s += secondsSince(shade_start);
-  }
-  // The haze, now that the depth range is known.
-  const auto haze_start = Clock::now();
-  for (std::size_t p = 0; p < pixels; ++p) {
-    if (depths[p] < 0) continue;
-    const std::size_t at = p * 3;
-    const Rgb lit{image.pixels[at], image.pixels[at + 1], image.pixels[at + 2]};
-    const double far =
-        depth_max > depth_min ? (depths[p] - depth_min) / (depth_max - depth_min) : 0;
-    image.set(static_cast<std::uint32_t>(p % width_), static_cast<std::uint32_t>(p / width_),
-              mix(lit, haze, 0.4 * std::clamp(far, 0.0, 1.0)));
-  }
-  depths = {};
-  shade_s += secondsSince(haze_start);
-  const auto write_start = Clock::now();
-  in.files().write(0, [&](const std::string& temporary) { writePng(image, temporary); });
-  in.files().commit();
-  shade_s += secondsSince(write_start);
+int Render::run(Invocation& in) {
+  Steps steps;
+  OccupancyMap map = steps.run(
+      "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
+  const Scene shown = steps.run("reading and upload", [&] { return scene(map, in.input()); });
+  const bool legend = hasLegend(width_, height_);
+  const std::uint32_t view_width = legend ? width_ - kLegendWidth : width_;
+  const Camera view = camera(shown, map.params().resolution, view_width);
+  Tracer tracer(map, shown, view, budget(in, map, shown));
+  tracer.run(steps);
+  const ScaleBar bar = scaleBar(view, kLegendWidth - 28.0);
+  steps.run("legend and PNG", [&] {
+    Canvas canvas(width_, height_, kLegendBackground);
+    canvas.paste(tracer.image(), 0, 0);
+    if (legend) drawLegend(canvas, view_width, shown, bar);
+    in.files().write(0, [&](const std::string& temporary) { canvas.writePng(temporary); });
+    in.files().commit();
+  });
 
-  const double fov_h_deg = 2.0 * std::atan(camera.tan_half_h) * 180.0 / M_PI;
-  char line[512];
-  std::ostringstream s;
-  s << "device:  " << context.device().name << " (" << context.device().type << ")\n";
-  s << "map:     " << map_path << "\n";
-  std::snprintf(line, sizeof(line), "image:   %ux%u px\n", width_, height_);
-  s << line;
-  s << "camera:  --eye " << vec3Text(eye) << " --look-at " << vec3Text(look_at);
-  std::snprintf(line, sizeof(line), " --fov %g (vertical; %.1f horizontal)\n", fov_deg_,
-                fov_h_deg);
-  s << line;
-  std::snprintf(line, sizeof(line),
-                "rays:    %zu cast (pixels whose ray crosses the occupied cells' box), %zu hit "
-                "(%.1f%% of %zu pixels)\n",
-                cast, hits, 100.0 * static_cast<double>(hits) / static_cast<double>(pixels),
-                pixels);
-  s << line;
-  if (hits > 0) {
-    std::snprintf(line, sizeof(line), "depth:   %.2f to %.2f m\n", depth_min, depth_max);
-    s << line;
-  }
-  std::snprintf(
-      line, sizeof(line),
-      "time:    %.3f s (reading and upload %.3f s, castRays %.3f s, shading and PNG %.3f s)\n",
-      read_s + cast_s + shade_s, read_s, cast_s, shade_s);
-  s << line;
-  s << "wrote:   " << in.output() << "\n";
-  std::cout << s.str() << std::flush;
-  return kExitOk;
+  const std::size_t pixels = std::size_t{view_width} * height_;
+  Report report(9);
+  report.device(in.context())
+      .line("map", in.input())
+      .line("image",
+            format("%ux%u px", width_, height_) +
+                (legend ? format(": the view %ux%u, the legend %u px on the right", view_width,
+                                 height_, kLegendWidth)
+                        : format(" (no legend below %ux%u px)", kLegendMinWidth, kLegendMinHeight)))
+      .line("camera", "--eye " + vec3Text(view.eye) + " --look-at " + vec3Text(view.look_at) +
+                          format(" --fov %g (vertical; %.1f horizontal)", fov_deg_,
+                                 2.0 * std::atan(view.tan_half_h) * 180.0 / M_PI))
+      .line("rays", format("%zu cast (pixels whose ray crosses the occupied cells' box), %zu hit "
+                           "(%.1f%% of %zu pixels)",
+                           tracer.cast(), tracer.hits(),
+                           100.0 * static_cast<double>(tracer.hits()) / static_cast<double>(pixels),
+                           pixels));
+  if (tracer.hits() > 0)
+    report.line("depth", format("%.2f to %.2f m", tracer.depthMin(), tracer.depthMax()));
+  return report
+      .line("heights", format("%.2f to %.2f m, the cells' centres: blue lowest, red highest",
+                              shown.z_low, shown.z_low + shown.z_span))
+      .line("scale", format("%g m = %.0f px at the look-at point, %.2f m from the eye", bar.metres,
+                            bar.pixels, bar.depth_m))
+      .finish(steps, in.outputs());
 }
 
 }  // namespace
 
-const Subcommand kRenderCommand{
-    .name = "render",
-    .print_help = printRenderHelp,
-    .input = "map file",
-    .second_input_hint = "; the picture goes after -o",
-    .outputs = Subcommand::Outputs::kOne,
-    .writes = "one picture",
-    .no_output = "no output picture; add -o VIEW.png",
-    .output_extensions = {".png"},
-    .output_formats = ".png",
-    .max_device_memory = true,
-    .value_options = {"--size", "--fov", "--z-max"},
-    .multi_value_options = {{"--eye", "X Y Z"}, {"--look-at", "X Y Z"}},
-    .make = []() -> std::unique_ptr<Command> { return std::make_unique<Render>(); },
-    .examples =
-        "  octovk render map.bt -o view.png\n"
-        "  octovk render map.bt -o view.png --eye 10 -10 8 --look-at 0 0 1 --size 1024x768\n"
-        "  octovk render map.bt -o inside.png --z-max 2\n"};
+std::unique_ptr<Command> makeRender() { return std::make_unique<Render>(); }
 
 }  // namespace octovk::cli

@@ -2,6 +2,7 @@
 // map's cap, build/update, queries and download.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <sstream>
 #include <utility>
@@ -26,6 +27,51 @@ std::string corner(const Eigen::Vector3f& v) {
   return s.str();
 }
 
+std::string bytesText(std::size_t bytes) {
+  char text[64];
+  if (bytes >= (std::size_t{1} << 30))
+    std::snprintf(text, sizeof(text), "%.1f GiB", static_cast<double>(bytes) / (1 << 30));
+  else
+    std::snprintf(text, sizeof(text), "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+  return text;
+}
+
+std::string cellsText(const FieldBox& box) {
+  return std::to_string(box.size[0]) + " x " + std::to_string(box.size[1]) + " x " +
+         std::to_string(box.size[2]) + " cells";
+}
+
+// The remedy for a field the device or the cap has no room for, with or without a cap: the box
+// is what the caller chose, the cap what bounds the map and its fields together.
+std::string capAdvice(std::size_t cap) {
+  if (cap == 0)
+    return "Shrink the box (MapParams::max_device_bytes is not set: only the device limits the "
+           "map and its fields)";
+  return "Shrink the box, or raise MapParams::max_device_bytes (now " + bytesText(cap) + ")";
+}
+
+// The first and last key of the map's leaves along each axis, or false for a map with none.
+bool leafKeyBounds(OccupancyMap& map, std::array<std::uint32_t, 3>& lo,
+                   std::array<std::uint32_t, 3>& hi) {
+  const std::vector<OccupancyMap::LeafBoxHost> leaves = map.downloadLeafBoxes();
+  if (leaves.empty()) return false;
+  const double res = map.params().resolution;
+  lo.fill(0xFFFFu);
+  hi.fill(0u);
+  for (const OccupancyMap::LeafBoxHost& leaf : leaves)
+    for (int a = 0; a < 3; ++a) {
+      // The centres of the leaf's first and last finest cells: their keys, away from any edge.
+      const double half = 0.5 * (double(leaf.size) - res);
+      const auto key = [&](double c) {
+        return static_cast<std::uint32_t>(
+            std::clamp<double>(std::floor(c / res) + 32768.0, 0.0, 65535.0));
+      };
+      lo[a] = std::min(lo[a], key(leaf.center[a] - half));
+      hi[a] = std::max(hi[a], key(leaf.center[a] + half));
+    }
+  return true;
+}
+
 }  // namespace
 
 std::uint32_t maxLineCells(const vk::Device& device) {
@@ -46,7 +92,8 @@ std::size_t fieldBytes(const FieldBox& box) {
 }
 
 FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
-                  const DistanceFieldOptions& options, std::uint32_t max_line_cells) {
+                  const DistanceFieldOptions& options, std::uint32_t max_line_cells,
+                  const std::string& name) {
   if (!(options.max_distance_m > 0.0f) || !std::isfinite(options.max_distance_m))
     throw invalid("max_distance_m is " + std::to_string(options.max_distance_m) +
                   "; give a finite distance > 0");
@@ -69,15 +116,16 @@ FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Ve
     box.min_key[a] = lo;
     box.size[a] = hi - lo + 1;
     if (box.size[a] > max_line_cells)
-      throw invalid(
-          std::string("the box has ") + std::to_string(box.size[a]) + " cells along " + kAxis[a] +
-          "; this device transforms lines of at most " + std::to_string(max_line_cells) +
-          " cells in one dispatch (its driver's loop limit, and at most " +
-          std::to_string(gpu::kFieldMaxAxisCells) + " for exact 32-bit integers); split the box");
+      throw invalid(name + " has " + std::to_string(box.size[a]) + " cells along " + kAxis[a] +
+                    "; this device transforms lines of at most " + std::to_string(max_line_cells) +
+                    " cells in one dispatch (its driver's loop limit, and at most " +
+                    std::to_string(gpu::kFieldMaxAxisCells) + " for exact 32-bit integers); " +
+                    (name == "the box" ? "split the box" : "give a smaller box"));
   }
   if (box.cells() >= gpu::kFieldNoSite)
-    throw invalid("the box has " + std::to_string(box.cells()) +
-                  " cells; cell indices must fit 32 bits: split the box");
+    throw invalid(name + " has " + std::to_string(box.cells()) +
+                  " cells; cell indices must fit 32 bits: " +
+                  (name == "the box" ? "split the box" : "give a smaller box"));
   return box;
 }
 
@@ -92,23 +140,48 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
   liveMap().flush();
   MapBuffers& buffers = liveMap().fieldBuffers();
   const std::size_t bytes = fieldBytes(box_);
-  buffers.checkBudget(0, bytes,
-                      "a distance field of " + std::to_string(box_.size[0]) + " x " +
-                          std::to_string(box_.size[1]) + " x " + std::to_string(box_.size[2]) +
-                          " cells (" + std::to_string(bytes) + " bytes)");
-  bindings_ = vk::BindingSet(device_);
-  params_ = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
-  spare_ = vk::Buffer(device_, 512, false);
-  header_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), false);
-  readback_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), true);
-  const std::size_t cell_bytes = box_.cells() * sizeof(std::uint32_t);
-  const auto dirty = box_.dirtyWords();
-  occupancy_ = vk::Buffer(device_, box_.words() * sizeof(std::uint32_t), false);
-  line_x_ = vk::Buffer(device_, cell_bytes, false);
-  plane_xy_ = vk::Buffer(device_, cell_bytes, false);
-  sites_ = vk::Buffer(device_, cell_bytes, false);
-  envelope_ = vk::Buffer(device_, 2 * cell_bytes, false);
-  dirty_ = vk::Buffer(device_, (dirty[0] + dirty[1] + dirty[2]) * sizeof(std::uint32_t), false);
+  // What was asked and what it needs, then why it cannot be had and what to change: the box,
+  // or the cap (whether or not one is set), never the scans or query batches of the map.
+  const std::string asked = "DistanceField: a field over a box of " + cellsText(box_) + " needs " +
+                            bytesText(bytes) + " of device memory (" +
+                            std::to_string(bytes / std::max<std::size_t>(box_.cells(), 1)) +
+                            " bytes per cell)";
+  const std::size_t cap = buffers.maxBytes();
+  if (!buffers.fits(0, bytes)) {
+    const std::size_t held = buffers.deviceBytes();
+    throw BudgetError(
+        asked + "; the map's device-memory cap (MapParams::max_device_bytes = " + bytesText(cap) +
+        ") leaves " + bytesText(cap > held ? cap - held : 0) + " beside the " + bytesText(held) +
+        " the map holds. " + capAdvice(cap) + "; the map is unchanged");
+  }
+  // More than the device has in all is refused before any of it is asked for (on a CPU device
+  // the driver would first hand out gigabytes of host memory).
+  const std::uint64_t device_bytes = device_.info().memory_bytes;
+  if (device_bytes != 0 && bytes > device_bytes)
+    throw Error(ErrorCode::kOutOfDeviceMemory, asked + "; the device has " +
+                                                   bytesText(device_bytes) + " in all. " +
+                                                   capAdvice(cap) + "; the map is unchanged");
+  try {
+    bindings_ = vk::BindingSet(device_);
+    params_ = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
+    spare_ = vk::Buffer(device_, 512, false);
+    header_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), false);
+    readback_ = vk::Buffer(device_, sizeof(gpu::FieldHeader), true);
+    const std::size_t cell_bytes = box_.cells() * sizeof(std::uint32_t);
+    const auto dirty = box_.dirtyWords();
+    occupancy_ = vk::Buffer(device_, box_.words() * sizeof(std::uint32_t), false);
+    line_x_ = vk::Buffer(device_, cell_bytes, false);
+    plane_xy_ = vk::Buffer(device_, cell_bytes, false);
+    sites_ = vk::Buffer(device_, cell_bytes, false);
+    envelope_ = vk::Buffer(device_, 2 * cell_bytes, false);
+    dirty_ = vk::Buffer(device_, (dirty[0] + dirty[1] + dirty[2]) * sizeof(std::uint32_t), false);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kOutOfDeviceMemory) throw;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                asked + "; " + e.message() + " (the device has " + bytesText(device_bytes) +
+                    " in all). " + capAdvice(cap) + "; the map is unchanged",
+                0, e.detail());
+  }
   bytes_ = bytes;
   buffers.noteFieldBytes(0, bytes_);
   try {
@@ -142,7 +215,10 @@ OccupancyMap::Impl& DistanceField::Impl::liveMap() {
 }
 
 std::size_t DistanceField::Impl::batchLimit() const {
-  return std::max<std::size_t>(1, device_.maxBindingBytes() / sizeof(gpu::DistanceResult));
+  // At most 2^20 a batch (as the map's queries, QueryRunner::kMaxBatch): 64 MiB of buffers
+  // however many points a call brings.
+  return std::clamp<std::size_t>(device_.maxBindingBytes() / sizeof(gpu::DistanceResult), 1,
+                                 std::size_t{1} << 20);
 }
 
 void DistanceField::Impl::rebind(MapBuffers& map) {
@@ -268,23 +344,45 @@ void DistanceField::Impl::checkFresh(const char* call) const {
 void DistanceField::Impl::ensureQueries(std::size_t count) {
   count = std::min(count, batchLimit());
   if (count <= query_capacity_) return;
-  const std::size_t in = count * 4 * sizeof(float), out = count * sizeof(gpu::DistanceResult);
-  const std::size_t added = 2 * (in + out);
+  const auto added = [](std::size_t n) {
+    return 2 * n * (4 * sizeof(float) + sizeof(gpu::DistanceResult));  // each with its staging
+  };
   const std::size_t freed =
       query_in_.size() + query_out_.size() + staging_in_.size() + staging_out_.size();
   MapBuffers& map = liveMap().fieldBuffers();
-  map.checkBudget(freed, added,
-                  "distance-field query buffers for " + std::to_string(count) + " queries (" +
-                      std::to_string(added) + " bytes)");
-  vk::Buffer qi(device_, in, false), qo(device_, out, false), si(device_, in, true),
-      so(device_, out, true);
-  query_in_ = std::move(qi);
-  query_out_ = std::move(qo);
-  staging_in_ = std::move(si);
-  staging_out_ = std::move(so);
-  query_capacity_ = count;
-  map.noteFieldBytes(freed, added);
-  bytes_ = bytes_ - freed + added;
+  // Queries run in batches of the capacity: a batch the cap has no room for runs as smaller
+  // ones, and only where not even one query fits is it an error.
+  std::size_t n = count;
+  while (n > 1 && n > query_capacity_ && !map.fits(freed, added(n))) n /= 2;
+  if (n <= query_capacity_) return;
+  if (!map.fits(freed, added(n))) {
+    const std::size_t cap = map.maxBytes(), held = map.deviceBytes();
+    throw BudgetError("DistanceField: one query needs " + std::to_string(added(1)) +
+                      " bytes of device memory for its buffers; the map's device-memory cap "
+                      "(MapParams::max_device_bytes = " +
+                      bytesText(cap) + ") leaves " + bytesText(cap > held ? cap - held : 0) +
+                      " beside the " + bytesText(held) + " the map and its fields hold. " +
+                      capAdvice(cap) + "; the map is unchanged");
+  }
+  try {
+    vk::Buffer qi(device_, n * 4 * sizeof(float), false),
+        qo(device_, n * sizeof(gpu::DistanceResult), false),
+        si(device_, n * 4 * sizeof(float), true),
+        so(device_, n * sizeof(gpu::DistanceResult), true);
+    query_in_ = std::move(qi);
+    query_out_ = std::move(qo);
+    staging_in_ = std::move(si);
+    staging_out_ = std::move(so);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kOutOfDeviceMemory) throw;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "DistanceField: buffers for a batch of " + std::to_string(n) + " queries need " +
+                    bytesText(added(n)) + "; " + e.message() + ". Query fewer points per call",
+                0, e.detail());
+  }
+  query_capacity_ = n;
+  map.noteFieldBytes(freed, added(n));
+  bytes_ = bytes_ - freed + added(n);
 }
 
 std::vector<DistanceSample> DistanceField::Impl::query(std::span<const float> spheres,
@@ -350,7 +448,17 @@ DistanceField::Grid DistanceField::Impl::download() {
   g.size = box_.size;
   g.min_key = box_.min_key;
   const std::size_t cells = box_.cells();
-  vk::Buffer staging(device_, cells * sizeof(std::uint32_t), true);
+  vk::Buffer staging;
+  try {
+    staging = vk::Buffer(device_, cells * sizeof(std::uint32_t), true);
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kOutOfDeviceMemory) throw;
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "DistanceField::download: the whole field (" + cellsText(box_) + ") needs " +
+                    bytesText(cells * sizeof(std::uint32_t)) + " of host-visible memory; " +
+                    e.message() + ". Read the cells you need with distances(), or shrink the box",
+                0, e.detail());
+  }
   MapBuffers& map = liveMap().fieldBuffers();
   rebind(map);
   stream_.begin(bindings_);
@@ -385,8 +493,30 @@ DistanceField::DistanceField(OccupancyMap& map, const Eigen::Vector3f& box_min,
                              const Eigen::Vector3f& box_max, const DistanceFieldOptions& options) {
   hostMemoryGuard("DistanceField", [&] {
     OccupancyMap::Impl& m = FieldAccess::impl(map);
-    const FieldBox box =
-        fieldBox(m.params().resolution, box_min, box_max, options, maxLineCells(m.device()));
+    const FieldBox box = fieldBox(m.params().resolution, box_min, box_max, options,
+                                  maxLineCells(m.device()), "the box");
+    impl_ = std::make_unique<Impl>(m, box, options);
+  });
+}
+
+DistanceField::DistanceField(OccupancyMap& map, const DistanceFieldOptions& options) {
+  hostMemoryGuard("DistanceField", [&] {
+    OccupancyMap::Impl& m = FieldAccess::impl(map);
+    std::array<std::uint32_t, 3> lo{}, hi{};
+    if (!leafKeyBounds(map, lo, hi))
+      throw invalid(
+          "the map has no cells yet, so no bounds for the field to cover; insert a "
+          "scan first or give a box");
+    // One cell more on each side (within the key range): the unknown space around the map.
+    Eigen::Vector3f min, max;
+    const double res = m.params().resolution;
+    for (int a = 0; a < 3; ++a) {
+      min[a] = static_cast<float>((double(lo[a] > 0 ? lo[a] - 1 : 0) - 32768.0 + 0.5) * res);
+      max[a] =
+          static_cast<float>((double(hi[a] < 65535 ? hi[a] + 1 : 65535) - 32768.0 + 0.5) * res);
+    }
+    const FieldBox box = fieldBox(res, min, max, options, maxLineCells(m.device()),
+                                  "the map's bounds (and one cell around them)");
     impl_ = std::make_unique<Impl>(m, box, options);
   });
 }

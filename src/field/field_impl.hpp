@@ -38,8 +38,10 @@ struct FieldBox {
             w(std::size_t{size[0]} * size[1])};
   }
 };
+/// `name`: how the box is called in its errors ("the box" where the caller gave it).
 FieldBox fieldBox(double resolution, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
-                  const DistanceFieldOptions& options, std::uint32_t max_line_cells);
+                  const DistanceFieldOptions& options, std::uint32_t max_line_cells,
+                  const std::string& name);
 
 /// The most cells a line of the box may have on `device`: field_edt walks a line in one loop
 /// of edtLoopIterations(n), which must stay within the driver's loop budget, and its integers
@@ -82,7 +84,8 @@ class DistanceField::Impl {
 
  private:
   OccupancyMap::Impl& liveMap();
-  /// Query buffers for `count` queries per batch (checked against the cap first).
+  /// Query buffers for up to `count` queries per batch: as many as the cap has room for (at
+  /// least one, else BudgetError), at most batchLimit().
   void ensureQueries(std::size_t count);
   /// Points the binding set at the field's buffers and the map's node pool as it is now.
   void rebind(MapBuffers& map);

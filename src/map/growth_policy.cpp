@@ -35,6 +35,38 @@ std::uint32_t poolGuess(std::size_t count) {
   return static_cast<std::uint32_t>(std::min<std::size_t>(count * 3, std::size_t{1} << 21));
 }
 
+// A scan's growth the device refused, said once: what needed the room and what to change.
+class ScanOutOfMemory : public Error {
+ public:
+  ScanOutOfMemory(const Error& e, const std::string& what, std::size_t cap)
+      : Error(ErrorCode::kOutOfDeviceMemory,
+              "insertPointCloud: " + what + " needs more device memory than the device gave (" +
+                  e.message() +
+                  "); the map is unchanged. Split the scan into smaller ones or give it a max "
+                  "range (ScanOptions::max_range_m)" +
+                  (cap == 0 ? std::string(" (MapParams::max_device_bytes is not set: only the "
+                                          "device limits the map)")
+                            : ", or lower MapParams::max_device_bytes (now " + std::to_string(cap) +
+                                  " bytes) to what the device holds"),
+              0, e.detail()) {}
+};
+
+// Runs a growth for `what`; a device's refusal becomes a ScanOutOfMemory (the cap's refusals,
+// BudgetError, name the cap already, and one already said passes as it is).
+template <class F>
+void growing(const MapCore& core, const std::string& what, F&& grow) {
+  try {
+    grow();
+  } catch (const BudgetError&) {
+    throw;
+  } catch (const ScanOutOfMemory&) {
+    throw;
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kOutOfDeviceMemory) throw;
+    throw ScanOutOfMemory(e, what, core.buffers.maxBytes());
+  }
+}
+
 }  // namespace
 
 bool GrowthPolicy::mustGrow(std::size_t count, std::size_t depth_bytes) const {
@@ -45,15 +77,17 @@ bool GrowthPolicy::mustGrow(std::size_t count, std::size_t depth_bytes) const {
 }
 
 void GrowthPolicy::growFor(std::size_t count, std::size_t depth_bytes) {
-  growAhead();
-  core_.buffers.ensurePoints(count);
-  if (depth_bytes > 0) core_.buffers.ensureDepth(depth_bytes);
-  const std::uint32_t guess = hashGuess(count);
-  if (guess > hash_guess_tried_) {
-    core_.buffers.growHashToward(guess);  // as far as MapParams::max_device_bytes allows
-    hash_guess_tried_ = guess;
-    guessListsAndPool(count);
-  }
+  growing(core_, "a scan of " + std::to_string(count) + " points", [&] {
+    growAhead();
+    core_.buffers.ensurePoints(count);
+    if (depth_bytes > 0) core_.buffers.ensureDepth(depth_bytes);
+    const std::uint32_t guess = hashGuess(count);
+    if (guess > hash_guess_tried_) {
+      core_.buffers.growHashToward(guess);  // as far as MapParams::max_device_bytes allows
+      hash_guess_tried_ = guess;
+      guessListsAndPool(count);
+    }
+  });
 }
 
 // Ahead of need, like growAhead: a guess the cap has no room for is dropped, and the scan that
@@ -142,6 +176,10 @@ void GrowthPolicy::noteApplied(const gpu::ScanCounters& counters, const gpu::Poo
 }
 
 void GrowthPolicy::growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool) {
+  growing(core_, "the scan", [&] { growForRetryOf(counters, pool); });
+}
+
+void GrowthPolicy::growForRetryOf(const gpu::ScanCounters& counters, const gpu::PoolState& pool) {
   MapBuffers& buffers = core_.buffers;
   const std::uint32_t status = counters.status;
   if (status & gpu::kStatusRayCut)
@@ -201,11 +239,12 @@ void GrowthPolicy::reservePool(std::uint64_t blocks, const gpu::PoolState& pool,
     if (ahead) return;
     throw;  // names the cap
   } catch (const Error& e) {
-    if (ahead) return;
-    throw Error(ErrorCode::kOutOfDeviceMemory,
-                std::string("insertPointCloud: the device has no room to grow the node pool "
-                            "to ") +
-                    std::to_string(target * 8) + " nodes; the map is unchanged (" + e.what() + ")");
+    if (ahead || e.code() != ErrorCode::kOutOfDeviceMemory) {
+      if (ahead) return;
+      throw;
+    }
+    throw ScanOutOfMemory(e, "the scan's node pool of " + std::to_string(target * 8) + " nodes",
+                          buffers.maxBytes());
   }
 }
 

@@ -33,7 +33,8 @@ class GrowthPolicy {
   /// unchanged.
   void growAheadBestEffort();
   /// Grows what a scan the device did not apply found short; throws (map unchanged) where it
-  /// may not grow.
+  /// may not grow. A device's refusal of a growth (here and in growFor) says what the scan
+  /// needed and what to change (split the scan, a max range, the cap).
   void growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
   /// After a scan of `points` points is in the map (its counters, the pool after it): asks for
   /// room ahead for `scans_ahead` more scans like it. Allocates nothing, never throws.
@@ -46,6 +47,7 @@ class GrowthPolicy {
  private:
   /// Releases the per-scan scratch; the next scan guesses the cell set afresh.
   void releaseScratch();
+  void growForRetryOf(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
   /// After each successful scan of `points` points: whether to release the scratch (once no
   /// scan is in flight), because an outsized scan grew it, i.e. the largest scan since the
   /// scratch was last released had more than kOutsizedFactor times the points of the median of

@@ -82,6 +82,28 @@ std::size_t QueryRunner::batchLimit(bool rays) const {
 }
 
 QueryResults QueryRunner::run(const QueryRequest& q) {
+  try {
+    return runSplit(q);
+  } catch (const BudgetError&) {
+    throw;  // names the cap
+  } catch (const Error& e) {
+    if (e.code() != ErrorCode::kOutOfDeviceMemory) throw;
+    // What asked for the room and what to change, in the caller's words.
+    const std::size_t cap = core_.buffers.maxBytes();
+    throw Error(ErrorCode::kOutOfDeviceMemory,
+                "queries: " + std::to_string(q.lookups.size()) + " search points and " +
+                    std::to_string(q.rays.size()) +
+                    " rays need more device memory than the device gave (" + e.message() +
+                    "); the map is unchanged. Ask for fewer at once" +
+                    (cap == 0 ? std::string(" (MapParams::max_device_bytes is not set: only the "
+                                            "device limits the map)")
+                              : ", or lower MapParams::max_device_bytes (now " +
+                                    std::to_string(cap) + " bytes) to what the device holds"),
+                0, e.detail());
+  }
+}
+
+QueryResults QueryRunner::runSplit(const QueryRequest& q) {
   if (q.rays.empty() && q.lookups.empty()) return {};
   // A request that fits is one batch; a larger one is split, each kind in batches of its own.
   // Every query is answered alone, against the same tree, so the answers are the same.

@@ -24,7 +24,8 @@ class QueryRunner {
   QueryRunner(MapCore& core, RaySceneCache& scenes) : core_(core), scenes_(scenes) {}
 
   /// search() and castRay over any number of queries: split into batches that fit one binding
-  /// (and the castRay dispatch limit), each answered as OctoMap would answer it alone.
+  /// (and the castRay dispatch limit), each answered as OctoMap would answer it alone. A device's
+  /// refusal of memory says how many queries asked and what to change.
   QueryResults run(const QueryRequest& queries);
   /// Whether so many queries fit one batch (one submission; insert-with-queries needs that).
   bool fitsOneBatch(std::size_t rays, std::size_t lookups) const;
@@ -38,6 +39,8 @@ class QueryRunner {
  private:
   /// The most queries of one kind (castRay when `rays`, else search) in one batch.
   std::size_t batchLimit(bool rays) const;
+  /// run() without its wording of a device's refusal.
+  QueryResults runSplit(const QueryRequest& queries);
   QueryResults runBatch(const QueryRequest& queries);
   /// Appends the leaves in `box` (keys) to `out`, in parts of the box where they are more than
   /// `capacity`; true when it asked in parts (a leaf in several parts is then in `out` twice).

@@ -1,8 +1,10 @@
 #include "vk/buffer.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <utility>
 
+#include "octovk/errors.hpp"
 #include "vk/check.hpp"
 #include "vk/device.hpp"
 #include "vk/fault_injection.hpp"
@@ -12,7 +14,26 @@ namespace octovk::vk {
 Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible)
     : Buffer(device, bytes, host_visible, 0) {}
 
-Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsageFlags extra_usage)
+namespace {
+
+// An allocation the driver refused, in the user's words: how much was asked for, and from which
+// memory. The callers that know what the buffer was for say so and name the remedy.
+Error refused(const Error& e, std::size_t bytes, bool host_visible) {
+  if (e.code() != ErrorCode::kOutOfDeviceMemory) return e;
+  char text[160];
+  const char* memory = host_visible ? "host-visible" : "device";
+  if (bytes < (std::size_t{1} << 20))
+    std::snprintf(text, sizeof(text), "could not allocate %zu bytes of %s memory", bytes, memory);
+  else
+    std::snprintf(text, sizeof(text), "could not allocate %zu bytes (%.1f MiB) of %s memory", bytes,
+                  static_cast<double>(bytes) / (1024.0 * 1024.0), memory);
+  return Error(e.code(), e.message() + ": " + text, e.scan(), e.detail());
+}
+
+}  // namespace
+
+Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible,
+               VkBufferUsageFlags extra_usage) try
     : device_(&device) {
   bytes_ = std::max<std::size_t>(bytes, 16);
   VkBufferCreateInfo info{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
@@ -53,6 +74,8 @@ Buffer::Buffer(Device& device, std::size_t bytes, bool host_visible, VkBufferUsa
     release();
     throw;
   }
+} catch (const Error& e) {
+  throw refused(e, std::max<std::size_t>(bytes, 16), host_visible);
 }
 
 Buffer::~Buffer() { release(); }

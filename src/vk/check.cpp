@@ -41,13 +41,35 @@ const char* resultName(VkResult r) {
   }
 }
 
+std::string resultWords(VkResult r) {
+  switch (r) {
+    case VK_ERROR_OUT_OF_DEVICE_MEMORY:
+      return "the Vulkan device is out of memory";
+    case VK_ERROR_OUT_OF_HOST_MEMORY:
+      return "the Vulkan driver is out of host memory";
+    case VK_ERROR_DEVICE_LOST:
+      return "the Vulkan device was lost (a driver reset, a GPU fault or a time-out)";
+    case VK_ERROR_INITIALIZATION_FAILED:
+      return "the Vulkan driver failed to initialise";
+    case VK_ERROR_INCOMPATIBLE_DRIVER:
+      return "the Vulkan driver is incompatible";
+    case VK_ERROR_TOO_MANY_OBJECTS:
+      return "the Vulkan driver has too many objects";
+    default:
+      return std::string("the Vulkan driver failed unexpectedly (") + resultName(r) + ")";
+  }
+}
+
 void check(VkResult r, const char* call, const char* file, int line) {
   if (r == VK_SUCCESS) return;
-  std::ostringstream msg;
-  msg << call << " failed with " << resultName(r) << " (" << int(r) << ") at " << file << ":"
-      << line;
+  // The user reads words and the remedy (set OCTOVK_DEBUG for the rest); the call, the result
+  // and the source place are the developer's, in Error::detail().
+  std::ostringstream detail;
+  detail << call << " failed with " << resultName(r) << " (" << int(r) << ") at " << file << ":"
+         << line;
   const bool oom = r == VK_ERROR_OUT_OF_DEVICE_MEMORY || r == VK_ERROR_OUT_OF_HOST_MEMORY;
-  throw Error(oom ? ErrorCode::kOutOfDeviceMemory : ErrorCode::kVulkan, msg.str());
+  throw Error(oom ? ErrorCode::kOutOfDeviceMemory : ErrorCode::kVulkan, resultWords(r), 0,
+              detail.str());
 }
 
 }  // namespace octovk::vk
