@@ -812,5 +812,31 @@ TEST(Layout, ArchitectureDocNamesWhatExists) {
   EXPECT_EQ(counts, 2u) << "the binding count or the address table's binding is no longer stated";
 }
 
+// A node's fields are reached through shaders/node.glsl alone, so that a payload (colour, time
+// stamp) is added there and not in every pass: no other shader names NODES, the pool's array
+// (bindings.glsl defines it; layout_probe.comp writes every field of every layout).
+TEST(Layout, ShadersReachNodesThroughNodeGlsl) {
+  namespace fs = std::filesystem;
+  const fs::path dir = OCTOVK_PATH(OCTOVK_SOURCE_DIR) + "/shaders";
+  const std::regex names_nodes("\\bNODES\\b");
+  std::size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name == "node.glsl" || name == "bindings.glsl" || name == "layout_probe.comp") continue;
+    ++files;
+    std::ifstream in(entry.path());
+    std::size_t number = 0;
+    for (std::string line; std::getline(in, line);) {
+      ++number;
+      const std::string code = line.substr(0, line.find("//"));
+      EXPECT_FALSE(std::regex_search(code, names_nodes))
+          << "shaders/" << name << ":" << number << " reaches a node's fields directly; use "
+          << "node.glsl's accessors (nodeData, setNodeData, linkOf, ...):\n"
+          << line;
+    }
+  }
+  EXPECT_GT(files, 30u);
+}
+
 }  // namespace
 }  // namespace octovk
