@@ -63,31 +63,39 @@ void setNodeLogOdds(uint n, float log_odds) { NODES[n].log_odds = log_odds; }
 // new value.
 void setUpdatedLeaf(uint n, float log_odds) { NODES[n].log_odds = log_odds; }
 
-// OctoMap's isNodeCollapsible on the block of a node's children, read plainly (nothing writes
-// them in the dispatch): all 8 exist, have no children and hold the same value.
-bool childrenCollapsible(uint block) {
-  uint first = block * 8u;
-  for (uint s = 0u; s < 8u; ++s) {
-    uint child = first + s;
-    if (!linkLiveLeaf(settledLinkOf(child))) return false;
-    if (nodeLogOdds(child) != nodeLogOdds(first)) return false;
-  }
-  return true;
-}
+// isNodeCollapsible's test of a child's data against the first child's: the same log-odds.
+bool collapsibleData(NodeData first, NodeData child) { return child.log_odds == first.log_odds; }
 
-// pruneNode: the data the parent of a collapsible block takes (its first child's; all are equal).
-NodeData prunedNodeData(uint block) { return nodeData(block * 8u); }
-
-// updateOccupancyChildren: the data an inner node takes from its block of children, read plainly:
-// the maximum log-odds of the live ones (getMaxChildLogOdds, from -FLT_MAX).
-NodeData innerNodeData(uint block) {
+// The block of a node's children as updateNodeRecurs meets it going up, read plainly (the caller
+// says why nothing writes it in the dispatch): whether pruneNode merges it (isNodeCollapsible:
+// all 8 children exist, have no children and hold collapsible data), and the data the node takes
+// when it keeps it (updateOccupancyChildren: the maximum log-odds of the live children,
+// getMaxChildLogOdds from -FLT_MAX). One pass over the block.
+NodeData summariseChildren(uint block, out bool collapsible) {
+  NodeData first = nodeData(block * 8u);
   float max_log_odds = -3.402823466e+38;
+  collapsible = true;
   for (uint s = 0u; s < 8u; ++s) {
     uint child = block * 8u + s;
-    if (linkLive(settledLinkOf(child)) && nodeLogOdds(child) > max_log_odds)
-      max_log_odds = nodeLogOdds(child);
+    uint link = settledLinkOf(child);
+    if (!linkLive(link)) {
+      collapsible = false;
+      continue;
+    }
+    NodeData data = nodeData(child);
+    if (linkHasChildren(link) || !collapsibleData(first, data)) collapsible = false;
+    if (data.log_odds > max_log_odds) max_log_odds = data.log_odds;
   }
   return NodeData(max_log_odds);
 }
+
+// updateOccupancyChildren alone (updateInnerOccupancy after an edit): see summariseChildren.
+NodeData innerNodeData(uint block) {
+  bool collapsible;
+  return summariseChildren(block, collapsible);
+}
+
+// pruneNode: the data the node of a collapsible block takes (its first child's; all are equal).
+NodeData prunedNodeData(uint block) { return nodeData(block * 8u); }
 
 #endif  // OCTOVK_NODE_GLSL

@@ -17,7 +17,9 @@ void main() {
   // n and its children are read plainly: this level's invocations write only their own node,
   // and listParent marks the level above.
   uint block = settledLinkOf(n) & kBlockMask;
-  if (childrenCollapsible(block)) {
+  bool collapsible;
+  NodeData inner = summariseChildren(block, collapsible);
+  if (collapsible) {
     setNodeData(n, prunedNodeData(block));
     setLink(n, kNoChildren | kFlagLive);
     BLOCK_PARENT[block] = kNoBlock;
@@ -25,7 +27,7 @@ void main() {
     FREE_STACK[at] = block;
     atomicAdd(pool.live_nodes, uint(-8));
   } else {
-    setNodeData(n, innerNodeData(block));
+    setNodeData(n, inner);
     setLink(n, block | kFlagLive);
   }
   if (level > 0u) listParent(level - 1u, n);
