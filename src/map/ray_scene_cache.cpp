@@ -45,7 +45,12 @@ CastRayBackend tracingPath(const vk::Device& device, const MapParams& params, Ca
   else if (pipeline && device.rayTracingPipeline())
     path = CastRayBackend::kRayTracingPipeline;
   if (path == CastRayBackend::kWalk) {
-    const bool offered = (query && info.ray_query) || (pipeline && info.ray_tracing_pipeline);
+    const bool offer_query = query && info.ray_query;
+    if (offer_query || (pipeline && info.ray_tracing_pipeline))
+      throw Error(ErrorCode::kMissingFeature,
+                  name + " has " + (offer_query ? "ray queries" : "ray-tracing pipelines") +
+                      " but was opened with ContextOptions::enable_ray_query = false; use " +
+                      remedy);
     const char* missing =
         !pipeline ? "has no ray queries (VK_KHR_acceleration_structure and VK_KHR_ray_query; "
                     "Mesa's lavapipe has them from Mesa 25)"
@@ -54,10 +59,7 @@ CastRayBackend tracingPath(const vk::Device& device, const MapParams& params, Ca
                   : "has neither ray queries nor ray-tracing pipelines "
                     "(VK_KHR_acceleration_structure with VK_KHR_ray_query or "
                     "VK_KHR_ray_tracing_pipeline; Mesa's lavapipe has both from Mesa 25)";
-    throw Error(ErrorCode::kMissingFeature,
-                name +
-                    (offered ? " was opened with ContextOptions::enable_ray_query = false" : " ") +
-                    (offered ? "" : missing) + "; use " + remedy);
+    throw Error(ErrorCode::kMissingFeature, name + " " + missing + "; use " + remedy);
   }
   if (device.loopLimit() != 0)
     throw Error(ErrorCode::kMissingFeature,
