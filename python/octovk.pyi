@@ -61,6 +61,8 @@ class CastRayBackend:
     AUTO: ClassVar[CastRayBackend]  # 0
     WALK: ClassVar[CastRayBackend]  # 1
     RAY_TRACING: ClassVar[CastRayBackend]  # 2
+    RAY_QUERY: ClassVar[CastRayBackend]  # 3
+    RT_PIPELINE: ClassVar[CastRayBackend]  # 4
     @property
     def name(self) -> str: ...
     @property
@@ -71,6 +73,8 @@ class ScanRays:
     """How a scan's rays find their cells."""
     WALK: ClassVar[ScanRays]  # 1
     RAY_TRACING: ClassVar[ScanRays]  # 2
+    RAY_QUERY: ClassVar[ScanRays]  # 3
+    RT_PIPELINE: ClassVar[ScanRays]  # 4
     @property
     def name(self) -> str: ...
     @property

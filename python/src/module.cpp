@@ -118,11 +118,21 @@ void bindTypes(py::module_& m) {
       .value("AUTO", CastRayBackend::kAuto, "ray tracing where available, else the walk")
       .value("WALK", CastRayBackend::kWalk, "a compute shader steps through every cell")
       .value("RAY_TRACING", CastRayBackend::kRayTracing,
-             "ray queries against an acceleration structure (needs VK_KHR_ray_query)");
+             "rays traced against an acceleration structure: RAY_QUERY where the device has ray "
+             "queries, else RT_PIPELINE")
+      .value("RAY_QUERY", CastRayBackend::kRayQuery,
+             "RAY_TRACING through ray queries (needs VK_KHR_ray_query)")
+      .value("RT_PIPELINE", CastRayBackend::kRayTracingPipeline,
+             "RAY_TRACING through a ray-tracing pipeline (needs VK_KHR_ray_tracing_pipeline)");
   py::enum_<ScanRays>(m, "ScanRays", "How a scan's rays find their cells.")
       .value("WALK", ScanRays::kWalk, "OctoMap's DDA through every cell")
       .value("RAY_TRACING", ScanRays::kRayTracing,
-             "the DDA jumps over leaves already clamped free (needs VK_KHR_ray_query)");
+             "the DDA jumps over leaves already clamped free: RAY_QUERY where the device has ray "
+             "queries, else RT_PIPELINE")
+      .value("RAY_QUERY", ScanRays::kRayQuery,
+             "RAY_TRACING through ray queries (needs VK_KHR_ray_query)")
+      .value("RT_PIPELINE", ScanRays::kRayTracingPipeline,
+             "RAY_TRACING through a ray-tracing pipeline (needs VK_KHR_ray_tracing_pipeline)");
 
   py::class_<Pose>(m, "Pose",
                    "A rigid transform with OctoMap's float arithmetic (octomath::Pose6D): "

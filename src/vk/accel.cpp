@@ -52,13 +52,6 @@ void AccelerationStructure::release() noexcept {
   storage_ = Buffer();
 }
 
-// ---------------------------------------------------------------------------------------------
-// BoxScene
-
-namespace {
-
-VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
-
 void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
                    VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
   VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
@@ -66,6 +59,13 @@ void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccess
   b.dstAccessMask = dst_access;
   vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &b, 0, nullptr, 0, nullptr);
 }
+
+// ---------------------------------------------------------------------------------------------
+// BoxScene
+
+namespace {
+
+VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
 
 // Whether a structure of `bytes` is kept: one exists and is large enough.
 bool keeps(const AccelerationStructure& as, VkDeviceSize bytes) {

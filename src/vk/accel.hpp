@@ -12,6 +12,11 @@
 
 namespace octovk::vk {
 
+/// A global memory barrier (the builds' and the traces' stages, which CommandStream::barrier
+/// does not cover).
+void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                   VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);
+
 /// One acceleration structure and the buffer that holds it; one owner.
 class AccelerationStructure {
  public:

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "gpu/gpu_types.h"
+#include "vk/accel.hpp"
 #include "vk/device.hpp"
 #include "vk/shader_registry.hpp"
 
@@ -36,14 +37,6 @@ VkShaderModule shaderModule(VkDevice device, std::string_view name) {
   VkShaderModule module = VK_NULL_HANDLE;
   OCTOVK_VK(vkCreateShaderModule(device, &info, nullptr, &module));
   return module;
-}
-
-void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
-                   VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
-  VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
-  b.srcAccessMask = src_access;
-  b.dstAccessMask = dst_access;
-  vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &b, 0, nullptr, 0, nullptr);
 }
 
 }  // namespace
