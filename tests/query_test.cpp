@@ -4,8 +4,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <tuple>
 
+#include "caller_buffer.hpp"
+#include "gpu/gpu_types.h"
+#include "octovk/vulkan_interop.hpp"
 #include "rt_paths.hpp"
 #include "test_support.hpp"
 
@@ -605,6 +609,41 @@ TEST_P(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
   got = map.castRays(rays);
   EXPECT_TRUE(sameAsOctoMap(other, rays, got)) << "after an upload";
   EXPECT_EQ(map.castRayInfo().builds, 2u);
+}
+
+// Rays in a caller's buffer (castRaysOnDevice): the host does not see them, so both passes run
+// over the whole batch, each skipping the other kind of ray; the answers are OctoMap's.
+TEST_P(RayTracingBackend, RaysInACallersBufferEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const CastRayBackend path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  Built b = buildMap(ctx, 0.1, 7, path);
+  std::mt19937 rng(77);
+  const std::vector<Ray> rays = randomRays(rng, 0.1, 600);
+  const auto n = static_cast<std::uint32_t>(rays.size());
+  const VulkanHandles vk = vulkanHandles(ctx);
+  ASSERT_NE(vk.device, VK_NULL_HANDLE);
+  test::CallerBuffer ray_buf(vk, n * sizeof(gpu::RayQuery)), hit_buf(vk, castRaysResultBytes(n));
+  auto* queries = static_cast<gpu::RayQuery*>(ray_buf.data());
+  for (std::uint32_t i = 0; i < n; ++i) {
+    queries[i] = {};
+    queries[i].max_range = rays[i].max_range_m;
+    queries[i].origin_x = rays[i].origin.x();
+    queries[i].origin_y = rays[i].origin.y();
+    queries[i].origin_z = rays[i].origin.z();
+    queries[i].direction_x = rays[i].direction.x();
+    queries[i].direction_y = rays[i].direction.y();
+    queries[i].direction_z = rays[i].direction.z();
+    queries[i].ignore_unknown = rays[i].ignore_unknown ? 1u : 0u;
+  }
+  castRaysOnDevice(*b.map, ray_buf.range(), n, hit_buf.range());
+  EXPECT_EQ(b.map->castRayInfo().backend, path);
+  const auto* results = static_cast<const gpu::RayResult*>(hit_buf.data());
+  std::vector<RayHit> got(n);
+  for (std::uint32_t i = 0; i < n; ++i)
+    got[i] = {results[i].hit != 0,
+              Eigen::Vector3f(results[i].end_x, results[i].end_y, results[i].end_z)};
+  EXPECT_TRUE(sameAsOctoMap(b.oracle(), rays, got));
 }
 
 // kAuto and kRayTracing take ray queries where the device has them, else a ray-tracing pipeline;

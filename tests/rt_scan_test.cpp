@@ -437,5 +437,29 @@ TEST(RtScanCli, RaysOptionHelpAndErrors) {
   }
 }
 
+// `octovk devices` names the ways each device traces rays, and the way castRay (and --rays rt)
+// takes on the selected one: ray queries first, then the pipeline, else the walk.
+TEST(RtScanCli, DevicesNamesTheRayTracingPathsAndTheOneUsed) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  test::Scratch dir("rt_scan");
+  const test::RunResult r = test::runOctovk({"devices"}, dir.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const bool query = test::hasTracePath(ctx, CastRayBackend::kRayQuery);
+  const bool pipeline = test::hasTracePath(ctx, CastRayBackend::kRayTracingPipeline);
+  const std::string offers = query && pipeline ? "ray queries and ray-tracing pipelines"
+                             : query           ? "ray queries"
+                             : pipeline        ? "ray-tracing pipelines"
+                                               : "no ray tracing";
+  const std::string listed = std::to_string(ctx.device().index) + ": " + ctx.device().name;
+  const std::size_t line = r.out.find(listed);
+  ASSERT_NE(line, std::string::npos) << r.out;
+  EXPECT_NE(r.out.substr(line, r.out.find('\n', line) - line).find(offers), std::string::npos)
+      << r.out;
+  const char* used = query      ? "castRay: ray tracing through ray queries"
+                     : pipeline ? "castRay: ray tracing through a ray-tracing pipeline"
+                                : "castRay: compute walk";
+  EXPECT_NE(r.out.find(used), std::string::npos) << r.out;
+}
+
 }  // namespace
 }  // namespace octovk
