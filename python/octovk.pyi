@@ -88,6 +88,7 @@ class DeviceInfo:
     index: int
     memory_bytes: int
     ray_query: bool
+    ray_tracing_pipeline: bool
     ray_query_enabled: bool
 
 class Context:

@@ -59,6 +59,9 @@ void bindContext(py::module_& m) {
       .def_readonly("memory_bytes", &DeviceInfo::memory_bytes)
       .def_readonly("ray_query", &DeviceInfo::ray_query,
                     "the device offers ray queries (castRay's ray-tracing backend)")
+      .def_readonly("ray_tracing_pipeline", &DeviceInfo::ray_tracing_pipeline,
+                    "the device offers ray-tracing pipelines (the ray-tracing backends' other "
+                    "way, RT_PIPELINE; a Context enables them with ray_query)")
       .def_readonly("ray_query_enabled", &DeviceInfo::ray_query_enabled,
                     "ray queries are enabled on this Context's device")
       .def("__repr__", [](const DeviceInfo& d) {
