@@ -3,8 +3,8 @@
 #include <octomap/OcTree.h>
 
 #include <chrono>
-#include <functional>
 #include <cstdio>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -168,8 +168,8 @@ void runPaperRt(Context& context, const BenchOptions& o, double res,
   json.field("equals_octomap", revisit_equal).key("last_pass").beginArray();
   for (std::size_t i = 0; i < views.size(); ++i) {
     const StageTimes& wd = walk_last[i].device;
-    std::printf("| %s | %.1f | %.1f | %.1f |", labels[i].c_str(), om_last[i],
-                walk_last[i].wall_ms, wd.ray_keys_ms + wd.classify_ms);
+    std::printf("| %s | %.1f | %.1f | %.1f |", labels[i].c_str(), om_last[i], walk_last[i].wall_ms,
+                wd.ray_keys_ms + wd.classify_ms);
     json.beginObject()
         .field("view", labels[i])
         .field("octomap_insert_ms", om_last[i])

@@ -386,11 +386,10 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
           "\nRay-tracing backend: not run (the device has neither ray queries nor ray-tracing "
           "pipelines).\n");
   }
-  json.field("default_cast_ray_backend", auto_backend == CastRayBackend::kWalk
-                                             ? "walk"
-                                             : auto_backend == CastRayBackend::kRayQuery
-                                                   ? "ray_tracing"
-                                                   : "rt_pipeline");
+  json.field("default_cast_ray_backend", auto_backend == CastRayBackend::kWalk ? "walk"
+                                         : auto_backend == CastRayBackend::kRayQuery
+                                             ? "ray_tracing"
+                                             : "rt_pipeline");
   json.key("cast_ray").beginArray();
   for (const double max_range : {10.0, -1.0}) {
     for (const bool ignore_unknown : {false, true}) {
@@ -449,9 +448,10 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
                 grouped(static_cast<double>(t.count)).c_str(), t.om_ms * 1e-3, t.vk_ms * 1e-3,
                 grouped(t.omPerSecond()).c_str(), grouped(t.vkPerSecond()).c_str(),
                 t.om_ms / t.vk_ms, t.mismatches, t.answers.c_str());
-  std::printf("\ncastRay by backend (octovk's default here: %s):\n\n| query | OctoMap s | walk s | "
-              "OctoMap / walk | walk mismatches |",
-              backendLabel(auto_backend));
+  std::printf(
+      "\ncastRay by backend (octovk's default here: %s):\n\n| query | OctoMap s | walk s | "
+      "OctoMap / walk | walk mismatches |",
+      backendLabel(auto_backend));
   for (const TracePath& path : paths)
     std::printf(" %s s | OctoMap / %s | %s mismatches |", path.label, path.label, path.label);
   std::printf("\n| --- | --: | --: | --: | --: |");

@@ -161,14 +161,14 @@ TEST_P(CastRays, EqualOctoMap) {
   EXPECT_LT(hits, rays.size());
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Maps, CastRays,
-    ::testing::Combine(::testing::Values(0.1, 0.05, 0.2), ::testing::Values(1u, 2u), kBackends),
-    [](const auto& info) {
-      return std::string(tracePathName(std::get<2>(info.param))) + "_res" +
-             std::to_string(static_cast<int>(std::get<0>(info.param) * 100)) + "_seed" +
-             std::to_string(std::get<1>(info.param));
-    });
+INSTANTIATE_TEST_SUITE_P(Maps, CastRays,
+                         ::testing::Combine(::testing::Values(0.1, 0.05, 0.2),
+                                            ::testing::Values(1u, 2u), kBackends),
+                         [](const auto& info) {
+                           return std::string(tracePathName(std::get<2>(info.param))) + "_res" +
+                                  std::to_string(static_cast<int>(std::get<0>(info.param) * 100)) +
+                                  "_seed" + std::to_string(std::get<1>(info.param));
+                         });
 
 TEST_P(Queries, LeavesInBoxEqualOctoMapIterator) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -626,15 +626,16 @@ TEST_P(RayTracingBackend, RaysInACallersBufferEqualOctoMap) {
   test::CallerBuffer ray_buf(vk, n * sizeof(gpu::RayQuery)), hit_buf(vk, castRaysResultBytes(n));
   auto* queries = static_cast<gpu::RayQuery*>(ray_buf.data());
   for (std::uint32_t i = 0; i < n; ++i) {
-    queries[i] = {};
-    queries[i].max_range = rays[i].max_range_m;
-    queries[i].origin_x = rays[i].origin.x();
-    queries[i].origin_y = rays[i].origin.y();
-    queries[i].origin_z = rays[i].origin.z();
-    queries[i].direction_x = rays[i].direction.x();
-    queries[i].direction_y = rays[i].direction.y();
-    queries[i].direction_z = rays[i].direction.z();
-    queries[i].ignore_unknown = rays[i].ignore_unknown ? 1u : 0u;
+    const Ray& r = rays[i];
+    queries[i] = gpu::RayQuery{r.max_range_m,
+                               r.origin.x(),
+                               r.origin.y(),
+                               r.origin.z(),
+                               r.direction.x(),
+                               r.direction.y(),
+                               r.direction.z(),
+                               r.ignore_unknown ? 1u : 0u,
+                               0u};
   }
   castRaysOnDevice(*b.map, ray_buf.range(), n, hit_buf.range());
   EXPECT_EQ(b.map->castRayInfo().backend, path);
@@ -669,9 +670,9 @@ TEST(RayTracingChoice, RayQueriesFirstThenThePipelineElseTheWalk) {
   for (Context* c : {&ctx, &no_rt}) {
     const bool enabled = c != &no_rt;  // no_rt enables neither, whatever its device offers
     const CastRayBackend want = enabled ? traced(*c) : CastRayBackend::kWalk;
-    for (const CastRayBackend asked : {CastRayBackend::kAuto, CastRayBackend::kRayTracing,
-                                       CastRayBackend::kRayQuery,
-                                       CastRayBackend::kRayTracingPipeline}) {
+    for (const CastRayBackend asked :
+         {CastRayBackend::kAuto, CastRayBackend::kRayTracing, CastRayBackend::kRayQuery,
+          CastRayBackend::kRayTracingPipeline}) {
       MapParams params;
       params.resolution = 0.1;
       params.cast_ray_backend = asked;

@@ -39,14 +39,14 @@ inline bool hasTracePath(Context& ctx, CastRayBackend path) {
 
 /// Skips a test of the ray-tracing path `path` (a CastRayBackend or ScanRays) with the reason on
 /// a device without it; fails it there when the run expects ray tracing.
-#define OCTOVK_REQUIRE_TRACE_PATH(ctx, path)                                                   \
-  if (!::octovk::test::hasTracePath((ctx), static_cast<::octovk::CastRayBackend>(path))) {     \
-    if (::octovk::test::rayQueryExpected())                                                    \
-      FAIL() << "OCTOVK_EXPECT_RAY_QUERY is set but device '" << (ctx).device().name << "' ("  \
-             << (ctx).device().driver << ") cannot trace rays through "                        \
-             << ::octovk::test::tracePathName(path);                                           \
-    GTEST_SKIP() << "device '" << (ctx).device().name << "' (" << (ctx).device().driver        \
-                 << ") has no " << ::octovk::test::tracePathName(path)                         \
-                 << " path (VK_KHR_acceleration_structure with VK_KHR_ray_query / "            \
+#define OCTOVK_REQUIRE_TRACE_PATH(ctx, path)                                                     \
+  if (!::octovk::test::hasTracePath((ctx), static_cast<::octovk::CastRayBackend>(path))) {       \
+    if (::octovk::test::rayQueryExpected())                                                      \
+      FAIL() << "OCTOVK_EXPECT_RAY_QUERY is set but device '" << (ctx).device().name << "' ("    \
+             << (ctx).device().driver << ") cannot trace rays through "                          \
+             << ::octovk::test::tracePathName(path);                                             \
+    GTEST_SKIP() << "device '" << (ctx).device().name << "' (" << (ctx).device().driver          \
+                 << ") has no " << ::octovk::test::tracePathName(path)                           \
+                 << " path (VK_KHR_acceleration_structure with VK_KHR_ray_query / "              \
                  << "VK_KHR_ray_tracing_pipeline): not tested here (Mesa 25 lavapipe has both)"; \
   }

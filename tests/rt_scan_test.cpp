@@ -237,15 +237,15 @@ TEST_P(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
   test::CallerBuffer pixel_buffer(vk, raw.size() * sizeof(std::uint16_t));
   std::memcpy(pixel_buffer.data(), raw.data(), raw.size() * sizeof(std::uint16_t));
   std::mt19937 rng(29);
-  const std::vector<Eigen::Vector3f> cloud =
-      roomScan(rng, Eigen::Vector3f::Zero(), 1500, 2.0f);
+  const std::vector<Eigen::Vector3f> cloud = roomScan(rng, Eigen::Vector3f::Zero(), 1500, 2.0f);
   test::CallerBuffer point_buffer(vk, cloud.size() * sizeof(Eigen::Vector3f));
   std::memcpy(point_buffer.data(), cloud.data(), cloud.size() * sizeof(Eigen::Vector3f));
 
   std::size_t skipped_later = 0;
   for (int scan = 0; scan < 12; ++scan) {
     Pose pose;
-    pose.rotation = Eigen::AngleAxisf(0.05f * static_cast<float>(scan % 5), Eigen::Vector3f::UnitY());
+    pose.rotation =
+        Eigen::AngleAxisf(0.05f * static_cast<float>(scan % 5), Eigen::Vector3f::UnitY());
     pose.translation = Eigen::Vector3f(0.02f * static_cast<float>(scan % 3), 0.01f, -0.03f);
     const double max_range = scan % 4 == 3 ? 2.2 : -1.0;
     std::vector<Eigen::Vector3f> points;
@@ -311,12 +311,11 @@ TEST(RtScanRefused, WithoutRayTracingOrUnderACap) {
   for (Context* c : {&ctx, &no_rt}) {
     for (const ScanRays asked :
          {ScanRays::kRayTracing, ScanRays::kRayQuery, ScanRays::kRayTracingPipeline}) {
-      const bool runs = c == &ctx && (asked == ScanRays::kRayTracing
-                                          ? test::hasTracePath(*c, CastRayBackend::kRayQuery) ||
-                                                test::hasTracePath(
-                                                    *c, CastRayBackend::kRayTracingPipeline)
-                                          : test::hasTracePath(*c, static_cast<CastRayBackend>(
-                                                                       asked)));
+      const bool runs =
+          c == &ctx && (asked == ScanRays::kRayTracing
+                            ? test::hasTracePath(*c, CastRayBackend::kRayQuery) ||
+                                  test::hasTracePath(*c, CastRayBackend::kRayTracingPipeline)
+                            : test::hasTracePath(*c, static_cast<CastRayBackend>(asked)));
       if (runs) continue;
       ++refusals;
       try {
@@ -384,10 +383,10 @@ TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
     const bool g2t_here = !OCTOVK_PATH(OCTOVK_GRAPH2TREE).empty();
     if (!g2t_here && test::runningInCi()) ADD_FAILURE() << "graph2tree missing under CI";
     if (g2t_here) {
-      const test::RunResult g2t = test::runShell(
-          test::quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + test::quote(graph) + " -o " +
-              test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
-          dir.dir());
+      const test::RunResult g2t =
+          test::runShell(test::quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + test::quote(graph) +
+                             " -o " + test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
+                         dir.dir());
       ASSERT_EQ(g2t.exit_code, 0) << g2t.err;
     }
     for (const std::string& rays : traced) {
@@ -425,10 +424,10 @@ TEST(RtScanCli, RaysOptionHelpAndErrors) {
   for (const ScanRays path : {ScanRays::kRayQuery, ScanRays::kRayTracingPipeline}) {
     if (test::hasTracePath(ctx, static_cast<CastRayBackend>(path))) continue;
     const bool query = path == ScanRays::kRayQuery;
-    const test::RunResult refused = test::runOctovk(
-        {"integrate", graph, "-o", dir / "y.bt", "--rays", query ? "rt-query" : "rt-pipeline",
-         "-q"},
-        dir.dir());
+    const test::RunResult refused =
+        test::runOctovk({"integrate", graph, "-o", dir / "y.bt", "--rays",
+                         query ? "rt-query" : "rt-pipeline", "-q"},
+                        dir.dir());
     EXPECT_NE(refused.exit_code, 0);
     EXPECT_NE(refused.err.find(query ? "no ray queries" : "no ray-tracing pipelines"),
               std::string::npos)

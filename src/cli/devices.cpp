@@ -47,8 +47,7 @@ class Devices final : public Command {
                   "mesa-vulkan-drivers) or a GPU driver, and check 'vulkaninfo --summary'");
     for (const DeviceInfo& d : devices) {
       std::printf("%u: %s (%s), %.1f GiB device-local memory, %s\n", d.index, d.name.c_str(),
-                  d.type.c_str(),
-                  static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
+                  d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
                   rayTracingPaths(d));
     }
     // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.
