@@ -21,8 +21,9 @@
 # Environment: OCTOVK_DEVICE picks the device; VK_DRIVER_FILES / VK_ICD_FILENAMES pick the driver
 # (when neither is set and NVIDIA's ICD manifest is at /usr/local/nvidia/share/vulkan/icd.d, that
 # one is used: the bundle's Vulkan loader would not look there); GTEST_FILTER narrows the tests;
-# OCTOVK_EXPECT_RAY_QUERY=1 fails the ray-tracing tests on a device without ray queries (they skip
-# otherwise; `run.sh info` shows whether the device has them).
+# OCTOVK_EXPECT_RAY_QUERY=1 fails the tests of each ray-tracing path (ray queries, pipelines) the
+# device lacks (they skip otherwise; `run.sh info` shows which it has: NVIDIA's GPUs have only
+# pipelines, so leave it unset there).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 usage() { sed -n '6,12p' "$0" | sed 's/^# \{0,1\}//'; }
