@@ -115,10 +115,12 @@ struct QueryTiming {
   std::size_t count = 0;
   double om_ms = 0.0;
   double vk_ms = 0.0;  ///< octovk as a map gets it by default (CastRayBackend::kAuto)
-  // castRay: each backend (0 when not run).
+  // castRay: each backend: the walk (0 when not run), then each ray-tracing path the device runs
+  // (tracePaths' order).
   double walk_ms = 0.0;
-  double rt_ms = 0.0;
-  std::size_t walk_mismatches = 0, rt_mismatches = 0;
+  std::size_t walk_mismatches = 0;
+  std::vector<double> trace_ms;
+  std::vector<std::size_t> trace_mismatches;
   std::size_t mismatches = 0;
   std::vector<std::string> first_mismatches;  ///< the first few, spelled out
   std::string answers;                        ///< what the answers were, in words
@@ -213,7 +215,7 @@ void compareRays(std::span<const Ray> rays, const std::vector<RayHit>& om,
                   length / n);
 }
 
-void writeJson(JsonWriter& json, const QueryTiming& t) {
+void writeJson(JsonWriter& json, const QueryTiming& t, const std::vector<TracePath>& paths = {}) {
   json.field("count", t.count)
       .field("octomap_ms", t.om_ms)
       .field("octovk_wall_ms", t.vk_ms)
@@ -226,10 +228,14 @@ void writeJson(JsonWriter& json, const QueryTiming& t) {
     json.field("walk_wall_ms", t.walk_ms)
         .field("octomap_over_walk", t.om_ms / t.walk_ms)
         .field("walk_mismatches", t.walk_mismatches);
-  if (t.rt_ms > 0)
-    json.field("ray_tracing_wall_ms", t.rt_ms)
-        .field("octomap_over_ray_tracing", t.om_ms / t.rt_ms)
-        .field("ray_tracing_mismatches", t.rt_mismatches);
+  // Ray queries keep the names they had before the pipeline ("ray_tracing_*").
+  for (std::size_t p = 0; p < t.trace_ms.size(); ++p) {
+    const std::string name =
+        paths[p].cast_ray_backend == CastRayBackend::kRayQuery ? "ray_tracing" : paths[p].key;
+    json.field(name + "_wall_ms", t.trace_ms[p])
+        .field("octomap_over_" + name, t.om_ms / t.trace_ms[p])
+        .field(name + "_mismatches", t.trace_mismatches[p]);
+  }
   json.key("first_mismatches").beginArray();
   for (const std::string& m : t.first_mismatches) json.value(m);
   json.endArray();
@@ -324,39 +330,49 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
     json.endObject();
   }
 
-  // castRay on both backends: the walk on `map`, ray tracing on a copy of it (uploaded from its
-  // download: the same tree) where the device has ray queries. The default (kAuto) is one of them.
-  const bool has_rt = context.device().ray_query_enabled;
+  // castRay on each backend: the walk on `map`, and each ray-tracing path the device runs (ray
+  // queries, a ray-tracing pipeline) on a copy of it (uploaded from its download: the same
+  // tree). The default (kAuto) is one of them.
+  const std::vector<TracePath> paths = tracePaths(context);
   MapParams auto_params = params;
   auto_params.cast_ray_backend = CastRayBackend::kAuto;
-  const bool auto_rt =
-      OccupancyMap(context, auto_params).castRayInfo().backend == CastRayBackend::kRayTracing;
-  std::unique_ptr<OccupancyMap> rt_map;
-  if (has_rt) {
+  const CastRayBackend auto_backend = OccupancyMap(context, auto_params).castRayInfo().backend;
+  std::vector<std::unique_ptr<OccupancyMap>> traced;
+  for (const TracePath& path : paths) {
     MapParams rt_params = params;
-    rt_params.cast_ray_backend = CastRayBackend::kRayTracing;
-    rt_map = std::make_unique<OccupancyMap>(context, rt_params);
-    rt_map->upload(map.download());
+    rt_params.cast_ray_backend = path.cast_ray_backend;
+    traced.push_back(std::make_unique<OccupancyMap>(context, rt_params));
+    traced.back()->upload(map.download());
   }
+  const auto backendLabel = [&](CastRayBackend b) {
+    for (const TracePath& path : paths)
+      if (path.cast_ray_backend == b) return path.label;
+    return "walk";
+  };
   {
     // Sizes the query buffers for the ray batch at next to no cost: every ray ends at once. On
-    // the ray-tracing map this first call also builds the acceleration structure: timed.
+    // the ray-tracing maps this first call also builds the acceleration structure (and the
+    // pipeline): timed.
     std::vector<Ray> short_rays = rays;
     for (Ray& r : short_rays) r.max_range_m = 1e-3;
     map.castRays(short_rays);
-    if (rt_map) {
+    for (std::size_t p = 0; p < paths.size(); ++p) {
       const auto start = Clock::now();
-      rt_map->castRays(short_rays);
+      traced[p]->castRays(short_rays);
       const double wall_ms = msSince(start);
-      const OccupancyMap::CastRayInfo info = rt_map->castRayInfo();
+      const OccupancyMap::CastRayInfo info = traced[p]->castRayInfo();
       std::printf(
-          "\nRay-tracing backend: acceleration structure over %s occupied-leaf boxes, built on "
-          "the device in %.1f ms (boxes %.1f ms, BLAS + TLAS %.1f ms; device timestamps), "
+          "\nRay-tracing backend (%s): acceleration structure over %s occupied-leaf boxes, built "
+          "on the device in %.1f ms (boxes %.1f ms, BLAS + TLAS %.1f ms; device timestamps), "
           "%.1f MiB; first castRays call %.1f ms wall.\n",
-          grouped(static_cast<double>(info.occupied_boxes)).c_str(), info.last_build_ms,
-          info.last_boxes_ms, info.last_build_ms - info.last_boxes_ms,
+          paths[p].label, grouped(static_cast<double>(info.occupied_boxes)).c_str(),
+          info.last_build_ms, info.last_boxes_ms, info.last_build_ms - info.last_boxes_ms,
           static_cast<double>(info.device_bytes) / (1 << 20), wall_ms);
-      json.key("accel_build").beginObject();
+      // Ray queries keep the key they had before the pipeline.
+      json.key(paths[p].cast_ray_backend == CastRayBackend::kRayQuery
+                   ? std::string("accel_build")
+                   : std::string(paths[p].key) + "_accel_build")
+          .beginObject();
       json.field("device_ms", info.last_build_ms)
           .field("boxes_ms", info.last_boxes_ms)
           .field("structures_ms", info.last_build_ms - info.last_boxes_ms)
@@ -364,11 +380,16 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
           .field("device_bytes", info.device_bytes)
           .field("first_call_wall_ms", wall_ms);
       json.endObject();
-    } else {
-      std::printf("\nRay-tracing backend: not run (the device has no ray queries).\n");
     }
+    if (paths.empty())
+      std::printf(
+          "\nRay-tracing backend: not run (the device has neither ray queries nor ray-tracing "
+          "pipelines).\n");
   }
-  json.field("default_cast_ray_backend", auto_rt ? "ray_tracing" : "walk");
+  json.field("default_cast_ray_backend", auto_backend == CastRayBackend::kWalk ? "walk"
+                                         : auto_backend == CastRayBackend::kRayQuery
+                                             ? "ray_tracing"
+                                             : "rt_pipeline");
   json.key("cast_ray").beginArray();
   for (const double max_range : {10.0, -1.0}) {
     for (const bool ignore_unknown : {false, true}) {
@@ -391,28 +412,28 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
       compareRays(rays, om, vk, t);
       t.walk_ms = t.vk_ms;
       t.walk_mismatches = t.mismatches;
-      if (rt_map) {
+      for (std::size_t p = 0; p < paths.size(); ++p) {
         std::vector<double> rt_ms;
         std::vector<RayHit> rt;
         for (int rep = 0; rep < o.repeat; ++rep) {
           const auto start = Clock::now();
-          rt = rt_map->castRays(rays);
+          rt = traced[p]->castRays(rays);
           rt_ms.push_back(msSince(start));
         }
-        t.rt_ms = median(rt_ms);
+        t.trace_ms.push_back(median(rt_ms));
         QueryTiming check;
         compareRays(rays, om, rt, check);
-        t.rt_mismatches = check.mismatches;
+        t.trace_mismatches.push_back(check.mismatches);
         for (const std::string& m : check.first_mismatches)
           if (t.first_mismatches.size() < 2 * kShownMismatches)
-            t.first_mismatches.push_back("ray tracing: " + m);
+            t.first_mismatches.push_back(std::string(paths[p].label) + ": " + m);
         t.mismatches += check.mismatches;
-        if (auto_rt) t.vk_ms = t.rt_ms;
+        if (auto_backend == paths[p].cast_ray_backend) t.vk_ms = t.trace_ms.back();
       }
       rows.push_back(t);
       json.newline().beginObject();
       json.field("max_range_m", max_range).field("ignore_unknown", ignore_unknown);
-      writeJson(json, t);
+      writeJson(json, t, paths);
       json.endObject();
     }
   }
@@ -428,25 +449,28 @@ void runQueries(Context& context, const BenchOptions& o, JsonWriter& json) {
                 grouped(t.omPerSecond()).c_str(), grouped(t.vkPerSecond()).c_str(),
                 t.om_ms / t.vk_ms, t.mismatches, t.answers.c_str());
   std::printf(
-      "\ncastRay by backend (octovk's default here: %s):\n\n"
-      "| query | OctoMap s | walk s | OctoMap / walk | walk mismatches | ray tracing s | "
-      "OctoMap / ray tracing | ray-tracing mismatches |\n"
-      "| --- | --: | --: | --: | --: | --: | --: | --: |\n",
-      auto_rt ? "ray tracing" : "walk");
+      "\ncastRay by backend (octovk's default here: %s):\n\n| query | OctoMap s | walk s | "
+      "OctoMap / walk | walk mismatches |",
+      backendLabel(auto_backend));
+  for (const TracePath& path : paths)
+    std::printf(" %s s | OctoMap / %s | %s mismatches |", path.label, path.label, path.label);
+  std::printf("\n| --- | --: | --: | --: | --: |");
+  for (std::size_t p = 0; p < paths.size(); ++p) std::printf(" --: | --: | --: |");
+  std::printf("\n");
   for (const QueryTiming& t : rows) {
     if (t.walk_ms <= 0) continue;
-    if (t.rt_ms > 0)
-      std::printf("| %s | %.3f | %.3f | %.2fx | %zu | %.3f | %.2fx | %zu |\n", t.label.c_str(),
-                  t.om_ms * 1e-3, t.walk_ms * 1e-3, t.om_ms / t.walk_ms, t.walk_mismatches,
-                  t.rt_ms * 1e-3, t.om_ms / t.rt_ms, t.rt_mismatches);
-    else
-      std::printf("| %s | %.3f | %.3f | %.2fx | %zu | not run | | |\n", t.label.c_str(),
-                  t.om_ms * 1e-3, t.walk_ms * 1e-3, t.om_ms / t.walk_ms, t.walk_mismatches);
+    std::printf("| %s | %.3f | %.3f | %.2fx | %zu |", t.label.c_str(), t.om_ms * 1e-3,
+                t.walk_ms * 1e-3, t.om_ms / t.walk_ms, t.walk_mismatches);
+    for (std::size_t p = 0; p < t.trace_ms.size(); ++p)
+      std::printf(" %.3f | %.2fx | %zu |", t.trace_ms[p] * 1e-3, t.om_ms / t.trace_ms[p],
+                  t.trace_mismatches[p]);
+    std::printf("\n");
   }
+  if (paths.empty()) std::printf("\n(No ray-tracing column: the device traces no rays.)\n");
   std::size_t total_mismatches = 0;
   for (const QueryTiming& t : rows) total_mismatches += t.mismatches;
   std::printf("\nAnswers that differ from OctoMap's: %zu of %zu%s\n", total_mismatches,
-              lookup_count + (rt_map ? 8 : 4) * ray_count,
+              lookup_count + 4 * (1 + paths.size()) * ray_count,
               total_mismatches ? " (MISMATCH: first ones below)" : ".");
   for (const QueryTiming& t : rows)
     for (const std::string& m : t.first_mismatches)

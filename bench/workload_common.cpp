@@ -62,6 +62,17 @@ OccupancyMap makeMap(Context& context, const BenchOptions& o, double resolution,
   return map;
 }
 
+std::vector<TracePath> tracePaths(Context& context) {
+  std::vector<TracePath> paths;
+  if (context.device().ray_query_enabled)
+    paths.push_back({ScanRays::kRayQuery, CastRayBackend::kRayQuery, "ray queries", "rt"});
+  // Offered is enabled: the bench's Context keeps ContextOptions::enable_ray_query on.
+  if (context.device().ray_tracing_pipeline)
+    paths.push_back({ScanRays::kRayTracingPipeline, CastRayBackend::kRayTracingPipeline,
+                     "rt pipeline", "rt_pipeline"});
+  return paths;
+}
+
 // Field-wise mean of several scans (for "per view" rows and Table I).
 ScanTiming meanOf(const std::vector<ScanTiming>& scans) {
   ScanTiming m;

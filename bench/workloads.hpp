@@ -25,6 +25,17 @@ struct BenchOptions {
   std::size_t query_rays = 0;  ///< rays per castRay configuration; 0: its default
 };
 
+/// A way of tracing rays the device of a Context runs (ScanRays / CastRayBackend kRayQuery or
+/// kRayTracingPipeline, numbered alike), with its names in tables and in the JSON.
+struct TracePath {
+  ScanRays scan_rays;
+  CastRayBackend cast_ray_backend;
+  const char* label;  ///< in tables: "ray queries", "rt pipeline"
+  const char* key;    ///< JSON prefix: "rt" (ray queries, as before the pipeline), "rt_pipeline"
+};
+/// The ray-tracing paths the device of `context` runs, ray queries first: none, one or both.
+std::vector<TracePath> tracePaths(Context& context);
+
 void runPaper(Context& context, const BenchOptions& options, JsonWriter& json);
 void runScanDat(Context& context, const BenchOptions& options, JsonWriter& json);
 void runFr079(Context& context, const BenchOptions& options, JsonWriter& json);

@@ -62,6 +62,8 @@ class CastRayBackend:
     AUTO: ClassVar[CastRayBackend]  # 0
     WALK: ClassVar[CastRayBackend]  # 1
     RAY_TRACING: ClassVar[CastRayBackend]  # 2
+    RAY_QUERY: ClassVar[CastRayBackend]  # 3
+    RT_PIPELINE: ClassVar[CastRayBackend]  # 4
     @property
     def name(self) -> str: ...
     @property
@@ -72,6 +74,8 @@ class ScanRays:
     """How a scan's rays find their cells."""
     WALK: ClassVar[ScanRays]  # 1
     RAY_TRACING: ClassVar[ScanRays]  # 2
+    RAY_QUERY: ClassVar[ScanRays]  # 3
+    RT_PIPELINE: ClassVar[ScanRays]  # 4
     @property
     def name(self) -> str: ...
     @property
@@ -85,6 +89,7 @@ class DeviceInfo:
     index: int
     memory_bytes: int
     ray_query: bool
+    ray_tracing_pipeline: bool
     ray_query_enabled: bool
 
 class Context:

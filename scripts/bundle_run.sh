@@ -5,7 +5,8 @@
 #
 #   ./run.sh info                 the machine, the Vulkan devices, the bundle's build
 #   ./run.sh tests [EXE...]       every test executable (or the ones named, e.g. octovk_cli_tests)
-#   ./run.sh parity               octovk integrate against graph2tree, byte for byte, timed
+#   ./run.sh parity               octovk integrate against graph2tree, byte for byte, timed, with
+#                                 the walk and each ray-tracing path the device has (--rays)
 #   ./run.sh bench [RUN...]       the benchmark: quick (default), all, fr079_lazy, paper_repeat5,
 #                                 paper_repeat5_lazy (the runs of bench/run_all.sh), full (all four),
 #                                 or one workload of all: paper, scandat, fr079, scaling, queries
@@ -20,8 +21,9 @@
 # Environment: OCTOVK_DEVICE picks the device; VK_DRIVER_FILES / VK_ICD_FILENAMES pick the driver
 # (when neither is set and NVIDIA's ICD manifest is at /usr/local/nvidia/share/vulkan/icd.d, that
 # one is used: the bundle's Vulkan loader would not look there); GTEST_FILTER narrows the tests;
-# OCTOVK_EXPECT_RAY_QUERY=1 fails the ray-tracing tests on a device without ray queries (they skip
-# otherwise; `run.sh info` shows whether the device has them).
+# OCTOVK_EXPECT_RAY_QUERY=1 fails the tests of each ray-tracing path (ray queries, pipelines) the
+# device lacks (they skip otherwise; `run.sh info` shows which it has: NVIDIA's GPUs have only
+# pipelines, so leave it unset there).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 usage() { sed -n '6,12p' "$0" | sed 's/^# \{0,1\}//'; }
@@ -170,6 +172,7 @@ run_tests() {
 # --- parity: octovk integrate against graph2tree -----------------------------------------------
 
 parity_case() {  # parity_case NAME GRAPH RESOLUTION [EXTRA graph2tree/octovk option pairs...]
+  # (rays WAY: octovk integrate --rays WAY, graph2tree as ever)
   local name="$1" graph="$2" res="$3"
   shift 3
   local dir="$out/parity/$name" mine=() theirs=()
@@ -177,6 +180,7 @@ parity_case() {  # parity_case NAME GRAPH RESOLUTION [EXTRA graph2tree/octovk op
     case "$1" in
       max-range) mine+=(--max-range "$2"); theirs+=(-m "$2"); shift 2 ;;
       discretize) mine+=(--discretize); theirs+=(-discretize); shift ;;
+      rays) mine+=(--rays "$2"); shift 2 ;;
       *) echo "parity_case: unknown option $1" >&2; exit 2 ;;
     esac
   done
@@ -221,6 +225,31 @@ run_parity() {
   parity_case fr079_0.1 "$fr079" 0.1
   parity_case fr079_0.05 "$fr079" 0.05
   parity_case fr079_0.1_max_range_10 "$fr079" 0.1 max-range 10
+  # Scans through ray tracing, on each path the selected device has (a GPU without ray queries
+  # runs the pipeline), and --rays rt, which picks one of them.
+  local ways
+  ways="$(rt_paths)"
+  if [ -z "$ways" ]; then
+    note SKIP "parity/--rays rt" 0 "the device traces no rays (run.sh info)"
+    return
+  fi
+  for way in rt $ways; do
+    parity_case "spherical_0.1_$way" "$spherical" 0.1 rays "$way"
+    parity_case "spherical_0.1_max_range_2_$way" "$spherical" 0.1 max-range 2 rays "$way"
+    parity_case "fr079_0.1_$way" "$fr079" 0.1 rays "$way"
+  done
+}
+
+# The ways the device octovk selects traces rays, as --rays values: rt-query (ray queries),
+# rt-pipeline (a ray-tracing pipeline), from `octovk devices`.
+rt_paths() {
+  local devices index line
+  devices="$("$here/bin/octovk" devices 2>/dev/null)" || return 0
+  index="$(sed -n 's/^selected: \([0-9]*\):.*/\1/p' <<< "$devices")"
+  [ -n "$index" ] || return 0
+  line="$(grep "^$index: " <<< "$devices" | head -n 1)"
+  case "$line" in *"ray queries"*) echo -n "rt-query " ;; esac
+  case "$line" in *"ray-tracing pipelines"*) echo -n "rt-pipeline" ;; esac
 }
 
 # --- bench --------------------------------------------------------------------------------------

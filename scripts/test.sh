@@ -63,19 +63,22 @@ fi
 if step mesa25; then
   if "$root/scripts/lavapipe25.sh" "$root/build/mesa25"; then
     # env.sh sets VK_DRIVER_FILES, LD_LIBRARY_PATH and OCTOVK_EXPECT_DRIVER (the tests fail if
-    # the device they get is not that driver). This lavapipe has ray queries: the tests of
-    # castRay's ray-tracing backend must run here, not skip (OCTOVK_EXPECT_RAY_QUERY).
+    # the device they get is not that driver). This lavapipe has ray queries and ray-tracing
+    # pipelines: the tests of both ray-tracing paths must run here, not skip
+    # (OCTOVK_EXPECT_RAY_QUERY).
     # shellcheck source=/dev/null
     mesa25_env=$(source "$root/build/mesa25/env.sh" && echo \
       "VK_DRIVER_FILES=$VK_DRIVER_FILES LD_LIBRARY_PATH=$LD_LIBRARY_PATH OCTOVK_EXPECT_DRIVER=$OCTOVK_EXPECT_DRIVER")
+    # The ray-tracing tests (castRay and scans through ray tracing, each on both paths: ray
+    # queries and the ray-tracing pipeline) run once, under the validation layer: the validation
+    # step runs on the system driver, which has no ray tracing. The rest runs without it.
+    rt_tests="RayTracing|RayCastingScenarios|CastRays|RtScan"
     # shellcheck disable=SC2086
-    run_suite "Mesa 25 lavapipe" $mesa25_env OCTOVK_EXPECT_RAY_QUERY=1
-    # The validation step runs on the system driver, which has no ray tracing: the ray-tracing
-    # tests (castRay and scans through ray tracing) run under the validation layer here.
+    ctest_select="-E $rt_tests" run_suite "Mesa 25 lavapipe" $mesa25_env OCTOVK_EXPECT_RAY_QUERY=1
     # shellcheck disable=SC2086
-    ctest_select="-R RayTracing|RayCastingScenarios|CastRays|RtScan" run_suite \
-      "Mesa 25 lavapipe, ray tracing under the validation layer" $mesa25_env \
-      OCTOVK_EXPECT_RAY_QUERY=1 OCTOVK_VALIDATION=1
+    ctest_select="-R $rt_tests" run_suite \
+      "Mesa 25 lavapipe, ray tracing (ray queries and pipelines) under the validation layer" \
+      $mesa25_env OCTOVK_EXPECT_RAY_QUERY=1 OCTOVK_VALIDATION=1
   else
     echo "==== tests: Mesa 25 lavapipe UNAVAILABLE: the second driver could not be fetched ====" >&2
     failed+=("Mesa 25 lavapipe (unavailable)")

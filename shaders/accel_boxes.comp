@@ -113,8 +113,8 @@ void main() {
   if (pc.mode == kAccelBoxesScan) {
     if (i >= pool.bump) return;
     if (i == 0u) {  // block 0 holds only the root: a box when it is a leaf (the whole map)
-      if (pool.root_exists != 0u && (NODES[kRootNode].link & kBlockMask) == kNoChildren &&
-          !(NODES[kRootNode].log_odds <= params.clamp_min_log)) {
+      if (pool.root_exists != 0u && childBlock(kRootNode) == kNoChildren &&
+          !(nodeLogOdds(kRootNode) <= params.clamp_min_log)) {
         double size = params.resolution * 65536.0lf;
         vec3 lo = vec3(-0.5lf * size);
         append(s, lo, -lo, size);
@@ -128,11 +128,10 @@ void main() {
     uint bit = 15u - depth;
     double size = params.resolution * double(1u << bit);
     for (uint slot = 0u; slot < 8u; ++slot) {
-      Node child = NODES[i * 8u + slot];
-      bool live = (child.link & kFlagLive) != 0u;
+      uint child = i * 8u + slot;
+      uint link = linkOf(child);
       // classify's early abort for a free update: the leaf search() finds is at clamp_min_log.
-      if (live && ((child.link & kBlockMask) != kNoChildren ||
-                   child.log_odds <= params.clamp_min_log))
+      if (linkLive(link) && (linkHasChildren(link) || nodeLogOdds(child) <= params.clamp_min_log))
         continue;
       uvec3 key = parent_key | (uvec3(slot & 1u, (slot >> 1) & 1u, (slot >> 2) & 1u) << bit);
       // The region's lower corner, (key - 32768) * resolution, exact in double.

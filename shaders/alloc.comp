@@ -7,7 +7,7 @@
 //   with the leaf's value;
 // - a node created in this scan: createNodeChild, children at 0 that the descent switches on.
 // The link pass then hangs the blocks in the tree.
-#include "bindings.glsl"
+#include "node.glsl"
 
 void main() {
   uint n = invocationIndex();
@@ -30,9 +30,12 @@ void main() {
   // Children of an expansion exist at once; the ones of a created node when the descent
   // switches them on.
   bool expand = nb.source != kNoBlock;
-  Node child = expand ? Node(NODES[nb.source].log_odds, kNoChildren | kFlagLive)
-                      : Node(0.0, kNoChildren);
-  for (uint s = 0u; s < 8u; ++s) NODES[block * 8u + s] = child;
+  NodeData data = expand ? nodeData(nb.source) : newNodeData();
+  uint link = expand ? kNoChildren | kFlagLive : kNoChildren;
+  for (uint s = 0u; s < 8u; ++s) {
+    setNodeData(block * 8u + s, data);
+    setLink(block * 8u + s, link);
+  }
   if (expand) atomicAdd(pool.live_nodes, 8u);
   BLOCK_PARENT[block] = kNoBlock;  // set by link
 }

@@ -24,7 +24,8 @@ layout(std430, binding = kBindParams) buffer ParamsBuf { ScanParams params; };
 layout(std430, binding = kBindCounters) buffer CountersBuf { ScanCounters counters; };
 layout(std430, binding = kBindPool) buffer PoolBuf { PoolState pool; };
 // The map's arrays, by device address (see kAddressedBindings): `NODES[i]` reads
-// NodesRef(address of binding kBindNodes).v[i]. No descriptor range limits them.
+// NodesRef(address of binding kBindNodes).v[i]. No descriptor range limits them. Nodes are
+// read and written only through node.glsl.
 layout(std430, binding = kBindAddresses) restrict readonly buffer AddressBuf {
   uint64_t buffer_address[kBindingCount];
 };

@@ -1,7 +1,9 @@
 // castRay through the acceleration structure over the map's boxes (the ray-tracing backend):
-// OccupancyOcTreeBase::castRay for each query ray, with the same answer as cast_ray.comp. Two
-// passes are built from this file: cast_ray_rt.comp (OCTOVK_CAST_RAY_TRACE: ray queries) answers
-// the rays that ignore unknown space, cast_ray_jump.comp the others, without ray queries (on
+// OccupancyOcTreeBase::castRay for each query ray, with the same answer as cast_ray.comp. Three
+// shaders are built from this file: cast_ray_rt.comp (OCTOVK_CAST_RAY_TRACE: ray queries) and
+// cast_ray_rt.rgen (OCTOVK_CAST_RAY_TRACE and OCTOVK_RAY_PIPELINE: the ray generation shader of
+// a ray-tracing pipeline) answer the rays that ignore unknown space, tracing through
+// accel_trace.glsl's nearestBox; cast_ray_jump.comp the others, without ray queries (on
 // lavapipe a shader with ray queries costs more per invocation, and such rays mostly end within
 // a few cells, at the edge of what a sensor saw, where unknown regions are many and small): the
 // structure holds only the occupied leaves.
@@ -17,12 +19,16 @@
 // across such nodes. The walk, its lookups and jumps are ray_walk.glsl's and walk_cells.glsl's.
 #define OCTOVK_NODES_READ_ONLY
 #include "walk_cells.glsl"
-#ifdef OCTOVK_CAST_RAY_TRACE
+#if defined(OCTOVK_CAST_RAY_TRACE) && !defined(OCTOVK_RAY_PIPELINE)
 #define OCTOVK_RAY_QUERY
 #endif
 #include "accel_trace.glsl"
 
+#ifndef OCTOVK_RAY_PIPELINE
 layout(push_constant) uniform PushBlock { CastRayRtConstants pc; };
+#else
+OCTOVK_RAY_CONSTANTS(CastRayRtConstants);
+#endif
 
 layout(std430, binding = kBindQueryIn) buffer QueryInBuf { RayQuery rays[]; };
 layout(std430, binding = kBindQueryOut) buffer QueryOutBuf { RayResult ray_results[]; };

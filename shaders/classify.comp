@@ -34,7 +34,7 @@ void main() {
   if ((shared_search & kBrickOpen) != 0u &&
       searchDown(k, kTreeDepth, n, parent, depth) == kSearchMissing)
     found = false;
-  float value = NODES[n].log_odds;
+  float value = nodeLogOdds(n);
   // list_cells dropped the cells it found aborted already; the test stays (same tree, same
   // answer), so that what classify lists never depends on it.
   if (found && earlyAbort(update, value)) {

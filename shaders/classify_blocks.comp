@@ -8,10 +8,10 @@
 #include "tree_search.glsl"
 #include "tree.glsl"
 
-// A child slot made ready for the descent: log-odds 0, no children, not live yet.
+// A child slot made ready for the descent: a new node's data, no children, not live yet.
 void prepareChild(uint slot) {
-  NODES[slot].log_odds = 0.0;
-  atomicExchange(NODES[slot].link, kNoChildren);
+  setNodeData(slot, newNodeData());
+  atomicSetLink(slot, kNoChildren);
 }
 
 void main() {

@@ -31,12 +31,7 @@ void main() {
     uint n = invocationIndex();
     if (n >= counters.touched_count[pc.level]) return;
     uint block = block_lists[pc.level * pool.capacity + n];
-    float mx = -3.402823466e+38;  // -FLT_MAX, as getMaxChildLogOdds starts
-    for (uint s = 0u; s < 8u; ++s) {
-      Node child = NODES[block * 8u + s];
-      if ((child.link & kFlagLive) != 0u && child.log_odds > mx) mx = child.log_odds;
-    }
-    NODES[BLOCK_PARENT[block]].log_odds = mx;
+    setNodeData(BLOCK_PARENT[block], innerNodeData(block));
     return;
   }
   uint b = invocationIndex();
@@ -47,7 +42,7 @@ void main() {
     if (b == 0u) {  // the root, when it is a leaf (its box is the whole map)
       if (pool.root_exists != 0u && childBlock(kRootNode) == kNoChildren &&
           nodeMeetsBox(uvec3(0u), 0u, lo, hi))
-        NODES[kRootNode].log_odds = params.clamp_min_log;
+        setNodeLogOdds(kRootNode, params.clamp_min_log);
       return;
     }
     uint parent = BLOCK_PARENT[b];
@@ -56,10 +51,10 @@ void main() {
     uvec3 parent_key = parentKeyOfBlock(parent, depth);
     uint bit = 15u - depth;
     for (uint s = 0u; s < 8u; ++s) {
-      uint link = NODES[b * 8u + s].link;
-      if ((link & kFlagLive) == 0u || (link & kBlockMask) != kNoChildren) continue;
+      // No link changes in this mode: read plainly.
+      if (!linkLiveLeaf(settledLinkOf(b * 8u + s))) continue;
       uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
-      if (nodeMeetsBox(key, depth + 1u, lo, hi)) NODES[b * 8u + s].log_odds = params.clamp_min_log;
+      if (nodeMeetsBox(key, depth + 1u, lo, hi)) setNodeLogOdds(b * 8u + s, params.clamp_min_log);
     }
     return;
   }

@@ -30,9 +30,9 @@ void main() {
   for (uint d = cell.depth; d < kTreeDepth; ++d) {
     uint child = childBlock(n) * 8u + childIndex(k, d);
     created = false;
-    if ((linkOf(child) & kFlagLive) == 0u) {
-      uint before = atomicOr(NODES[child].link, kFlagLive);
-      if ((before & kFlagLive) == 0u) {
+    if (!linkLive(linkOf(child))) {
+      uint before = atomicOrLink(child, kFlagLive);
+      if (!linkLive(before)) {
         ++added;
         created = true;
       }
@@ -42,13 +42,13 @@ void main() {
   }
   if (added != 0u) atomicAdd(pool.live_nodes, added);
 
-  float old_value = NODES[n].log_odds;
+  float old_value = nodeLogOdds(n);
   precise float value = old_value + cellUpdate(cell.slot);
   if (value < params.clamp_min_log) value = params.clamp_min_log;
   else if (value > params.clamp_max_log) value = params.clamp_max_log;
-  NODES[n].log_odds = value;
+  setUpdatedLeaf(n, value);
   noteChange(k, created,
              (old_value >= params.occupancy_log) != (value >= params.occupancy_log));
-  NODES[n].link = kNoChildren | kFlagLive;
+  setLink(n, kNoChildren | kFlagLive);
   listNode(kTreeDepth - 1u, parent);
 }

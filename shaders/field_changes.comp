@@ -29,7 +29,7 @@ void main() {
   if (pool.root_exists != 0u) {
     uint node = kRootNode, parent = kNoBlock, depth = 0u;
     if (searchDown(k, kTreeDepth, node, parent, depth) != kSearchMissing)
-      occupied = NODES[node].log_odds >= params.occupancy_log;
+      occupied = nodeOccupied(node);
   }
   uint row = c.y + size.y * c.z;
   uint w = row * f.h.words_per_row + c.x / 32u;

@@ -40,7 +40,7 @@ void main() {
         cover = depth + 1u;
       } else {
         cover = depth;
-        occupied = NODES[node].log_odds >= params.occupancy_log;
+        occupied = nodeOccupied(node);
       }
     }
     // The cells up to the end of the answer's aligned run of keys along x.

@@ -27,7 +27,7 @@ layout(std430, binding = kBindQueryIn) buffer QueryInBuf { BoxQuery box; };
 // Marks `n` and the nodes above it, up to one already marked (or the root).
 void markPath(uint n) {
   for (uint up = 0u; up <= kTreeDepth; ++up) {
-    uint old = atomicOr(NODES[n].link, kFlagTouched);
+    uint old = atomicOrLink(n, kFlagTouched);
     if ((old & kFlagTouched) != 0u || n == kRootNode) return;
     n = BLOCK_PARENT[n / 8u];
   }
@@ -48,12 +48,12 @@ void main() {
         markPath(kRootNode);
     } else if (pc.mode == kKeepBoxSweep) {
       if (!marked(kRootNode)) {  // nothing is kept: the tree is empty
-        atomicExchange(NODES[kRootNode].link, kNoChildren);
+        atomicSetLink(kRootNode, kNoChildren);
         pool.root_exists = 0u;
         atomicAdd(pool.live_nodes, uint(-1));
       }
     } else {
-      NODES[kRootNode].link &= ~kFlagTouched;
+      clearLinkBits(kRootNode, kFlagTouched);
     }
     return;
   }
@@ -68,10 +68,10 @@ void main() {
     bool any_kept = false;
     for (uint s = 0u; s < 8u; ++s) {
       uint link = linkOf(b * 8u + s);
-      if ((link & kFlagLive) == 0u || (link & kBlockMask) != kNoChildren) continue;
+      if (!linkLiveLeaf(link)) continue;
       uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
       if (!nodeMeetsBox(key, depth + 1u, lo, hi)) continue;
-      atomicOr(NODES[b * 8u + s].link, kFlagTouched);
+      atomicOrLink(b * 8u + s, kFlagTouched);
       any_kept = true;
     }
     if (any_kept) markPath(parent);
@@ -81,14 +81,14 @@ void main() {
     uint deleted = 0u;
     if (!marked(parent)) {  // the parent goes, and all of its children with it
       for (uint s = 0u; s < 8u; ++s)
-        if ((linkOf(b * 8u + s) & kFlagLive) != 0u) ++deleted;
+        if (linkLive(linkOf(b * 8u + s))) ++deleted;
       BLOCK_PARENT[b] = kNoBlock;
       FREE_STACK[atomicAdd(pool.free_count, 1u)] = b;
     } else {
       for (uint s = 0u; s < 8u; ++s) {
         uint link = linkOf(b * 8u + s);
-        if ((link & kFlagLive) == 0u || (link & kFlagTouched) != 0u) continue;
-        atomicExchange(NODES[b * 8u + s].link, kNoChildren);
+        if (!linkLive(link) || (link & kFlagTouched) != 0u) continue;
+        atomicSetLink(b * 8u + s, kNoChildren);
         ++deleted;
       }
     }
@@ -96,5 +96,5 @@ void main() {
     return;
   }
   // kKeepBoxUnmark: only this invocation reads or writes its block's links in this dispatch.
-  for (uint s = 0u; s < 8u; ++s) NODES[b * 8u + s].link &= ~kFlagTouched;
+  for (uint s = 0u; s < 8u; ++s) clearLinkBits(b * 8u + s, kFlagTouched);
 }

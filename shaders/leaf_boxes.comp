@@ -51,7 +51,7 @@ void main() {
   if (b >= pool.bump) return;
   if (b == 0u) {
     if (pool.root_exists != 0u && childBlock(kRootNode) == kNoChildren)
-      emit(uvec3(0u), 0u, NODES[kRootNode].log_odds);
+      emit(uvec3(0u), 0u, nodeLogOdds(kRootNode));
     return;
   }
   uint parent = BLOCK_PARENT[b];
@@ -60,9 +60,9 @@ void main() {
   uvec3 parent_key = parentKeyOfBlock(parent, depth);
   uint bit = 15u - depth;
   for (uint s = 0u; s < 8u; ++s) {
-    Node child = NODES[b * 8u + s];
-    if ((child.link & kFlagLive) == 0u || (child.link & kBlockMask) != kNoChildren) continue;
+    uint child = b * 8u + s;
+    if (!linkLiveLeaf(linkOf(child))) continue;
     uvec3 key = parent_key | (uvec3(s & 1u, (s >> 1) & 1u, (s >> 2) & 1u) << bit);
-    emit(key, depth + 1u, child.log_odds);
+    emit(key, depth + 1u, nodeLogOdds(child));
   }
 }

@@ -4,6 +4,7 @@
 // it is a child in the block of the node one level up. (An expansion's children exist already;
 // a created node's children are switched on by the descent, one per path.)
 #include "cell_set.glsl"
+#include "node.glsl"
 
 void main() {
   uint n = invocationIndex();
@@ -22,6 +23,7 @@ void main() {
     }
     node = PREFIX_BLOCKS[up].block * 8u + childIndex(k, depth - 1u);
   }
-  NODES[node].link = (NODES[node].link & ~kBlockMask) | nb.block;
+  // Only this invocation writes the node in the dispatch, and none reads it.
+  setLink(node, (settledLinkOf(node) & ~kBlockMask) | nb.block);
   BLOCK_PARENT[nb.block] = node;
 }

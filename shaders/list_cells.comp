@@ -41,7 +41,7 @@ void main() {
   uvec2 keep = marked;
   float hit = params.prob_hit_log, miss = params.prob_miss_log;
   if (found && !open) {
-    float value = NODES[n].log_odds;
+    float value = nodeLogOdds(n);
     keep = (earlyAbort(miss, value) ? uvec2(0u) : marked & ~occupied_bits) |
            (earlyAbort(hit, value) ? uvec2(0u) : occupied_bits);
   } else if (found) {
@@ -56,7 +56,7 @@ void main() {
       uint cn = n, cp = parent, cd = depth;
       bool cell_found = searchDown(cell, kTreeDepth, cn, cp, cd) != kSearchMissing;
       float update = any(notEqual(occupied_bits & bit, uvec2(0u))) ? hit : miss;
-      if (cell_found && earlyAbort(update, NODES[cn].log_odds)) keep &= ~bit;
+      if (cell_found && earlyAbort(update, nodeLogOdds(cn))) keep &= ~bit;
     }
   }
 

@@ -22,7 +22,7 @@ void main() {
       coordToKeyChecked(query_points[first + 2u], k.z)) {
     uint node, depth;
     if (searchNode(k, node, depth)) {
-      float v = NODES[node].log_odds;
+      float v = nodeLogOdds(node);
       r = LookupResult(v >= params.occupancy_log ? kCellOccupied : kCellFree, v, depth, 0u);
     }
   }

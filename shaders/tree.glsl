@@ -39,7 +39,7 @@ void appendTouched(uint level, uint node) {
 // Lists `parent` (at depth `level`) once for the prune pass at that level.
 void listNode(uint level, uint parent) {
   if ((linkOf(parent) & kFlagTouched) != 0u) return;
-  uint old = atomicOr(NODES[parent].link, kFlagTouched);
+  uint old = atomicOrLink(parent, kFlagTouched);
   if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
 }
 

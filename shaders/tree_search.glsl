@@ -1,22 +1,10 @@
-// Walking down the tree: a node's link word and child block, and OctoMap's search() along a
-// key's path. A pass that writes no node defines OCTOVK_NODES_READ_ONLY before including it.
+// Walking down the tree: OctoMap's search() along a key's path. A pass that writes no node
+// defines OCTOVK_NODES_READ_ONLY before including it (node.glsl).
 #ifndef OCTOVK_TREE_SEARCH_GLSL
 #define OCTOVK_TREE_SEARCH_GLSL
 
 #include "keys.glsl"
-
-// Node n's link word. Read atomically: classify prepares child slots and the descent and the
-// prune pass set flags while other invocations search through the same nodes.
-// A pass that writes no node (OCTOVK_NODES_READ_ONLY, defined before including this file) has no
-// racing writer and reads links plainly.
-#ifdef OCTOVK_NODES_READ_ONLY
-uint linkOf(uint n) { return NODES[n].link; }
-#else
-uint linkOf(uint n) { return OCTOVK_LOAD(NODES[n].link); }
-#endif
-
-// The block of node n's children, or kNoChildren.
-uint childBlock(uint n) { return linkOf(n) & kBlockMask; }
+#include "node.glsl"
 
 // How a walk down the tree along a key's path ended (searchDown).
 const uint kSearchOpen = 0u;     // reached the depth it was asked to stop at
@@ -30,7 +18,7 @@ uint searchDown(uvec3 k, uint until, inout uint node, inout uint parent, inout u
     uint block = childBlock(node);
     if (block == kNoChildren) return kSearchLeaf;
     uint child = block * 8u + childIndex(k, depth);
-    if ((linkOf(child) & kFlagLive) == 0u) return kSearchMissing;
+    if (!linkLive(linkOf(child))) return kSearchMissing;
     parent = node;
     node = child;
   }

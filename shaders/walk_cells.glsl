@@ -65,7 +65,7 @@ uint walkCellState(uvec3 k, inout CellCache c, out uint cost) {
     uint block = childBlock(node);
     if (block == kNoChildren) break;  // a leaf (search() finds it)
     uint child = block * 8u + childIndex(k, depth);
-    if ((linkOf(child) & kFlagLive) == 0u) {  // a node with other children but not this one
+    if (!linkLive(linkOf(child))) {  // a node with other children but not this one
       found = false;
       break;
     }
@@ -79,7 +79,7 @@ uint walkCellState(uvec3 k, inout CellCache c, out uint cost) {
   uint covered = found ? depth : depth + 1u;
   c.shift = kTreeDepth - covered;
   c.prefix = k >> c.shift;
-  c.log_odds = found ? NODES[node].log_odds : 0.0;
+  c.log_odds = found ? nodeLogOdds(node) : 0.0;
   c.state = !found ? kCellUnknown
                    : (c.log_odds >= params.occupancy_log ? kCellOccupied : kCellFree);
   return c.state;

@@ -4,8 +4,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <tuple>
 
+#include "caller_buffer.hpp"
+#include "gpu/gpu_types.h"
+#include "octovk/vulkan_interop.hpp"
+#include "rt_paths.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -114,21 +119,17 @@ TEST_P(Queries, LookupsEqualOctoMapSearch) {
   EXPECT_GT(known, pts.size() / 10);  // the test looks at mapped space, not only unknown
 }
 
-const char* backendName(CastRayBackend backend) {
-  switch (backend) {
-    case CastRayBackend::kWalk:
-      return "Walk";
-    case CastRayBackend::kRayTracing:
-      return "RayTracing";
-    default:
-      return "Auto";
-  }
-}
+using test::tracePathName;
 
-// castRay on each backend; the ray-tracing one where the device has ray queries (see
-// OCTOVK_REQUIRE_RAY_QUERY: skipped with the reason elsewhere, failed where expected).
+// castRay on each backend: the walk, and ray tracing through ray queries and through a
+// ray-tracing pipeline where the device has them (see OCTOVK_REQUIRE_TRACE_PATH: skipped with
+// the reason elsewhere, failed where expected).
 #define OCTOVK_REQUIRE_BACKEND(ctx, backend) \
-  if ((backend) == CastRayBackend::kRayTracing) OCTOVK_REQUIRE_RAY_QUERY(ctx)
+  if ((backend) != CastRayBackend::kWalk) OCTOVK_REQUIRE_TRACE_PATH(ctx, backend)
+const auto kBackends = ::testing::Values(CastRayBackend::kWalk, CastRayBackend::kRayQuery,
+                                         CastRayBackend::kRayTracingPipeline);
+const auto kTracePaths =
+    ::testing::Values(CastRayBackend::kRayQuery, CastRayBackend::kRayTracingPipeline);
 
 class CastRays : public ::testing::TestWithParam<std::tuple<double, unsigned, CastRayBackend>> {};
 
@@ -160,15 +161,14 @@ TEST_P(CastRays, EqualOctoMap) {
   EXPECT_LT(hits, rays.size());
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Maps, CastRays,
-    ::testing::Combine(::testing::Values(0.1, 0.05, 0.2), ::testing::Values(1u, 2u),
-                       ::testing::Values(CastRayBackend::kWalk, CastRayBackend::kRayTracing)),
-    [](const auto& info) {
-      return std::string(backendName(std::get<2>(info.param))) + "_res" +
-             std::to_string(static_cast<int>(std::get<0>(info.param) * 100)) + "_seed" +
-             std::to_string(std::get<1>(info.param));
-    });
+INSTANTIATE_TEST_SUITE_P(Maps, CastRays,
+                         ::testing::Combine(::testing::Values(0.1, 0.05, 0.2),
+                                            ::testing::Values(1u, 2u), kBackends),
+                         [](const auto& info) {
+                           return std::string(tracePathName(std::get<2>(info.param))) + "_res" +
+                                  std::to_string(static_cast<int>(std::get<0>(info.param) * 100)) +
+                                  "_seed" + std::to_string(std::get<1>(info.param));
+                         });
 
 TEST_P(Queries, LeavesInBoxEqualOctoMapIterator) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
@@ -535,14 +535,18 @@ TEST_P(RayCastingScenarios, CornersEdgesAndLongRays) {
   EXPECT_TRUE(sameAsOctoMap(b.oracle(), rays, got));
 }
 
+// The ray-tracing backend, on each path (ray queries, a ray-tracing pipeline).
+class RayTracingBackend : public ::testing::TestWithParam<CastRayBackend> {};
+
 // The ray-tracing backend builds its acceleration structure lazily, from the leaf boxes, after
 // scans changed them, and answers on the updated map; an empty map has no boxes at all.
-TEST(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
+TEST_P(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const CastRayBackend path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
   MapParams params;
   params.resolution = 0.1;
-  params.cast_ray_backend = CastRayBackend::kRayTracing;
+  params.cast_ray_backend = path;
   OccupancyMap map(ctx, params);
   octomap::OcTree tree(0.1);
   const Eigen::Vector3f origin(0.0f, 0.0f, 0.05f);
@@ -572,7 +576,7 @@ TEST(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
     got = map.castRays(rays);
     EXPECT_TRUE(sameAsOctoMap(tree, rays, got)) << "after scan " << scan;
     const OccupancyMap::CastRayInfo info = map.castRayInfo();
-    EXPECT_EQ(info.backend, CastRayBackend::kRayTracing);
+    EXPECT_EQ(info.backend, path);
     EXPECT_EQ(info.builds, static_cast<std::size_t>(scan) + 2);
     std::size_t occupied = 0;
     for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
@@ -607,10 +611,48 @@ TEST(RayTracingBackend, BuildsLazilyAfterScansAndTracesTheUpdatedMap) {
   EXPECT_EQ(map.castRayInfo().builds, 2u);
 }
 
-// A device without ray queries (or a Context that does not enable them) falls back to the walk
-// under kAuto, and refuses kRayTracing with the reason. A memory cap does not change the choice
-// (the structure is checked against it at each build: RayTracingBackend.UnderAMemoryCap).
-TEST(RayTracingBackend, FallsBackToTheWalkWithoutRayQueries) {
+// Rays in a caller's buffer (castRaysOnDevice): the host does not see them, so both passes run
+// over the whole batch, each skipping the other kind of ray; the answers are OctoMap's.
+TEST_P(RayTracingBackend, RaysInACallersBufferEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const CastRayBackend path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  Built b = buildMap(ctx, 0.1, 7, path);
+  std::mt19937 rng(77);
+  const std::vector<Ray> rays = randomRays(rng, 0.1, 600);
+  const auto n = static_cast<std::uint32_t>(rays.size());
+  const VulkanHandles vk = vulkanHandles(ctx);
+  ASSERT_NE(vk.device, VK_NULL_HANDLE);
+  test::CallerBuffer ray_buf(vk, n * sizeof(gpu::RayQuery)), hit_buf(vk, castRaysResultBytes(n));
+  auto* queries = static_cast<gpu::RayQuery*>(ray_buf.data());
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const Ray& r = rays[i];
+    queries[i] = gpu::RayQuery{r.max_range_m,
+                               r.origin.x(),
+                               r.origin.y(),
+                               r.origin.z(),
+                               r.direction.x(),
+                               r.direction.y(),
+                               r.direction.z(),
+                               r.ignore_unknown ? 1u : 0u,
+                               0u};
+  }
+  castRaysOnDevice(*b.map, ray_buf.range(), n, hit_buf.range());
+  EXPECT_EQ(b.map->castRayInfo().backend, path);
+  const auto* results = static_cast<const gpu::RayResult*>(hit_buf.data());
+  std::vector<RayHit> got(n);
+  for (std::uint32_t i = 0; i < n; ++i)
+    got[i] = {results[i].hit != 0,
+              Eigen::Vector3f(results[i].end_x, results[i].end_y, results[i].end_z)};
+  EXPECT_TRUE(sameAsOctoMap(b.oracle(), rays, got));
+}
+
+// kAuto and kRayTracing take ray queries where the device has them, else a ray-tracing pipeline;
+// a device without either (or a Context that does not enable them) falls back to the walk under
+// kAuto and refuses kRayTracing with the reason, as it refuses kRayQuery / kRayTracingPipeline
+// where it lacks that one. A memory cap does not change the choice (the structure is checked
+// against it at each build: RayTracingBackend.UnderAMemoryCap).
+TEST(RayTracingChoice, RayQueriesFirstThenThePipelineElseTheWalk) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   ContextOptions options;
   options.enable_ray_query = false;
@@ -618,38 +660,59 @@ TEST(RayTracingBackend, FallsBackToTheWalkWithoutRayQueries) {
   ASSERT_TRUE(plain) << plain.error().what();
   Context& no_rt = *plain.value();
   EXPECT_FALSE(no_rt.device().ray_query_enabled);
-  MapParams params;
-  params.resolution = 0.1;
+  // What kAuto and kRayTracing take where the Context enables ray tracing.
+  const auto traced = [](Context& c) {
+    if (test::hasTracePath(c, CastRayBackend::kRayQuery)) return CastRayBackend::kRayQuery;
+    if (test::hasTracePath(c, CastRayBackend::kRayTracingPipeline))
+      return CastRayBackend::kRayTracingPipeline;
+    return CastRayBackend::kWalk;
+  };
   for (Context* c : {&ctx, &no_rt}) {
-    OccupancyMap map(*c, params);
-    const bool rt = c->device().ray_query_enabled;
-    EXPECT_EQ(map.castRayInfo().backend, rt ? CastRayBackend::kRayTracing : CastRayBackend::kWalk)
-        << c->device().name;
-    if (!rt) {
-      params.cast_ray_backend = CastRayBackend::kRayTracing;
+    const bool enabled = c != &no_rt;  // no_rt enables neither, whatever its device offers
+    const CastRayBackend want = enabled ? traced(*c) : CastRayBackend::kWalk;
+    for (const CastRayBackend asked :
+         {CastRayBackend::kAuto, CastRayBackend::kRayTracing, CastRayBackend::kRayQuery,
+          CastRayBackend::kRayTracingPipeline}) {
+      MapParams params;
+      params.resolution = 0.1;
+      params.cast_ray_backend = asked;
+      CastRayBackend expected = want;
+      if (asked == CastRayBackend::kRayQuery || asked == CastRayBackend::kRayTracingPipeline)
+        expected = enabled && test::hasTracePath(*c, asked) ? asked : CastRayBackend::kWalk;
+      if (asked == CastRayBackend::kAuto || expected != CastRayBackend::kWalk) {
+        EXPECT_EQ(OccupancyMap(*c, params).castRayInfo().backend, expected)
+            << c->device().name << ", asked " << tracePathName(asked);
+        continue;
+      }
       try {
         OccupancyMap refused(*c, params);
-        ADD_FAILURE() << "kRayTracing accepted without ray queries";
+        ADD_FAILURE() << tracePathName(asked) << " accepted on " << c->device().name;
       } catch (const Error& e) {
         EXPECT_EQ(e.code(), ErrorCode::kMissingFeature);
-        EXPECT_NE(std::string(e.what()).find("kWalk"), std::string::npos) << e.what();
+        const std::string what = e.what();
+        EXPECT_NE(what.find("kWalk"), std::string::npos) << what;
+        EXPECT_NE(what.find(asked == CastRayBackend::kRayTracingPipeline ? "ray-tracing pipelines"
+                                                                         : "ray queries"),
+                  std::string::npos)
+            << what;
       }
-      params.cast_ray_backend = CastRayBackend::kAuto;
     }
   }
+  MapParams params;
+  params.resolution = 0.1;
   params.max_device_bytes = 64u << 20;
-  EXPECT_EQ(OccupancyMap(ctx, params).castRayInfo().backend,
-            ctx.device().ray_query_enabled ? CastRayBackend::kRayTracing : CastRayBackend::kWalk);
+  EXPECT_EQ(OccupancyMap(ctx, params).castRayInfo().backend, traced(ctx));
 }
 
 // Under MapParams::max_device_bytes the acceleration structure counts with the query buffers:
 // where it fits, castRays traces and the map stays within the cap; where it does not, kAuto
-// answers with the walk (the same answers, counted in cap_fallbacks) and kRayTracing throws
+// answers with the walk (the same answers, counted in cap_fallbacks) and a forced path throws
 // kOutOfDeviceMemory naming the cap, with the map unchanged. A scan releases the structure first,
 // so its growth never loses room to it. Caps are derived from what uncapped maps measure.
-TEST(RayTracingBackend, UnderAMemoryCap) {
+TEST_P(RayTracingBackend, UnderAMemoryCap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  const CastRayBackend path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
   const Eigen::Vector3f origin(0.0f, 0.0f, 0.05f);
   std::mt19937 rng(41);
   const auto scan = test::randomScan(rng, origin, 3000, 2.0f);
@@ -663,7 +726,7 @@ TEST(RayTracingBackend, UnderAMemoryCap) {
   params.resolution = 0.1;
   // What the map holds after the scans and one castRays call, with each backend.
   std::size_t walk_bytes = 0, rt_bytes = 0;
-  for (const CastRayBackend backend : {CastRayBackend::kWalk, CastRayBackend::kRayTracing}) {
+  for (const CastRayBackend backend : {CastRayBackend::kWalk, path}) {
     MapParams p = params;
     p.cast_ray_backend = backend;
     OccupancyMap probe(ctx, p);
@@ -678,6 +741,7 @@ TEST(RayTracingBackend, UnderAMemoryCap) {
 
   // Room for the structure: it is built, and counted.
   params.max_device_bytes = rt_bytes + (rt_bytes - walk_bytes);
+  params.cast_ray_backend = path;
   {
     OccupancyMap map(ctx, params);
     map.insertPointCloud(scan, origin);
@@ -698,20 +762,20 @@ TEST(RayTracingBackend, UnderAMemoryCap) {
     EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
   }
 
-  // No room for it: kAuto answers with the walk, kRayTracing refuses and keeps the map.
+  // No room for it: kAuto answers with the walk, the path forced refuses and keeps the map.
   params.max_device_bytes = walk_bytes + (rt_bytes - walk_bytes) / 8;
+  params.cast_ray_backend = CastRayBackend::kAuto;
   {
     OccupancyMap map(ctx, params);
     map.insertPointCloud(scan, origin);
     EXPECT_TRUE(sameAsOctoMap(tree, rays, map.castRays(rays)));
     const OccupancyMap::CastRayInfo info = map.castRayInfo();
-    EXPECT_EQ(info.backend, CastRayBackend::kRayTracing);
     EXPECT_EQ(info.cap_fallbacks, 1u);
     EXPECT_EQ(info.builds, 0u);
     EXPECT_EQ(info.device_bytes, 0u);
     EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
   }
-  params.cast_ray_backend = CastRayBackend::kRayTracing;
+  params.cast_ray_backend = path;
   {
     OccupancyMap map(ctx, params);
     map.insertPointCloud(scan, origin);
@@ -735,9 +799,10 @@ TEST(RayTracingBackend, UnderAMemoryCap) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Backends, RayCastingScenarios,
-                         ::testing::Values(CastRayBackend::kWalk, CastRayBackend::kRayTracing),
-                         [](const auto& info) { return std::string(backendName(info.param)); });
+INSTANTIATE_TEST_SUITE_P(Backends, RayCastingScenarios, kBackends,
+                         [](const auto& info) { return std::string(tracePathName(info.param)); });
+INSTANTIATE_TEST_SUITE_P(Paths, RayTracingBackend, kTracePaths,
+                         [](const auto& info) { return std::string(tracePathName(info.param)); });
 
 INSTANTIATE_TEST_SUITE_P(Maps, Queries,
                          ::testing::Values(std::make_tuple(0.1, 1u), std::make_tuple(0.05, 2u),

@@ -1,12 +1,13 @@
-// Scans through ray tracing (MapParams::scan_rays = kRayTracing, `octovk integrate --rays rt`)
-// against OctoMap: the same tree, node by node and log-odds bits included, after every scan,
-// while later scans cross regions that earlier ones clamped free (which the traced rays jump
-// over); max range on and off, discretize on and off, rays along axes and through cell corners,
-// points outside the map and NaN; the program's files byte-identical to --rays walk and to
-// graph2tree; a device without ray queries refusing it.
+// Scans through ray tracing (MapParams::scan_rays, `octovk integrate --rays rt`) against
+// OctoMap, through ray queries and through a ray-tracing pipeline (ScanRays::kRayQuery,
+// kRayTracingPipeline; --rays rt-query, rt-pipeline): the same tree, node by node and log-odds
+// bits included, after every scan, while later scans cross regions that earlier ones clamped free
+// (which the traced rays jump over); max range on and off, discretize on and off, rays along axes
+// and through cell corners, points outside the map and NaN; the program's files byte-identical to
+// --rays walk and to graph2tree; a device without ray tracing refusing it.
 //
-// On a device without ray queries the tests of the traced path are skipped with the reason, and
-// fail where the run expects ray queries (OCTOVK_EXPECT_RAY_QUERY, the Mesa 25 step of CI).
+// On a device without a path its tests are skipped with the reason, and fail where the run
+// expects ray tracing (OCTOVK_EXPECT_RAY_QUERY, the Mesa 25 step of CI: its lavapipe has both).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -22,16 +23,20 @@
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
 #include "octovk/vulkan_interop.hpp"
+#include "rt_paths.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
 namespace {
 
-MapParams rtParams(double resolution) {
+MapParams rtParams(double resolution, ScanRays path) {
   MapParams params = test::withResolution(resolution);
-  params.scan_rays = ScanRays::kRayTracing;
+  params.scan_rays = path;
   return params;
 }
+
+using test::tracePathName;
+const auto kTracePaths = ::testing::Values(ScanRays::kRayQuery, ScanRays::kRayTracingPipeline);
 
 // A scan that keeps its origin near `centre` and reaches walls at about `radius`: repeated, it
 // clamps the space between free (5 misses from 0 reach clamping_min), so later scans cross
@@ -48,13 +53,13 @@ std::vector<Eigen::Vector3f> roomScan(std::mt19937& rng, const Eigen::Vector3f& 
 
 // ---- the traced path against OctoMap, after every scan ----
 
-class RtScanOracle : public ::testing::TestWithParam<std::tuple<double, bool>> {};
+class RtScanOracle : public ::testing::TestWithParam<std::tuple<double, bool, ScanRays>> {};
 
 TEST_P(RtScanOracle, SameTreeAfterEveryScanWhileRaysCrossClampedFreeSpace) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
-  const auto [max_range, discretize] = GetParam();
-  const MapParams params = rtParams(0.1);
+  const auto [max_range, discretize, path] = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  const MapParams params = rtParams(0.1, path);
   OccupancyMap map(ctx, params);
   MapParams walk_params = params;
   walk_params.scan_rays = ScanRays::kWalk;
@@ -83,20 +88,26 @@ TEST_P(RtScanOracle, SameTreeAfterEveryScanWhileRaysCrossClampedFreeSpace) {
 }
 
 INSTANTIATE_TEST_SUITE_P(MaxRangeAndDiscretize, RtScanOracle,
-                         ::testing::Combine(::testing::Values(-1.0, 1.7), ::testing::Bool()),
+                         ::testing::Combine(::testing::Values(-1.0, 1.7), ::testing::Bool(),
+                                            kTracePaths),
                          [](const auto& info) {
                            return std::string(std::get<0>(info.param) < 0 ? "NoMaxRange"
                                                                           : "MaxRange") +
-                                  (std::get<1>(info.param) ? "Discretize" : "");
+                                  (std::get<1>(info.param) ? "Discretize" : "") + "_" +
+                                  tracePathName(std::get<2>(info.param));
                          });
+
+// The other traced-scan tests, on each path.
+class RtScan : public ::testing::TestWithParam<ScanRays> {};
 
 // Rays along the axes, the face and space diagonals, from an origin on a cell corner and from
 // one on a cell edge, scan after scan (the first scans clamp the rays' cells free, the later
 // ones, longer and shorter, cross them and end inside them).
-TEST(RtScan, RaysAlongAxesAndThroughCorners) {
+TEST_P(RtScan, RaysAlongAxesAndThroughCorners) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
-  const MapParams params = rtParams(0.1);
+  const ScanRays path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  const MapParams params = rtParams(0.1, path);
   for (const Eigen::Vector3f& origin :
        {Eigen::Vector3f(0.0f, 0.0f, 0.0f), Eigen::Vector3f(0.2f, 0.3f, 0.05f)}) {
     OccupancyMap map(ctx, params);
@@ -122,10 +133,11 @@ TEST(RtScan, RaysAlongAxesAndThroughCorners) {
 // NaN and infinite points are skipped and counted as the walk does; points outside the map give
 // no occupied cell and rays reaching them no free cells; a sensor outside the map gives nothing.
 // OctoMap gets the finite points.
-TEST(RtScan, NonFinitePointsAndPointsOutsideTheMap) {
+TEST_P(RtScan, NonFinitePointsAndPointsOutsideTheMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
-  const MapParams params = rtParams(0.1);  // the map spans +-3276.8 m
+  const ScanRays path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  const MapParams params = rtParams(0.1, path);  // the map spans +-3276.8 m
   OccupancyMap map(ctx, params);
   MapParams walk_params = params;
   walk_params.scan_rays = ScanRays::kWalk;
@@ -160,10 +172,11 @@ TEST(RtScan, NonFinitePointsAndPointsOutsideTheMap) {
 
 // Scans submitted back to back (three in flight): each builds its structure in its own
 // submission from the tree the earlier ones left, and the node pool grows on the way.
-TEST(RtScan, StreamedScansMatchOctoMap) {
+TEST_P(RtScan, StreamedScansMatchOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
-  const MapParams params = rtParams(0.05);
+  const ScanRays path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  const MapParams params = rtParams(0.05, path);
   OccupancyMap map(ctx, params);
   octomap::OcTree oracle = test::makeOracle(params);
   std::mt19937 rng(23);
@@ -186,10 +199,11 @@ TEST(RtScan, StreamedScansMatchOctoMap) {
 // Vulkan buffer. Repeated from nearby poses in one room, so the later ones cross clamped-free
 // space; after every scan the tree equals OctoMap's for the same points (the depth images'
 // points as unprojectDepthImage gives them, which the depth-image tests hold to the formula).
-TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
+TEST_P(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
-  const MapParams params = rtParams(0.05);
+  const ScanRays path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  const MapParams params = rtParams(0.05, path);
   OccupancyMap map(ctx, params);
   MapParams walk_params = params;
   walk_params.scan_rays = ScanRays::kWalk;
@@ -223,15 +237,15 @@ TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
   test::CallerBuffer pixel_buffer(vk, raw.size() * sizeof(std::uint16_t));
   std::memcpy(pixel_buffer.data(), raw.data(), raw.size() * sizeof(std::uint16_t));
   std::mt19937 rng(29);
-  const std::vector<Eigen::Vector3f> cloud =
-      roomScan(rng, Eigen::Vector3f::Zero(), 1500, 2.0f);
+  const std::vector<Eigen::Vector3f> cloud = roomScan(rng, Eigen::Vector3f::Zero(), 1500, 2.0f);
   test::CallerBuffer point_buffer(vk, cloud.size() * sizeof(Eigen::Vector3f));
   std::memcpy(point_buffer.data(), cloud.data(), cloud.size() * sizeof(Eigen::Vector3f));
 
   std::size_t skipped_later = 0;
   for (int scan = 0; scan < 12; ++scan) {
     Pose pose;
-    pose.rotation = Eigen::AngleAxisf(0.05f * static_cast<float>(scan % 5), Eigen::Vector3f::UnitY());
+    pose.rotation =
+        Eigen::AngleAxisf(0.05f * static_cast<float>(scan % 5), Eigen::Vector3f::UnitY());
     pose.translation = Eigen::Vector3f(0.02f * static_cast<float>(scan % 3), 0.01f, -0.03f);
     const double max_range = scan % 4 == 3 ? 2.2 : -1.0;
     std::vector<Eigen::Vector3f> points;
@@ -276,12 +290,15 @@ TEST(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
   EXPECT_GT(skipped_later, 1000u);
 }
 
+INSTANTIATE_TEST_SUITE_P(Paths, RtScan, kTracePaths,
+                         [](const auto& info) { return std::string(tracePathName(info.param)); });
+
 // ---- refusal ----
 
-// Without ray queries (a device that has none, or a Context that does not enable them) the
-// traced scans are refused when the map is made, naming the cause and the fix; so is a map
-// under a memory cap. The walk stays the default.
-TEST(RtScan, RefusedWithoutRayQueries) {
+// Without a way to trace rays (a device that has neither, or a Context that does not enable
+// them) the traced scans are refused when the map is made, naming the cause and the fix, as each
+// forced path is where it is missing; so is a map under a memory cap. The walk stays the default.
+TEST(RtScanRefused, WithoutRayTracingOrUnderACap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   EXPECT_EQ(MapParams{}.scan_rays, ScanRays::kWalk);
   ContextOptions options;
@@ -290,24 +307,34 @@ TEST(RtScan, RefusedWithoutRayQueries) {
   ASSERT_TRUE(plain) << plain.error().what();
   Context& no_rt = *plain.value();
   ASSERT_FALSE(no_rt.device().ray_query_enabled);
-  const MapParams params = rtParams(0.1);
+  std::size_t refusals = 0;
   for (Context* c : {&ctx, &no_rt}) {
-    if (c->device().ray_query_enabled) continue;
-    try {
-      OccupancyMap refused(*c, params);
-      ADD_FAILURE() << "ScanRays::kRayTracing accepted without ray queries";
-    } catch (const Error& e) {
-      EXPECT_EQ(e.code(), ErrorCode::kMissingFeature);
-      const std::string what = e.what();
-      EXPECT_NE(what.find("scan_rays"), std::string::npos) << what;
-      EXPECT_NE(what.find("ScanRays::kWalk"), std::string::npos) << what;
-      EXPECT_NE(what.find("--rays walk"), std::string::npos) << what;
+    for (const ScanRays asked :
+         {ScanRays::kRayTracing, ScanRays::kRayQuery, ScanRays::kRayTracingPipeline}) {
+      const bool runs =
+          c == &ctx && (asked == ScanRays::kRayTracing
+                            ? test::hasTracePath(*c, CastRayBackend::kRayQuery) ||
+                                  test::hasTracePath(*c, CastRayBackend::kRayTracingPipeline)
+                            : test::hasTracePath(*c, static_cast<CastRayBackend>(asked)));
+      if (runs) continue;
+      ++refusals;
+      try {
+        OccupancyMap refused(*c, rtParams(0.1, asked));
+        ADD_FAILURE() << tracePathName(asked) << " accepted without it";
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ErrorCode::kMissingFeature);
+        const std::string what = e.what();
+        EXPECT_NE(what.find("scan_rays"), std::string::npos) << what;
+        EXPECT_NE(what.find("ScanRays::kWalk"), std::string::npos) << what;
+        EXPECT_NE(what.find("--rays walk"), std::string::npos) << what;
+      }
     }
   }
-  MapParams capped = params;
+  EXPECT_GE(refusals, 3u);  // no_rt refuses all three
+  MapParams capped = rtParams(0.1, ScanRays::kRayTracing);
   capped.max_device_bytes = 64u << 20;
   EXPECT_THROW(OccupancyMap(ctx, capped), Error);
-  MapParams bad = params;
+  MapParams bad = capped;
   bad.scan_rays = static_cast<ScanRays>(7);
   EXPECT_NE(bad.validate().find("scan_rays"), std::string::npos);
 }
@@ -332,9 +359,19 @@ std::string writeRoomGraph(const test::Scratch& dir) {
   return path;
 }
 
+// --rays rt-query and --rays rt-pipeline (where the device has each) write graph2tree's files,
+// byte for byte, as --rays walk does.
 TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  OCTOVK_REQUIRE_RAY_QUERY(ctx);
+  std::vector<std::string> traced;
+  for (const ScanRays path : {ScanRays::kRayQuery, ScanRays::kRayTracingPipeline}) {
+    if (test::hasTracePath(ctx, static_cast<CastRayBackend>(path)))
+      traced.push_back(path == ScanRays::kRayQuery ? "rt-query" : "rt-pipeline");
+    else if (test::rayQueryExpected())
+      ADD_FAILURE() << "OCTOVK_EXPECT_RAY_QUERY is set but device '" << ctx.device().name
+                    << "' has no " << tracePathName(path) << " path";
+  }
+  if (traced.empty()) GTEST_SKIP() << "device '" << ctx.device().name << "' traces no rays";
   test::Scratch dir("rt_scan");
   const std::string graph = writeRoomGraph(dir);
   for (const std::string max_range : {"-1", "2"}) {
@@ -343,25 +380,28 @@ TEST(RtScanCli, RaysRtWritesTheSameFilesAsWalkAndGraph2tree) {
                          "0.05", "-m", max_range, "-q", "--rays", "walk"},
                         dir.dir());
     ASSERT_EQ(walk.exit_code, 0) << walk.err;
-    const test::RunResult rt =
-        test::runOctovk({"integrate", graph, "-o", dir / "rt.bt", "-o", dir / "rt.ot", "-r", "0.05",
-                         "-m", max_range, "-q", "--rays", "rt"},
-                        dir.dir());
-    ASSERT_EQ(rt.exit_code, 0) << rt.err;
-    EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "walk.bt")) << "-m " << max_range;
-    EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "walk.ot")) << "-m " << max_range;
-    if (OCTOVK_PATH(OCTOVK_GRAPH2TREE).empty()) {
-      if (test::runningInCi()) ADD_FAILURE() << "graph2tree missing under CI";
-      continue;
+    const bool g2t_here = !OCTOVK_PATH(OCTOVK_GRAPH2TREE).empty();
+    if (!g2t_here && test::runningInCi()) ADD_FAILURE() << "graph2tree missing under CI";
+    if (g2t_here) {
+      const test::RunResult g2t =
+          test::runShell(test::quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + test::quote(graph) +
+                             " -o " + test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
+                         dir.dir());
+      ASSERT_EQ(g2t.exit_code, 0) << g2t.err;
     }
-    const test::RunResult g2t =
-        test::runShell(test::quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + test::quote(graph) +
-                           " -o " + test::quote(dir / "g2t.bt") + " -res 0.05 -m " + max_range,
-                       dir.dir());
-    ASSERT_EQ(g2t.exit_code, 0) << g2t.err;
-    EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "g2t.bt")) << "-m " << max_range;
-    EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "g2t.bt.ot"))
-        << "-m " << max_range;
+    for (const std::string& rays : traced) {
+      const test::RunResult rt =
+          test::runOctovk({"integrate", graph, "-o", dir / "rt.bt", "-o", dir / "rt.ot", "-r",
+                           "0.05", "-m", max_range, "-q", "--rays", rays},
+                          dir.dir());
+      ASSERT_EQ(rt.exit_code, 0) << rt.err;
+      const std::string what = "--rays " + rays + " -m " + max_range;
+      EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "walk.bt")) << what;
+      EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "walk.ot")) << what;
+      if (!g2t_here) continue;
+      EXPECT_EQ(test::readFile(dir / "rt.bt"), test::readFile(dir / "g2t.bt")) << what;
+      EXPECT_EQ(test::readFile(dir / "rt.ot"), test::readFile(dir / "g2t.bt.ot")) << what;
+    }
   }
 }
 
@@ -372,7 +412,7 @@ TEST(RtScanCli, RaysOptionHelpAndErrors) {
   test::Scratch dir("rt_scan");
   const test::RunResult help = test::runOctovk({"integrate", "--help"}, dir.dir());
   EXPECT_EQ(help.exit_code, 0);
-  EXPECT_NE(help.out.find("--rays walk|rt"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("--rays walk|rt|rt-query|rt-pipeline"), std::string::npos) << help.out;
   EXPECT_NE(help.out.find("(default: walk)"), std::string::npos) << help.out;
   const std::string graph = writeRoomGraph(dir);
   const test::RunResult bad =
@@ -380,13 +420,44 @@ TEST(RtScanCli, RaysOptionHelpAndErrors) {
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_NE(bad.err.find("--rays walk"), std::string::npos) << bad.err;
   EXPECT_FALSE(test::fs::exists(dir / "x.bt"));
-  if (!ctx.device().ray_query_enabled) {
+  // Each path the device lacks is refused with the library's reason, and no file is left.
+  for (const ScanRays path : {ScanRays::kRayQuery, ScanRays::kRayTracingPipeline}) {
+    if (test::hasTracePath(ctx, static_cast<CastRayBackend>(path))) continue;
+    const bool query = path == ScanRays::kRayQuery;
     const test::RunResult refused =
-        test::runOctovk({"integrate", graph, "-o", dir / "y.bt", "--rays", "rt", "-q"}, dir.dir());
+        test::runOctovk({"integrate", graph, "-o", dir / "y.bt", "--rays",
+                         query ? "rt-query" : "rt-pipeline", "-q"},
+                        dir.dir());
     EXPECT_NE(refused.exit_code, 0);
-    EXPECT_NE(refused.err.find("no ray queries"), std::string::npos) << refused.err;
+    EXPECT_NE(refused.err.find(query ? "no ray queries" : "no ray-tracing pipelines"),
+              std::string::npos)
+        << refused.err;
     EXPECT_FALSE(test::fs::exists(dir / "y.bt"));
   }
+}
+
+// `octovk devices` names the ways each device traces rays, and the way castRay (and --rays rt)
+// takes on the selected one: ray queries first, then the pipeline, else the walk.
+TEST(RtScanCli, DevicesNamesTheRayTracingPathsAndTheOneUsed) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  test::Scratch dir("rt_scan");
+  const test::RunResult r = test::runOctovk({"devices"}, dir.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const bool query = test::hasTracePath(ctx, CastRayBackend::kRayQuery);
+  const bool pipeline = test::hasTracePath(ctx, CastRayBackend::kRayTracingPipeline);
+  const std::string offers = query && pipeline ? "ray queries and ray-tracing pipelines"
+                             : query           ? "ray queries"
+                             : pipeline        ? "ray-tracing pipelines"
+                                               : "no ray tracing";
+  const std::string listed = std::to_string(ctx.device().index) + ": " + ctx.device().name;
+  const std::size_t line = r.out.find(listed);
+  ASSERT_NE(line, std::string::npos) << r.out;
+  EXPECT_NE(r.out.substr(line, r.out.find('\n', line) - line).find(offers), std::string::npos)
+      << r.out;
+  const char* used = query      ? "castRay: ray tracing through ray queries"
+                     : pipeline ? "castRay: ray tracing through a ray-tracing pipeline"
+                                : "castRay: compute walk";
+  EXPECT_NE(r.out.find(used), std::string::npos) << r.out;
 }
 
 }  // namespace

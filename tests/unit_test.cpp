@@ -187,8 +187,10 @@ std::vector<BadParams> badParams() {
                 static_cast<std::uint32_t>(ScanRays::kRayTracing) ==
                     static_cast<std::uint32_t>(CastRayBackend::kRayTracing));
   add("scan_rays_zero", "scan_rays", [](MapParams& p) { p.scan_rays = static_cast<ScanRays>(0); });
-  add("cast_ray_backend_three", "cast_ray_backend",
-      [](MapParams& p) { p.cast_ray_backend = static_cast<CastRayBackend>(3); });
+  // 3 and 4 are kRayQuery and kRayTracingPipeline (either enum): 5 is none.
+  add("cast_ray_backend_five", "cast_ray_backend",
+      [](MapParams& p) { p.cast_ray_backend = static_cast<CastRayBackend>(5); });
+  add("scan_rays_five", "scan_rays", [](MapParams& p) { p.scan_rays = static_cast<ScanRays>(5); });
   return out;
 }
 

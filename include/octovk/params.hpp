@@ -9,35 +9,52 @@
 
 namespace octovk {
 
-/// How castRay is answered on the device (MapParams::cast_ray_backend). Both give OctoMap's
+/// How castRay is answered on the device (MapParams::cast_ray_backend). All give OctoMap's
 /// answers bit for bit.
 enum class CastRayBackend : std::uint32_t {
-  /// The ray-tracing backend where the device has ray queries and loops without a driver limit,
+  /// Ray tracing (kRayTracing) where the device can trace rays and loops have no driver limit,
   /// else the walk (docs/benchmarks.md: which is faster where). Under max_device_bytes, a
   /// castRays call whose acceleration structure would not fit answers with the walk.
   kAuto = 0,
   /// A compute shader steps through every cell along the ray, as OctoMap does.
   kWalk = 1,
-  /// Ray queries against an acceleration structure over the map's occupied leaves find where
-  /// the walk can end; the walk jumps there exactly and decides with OctoMap's steps.
-  /// Needs VK_KHR_acceleration_structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled).
+  /// Rays traced against an acceleration structure over the map's occupied leaves find where
+  /// the walk can end; the walk jumps there exactly and decides with OctoMap's steps. Traced
+  /// with ray queries (kRayQuery) where the device has them, else through a ray-tracing pipeline
+  /// (kRayTracingPipeline): on Mesa 25's lavapipe, which has both, ray queries were faster.
   kRayTracing = 2,
+  /// kRayTracing with ray queries in compute shaders. Needs VK_KHR_acceleration_structure and
+  /// VK_KHR_ray_query (DeviceInfo::ray_query_enabled).
+  kRayQuery = 3,
+  /// kRayTracing through a ray-tracing pipeline (a ray generation shader per ray, the boxes'
+  /// intersection and any-hit shaders). Needs VK_KHR_acceleration_structure and
+  /// VK_KHR_ray_tracing_pipeline (DeviceInfo::ray_tracing_pipeline), as NVIDIA's drivers offer
+  /// them without ray queries.
+  kRayTracingPipeline = 4,
 };
 
-/// How a scan's rays find their cells (MapParams::scan_rays). Both give OctoMap's map bit for bit.
+/// How a scan's rays find their cells (MapParams::scan_rays). All give OctoMap's map bit for bit.
 /// Numbered as CastRayBackend (0 is no value here: a scan has no automatic choice).
 enum class ScanRays : std::uint32_t {
   /// A compute shader steps OctoMap's DDA (computeRayKeys) through every cell of every ray.
   kWalk = 1,
-  /// The paper's way: ray queries against an acceleration structure over the boxes a free
+  /// The paper's way: rays traced against an acceleration structure over the boxes a free
   /// update can change (occupied leaves, free leaves not yet clamped, unknown space), built on
   /// the device in each scan's own submission; OctoMap's DDA steps only through the boxes a ray
   /// crosses and jumps exactly over leaves already clamped free, whose free updates OctoMap
-  /// aborts (ScanStats::free_cells then leaves those cells out). Needs VK_KHR_acceleration_
-  /// structure and VK_KHR_ray_query (DeviceInfo::ray_query_enabled) and loops without a driver
-  /// limit.
+  /// aborts (ScanStats::free_cells then leaves those cells out). Traced as CastRayBackend::
+  /// kRayTracing is (ray queries where the device has them, else a ray-tracing pipeline); needs
+  /// one of them and loops without a driver limit.
   kRayTracing = 2,
+  /// kRayTracing with ray queries (VK_KHR_ray_query).
+  kRayQuery = 3,
+  /// kRayTracing through a ray-tracing pipeline (VK_KHR_ray_tracing_pipeline).
+  kRayTracingPipeline = 4,
 };
+static_assert(static_cast<std::uint32_t>(ScanRays::kRayQuery) ==
+                  static_cast<std::uint32_t>(CastRayBackend::kRayQuery) &&
+              static_cast<std::uint32_t>(ScanRays::kRayTracingPipeline) ==
+                  static_cast<std::uint32_t>(CastRayBackend::kRayTracingPipeline));
 
 /// The sensor model and grid, with OctoMap's defaults.
 struct MapParams {
@@ -58,15 +75,17 @@ struct MapParams {
   /// that would need more throws kOutOfDeviceMemory and leaves the map as it was; the map keeps
   /// working. At least minDeviceBytes().
   std::size_t max_device_bytes = 0;
-  /// castRay's backend. kRayTracing on a device without ray queries (or with a loop limit)
-  /// makes the map's constructor throw kMissingFeature. The acceleration structure counts under
-  /// max_device_bytes (with the query buffers): where it would not fit, a castRays call with
-  /// kAuto answers with the walk (the same answers; CastRayInfo::cap_fallbacks), with
-  /// kRayTracing it throws kOutOfDeviceMemory and the map stays as it was.
+  /// castRay's backend. A ray-tracing backend the device cannot run (no ray queries for
+  /// kRayQuery, no pipelines for kRayTracingPipeline, neither for kRayTracing, or a loop limit)
+  /// makes the map's constructor throw kMissingFeature. OccupancyMap::castRayInfo().backend
+  /// says what runs: kWalk, kRayQuery or kRayTracingPipeline. The acceleration structure counts
+  /// under max_device_bytes (with the query buffers): where it would not fit, a castRays call with
+  /// kAuto answers with the walk (the same answers; CastRayInfo::cap_fallbacks), with a
+  /// ray-tracing backend it throws kOutOfDeviceMemory and the map stays as it was.
   CastRayBackend cast_ray_backend = CastRayBackend::kAuto;
-  /// How scans find their cells. kRayTracing on a device without ray queries (or with a loop
-  /// limit, or with max_device_bytes set: the acceleration structure is not under the cap)
-  /// makes the map's constructor throw kMissingFeature / kInvalidArgument.
+  /// How scans find their cells. A ray-tracing value the device cannot run (as for
+  /// cast_ray_backend), or one with max_device_bytes set (the acceleration structure is not
+  /// under the cap), makes the map's constructor throw kMissingFeature / kInvalidArgument.
   ScanRays scan_rays = ScanRays::kWalk;
 
   /// Device bytes an empty map with these parameters holds: the smallest max_device_bytes.

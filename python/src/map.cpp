@@ -213,7 +213,8 @@ void bindMap(py::module_& m) {
   using CastRayInfo = OccupancyMap::CastRayInfo;
   py::class_<CastRayInfo>(m, "CastRayInfo",
                           "castRay's backend on a map and what its acceleration structure cost.")
-      .def_readonly("backend", &CastRayInfo::backend, "WALK or RAY_TRACING, as cast_rays runs")
+      .def_readonly("backend", &CastRayInfo::backend,
+                    "WALK, RAY_QUERY or RT_PIPELINE, as cast_rays runs")
       .def_readonly("builds", &CastRayInfo::builds, "acceleration-structure builds since trim()")
       .def_readonly("last_build_ms", &CastRayInfo::last_build_ms)
       .def_readonly("occupied_boxes", &CastRayInfo::occupied_boxes)

@@ -157,6 +157,9 @@ void bindContext(py::module_& m) {
       .def_readonly("memory_bytes", &DeviceInfo::memory_bytes)
       .def_readonly("ray_query", &DeviceInfo::ray_query,
                     "the device offers ray queries (castRay's ray-tracing backend)")
+      .def_readonly("ray_tracing_pipeline", &DeviceInfo::ray_tracing_pipeline,
+                    "the device offers ray-tracing pipelines (the ray-tracing backends' other "
+                    "way, RT_PIPELINE; a Context enables them with ray_query)")
       .def_readonly("ray_query_enabled", &DeviceInfo::ray_query_enabled,
                     "ray queries are enabled on this Context's device")
       .def("__repr__", [](const DeviceInfo& d) {
@@ -229,11 +232,21 @@ void bindTypes(py::module_& m) {
       .value("AUTO", CastRayBackend::kAuto, "ray tracing where available, else the walk")
       .value("WALK", CastRayBackend::kWalk, "a compute shader steps through every cell")
       .value("RAY_TRACING", CastRayBackend::kRayTracing,
-             "ray queries against an acceleration structure (needs VK_KHR_ray_query)");
+             "rays traced against an acceleration structure: RAY_QUERY where the device has ray "
+             "queries, else RT_PIPELINE")
+      .value("RAY_QUERY", CastRayBackend::kRayQuery,
+             "RAY_TRACING through ray queries (needs VK_KHR_ray_query)")
+      .value("RT_PIPELINE", CastRayBackend::kRayTracingPipeline,
+             "RAY_TRACING through a ray-tracing pipeline (needs VK_KHR_ray_tracing_pipeline)");
   py::enum_<ScanRays>(m, "ScanRays", "How a scan's rays find their cells.")
       .value("WALK", ScanRays::kWalk, "OctoMap's DDA through every cell")
       .value("RAY_TRACING", ScanRays::kRayTracing,
-             "the DDA jumps over leaves already clamped free (needs VK_KHR_ray_query)");
+             "the DDA jumps over leaves already clamped free: RAY_QUERY where the device has ray "
+             "queries, else RT_PIPELINE")
+      .value("RAY_QUERY", ScanRays::kRayQuery,
+             "RAY_TRACING through ray queries (needs VK_KHR_ray_query)")
+      .value("RT_PIPELINE", ScanRays::kRayTracingPipeline,
+             "RAY_TRACING through a ray-tracing pipeline (needs VK_KHR_ray_tracing_pipeline)");
 
   py::class_<Pose>(m, "Pose",
                    "A rigid transform with OctoMap's float arithmetic (octomath::Pose6D): "

@@ -128,18 +128,21 @@ def rays(n=2000, seed=5):
 
 
 def require_backend(context, backend):
-    if backend != octovk.CastRayBackend.RAY_TRACING:
+    if backend == octovk.CastRayBackend.WALK:
         return
-    rt = context.device.ray_query_enabled
+    query = backend == octovk.CastRayBackend.RAY_QUERY
+    rt = context.device.ray_query_enabled if query else context.device.ray_tracing_pipeline
+    way = "ray queries" if query else "ray-tracing pipelines"
     if os.environ.get("OCTOVK_EXPECT_RAY_QUERY", "") not in ("", "0"):
-        assert rt, f"OCTOVK_EXPECT_RAY_QUERY is set but '{context.device.driver}' has no ray queries"
+        assert rt, f"OCTOVK_EXPECT_RAY_QUERY is set but '{context.device.driver}' has no {way}"
     if not rt:
-        pytest.skip(f"'{context.device.driver}' has no ray queries: castRay's ray-tracing backend "
+        pytest.skip(f"'{context.device.driver}' has no {way}: castRay's ray-tracing backend "
                     "is tested on Mesa 25's lavapipe")
 
 
-@pytest.mark.parametrize("backend", [octovk.CastRayBackend.WALK,
-                                     octovk.CastRayBackend.RAY_TRACING], ids=["walk", "rt"])
+@pytest.mark.parametrize("backend", [octovk.CastRayBackend.WALK, octovk.CastRayBackend.RAY_QUERY,
+                                     octovk.CastRayBackend.RT_PIPELINE],
+                         ids=["walk", "rt-query", "rt-pipeline"])
 @pytest.mark.parametrize("max_range,ignore_unknown", [(-1.0, False), (-1.0, True), (1.2, False),
                                                       (0.7, True)])
 def test_cast_rays_equal_octomap(context, room, tmp_path, max_range, ignore_unknown, backend):

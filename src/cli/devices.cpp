@@ -10,8 +10,29 @@ namespace octovk::cli {
 void printDevicesHelp(std::ostream& out) {
   out << "octovk devices\n"
          "\n"
-         "Lists the Vulkan devices (index, name, type, device-local memory, ray tracing) and the\n"
-         "one octovk would use now, which OCTOVK_DEVICE changes, with castRay's backend there.\n";
+         "Lists the Vulkan devices (index, name, type, device-local memory, the ways it traces\n"
+         "rays: ray queries, ray-tracing pipelines) and the one octovk would use now, which\n"
+         "OCTOVK_DEVICE changes, with castRay's backend there (and --rays rt's way of tracing).\n";
+}
+
+// The ways a device can trace rays.
+const char* rayTracingPaths(const DeviceInfo& d) {
+  if (d.ray_query && d.ray_tracing_pipeline) return "ray queries and ray-tracing pipelines";
+  if (d.ray_query) return "ray queries";
+  if (d.ray_tracing_pipeline) return "ray-tracing pipelines";
+  return "no ray tracing";
+}
+
+const char* backendName(CastRayBackend backend) {
+  switch (backend) {
+    case CastRayBackend::kRayQuery:
+      return "ray tracing through ray queries (VK_KHR_acceleration_structure + VK_KHR_ray_query)";
+    case CastRayBackend::kRayTracingPipeline:
+      return "ray tracing through a ray-tracing pipeline (VK_KHR_acceleration_structure + "
+             "VK_KHR_ray_tracing_pipeline)";
+    default:
+      return "compute walk";
+  }
 }
 
 namespace {
@@ -26,21 +47,17 @@ class Devices final : public Command {
                   "mesa-vulkan-drivers) or a GPU driver, and check 'vulkaninfo --summary'");
     for (const DeviceInfo& d : devices) {
       std::printf("%u: %s (%s), %.1f GiB device-local memory, %s\n", d.index, d.name.c_str(),
-                  d.type.c_str(),
-                  static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
-                  d.ray_query ? (d.ray_tracing_pipeline ? "ray queries and ray-tracing pipelines"
-                                                        : "ray queries")
-                              : "no ray tracing");
+                  d.type.c_str(), static_cast<double>(d.memory_bytes) / (1024.0 * 1024.0 * 1024.0),
+                  rayTracingPaths(d));
     }
     // Creating the context answers "which one would integrate use?", OCTOVK_DEVICE included.
     Context& context = in.context();
     const DeviceInfo& selected = context.device();
-    // What a map with the default MapParams uses for castRay (render, the library's default).
+    // What a map with the default MapParams uses for castRay (render, the library's default),
+    // and so for --rays rt: the same choice of the ray-tracing path.
     const OccupancyMap probe(context, MapParams{});
     std::printf("selected: %u: %s; castRay: %s\n", selected.index, selected.name.c_str(),
-                probe.castRayInfo().backend == CastRayBackend::kRayTracing
-                    ? "ray tracing (VK_KHR_acceleration_structure + VK_KHR_ray_query)"
-                    : "compute walk");
+                backendName(probe.castRayInfo().backend));
     return kExitOk;
   }
 };

@@ -221,13 +221,16 @@ void printIntegrateHelp(std::ostream& out) {
       << ")\n"
          "      --discretize       reduce each scan to one point per voxel before ray casting\n"
          "                         (OctoMap's discretize; faster, approximate) (default: off)\n"
-         "      --rays walk|rt     how each scan finds its cells: walk = a compute shader steps\n"
-         "                         every ray cell by cell; rt = ray queries against an\n"
+         "      --rays walk|rt|rt-query|rt-pipeline\n"
+         "                         how each scan finds its cells: walk = a compute shader steps\n"
+         "                         every ray cell by cell; rt = rays traced against an\n"
          "                         acceleration structure over the boxes a scan can change,\n"
          "                         built on the device before each scan, stepping only through\n"
-         "                         them (needs a device with ray queries, e.g. Mesa 25's\n"
-         "                         lavapipe, and no loop limit; refused elsewhere). The map is\n"
-         "                         the same either way (default: walk)\n"
+         "                         them, with ray queries where the device has them, else\n"
+         "                         through a ray-tracing pipeline; rt-query, rt-pipeline = rt\n"
+         "                         forced to one of the two (needs a device with it, e.g. Mesa\n"
+         "                         25's lavapipe has both, and no loop limit; refused\n"
+         "                         elsewhere). The map is the same either way (default: walk)\n"
          "      --changes FILE.ply the keys changed over the whole run, as an ASCII PLY point\n"
          "                         cloud: OctoMap's change detection on from the first scan and\n"
          "                         never reset (the KeyBoolMap of changedKeysBegin/End at the\n"
@@ -242,7 +245,7 @@ void printIntegrateHelp(std::ostream& out) {
          "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
          "                         or once a run takes longer than a second)\n";
   printMaxDeviceMemoryHelp(out, "A scan");
-  out << "                         Not with --rays rt.\n";
+  out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
@@ -285,9 +288,15 @@ class Integrate final : public Command {
         params_.scan_rays = ScanRays::kWalk;
       else if (opt.value == "rt")
         params_.scan_rays = ScanRays::kRayTracing;
+      else if (opt.value == "rt-query")
+        params_.scan_rays = ScanRays::kRayQuery;
+      else if (opt.value == "rt-pipeline")
+        params_.scan_rays = ScanRays::kRayTracingPipeline;
       else
-        throw UsageError("--rays " + opt.value + ": use --rays walk (the compute walk) or --rays rt "
-                         "(ray tracing)");
+        throw UsageError("--rays " + opt.value +
+                         ": use --rays walk (the compute walk), --rays rt (ray tracing), or "
+                         "--rays rt-query / rt-pipeline (ray tracing through ray queries / a "
+                         "ray-tracing pipeline)");
     } else if (opt.name == "-q" || opt.name == "--quiet")
       quiet_ = true;
     else if (opt.name == "--changes")
@@ -340,7 +349,7 @@ void Integrate::check(Invocation& in) {
     changes_output_ = in.addOptionOutput(changes_path_);
   }
   checkDeviceMemoryCap(params_);
-  if (params_.scan_rays == ScanRays::kRayTracing && params_.max_device_bytes != 0)
+  if (params_.scan_rays != ScanRays::kWalk && params_.max_device_bytes != 0)
     throw UsageError(std::string("--rays rt cannot be capped by ") + kMaxDeviceMemoryOption +
                      ": its acceleration structures are not held under the cap; use --rays walk "
                      "or leave " +

@@ -1,7 +1,10 @@
 // Structs and constants shared by the C++ host code and the GLSL compute shaders (internal: not
 // installed). Included verbatim by both: every layout that crosses the host/device line is defined
 // here once, or in the public octovk/device_types.h for the ones interop callers fill and read.
-// Layout tests (tests/layout_test.cpp) check that both sides agree on sizes and offsets.
+// Each struct's comment states its size ("N B."), each field, one per line, its size and offset
+// ("4B (12)"), padding included: cmake/LayoutProbe.cmake reads the structs off this file (and
+// octovk/device_types.h) to static_assert those and to generate the layout probe, with which
+// tests/layout_test.cpp checks on the device that the GLSL side agrees.
 #ifndef OCTOVK_GPU_TYPES_H
 #define OCTOVK_GPU_TYPES_H
 

@@ -16,6 +16,7 @@
 
 #include "io/parse.hpp"
 #include "map/host_memory.hpp"
+#include "map/host_tree.hpp"
 #include "map/reference.hpp"
 
 namespace octovk {
@@ -33,6 +34,17 @@ class TreeBuilder : public octomap::OcTree {
     return root;
   }
 };
+
+// A node's data between the host tree and OctoMap's node: the twins of host_tree.hpp's
+// accessors, where a payload joins too.
+void copyNodeData(const HostTree::Node& from, octomap::OcTreeNode& to) {
+  to.setLogOdds(from.log_odds);
+}
+HostTree::Node hostNodeOf(const octomap::OcTreeNode& from) {
+  HostTree::Node n = emptyHostNode();
+  n.log_odds = from.getLogOdds();
+  return n;
+}
 
 std::string extensionOf(const std::string& path) {
   return std::filesystem::path(path).extension().string();
@@ -69,7 +81,7 @@ std::unique_ptr<octomap::OcTree> buildOcTree(OccupancyMap& map) {
   std::function<void(std::uint32_t, octomap::OcTreeNode*, unsigned)> build =
       [&](std::uint32_t index, octomap::OcTreeNode* node, unsigned depth) {
         const HostTree::Node& n = host.nodes.at(index);
-        node->setLogOdds(n.log_odds);
+        copyNodeData(n, *node);
         if (depth >= 16) return;
         for (unsigned i = 0; i < 8; ++i) {
           if (!(n.mask & (1u << i))) continue;
@@ -91,19 +103,19 @@ HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree) {
   host.root_exists = root != nullptr;
   if (root) {
     host.nodes.resize(8);
-    host.nodes[0] = {root->getLogOdds(), 0xFFFFFFFFu, 0};
+    host.nodes[0] = hostNodeOf(*root);
     // Breadth first: each node with children gets the next block of 8 slots.
     std::vector<std::pair<const octomap::OcTreeNode*, std::uint32_t>> queue{{root, 0}};
     for (std::size_t head = 0; head < queue.size(); ++head) {
       const auto [node, index] = queue[head];
       if (!tree.nodeHasChildren(node)) continue;
       const std::uint32_t block = static_cast<std::uint32_t>(host.nodes.size() / 8);
-      host.nodes.resize(host.nodes.size() + 8, HostTree::Node{0.0f, 0xFFFFFFFFu, 0});
+      host.nodes.resize(host.nodes.size() + 8, emptyHostNode());
       std::uint32_t mask = 0;
       for (unsigned i = 0; i < 8; ++i) {
         if (!tree.nodeChildExists(node, i)) continue;
         const octomap::OcTreeNode* child = tree.getNodeChild(node, i);
-        host.nodes[block * 8 + i] = {child->getLogOdds(), 0xFFFFFFFFu, 0};
+        host.nodes[block * 8 + i] = hostNodeOf(*child);
         queue.emplace_back(child, block * 8 + i);
         mask |= 1u << i;
       }

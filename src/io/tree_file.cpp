@@ -14,6 +14,8 @@
 #include <istream>
 #include <optional>
 #include <streambuf>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "io/parse.hpp"
@@ -25,6 +27,17 @@ namespace {
 constexpr unsigned kTreeDepth = 16;  // OctoMap's keys: leaves lie 16 levels below the root
 constexpr std::string_view kFullHeader = "# Octomap OcTree file";
 constexpr std::string_view kBinaryHeader = "# Octomap OcTree binary file";
+
+// A .ot node record holds the node's data (OcTreeNode::writeData: its float log-odds; a payload
+// such as a ColorOcTree's colour would follow it), then a byte with a bit per child whose record
+// follows. The data's size, and what is wrong with it ("" when nothing: a finite log-odds).
+constexpr std::size_t kRecordDataBytes = sizeof(float);
+std::string recordDataFault(std::string_view data) {
+  float log_odds;
+  std::memcpy(&log_odds, data.data(), sizeof(float));
+  if (std::isfinite(log_odds)) return {};
+  return " has log-odds " + std::to_string(log_odds) + ", not a finite number";
+}
 
 // A file's text for a message: at most 40 characters, anything unprintable as '?'.
 std::string shown(std::string_view text) {
@@ -233,20 +246,17 @@ std::unique_ptr<octomap::OcTree> readTreeData(ByteSource& source, std::uint64_t 
       nodes += children;
       open[top++] = {depth, inner};
       at += 2;
-    } else {  // a float log-odds, then a byte with a bit per child whose record follows
-      if (!source.has(at + sizeof(float) + 1))
+    } else {  // the node's data, then a byte with a bit per child whose record follows
+      if (!source.has(at + kRecordDataBytes + 1))
         throw bad(where(depth) + " runs past the end of the file");
-      float log_odds;
-      std::memcpy(&log_odds, source.view(at, at + sizeof(float)).data(), sizeof(float));
-      if (!std::isfinite(log_odds))
-        throw bad(where(depth) + " has log-odds " + std::to_string(log_odds) +
-                  ", not a finite number");
-      const unsigned mask = source.at(at + sizeof(float));
+      const std::string fault = recordDataFault(source.view(at, at + kRecordDataBytes));
+      if (!fault.empty()) throw bad(where(depth) + fault);
+      const unsigned mask = source.at(at + kRecordDataBytes);
       if (mask != 0 && depth >= kTreeDepth)
         throw bad(where(depth) + " has children, deeper than a tree's 16 levels");
       ++nodes;
       open[top++] = {depth, mask};
-      at += sizeof(float) + 1;
+      at += kRecordDataBytes + 1;
     }
     // More nodes than announced: refused now rather than after the rest of the file.
     if (announced && nodes > *announced)

@@ -6,6 +6,24 @@
 
 namespace octovk {
 
+HostTree::Node emptyHostNode() { return {0.0f, gpu::kNoBlock, 0}; }
+
+gpu::Node emptyPoolNode() { return {0.0f, gpu::kNoChildren}; }
+
+void copyNodeData(const gpu::Node& from, HostTree::Node& to) { to.log_odds = from.log_odds; }
+
+void copyNodeData(const HostTree::Node& from, gpu::Node& to) { to.log_odds = from.log_odds; }
+
+void copyNodeData(const HostTree::Node& from, HostTree::Node& to) { to.log_odds = from.log_odds; }
+
+void checkNodeData(const HostTree::Node& node, std::size_t index, const char* call) {
+  // As the .ot reader: a value that no update can give would make a file no reader takes.
+  if (!std::isfinite(node.log_odds))
+    throw Error(ErrorCode::kFormat, std::string(call) + ": node " + std::to_string(index) +
+                                        " has a log-odds of " + std::to_string(node.log_odds) +
+                                        "; every node's log-odds must be a finite number");
+}
+
 HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool) {
   HostTree tree;
   tree.root_exists = pool.root_exists != 0;
@@ -16,9 +34,8 @@ HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState
   for (std::size_t i = 0; i < count; ++i) {
     const std::uint32_t block = nodes[i].link & gpu::kBlockMask;
     HostTree::Node& n = tree.nodes[i];
-    n.log_odds = nodes[i].log_odds;
-    n.children = gpu::kNoBlock;
-    n.mask = 0;
+    n = emptyHostNode();
+    copyNodeData(nodes[i], n);
     if (block == gpu::kNoChildren || block >= pool.bump || std::size_t{block} * 8 + 8 > count)
       continue;
     n.children = block;
@@ -33,7 +50,7 @@ HostTree compactHostTree(const HostTree& tree) {
   HostTree out;
   out.root_exists = tree.root_exists;
   // Block 0 holds the root (its other slots are unused), as in every pool.
-  out.nodes.assign(8, HostTree::Node{0.0f, gpu::kNoBlock, 0});
+  out.nodes.assign(8, emptyHostNode());
   if (!tree.root_exists || tree.nodes.size() < 8) return out;
   struct Move {
     std::size_t from, to;
@@ -42,7 +59,7 @@ HostTree compactHostTree(const HostTree& tree) {
   for (std::size_t next = 0; next < queue.size(); ++next) {
     const Move m = queue[next];
     const HostTree::Node& n = tree.nodes[m.from];
-    out.nodes[m.to] = {n.log_odds, gpu::kNoBlock, 0};
+    copyNodeData(n, out.nodes[m.to]);
     if ((n.mask & gpu::kChildMask) == 0) continue;
     if (n.children == 0 || std::size_t{n.children} * 8 + 8 > tree.nodes.size() ||
         out.nodes.size() + 8 > tree.nodes.size() + 8)
@@ -50,7 +67,7 @@ HostTree compactHostTree(const HostTree& tree) {
     const std::size_t block = out.nodes.size() / 8;
     out.nodes[m.to].children = static_cast<std::uint32_t>(block);
     out.nodes[m.to].mask = n.mask & gpu::kChildMask;
-    out.nodes.resize(out.nodes.size() + 8, HostTree::Node{0.0f, gpu::kNoBlock, 0});
+    out.nodes.resize(out.nodes.size() + 8, emptyHostNode());
     for (std::uint32_t s = 0; s < 8; ++s)
       if (n.mask & (1u << s)) queue.push_back({std::size_t{n.children} * 8 + s, block * 8 + s});
   }
@@ -65,7 +82,7 @@ PoolImage poolImageFromTree(const HostTree& tree) {
                 "upload: the tree has more than 2^32 nodes, more than a map can hold");
   image.blocks = static_cast<std::uint32_t>(blocks);
   image.parents.assign(blocks, gpu::kNoBlock);
-  image.nodes.assign(blocks * 8, gpu::Node{0.0f, gpu::kNoChildren});
+  image.nodes.assign(blocks * 8, emptyPoolNode());
   image.root_exists = tree.root_exists;
   if (tree.root_exists) {
     if (tree.nodes.empty()) throw Error(ErrorCode::kFormat, "upload: the tree has no root node");
@@ -80,13 +97,9 @@ PoolImage poolImageFromTree(const HostTree& tree) {
       stack.pop_back();
       ++image.live_nodes;
       const HostTree::Node& n = tree.nodes[it.node];
-      // As the .ot reader: a value that no update can give would make a file no reader takes.
-      if (!std::isfinite(n.log_odds))
-        throw Error(ErrorCode::kFormat, "upload: node " + std::to_string(it.node) +
-                                            " has a log-odds of " + std::to_string(n.log_odds) +
-                                            "; every node's log-odds must be a finite number");
+      checkNodeData(n, it.node, "upload");
       gpu::Node& g = image.nodes[it.node];
-      g.log_odds = n.log_odds;
+      copyNodeData(n, g);
       g.link = gpu::kNoChildren | gpu::kFlagLive;
       if ((n.mask & gpu::kChildMask) == 0) continue;
       if (it.depth >= gpu::kTreeDepth)

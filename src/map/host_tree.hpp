@@ -3,6 +3,7 @@
 // device, so it is testable on its own.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -11,6 +12,24 @@
 #include "octovk/octovk.hpp"
 
 namespace octovk {
+
+// ---- a node's data: its log-odds ----
+// Every copy, creation and check of a node's data on the host goes through these (with their
+// OctoMap twins in src/io/octomap_io.cpp and the .ot record in src/io/tree_file.cpp), so that a
+// payload (colour, time stamp) is added here, not in each conversion. The link words and child
+// masks, the tree's shape, are the conversions' own.
+
+/// A host node without children that holds a new node's data (log-odds 0).
+HostTree::Node emptyHostNode();
+/// A pool node without children, not live, that holds a new node's data.
+gpu::Node emptyPoolNode();
+/// `from`'s data given to `to` (download, upload and compact); `to`'s links are kept.
+void copyNodeData(const gpu::Node& from, HostTree::Node& to);
+void copyNodeData(const HostTree::Node& from, gpu::Node& to);
+void copyNodeData(const HostTree::Node& from, HostTree::Node& to);
+/// Throws kFormat, naming node `index` and `call`, when its data is nothing an update can give
+/// (a log-odds that is not a finite number).
+void checkNodeData(const HostTree::Node& node, std::size_t index, const char* call);
 
 /// The tree that hangs from the root of a downloaded pool (`nodes`: the first pool.bump blocks).
 HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool);

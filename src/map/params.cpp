@@ -31,12 +31,16 @@ std::string MapParams::validate() const {
   } else if (!inOpenUnit(occupancy_threshold)) {
     why << "occupancy_threshold must lie in (0, 1) (got " << occupancy_threshold << ")";
   } else if (static_cast<std::uint32_t>(cast_ray_backend) >
-             static_cast<std::uint32_t>(CastRayBackend::kRayTracing)) {
+             static_cast<std::uint32_t>(CastRayBackend::kRayTracingPipeline)) {
     why << "cast_ray_backend " << static_cast<std::uint32_t>(cast_ray_backend)
-        << " is not a CastRayBackend (kAuto, kWalk, kRayTracing)";
-  } else if (scan_rays != ScanRays::kWalk && scan_rays != ScanRays::kRayTracing) {
+        << " is not a CastRayBackend (kAuto, kWalk, kRayTracing, kRayQuery, "
+           "kRayTracingPipeline)";
+  } else if (static_cast<std::uint32_t>(scan_rays) < static_cast<std::uint32_t>(ScanRays::kWalk) ||
+             static_cast<std::uint32_t>(scan_rays) >
+                 static_cast<std::uint32_t>(ScanRays::kRayTracingPipeline)) {
     why << "scan_rays " << static_cast<std::uint32_t>(scan_rays)
-        << " is not a ScanRays (kWalk = 1, kRayTracing = 2)";
+        << " is not a ScanRays (kWalk = 1, kRayTracing = 2, kRayQuery = 3, "
+           "kRayTracingPipeline = 4)";
   } else if (max_device_bytes != 0 && max_device_bytes < minDeviceBytes()) {
     why << "max_device_bytes " << max_device_bytes << " is less than an empty map holds on the "
         << "device: at least " << minDeviceBytes() << " bytes (MapParams::minDeviceBytes()); "

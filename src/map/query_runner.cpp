@@ -32,7 +32,7 @@ void QueryRunner::onDevice(bool rays, VkBuffer in, VkDeviceSize in_offset, VkDev
                 "query on device: buffer offsets must be multiples of " + std::to_string(align) +
                     " (minStorageBufferOffsetAlignment)");
   if (count == 0) return;
-  const VkDeviceAddress ray_scene = rays ? scenes_.castRayScene() : 0;
+  const passes::TraceScene ray_scene = rays ? scenes_.castRayScene() : passes::TraceScene{};
   // The map's own query buffers are swapped for the caller's ranges for this one submission.
   core_.buffers.bindings.updateRange(gpu::kBindQueryIn, in, in_offset, in_size);
   core_.buffers.bindings.updateRange(gpu::kBindQueryOut, out, out_offset, out_size);
@@ -128,7 +128,8 @@ QueryResults QueryRunner::runSplit(const QueryRequest& q) {
 }
 
 QueryResults QueryRunner::runBatch(const QueryRequest& q) {
-  const VkDeviceAddress ray_scene = q.rays.empty() ? 0 : scenes_.castRayScene();
+  const passes::TraceScene ray_scene =
+      q.rays.empty() ? passes::TraceScene{} : scenes_.castRayScene();
   std::uint32_t stop_rays = 0;
   const std::vector<std::uint32_t> order =
       passes::rayOrder(q.rays, core_.params.resolution, stop_rays);

@@ -10,6 +10,7 @@
 
 #include "gpu/gpu_types.h"
 #include "map/map_core.hpp"
+#include "map/passes/passes.hpp"
 #include "octovk/octovk.hpp"
 #include "vk/accel.hpp"
 #include "vk/device.hpp"
@@ -34,18 +35,22 @@ struct RayScene {
 
 class RaySceneCache {
  public:
-  /// Resolves MapParams::cast_ray_backend and MapParams::scan_rays on the device; throws when
-  /// kRayTracing is asked for and cannot run.
+  /// Resolves MapParams::cast_ray_backend and MapParams::scan_rays on the device (kWalk,
+  /// kRayQuery or kRayTracingPipeline); throws when a ray-tracing value is asked for and cannot
+  /// run.
   explicit RaySceneCache(MapCore& core);
 
   /// castRay's scene brought up to the tree (lazily: when the tree changed since it was built;
-  /// stale leaf boxes are rebuilt in the same submission); the address of its boxes buffer for
-  /// cast_ray_rt, 0 with the walk. Under MapParams::max_device_bytes a structure that would not
-  /// fit is not built: with kAuto the scene is dropped and 0 returned (the walk answers,
-  /// CastRayInfo::cap_fallbacks counts it); with kRayTracing BudgetError, the map unchanged.
-  VkDeviceAddress castRayScene();
-  /// Whether scans trace their rays (ScanRays::kRayTracing) instead of walking them.
-  bool traceScans() const noexcept { return scan_rays_ == ScanRays::kRayTracing; }
+  /// stale leaf boxes are rebuilt in the same submission), and the way cast_ray_rt traces
+  /// through it; none with the walk. Under MapParams::max_device_bytes a structure that would
+  /// not fit is not built: with kAuto the scene is dropped and none returned (the walk answers,
+  /// CastRayInfo::cap_fallbacks counts it); with a ray-tracing backend BudgetError, the map
+  /// unchanged.
+  passes::TraceScene castRayScene();
+  /// Whether scans trace their rays (ScanRays' ray-tracing values) instead of walking them.
+  bool traceScans() const noexcept { return scan_rays_ != ScanRays::kWalk; }
+  /// The scans' scene (scanScene()) and the way scan_rays_rt traces through it.
+  passes::TraceScene scanTrace() const;
   /// The scans' scene with its boxes buffer sized for the pool as it is now; when that changes
   /// (the pool grew), waits for the device first (the scans in flight use the scene).
   RayScene& scanScene();
@@ -63,12 +68,12 @@ class RaySceneCache {
 
  private:
   /// Whether castRay's scene may hold `bytes` in place of what it holds now under the cap; if
-  /// not, drops the scene, then with kRayTracing throws BudgetError naming `what`, with kAuto
-  /// counts a fallback and returns false.
+  /// not, drops the scene, then with a ray-tracing backend throws BudgetError naming `what`, with
+  /// kAuto counts a fallback and returns false.
   bool castRaySceneFits(std::size_t bytes, const std::string& what);
 
   MapCore& core_;
-  CastRayBackend cast_ray_backend_ = CastRayBackend::kWalk;
+  CastRayBackend cast_ray_backend_ = CastRayBackend::kWalk;  ///< kWalk, kRayQuery or pipeline
   std::unique_ptr<RayScene> ray_scene_;  ///< castRay's
   /// castRays calls the walk answered because the structure did not fit under the cap (kAuto).
   std::size_t cap_fallbacks_ = 0;

@@ -42,7 +42,7 @@ void ScanPipeline::record(PendingScan& p) {
   if (scene) {
     passes::recordScanScene(rec, scene->accel, scene->boxes, scenes_.scanHeader());
     scenes_.noteSceneBytes();  // the build allocated before recording
-    passes::recordScanRaysRt(rec, scene->boxes.address(), sp.point_count, input.discretize);
+    passes::recordScanRaysRt(rec, scenes_.scanTrace(), sp.point_count, input.discretize);
   }
   passes::recordClassify(rec, input.discretize, sp.point_count);
   passes::recordTreeUpdate(rec);

@@ -21,11 +21,11 @@ AccelerationStructure::AccelerationStructure(Device& device, VkAccelerationStruc
   info.offset = 0;  // offsets must be multiples of 256: each structure has its own buffer
   info.size = bytes;
   info.type = type;
-  OCTOVK_VK(device.rayQueryApi().create(device.handle(), &info, nullptr, &handle_));
+  OCTOVK_VK(device.accelApi().create(device.handle(), &info, nullptr, &handle_));
   VkAccelerationStructureDeviceAddressInfoKHR address{
       VK_STRUCTURE_TYPE_ACCELERATION_STRUCTURE_DEVICE_ADDRESS_INFO_KHR};
   address.accelerationStructure = handle_;
-  address_ = device.rayQueryApi().address(device.handle(), &address);
+  address_ = device.accelApi().address(device.handle(), &address);
 }
 
 AccelerationStructure::~AccelerationStructure() { release(); }
@@ -46,18 +46,11 @@ AccelerationStructure& AccelerationStructure::operator=(AccelerationStructure&& 
 }
 
 void AccelerationStructure::release() noexcept {
-  if (device_ && handle_) device_->rayQueryApi().destroy(device_->handle(), handle_, nullptr);
+  if (device_ && handle_) device_->accelApi().destroy(device_->handle(), handle_, nullptr);
   handle_ = VK_NULL_HANDLE;
   address_ = 0;
   storage_ = Buffer();
 }
-
-// ---------------------------------------------------------------------------------------------
-// BoxScene
-
-namespace {
-
-VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
 
 void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
                    VkPipelineStageFlags dst_stage, VkAccessFlags dst_access) {
@@ -66,6 +59,13 @@ void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccess
   b.dstAccessMask = dst_access;
   vkCmdPipelineBarrier(cmd, src_stage, dst_stage, 0, 1, &b, 0, nullptr, 0, nullptr);
 }
+
+// ---------------------------------------------------------------------------------------------
+// BoxScene
+
+namespace {
+
+VkDeviceSize alignUp(VkDeviceSize v, VkDeviceSize a) { return (v + a - 1) / a * a; }
 
 // Whether a structure of `bytes` is kept: one exists and is large enough.
 bool keeps(const AccelerationStructure& as, VkDeviceSize bytes) {
@@ -120,7 +120,7 @@ std::uint32_t boxCount(const BoxGeometry& g) { return std::max<std::uint32_t>(g.
 }  // namespace
 
 BoxScene::Sizes BoxScene::sizes(std::span<const BoxGeometry> geometries) const {
-  const Device::RayQueryApi& api = device_->rayQueryApi();
+  const Device::AccelApi& api = device_->accelApi();
   const VkDevice dev = device_->handle();
   const VkDeviceSize align = api.scratch_alignment;
   Sizes out;
@@ -156,7 +156,7 @@ BoxScene::Sizes BoxScene::sizes(std::span<const BoxGeometry> geometries) const {
 
 std::size_t BoxScene::bytesAfterBuild(std::span<const BoxGeometry> geometries) const {
   const Sizes need = sizes(geometries);
-  const VkDeviceSize align = device_->rayQueryApi().scratch_alignment;
+  const VkDeviceSize align = device_->accelApi().scratch_alignment;
   std::size_t bytes = 0;
   for (std::size_t i = 0; i < need.blas.size(); ++i)
     bytes += i < blas_.size() && keeps(blas_[i], need.blas[i]) ? blas_[i].size()
@@ -171,7 +171,7 @@ std::size_t BoxScene::bytesAfterBuild(std::span<const BoxGeometry> geometries) c
 }
 
 void BoxScene::recordBuild(CommandStream& stream, std::span<const BoxGeometry> geometries) {
-  const Device::RayQueryApi& api = device_->rayQueryApi();
+  const Device::AccelApi& api = device_->accelApi();
   const std::size_t n = geometries.size();
   const VkDeviceSize align = api.scratch_alignment;
   const Sizes need = sizes(geometries);

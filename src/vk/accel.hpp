@@ -1,6 +1,7 @@
 // Acceleration structures over axis-aligned boxes (VK_KHR_acceleration_structure), built on the
-// device from box arrays that passes wrote, for ray queries in compute shaders (VK_KHR_ray_query).
-// Only on a device with vk::Device::rayQuery().
+// device from box arrays that passes wrote, for ray queries in compute shaders (VK_KHR_ray_query)
+// or ray-tracing pipelines (VK_KHR_ray_tracing_pipeline, vk/ray_pipeline.hpp). Only on a device
+// with vk::Device::rayQuery() or rayTracingPipeline().
 #pragma once
 
 #include <cstddef>
@@ -10,6 +11,11 @@
 #include "vk/device.hpp"
 
 namespace octovk::vk {
+
+/// A global memory barrier (the builds' and the traces' stages, which CommandStream::barrier
+/// does not cover).
+void memoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags src_stage, VkAccessFlags src_access,
+                   VkPipelineStageFlags dst_stage, VkAccessFlags dst_access);
 
 /// One acceleration structure and the buffer that holds it; one owner.
 class AccelerationStructure {
@@ -53,7 +59,8 @@ class BoxScene {
 
   /// Records the builds into `stream` (after a barrier that makes earlier shader and transfer
   /// writes of the boxes visible to the build) and a barrier that makes the structures visible
-  /// to later compute shaders' ray queries. Allocates before recording, so call it while the
+  /// to later compute shaders' ray queries (a pipeline's trace has its own,
+  /// RayPipeline::recordTrace). Allocates before recording, so call it while the
   /// device does not use the scene. A geometry with count 0 is built from one box at its `data`,
   /// which must then hold an inactive box.
   void recordBuild(CommandStream& stream, std::span<const BoxGeometry> geometries);

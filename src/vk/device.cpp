@@ -15,6 +15,7 @@
 #include "shader_ids.hpp"
 #include "vk/disk_cache.hpp"
 #include "vk/instance.hpp"
+#include "vk/ray_pipeline.hpp"
 #include "vk/shader_registry.hpp"
 #include "vk/startup_trace.hpp"
 
@@ -36,6 +37,8 @@ std::vector<DeviceInfo> Device::enumerate() {
   return out;
 }
 
+Device::Device() = default;
+
 // Each step throws Error for the ordinary failures (no driver, no such device, a missing
 // feature) and for a failed Vulkan call; create() returns it. What a step made is released by
 // ~Device, whichever step failed.
@@ -52,9 +55,14 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
     dev->pickQueueFamily(options);
     traceStep("physical device", t);
     t = std::chrono::steady_clock::now();
+    // Either kind of ray tracing the device offers (ray queries, ray-tracing pipelines).
     const bool ray_query = options.enable_ray_query && dev->info_.ray_query;
-    dev->createLogicalDevice(supported, ray_query);
-    if (ray_query) dev->loadRayQueryApi();
+    const bool ray_pipeline = options.enable_ray_query && dev->info_.ray_tracing_pipeline;
+    dev->createLogicalDevice(supported, ray_query, ray_pipeline);
+    if (ray_query || ray_pipeline) dev->loadAccelApi();
+    dev->ray_query_ = ray_query;
+    dev->info_.ray_query_enabled = ray_query;
+    if (ray_pipeline) dev->loadRayPipelineApi();
     vkGetPhysicalDeviceMemoryProperties(dev->physical_, &dev->memory_);
     dev->createLayouts();
     traceStep("logical device", t);
@@ -282,10 +290,11 @@ void Device::pickQueueFamily(const ContextOptions& options) {
 }
 
 // The logical device and its one queue: the required features, the optional ones the device
-// has (timeline semaphores; external memory and semaphores by fd) and, with `ray_query`, the
-// acceleration-structure and ray-query extensions.
-void Device::createLogicalDevice(const VkPhysicalDeviceVulkan12Features& supported,
-                                 bool ray_query) {
+// has (timeline semaphores; external memory and semaphores by fd) and, with `ray_query` or
+// `ray_pipeline`, the acceleration-structure extension with the ray-query or ray-tracing
+// pipeline extension.
+void Device::createLogicalDevice(const VkPhysicalDeviceVulkan12Features& supported, bool ray_query,
+                                 bool ray_pipeline) {
   float priority = 1.0f;
   VkDeviceQueueCreateInfo qinfo{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
   qinfo.queueFamilyIndex = queue_family_;
@@ -310,22 +319,36 @@ void Device::createLogicalDevice(const VkPhysicalDeviceVulkan12Features& support
       extensions.push_back(name);
       extensions_.emplace_back(name);
     }
-  // Optional: ray queries for castRay's ray-tracing backend (see rayTracingSupport).
+  // Optional: ray queries and ray-tracing pipelines for the ray-tracing backends (see
+  // rayTracingSupport).
   VkPhysicalDeviceAccelerationStructureFeaturesKHR want_as{
       VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
   VkPhysicalDeviceRayQueryFeaturesKHR want_rq{
       VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_QUERY_FEATURES_KHR};
-  if (ray_query) {
-    for (const char* name :
-         {VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME,
-          VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME, VK_KHR_RAY_QUERY_EXTENSION_NAME}) {
-      extensions.push_back(name);
-      extensions_.emplace_back(name);
-    }
+  VkPhysicalDeviceRayTracingPipelineFeaturesKHR want_rtp{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+  const auto enable = [&](const char* name) {
+    extensions.push_back(name);
+    extensions_.emplace_back(name);
+  };
+  if (ray_query || ray_pipeline) {
+    enable(VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME);
+    enable(VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME);
     want_as.accelerationStructure = VK_TRUE;
+    want_as.pNext = want12.pNext;
+    want12.pNext = &want_as;
+  }
+  if (ray_query) {
+    enable(VK_KHR_RAY_QUERY_EXTENSION_NAME);
     want_rq.rayQuery = VK_TRUE;
-    want_rq.pNext = &want_as;
+    want_rq.pNext = want12.pNext;
     want12.pNext = &want_rq;
+  }
+  if (ray_pipeline) {
+    enable(VK_KHR_RAY_TRACING_PIPELINE_EXTENSION_NAME);
+    want_rtp.rayTracingPipeline = VK_TRUE;
+    want_rtp.pNext = want12.pNext;
+    want12.pNext = &want_rtp;
   }
   VkDeviceCreateInfo dinfo{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
   dinfo.pNext = &want;
@@ -337,9 +360,9 @@ void Device::createLogicalDevice(const VkPhysicalDeviceVulkan12Features& support
   vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
 }
 
-// The acceleration-structure entry points and the scratch alignment (rayQueryApi()).
-void Device::loadRayQueryApi() {
-  auto api = std::make_unique<RayQueryApi>();
+// The acceleration-structure entry points and the scratch alignment (accelApi()).
+void Device::loadAccelApi() {
+  auto api = std::make_unique<AccelApi>();
   const auto load = [&](const char* name) { return vkGetDeviceProcAddr(device_, name); };
   api->create = reinterpret_cast<PFN_vkCreateAccelerationStructureKHR>(
       load("vkCreateAccelerationStructureKHR"));
@@ -363,31 +386,66 @@ void Device::loadRayQueryApi() {
                                         "' enabled VK_KHR_acceleration_structure but lacks "
                                         "its entry points; create the Context with "
                                         "ContextOptions::enable_ray_query = false");
-  ray_query_ = std::move(api);
-  info_.ray_query_enabled = true;
+  accel_api_ = std::move(api);
+}
+
+// The ray-tracing pipeline entry points and the shader binding table's rules (rayPipelineApi()).
+void Device::loadRayPipelineApi() {
+  auto api = std::make_unique<RayPipelineApi>();
+  const auto load = [&](const char* name) { return vkGetDeviceProcAddr(device_, name); };
+  api->create =
+      reinterpret_cast<PFN_vkCreateRayTracingPipelinesKHR>(load("vkCreateRayTracingPipelinesKHR"));
+  api->groupHandles = reinterpret_cast<PFN_vkGetRayTracingShaderGroupHandlesKHR>(
+      load("vkGetRayTracingShaderGroupHandlesKHR"));
+  api->cmdTrace = reinterpret_cast<PFN_vkCmdTraceRaysKHR>(load("vkCmdTraceRaysKHR"));
+  VkPhysicalDeviceRayTracingPipelinePropertiesKHR rtp{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR};
+  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props2.pNext = &rtp;
+  vkGetPhysicalDeviceProperties2(physical_, &props2);
+  api->handle_size = rtp.shaderGroupHandleSize;
+  api->handle_alignment = std::max(rtp.shaderGroupHandleAlignment, 1u);
+  api->base_alignment = std::max(rtp.shaderGroupBaseAlignment, 1u);
+  api->max_invocations = rtp.maxRayDispatchInvocationCount;
+  if (!api->create || !api->groupHandles || !api->cmdTrace || api->handle_size == 0)
+    throw Error(ErrorCode::kVulkan, "device '" + info_.name +
+                                        "' enabled VK_KHR_ray_tracing_pipeline but lacks its "
+                                        "entry points; create the Context with "
+                                        "ContextOptions::enable_ray_query = false");
+  ray_pipeline_api_ = std::move(api);
+  ray_pipelines_ = std::make_unique<RayPipelines>(*this);
+}
+
+const RayPipeline& Device::rayPipeline(std::string_view raygen) {
+  return ray_pipelines_->get(raygen, pipelineCache());
 }
 
 // The one descriptor set layout (the map's bindings, then the address table at kBindAddresses)
 // and the one pipeline layout every pass shares.
 void Device::createLayouts() {
+  // The ray-tracing pipelines' stages read the same bindings; their push constants follow the
+  // compute passes' (ranges of different stages may not overlap).
+  const VkShaderStageFlags rayStages = ray_pipeline_api_ ? RayPipeline::kStages : 0;
   std::vector<VkDescriptorSetLayoutBinding> bindings(gpu::kBindingCount + 1);
   for (std::uint32_t i = 0; i <= gpu::kBindingCount; ++i) {
     bindings[i] = {};
     bindings[i].binding = i;
     bindings[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
     bindings[i].descriptorCount = 1;
-    bindings[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+    bindings[i].stageFlags = VK_SHADER_STAGE_COMPUTE_BIT | rayStages;
   }
   VkDescriptorSetLayoutCreateInfo linfo{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   linfo.bindingCount = gpu::kBindingCount + 1;
   linfo.pBindings = bindings.data();
   OCTOVK_VK(vkCreateDescriptorSetLayout(device_, &linfo, nullptr, &set_layout_));
-  VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(gpu::PassConstants)};
+  const VkPushConstantRange ranges[2] = {
+      {VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(gpu::PassConstants)},
+      {rayStages, RayPipeline::kConstantsOffset, sizeof(gpu::PassConstants)}};
   VkPipelineLayoutCreateInfo pinfo{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
   pinfo.setLayoutCount = 1;
   pinfo.pSetLayouts = &set_layout_;
-  pinfo.pushConstantRangeCount = 1;
-  pinfo.pPushConstantRanges = &range;
+  pinfo.pushConstantRangeCount = rayStages ? 2 : 1;
+  pinfo.pPushConstantRanges = ranges;
   OCTOVK_VK(vkCreatePipelineLayout(device_, &pinfo, nullptr, &pipeline_layout_));
 }
 
@@ -405,8 +463,12 @@ void Device::checkNotForked(std::string_view what) const {
 
 Device::~Device() {
   // In a forked child the device is the parent's: any call could wait on the driver's threads,
-  // which the child does not have, and the pipeline cache is the parent's to save. Leave it.
-  if (forkedAway()) return;
+  // which the child does not have, and the pipeline cache is the parent's to save. Leave it (the
+  // ray-tracing pipelines and their tables too).
+  if (forkedAway()) {
+    static_cast<void>(ray_pipelines_.release());
+    return;
+  }
   if (device_) {
     vkDeviceWaitIdle(device_);
     if (pipeline_cache_) {
@@ -417,6 +479,7 @@ Device::~Device() {
     }
     for (auto& slot : passes_)
       if (slot.pass.pipeline) vkDestroyPipeline(device_, slot.pass.pipeline, nullptr);
+    ray_pipelines_.reset();
     if (pipeline_layout_) vkDestroyPipelineLayout(device_, pipeline_layout_, nullptr);
     if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
     vkDestroyDevice(device_, nullptr);

@@ -26,6 +26,9 @@
 
 namespace octovk::vk {
 
+class RayPipeline;
+class RayPipelines;
+
 /// Instance, physical device, logical device, queue and the shared pipeline layout.
 class Device {
  public:
@@ -64,9 +67,13 @@ class Device {
   VkInstance instance() const noexcept { return instance_; }
   /// Ray queries against acceleration structures (VK_KHR_acceleration_structure and
   /// VK_KHR_ray_query, with their features) are enabled on this device.
-  bool rayQuery() const noexcept { return ray_query_ != nullptr; }
-  /// The acceleration-structure entry points and limits; only when rayQuery().
-  struct RayQueryApi {
+  bool rayQuery() const noexcept { return ray_query_; }
+  /// Ray-tracing pipelines (VK_KHR_acceleration_structure and VK_KHR_ray_tracing_pipeline, with
+  /// their features) are enabled on this device: rayPipelineApi(), rayPipeline().
+  bool rayTracingPipeline() const noexcept { return ray_pipeline_api_ != nullptr; }
+  /// The acceleration-structure entry points and limits; only when rayQuery() or
+  /// rayTracingPipeline().
+  struct AccelApi {
     PFN_vkCreateAccelerationStructureKHR create = nullptr;
     PFN_vkDestroyAccelerationStructureKHR destroy = nullptr;
     PFN_vkGetAccelerationStructureBuildSizesKHR buildSizes = nullptr;
@@ -74,7 +81,23 @@ class Device {
     PFN_vkGetAccelerationStructureDeviceAddressKHR address = nullptr;
     VkDeviceSize scratch_alignment = 1;  ///< minAccelerationStructureScratchOffsetAlignment
   };
-  const RayQueryApi& rayQueryApi() const noexcept { return *ray_query_; }
+  const AccelApi& accelApi() const noexcept { return *accel_api_; }
+  /// The ray-tracing pipeline entry points and the shader binding table's layout rules; only
+  /// when rayTracingPipeline().
+  struct RayPipelineApi {
+    PFN_vkCreateRayTracingPipelinesKHR create = nullptr;
+    PFN_vkGetRayTracingShaderGroupHandlesKHR groupHandles = nullptr;
+    PFN_vkCmdTraceRaysKHR cmdTrace = nullptr;
+    std::uint32_t handle_size = 0;       ///< shaderGroupHandleSize
+    std::uint32_t handle_alignment = 1;  ///< shaderGroupHandleAlignment: a record's stride
+    std::uint32_t base_alignment = 1;    ///< shaderGroupBaseAlignment: a region's start
+    std::uint32_t max_invocations = 0;   ///< maxRayDispatchInvocationCount
+  };
+  const RayPipelineApi& rayPipelineApi() const noexcept { return *ray_pipeline_api_; }
+  /// The ray-tracing pipeline whose ray generation shader is the embedded `raygen` (e.g.
+  /// "cast_ray_rt.rgen"), built once, as pass() builds compute passes; only when
+  /// rayTracingPipeline().
+  const RayPipeline& rayPipeline(std::string_view raygen);
   /// Whether an optional device extension (external memory / semaphore by fd) was enabled.
   bool hasExtension(std::string_view name) const noexcept {
     for (const std::string& e : extensions_)
@@ -119,14 +142,16 @@ class Device {
                            VkMemoryPropertyFlags fallback) const;
 
  private:
-  Device() = default;
+  Device();  // out of line: ray_pipelines_'s type is complete in device.cpp
   // The steps of create(), in order; each throws Error when it cannot go on.
   void createInstance(const ContextOptions& options);
   void pickPhysicalDevice(const ContextOptions& options);
   VkPhysicalDeviceVulkan12Features requireFeatures() const;
   void pickQueueFamily(const ContextOptions& options);
-  void createLogicalDevice(const VkPhysicalDeviceVulkan12Features& supported, bool ray_query);
-  void loadRayQueryApi();
+  void createLogicalDevice(const VkPhysicalDeviceVulkan12Features& supported, bool ray_query,
+                           bool ray_pipeline);
+  void loadAccelApi();
+  void loadRayPipelineApi();
   void createLayouts();
   void describeForCache(const VkPhysicalDeviceProperties& props);
 
@@ -163,7 +188,10 @@ class Device {
   std::mutex passes_mutex_;                        // guards the deque (not the builds: see pass())
   std::deque<PassSlot> passes_;                    // deque: slots never move
   std::vector<std::string> extensions_;            // optional device extensions enabled
-  std::unique_ptr<RayQueryApi> ray_query_;         // set when ray queries are enabled
+  bool ray_query_ = false;                         // ray queries are enabled
+  std::unique_ptr<AccelApi> accel_api_;            // set when either kind of ray tracing is
+  std::unique_ptr<RayPipelineApi> ray_pipeline_api_;  // set when ray-tracing pipelines are
+  std::unique_ptr<RayPipelines> ray_pipelines_;       // built ones, destroyed before the device
 };
 
 }  // namespace octovk::vk

@@ -85,17 +85,20 @@ void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   r.stream.barrier();
 }
 
-void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore) {
+void recordCastRaysRt(Recorder& r, TraceScene scene, RayRange stop, RayRange ignore) {
   // On lavapipe an invocation of the ray-query pass costs more than the whole walk of a ray
   // that stops at unknown space, even when it returns at once: each pass gets its own range.
   if (stop.count)
     r.dispatch<Shader::kCastRayJump>(
-        stop.count,
-        gpu::CastRayRtConstants{.boxes = boxes, .ray_count = stop.count, .first_ray = stop.first});
-  if (ignore.count)
-    r.dispatch<Shader::kCastRayRt>(
-        ignore.count, gpu::CastRayRtConstants{
-                          .boxes = boxes, .ray_count = ignore.count, .first_ray = ignore.first});
+        stop.count, gpu::CastRayRtConstants{
+                        .boxes = scene.boxes, .ray_count = stop.count, .first_ray = stop.first});
+  if (!ignore.count) return;
+  const gpu::CastRayRtConstants pc{
+      .boxes = scene.boxes, .ray_count = ignore.count, .first_ray = ignore.first};
+  if (scene.pipeline)
+    traceRays(r, kCastRayRaygen, ignore.count, pc);
+  else
+    r.dispatch<Shader::kCastRayRt>(ignore.count, pc);
 }
 
 }  // namespace octovk::passes

@@ -7,11 +7,13 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include "map/passes/recorder.hpp"
 #include "octovk/octovk.hpp"
 #include "vk/accel.hpp"
+#include "vk/ray_pipeline.hpp"
 
 namespace octovk::passes {
 
@@ -35,7 +37,7 @@ struct RayKeysInput {
   /// Continuation dispatches of the ray walk where the device limits loops (walkRounds(),
   /// map/walk_budget.hpp).
   std::uint32_t walk_rounds = 0;
-  /// The rays are traced (ScanRays::kRayTracing, recordScanRaysRt) instead of walked: stop
+  /// The rays are traced (ScanRays' ray tracing, recordScanRaysRt) instead of walked: stop
   /// after the input stages (upload, unproject, transform, discretize).
   bool trace = false;
 };
@@ -99,11 +101,32 @@ void stageQueries(MapBuffers& buffers, const QueryRequest& q,
 /// do not depend on it.
 std::vector<std::uint32_t> rayOrder(std::span<const Ray> rays, double resolution,
                                     std::uint32_t& stop_rays);
+/// A scene the traced passes trace through: its boxes buffer's address (an AccelHeader first),
+/// and whether through a ray-tracing pipeline (the ray generation shaders cast_ray_rt.rgen,
+/// scan_rays_rt.rgen) rather than ray queries (cast_ray_rt.comp, scan_rays_rt.comp). False
+/// when there is none (castRay walks).
+struct TraceScene {
+  VkDeviceAddress boxes = 0;
+  bool pipeline = false;
+  explicit operator bool() const noexcept { return boxes != 0; }
+};
+/// The ray generation shaders of the traced passes' pipelines (TraceScene::pipeline).
+inline constexpr std::string_view kCastRayRaygen = "cast_ray_rt.rgen";
+inline constexpr std::string_view kScanRaygen = "scan_rays_rt.rgen";
+/// The ray-tracing pipeline of the ray generation shader `raygen` (e.g. kCastRayRaygen) over
+/// `items` invocations with the push constants `pc` its source declares (OCTOVK_RAY_CONSTANTS),
+/// with the map's bindings: for pipelines what Recorder::dispatch is for compute passes.
+template <typename Constants>
+void traceRays(Recorder& r, std::string_view raygen, std::uint32_t items, const Constants& pc) {
+  static_assert(sizeof(Constants) <= sizeof(gpu::PassConstants));
+  r.device.rayPipeline(raygen).recordTrace(r.stream, r.buffers.bindings.handle(), items, &pc,
+                                           sizeof(pc));
+}
 /// Copies the staged batch in, runs it and copies the results to the staging output. castRay
-/// goes through the ray-tracing scene whose boxes are at `ray_scene` when it is not 0, with the
-/// rays staged in rayOrder's order (`stop_rays` of the first kind).
+/// traces through `ray_scene` when there is one, with the rays staged in rayOrder's order
+/// (`stop_rays` of the first kind).
 void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
-                   VkDeviceAddress ray_scene = 0, std::uint32_t stop_rays = 0);
+                   TraceScene ray_scene = {}, std::uint32_t stop_rays = 0);
 /// castRay for `rays` queries at the start of the query input; results at the start of the
 /// output, the walks' states from its RayState `first_state` on.
 void recordCastRays(Recorder& r, std::uint32_t rays, std::uint32_t first_state);
@@ -146,14 +169,13 @@ void recordAccelBoxes(Recorder& r, const gpu::ScanParams& sp, const vk::Buffer& 
 /// top-level structure's address into the header.
 void recordAccelBuild(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
                       const gpu::AccelHeader& header);
-/// castRay through the scene whose boxes buffer is at `boxes`, for the rays of the query input:
-/// cast_ray_jump over `stop` (first ray, count) and cast_ray_rt over `ignore`; each pass also
-/// skips the rays of the other kind, so both ranges may be the whole batch. Results go to the
-/// rays' own places in the output.
+/// castRay through `scene`, for the rays of the query input: cast_ray_jump over `stop` (first
+/// ray, count) and the trace over `ignore`; each pass also skips the rays of the other kind, so
+/// both ranges may be the whole batch. Results go to the rays' own places in the output.
 struct RayRange {
   std::uint32_t first = 0, count = 0;
 };
-void recordCastRaysRt(Recorder& r, VkDeviceAddress boxes, RayRange stop, RayRange ignore);
+void recordCastRaysRt(Recorder& r, TraceScene scene, RayRange stop, RayRange ignore);
 
 // ---- scan_rays_rt.cpp: scans through ray tracing ----
 
@@ -167,8 +189,9 @@ gpu::AccelHeader scanSceneHeader(const MapBuffers& buffers);
 /// `params` must hold the map's parameters. Three timestamps: start, boxes done, build done.
 void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
                      const gpu::AccelHeader& header);
-/// scan_rays_rt over the scan's points (or discretize's distinct end cells), into the cell set.
-void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, bool discretize);
+/// scan_rays_rt (through `scene`) over the scan's points (or discretize's distinct end cells),
+/// into the cell set.
+void recordScanRaysRt(Recorder& r, TraceScene scene, std::uint32_t points, bool discretize);
 
 // ---- changes.cpp: the change set (change detection) ----
 

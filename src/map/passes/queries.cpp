@@ -132,7 +132,7 @@ void stageQueries(MapBuffers& buffers, const QueryRequest& q,
 }
 
 void recordQueries(Recorder& r, const gpu::ScanParams& sp, const QueryRequest& q,
-                   VkDeviceAddress ray_scene, std::uint32_t stop_rays) {
+                   TraceScene ray_scene, std::uint32_t stop_rays) {
   MapBuffers& b = r.buffers;
   const auto rays = static_cast<std::uint32_t>(q.rays.size());
   const auto points = static_cast<std::uint32_t>(q.lookups.size());

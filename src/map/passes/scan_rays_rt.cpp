@@ -1,7 +1,8 @@
 // Scans through ray tracing (ScanRays::kRayTracing): accel_boxes.comp (kAccelBoxesScan) writes
 // the boxes a free update can change, the acceleration structure is built over them in the
 // scan's own submission (at the list's capacity, the tail inactive, so the host needs no box
-// count), and scan_rays_rt.comp traces the scan's rays through it into the cell set.
+// count), and scan_rays_rt (.comp with ray queries, .rgen through a ray-tracing pipeline) traces
+// the scan's rays through it into the cell set.
 #include "map/passes/passes.hpp"
 
 namespace octovk::passes {
@@ -27,13 +28,16 @@ void recordScanScene(Recorder& r, vk::BoxScene& scene, const vk::Buffer& boxes,
   r.stamp(Stamp::kBuildEnd);
 }
 
-void recordScanRaysRt(Recorder& r, VkDeviceAddress boxes, std::uint32_t points, bool discretize) {
+void recordScanRaysRt(Recorder& r, TraceScene scene, std::uint32_t points, bool discretize) {
   // With discretize, one invocation per point covers the distinct end cells (at most as many).
-  r.dispatch<Shader::kScanRaysRt>(
-      points,
-      gpu::ScanRaysRtConstants{.boxes = boxes,
-                               .point_count = points,
-                               .mode = discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints});
+  const gpu::ScanRaysRtConstants pc{
+      .boxes = scene.boxes,
+      .point_count = points,
+      .mode = discretize ? gpu::kRayKeysEndCells : gpu::kRayKeysPoints};
+  if (scene.pipeline)
+    traceRays(r, kScanRaygen, points, pc);
+  else
+    r.dispatch<Shader::kScanRaysRt>(points, pc);
 }
 
 }  // namespace octovk::passes
