@@ -158,7 +158,7 @@ void runPaperRt(Context& context, const BenchOptions& o, double res,
     }
   }
   bool revisit_equal = *toOcTree(walk_map) == tree;
-  for (const OccupancyMap& m : rt_maps) revisit_equal = revisit_equal && *toOcTree(m) == tree;
+  for (OccupancyMap& m : rt_maps) revisit_equal = revisit_equal && *toOcTree(m) == tree;
   std::printf(
       "\nRevisits (the six views %d times over, fresh maps, one run): pass %d per view, ms. Maps "
       "%s OctoMap's.\n\n",
