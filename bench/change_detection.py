@@ -19,7 +19,7 @@ def run(scans, resolution, detect):
         t0 = time.perf_counter()
         m.insert_point_cloud(points, origin, pose=pose)
         times.append(time.perf_counter() - t0)
-    return times, (m.num_changes_detected() if detect else 0), m.device_bytes().changes
+    return times, (m.num_changes_detected() if detect else 0), m.device_bytes_by_use().changes
 
 
 def main():

@@ -35,7 +35,7 @@ Window window(const std::vector<ScanTiming>& scans, std::size_t begin, std::size
     points += static_cast<double>(t.rays);
     w.om_ms_per_scan += t.om_insert_ms;
     w.vk_ms_per_scan += t.vk.wall_ms;
-    w.vk_device_ms_per_scan += t.vk.device.total();
+    w.vk_device_ms_per_scan += t.vk.device.total_ms();
     w.vk_leaf_boxes_ms_per_scan += t.vk.device.leaf_boxes_ms;
   }
   w.om_us_per_point = w.om_ms_per_scan * 1e3 / points;
@@ -88,7 +88,7 @@ Stream streamGraph(Context& context, const BenchOptions& o, double res,
       s.boxes_ms += st.device.scan_boxes_ms;
       s.build_ms += st.device.scan_build_ms;
       s.trace_ms += st.device.scan_trace_ms;
-      s.device_ms += st.device.total();
+      s.device_ms += st.device.total_ms();
     }
   };
   for (std::size_t i = 0; i < graph.size(); ++i) {

@@ -95,7 +95,7 @@ std::size_t poolBytesPerBlock() {
   return 8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t);
 }
 
-MemoryReport memoryReport(const octomap::OcTree& tree, const OccupancyMap& map) {
+MemoryReport memoryReport(const octomap::OcTree& tree, OccupancyMap& map) {
   MemoryReport m;
   m.om_nodes = tree.size();
   m.om_bytes = tree.memoryUsage();
@@ -128,7 +128,7 @@ void writeJson(JsonWriter& json, const StageTimes& s) {
       .field("tree_update_ms", s.tree_update_ms)
       .field("prune_ms", s.prune_ms)
       .field("leaf_boxes_ms", s.leaf_boxes_ms)
-      .field("total_ms", s.total())
+      .field("total_ms", s.total_ms())
       .endObject();
 }
 

@@ -63,7 +63,7 @@ struct MemoryReport {
 std::size_t poolBytesPerBlock();
 
 /// Reads both maps' sizes (downloads octovk's tree to count its live blocks).
-MemoryReport memoryReport(const octomap::OcTree& tree, const OccupancyMap& map);
+MemoryReport memoryReport(const octomap::OcTree& tree, OccupancyMap& map);
 
 void writeJson(JsonWriter& json, const ScanTiming& t);
 void writeJson(JsonWriter& json, const MemoryReport& m);

@@ -59,7 +59,7 @@ TracedRuns runTraced(Context& context, const BenchOptions& o, double res, const 
 }
 
 double restMs(const StageTimes& d) {
-  return d.total() - d.scan_boxes_ms - d.scan_build_ms - d.scan_trace_ms;
+  return d.total_ms() - d.scan_boxes_ms - d.scan_build_ms - d.scan_trace_ms;
 }
 
 // The paper's views again through ray tracing, on each path the device runs (ray queries, a
@@ -158,7 +158,7 @@ void runPaperRt(Context& context, const BenchOptions& o, double res,
     }
   }
   bool revisit_equal = *toOcTree(walk_map) == tree;
-  for (const OccupancyMap& m : rt_maps) revisit_equal = revisit_equal && *toOcTree(m) == tree;
+  for (OccupancyMap& m : rt_maps) revisit_equal = revisit_equal && *toOcTree(m) == tree;
   std::printf(
       "\nRevisits (the six views %d times over, fresh maps, one run): pass %d per view, ms. Maps "
       "%s OctoMap's.\n\n",

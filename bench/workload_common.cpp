@@ -156,8 +156,8 @@ void printStageTable(const std::string& first_column, const std::vector<std::str
     const StageTimes& d = scans[i].vk.device;
     std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %zu |\n",
                 labels[i].c_str(), d.upload_ms, d.ray_keys_ms, d.classify_ms, d.tree_update_ms,
-                d.prune_ms, d.leaf_boxes_ms, d.total(), scans[i].vk.wall_ms,
-                scans[i].vk.wall_ms - d.total(), scans[i].vk.cell_set_attempts);
+                d.prune_ms, d.leaf_boxes_ms, d.total_ms(), scans[i].vk.wall_ms,
+                scans[i].vk.wall_ms - d.total_ms(), scans[i].vk.cell_set_attempts);
   }
   std::fflush(stdout);
 }
@@ -186,7 +186,7 @@ void printTableOne(const std::vector<double>& resolutions, const std::vector<Sca
   row("octovk prune", [&](const ScanTiming& m) { return ms(m.vk.device.prune_ms); });
   row("octovk leaf-box rebuild",
       [&](const ScanTiming& m) { return ms(m.vk.device.leaf_boxes_ms); });
-  row("octovk device total", [&](const ScanTiming& m) { return ms(m.vk.device.total()); });
+  row("octovk device total", [&](const ScanTiming& m) { return ms(m.vk.device.total_ms()); });
   row("octovk wall", [&](const ScanTiming& m) { return ms(m.vk.wall_ms); });
   row("**OctoMap insert / octovk wall**",
       [&](const ScanTiming& m) { return fmt("**%.2fx**", m.om_insert_ms / m.vk.wall_ms); });

@@ -44,9 +44,9 @@ def main():
     depth, (fx, fy, cx, cy), points = view(rng)
     for name, call in (
             ("76,800-ray view, depth image", lambda m: m.insert_depth_image(
-                depth, fx, fy, cx, cy, 1.0, max_range=5.0)),
+                depth, fx, fy, cx, cy, 1.0, max_range_m=5.0)),
             ("76,800-ray view, points", lambda m: m.insert_point_cloud(
-                points, (0, 0, 0), max_range=5.0))):
+                points, (0, 0, 0), max_range_m=5.0))):
         python_ms, library_ms = [], []
         for _ in range(args.repeat):
             m = octovk.Map(0.05)
@@ -82,7 +82,7 @@ def main():
     small_row = (total, per_call)
 
     m = octovk.Map(0.05)
-    m.insert_depth_image(depth, fx, fy, cx, cy, 1.0, max_range=5.0)
+    m.insert_depth_image(depth, fx, fy, cx, cy, 1.0, max_range_m=5.0)
     queries = np.ascontiguousarray(rng.uniform(-4, 4, (100000, 3)).astype(np.float32))
     outs = (np.empty(100000, np.uint8), np.empty(100000, np.float32), np.empty(100000, np.uint8))
     m.search(queries, out=outs)

@@ -23,7 +23,7 @@ inline std::vector<KeyFlag> oracleChanges(const octomap::OcTree& tree) {
   return out;
 }
 
-inline std::vector<KeyFlag> ourChanges(const OccupancyMap& map) {
+inline std::vector<KeyFlag> ourChanges(OccupancyMap& map) {
   std::vector<KeyFlag> out;
   for (const ChangedKey& c : map.changedKeys())
     out.emplace_back(c.key[0], c.key[1], c.key[2], c.created);

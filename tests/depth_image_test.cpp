@@ -2,8 +2,12 @@
 // the points the formula gives, inserted with the camera pose.
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <random>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "test_support.hpp"
 
@@ -85,7 +89,7 @@ TEST(DepthImage, HostUnprojectionIsTheFormula) {
   depth[7] = -std::numeric_limits<float>::infinity();
   depth[8] = 1e-40f;  // subnormal
   depth[9] = -1.5f;   // behind the camera: a point like any other
-  cam.pixels = depth.data();
+  cam.depths = std::span<const float>(depth);
   std::size_t skipped_expected = 0, skipped = 0;
   const auto expected = expectedPoints(depth, cam.width, cam, &skipped_expected);
   const auto points = unprojectDepthImage(cam, &skipped);
@@ -134,7 +138,7 @@ TEST_P(DepthImageOracle, SameMapAsOctoMapAfterEveryImage) {
         raw[i] = static_cast<std::uint16_t>(std::lround(metres[i] * 5000.0f));
         depth[i] = static_cast<float>(raw[i]);
       }
-      cam.pixels = raw.data();
+      cam.depths = std::span<const std::uint16_t>(raw);
     } else {
       cam.encoding = DepthImage::Encoding::kFloat32;
       cam.depth_scale = 1.0f;
@@ -142,7 +146,7 @@ TEST_P(DepthImageOracle, SameMapAsOctoMapAfterEveryImage) {
       depth[10] = std::numeric_limits<float>::quiet_NaN();
       depth[11] = std::numeric_limits<float>::infinity();
       depth[12] = 1e-41f;
-      cam.pixels = depth.data();
+      cam.depths = std::span<const float>(depth);
     }
     const Pose pose = cameraPose(rng);
     const Eigen::Vector3f origin_camera(0.01f * static_cast<float>(view), 0.0f, 0.0f);
@@ -186,7 +190,7 @@ TEST(DepthImage, SameAsPointCloudOverloadAndMixesWithIt) {
   cam.height = 1;
   cam.encoding = DepthImage::Encoding::kUint16;
   const std::uint16_t tiny[3] = {5000, 0, 7000};
-  cam.pixels = tiny;
+  cam.depths = std::span<const std::uint16_t>(tiny);
   const Pose pose = cameraPose(rng);
   a.insertDepthImage(cam, pose);
   b.insertPointCloud(unprojectDepthImage(cam), Eigen::Vector3f::Zero(), pose);
@@ -198,7 +202,7 @@ TEST(DepthImage, SameAsPointCloudOverloadAndMixesWithIt) {
   std::vector<float> depth = roomDepth(64, 48, cam, rng);
   cam.encoding = DepthImage::Encoding::kFloat32;
   cam.depth_scale = 1.0f;
-  cam.pixels = depth.data();
+  cam.depths = std::span<const float>(depth);
   a.insertDepthImage(cam, pose);
   b.insertPointCloud(unprojectDepthImage(cam), Eigen::Vector3f::Zero(), pose);
   ASSERT_TRUE(sameTree(*toOcTree(b), *toOcTree(a)));
@@ -211,7 +215,7 @@ TEST(DepthImage, BadImagesAreRefusedAndTheMapIsUnchanged) {
   DepthImage good;
   good.width = 2;
   good.height = 2;
-  good.pixels = pixels;
+  good.depths = std::span<const std::uint16_t>(pixels);
   map.insertDepthImage(good, Pose{});
   const std::size_t nodes = map.nodeCount();
   ASSERT_GT(nodes, 0u);
@@ -229,8 +233,8 @@ TEST(DepthImage, BadImagesAreRefusedAndTheMapIsUnchanged) {
   bad.width = 0;
   refused(bad, "empty");
   bad = good;
-  bad.pixels = nullptr;
-  refused(bad, "null");
+  bad.depths = {};
+  refused(bad, "no depths (DepthImage::depths is empty)");
   bad = good;
   bad.fx = 0.0f;
   refused(bad, "fx");
@@ -247,6 +251,60 @@ TEST(DepthImage, BadImagesAreRefusedAndTheMapIsUnchanged) {
   nan_pose.translation.x() = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(map.insertDepthImage(good, nan_pose), Error);
   EXPECT_EQ(map.nodeCount(), nodes);
+}
+
+// The depths are a typed, sized view: a buffer shorter (or longer) than width * height, or of the
+// other type than the encoding, is refused by every call that reads it, naming the sizes or the
+// fix; the map is unchanged (a void pointer was read past its end, or as the wrong type).
+TEST(DepthImage, ShortBufferAndWrongEncodingAreRefused) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  OccupancyMap map(ctx, withResolution(0.1));
+  const std::vector<std::uint16_t> raw(4 * 3, 5000);
+  const std::vector<float> metres(4 * 3, 1.0f);
+  DepthImage good{.width = 4, .height = 3, .depths = std::span<const std::uint16_t>(raw)};
+  map.insertDepthImage(good, Pose{});
+  const std::size_t nodes = map.nodeCount();
+  auto refused = [&](const DepthImage& image, const std::vector<std::string>& words) {
+    const std::function<void()> calls[] = {[&] { map.insertDepthImage(image, Pose{}); },
+                                           [&] { map.submitDepthImage(image, Pose{}); },
+                                           [&] { (void)unprojectDepthImage(image); }};
+    for (const auto& call : calls) {
+      try {
+        call();
+        ADD_FAILURE() << "accepted: " << words.front();
+      } catch (const Error& e) {
+        EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+        for (const std::string& w : words)
+          EXPECT_NE(std::string(e.what()).find(w), std::string::npos) << e.what();
+      }
+    }
+    EXPECT_EQ(image.validate().empty(), false);
+  };
+  DepthImage bad = good;
+  bad.depths = std::span<const std::uint16_t>(raw).first(11);
+  refused(bad, {"4 x 3 = 12 pixels", "holds 11 std::uint16_t depths", "short"});
+  bad.depths = std::span<const std::uint16_t>(raw.data(), 0);
+  refused(bad, {"holds 0 std::uint16_t depths"});
+  bad = good;
+  bad.height = 4;  // the same buffer, one row too few
+  refused(bad, {"4 x 4 = 16 pixels", "holds 12"});
+  bad = good;
+  bad.width = 2;  // more depths than pixels: the wrong width, not a crop
+  refused(bad, {"2 x 3 = 6 pixels", "holds 12"});
+  bad = good;
+  bad.depths = std::span<const float>(metres);  // encoding left at kUint16
+  refused(bad, {"depths are float but its encoding is kUint16",
+                "set encoding = DepthImage::Encoding::kFloat32"});
+  bad.encoding = DepthImage::Encoding::kFloat32;
+  bad.depths = std::span<const std::uint16_t>(raw);
+  refused(bad, {"depths are std::uint16_t but its encoding is kFloat32", "kUint16"});
+  map.flush();
+  EXPECT_EQ(map.nodeCount(), nodes);
+  // Given as they are, both are accepted.
+  bad.depths = std::span<const float>(metres);
+  bad.depth_scale = 1.0f;
+  EXPECT_TRUE(bad.validate().empty()) << bad.validate();
+  EXPECT_EQ(unprojectDepthImage(bad), unprojectDepthImage(good));
 }
 
 }  // namespace

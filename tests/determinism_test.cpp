@@ -132,7 +132,7 @@ std::vector<LeafTuple> sortedLeaves(const std::vector<OccupancyMap::LeafBoxHost>
   return out;
 }
 
-Snapshot snapshot(const OccupancyMap& map, const Probes& probes, const std::string& tag) {
+Snapshot snapshot(OccupancyMap& map, const Probes& probes, const std::string& tag) {
   Snapshot s;
   const auto tree = toOcTree(map);
   s.ot = test::otBytes(*tree);

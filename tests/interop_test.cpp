@@ -163,7 +163,7 @@ TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
   std::memcpy(pixel_buffer.data(), pixels.data(), pixels.size() * sizeof(std::uint16_t));
   const ScanStats depth_stats = insertDepthImageOnDevice(
       on_device, pixel_buffer.range(), image, pose, ScanOptions{}, Eigen::Vector3f::Zero(), {});
-  image.pixels = pixels.data();
+  image.depths = std::span<const std::uint16_t>(pixels);
   std::size_t skipped = 0;
   on_host.insertPointCloud(unprojectDepthImage(image, &skipped), Eigen::Vector3f::Zero(), pose);
   EXPECT_EQ(depth_stats.skipped_no_depth, skipped);

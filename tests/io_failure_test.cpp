@@ -84,7 +84,7 @@ bool skipForValidation() {
 TEST(IoFailure, EveryHostAllocationOfReadingAMapFile) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   if (skipForValidation()) GTEST_SKIP() << "no host failures under the validation layer";
-  const OccupancyMap map = smallMap(ctx);
+  OccupancyMap map = smallMap(ctx);
   for (const char* ext : {".bt", ".ot"}) {
     const std::string path = test::tmpPath(std::string("alloc_read") + ext);
     writeMapFile(map, path);
@@ -107,7 +107,7 @@ TEST(IoFailure, EveryHostAllocationOfReadingAMapFile) {
 TEST(IoFailure, EveryHostAllocationOfWritingAMapFileLeavesTheOldFile) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   if (skipForValidation()) GTEST_SKIP() << "no host failures under the validation layer";
-  const OccupancyMap map = smallMap(ctx);
+  OccupancyMap map = smallMap(ctx);
   const fs::path dir = fs::path(test::tmpPath("alloc_write"));
   fs::remove_all(dir);
   fs::create_directories(dir);

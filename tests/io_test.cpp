@@ -696,7 +696,7 @@ TEST(IoHostile, TreeFilesAreCheckedAsTheyAreRead) {
     const std::string& bytes = binary ? f.bt : f.ot;
     const std::string path = tmpPath(binary ? "streamed.bt" : "streamed.ot");
     test::writeBytes(path, bytes);
-    const OccupancyMap map = readMapFile(ctx, path);
+    OccupancyMap map = readMapFile(ctx, path);
     EXPECT_TRUE(sameTree(*toOcTree(map), *io::parseTreeFile(bytes, binary, "valid")));
     test::writeBytes(path, bytes + '\0');
     expectError([&] { (void)readMapFile(ctx, path); }, ErrorCode::kFormat, "a byte more");

@@ -139,7 +139,7 @@ TEST(MemoryBudget, PointsOverCapKeepTheMap) {
   DepthImage image;
   image.width = 640;
   image.height = 480;
-  image.pixels = pixels.data();
+  image.depths = std::span<const std::uint16_t>(pixels);
   expectCapRefusal([&] { map.insertDepthImage(image, Pose{}); }, "points");
   EXPECT_EQ(map.nodeCount(), nodes);
   EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));

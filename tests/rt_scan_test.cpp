@@ -254,16 +254,16 @@ TEST_P(RtScan, DepthImagesAndCallerBuffersMatchOctoMap) {
       case 0:  // float metres from host memory
         cam.encoding = DepthImage::Encoding::kFloat32;
         cam.depth_scale = 1.0f;
-        cam.pixels = metres.data();
+        cam.depths = std::span<const float>(metres);
         points = unprojectDepthImage(cam);
         stats = map.insertDepthImage(cam, pose, {.max_range_m = max_range});
         break;
       case 1:  // uint16 millimetres from a caller's buffer
         cam.encoding = DepthImage::Encoding::kUint16;
         cam.depth_scale = 1000.0f;
-        cam.pixels = raw.data();
+        cam.depths = std::span<const std::uint16_t>(raw);
         points = unprojectDepthImage(cam);
-        cam.pixels = nullptr;
+        cam.depths = {};  // from the device buffer only
         stats = insertDepthImageOnDevice(map, pixel_buffer.range(), cam, pose,
                                          {.max_range_m = max_range});
         break;

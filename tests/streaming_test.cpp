@@ -221,7 +221,7 @@ TEST(Streaming, DepthImagesSubmittedEqualBlocking) {
     DepthImage image;
     image.width = w;
     image.height = h;
-    image.pixels = pixels.data();
+    image.depths = std::span<const std::uint16_t>(pixels);
     image.fx = image.fy = 60.0f;
     image.cx = 31.5f;
     image.cy = 23.5f;
@@ -282,7 +282,7 @@ TEST(ScanOptionsApi, EqualsOctoMapWithTheSameArguments) {
   image.width = 32;
   image.height = 24;
   image.encoding = DepthImage::Encoding::kFloat32;
-  image.pixels = depth.data();
+  image.depths = std::span<const float>(depth);
   image.fx = image.fy = 20.0f;
   image.cx = 15.5f;
   image.cy = 11.5f;

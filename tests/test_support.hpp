@@ -289,7 +289,7 @@ inline std::vector<LeafTuple> oracleLeaves(const octomap::OcTree& tree) {
   return out;
 }
 
-inline std::vector<LeafTuple> mapLeaves(const OccupancyMap& map) {
+inline std::vector<LeafTuple> mapLeaves(OccupancyMap& map) {
   std::vector<LeafTuple> out;
   for (const auto& b : map.downloadLeafBoxes())
     out.push_back({floatBits(b.center[0]), floatBits(b.center[1]), floatBits(b.center[2]),
@@ -299,8 +299,7 @@ inline std::vector<LeafTuple> mapLeaves(const OccupancyMap& map) {
 }
 
 /// Same leaf multiset, with the first difference described.
-inline ::testing::AssertionResult sameLeaves(const octomap::OcTree& expected,
-                                             const OccupancyMap& map) {
+inline ::testing::AssertionResult sameLeaves(const octomap::OcTree& expected, OccupancyMap& map) {
   const auto a = oracleLeaves(expected);
   const auto b = mapLeaves(map);
   if (a.size() != b.size())

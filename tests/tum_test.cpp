@@ -313,7 +313,10 @@ TEST(TumReader, ReadsSixteenBitPngsInHostOrder) {
     EXPECT_EQ(png.height, 5u);
     EXPECT_EQ(png.depths, depths) << "interlace " << interlace;
     const octovk::DepthImage image = png.image({1.0f, 2.0f, 3.0f, 4.0f, 10.0f});
-    EXPECT_EQ(image.pixels, png.depths.data());
+    const auto* view = std::get_if<std::span<const std::uint16_t>>(&image.depths);
+    ASSERT_NE(view, nullptr);
+    EXPECT_EQ(view->data(), png.depths.data());
+    EXPECT_EQ(view->size(), png.depths.size());
     EXPECT_EQ(image.encoding, octovk::DepthImage::Encoding::kUint16);
     EXPECT_EQ(image.fy, 2.0f);
     EXPECT_EQ(image.depth_scale, 10.0f);

@@ -3,10 +3,12 @@
 #include <octomap/math/Pose6D.h>
 #include <octomap/octomap.h>
 
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <span>
 
 #include "gpu/gpu_types.h"
 #include "map/context_access.hpp"
@@ -35,6 +37,44 @@ bool sameBits(float a, float b) { return test::floatBits(a) == test::floatBits(b
                                            << ", octomath " << theirs(static_cast<unsigned>(i));
   return ::testing::AssertionSuccess();
 }
+
+// ---- const says what a call does (issue 27.7) --------------------------------------------------
+
+// Which of the calls that read the tree compile on an M: each waits for the submitted scans
+// (flush()), may throw an earlier scan's error and records into the map's command buffers, so
+// none may be const.
+template <class M>
+constexpr std::array<bool, 10> kReadsTheTree = {
+    requires(M& m){m.search(std::span<const Eigen::Vector3f>{});
+}  // namespace
+, requires(M& m) { m.castRays(std::span<const Ray>{}); }
+, requires(M& m, const Eigen::Vector3f& v) { m.leavesInBox(v, v); }
+, requires(M& m) { m.numChangesDetected(); }
+, requires(M& m) { m.changedKeys(); }
+, requires(M& m) { m.nodeCount(); }
+, requires(M& m) { m.leafCount(); }
+, requires(M& m) { m.download(); }
+, requires(M& m) { m.downloadLeafBoxes(); }
+, requires(M& m) { toOcTree(m); }
+};  // namespace octovk
+static_assert(kReadsTheTree<OccupancyMap> ==
+              std::array<bool, 10>{true, true, true, true, true, true, true, true, true, true});
+static_assert(kReadsTheTree<const OccupancyMap> == std::array<bool, 10>{},
+              "a call that waits for the scans and may throw their error is not const");
+// What stays const reads host state only: callable on a const map.
+template <class M>
+constexpr bool kReadsHostState = requires(M& m) {
+  m.params();
+  m.deviceBytes();
+  m.deviceBytesByUse();
+  m.poolBytes();
+  m.scratchBytes();
+  m.castRayInfo();
+  m.isChangeDetectionEnabled();
+  m.scansInFlight();
+  m.syncCounts();
+};
+static_assert(kReadsHostState<const OccupancyMap>);
 
 // ---- Pose vs octomath::Pose6D (host only) -----------------------------------------------------
 
@@ -312,7 +352,7 @@ TEST(BadInput, EmptyScanLeavesTheMapUnchanged) {
 // Runs `call`, which must throw octovk::Error with `code`, and checks that the map still holds
 // the tree it had: the same .ot bytes (`before`) and OctoMap's node count (`nodes`).
 template <typename Call>
-void expectRefusedMapKept(Call&& call, ErrorCode code, const char* what, const OccupancyMap& map,
+void expectRefusedMapKept(Call&& call, ErrorCode code, const char* what, OccupancyMap& map,
                           const std::string& before, std::size_t nodes) {
   try {
     call();

@@ -61,9 +61,10 @@ class InteropAccess;
 ///
 /// Threads: a Context may be shared by maps used from different threads at once (their
 /// submissions to the device's one queue and the pipelines built at first use are serialised
-/// inside). One OccupancyMap is used from one thread at a time: calls on the same map from two
-/// threads, const queries included, must be ordered by the caller (a map records into its own
-/// command buffers). Different maps need no ordering.
+/// inside). One OccupancyMap is used from one thread at a time: its non-const calls, the queries
+/// included (they record into the map's own command buffers), must be ordered by the caller
+/// against every other call on that map; its const members (host state only) may run beside each
+/// other. Different maps need no ordering.
 ///
 /// Lifetime: each map keeps the device alive, so a Context may be destroyed before its maps;
 /// the device goes with the last of them.

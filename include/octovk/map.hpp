@@ -17,9 +17,15 @@
 namespace octovk {
 
 /// The occupancy octree, held in device buffers. Not copyable; movable. A moved-from map throws
-/// kInvalidArgument from every call until a map is assigned to it. One thread at a time (see
-/// Context). A call that throws leaves the map as it was before the call (a std::bad_alloc
-/// inside becomes kOutOfHostMemory), and the map keeps working.
+/// kInvalidArgument from every call until a map is assigned to it. A call that throws leaves the
+/// map as it was before the call (a std::bad_alloc inside becomes kOutOfHostMemory), and the map
+/// keeps working.
+///
+/// const members read host state only: they never wait for the device nor throw a scan's error,
+/// and they may run beside each other (as the standard library's const members). Every call that
+/// reads the tree (search, castRays, nodeCount, download, ...) is non-const: it first takes the
+/// submitted scans (flush()), so it may throw an earlier scan's error, and it records into the
+/// map's command buffers, so no other call on this map may run beside it (see Context).
 class OccupancyMap {
  public:
   OccupancyMap(Context& context, const MapParams& params);
@@ -109,14 +115,15 @@ class OccupancyMap {
                              const Eigen::Vector3f& origin_world, const ScanOptions& options,
                              const QueryRequest& queries, QueryResults& results);
 
+  // ---- queries: each waits for the submitted scans first (flush()) and may throw their error ----
   /// OctoMap's search() for each point, on the device.
-  std::vector<Lookup> search(std::span<const Eigen::Vector3f> points) const;
+  std::vector<Lookup> search(std::span<const Eigen::Vector3f> points);
   /// OctoMap's castRay for each ray, on the device.
-  std::vector<RayHit> castRays(std::span<const Ray> rays) const;
+  std::vector<RayHit> castRays(std::span<const Ray> rays);
   /// The leaves OctoMap's leaf_bbx_iterator(min, max) visits (all, or only the occupied ones),
   /// compacted on the device and downloaded. Empty if a corner lies outside the map.
   std::vector<LeafBoxHost> leavesInBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max,
-                                       bool occupied_only = false) const;
+                                       bool occupied_only = false);
 
   // ---- change detection: OctoMap's enableChangeDetection / changedKeys, on the device ----
   /// Turns change detection on or off for the scans inserted or submitted after this call
@@ -129,9 +136,9 @@ class OccupancyMap {
   /// Empties the change set (OcTree::resetChangeDetection).
   void resetChangeDetection();
   /// Keys in the change set (OcTree::numChangesDetected).
-  std::size_t numChangesDetected() const;
+  std::size_t numChangesDetected();
   /// The change set (OcTree::changedKeysBegin/End), in no particular order.
-  std::vector<ChangedKey> changedKeys() const;
+  std::vector<ChangedKey> changedKeys();
 
   // ---- map surgery ----
   /// octomap_server's clear_bbx on the device: every leaf OctoMap's leaf_bbx_iterator(min, max)
@@ -160,7 +167,7 @@ class OccupancyMap {
   void compact();
 
   /// Nodes in the tree (read from the device's counters, no map data moves).
-  std::size_t nodeCount() const;
+  std::size_t nodeCount();
   /// Device bytes held by this map's buffers (staging included): what
   /// MapParams::max_device_bytes caps.
   std::size_t deviceBytes() const;
@@ -208,7 +215,7 @@ class OccupancyMap {
   /// the last 8 scans, and the scratch holds more than 4 MiB.
   void trim();
   /// Leaves of the map (rebuilding the leaf boxes first if they are out of date).
-  std::size_t leafCount() const;
+  std::size_t leafCount();
 
   /// Whether each scan ends by rebuilding the leaf boxes. Off (the default), they are rebuilt
   /// on the next leafCount() / downloadLeafBoxes() that follows a scan: the rebuild visits every
@@ -216,12 +223,12 @@ class OccupancyMap {
   void setLeafBoxesEveryScan(bool every_scan);
 
   /// Explicit transfer of the whole tree to the host.
-  HostTree download() const;
+  HostTree download();
   /// Replaces the map with `tree` (explicit transfer to the device).
   void upload(const HostTree& tree);
 
   /// The leaf boxes (centre, size, log-odds) of the map, downloaded.
-  std::vector<LeafBoxHost> downloadLeafBoxes() const;
+  std::vector<LeafBoxHost> downloadLeafBoxes();
 
   class Impl;
 

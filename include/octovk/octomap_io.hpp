@@ -16,7 +16,7 @@
 namespace octovk {
 
 /// The map as an OctoMap tree with the same nodes and bit-identical log-odds (downloads the map).
-std::unique_ptr<octomap::OcTree> toOcTree(const OccupancyMap& map);
+std::unique_ptr<octomap::OcTree> toOcTree(OccupancyMap& map);
 
 /// Replaces the map's contents with `tree` (uploads it). The map's resolution must match.
 void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree);
@@ -25,7 +25,7 @@ void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree);
 /// pruned) or .ot (full log-odds). Written to a temporary file and renamed, so a failed write
 /// (an I/O error, or the host out of memory: kOutOfHostMemory) leaves no partial file behind and
 /// the file it was to replace as it was.
-void writeMapFile(const OccupancyMap& map, const std::string& path);
+void writeMapFile(OccupancyMap& map, const std::string& path);
 
 /// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and
 /// MapParams' default sensor model (neither format stores one: OctoMap's readers also keep their
@@ -53,11 +53,11 @@ struct MapMessage {
 
 /// The map as a binary message body: byte-identical to octomap_msgs::binaryMapToMsg on the same
 /// tree (OctoMap's writeBinaryData). Downloads the map; no file is written.
-MapMessage binaryMapToMessage(const OccupancyMap& map);
+MapMessage binaryMapToMessage(OccupancyMap& map);
 
 /// The map as a full message body: byte-identical to octomap_msgs::fullMapToMsg on the same tree
 /// (OctoMap's writeData, every node's log-odds). Downloads the map; no file is written.
-MapMessage fullMapToMessage(const OccupancyMap& map);
+MapMessage fullMapToMessage(OccupancyMap& map);
 
 /// A message body as a new map on `context` with the message's resolution (and the default
 /// sensor model). The body is checked as readMapFile checks a file (tree type OcTree, at most 16

@@ -4,7 +4,9 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
+#include <variant>
 #include <vector>
 
 namespace octovk {
@@ -23,9 +25,12 @@ struct StageTimes {
   double scan_boxes_ms = 0;
   double scan_build_ms = 0;
   double scan_trace_ms = 0;
-  double total() const {
+  /// The stages' sum (the scan_* parts are inside ray_keys_ms).
+  double total_ms() const {
     return upload_ms + ray_keys_ms + classify_ms + tree_update_ms + prune_ms + leaf_boxes_ms;
   }
+  /// The old name of total_ms(), kept for one release (the unit is in every other field's name).
+  [[deprecated("StageTimes::total() is total_ms()")]] double total() const { return total_ms(); }
 };
 
 /// A scan submitted with OccupancyMap::submitPointCloud / submitDepthImage: 1, 2, 3, ... in
@@ -61,18 +66,29 @@ struct ScanStats {
 /// Pixel (u, v) with depth d becomes the point z = d / depth_scale, x = (u - cx) * z / fx,
 /// y = (v - cy) * z / fy, in float, in that order. Pixels with no usable depth are skipped:
 /// d = 0 or non-finite (also a subnormal d, or a z that is 0, subnormal or not finite, which no
-/// sensor produces and devices may flush differently).
+/// sensor produces and devices may flush differently). E.g.
+/// `DepthImage{.width = 640, .height = 480, .depths = std::span<const std::uint16_t>(raw)}`, or
+/// for metres in float `.encoding = DepthImage::Encoding::kFloat32, .depths =
+/// std::span<const float>(metres), .depth_scale = 1`.
 struct DepthImage {
   enum class Encoding : std::uint32_t { kUint16 = 0, kFloat32 = 1 };
+  /// The host's depths: none, or a typed view of them.
+  using Depths =
+      std::variant<std::monostate, std::span<const std::uint16_t>, std::span<const float>>;
   std::uint32_t width = 0;
   std::uint32_t height = 0;
+  /// The depths' type: std::uint16_t (kUint16) or float (kFloat32). `depths` must hold that type
+  /// (validate() refuses a mismatch); for insertDepthImageOnDevice it describes the device buffer.
   Encoding encoding = Encoding::kUint16;
-  /// width * height depths (std::uint16_t or float as `encoding` says), row by row, no padding.
-  const void* pixels = nullptr;
+  /// width * height depths, row by row, no padding; the span is only read during the call (the
+  /// submit calls copy it). Empty (std::monostate) only for insertDepthImageOnDevice, which
+  /// ignores it.
+  Depths depths;
   float fx = 525.0f, fy = 525.0f, cx = 319.5f, cy = 239.5f;  ///< TUM RGB-D's defaults
   float depth_scale = 5000.0f;  ///< depth units per metre (TUM: 5000; metres in float: 1)
 
-  /// Empty when valid, else a sentence naming the bad value.
+  /// Empty when valid, else a sentence naming the bad value and its fix: among others no
+  /// depths, depths of the other type than `encoding`, or fewer or more than width * height.
   std::string validate() const;
 };
 

@@ -78,7 +78,7 @@ ScanStats insertPointCloudOnDevice(OccupancyMap& map, BufferRange points_sensor,
                                    SignalSemaphore signal = {});
 
 /// OccupancyMap::insertDepthImage on pixels already in a device buffer: `pixels` holds
-/// image.width * image.height depths in image.encoding (image.pixels is ignored), row by row,
+/// image.width * image.height depths in image.encoding (image.depths is not read), row by row,
 /// and needs TRANSFER_SRC usage. Waits and returns as insertPointCloudOnDevice.
 ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const DepthImage& image,
                                    const Pose& T_world_camera,

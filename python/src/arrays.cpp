@@ -5,20 +5,21 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <sstream>
 
 namespace octovk::python {
-namespace {
 
-std::atomic<std::uintptr_t> g_last_input{0};
-
-// An element type as the buffer protocol or DLPack describes it.
 struct Element {
   char kind = '?';  // 'f' float, 'i' signed, 'u' unsigned, 'b' bool, 'c' complex, 0 other
   std::size_t bytes = 0;
   bool foreign_order = false;  // not the host's byte order
   std::string other;           // the raw description when kind == 0
 };
+
+namespace {
+
+std::atomic<std::uintptr_t> g_last_input{0};
 
 std::string elementName(const Element& e) {
   if (e.kind == 0) return e.other;
@@ -142,30 +143,34 @@ std::string shapeText(const std::vector<std::size_t>& shape) {
   return s.str();
 }
 
-std::string expectedShapeText(std::initializer_list<std::ptrdiff_t> shape) {
+std::string expectedShapeText(const std::vector<std::ptrdiff_t>& shape) {
   std::ostringstream s;
   s << '(';
-  std::size_t i = 0;
-  for (std::ptrdiff_t extent : shape) {
+  for (std::size_t i = 0; i < shape.size(); ++i) {
     s << (i ? ", " : "");
-    if (extent >= 0)
-      s << extent;
+    if (shape[i] >= 0)
+      s << shape[i];
     else
-      s << (shape.size() == 2 && *shape.begin() < 0 && *(shape.begin() + 1) < 0
-                ? (i == 0 ? "H" : "W")
-                : "N");
-    ++i;
+      s << (shape.size() == 2 && shape[0] < 0 && shape[1] < 0 ? (i == 0 ? "H" : "W") : "N");
   }
   s << (shape.size() == 1 ? ",)" : ")");
   return s.str();
 }
 
-std::string expectedText(std::initializer_list<DType> dtypes,
-                         std::initializer_list<std::ptrdiff_t> shape) {
+std::string dtypeNames(const std::vector<DType>& dtypes) {
   std::string names;
-  std::size_t i = 0;
-  for (DType t : dtypes) names += std::string(i++ ? " or " : "") + dtypeName(t);
-  return "a C-contiguous " + names + " array of shape " + expectedShapeText(shape);
+  for (std::size_t i = 0; i < dtypes.size(); ++i)
+    names += std::string(i ? " or " : "") + dtypeName(dtypes[i]);
+  return names;
+}
+
+// What an argument must be, in words.
+std::string expectedText(const std::vector<DType>& dtypes, const std::vector<std::ptrdiff_t>& shape,
+                         std::optional<Layout> layout) {
+  const std::string start = "a C-contiguous " + dtypeNames(dtypes) + " array of shape ";
+  if (layout == Layout::kPoints) return start + "(N, 3), (H, W, 3) or (N, 4) with x, y, z first";
+  if (layout == Layout::kDepth) return start + "(H, W) or (1, H, W)";
+  return start + expectedShapeText(shape);
 }
 
 // What the caller passed, in words (its type, and its shape where it has one).
@@ -178,13 +183,6 @@ std::string describeObject(py::handle obj) {
     }
   }
   return text;
-}
-
-// Whether `obj` is a torch tensor (or a subclass, such as torch.nn.Parameter): its fixes are
-// spelt in torch's words.
-bool isTorch(py::handle obj) {
-  const std::string module = py::str(py::type::handle_of(obj).attr("__module__"));
-  return module == "torch" || module.rfind("torch.", 0) == 0;
 }
 
 // The conversion to `t` in the caller's library.
@@ -200,49 +198,50 @@ std::string conversion(DType t, bool torch) {
   }
 }
 
-// Checks element type, shape and C order; throws TypeError / ValueError naming `arg`, with the
-// fix in torch's words where `obj` is a torch tensor. Where `copy` allows it, strides or an
-// alignment that cannot be read in place set *copied instead of throwing.
-DType checkLayout(py::handle obj, const char* arg, const Element& element,
-                  std::initializer_list<DType> dtypes, const std::vector<std::size_t>& shape,
-                  const std::vector<std::ptrdiff_t>& strides,
-                  std::initializer_list<std::ptrdiff_t> expected_shape, const void* data, Copy copy,
-                  bool* copied) {
-  const std::string expected = expectedText(dtypes, expected_shape);
-  DType found = *dtypes.begin();
-  bool ok = false;
+// The element type of `element` among `dtypes`; TypeError naming `arg` and the conversion in
+// the caller's library otherwise.
+DType checkElement(py::handle obj, const char* arg, const Element& element,
+                   const std::vector<DType>& dtypes, const std::string& expected,
+                   const std::vector<std::size_t>& shape) {
   for (DType t : dtypes)
-    if (matches(element, t)) {
-      found = t;
-      ok = true;
-      break;
-    }
-  if (!ok)
-    throw py::type_error(
-        std::string(arg) + ": expected " + expected + ", got a " + elementName(element) +
-        " array of shape " + shapeText(shape) + " (convert it explicitly, e.g. with " +
-        conversion(*dtypes.begin(), isTorch(obj)) + ": octovk never copies an input silently)");
+    if (matches(element, t)) return t;
+  throw py::type_error(
+      std::string(arg) + ": expected " + expected + ", got a " + elementName(element) +
+      " array of shape " + shapeText(shape) + " (convert it explicitly, e.g. with " +
+      conversion(dtypes.front(), isTorch(obj)) + ": octovk never copies an input silently)");
+}
+
+// Checks the shape against `expected_shape` (-1: any extent) and C order; throws ValueError
+// naming `arg`, with the fix in torch's words where `obj` is a torch tensor (`strided_fix`, when
+// not empty, instead of the usual one). Where `copy` allows it, strides or an alignment that
+// cannot be read in place set *copied instead of throwing.
+void checkLayout(py::handle obj, const char* arg, DType found, const std::string& expected,
+                 const std::vector<std::size_t>& shape, const std::vector<std::ptrdiff_t>& strides,
+                 const std::vector<std::ptrdiff_t>& expected_shape, const void* data, Copy copy,
+                 const std::string& strided_fix, bool* copied) {
   bool shape_ok = shape.size() == expected_shape.size();
-  std::size_t i = 0;
-  for (std::ptrdiff_t extent : expected_shape) {
-    if (shape_ok && extent >= 0 && shape[i] != static_cast<std::size_t>(extent)) shape_ok = false;
-    ++i;
-  }
+  for (std::size_t i = 0; shape_ok && i < shape.size(); ++i)
+    if (expected_shape[i] >= 0 && shape[i] != static_cast<std::size_t>(expected_shape[i]))
+      shape_ok = false;
   if (!shape_ok)
     throw py::value_error(std::string(arg) + ": expected " + expected + ", got shape " +
                           shapeText(shape));
   std::size_t count = 1;
   for (std::size_t extent : shape) count *= extent;
-  if (count == 0) return found;
+  if (count == 0) return;
   const auto item = static_cast<std::ptrdiff_t>(dtypeBytes(found));
   std::ptrdiff_t want = item;
   for (std::size_t d = shape.size(); d-- > 0;) {
     if (shape[d] != 1 && strides[d] != want) {
       if (copy == Copy::kAllowed) {
         *copied = true;
-        return found;
+        return;
       }
       std::ostringstream s;
+      if (!strided_fix.empty()) {
+        s << arg << ": " << strided_fix << (copy == Copy::kRefused ? "; or pass copy=True" : "");
+        throw py::value_error(s.str());
+      }
       s << arg << ": expected " << expected << ", got strides (";
       for (std::size_t k = 0; k < strides.size(); ++k) s << (k ? ", " : "") << strides[k];
       s << (strides.size() == 1 ? ",)" : ")") << " bytes for shape " << shapeText(shape)
@@ -261,7 +260,6 @@ DType checkLayout(py::handle obj, const char* arg, const Element& element,
                             (copy == Copy::kRefused ? ", or pass copy=True)" : ")"));
     *copied = true;
   }
-  return found;
 }
 
 // Copies the elements of a strided array into `out`, in C order.
@@ -300,6 +298,20 @@ const char* deviceName(int type) {
 
 }  // namespace
 
+bool isTorch(py::handle obj) {
+  const std::string module = py::str(py::type::handle_of(obj).attr("__module__"));
+  return module == "torch" || module.rfind("torch.", 0) == 0;
+}
+
+py::object likeInput(py::handle input, py::object result) {
+  if (!isTorch(input)) return result;
+  return py::module_::import("torch").attr("from_dlpack")(result);
+}
+
+void warnDeprecated(const std::string& what) {
+  if (PyErr_WarnEx(PyExc_DeprecationWarning, what.c_str(), 1) != 0) throw py::error_already_set();
+}
+
 std::uintptr_t lastInputAddress() noexcept { return g_last_input.load(); }
 void noteInput(const void* data) noexcept {
   g_last_input.store(reinterpret_cast<std::uintptr_t>(data));
@@ -307,12 +319,22 @@ void noteInput(const void* data) noexcept {
 
 ArrayView::ArrayView(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
                      std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy) {
+  open(obj, arg, Want{dtypes, shape, std::nullopt}, writable, copy);
+}
+
+ArrayView::ArrayView(py::handle obj, const char* arg, Layout layout,
+                     std::initializer_list<DType> dtypes, Copy copy) {
+  open(obj, arg, Want{dtypes, {}, layout}, /*writable=*/false, copy);
+}
+
+void ArrayView::open(py::handle obj, const char* arg, const Want& want, bool writable, Copy copy) {
   if (PyObject_CheckBuffer(obj.ptr())) {
-    fromBuffer(obj, arg, dtypes, shape, writable, copy);
+    fromBuffer(obj, arg, want, writable, copy);
   } else if (py::hasattr(obj, "__dlpack__")) {
-    fromDlpack(obj, arg, dtypes, shape, copy);
+    fromDlpack(obj, arg, want, copy);
   } else {
-    throw py::type_error(std::string(arg) + ": expected " + expectedText(dtypes, shape) +
+    throw py::type_error(std::string(arg) + ": expected " +
+                         expectedText(want.dtypes, want.shape, want.layout) +
                          " (a numpy array or torch CPU tensor: the buffer protocol or "
                          "__dlpack__), got " +
                          describeObject(obj));
@@ -337,8 +359,48 @@ std::size_t ArrayView::size() const noexcept {
   return n;
 }
 
-void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                           std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy) {
+void ArrayView::accept(py::handle obj, const char* arg, const Want& want, const Element& element,
+                       std::vector<std::ptrdiff_t> strides, void* data, Copy copy) {
+  const std::string expected = expectedText(want.dtypes, want.shape, want.layout);
+  dtype_ = checkElement(obj, arg, element, want.dtypes, expected, shape_);
+  std::vector<std::ptrdiff_t> expected_shape = want.shape;
+  std::string strided_fix;
+  bool organised = false;  // (H, W, 3) points: H * W of them
+  if (want.layout == Layout::kPoints) {
+    expected_shape = {-1, 3};
+    if (shape_.size() == 3 && shape_[2] == 3) {
+      expected_shape = {-1, -1, 3};
+      organised = true;
+    } else if (shape_.size() == 2 && shape_[1] == 4) {
+      // x, y, z first: the first three columns, 4 elements apart (read in place only for N <= 1).
+      shape_[1] = 3;
+      strided_fix =
+          "(N, 4) points are read as x, y, z, their first three columns, "
+          "which are not packed xyz (each row holds a fourth value): octovk reads "
+          "points in place only as (N, 3) or (H, W, 3), so these need a copy; pass " +
+          (isTorch(obj) ? std::string(arg) + "[:, :3].contiguous()"
+                        : "np.ascontiguousarray(" + std::string(arg) + "[:, :3])");
+    }
+  } else if (want.layout == Layout::kDepth) {
+    expected_shape = {-1, -1};
+    if (shape_.size() == 3 && shape_[0] == 1) {  // one channel first, as torch's (C, H, W)
+      shape_.erase(shape_.begin());
+      strides.erase(strides.begin());
+    }
+  }
+  bool copied = false;
+  checkLayout(obj, arg, dtype_, expected, shape_, strides, expected_shape, data, copy, strided_fix,
+              &copied);
+  data_ = copied ? copyOf(data, strides) : data;
+  leading_.assign(shape_.begin(), shape_.end());
+  if (want.layout == Layout::kPoints) {
+    leading_.pop_back();  // one result per point: (N,) or (H, W)
+    if (organised) shape_ = {shape_[0] * shape_[1], 3};
+  }
+}
+
+void ArrayView::fromBuffer(py::handle obj, const char* arg, const Want& want, bool writable,
+                           Copy copy) {
   if (PyObject_GetBuffer(obj.ptr(), &buffer_, PyBUF_RECORDS_RO) != 0) throw py::error_already_set();
   has_buffer_ = true;
   const Element element = parseFormat(buffer_.format, static_cast<std::size_t>(buffer_.itemsize));
@@ -347,16 +409,12 @@ void ArrayView::fromBuffer(py::handle obj, const char* arg, std::initializer_lis
     shape_.push_back(static_cast<std::size_t>(buffer_.shape[d]));
     strides.push_back(buffer_.strides[d]);
   }
-  bool copied = false;
-  dtype_ =
-      checkLayout(obj, arg, element, dtypes, shape_, strides, shape, buffer_.buf, copy, &copied);
+  accept(obj, arg, want, element, std::move(strides), buffer_.buf, copy);
   if (writable && buffer_.readonly)
     throw py::value_error(std::string(arg) + ": the array is read-only; pass a writable array");
-  data_ = copied ? copyOf(buffer_.buf, strides) : buffer_.buf;
 }
 
-void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                           std::initializer_list<std::ptrdiff_t> shape, Copy copy) {
+void ArrayView::fromDlpack(py::handle obj, const char* arg, const Want& want, Copy copy) {
   // Refused before export: a CUDA tensor would need its memory imported into Vulkan (not built).
   if (py::hasattr(obj, "__dlpack_device__")) {
     const py::tuple device = obj.attr("__dlpack_device__")();
@@ -401,10 +459,8 @@ void ArrayView::fromDlpack(py::handle obj, const char* arg, std::initializer_lis
             : compact;
     compact *= static_cast<std::ptrdiff_t>(t.shape[d]);
   }
-  void* data = static_cast<char*>(t.data) + t.byte_offset;
-  bool copied = false;
-  dtype_ = checkLayout(obj, arg, element, dtypes, shape_, strides, shape, data, copy, &copied);
-  data_ = copied ? copyOf(data, strides) : data;
+  accept(obj, arg, want, element, std::move(strides), static_cast<char*>(t.data) + t.byte_offset,
+         copy);
 }
 
 Eigen::Vector3f toVector3(py::handle obj, const char* arg) {

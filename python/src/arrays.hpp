@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <initializer_list>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -25,14 +26,31 @@ namespace py = pybind11;
 /// Element types the module reads or writes.
 enum class DType { kFloat32, kUint16, kUint8 };
 
+/// An element type as the buffer protocol or DLPack describes it (arrays.cpp).
+struct Element;
+
 /// Whether an input that cannot be read in place (strides, alignment) is copied: a call with a
 /// `copy` argument offers it, and copies where the caller passed copy=True.
 enum class Copy { kNotOffered, kRefused, kAllowed };
 inline Copy copyArgument(bool copy) { return copy ? Copy::kAllowed : Copy::kRefused; }
 
+/// The shapes perception code hands over, each read as one canonical shape.
+enum class Layout {
+  /// Points, read as float32 (N, 3): (N, 3); an organised cloud (H, W, 3), H * W points row by
+  /// row; (N, 4) with x, y, z first (x, y, z, intensity), its first three columns.
+  kPoints,
+  /// A depth image, read as (H, W): (H, W), or (1, H, W) with its one channel first (torch).
+  kDepth,
+};
+
 /// A caller's array, held (and its memory pinned) while alive. Destroy it with the GIL held.
 class ArrayView {
  public:
+  /// Views `obj` in `layout` (its canonical shape: points (N, 3), depth (H, W)), in place where
+  /// the strides allow, else as `copy` says (ValueError naming the fix, or a copy). leading()
+  /// gives the shape one result per point or pixel takes: (N,), or (H, W) for an organised cloud.
+  ArrayView(py::handle obj, const char* arg, Layout layout, std::initializer_list<DType> dtypes,
+            Copy copy = Copy::kNotOffered);
   /// Views `obj` as a C-contiguous array of `dtype` (one of `dtypes`) with `shape` (-1: any
   /// extent), through the buffer protocol or else `__dlpack__`. `arg` names the argument in
   /// errors: TypeError for a wrong dtype or an object that is no array, ValueError for a wrong
@@ -48,6 +66,10 @@ class ArrayView {
   ArrayView& operator=(const ArrayView&) = delete;
 
   void* data() const noexcept { return data_; }
+  /// Whether the elements were copied (copy=True and strides that cannot be read in place).
+  bool copied() const noexcept { return !copied_.empty(); }
+  /// The shape of one result per point (Layout::kPoints) or pixel; the array's shape otherwise.
+  const std::vector<py::ssize_t>& leading() const noexcept { return leading_; }
   DType dtype() const noexcept { return dtype_; }
   std::size_t extent(std::size_t dim) const { return shape_.at(dim); }
   std::size_t size() const noexcept;
@@ -58,21 +80,44 @@ class ArrayView {
   }
 
  private:
-  void fromBuffer(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                  std::initializer_list<std::ptrdiff_t> shape, bool writable, Copy copy);
-  void fromDlpack(py::handle obj, const char* arg, std::initializer_list<DType> dtypes,
-                  std::initializer_list<std::ptrdiff_t> shape, Copy copy);
+  /// What the caller's array must be: one fixed shape, or a layout.
+  struct Want {
+    std::vector<DType> dtypes;
+    std::vector<std::ptrdiff_t> shape;  ///< -1: any extent (a fixed shape only)
+    std::optional<Layout> layout;
+  };
+  void open(py::handle obj, const char* arg, const Want& want, bool writable, Copy copy);
+  void fromBuffer(py::handle obj, const char* arg, const Want& want, bool writable, Copy copy);
+  void fromDlpack(py::handle obj, const char* arg, const Want& want, Copy copy);
+  /// Checks the element type, shape and strides of the array at `data` (shape_ and `strides`,
+  /// in bytes, as its producer gives them), reshapes a layout to its canonical shape, and points
+  /// data_ at the elements, or at a copy of them where `copy` allows and the strides ask for it.
+  void accept(py::handle obj, const char* arg, const Want& want, const Element& element,
+              std::vector<std::ptrdiff_t> strides, void* data, Copy copy);
   /// Copies the array at `data` with `strides` (bytes) into copied_, in C order.
   void* copyOf(const void* data, const std::vector<std::ptrdiff_t>& strides);
 
   void* data_ = nullptr;
   DType dtype_ = DType::kFloat32;
   std::vector<std::size_t> shape_;
+  std::vector<py::ssize_t> leading_;
   Py_buffer buffer_{};
   bool has_buffer_ = false;
   py::object capsule_;  // the DLPack capsule: its destructor returns the tensor to its producer
   std::vector<std::byte> copied_;  // the elements in C order, where `copy` asked for them
 };
+
+/// Whether `obj` is a torch tensor (or a subclass, such as torch.nn.Parameter): fixes are then
+/// spelt in torch's words, and results are tensors.
+bool isTorch(py::handle obj);
+
+/// `result` (a numpy array) as the caller's library has it: a torch tensor sharing its memory
+/// (torch.from_dlpack) where `input` is a torch tensor, else `result` itself.
+py::object likeInput(py::handle input, py::object result);
+
+/// Issues a DeprecationWarning with `what` at the caller's line (an error where warnings are
+/// errors: raised).
+void warnDeprecated(const std::string& what);
 
 /// The address of the memory last handed to the library as a scan's points, a depth image's
 /// pixels or query points (for the tests' zero-copy check: `octovk._last_input_address()`).

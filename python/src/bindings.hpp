@@ -17,7 +17,8 @@ void bindTypes(py::module_& m);
 void bindMap(py::module_& m);
 /// DistanceField: the exact distance field over a box of a Map, batched queries.
 void bindDistance(py::module_& m);
-/// read_scan_graph(), graph2tree_sensor_origin().
+/// read_scan_graph(), read_tum_sequence(), read_depth_png(), graph2tree_sensor_origin(),
+/// key_to_coord(), coord_to_key().
 void bindFiles(py::module_& m);
 
 /// The process's default Context (octovk.default_context()), created on first use.

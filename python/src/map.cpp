@@ -1,6 +1,7 @@
 // octovk.Map: the OccupancyMap with its Context, one lock, and the GIL released for device work.
 #include "map.hpp"
 
+#include <pybind11/eval.h>
 #include <pybind11/stl.h>
 
 #include <optional>
@@ -12,8 +13,17 @@
 namespace octovk::python {
 namespace {
 
-ScanOptions scanOptions(double max_range, bool discretize) {
-  return ScanOptions{.max_range_m = max_range, .discretize = discretize};
+// The range a scan or ray takes: max_range_m, or the deprecated `max_range` where given.
+double rangeOf(double max_range_m, py::handle max_range) {
+  if (max_range.is_none()) return max_range_m;
+  warnDeprecated(
+      "max_range is deprecated: name it max_range_m (metres, as C++'s ScanOptions::max_range_m "
+      "and Ray::max_range_m); the old name goes in the next release");
+  return max_range.cast<double>();
+}
+
+ScanOptions scanOptions(double max_range_m, py::handle max_range, bool discretize) {
+  return ScanOptions{.max_range_m = rangeOf(max_range_m, max_range), .discretize = discretize};
 }
 
 Context& contextOf(const py::object& context) { return context.cast<Context&>(); }
@@ -27,9 +37,15 @@ DepthImage depthImage(const ArrayView& depth, float fx, float fy, float cx, floa
   DepthImage image;
   image.height = static_cast<std::uint32_t>(depth.extent(0));
   image.width = static_cast<std::uint32_t>(depth.extent(1));
-  image.encoding = depth.dtype() == DType::kUint16 ? DepthImage::Encoding::kUint16
-                                                   : DepthImage::Encoding::kFloat32;
-  image.pixels = depth.data();
+  const std::size_t n = depth.size();
+  if (depth.dtype() == DType::kUint16) {
+    image.encoding = DepthImage::Encoding::kUint16;
+    image.depths =
+        std::span<const std::uint16_t>(static_cast<const std::uint16_t*>(depth.data()), n);
+  } else {
+    image.encoding = DepthImage::Encoding::kFloat32;
+    image.depths = std::span<const float>(static_cast<const float*>(depth.data()), n);
+  }
   image.fx = fx;
   image.fy = fy;
   image.cx = cx;
@@ -38,17 +54,43 @@ DepthImage depthImage(const ArrayView& depth, float fx, float fy, float cx, floa
   return image;
 }
 
-// One result column: the caller's `out` array (checked) or a new one.
+// One result column of `shape`: the caller's `out` array (checked) or a new one.
 template <class T>
 py::object resultColumn(py::handle out, const char* name, DType dtype,
-                        std::initializer_list<std::ptrdiff_t> shape,
-                        std::optional<ArrayView>& view) {
+                        std::vector<py::ssize_t> shape, std::optional<ArrayView>& view) {
   py::object array =
-      out.is_none()
-          ? py::object(py::array_t<T>(std::vector<py::ssize_t>(shape.begin(), shape.end())))
-          : py::reinterpret_borrow<py::object>(out);
-  view.emplace(array, name, std::initializer_list<DType>{dtype}, shape, /*writable=*/true);
+      out.is_none() ? py::object(py::array_t<T>(shape)) : py::reinterpret_borrow<py::object>(out);
+  // ArrayView takes a fixed shape as an initializer_list: at most 3 extents here.
+  const std::vector<std::ptrdiff_t> want(shape.begin(), shape.end());
+  const auto dtypes = std::initializer_list<DType>{dtype};
+  switch (want.size()) {
+    case 1:
+      view.emplace(array, name, dtypes, std::initializer_list<std::ptrdiff_t>{want[0]}, true);
+      break;
+    case 2:
+      view.emplace(array, name, dtypes, std::initializer_list<std::ptrdiff_t>{want[0], want[1]},
+                   true);
+      break;
+    default:
+      view.emplace(array, name, dtypes,
+                   std::initializer_list<std::ptrdiff_t>{want[0], want[1], want[2]}, true);
+  }
   return array;
+}
+
+// `lead` with `extent` appended.
+std::vector<py::ssize_t> withExtent(std::vector<py::ssize_t> lead, py::ssize_t extent) {
+  lead.push_back(extent);
+  return lead;
+}
+
+// The results of a query on `input`: the caller's out arrays where given, else the new arrays
+// as the caller's library has them (torch tensors for a torch input, sharing their memory).
+py::tuple queryResults(py::handle input, bool given, const std::vector<py::object>& results) {
+  py::tuple t(results.size());
+  for (std::size_t i = 0; i < results.size(); ++i)
+    t[i] = given ? results[i] : likeInput(input, results[i]);
+  return t;
 }
 
 // `out` as a tuple of `n` arrays, or None.
@@ -85,25 +127,61 @@ py::tuple leafArrays(std::vector<OccupancyMap::LeafBoxHost>&& leaves) {
   return py::make_tuple(centers, sizes, log_odds);
 }
 
-// An (N, 3) array of origins, or one origin (3 numbers) for every ray.
+// An array of origins ((N, 3), (H, W, 3), ...), or one origin (3 numbers) for every ray.
 bool isPointArray(py::handle obj) {
   if (!py::hasattr(obj, "shape")) return false;
   try {
-    return py::len(obj.attr("shape")) == 2;
+    return py::len(obj.attr("shape")) >= 2;
   } catch (const py::error_already_set&) {
     return false;
   }
 }
 
+// Map.device_bytes()'s result: the total, an int, whose breakdown fields (device_bytes() returned
+// a DeviceBytes before) still answer for one release, with a DeprecationWarning.
+py::object deviceBytesTotal(const OccupancyMap::DeviceBytes& bytes) {
+  static py::object* type = [] {
+    py::dict scope;
+    py::exec(R"py(
+import warnings
+class DeviceBytesTotal(int):
+    """Map.device_bytes(): device bytes the map holds, an int (C++'s deviceBytes()). Its fields
+    pool, leaf_boxes, ..., total are deprecated (device_bytes() returned the breakdown before):
+    use Map.device_bytes_by_use()."""
+    def __new__(cls, by_use):
+        self = int.__new__(cls, by_use.total)
+        self._by_use = by_use
+        return self
+    def __getattr__(self, name):
+        if name.startswith("_") or not hasattr(type(self._by_use), name):
+            raise AttributeError(name)
+        warnings.warn("device_bytes() is the total, an int, as C++'s deviceBytes(); for its "
+                      f"breakdown use device_bytes_by_use().{name} (device_bytes().{name} goes "
+                      "in the next release)", DeprecationWarning, stacklevel=2)
+        return getattr(self._by_use, name)
+)py",
+             scope);
+    auto* made = new py::object(scope["DeviceBytesTotal"]);  // lives as long as the interpreter
+    made->attr("__module__") = "octovk";
+    return made;
+  }();
+  return (*type)(bytes);
+}
+
 constexpr const char* kMapDoc =
     "An OctoMap-compatible occupancy octree held on a Vulkan device (octovk::OccupancyMap).\n\n"
     "Its scans and queries give OctoMap's answers bit for bit (OcTree with lazy_eval=False). "
-    "Points are float32 arrays of shape (N, 3) (numpy arrays or torch CPU tensors, "
-    "C-contiguous: read in place, never copied; other strides, such as xyz = P4[:, :3] of "
-    "(N, 4) points, are copied only with copy=True); depth images float32 or uint16 (H, W); "
-    "3-vectors any 3 numbers; poses an octovk.Pose, a 4x4 rigid transform or "
-    "(translation, quaternion x y z w). Results are numpy arrays (buffer protocol and "
-    "__dlpack__: torch.from_dlpack shares their memory).\n\n"
+    "Points are float32 arrays of shape (N, 3), organised clouds (H, W, 3) or (N, 4) with x, "
+    "y, z first (numpy arrays or torch CPU tensors; C-contiguous (N, 3) and (H, W, 3) are read "
+    "in place, never copied; (N, 4) and other strides, such as xyz = P4[:, :3], are copied "
+    "only with copy=True); depth images float32 or uint16 (H, W) or (1, H, W); 3-vectors any "
+    "3 numbers; poses an octovk.Pose, a 4x4 rigid transform or (translation, quaternion x y z "
+    "w). Query results are numpy arrays (buffer protocol and __dlpack__), or torch tensors "
+    "sharing their memory when the query's input is a torch tensor.\n\n"
+    "Names are C++'s in snake_case, with units as there (max_range_m). Properties never wait "
+    "for the device nor raise (the parameters, context, scans_in_flight); every call that reads "
+    "the map (node_count(), search(), ...) is a method: it first waits for the submitted scans "
+    "and may raise a scan's error.\n\n"
     "The GIL is released while the device works; one thread at a time uses a map (calls from "
     "several threads are serialised). A map keeps its Context alive. Library errors raise "
     "octovk.Error subclasses; a call that raises leaves the map as it was.";
@@ -214,52 +292,55 @@ void bindMap(py::module_& m) {
 
   map.def(
       "insert_point_cloud",
-      [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range,
-         bool discretize, bool copy) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+      [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range_m,
+         bool discretize, bool copy, py::handle max_range) {
+        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
                             copyArgument(copy));
         const Eigen::Vector3f o = toVector3(origin, "origin");
         const bool posed = !pose.is_none();
         const Pose T = toPose(pose, "pose");
+        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
         noteInput(pts.data());
         return self.run([&](OccupancyMap& map) {
-          return posed
-                     ? map.insertPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
-                     : map.insertPointCloud(pts.points(), o, scanOptions(max_range, discretize));
+          return posed ? map.insertPointCloud(pts.points(), o, T, options)
+                       : map.insertPointCloud(pts.points(), o, options);
         });
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
-      py::arg("max_range") = -1.0, py::arg("discretize") = false, py::kw_only(),
-      py::arg("copy") = false,
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("copy") = false, py::arg("max_range") = py::none(),
       "OctoMap's insertPointCloud(points, origin, max_range, lazy_eval=False, discretize): "
-      "points float32 (N, 3) and origin in the world frame; with `pose` (T_world_sensor) both "
-      "are in the sensor frame and moved to the world on the device. max_range in metres "
-      "(< 0: none). copy: True copies points that cannot be read in place (a strided view "
-      "such as P4[:, :3] of (N, 4) points); False refuses them. Returns ScanStats. Waits "
-      "until the scan is in the map.");
+      "points and origin in the world frame; with `pose` (T_world_sensor) both are in the "
+      "sensor frame and moved to the world on the device. points: float32 (N, 3), an organised "
+      "cloud (H, W, 3), or (N, 4) with x, y, z first (x, y, z, intensity: its first three "
+      "columns). max_range_m: rays are cut at this many metres (< 0: none). copy: True copies "
+      "points that cannot be read in place ((N, 4) points, a strided view such as P4[:, :3]); "
+      "False refuses them. max_range: the deprecated name of max_range_m. Returns ScanStats. "
+      "Waits until the scan is in the map.");
 
   map.def(
       "submit_point_cloud",
-      [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range,
-         bool discretize, bool copy) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+      [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range_m,
+         bool discretize, bool copy, py::handle max_range) {
+        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
                             copyArgument(copy));
         const Eigen::Vector3f o = toVector3(origin, "origin");
         const bool posed = !pose.is_none();
         const Pose T = toPose(pose, "pose");
+        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
         noteInput(pts.data());
         const ScanTicket ticket = self.run([&](OccupancyMap& map) {
-          return posed
-                     ? map.submitPointCloud(pts.points(), o, T, scanOptions(max_range, discretize))
-                     : map.submitPointCloud(pts.points(), o, scanOptions(max_range, discretize));
+          return posed ? map.submitPointCloud(pts.points(), o, T, options)
+                       : map.submitPointCloud(pts.points(), o, options);
         });
         self.noteTicket(ticket);
         return ticket;
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
-      py::arg("max_range") = -1.0, py::arg("discretize") = false, py::kw_only(),
-      py::arg("copy") = false,
-      "insert_point_cloud(points, origin, pose, max_range, discretize, copy) without waiting for "
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("copy") = false, py::arg("max_range") = py::none(),
+      "insert_point_cloud(points, origin, pose, max_range_m, discretize, copy, max_range) "
+      "without waiting for "
       "the device: the points are copied before it returns (the array may be reused at once). "
       "Returns the scan's ticket (int). Errors the device finds are raised by the next flush() "
       "or query, naming the scan (Error.scan).");
@@ -267,43 +348,44 @@ void bindMap(py::module_& m) {
   map.def(
       "insert_depth_image",
       [](Map& self, py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
-         py::handle pose, double max_range, bool discretize) {
-        const ArrayView pixels(depth, "depth", {DType::kFloat32, DType::kUint16}, {-1, -1});
+         py::handle pose, double max_range_m, bool discretize, py::handle max_range) {
+        const ArrayView pixels(depth, "depth", Layout::kDepth, {DType::kFloat32, DType::kUint16});
         const DepthImage image = depthImage(pixels, fx, fy, cx, cy, depth_scale);
         const Pose T = toPose(pose, "pose");
+        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
         noteInput(pixels.data());
-        return self.run([&](OccupancyMap& map) {
-          return map.insertDepthImage(image, T, scanOptions(max_range, discretize));
-        });
+        return self.run([&](OccupancyMap& map) { return map.insertDepthImage(image, T, options); });
       },
       py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
-      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range") = -1.0,
-      py::arg("discretize") = false,
-      "A depth image (float32 or uint16, (H, W), row by row), unprojected on the device with "
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
+      py::arg("discretize") = false, py::kw_only(), py::arg("max_range") = py::none(),
+      "A depth image (float32 or uint16, (H, W) or (1, H, W), row by row), unprojected on the "
+      "device with "
       "the pinhole camera fx, fy, cx, cy (pixels) and depth_scale (depth units per metre: TUM "
       "5000, metres in float 1), then inserted from the camera centre with pose "
       "T_world_camera (camera frame x right, y down, z forward). Pixels with depth 0 or "
-      "non-finite are skipped. max_range and discretize as in insert_point_cloud. Returns "
-      "ScanStats.");
+      "non-finite are skipped. max_range_m, discretize and max_range as in insert_point_cloud. "
+      "Returns ScanStats.");
 
   map.def(
       "submit_depth_image",
       [](Map& self, py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
-         py::handle pose, double max_range, bool discretize) {
-        const ArrayView pixels(depth, "depth", {DType::kFloat32, DType::kUint16}, {-1, -1});
+         py::handle pose, double max_range_m, bool discretize, py::handle max_range) {
+        const ArrayView pixels(depth, "depth", Layout::kDepth, {DType::kFloat32, DType::kUint16});
         const DepthImage image = depthImage(pixels, fx, fy, cx, cy, depth_scale);
         const Pose T = toPose(pose, "pose");
+        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
         noteInput(pixels.data());
-        const ScanTicket ticket = self.run([&](OccupancyMap& map) {
-          return map.submitDepthImage(image, T, scanOptions(max_range, discretize));
-        });
+        const ScanTicket ticket =
+            self.run([&](OccupancyMap& map) { return map.submitDepthImage(image, T, options); });
         self.noteTicket(ticket);
         return ticket;
       },
       py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
-      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range") = -1.0,
-      py::arg("discretize") = false,
-      "insert_depth_image(depth, fx, fy, cx, cy, depth_scale, pose, max_range, discretize) "
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
+      py::arg("discretize") = false, py::kw_only(), py::arg("max_range") = py::none(),
+      "insert_depth_image(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize, "
+      "max_range) "
       "without waiting (the pixels are copied before it returns). Returns "
       "the scan's ticket.");
 
@@ -326,24 +408,24 @@ void bindMap(py::module_& m) {
   map.def_property_readonly(
       "scans_in_flight",
       [](Map& self) { return self.run([](OccupancyMap& map) { return map.scansInFlight(); }); },
-      "Submitted scans not yet known to be in the map.");
+      "Submitted scans not yet known to be in the map (a property: it does not wait).");
 
   map.def(
       "search",
       [](Map& self, py::handle points, py::handle out, bool copy) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
                             copyArgument(copy));
-        const auto n = static_cast<std::ptrdiff_t>(pts.extent(0));
+        const std::vector<py::ssize_t> lead = pts.leading();
         const py::tuple outs = outTuple(out, 3,
                                         "(state uint8 (N,), log_odds float32 (N,), "
                                         "depth uint8 (N,))");
         std::optional<ArrayView> state_v, log_odds_v, depth_v;
         py::object state =
-            resultColumn<std::uint8_t>(outs[0], "out[0] (state)", DType::kUint8, {n}, state_v);
+            resultColumn<std::uint8_t>(outs[0], "out[0] (state)", DType::kUint8, lead, state_v);
         py::object log_odds =
-            resultColumn<float>(outs[1], "out[1] (log_odds)", DType::kFloat32, {n}, log_odds_v);
+            resultColumn<float>(outs[1], "out[1] (log_odds)", DType::kFloat32, lead, log_odds_v);
         py::object depth =
-            resultColumn<std::uint8_t>(outs[2], "out[2] (depth)", DType::kUint8, {n}, depth_v);
+            resultColumn<std::uint8_t>(outs[2], "out[2] (depth)", DType::kUint8, lead, depth_v);
         noteInput(pts.data());
         auto* s = static_cast<std::uint8_t*>(state_v->data());
         auto* l = static_cast<float*>(log_odds_v->data());
@@ -356,46 +438,57 @@ void bindMap(py::module_& m) {
             d[i] = static_cast<std::uint8_t>(found[i].depth);
           }
         });
-        return py::make_tuple(state, log_odds, depth);
+        return queryResults(points, !out.is_none(), {state, log_odds, depth});
       },
       py::arg("points"), py::arg("out") = py::none(), py::kw_only(), py::arg("copy") = false,
-      "OctoMap's search() for each of points (float32 (N, 3)), on the device: the deepest existing "
-      "node on the point's path. Returns (state, log_odds, depth): state uint8 (N,) "
-      "(CellState: 0 unknown, 1 free, 2 occupied), log_odds float32 (N,) (0 when unknown), "
-      "depth uint8 (N,) (16 = finest, 0 when unknown). out: a tuple of three such arrays to "
+      "OctoMap's search() for each of points (float32 (N, 3), (H, W, 3) or (N, 4) as in "
+      "insert_point_cloud), on the device: the deepest existing node on the point's path. "
+      "Returns (state, log_odds, depth), each with one entry per point ((N,), or (H, W) for an "
+      "organised cloud): state uint8 (CellState: 0 unknown, 1 free, 2 occupied), log_odds "
+      "float32 (0 when unknown), depth uint8 (16 = finest, 0 when unknown); torch tensors "
+      "(sharing the arrays' memory) when points is one. out: a tuple of three such arrays to "
       "write into (returned). copy: as in insert_point_cloud.");
 
   map.def(
       "cast_rays",
-      [](Map& self, py::handle origins, py::handle directions, double max_range,
-         bool ignore_unknown, py::handle out, bool copy) {
-        const ArrayView dirs(directions, "directions", {DType::kFloat32}, {-1, 3}, false,
+      [](Map& self, py::handle origins, py::handle directions, double max_range_m,
+         bool ignore_unknown, py::handle out, bool copy, py::handle max_range) {
+        const double range = rangeOf(max_range_m, max_range);
+        const ArrayView dirs(directions, "directions", Layout::kPoints, {DType::kFloat32},
                              copyArgument(copy));
-        const auto n = static_cast<std::ptrdiff_t>(dirs.extent(0));
+        const std::size_t n = dirs.extent(0);
+        const std::vector<py::ssize_t> lead = dirs.leading();
         std::optional<ArrayView> origin_v;
         Eigen::Vector3f one_origin = Eigen::Vector3f::Zero();
-        if (isPointArray(origins))
-          origin_v.emplace(origins, "origins", std::initializer_list<DType>{DType::kFloat32},
-                           std::initializer_list<std::ptrdiff_t>{n, 3}, false, copyArgument(copy));
-        else
+        if (isPointArray(origins)) {
+          origin_v.emplace(origins, "origins", Layout::kPoints,
+                           std::initializer_list<DType>{DType::kFloat32}, copyArgument(copy));
+          if (origin_v->leading() != lead)
+            throw py::value_error(
+                "origins: expected one origin per direction, of shape " +
+                std::string(py::str(py::tuple(py::cast(withExtent(lead, 3))))) +
+                ", or 3 numbers for every ray; got shape " +
+                std::string(py::str(py::tuple(py::cast(withExtent(origin_v->leading(), 3))))));
+        } else {
           one_origin = toVector3(origins, "origins");
+        }
         const py::tuple outs = outTuple(out, 2, "(hit uint8 (N,), end float32 (N, 3))");
         std::optional<ArrayView> hit_v, end_v;
         py::object hit =
-            resultColumn<std::uint8_t>(outs[0], "out[0] (hit)", DType::kUint8, {n}, hit_v);
-        py::object end =
-            resultColumn<float>(outs[1], "out[1] (end)", DType::kFloat32, {n, 3}, end_v);
+            resultColumn<std::uint8_t>(outs[0], "out[0] (hit)", DType::kUint8, lead, hit_v);
+        py::object end = resultColumn<float>(outs[1], "out[1] (end)", DType::kFloat32,
+                                             withExtent(lead, 3), end_v);
         auto* h = static_cast<std::uint8_t*>(hit_v->data());
         auto* e = static_cast<float*>(end_v->data());
         self.run([&](OccupancyMap& map) {
-          std::vector<Ray> rays(static_cast<std::size_t>(n));
+          std::vector<Ray> rays(n);
           const auto* dir = static_cast<const Eigen::Vector3f*>(dirs.data());
           const auto* org =
               origin_v ? static_cast<const Eigen::Vector3f*>(origin_v->data()) : nullptr;
           for (std::size_t i = 0; i < rays.size(); ++i) {
             rays[i].origin = org ? org[i] : one_origin;
             rays[i].direction = dir[i];
-            rays[i].max_range_m = max_range;
+            rays[i].max_range_m = range;
             rays[i].ignore_unknown = ignore_unknown;
           }
           const std::vector<RayHit> hits = map.castRays(rays);
@@ -404,18 +497,21 @@ void bindMap(py::module_& m) {
             for (int k = 0; k < 3; ++k) e[3 * i + static_cast<std::size_t>(k)] = hits[i].end[k];
           }
         });
-        return py::make_tuple(hit, end);
+        return queryResults(directions, !out.is_none(), {hit, end});
       },
-      py::arg("origins"), py::arg("directions"), py::arg("max_range") = -1.0,
+      py::arg("origins"), py::arg("directions"), py::arg("max_range_m") = -1.0,
       py::arg("ignore_unknown") = false, py::arg("out") = py::none(), py::kw_only(),
-      py::arg("copy") = false,
+      py::arg("copy") = false, py::arg("max_range") = py::none(),
       "OctoMap's castRay(origin, direction, end, ignore_unknown, max_range) for each ray, on "
-      "the device. origins: float32 (N, 3), or 3 numbers for every ray; directions: float32 "
-      "(N, 3), need not be normalised; max_range in metres (<= 0: to the map's border); "
+      "the device. directions: float32 (N, 3) (or (H, W, 3), (N, 4) as points in "
+      "insert_point_cloud), need not be normalised; origins: one per direction, of the same "
+      "shape, or 3 numbers for every ray; max_range_m: metres (<= 0: to the map's border); "
       "ignore_unknown: unknown cells count as free. Returns (hit, end): hit uint8 (N,) (1: an "
       "occupied cell was hit), end float32 (N, 3) (the centre of the last cell visited; the "
-      "origin where OctoMap leaves it untouched). out: a tuple of two such arrays. copy: as in "
-      "insert_point_cloud, for origins and directions.");
+      "origin where OctoMap leaves it untouched), (H, W) and (H, W, 3) for organised "
+      "directions; torch tensors when directions is one. out: a tuple of two such arrays. "
+      "copy: as in insert_point_cloud, for origins and directions. max_range: the deprecated "
+      "name of max_range_m.");
 
   map.def(
       "leaves_in_box",
@@ -507,8 +603,9 @@ void bindMap(py::module_& m) {
                               ownedArray(std::move(created), {n}));
       },
       "The change set (OcTree::changedKeysBegin/End), in no particular order: (keys uint16 "
-      "(N, 3), the finest-level OcTreeKeys; created uint8 (N,), 1 where the leaf was created "
-      "(OctoMap's True), 0 where its occupancy flipped (False)).");
+      "(N, 3), the finest-level OcTreeKeys (octovk.key_to_coord(map.resolution, keys) gives "
+      "their cells' centres); created uint8 (N,), 1 where the leaf was created (OctoMap's "
+      "True), 0 where its occupancy flipped (False)).");
 
   map.def(
       "node_count",
@@ -520,9 +617,17 @@ void bindMap(py::module_& m) {
       "Leaves of the tree (OcTree::getNumLeafNodes()).");
   map.def(
       "device_bytes",
+      [](Map& self) {
+        return deviceBytesTotal(self.run([](OccupancyMap& map) { return map.deviceBytesByUse(); }));
+      },
+      "Device bytes the map holds, all its buffers together (an int, C++'s deviceBytes()): what "
+      "max_device_bytes caps. Its breakdown is device_bytes_by_use(); the fields pool, "
+      "scratch, ... on this int are deprecated (it returned the breakdown before).");
+  map.def(
+      "device_bytes_by_use",
       [](Map& self) { return self.run([](OccupancyMap& map) { return map.deviceBytesByUse(); }); },
-      "Device bytes the map holds, by use (DeviceBytes: pool, leaf_boxes, scratch, queries, "
-      "total): what max_device_bytes caps.");
+      "device_bytes() by use (DeviceBytes: pool, leaf_boxes, scratch, queries, changes, "
+      "distance_fields, total; C++'s deviceBytesByUse()).");
   map.def(
       "cast_ray_info",
       [](Map& self) { return self.run([](OccupancyMap& map) { return map.castRayInfo(); }); },

@@ -2,6 +2,8 @@
 // spelling. The stub python/octovk.pyi mirrors what is bound here (tests/test_api.py checks).
 #include <pybind11/stl.h>
 
+#include <cmath>
+#include <optional>
 #include <sstream>
 
 #include "arrays.hpp"
@@ -21,6 +23,102 @@ std::string vectorText(const Eigen::Vector3f& v) {
 
 py::array_t<float> vectorArray(const Eigen::Vector3f& v) {
   return ownedArray(std::vector<float>{v.x(), v.y(), v.z()}, {3});
+}
+
+// `value` where the deprecated `old_name` was not given, else the old argument's value (with a
+// DeprecationWarning naming the new name).
+template <class T>
+T renamed(T value, py::handle old, const char* old_name, const char* new_name) {
+  if (old.is_none()) return value;
+  warnDeprecated(std::string(old_name) + " is deprecated: name it " + new_name +
+                 " (C++'s name); the old name goes in the next release");
+  return old.cast<T>();
+}
+
+void checkResolution(double resolution) {
+  if (!(resolution > 0.0) || !std::isfinite(resolution))
+    throw py::value_error("resolution: expected the map's cell edge in metres (> 0, finite), got " +
+                          std::to_string(resolution));
+}
+
+// `obj` as a numpy array (numpy arrays as they are; torch CPU tensors and sequences through
+// np.asarray) whose last extent is 3.
+py::array tripleArray(py::handle obj, const char* arg, const char* what) {
+  py::object np = py::module_::import("numpy");
+  py::array a;
+  try {
+    a = np.attr("asarray")(obj);
+  } catch (const py::error_already_set&) {
+    throw py::type_error(std::string(arg) + ": expected " + what + ", got " +
+                         std::string(py::str(py::type::handle_of(obj).attr("__qualname__"))));
+  }
+  if (a.ndim() < 1 || a.shape(a.ndim() - 1) != 3)
+    throw py::value_error(std::string(arg) + ": expected " + what + ", got shape " +
+                          std::string(py::str(a.attr("shape"))));
+  return a;
+}
+
+// The shape of `a` as a vector.
+std::vector<py::ssize_t> shapeOf(const py::array& a) {
+  return std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim());
+}
+
+py::object keyToCoordArray(double resolution, py::handle keys) {
+  checkResolution(resolution);
+  const char* what = "integer keys of shape (..., 3) (uint16, as Map.changed_keys() gives them)";
+  const py::array a = tripleArray(keys, "keys", what);
+  const char kind = a.dtype().kind();
+  if (kind != 'i' && kind != 'u')
+    throw py::type_error(std::string("keys: expected ") + what + ", got " +
+                         std::string(py::str(a.dtype())) + " values");
+  const auto k = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(a);
+  const std::int64_t* in = k.data();
+  const std::size_t n = static_cast<std::size_t>(k.size()) / 3;
+  std::vector<float> coords(3 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Key key;
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::int64_t v = in[3 * i + c];
+      if (v < 0 || v > 65535)
+        throw py::value_error("keys: key " + std::to_string(i) + " holds " + std::to_string(v) +
+                              "; a key is 0 to 65535 per axis");
+      key[c] = static_cast<std::uint16_t>(v);
+    }
+    const Eigen::Vector3f centre = keyToCoord(resolution, key);
+    for (int c = 0; c < 3; ++c) coords[3 * i + static_cast<std::size_t>(c)] = centre[c];
+  }
+  return likeInput(keys, ownedArray(std::move(coords), shapeOf(a)));
+}
+
+py::object coordToKeyArray(double resolution, py::handle coords) {
+  checkResolution(resolution);
+  const char* what = "float32 (or float64) coordinates of shape (..., 3), in metres";
+  const py::array a = tripleArray(coords, "coords", what);
+  if (a.dtype().kind() != 'f')
+    throw py::type_error(std::string("coords: expected ") + what + ", got " +
+                         std::string(py::str(a.dtype())) + " values");
+  // float, as the map reads points (OctoMap's point3d): the key of the cell a point lands in.
+  const auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+  const float* in = f.data();
+  const std::size_t n = static_cast<std::size_t>(f.size()) / 3;
+  std::vector<std::uint16_t> keys(3 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f p(in[3 * i], in[3 * i + 1], in[3 * i + 2]);
+    const std::optional<Key> key = coordToKey(resolution, p);
+    if (!key) {
+      std::ostringstream why;
+      why << "coords: point " << i << " (" << p.x() << ", " << p.y() << ", " << p.z()
+          << ") is NaN or outside the key range at resolution " << resolution
+          << " (each coordinate within +-" << 32768 * resolution << " m)";
+      throw py::value_error(why.str());
+    }
+    for (std::size_t c = 0; c < 3; ++c) keys[3 * i + c] = (*key)[c];
+  }
+  py::array_t<std::uint16_t> out = ownedArray(std::move(keys), shapeOf(a));
+  if (!isTorch(coords)) return out;
+  // torch has no uint16 (before 2.3): the keys as int32, which holds every key.
+  py::object torch = py::module_::import("torch");
+  return torch.attr("from_numpy")(out.attr("astype")("int32"));
 }
 
 }  // namespace
@@ -73,21 +171,34 @@ void bindContext(py::module_& m) {
                       "The Vulkan device every map of a process shares (octovk::Context).\n\n"
                       "Maps on different threads may share one Context. Each Map keeps its "
                       "Context alive.")
-      .def(py::init([](py::object device, bool validation, bool ray_query) {
+      .def(py::init([](py::object selector, bool enable_validation, bool enable_ray_query,
+                       py::object device, py::object validation, py::object ray_query) {
              ContextOptions options;
-             if (!device.is_none()) options.selector = py::str(device);
-             options.enable_validation = validation;
-             options.enable_ray_query = ray_query;
+             if (!device.is_none()) {
+               warnDeprecated(
+                   "Context(device=...) is deprecated: name it selector (C++'s "
+                   "ContextOptions::selector; Context.device is the DeviceInfo); the old name "
+                   "goes in the next release");
+               if (selector.is_none()) selector = device;
+             }
+             if (!selector.is_none()) options.selector = py::str(selector);
+             options.enable_validation =
+                 renamed(enable_validation, validation, "validation", "enable_validation");
+             options.enable_ray_query =
+                 renamed(enable_ray_query, ray_query, "ray_query", "enable_ray_query");
              py::gil_scoped_release release;
              return std::move(Context::create(options).value());
            }),
-           py::arg("device") = py::none(), py::arg("validation") = false,
-           py::arg("ray_query") = true,
-           "Opens a device: `device` is an index or a name substring (None: a real GPU when "
-           "present, else lavapipe; the OCTOVK_DEVICE environment variable overrides). "
-           "`validation` runs every Vulkan call through the Khronos validation layer (slow; "
-           "OCTOVK_VALIDATION=1 does too). `ray_query=False` never uses ray queries. Raises "
-           "NoDeviceError or MissingFeatureError with the reason.")
+           py::arg("selector") = py::none(), py::arg("enable_validation") = false,
+           py::arg("enable_ray_query") = true, py::kw_only(), py::arg("device") = py::none(),
+           py::arg("validation") = py::none(), py::arg("ray_query") = py::none(),
+           "Opens a device (C++'s ContextOptions): `selector` is an index or a name substring "
+           "(None: a real GPU when present, else lavapipe; the OCTOVK_DEVICE environment "
+           "variable overrides). `enable_validation` runs every Vulkan call through the Khronos "
+           "validation layer (slow; OCTOVK_VALIDATION=1 does too). `enable_ray_query=False` "
+           "never uses ray queries. device, validation, ray_query: the deprecated names of "
+           "selector, enable_validation, enable_ray_query. Raises NoDeviceError or "
+           "MissingFeatureError with the reason.")
       .def_property_readonly("device", &Context::device, "The device (DeviceInfo).")
       .def("__repr__",
            [](const Context& c) { return "Context(device='" + c.device().name + "')"; });
@@ -196,7 +307,7 @@ void bindTypes(py::module_& m) {
       .def_readonly("tree_update_ms", &StageTimes::tree_update_ms)
       .def_readonly("prune_ms", &StageTimes::prune_ms)
       .def_readonly("leaf_boxes_ms", &StageTimes::leaf_boxes_ms)
-      .def_property_readonly("total_ms", &StageTimes::total);
+      .def_property_readonly("total_ms", &StageTimes::total_ms);
 
   py::class_<ScanStats>(m, "ScanStats", "What one scan did (octovk::ScanStats).")
       .def_readonly("ticket", &ScanStats::ticket, "the scan's place in the map's order")
@@ -249,23 +360,41 @@ void bindFiles(py::module_& m) {
       "FormatError naming the file for a corrupt one.");
   m.def(
       "read_tum_sequence",
-      [](py::handle dir, double max_time_difference) {
+      [](py::handle dir, double max_time_difference_s, py::handle max_time_difference) {
+        max_time_difference_s = renamed(max_time_difference_s, max_time_difference,
+                                        "max_time_difference", "max_time_difference_s");
         const std::string folder = pathString(dir, "dir");
         TumSequence sequence;
         {
           py::gil_scoped_release release;
-          sequence = readTumSequence(folder, max_time_difference);
+          sequence = readTumSequence(folder, max_time_difference_s);
         }
         py::list frames;
         for (const TumFrame& f : sequence.frames)
           frames.append(py::make_tuple(f.timestamp, f.image_path, f.T_world_camera));
         return frames;
       },
-      py::arg("dir"), py::arg("max_time_difference") = kTumMaxTimeDifference,
+      py::arg("dir"), py::arg("max_time_difference_s") = kTumMaxTimeDifference, py::kw_only(),
+      py::arg("max_time_difference") = py::none(),
       "The images of the TUM RGB-D folder dir that have a ground-truth pose, in depth.txt's "
       "order: a list of (timestamp, image path, T_world_camera Pose). Each image takes the pose "
-      "nearest in time; images with none closer than max_time_difference seconds are left "
-      "out. Raises IoError / FormatError naming the file and line.");
+      "nearest in time; images with none closer than max_time_difference_s seconds are left "
+      "out (max_time_difference: its deprecated name). Raises IoError / FormatError naming the "
+      "file and line.");
+  m.def("key_to_coord", &keyToCoordArray, py::arg("resolution"), py::arg("keys"),
+        "OctoMap's keyToCoord at the finest depth, for many keys (C++'s octovk::keyToCoord): "
+        "the centre of each key's cell, per axis (key - 32768 + 0.5) * resolution. keys: "
+        "integers of shape (..., 3), e.g. the uint16 keys Map.changed_keys() returns; "
+        "resolution: the map's, in metres (Map.resolution). Returns float32 coordinates of the "
+        "keys' shape (a torch tensor for a torch input). ValueError for a key outside 0 to "
+        "65535.");
+  m.def("coord_to_key", &coordToKeyArray, py::arg("resolution"), py::arg("coords"),
+        "OctoMap's coordToKeyChecked at the finest depth, for many points (C++'s "
+        "octovk::coordToKey): the key of the cell each point lands in, per axis "
+        "floor(coordinate / resolution) + 32768, the coordinate taken as float32 as the map "
+        "reads points. coords: floats of shape (..., 3), metres; resolution: the map's "
+        "(Map.resolution). Returns uint16 keys of that shape (torch: int32, which torch has). "
+        "ValueError naming the first point that is NaN or outside the key range.");
   m.def(
       "read_depth_png",
       [](py::handle path) {
@@ -300,8 +429,10 @@ PYBIND11_MODULE(octovk, m) {
       "    state, log_odds, depth = m.search(queries)\n"
       "    m.write('map.bt')\n\n"
       "Inputs are read in place (numpy arrays, torch CPU tensors: the buffer protocol or "
-      "__dlpack__); outputs are numpy arrays (buffer protocol and __dlpack__). Errors of the "
-      "library are octovk.Error subclasses.";
+      "__dlpack__); outputs are numpy arrays (buffer protocol and __dlpack__), or torch tensors "
+      "sharing their memory where a query was given a tensor. Names are the C++ library's in "
+      "snake_case, with their units (max_range_m). Errors of the library are octovk.Error "
+      "subclasses.";
   m.attr("__version__") = OCTOVK_VERSION;
   m.attr("_default_context") = py::none();
   bindErrors(m);

@@ -189,7 +189,7 @@ def test_a_late_error_names_its_scan_and_the_map_keeps_the_scans_before(context)
     assert e.value.scan == second
     assert "max_device_bytes" in e.value.message
     assert [s.ticket for s in m.take_scan_stats()] == [first]
-    assert m.device_bytes().total <= 3 << 20
+    assert m.device_bytes() <= 3 << 20
     # The map keeps working.
     m.insert_point_cloud(np.float32([[0.2, 0.2, 0]]), (0, 0, 0))
     assert m.search(np.float32([[0.2, 0.2, 0]]))[0][0] == int(octovk.CellState.OCCUPIED)
@@ -244,18 +244,18 @@ def test_maps_use_the_default_context_and_report_their_parameters(context):
 
 def test_counts_memory_and_trim(context):
     m = octovk.Map(0.1)
-    empty = m.device_bytes()
+    empty = m.device_bytes_by_use()
     points = np.random.default_rng(1).uniform(-2, 2, (20000, 3)).astype(np.float32)
     m.insert_point_cloud(points, (0, 0, 0))
-    grown = m.device_bytes()
+    grown = m.device_bytes_by_use()
     assert grown.scratch > empty.scratch
     assert grown.total == (grown.pool + grown.leaf_boxes + grown.scratch + grown.queries
-                           + grown.changes + grown.distance_fields)
+                           + grown.changes + grown.distance_fields) == m.device_bytes()
     leaves = m.leaf_count()
     assert m.node_count() > leaves > 1000
     assert len(m.leaves()[0]) == leaves
     m.trim()
-    assert m.device_bytes().scratch < grown.scratch
+    assert m.device_bytes_by_use().scratch < grown.scratch
     assert m.leaf_count() == leaves
 
 
@@ -273,7 +273,7 @@ def test_change_detection_follows_the_cpp_api(context):
     assert keys.shape == (0, 3) and created.shape == (0,)
     m.enable_change_detection(True)
     assert m.is_change_detection_enabled()
-    assert m.device_bytes().changes > 4096 * 16
+    assert m.device_bytes_by_use().changes > 4096 * 16
     m.insert_point_cloud(pts * 1.5, (0.05, 0, 0))
     keys, created = m.changed_keys()
     assert keys.dtype == np.uint16 and keys.shape[1] == 3 and created.dtype == np.uint8
@@ -325,12 +325,105 @@ def test_keep_box_keeps_the_leaves_in_it_and_frees_the_rest(context):
     with pytest.raises(octovk.InvalidArgumentError):
         m.keep_box((0, 0, float("nan")), (1, 1, 1))
     assert m.node_count() > 0
-    pool = m.device_bytes().pool
+    pool = m.device_bytes_by_use().pool
     m.compact()  # the freed blocks go back to the device; the tree stays
-    assert m.device_bytes().pool < pool
+    assert m.device_bytes_by_use().pool < pool
     assert m.node_count() > 0
     centers_after, _, log_odds_after = m.leaves()
     assert np.array_equal(centers_after[order(centers_after)], centers[order(centers)])
     assert np.array_equal(log_odds_after[order(centers_after)], log_odds[order(centers)])
     m.keep_box((-1, -1, -1), (1e6, 1, 1))  # a corner outside the map: nothing is kept
     assert m.node_count() == 0 and len(m.leaves()[2]) == 0
+
+
+# ---- one name for one thing, units in names; the old spellings warn for one release ----
+
+def test_old_spellings_warn_and_still_work(context, tmp_path):
+    points = np.float32([[1.0, 0, 0], [0, 1.5, 0]])
+    renamed = octovk.Map(0.1)
+    renamed.insert_point_cloud(points, (0, 0, 0), max_range_m=1.2)
+    renamed.write(tmp_path / "new.ot")
+    old = octovk.Map(0.1)
+    with pytest.warns(DeprecationWarning, match="max_range is deprecated: name it max_range_m"):
+        old.insert_point_cloud(points, (0, 0, 0), max_range=1.2)
+    old.write(tmp_path / "old.ot")
+    assert (tmp_path / "old.ot").read_bytes() == (tmp_path / "new.ot").read_bytes()
+    with pytest.warns(DeprecationWarning, match="max_range_m"):
+        hit, _ = old.cast_rays((0, 0, 0), points, max_range=0.5)
+    np.testing.assert_array_equal(hit, old.cast_rays((0, 0, 0), points, max_range_m=0.5)[0])
+    with pytest.warns(DeprecationWarning, match="max_range_m"):
+        old.submit_depth_image(np.full((2, 2), 5000, np.uint16), 1, 1, 0.5, 0.5, 5000,
+                               max_range=2.0)
+    old.flush()
+    # device_bytes() is the total, an int, as C++'s deviceBytes(); its breakdown has its own name.
+    total, by_use = old.device_bytes(), old.device_bytes_by_use()
+    assert isinstance(total, int) and total == by_use.total > 0
+    with pytest.warns(DeprecationWarning, match=r"device_bytes_by_use\(\)\.pool"):
+        assert total.pool == by_use.pool
+    with pytest.raises(AttributeError):
+        total.nothing_of_that_name
+    # Context(device=...) is C++'s selector (Context.device is the DeviceInfo).
+    with pytest.warns(DeprecationWarning, match="name it selector"):
+        by_old_name = octovk.Context(device=context.device.index, ray_query=False)
+    assert by_old_name.device.name == context.device.name
+    assert not by_old_name.device.ray_query_enabled
+    assert octovk.Context(selector=context.device.index,
+                          enable_ray_query=False).device.name == context.device.name
+    with pytest.warns(DeprecationWarning, match="max_time_difference_s"):
+        with pytest.raises(octovk.IoError):
+            octovk.read_tum_sequence(tmp_path / "missing", max_time_difference=0.1)
+
+
+def test_properties_never_wait_methods_that_read_the_map_do(context):
+    """The rule between a property and a method: a property never waits for the device nor
+    raises a scan's error (scans_in_flight); reading the map is a method (node_count())."""
+    m = octovk.Map(0.05, max_device_bytes=3 << 20)
+    d = np.random.default_rng(0).normal(size=(4000, 3)).astype(np.float32)
+    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1, keepdims=True) * np.float32(8))
+    m.submit_point_cloud(d, (0, 0, 0))  # refused by the device under the cap
+    assert m.scans_in_flight in (0, 1) and m.resolution == 0.05  # no wait, no error
+    with pytest.raises(octovk.OutOfDeviceMemoryError):
+        m.node_count()
+    assert isinstance(type(m).scans_in_flight, property)
+    assert not isinstance(type(m).__dict__.get("node_count"), property)
+
+
+# ---- key helpers ----
+
+def test_key_helpers_turn_changed_keys_into_coordinates(context):
+    import torch
+    m = octovk.Map(0.1)
+    m.enable_change_detection(True)
+    m.insert_point_cloud(np.float32([[1.0, 0.5, 0.25], [-2.0, 0.0, 0.75]]), (0, 0, 0))
+    keys, created = m.changed_keys()
+    centres = octovk.key_to_coord(m.resolution, keys)
+    assert centres.dtype == np.float32 and centres.shape == keys.shape
+    np.testing.assert_array_equal(
+        centres, ((keys.astype(np.float64) - 32768 + 0.5) * 0.1).astype(np.float32))
+    # Each centre lies in its own cell, and the map knows every changed cell.
+    np.testing.assert_array_equal(octovk.coord_to_key(m.resolution, centres), keys)
+    assert (m.search(centres)[0] != octovk.CellState.UNKNOWN).all()
+    # The end points' cells are occupied and among the changes.
+    ends = octovk.coord_to_key(0.1, np.float32([[1.0, 0.5, 0.25], [-2.0, 0.0, 0.75]]))
+    np.testing.assert_array_equal(ends, [[32778, 32773, 32770], [32748, 32768, 32775]])
+    assert {tuple(k) for k in ends} <= {tuple(k) for k in keys}
+    # A single key, float64 coordinates (taken as float32, as the map reads points), torch.
+    np.testing.assert_array_equal(octovk.key_to_coord(0.1, (32768, 32767, 32769)),
+                                  np.float32([0.05, -0.05, 0.15]))
+    assert octovk.coord_to_key(0.1, [0.0, -0.0001, 3276.75]).tolist() == [32768, 32767, 65535]
+    t = octovk.key_to_coord(0.1, torch.from_numpy(keys.astype(np.int32)))
+    assert isinstance(t, torch.Tensor) and torch.equal(t, torch.from_numpy(centres))
+    tk = octovk.coord_to_key(0.1, torch.from_numpy(centres))
+    assert tk.dtype == torch.int32 and (tk.numpy() == keys).all()
+    with pytest.raises(ValueError, match=r"keys: key 1 holds 65536; a key is 0 to 65535"):
+        octovk.key_to_coord(0.1, np.array([[0, 0, 0], [65536, 0, 0]]))
+    with pytest.raises(TypeError, match=r"keys: expected integer keys .* got float32"):
+        octovk.key_to_coord(0.1, centres)
+    with pytest.raises(ValueError, match=r"coords: point 1 \(nan, 0, 0\) is NaN or outside"):
+        octovk.coord_to_key(0.1, np.float32([[0, 0, 0], [np.nan, 0, 0]]))
+    with pytest.raises(ValueError, match=r"coords: point 0 .* outside the key range"):
+        octovk.coord_to_key(0.1, [4000.0, 0, 0])
+    with pytest.raises(ValueError, match=r"shape \(\.\.\., 3\).*got shape \(2, 2\)"):
+        octovk.coord_to_key(0.1, np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="resolution"):
+        octovk.key_to_coord(0.0, keys)

@@ -84,9 +84,14 @@ def test_results_equal_for_numpy_torch_and_dlpack_inputs(scanned):
     (np.zeros((4, 3), np.dtype(">f4")), TypeError, ["points", "byte-swapped float32"]),
     (torch.zeros((4, 3), dtype=torch.float64), TypeError, ["points", "float64"]),
     (torch.zeros((4, 3), dtype=torch.float16), TypeError, ["points", "float16"]),
-    (np.zeros((4, 4), np.float32), ValueError, ["points", "shape (N, 3)", "got shape (4, 4)"]),
+    (np.zeros((4, 5), np.float32), ValueError,
+     ["points", "shape (N, 3), (H, W, 3) or (N, 4) with x, y, z first", "got shape (4, 5)"]),
+    (np.zeros((4, 4), np.float32), ValueError,
+     ["points: (N, 4) points are read as x, y, z", "np.ascontiguousarray(points[:, :3])",
+      "or pass copy=True"]),
     (np.zeros((3,), np.float32), ValueError, ["points", "got shape (3,)"]),
-    (np.zeros((2, 4, 3), np.float32), ValueError, ["points", "got shape (2, 4, 3)"]),
+    (np.zeros((2, 4, 4), np.float32), ValueError, ["points", "got shape (2, 4, 4)"]),
+    (np.zeros((2, 4, 3), np.float32)[:, ::2], ValueError, ["points", "not C-contiguous"]),
     (np.zeros((8, 3), np.float32)[::2], ValueError, ["points", "not C-contiguous", "strides (24, 4)"]),
     (np.zeros((3, 4), np.float32).T, ValueError, ["points", "not C-contiguous"]),
     (torch.zeros((3, 4)).t(), ValueError, ["points", "not C-contiguous"]),
@@ -215,10 +220,12 @@ def test_lazily_negated_tensors_are_refused_not_read_unnegated(scanned):
 def test_wrong_depth_images_are_refused(context):
     m = octovk.Map(0.1)
     with pytest.raises(TypeError, match=r"depth: expected a C-contiguous float32 or uint16 array"
-                                        r" of shape \(H, W\), got a int16 array"):
+                                        r" of shape \(H, W\) or \(1, H, W\), got a int16 array"):
         m.insert_depth_image(np.zeros((4, 4), np.int16), 1, 1, 1, 1, 1)
     with pytest.raises(ValueError, match=r"depth: .*got shape \(4, 4, 1\)"):
         m.insert_depth_image(np.zeros((4, 4, 1), np.uint16), 1, 1, 1, 1, 1)
+    with pytest.raises(ValueError, match=r"depth: .*got shape \(2, 4, 4\)"):
+        m.insert_depth_image(np.zeros((2, 4, 4), np.uint16), 1, 1, 1, 1, 1)
     with pytest.raises(octovk.InvalidArgumentError, match="depth_scale"):
         m.insert_depth_image(np.ones((4, 4), np.uint16), 1, 1, 1, 1, -1)
 
@@ -294,9 +301,9 @@ def test_out_arrays_are_written_in_place(scanned):
     m.search(torch.from_numpy(points), out=touts)
     for g, w in zip(touts, want):
         np.testing.assert_array_equal(g.numpy(), w)
-    hit_want, end_want = m.cast_rays((0, 0, 0), points, max_range=1.0)
+    hit_want, end_want = m.cast_rays((0, 0, 0), points, max_range_m=1.0)
     hit, end = np.empty(n, np.uint8), np.empty((n, 3), np.float32)
-    m.cast_rays((0, 0, 0), points, max_range=1.0, out=(hit, end))
+    m.cast_rays((0, 0, 0), points, max_range_m=1.0, out=(hit, end))
     np.testing.assert_array_equal(hit, hit_want)
     np.testing.assert_array_equal(end, end_want)
 
@@ -329,3 +336,83 @@ def test_empty_inputs(scanned):
     assert state.shape == (0,) and log_odds.dtype == np.float32 and depth.dtype == np.uint8
     hit, end = m.cast_rays(empty, empty)
     assert hit.shape == (0,) and end.shape == (0, 3)
+
+
+# ---- the shapes perception code has ----
+
+def same_leaves(a, b):
+    """The two maps hold the same leaves (centres and log-odds), in any order."""
+    rows = [np.column_stack([m.leaves()[0], m.leaves()[2]]) for m in (a, b)]
+    rows = [r[np.lexsort(r.T)] for r in rows]
+    return rows[0].shape == rows[1].shape and np.array_equal(rows[0], rows[1])
+
+
+def test_organised_clouds_and_channel_first_depth_are_read_in_place(scanned):
+    m, points = scanned
+    cloud = points[:480].reshape(20, 24, 3)  # (H, W, 3), C-contiguous: H * W points
+    want = m.search(points[:480])
+    got = m.search(cloud)
+    assert octovk._last_input_address() == cloud.ctypes.data
+    for g, w in zip(got, want):  # one result per point, in the cloud's shape
+        assert g.shape == cloud.shape[:2] + w.shape[1:]
+        np.testing.assert_array_equal(g.reshape(w.shape), w)
+    hit, end = m.cast_rays((0, 0, 0), cloud)
+    assert hit.shape == (20, 24) and end.shape == (20, 24, 3)
+    np.testing.assert_array_equal(end.reshape(-1, 3), m.cast_rays((0, 0, 0), points[:480])[1])
+    np.testing.assert_array_equal(m.cast_rays(cloud * 0, cloud)[1], end)  # origins per ray
+    with pytest.raises(ValueError, match=r"origins: expected one origin per direction"):
+        m.cast_rays(points[:480], cloud)
+    a, b = octovk.Map(0.1), octovk.Map(0.1)
+    a.insert_point_cloud(cloud, (0, 0, 0))
+    b.insert_point_cloud(points[:480], (0, 0, 0))
+    assert a.node_count() == b.node_count() and same_leaves(a, b)
+    # A depth image with its one channel first, as torch's (C, H, W): read in place.
+    depth = np.full((1, 12, 16), 3000, np.uint16)
+    stats = m.insert_depth_image(depth, 10.0, 10.0, 7.5, 5.5, 5000.0)
+    assert octovk._last_input_address() == depth.ctypes.data and stats.points == 12 * 16
+    metres = torch.full((1, 12, 16), 0.6)
+    m.submit_depth_image(metres, 10.0, 10.0, 7.5, 5.5, 1.0)
+    assert octovk._last_input_address() == metres.data_ptr()
+    m.flush()
+
+
+def test_points_with_intensity_are_read_as_xyz_with_copy(scanned):
+    m, points = scanned
+    p4 = np.hstack([points, np.arange(len(points), dtype=np.float32)[:, None]])  # x y z i
+    for given in (p4, torch.from_numpy(p4)):
+        with pytest.raises(ValueError, match=r"points: \(N, 4\) points are read as x, y, z, their "
+                                             r"first three columns.*or pass copy=True"):
+            m.search(given)
+    with pytest.raises(ValueError, match=r"points\[:, :3\]\.contiguous\(\)"):
+        m.insert_point_cloud(torch.from_numpy(p4), (0, 0, 0))
+    want = m.search(points)
+    for given in (p4, torch.from_numpy(p4)):
+        for g, w in zip(m.search(given, copy=True), want):
+            np.testing.assert_array_equal(np.asarray(g), w)
+    a, b = octovk.Map(0.1), octovk.Map(0.1)
+    a.insert_point_cloud(p4, (0, 0, 0), copy=True)
+    b.insert_point_cloud(points, (0, 0, 0))
+    assert a.node_count() == b.node_count() and same_leaves(a, b)
+    one = p4[:1]  # a single row is packed xyz: read in place
+    m.search(one)
+    assert octovk._last_input_address() == one.ctypes.data
+
+
+def test_queries_return_tensors_for_tensors(scanned):
+    m, points = scanned
+    t = torch.from_numpy(points)
+    state, log_odds, depth = m.search(t)
+    assert all(isinstance(r, torch.Tensor) for r in (state, log_odds, depth))
+    assert (state.dtype, log_odds.dtype, tuple(log_odds.shape)) == (torch.uint8, torch.float32,
+                                                                    (len(points),))
+    for got, want in zip((state, log_odds, depth), m.search(points)):
+        assert isinstance(want, np.ndarray)
+        np.testing.assert_array_equal(got.numpy(), want)
+    hit, end = m.cast_rays((0, 0, 0), t, max_range_m=1.0)
+    assert isinstance(hit, torch.Tensor) and tuple(end.shape) == (len(points), 3)
+    np.testing.assert_array_equal(end.numpy(), m.cast_rays((0, 0, 0), points, max_range_m=1.0)[1])
+    assert (state == octovk.CellState.OCCUPIED).any()
+    # out= arrays come back as they were given.
+    outs = (np.empty(len(points), np.uint8), np.empty(len(points), np.float32),
+            np.empty(len(points), np.uint8))
+    assert all(g is o for g, o in zip(m.search(t, out=outs), outs))

@@ -69,7 +69,7 @@ def test_fr079_graph_bt_equals_graph2tree(context, tmp_path, fr079_graph, max_ra
     ref = str(tmp_path / "graph2tree.bt")
     graph2tree(fr079_graph, ref, 0.05, max_range)
     m = integrate_graph(fr079_graph, 0.05, True,
-                        **({} if max_range is None else {"max_range": max_range}))
+                        **({} if max_range is None else {"max_range_m": max_range}))
     assert m.take_scan_stats()[-1].ticket == 60
     m.write(tmp_path / "octovk.bt")
     assert read_bytes(tmp_path / "octovk.bt") == read_bytes(ref)
@@ -160,7 +160,7 @@ def test_cast_rays_equal_octomap(context, room, tmp_path, max_range, ignore_unkn
     run([tool("OCTOVK_PY_ORACLE"), "castray", ot, str(tmp_path / "rays.f32"),
          str(tmp_path / "out")])
     want = np.fromfile(tmp_path / "out", RAY_RECORD)
-    hit, end = m.cast_rays(origins, directions, max_range=max_range,
+    hit, end = m.cast_rays(origins, directions, max_range_m=max_range,
                            ignore_unknown=ignore_unknown)
     assert m.cast_ray_info().backend == backend
     np.testing.assert_array_equal(hit, want["hit"])

@@ -51,7 +51,7 @@ std::string capAdvice(std::size_t cap) {
 }
 
 // The first and last key of the map's leaves along each axis, or false for a map with none.
-bool leafKeyBounds(const OccupancyMap& map, std::array<std::uint32_t, 3>& lo,
+bool leafKeyBounds(OccupancyMap& map, std::array<std::uint32_t, 3>& lo,
                    std::array<std::uint32_t, 3>& hi) {
   const std::vector<OccupancyMap::LeafBoxHost> leaves = map.downloadLeafBoxes();
   if (leaves.empty()) return false;

@@ -58,12 +58,12 @@ void applyParams(octomap::OcTree& tree, const MapParams& p) {
   tree.setOccupancyThres(p.occupancy_threshold);
 }
 
-std::unique_ptr<octomap::OcTree> buildOcTree(const OccupancyMap& map);
+std::unique_ptr<octomap::OcTree> buildOcTree(OccupancyMap& map);
 HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree);
 
 }  // namespace
 
-std::unique_ptr<octomap::OcTree> toOcTree(const OccupancyMap& map) {
+std::unique_ptr<octomap::OcTree> toOcTree(OccupancyMap& map) {
   return hostMemoryGuard("toOcTree", [&] { return buildOcTree(map); });
 }
 
@@ -73,7 +73,7 @@ void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
 
 namespace {
 
-std::unique_ptr<octomap::OcTree> buildOcTree(const OccupancyMap& map) {
+std::unique_ptr<octomap::OcTree> buildOcTree(OccupancyMap& map) {
   const HostTree host = map.download();
   auto tree = std::make_unique<TreeBuilder>(map.params().resolution);
   applyParams(*tree, map.params());
@@ -147,7 +147,7 @@ class TemporaryFile {
   bool kept_ = false;
 };
 
-void writeTreeFile(const OccupancyMap& map, const std::string& path) {
+void writeTreeFile(OccupancyMap& map, const std::string& path) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument,
@@ -214,7 +214,7 @@ OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t
 
 }  // namespace
 
-void writeMapFile(const OccupancyMap& map, const std::string& path) {
+void writeMapFile(OccupancyMap& map, const std::string& path) {
   hostMemoryGuard("writeMapFile", [&] { writeTreeFile(map, path); });
 }
 
@@ -225,7 +225,7 @@ OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t 
 
 namespace {
 
-MapMessage messageOf(const OccupancyMap& map, bool binary) {
+MapMessage messageOf(OccupancyMap& map, bool binary) {
   return hostMemoryGuard(binary ? "binaryMapToMessage" : "fullMapToMessage", [&] {
     const std::unique_ptr<octomap::OcTree> tree = buildOcTree(map);
     std::ostringstream out(std::ios_base::binary);
@@ -255,9 +255,9 @@ std::unique_ptr<octomap::OcTree> treeOf(const MapMessage& message, const std::st
 
 }  // namespace
 
-MapMessage binaryMapToMessage(const OccupancyMap& map) { return messageOf(map, true); }
+MapMessage binaryMapToMessage(OccupancyMap& map) { return messageOf(map, true); }
 
-MapMessage fullMapToMessage(const OccupancyMap& map) { return messageOf(map, false); }
+MapMessage fullMapToMessage(OccupancyMap& map) { return messageOf(map, false); }
 
 OccupancyMap messageToMap(Context& context, const MapMessage& message,
                           std::size_t max_device_bytes, const std::string& name) {

@@ -433,7 +433,7 @@ DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
   out.width = width;
   out.height = height;
   out.encoding = DepthImage::Encoding::kUint16;
-  out.pixels = depths.data();
+  out.depths = std::span<const std::uint16_t>(depths);
   out.fx = camera.fx;
   out.fy = camera.fy;
   out.cx = camera.cx;

@@ -1,6 +1,7 @@
 // Vulkan interop (include/octovk/vulkan_interop.hpp): the one file that hands Vulkan handles
 // out and takes the caller's buffers in.
 #include "map/context_access.hpp"
+#include "map/depth_image.hpp"
 #include "map/map_impl.hpp"
 #include "octovk/vulkan_interop.hpp"
 
@@ -60,9 +61,8 @@ ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const 
                                    const Pose& T_world_camera, const ScanOptions& options,
                                    const Eigen::Vector3f& origin_camera, WaitSemaphore wait,
                                    SignalSemaphore signal) {
-  DepthImage meta = image;
-  if (meta.pixels == nullptr) meta.pixels = &meta;  // validate() asks for pixels; never read
-  if (std::string why = meta.validate(); !why.empty())
+  const DepthImage& meta = image;  // its host depths are not looked at
+  if (std::string why = depthImageProblem(meta, /*host_depths=*/false); !why.empty())
     throw Error(ErrorCode::kInvalidArgument, "insertDepthImageOnDevice: " + why);
   const std::size_t bytes = std::size_t{image.width} * image.height *
                             (image.encoding == DepthImage::Encoding::kUint16 ? 2 : 4);

@@ -206,17 +206,17 @@ OccupancyMap::SyncCounts OccupancyMap::syncCounts() const noexcept {
   return impl_ ? impl_->syncCounts() : SyncCounts{};
 }
 
-std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points) const {
+std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points) {
   return hostMemoryGuard("search", [&] { return self().runQueries({points, {}}).lookups; });
 }
 
-std::vector<RayHit> OccupancyMap::castRays(std::span<const Ray> rays) const {
+std::vector<RayHit> OccupancyMap::castRays(std::span<const Ray> rays) {
   return hostMemoryGuard("castRays", [&] { return self().runQueries({{}, rays}).rays; });
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::leavesInBox(const Eigen::Vector3f& min,
                                                                  const Eigen::Vector3f& max,
-                                                                 bool occupied_only) const {
+                                                                 bool occupied_only) {
   return hostMemoryGuard("leavesInBox",
                          [&] { return self().leavesInBox(min, max, occupied_only); });
 }
@@ -231,11 +231,11 @@ void OccupancyMap::resetChangeDetection() {
   hostMemoryGuard("resetChangeDetection", [&] { self().resetChangeDetection(); });
 }
 
-std::size_t OccupancyMap::numChangesDetected() const {
+std::size_t OccupancyMap::numChangesDetected() {
   return hostMemoryGuard("numChangesDetected", [&] { return self().numChangesDetected(); });
 }
 
-std::vector<ChangedKey> OccupancyMap::changedKeys() const {
+std::vector<ChangedKey> OccupancyMap::changedKeys() {
   return hostMemoryGuard("changedKeys", [&] { return self().changedKeys(); });
 }
 
@@ -251,14 +251,14 @@ void OccupancyMap::compact() {
   hostMemoryGuard("compact", [&] { self().compact(); });
 }
 
-std::size_t OccupancyMap::nodeCount() const {
+std::size_t OccupancyMap::nodeCount() {
   return hostMemoryGuard("nodeCount", [&] {
     const gpu::PoolState pool = self().readPool();
     return pool.root_exists ? pool.live_nodes : 0;
   });
 }
 
-std::size_t OccupancyMap::leafCount() const {
+std::size_t OccupancyMap::leafCount() {
   return hostMemoryGuard("leafCount", [&] {
     self().refreshLeafBoxes();
     return self().readPool().leaf_count;
@@ -294,7 +294,7 @@ void OccupancyMap::trim() {
   return hostMemoryGuard("trim", [&] { self().trim(); });
 }
 
-HostTree OccupancyMap::download() const {
+HostTree OccupancyMap::download() {
   return hostMemoryGuard("download", [&] { return self().download(); });
 }
 
@@ -302,7 +302,7 @@ void OccupancyMap::upload(const HostTree& tree) {
   return hostMemoryGuard("upload", [&] { self().upload(tree); });
 }
 
-std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::downloadLeafBoxes() const {
+std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::downloadLeafBoxes() {
   return hostMemoryGuard("downloadLeafBoxes", [&] { return self().downloadLeafBoxes(); });
 }
 

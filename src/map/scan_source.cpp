@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <type_traits>
+#include <variant>
 
 #include "gpu/gpu_types.h"
 
@@ -75,7 +77,12 @@ passes::RayKeysInput stage(const ScanSource& source, vk::Buffer& upload) {
     in.bytes = pixel_bytes;  // the caller's range may end there; the last half word is unused
   } else {
     auto* bytes = static_cast<unsigned char*>(upload.mapped());
-    std::memcpy(bytes, image.pixels, pixel_bytes);
+    std::visit(
+        [&](const auto& d) {  // validate() made the depths the encoding's, width * height
+          if constexpr (!std::is_same_v<std::decay_t<decltype(d)>, std::monostate>)
+            std::memcpy(bytes, d.data(), pixel_bytes);
+        },
+        image.depths);
     std::memset(bytes + pixel_bytes, 0, in.bytes - pixel_bytes);
   }
   return in;
@@ -95,12 +102,12 @@ double worstSteps(const ScanSource& source, const Eigen::Vector3f& origin_world,
     double z_max = 0.0;
     const std::size_t n = std::size_t{im.width} * im.height;
     if (im.encoding == DepthImage::Encoding::kUint16) {
-      const auto* d = static_cast<const std::uint16_t*>(im.pixels);
+      const std::uint16_t* d = std::get<std::span<const std::uint16_t>>(im.depths).data();
       std::uint16_t m = 0;
       for (std::size_t i = 0; i < n; ++i) m = std::max(m, d[i]);
       z_max = m / static_cast<double>(im.depth_scale);
     } else {
-      const auto* d = static_cast<const float*>(im.pixels);
+      const float* d = std::get<std::span<const float>>(im.depths).data();
       float m = 0.0f;
       for (std::size_t i = 0; i < n; ++i)
         if (std::isfinite(d[i])) m = std::max(m, std::fabs(d[i]));

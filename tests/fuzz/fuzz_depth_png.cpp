@@ -24,6 +24,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       png.depths.size() * 2 > octovk::io::kDeflateMaxRatio * size)
     std::abort();
   const octovk::DepthImage image = png.image(octovk::CameraIntrinsics{});
-  if (image.pixels != png.depths.data() || image.width != png.width) std::abort();
+  const auto* view = std::get_if<std::span<const std::uint16_t>>(&image.depths);
+  if (!view || view->data() != png.depths.data() || view->size() != png.depths.size() ||
+      image.width != png.width)
+    std::abort();
   return 0;
 }
