@@ -198,17 +198,17 @@ def main():
     for timestamp, image_path, T_world_camera in frames:
         depth = octovk.read_depth_png(image_path)  # uint16 (H, W), handed over in place
         m.submit_depth_image(depth, *args.intrinsics, args.depth_scale, T_world_camera,
-                             max_range=args.max_range)
+                             max_range_m=args.max_range)
     m.flush()
     print(f"map: {m.node_count()} nodes, {m.leaf_count()} leaves, "
-          f"{m.device_bytes().total / 2**20:.1f} MiB on the device")
+          f"{m.device_bytes() / 2**20:.1f} MiB on the device")
 
     # Questions: what lies at each camera position, and what each camera sees straight ahead.
     cameras = np.array([pose.translation for _, _, pose in frames], np.float32)
     state, _, _ = m.search(cameras)
     ahead = np.array([pose.transform((0, 0, 1)) - pose.translation for _, _, pose in frames],
                      np.float32)
-    hit, end = m.cast_rays(cameras, ahead, max_range=10.0)
+    hit, end = m.cast_rays(cameras, ahead, max_range_m=10.0)
     names = {int(s): s.name.lower() for s in (octovk.CellState.UNKNOWN, octovk.CellState.FREE,
                                               octovk.CellState.OCCUPIED)}
     print("camera cells: " + ", ".join(f"{n} {names[k]}" for k, n in

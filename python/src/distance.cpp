@@ -47,8 +47,20 @@ OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Field)
 namespace octovk::python {
 namespace {
 
-// The samples as (distance (N,), obstacle (N, 3), gradient (N, 3), squared_cells (N,)).
-py::tuple sampleArrays(const std::vector<DistanceSample>& samples) {
+// squared_cells as the caller's library has it: uint32, or for torch (which has no uint32 here)
+// an int64 tensor, which holds OUTSIDE_CELLS and NO_OBSTACLE_CELLS as they are.
+py::object squaredColumn(py::handle input, std::vector<std::uint32_t>&& squared,
+                         std::vector<py::ssize_t> lead) {
+  if (!isTorch(input)) return ownedArray(std::move(squared), std::move(lead));
+  std::vector<std::int64_t> wide(squared.begin(), squared.end());
+  return likeInput(input, ownedArray(std::move(wide), std::move(lead)));
+}
+
+// The samples as (distance, obstacle, gradient, squared_cells), one entry per point: `lead` is
+// (N,), or (H, W) for an organised cloud, and obstacle and gradient add an axis of 3. Torch tensors
+// (sharing the arrays' memory) where `input` is one, as Map.search answers.
+py::tuple sampleArrays(py::handle input, const std::vector<DistanceSample>& samples,
+                       std::vector<py::ssize_t> lead) {
   const std::size_t n = samples.size();
   std::vector<float> distance(n), obstacle(3 * n), gradient(3 * n);
   std::vector<std::uint32_t> squared(n);
@@ -61,10 +73,12 @@ py::tuple sampleArrays(const std::vector<DistanceSample>& samples) {
     }
     squared[i] = s.squared_cells;
   }
-  const auto rows = static_cast<py::ssize_t>(n);
-  return py::make_tuple(
-      ownedArray(std::move(distance), {rows}), ownedArray(std::move(obstacle), {rows, 3}),
-      ownedArray(std::move(gradient), {rows, 3}), ownedArray(std::move(squared), {rows}));
+  std::vector<py::ssize_t> lead3 = lead;
+  lead3.push_back(3);
+  return py::make_tuple(likeInput(input, ownedArray(std::move(distance), lead)),
+                        likeInput(input, ownedArray(std::move(obstacle), lead3)),
+                        likeInput(input, ownedArray(std::move(gradient), lead3)),
+                        squaredColumn(input, std::move(squared), lead));
 }
 
 constexpr const char* kFieldDoc =
@@ -72,7 +86,7 @@ constexpr const char* kFieldDoc =
     "(octovk::DistanceField), with dynamicEDT3D's DynamicEDTOctomap meaning: for every cell "
     "of the box at the finest resolution, the distance from its centre to the centre of the "
     "nearest occupied cell inside the box (pruned leaves count as each of their cells), "
-    "capped at max_distance; the exact squared distance in cells, not capped.\n\n"
+    "capped at max_distance_m; the exact squared distance in cells, not capped.\n\n"
     "The field reads the map when it is made and at update(); between them it answers for "
     "the map as it was. It keeps its Map alive and runs under the Map's lock; its device "
     "bytes count under the Map's max_device_bytes (DeviceBytes.distance_fields).\n\n"
@@ -108,9 +122,9 @@ class DistanceFunction(torch.autograd.Function):
         if points.shape[-1:] != (3,):
             raise ValueError("points must have shape (..., 3), got " + str(tuple(points.shape)))
         flat = points.detach().reshape(-1, 3).to(device="cpu", dtype=torch.float32).contiguous()
-        distance, _, gradient, _ = field.distances(flat)
-        distance = torch.from_numpy(distance).to(device=points.device, dtype=points.dtype)
-        gradient = torch.from_numpy(gradient).to(device=points.device, dtype=points.dtype)
+        distance, _, gradient, _ = field.distances(flat)  # tensors, as flat is one
+        distance = distance.to(device=points.device, dtype=points.dtype)
+        gradient = gradient.to(device=points.device, dtype=points.dtype)
         ctx.save_for_backward(gradient.reshape(points.shape))
         return distance.reshape(points.shape[:-1])
 
@@ -134,6 +148,15 @@ py::object autogradFunction() {
   return *function;
 }
 
+// The cap: max_distance_m, or the deprecated `max_distance` where given.
+float maxDistanceOf(float max_distance_m, py::handle max_distance) {
+  if (max_distance.is_none()) return max_distance_m;
+  warnDeprecated(
+      "max_distance is deprecated: name it max_distance_m (metres, as C++'s "
+      "DistanceFieldOptions::max_distance_m); the old name goes in the next release");
+  return max_distance.cast<float>();
+}
+
 }  // namespace
 
 void bindDistance(py::module_& m) {
@@ -141,8 +164,8 @@ void bindDistance(py::module_& m) {
   field.attr("OUTSIDE") = DistanceSample::kOutside;
   field.attr("OUTSIDE_CELLS") = DistanceSample::kOutsideCells;
   field.attr("NO_OBSTACLE_CELLS") = DistanceSample::kNoObstacleCells;
-  field.def(py::init([](py::object map_object, py::handle min, py::handle max, float max_distance,
-                        bool treat_unknown_as_occupied) {
+  field.def(py::init([](py::object map_object, py::handle min, py::handle max, float max_distance_m,
+                        bool treat_unknown_as_occupied, py::handle max_distance) {
               Map& map = map_object.cast<Map&>();
               if (min.is_none() != max.is_none())
                 throw Error(ErrorCode::kInvalidArgument,
@@ -150,7 +173,7 @@ void bindDistance(py::module_& m) {
                                 " is given without " + (min.is_none() ? "min" : "max") +
                                 "; give both corners of the box, or neither for the map's bounds");
               const DistanceFieldOptions options{
-                  .max_distance_m = max_distance,
+                  .max_distance_m = maxDistanceOf(max_distance_m, max_distance),
                   .treat_unknown_as_occupied = treat_unknown_as_occupied};
               std::optional<DistanceField> made;
               if (min.is_none()) {
@@ -163,19 +186,21 @@ void bindDistance(py::module_& m) {
               return std::make_unique<Field>(std::move(map_object), map, std::move(*made));
             }),
             py::arg("map"), py::arg("min") = py::none(), py::arg("max") = py::none(), py::kw_only(),
-            py::arg("max_distance") = 2.0f, py::arg("treat_unknown_as_occupied") = true,
+            py::arg("max_distance_m") = 2.0f, py::arg("treat_unknown_as_occupied") = true,
+            py::arg("max_distance") = py::none(),
             "Builds the field over the box of `map` from the cell holding `min` to the cell "
             "holding `max` (3 numbers each, metres; OctoMap's coordToKey), on the device, after "
             "every scan submitted to the map; without min and max, over the map's bounds (every "
-            "cell of its leaves) and one cell around them. max_distance: metres (> 0) at which "
-            "distances are capped. treat_unknown_as_occupied (DynamicEDTOctomap's "
-            "treatUnknownAsOccupied): True (the default) counts the cells the map does not know as "
-            "obstacles, so no distance promises clearance through space no sensor saw (unseen "
-            "space reads 0); False counts only occupied cells, and unknown space reads as free. "
-            "Raises InvalidArgumentError for an inverted box, a NaN corner, a corner outside the "
-            "map's key range, one corner without the other, an empty map without a box or "
-            "max_distance <= 0; OutOfDeviceMemoryError (naming the box, the bytes and what to "
-            "change) when the map's max_device_bytes or the device leaves no room.");
+            "cell of its leaves) and one cell around them. max_distance_m: metres (> 0) at which "
+            "distances are capped (max_distance: its deprecated name). treat_unknown_as_occupied "
+            "(DynamicEDTOctomap's treatUnknownAsOccupied): True (the default) counts the cells "
+            "the map does not know as obstacles, so no distance promises clearance through space "
+            "no sensor saw (unseen space reads 0); False counts only occupied cells, and unknown "
+            "space reads as free. Raises InvalidArgumentError for an inverted box, a NaN corner, "
+            "a corner outside the map's key range, one corner without the other, an empty map "
+            "without a box or max_distance_m <= 0; OutOfDeviceMemoryError (naming the box, the "
+            "bytes and what to change) when the map's max_device_bytes or the device leaves no "
+            "room.");
   field.def(
       "update", [](Field& self) { self.run([](DistanceField& f) { f.update(); }); },
       "Brings the field up to the map as it is now (every scan submitted before included), "
@@ -184,15 +209,19 @@ void bindDistance(py::module_& m) {
   field.def(
       "distances",
       [](Field& self, py::handle points, bool copy) {
-        const ArrayView pts(points, "points", {DType::kFloat32}, {-1, 3}, false,
+        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
                             copyArgument(copy));
         noteInput(pts.data());
-        return sampleArrays(self.run([&](DistanceField& f) { return f.distances(pts.points()); }));
+        return sampleArrays(points,
+                            self.run([&](DistanceField& f) { return f.distances(pts.points()); }),
+                            pts.leading());
       },
       py::arg("points"), py::kw_only(), py::arg("copy") = false,
-      "The field at each of points (float32 (N, 3)): the answer of the cell holding the point, "
-      "on the device. copy: as in Map.insert_point_cloud. Returns (distance, obstacle, gradient, "
-      "squared_cells) (see the class).");
+      "The field at each of points (float32 (N, 3), (H, W, 3) or (N, 4) with x, y, z first, as "
+      "Map.search reads them): the answer of the cell holding the point, on the device. copy: as "
+      "in Map.insert_point_cloud. Returns (distance, obstacle, gradient, squared_cells) (see the "
+      "class), one entry per point ((N,), or (H, W) for an organised cloud); torch tensors "
+      "(sharing the arrays' memory; squared_cells int64) when points is one.");
   field.def(
       "clearances",
       [](Field& self, py::handle spheres, bool copy) {
@@ -201,14 +230,15 @@ void bindDistance(py::module_& m) {
         noteInput(s.data());
         const std::span<const Eigen::Vector4f> view(static_cast<const Eigen::Vector4f*>(s.data()),
                                                     s.extent(0));
-        return sampleArrays(self.run([&](DistanceField& f) { return f.clearances(view); }));
+        return sampleArrays(spheres, self.run([&](DistanceField& f) { return f.clearances(view); }),
+                            {static_cast<py::ssize_t>(s.extent(0))});
       },
       py::arg("spheres"), py::kw_only(), py::arg("copy") = false,
       "spheres (float32 (N, 4): centre x, y, z and radius, metres): the clearance, the "
       "distance at the centre's cell minus the radius (negative where the sphere reaches an "
       "obstacle), with the nearest obstacle and gradient. copy: as in Map.insert_point_cloud. "
-      "Returns (distance, obstacle, "
-      "gradient, squared_cells).");
+      "Returns (distance, obstacle, gradient, squared_cells); torch tensors (sharing the "
+      "arrays' memory; squared_cells int64) when spheres is one.");
   field.def(
       "download",
       [](Field& self) {
@@ -236,11 +266,20 @@ void bindDistance(py::module_& m) {
       },
       "The OctoMap key of the box's first cell (x, y, z).");
   field.def_property_readonly(
-      "max_distance",
+      "max_distance_m",
       [](Field& self) {
         return self.run([](DistanceField& f) { return f.options().max_distance_m; });
       },
       "Metres at which distances are capped.");
+  field.def_property_readonly(
+      "max_distance",
+      [](Field& self) {
+        warnDeprecated(
+            "DistanceField.max_distance is deprecated: name it max_distance_m; the old name goes "
+            "in the next release");
+        return self.run([](DistanceField& f) { return f.options().max_distance_m; });
+      },
+      "The deprecated name of max_distance_m (a DeprecationWarning).");
   field.def_property_readonly(
       "treat_unknown_as_occupied",
       [](Field& self) {

@@ -1,7 +1,9 @@
 """Shared fixtures of the Python tests (run by ctest: python/CMakeLists.txt sets PYTHONPATH and
 the tool paths). As tests/test_support.hpp does for the C++ tests: with CI set a missing Vulkan
 device fails the tests instead of skipping them, and any validation-layer message fails the test
-in which it arose (OCTOVK_VALIDATION=1)."""
+in which it arose (OCTOVK_VALIDATION=1). An old spelling's DeprecationWarning from octovk is an
+error: the tests use the current names, and those that check a deprecation catch it with
+pytest.warns."""
 
 import os
 import subprocess
@@ -10,6 +12,14 @@ import numpy as np
 import pytest
 
 import octovk
+
+
+# Every deprecation message of the module ends its sentence with when the old name goes.
+OCTOVK_DEPRECATION = ".*goes in the next release"
+
+
+def pytest_configure(config):
+    config.addinivalue_line("filterwarnings", f"error:{OCTOVK_DEPRECATION}:DeprecationWarning")
 
 
 def running_in_ci():
@@ -59,8 +69,8 @@ def octomap_data(name):
                                        "/usr/share/doc/liboctomap-dev/examples/data"), name)
 
 
-def run(args, cwd=None):
-    done = subprocess.run(args, cwd=cwd, capture_output=True, text=True)
+def run(args, cwd=None, env=None):
+    done = subprocess.run(args, cwd=cwd, env=env, capture_output=True, text=True)
     assert done.returncode == 0, f"{args}: {done.stdout}{done.stderr}"
     return done.stdout
 

@@ -26,13 +26,13 @@ def make_map(scans=3):
 
 
 def key_of(coords):
-    """OctoMap's coordToKey of float coordinates (the library takes floats), in double."""
-    c = np.asarray(coords, np.float32).astype(np.float64)
-    return np.floor(c * (1.0 / RES)).astype(np.int64) + 32768
+    """The finest key of each point's cell (octovk.coord_to_key, as the map reads points), as int64
+    so that keys subtract."""
+    return octovk.coord_to_key(RES, np.asarray(coords, np.float32)).astype(np.int64)
 
 
 def centre_of(keys):
-    return ((np.asarray(keys, np.float64) - 32768 + 0.5) * RES).astype(np.float32)
+    return octovk.key_to_coord(RES, np.asarray(keys))
 
 
 class Brute:
@@ -55,7 +55,8 @@ class Brute:
 
     def index(self, points):
         """The box index of each point's cell, or -1 outside."""
-        c = key_of(points) - self.min_key
+        # Clipped into the key range: far points (1e9) stay outside the box.
+        c = key_of(np.clip(points, -100.0, 100.0)) - self.min_key
         inside = np.all((c >= 0) & (c < self.size), axis=1)
         flat = c[:, 0] + self.size[0] * (c[:, 1] + self.size[1] * c[:, 2])
         return np.where(inside, flat, -1)
@@ -64,7 +65,7 @@ class Brute:
 @pytest.mark.parametrize("unknown_occupied", [False, True])
 def test_every_cell_equals_brute_force(context, unknown_occupied):
     m = make_map()
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.7,
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=0.7,
                                  treat_unknown_as_occupied=unknown_occupied)
     brute = Brute(m, unknown_occupied)
     assert field.size == tuple(int(s) for s in brute.size)
@@ -78,13 +79,13 @@ def test_every_cell_equals_brute_force(context, unknown_occupied):
     d2 = ((brute.cells - brute.cells[near]) ** 2).sum(axis=1)
     np.testing.assert_array_equal(d2, brute.squared)
     assert field.treat_unknown_as_occupied == unknown_occupied
-    assert field.max_distance == pytest.approx(0.7)
+    assert field.max_distance_m == pytest.approx(0.7)
 
 
 def test_queries_equal_brute_force(context):
     m = make_map()
     max_d = 0.5
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=max_d,
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=max_d,
                                  treat_unknown_as_occupied=False)
     brute = Brute(m, False)
     _, nearest = field.download()
@@ -139,14 +140,14 @@ def test_queries_equal_brute_force(context):
 
 def test_update_after_scans_equals_a_field_from_scratch(context):
     m = make_map(scans=1)
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.8,
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=0.8,
                                  treat_unknown_as_occupied=False)
     before, _ = field.download()
     for points, origin in room_scans(seed=9, scans=2, points=400):
         m.submit_point_cloud(points, origin)
     field.update()  # sees the submitted scans
     after, _ = field.download()
-    scratch, _ = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.8,
+    scratch, _ = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=0.8,
                                       treat_unknown_as_occupied=False).download()
     np.testing.assert_array_equal(after, scratch)
     assert not np.array_equal(before, after)
@@ -156,18 +157,18 @@ def test_update_after_scans_equals_a_field_from_scratch(context):
 
 def test_bad_input_and_memory(context):
     m = octovk.Map(RES)
-    base = m.device_bytes().total
+    base = m.device_bytes()
     with pytest.raises(octovk.InvalidArgumentError, match="inverted"):
         octovk.DistanceField(m, (1, 0, 0), (0, 1, 1))
     with pytest.raises(octovk.InvalidArgumentError, match="NaN"):
         octovk.DistanceField(m, (0, 0, 0), (1, 1, float("nan")))
     with pytest.raises(octovk.InvalidArgumentError, match="max_distance_m"):
-        octovk.DistanceField(m, (0, 0, 0), (1, 1, 1), max_distance=0.0)
+        octovk.DistanceField(m, (0, 0, 0), (1, 1, 1), max_distance_m=0.0)
     with pytest.raises(ValueError, match="min"):
         octovk.DistanceField(m, (0, 0), (1, 1, 1))
-    assert m.device_bytes().total == base
+    assert m.device_bytes() == base
     field = octovk.DistanceField(m, (0, 0, 0), (1, 1, 1))
-    assert m.device_bytes().distance_fields == field.device_bytes() > 0
+    assert m.device_bytes_by_use().distance_fields == field.device_bytes() > 0
     with pytest.raises(TypeError, match="points"):
         field.distances(np.zeros((3, 3), np.float64))
     with pytest.raises(ValueError, match="spheres"):
@@ -187,7 +188,50 @@ def test_bad_input_and_memory(context):
         octovk.DistanceField(m, (0, 0, 0))
     del field, free
     gc.collect()
-    assert m.device_bytes().total == base
+    assert m.device_bytes() == base
+
+
+def test_max_distance_m_and_its_old_name(context):
+    """max_distance_m, C++'s DistanceFieldOptions::max_distance_m; max_distance still works for
+    one release, with a DeprecationWarning (the keyword and the property)."""
+    m = make_map(scans=1)
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=0.4)
+    assert field.max_distance_m == pytest.approx(0.4)
+    with pytest.warns(DeprecationWarning, match="max_distance is deprecated: name it "):
+        old = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.4)
+    with pytest.warns(DeprecationWarning, match="max_distance_m"):
+        assert old.max_distance == pytest.approx(0.4)
+    np.testing.assert_array_equal(old.download()[0], field.download()[0])
+
+
+def test_points_as_map_search_takes_them_and_torch_in_torch_out(context):
+    """distances reads (N, 3), (H, W, 3) and (N, 4) with x, y, z first (copy=True), as Map.search;
+    distances and clearances answer torch tensors for torch inputs."""
+    import torch
+    m = make_map(scans=1)
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, treat_unknown_as_occupied=False)
+    rng = np.random.default_rng(3)
+    points = rng.uniform(BOX_MIN, BOX_MAX, (12, 3)).astype(np.float32)
+    want = field.distances(points)
+    organised = field.distances(points.reshape(3, 4, 3))
+    for got, w, shape in zip(organised, want, ((3, 4), (3, 4, 3), (3, 4, 3), (3, 4))):
+        assert got.shape == shape
+        np.testing.assert_array_equal(got.reshape(w.shape), w)
+    p4 = np.hstack([points, np.ones((len(points), 1), np.float32)])  # x, y, z, intensity
+    with pytest.raises(ValueError, match="copy"):
+        field.distances(p4)
+    for got, w in zip(field.distances(p4, copy=True), want):
+        np.testing.assert_array_equal(got, w)
+    t = field.distances(torch.from_numpy(points))
+    assert all(isinstance(x, torch.Tensor) for x in t)
+    assert t[3].dtype == torch.int64  # squared_cells: this torch has no uint32
+    for got, w in zip(t, want):
+        np.testing.assert_array_equal(got.numpy(), w)
+    spheres = np.hstack([points, np.full((len(points), 1), 0.05, np.float32)])
+    c = field.clearances(torch.from_numpy(spheres))
+    assert all(isinstance(x, torch.Tensor) for x in c)
+    for got, w in zip(c, field.clearances(spheres)):
+        np.testing.assert_array_equal(got.numpy(), w)
 
 
 def test_the_field_keeps_its_map_alive(context):
@@ -208,7 +252,7 @@ def test_the_field_keeps_its_map_alive(context):
 def test_unknown_space_is_an_obstacle_by_default(context):
     """Issue 30.5: space the map never saw is no clearance unless the caller says so."""
     m = make_map()
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.7)
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=0.7)
     assert field.treat_unknown_as_occupied
     squared, _ = field.download()
     np.testing.assert_array_equal(squared.ravel(), Brute(m, True).squared)
@@ -218,14 +262,14 @@ def test_unknown_space_is_an_obstacle_by_default(context):
     unseen = centres[state == int(octovk.CellState.UNKNOWN)]
     assert len(unseen) > 100, "the test map should leave unknown cells in the box"
     assert (field.distances(unseen)[0] == 0.0).all()
-    optimistic = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=0.7,
+    optimistic = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=0.7,
                                       treat_unknown_as_occupied=False)
     assert (optimistic.distances(unseen)[0] > 0.0).any()
 
 
 def test_the_default_box_is_the_maps_bounds_and_one_cell_around(context):
     m = make_map(scans=1)
-    field = octovk.DistanceField(m, max_distance=0.5)
+    field = octovk.DistanceField(m, max_distance_m=0.5)
     centres, sizes, _ = m.leaves()
     half = (sizes[:, None].astype(np.float64) - RES) / 2
     lo = np.floor((centres - half) / RES).astype(np.int64).min(axis=0) + 32768 - 1
@@ -247,7 +291,7 @@ def no_internals(message):
 def test_out_of_memory_names_the_box_the_bytes_and_what_to_change(context):
     """Issue 30.4, with a cap and without one."""
     m = make_map(scans=1)
-    capped = octovk.Map(RES, max_device_bytes=m.device_bytes().total + (1 << 20))
+    capped = octovk.Map(RES, max_device_bytes=m.device_bytes() + (1 << 20))
     capped.insert_point_cloud(np.float32([[0.5, 0.2, 0.1]]), (0, 0, 0))
     with pytest.raises(octovk.OutOfDeviceMemoryError) as e:
         octovk.DistanceField(capped, (0, 0, 0), (6, 6, 6))
@@ -270,7 +314,7 @@ def smooth_cells(field, points):
     the same one cell away along each axis: where the distance is a smooth function."""
     distance, obstacle, _, squared = field.distances(points)
     keep = (squared >= 16) & (squared != octovk.DistanceField.NO_OBSTACLE_CELLS) & (
-        distance < field.max_distance - 2 * RES)
+        distance < field.max_distance_m - 2 * RES)
     for a in range(3):
         for sign in (-1, 1):
             moved = points.copy()
@@ -283,7 +327,7 @@ def smooth_cells(field, points):
 def test_torch_distances_are_the_field_and_differentiable(context):
     import torch  # Debian's python3-torch, as test_arrays.py
     m = make_map()
-    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance=1.0,
+    field = octovk.DistanceField(m, BOX_MIN, BOX_MAX, max_distance_m=1.0,
                                  treat_unknown_as_occupied=False)
     rng = np.random.default_rng(4)
     brute = Brute(m, False)
