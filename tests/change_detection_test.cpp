@@ -14,18 +14,8 @@
 #include "changed_keys.hpp"
 #include "test_support.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
-using test::toPose6D;
-
-using test::KeyFlag;
-using test::oracleChanges;
-using test::ourChanges;
 
 ::testing::AssertionResult sameChanges(const octomap::OcTree& oracle, OccupancyMap& map) {
   const std::vector<KeyFlag> expected = oracleChanges(oracle);
@@ -264,9 +254,9 @@ TEST(ChangeDetectionApi, TheSetCountsUnderTheCap) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test
 
-namespace octovk {
+namespace octovk::test {
 namespace {
 
 // A GPU consumer reads the change set in place: changedKeysOnDevice writes the header and the
@@ -311,9 +301,9 @@ TEST(ChangeDetectionApi, ChangedKeysOnDeviceIntoACallersBuffer) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test
 
-namespace octovk {
+namespace octovk::test {
 namespace {
 
 // A GPU consumer that waits on the device: octovk signals the caller's timeline semaphore once
@@ -366,4 +356,4 @@ TEST(ChangeDetectionApi, ConsumerWaitsOnTheSignalledValueOnTheDevice) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test

@@ -19,17 +19,11 @@
 #include "cli_support.hpp"
 #include "test_support.hpp"
 
+namespace octovk::test {
 namespace {
 
 namespace fs = std::filesystem;
 const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
-using octovk::test::expectOneErrorLine;
-using octovk::test::OctovkProcess;
-using octovk::test::quote;
-using octovk::test::runOctovk;
-using octovk::test::RunResult;
-using octovk::test::runShell;
-using octovk::test::Scratch;
 
 // One scan of a graph: points in the sensor frame around the sensor, `count` of them on a sphere
 // of radius `radius` m, and the sensor's position.
@@ -199,10 +193,10 @@ TEST(cliDeviceMemory, RenderCastsInTilesUnderTheCap) {
   EXPECT_NE(big.out.find("image:   512x512 px"), std::string::npos) << big.out;
   // What the larger picture added to the process stays under the cap (lavapipe's device memory
   // is the process's too).
-  if (!octovk::test::kAddressSanitizer)  // ASan's shadow and quarantine are not the program's
-                                         // memory
+  if (!octovk::test::kAddressSanitizer) {  // ASan's shadow and quarantine are not the program's
     EXPECT_LT(big.max_rss_kb - small.max_rss_kb, kCapKb)
         << "peak " << big.max_rss_kb << " KiB against " << small.max_rss_kb << " KiB for 16x16";
+  }
 }
 
 TEST(cliDeviceMemory, RenderRefusesAPictureOverTheCapBeforeAnyWork) {
@@ -245,3 +239,4 @@ TEST(cliDeviceMemory, HelpDocumentsTheOptionAndTheFolderPolicy) {
 }
 
 }  // namespace
+}  // namespace octovk::test

@@ -28,15 +28,12 @@
 #include "cli_support.hpp"
 #include "test_support.hpp"
 
+namespace octovk::test {
 namespace {
 
 namespace fs = std::filesystem;
 using octovk::cli::distanceColor;
 using octovk::cli::Rgb;
-using octovk::test::readFile;
-using octovk::test::runOctovk;
-using octovk::test::RunResult;
-using octovk::test::Scratch;
 
 const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
 
@@ -616,3 +613,4 @@ TEST(cliChanges, BadChangesOutputIsRefusedBeforeAnyWork) {
 }
 
 }  // namespace
+}  // namespace octovk::test

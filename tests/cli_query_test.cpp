@@ -27,14 +27,10 @@
 #include "cli_support.hpp"
 #include "test_support.hpp"
 
+namespace octovk::test {
 namespace {
 
 namespace fs = std::filesystem;
-using octovk::test::quote;
-using octovk::test::readFile;
-using octovk::test::runOctovk;
-using octovk::test::RunResult;
-using octovk::test::Scratch;
 
 const std::string kGeb079 = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/geb079.bt";
 const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
@@ -653,3 +649,4 @@ TEST(cliQueryHelp, TopLevelHelpListsTheCommands) {
 }
 
 }  // namespace
+}  // namespace octovk::test

@@ -27,18 +27,10 @@
 #include "cli_support.hpp"
 #include "test_support.hpp"
 
+namespace octovk::test {
 namespace {
 
 namespace fs = std::filesystem;
-using octovk::test::OctovkProcess;
-using octovk::test::pollUntil;
-using octovk::test::quote;
-using octovk::test::readFile;
-using octovk::test::runOctovk;
-using octovk::test::RunResult;
-using octovk::test::runShell;
-using octovk::test::Scratch;
-using octovk::test::temporariesIn;
 
 const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
 const std::string kFr079Dir = OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR) + "/fr079-2d";
@@ -1118,3 +1110,4 @@ TEST(cliDevices, UnmatchedSelectorIsOneErrorLine) {
 }
 
 }  // namespace
+}  // namespace octovk::test

@@ -16,13 +16,10 @@
 
 #include "cli_support.hpp"
 
+namespace octovk::test {
 namespace {
 
 namespace fs = std::filesystem;
-using octovk::test::expectOneErrorLine;
-using octovk::test::runOctovk;
-using octovk::test::RunResult;
-using octovk::test::Scratch;
 
 // One error line, exit `exit_code`, naming each of `mentions`, and no map left behind.
 void expectOneError(const RunResult& r, int exit_code, const std::vector<std::string>& mentions,
@@ -281,3 +278,4 @@ TEST(cliUser, ASecondOutputIsNamedForEveryOneOutputCommand) {
 }
 
 }  // namespace
+}  // namespace octovk::test

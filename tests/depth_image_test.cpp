@@ -11,15 +11,8 @@
 
 #include "test_support.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
-using test::toPose6D;
-using test::withResolution;
 
 // The formula of the issue, written out here independently of the library: z = d / scale,
 // x = (u - cx) * z / fx, y = (v - cy) * z / fy, in float; no point where d is 0 or not finite
@@ -308,4 +301,4 @@ TEST(DepthImage, ShortBufferAndWrongEncodingAreRefused) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test

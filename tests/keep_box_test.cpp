@@ -19,22 +19,14 @@
 #include "changed_keys.hpp"
 #include "test_support.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
 
 std::unique_ptr<octomap::OcTree> keepOracle(const octomap::OcTree& tree, const Eigen::Vector3f& min,
                                             const Eigen::Vector3f& max) {
   return test::octomapKeepBox(tree, toPoint(min), toPoint(max));
 }
 
-using test::KeyFlag;
-using test::oracleChanges;
-using test::ourChanges;
 
 struct Scene {
   OccupancyMap map;
@@ -348,4 +340,4 @@ TEST(KeepBoxCli, EditWritesTheFilesOctoMapWrites) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test

@@ -13,13 +13,8 @@
 
 #include "test_support.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
 
 void clearOracle(octomap::OcTree& tree, const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
   for (auto it = tree.begin_leafs_bbx(toPoint(min), toPoint(max)), end = tree.end_leafs_bbx();
@@ -132,9 +127,9 @@ TEST(ClearBox, BadBoxesAreRefusedAndTheMapKept) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test
 
-namespace octovk {
+namespace octovk::test {
 namespace {
 
 // `octovk edit --clear-box` writes the file OctoMap writes after clear_bbx on the same map.
@@ -170,4 +165,4 @@ TEST(ClearBoxCli, EditWritesTheFilesOctoMapWrites) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test

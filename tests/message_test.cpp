@@ -13,13 +13,8 @@
 #include "io/parse.hpp"
 #include "test_support.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
 
 std::vector<std::int8_t> bytesOf(const std::string& s) {
   std::vector<std::int8_t> out(s.size());
@@ -200,4 +195,4 @@ TEST(MapMessage, DamagedBodiesAreRefusedAndTheMapKept) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test

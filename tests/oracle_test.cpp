@@ -7,16 +7,8 @@
 
 #include "test_support.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::withResolution;
-
-using test::insertBoth;
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
 
 std::vector<Eigen::Vector3f> randomScan(std::mt19937& rng, const Eigen::Vector3f& origin,
                                         std::size_t n, float radius) {
@@ -649,4 +641,4 @@ INSTANTIATE_TEST_SUITE_P(Models, SensorModels,
                          modelName);
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test

@@ -35,17 +35,10 @@
 #include "png_writer.hpp"
 #include "test_support.hpp"
 
+namespace octovk::test {
 namespace {
 
 namespace fs = std::filesystem;
-using octovk::test::expectOneErrorLine;
-using octovk::test::quote;
-using octovk::test::readFile;
-using octovk::test::runOctovk;
-using octovk::test::RunResult;
-using octovk::test::runShell;
-using octovk::test::Scratch;
-using octovk::test::writePngRows;
 
 bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK) == 0; }
 
@@ -575,8 +568,9 @@ TEST(TumCli, ImageLargerThanTheDeviceTakesIsACheapCleanError) {
   EXPECT_NE(m.result.err.find(seq.image_files[1]), std::string::npos) << m.result.err;
   EXPECT_NE(m.result.err.find("at most " + std::to_string(limit)), std::string::npos)
       << m.result.err;
-  if (!octovk::test::kAddressSanitizer)
+  if (!octovk::test::kAddressSanitizer) {
     EXPECT_LT(m.max_rss_kb, 400 * 1024) << "peak RSS of the run";
+  }
   EXPECT_FALSE(fs::exists(scratch / "map.bt"));
   if (octovk::test::kAddressSanitizer)
     return;  // ulimit -v stops an ASan program at start (test_support.hpp)
@@ -1223,3 +1217,4 @@ TEST(TumHelp, HelpDocumentsFoldersAndOptions) {
 }
 
 }  // namespace
+}  // namespace octovk::test

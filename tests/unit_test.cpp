@@ -16,17 +16,8 @@
 #include "test_support.hpp"
 #include "vk/device.hpp"
 
-namespace octovk {
+namespace octovk::test {
 namespace {
-
-using test::randomScan;
-using test::withResolution;
-
-using test::insertBoth;
-using test::makeOracle;
-using test::sameTree;
-using test::toPoint;
-using test::toPointcloud;
 
 bool sameBits(float a, float b) { return test::floatBits(a) == test::floatBits(b); }
 
@@ -710,9 +701,9 @@ TEST(Queries, SingleCellTreeHasOneLeafBox) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test
 
-namespace octovk {
+namespace octovk::test {
 namespace {
 
 // The public key helpers are OctoMap's coordToKeyChecked and keyToCoord at the finest depth, bit
@@ -747,4 +738,4 @@ TEST(KeyHelpers, AreOctoMapsCoordToKeyCheckedAndKeyToCoord) {
 }
 
 }  // namespace
-}  // namespace octovk
+}  // namespace octovk::test
