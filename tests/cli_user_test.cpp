@@ -59,6 +59,29 @@ TEST(cliUser, VersionPrintsTheProjectVersion) {
   EXPECT_NE(help.out.find("--version"), std::string::npos);
 }
 
+// Issue 30.6: unset, the mapping commands run lavapipe without worker threads; the user's setting
+// wins; `octovk devices` says which holds (on lavapipe only: GPU drivers ignore the variable).
+TEST(cliUser, LavapipeThreadsAreChosenUnlessTheUserSetsThem) {
+  Scratch scratch;
+  const std::string cli = quote(OCTOVK_PATH(OCTOVK_CLI));
+  const RunResult unset = runShell("env -u LP_NUM_THREADS " + cli + " devices", scratch.dir());
+  const RunResult set = runShell("LP_NUM_THREADS=3 " + cli + " devices", scratch.dir());
+  ASSERT_EQ(unset.exit_code, 0) << unset.err;
+  ASSERT_EQ(set.exit_code, 0) << set.err;
+  const std::size_t selected = unset.out.find("selected: ");
+  ASSERT_NE(selected, std::string::npos) << unset.out;
+  if (unset.out.find("llvmpipe", selected) != std::string::npos) {
+    EXPECT_NE(unset.out.find("lavapipe threads: LP_NUM_THREADS=0, octovk's choice"),
+              std::string::npos)
+        << unset.out;
+    EXPECT_NE(set.out.find("lavapipe threads: LP_NUM_THREADS=3, from the environment"),
+              std::string::npos)
+        << set.out;
+  } else {
+    EXPECT_EQ(unset.out.find("lavapipe threads"), std::string::npos) << unset.out;
+  }
+}
+
 // The environment and exit codes are described once, not in every command's help.
 TEST(cliUser, EnvironmentAndExitCodesAreOneHelpTopic) {
   Scratch scratch;

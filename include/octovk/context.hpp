@@ -85,4 +85,21 @@ class Context {
   std::shared_ptr<vk::Device> device_;
 };
 
+/// LP_NUM_THREADS as a process holds it: the worker threads of lavapipe, Mesa's CPU Vulkan driver
+/// (GPU drivers ignore it).
+struct CpuDriverThreads {
+  std::string setting;             ///< its value; empty: unset, lavapipe's default (a thread per core)
+  bool chosen_by_octovk = false;   ///< set by preferCpuDriverThreads, not by the environment
+};
+
+/// Sets LP_NUM_THREADS to `threads` unless the environment already sets it, and says what holds.
+/// The driver reads it once, when the first Context loads it, so call this first (the octovk
+/// program does for its mapping commands, the Python module at import). Why 0: a scan is about 50
+/// small dispatches, and on 2 cores lavapipe's threads made streams of small scans about 2x slower
+/// and collapsed when another process kept the cores busy (docs/benchmarks.md, "The machine").
+/// Not thread-safe (it writes the environment): call it before other threads start.
+CpuDriverThreads preferCpuDriverThreads(unsigned threads);
+/// What holds now, and whether preferCpuDriverThreads chose it.
+CpuDriverThreads cpuDriverThreads();
+
 }  // namespace octovk

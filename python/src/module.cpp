@@ -204,6 +204,16 @@ void bindContext(py::module_& m) {
            [](const Context& c) { return "Context(device='" + c.device().name + "')"; });
 
   m.def("devices", &Context::listDevices, "Every usable Vulkan device (list of DeviceInfo).");
+  m.def(
+      "cpu_driver_threads",
+      [] {
+        const octovk::CpuDriverThreads t = octovk::cpuDriverThreads();
+        return py::make_tuple(t.setting, t.chosen_by_octovk);
+      },
+      "LP_NUM_THREADS as the process holds it (lavapipe's worker threads; GPU drivers ignore it)\n"
+      "and whether octovk chose it: (setting, chosen_by_octovk). Unset at import, octovk sets\n"
+      "it to '0' (a scan is many small passes, which lavapipe's threads slow down); set it\n"
+      "before importing octovk to choose.");
   m.def("default_context", &defaultContext,
         "The Context maps use when none is given, created on first use.");
   m.def("validation_message_count", &validationMessageCount,
@@ -433,6 +443,9 @@ PYBIND11_MODULE(octovk, m) {
       "sharing their memory where a query was given a tensor. Names are the C++ library's in "
       "snake_case, with their units (max_range_m). Errors of the library are octovk.Error "
       "subclasses.";
+  // Before any Context loads the driver: a scan is many small passes, which lavapipe's worker
+  // threads slow down (octovk::preferCpuDriverThreads); the user's LP_NUM_THREADS wins.
+  octovk::preferCpuDriverThreads(0);
   m.attr("__version__") = OCTOVK_VERSION;
   m.attr("_default_context") = py::none();
   bindErrors(m);

@@ -427,3 +427,20 @@ def test_key_helpers_turn_changed_keys_into_coordinates(context):
         octovk.coord_to_key(0.1, np.zeros((2, 2)))
     with pytest.raises(ValueError, match="resolution"):
         octovk.key_to_coord(0.0, keys)
+
+
+def test_lavapipe_threads_are_chosen_unless_the_user_sets_them():
+    # Issue 30.6: unset at import, LP_NUM_THREADS becomes 0 (a scan is many small passes, which
+    # lavapipe's worker threads slow down); the user's setting wins. A fresh interpreter each.
+    import subprocess
+    import sys
+
+    code = "import octovk; print(octovk.cpu_driver_threads())"
+    unset = {k: v for k, v in os.environ.items() if k != "LP_NUM_THREADS"}
+    chosen = subprocess.run([sys.executable, "-c", code], env=unset, capture_output=True, text=True)
+    assert chosen.returncode == 0, chosen.stderr
+    assert chosen.stdout.strip() == "('0', True)"
+    given = subprocess.run([sys.executable, "-c", code], env={**unset, "LP_NUM_THREADS": "3"},
+                           capture_output=True, text=True)
+    assert given.returncode == 0, given.stderr
+    assert given.stdout.strip() == "('3', False)"

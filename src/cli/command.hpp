@@ -105,6 +105,10 @@ struct Subcommand {
   std::vector<std::string> output_extensions;
   const char* output_formats = "";
   bool max_device_memory = false;  ///< takes --max-device-memory (Invocation::maxDeviceBytes)
+  /// Its work is a few large batches (castRay per pixel, a field over a box), where lavapipe's
+  /// worker threads pay; the others are streams of small dispatches, run without them unless
+  /// LP_NUM_THREADS says otherwise (preferCpuDriverThreads).
+  bool large_batches = false;
   /// Its own options that take one value, and those that take several (ArgReader); the names
   /// not listed are flags.
   std::vector<std::string> value_options;

@@ -58,6 +58,20 @@ class Devices final : public Command {
     const OccupancyMap probe(context, MapParams{});
     std::printf("selected: %u: %s; castRay: %s\n", selected.index, selected.name.c_str(),
                 backendName(probe.castRayInfo().backend));
+    // Only lavapipe reads LP_NUM_THREADS; say what this and the other mapping commands ran with.
+    if (selected.type == "CPU") {
+      const CpuDriverThreads threads = cpuDriverThreads();
+      if (threads.chosen_by_octovk)
+        std::printf("lavapipe threads: LP_NUM_THREADS=%s, octovk's choice for integrate, info, "
+                    "export, edit, convert and devices (render and distance keep lavapipe's "
+                    "default); set LP_NUM_THREADS to choose\n",
+                    threads.setting.c_str());
+      else if (!threads.setting.empty())
+        std::printf("lavapipe threads: LP_NUM_THREADS=%s, from the environment\n",
+                    threads.setting.c_str());
+      else
+        std::printf("lavapipe threads: lavapipe's default (one per core)\n");
+    }
     return kExitOk;
   }
 };

@@ -84,7 +84,10 @@ int dispatch(const std::vector<std::string>& args) {
     std::cout << "octovk " << OCTOVK_VERSION << "\n";
     return kExitOk;
   }
-  if (const Subcommand* found = findSubcommand(command)) return runSubcommand(*found, rest);
+  if (const Subcommand* found = findSubcommand(command)) {
+    if (!found->large_batches) preferCpuDriverThreads(0);  // before the driver loads
+    return runSubcommand(*found, rest);
+  }
   if (!command.empty() && command[0] == '-')
     throw UsageError("unknown option '" + command + "' before a command; commands: " +
                      commandNames() + " (see 'octovk --help')");

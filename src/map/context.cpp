@@ -1,3 +1,8 @@
+#include <stdlib.h>  // setenv
+
+#include <cstdlib>
+#include <string>
+
 #include "map/device_probe.hpp"
 #include "vk/device.hpp"
 
@@ -27,5 +32,21 @@ Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) 
 const DeviceInfo& Context::device() const noexcept { return device_->info(); }
 
 std::vector<DeviceInfo> Context::listDevices() { return vk::Device::enumerate(); }
+
+namespace {
+bool g_threads_chosen = false;  // written only by preferCpuDriverThreads, before other threads
+}  // namespace
+
+CpuDriverThreads preferCpuDriverThreads(unsigned threads) {
+  const char* set = std::getenv("LP_NUM_THREADS");
+  if (set == nullptr && ::setenv("LP_NUM_THREADS", std::to_string(threads).c_str(), 0) == 0)
+    g_threads_chosen = true;
+  return cpuDriverThreads();
+}
+
+CpuDriverThreads cpuDriverThreads() {
+  const char* set = std::getenv("LP_NUM_THREADS");
+  return {set != nullptr ? std::string(set) : std::string(), set != nullptr && g_threads_chosen};
+}
 
 }  // namespace octovk
