@@ -102,9 +102,24 @@ mkdir -p "$out/data/octomap" "$out/data/tests/fuzz/corpus"
 cp "$octomap_data"/* "$out/data/octomap/"
 cp -r "$root/tests/data" "$out/data/tests/data"
 cp -r "$root/tests/fuzz/corpus/depth_png" "$out/data/tests/fuzz/corpus/"
-# The doc a layout test checks against the code (OCTOVK_SOURCE_DIR=data: data/docs/...).
-mkdir -p "$out/data/docs"
+# The doc a layout test checks against the code, and the code it names (OCTOVK_SOURCE_DIR=data:
+# data/docs/..., data/shaders/...; the node test reads the shaders' text).
+mkdir -p "$out/data/docs" "$out/data/python"
 cp "$root/docs/architecture.md" "$out/data/docs/"
+cp -r "$root/shaders" "$root/src" "$root/include" "$out/data/"
+cp -r "$root/python/src" "$out/data/python/"
+# The pictures' text: one font and a fontconfig file naming only it (run.sh sets FONTCONFIG_FILE),
+# since a bare machine may have neither and cairo would then draw the pictures without text.
+mkdir -p "$out/data/fonts"
+cp /usr/share/fonts/truetype/dejavu/DejaVuSans.ttf "$out/data/fonts/"
+cat > "$out/data/fonts/fonts.conf" <<'CONF'
+<?xml version="1.0"?>
+<!DOCTYPE fontconfig SYSTEM "urn:fontconfig:fonts.dtd">
+<fontconfig>
+  <dir prefix="relative">.</dir>
+  <cachedir prefix="xdg">fontconfig</cachedir>
+</fontconfig>
+CONF
 # The whole FR-079 graph (the bench's and the parity checks' input) made here, where python3 and
 # log2graph are, so that the target needs neither; packed with xz (48 MB -> 5 MB: the device tool
 # carries 64 MiB in all). run.sh unpacks it, and scan.dat from OctoMap's scan.dat.bz2, on first use.

@@ -69,6 +69,7 @@ export OCTOVK_OCTOMAP_DATA_DIR="$here/data/octomap"
 export OCTOVK_SHARED_DATA_DIR="$here/data/tests/data"
 export OCTOVK_TEST_TMP="$work/tmp"
 export OCTOVK_SOURCE_DIR="$here/data"
+export FONTCONFIG_FILE="$here/data/fonts/fonts.conf"  # the pictures' font, packed by bundle.sh
 export OCTOVK_BENCH_DATA_DIR="$work/bench-data"
 # bzip2 and xz of the bundle where the machine has none (sample_data_test unpacks scan.dat.bz2).
 export PATH="$PATH:$here/bin"
