@@ -73,7 +73,8 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
     t0 = Clock::now();
     if (!field)
       field = std::make_unique<DistanceField>(map, lo, hi,
-                                              DistanceFieldOptions{.max_distance_m = kMaxDistance});
+                                              DistanceFieldOptions{.max_distance_m = kMaxDistance,
+                                                                   .treat_unknown_as_occupied = false});
     else
       field->update();
     const double vk_ms = msSince(t0);

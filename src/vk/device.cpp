@@ -87,14 +87,15 @@ void Device::createInstance(const ContextOptions& options) {
     throw Error(ErrorCode::kNoDevice,
                 "Vulkan validation requested but VK_EXT_debug_utils is missing: apt-get install "
                 "vulkan-validationlayers");
-  if (r != VK_SUCCESS)
-    throw Error(ErrorCode::kVulkan, std::string("vkCreateInstance failed with ") + resultName(r));
+  if (r != VK_SUCCESS) check(r, "vkCreateInstance", __FILE__, __LINE__);  // in words, detail()
   if (validation) {
     auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
         vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
     const VkDebugUtilsMessengerCreateInfoEXT info = detail::messengerInfo(&validation_sink_);
     if (!create || create(instance_, &info, nullptr, &messenger_) != VK_SUCCESS)
-      throw Error(ErrorCode::kVulkan, "vkCreateDebugUtilsMessengerEXT failed");
+      throw Error(ErrorCode::kVulkan,
+                  "the Vulkan validation layer's message channel could not be set up: run "
+                  "without OCTOVK_VALIDATION, or reinstall vulkan-validationlayers");
   }
 }
 
