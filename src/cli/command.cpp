@@ -6,6 +6,7 @@
 #include <cctype>
 #include <filesystem>
 #include <iostream>
+#include <string_view>
 
 namespace octovk::cli {
 
@@ -162,6 +163,14 @@ void printSubcommandHelp(const Subcommand& command, std::ostream& out) {
   command.print_help(out);
   out << "\nExamples:\n" << command.examples << "\n";
   printEnvironmentPointer(out);
+  // The long explanations (formats, layouts, equivalents) live in the reference, not here.
+  const std::string_view name = command.name;
+  const char* section = name == "info" || name == "render" || name == "export"
+                            ? "info, render, export"
+                        : name == "convert" ? "integrate', 'Depth images (TUM RGB-D)"
+                        : name == "devices" ? "devices and the device"
+                                            : command.name;
+  out << "Details: docs/cli.md, '" << section << "'.\n";
 }
 
 void printEnvironmentPointer(std::ostream& out) {

@@ -90,26 +90,14 @@ void checkTumFolder(const std::string& dir, const std::string& usage) {
 }
 
 void printTumFolderHelp(std::ostream& out) {
-  out << "DIR is a depth-image sequence in the TUM RGB-D layout:\n"
-         "  DIR/depth.txt        one image per line: 'timestamp filename', the file name\n"
-         "                       relative to DIR (e.g. 'depth/1305031102.160407.png'). Images\n"
-         "                       are read from inside DIR only: an absolute name, a '..' in\n"
-         "                       it, or a symbolic link leading out of DIR is refused\n"
-         "  DIR/groundtruth.txt  one camera pose per line: 'timestamp tx ty tz qx qy qz qw'\n"
-         "                       (camera to world; a unit quaternion)\n"
-         "  depth images         16-bit grayscale PNGs; 0 = no depth (skipped); other bit\n"
-         "                       depths and colour PNGs are refused\n"
-         "Lines starting with '#' and blank lines are ignored. Each image takes the pose with\n"
-         "the nearest timestamp; images with none less than 0.02 s away are skipped and counted\n"
-         "('images:' in the summary). Pixel (u, v) with depth d becomes the camera-frame point\n"
-         "z = d / S, x = (u - CX) * z / FX, y = (v - CY) * z / FY (float). Poses are read as\n"
-         "float into octomath::Pose6D(Vector3(tx, ty, tz), Quaternion(qw, qx, qy, qz)).\n";
+  out << "DIR is a TUM RGB-D folder: DIR/depth.txt ('timestamp filename', files inside DIR only:\n"
+         "an absolute name, a '..' or a symbolic link out of DIR is refused), DIR/groundtruth.txt\n"
+         "(one pose a line: 'timestamp tx ty tz qx qy qz qw') and 16-bit grayscale PNG depth\n"
+         "images. Each image takes the nearest pose; one with none within 0.02 s is skipped.\n";
 }
 
 void printCameraOptionsHelp(std::ostream& out) {
-  out << "      --intrinsics FX FY CX CY\n"
-         "                         pinhole camera of DIR's images in pixels: focal lengths and\n"
-         "                         principal point (default: 525 525 319.5 239.5)\n"
+  out << "      --intrinsics FX FY CX CY  DIR's camera in pixels (default: 525 525 319.5 239.5)\n"
          "      --depth-scale S    depth units per metre in DIR's images (default: 5000)\n";
 }
 
@@ -133,25 +121,17 @@ void printConvertHelp(std::ostream& out) {
   out << kConvertUsage
       << " [--intrinsics FX FY CX CY] [--depth-scale S]\n"
          "\n"
-         "Writes a TUM RGB-D depth-image sequence as an OctoMap scan graph (.graph, as\n"
-         "log2graph writes): one node per image that has a pose, holding its points in the\n"
-         "camera frame and the camera pose. graph2tree on that graph builds the map that\n"
-         "'octovk integrate DIR' builds, byte for byte, with the same options. No Vulkan device\n"
-         "is needed.\n"
+         "Writes a TUM RGB-D depth-image sequence as an OctoMap scan graph (.graph): one node per\n"
+         "image with a pose, its points in the camera frame. graph2tree on it builds the map that\n"
+         "'octovk integrate DIR' builds, byte for byte. No Vulkan device is needed.\n"
          "\n";
   printTumFolderHelp(out);
   out << "\n"
          "Options:\n"
-         "  -o, --output FILE      the scan graph to write (.graph); created before any work,\n"
-         "                         written to a temporary file beside it and renamed once\n"
-         "                         complete. Required.\n";
+         "  -o, --output FILE      the scan graph to write (.graph). Required.\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
-         "'--intrinsics=FX,FY,CX,CY').\n"
-         "\n"
-         "Output: a summary on stdout (images used and skipped, points, pixels without depth,\n"
-         "the file written).\n";
+         "Values: '--name VALUE' or '--name=VALUE' ('--intrinsics=FX,FY,CX,CY').\n";
 }
 
 namespace {

@@ -95,13 +95,10 @@ Error withOptionNames(const Error& e) {
 
 void printMaxDeviceMemoryHelp(std::ostream& out, const char* what_fails) {
   out << "      --max-device-memory BYTES\n"
-         "                         most bytes the map may hold on the Vulkan device, all its\n"
-         "                         buffers together (node pool, leaf boxes, scan scratch,\n"
-         "                         query buffers); K, M, G, T = KiB, MiB, GiB, TiB (512M, 2G);\n"
-         "                         0 = no cap (default: 0). On a CPU device (lavapipe) device\n"
-         "                         memory is host memory, so this bounds the program's memory\n"
-         "                         too. "
-      << what_fails << " needing more fails (exit 1) naming the cap.\n";
+         "                         the map's device memory cap, with K, M, G, T suffixes (512M,\n"
+         "                         2G); 0 = no cap (default: 0). On lavapipe that is host memory.\n"
+         "                         "
+      << what_fails << " needing more fails (exit 1), naming the cap.\n";
 }
 
 }  // namespace octovk::cli

@@ -61,64 +61,32 @@ void printDistanceHelp(std::ostream& out) {
          "                [--max-distance M] [--unknown occupied|free] [--cell-pixels N]\n"
          "                -o SLICE.png\n"
          "\n"
-         "Computes the exact Euclidean distance field over a box of a map on the Vulkan device\n"
-         "(the meaning of dynamicEDT3D's DynamicEDTOctomap: for every cell of the box at the\n"
-         "finest resolution, the distance from its centre to the centre of the nearest occupied\n"
-         "cell inside the box, capped at --max-distance) and draws one horizontal slice of it,\n"
-         "the cells of the box at height --z, as an 8-bit RGB PNG: one square of N x N pixels\n"
-         "per cell, x to the right, y up.\n"
-         "\n"
-         "Colours:\n"
-         "  black                  an occupied cell (OctoMap's isNodeOccupied)\n"
-         "  light grey             a cell the map does not know (--unknown free): no distance is\n"
-         "                         drawn there, since the space may hold anything\n"
-         "  dark grey              an unknown cell counted as an obstacle (--unknown occupied,\n"
-         "                         the default)\n"
-         "  red ... yellow ... green ... blue\n"
-         "                         the distance to the nearest obstacle, from 0 (red) to\n"
-         "                         --max-distance or farther (blue), on a reversed Turbo scale;\n"
-         "                         a box without obstacles is all blue\n"
-         "  the bar below the slice shows the scale from 0 m (left) to --max-distance (right),\n"
-         "  with its distances in metres; the axes give x and y in metres, the title z\n"
+         "Computes the exact distance field over a box of a map on the Vulkan device (as\n"
+         "dynamicEDT3D's DynamicEDTOctomap: each cell's distance to the nearest obstacle in the\n"
+         "box) and draws the layer of cells at height --z as an 8-bit RGB PNG, x to the right,\n"
+         "y up: occupied cells black, unknown ones dark grey (--unknown occupied) or light grey\n"
+         "(--unknown free), the others by distance from red (0) to blue (--max-distance), with\n"
+         "the bar below giving the scale in metres.\n"
          "\n"
          "Options:\n"
-         "  -o, --output FILE      the .png picture to write. Written to a temporary file beside\n"
-         "                         it and renamed once complete. Required.\n"
+         "  -o, --output FILE      the .png picture to write. Required.\n"
          "      --box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
-         "                         the field's box in metres (min <= max on every axis): the\n"
-         "                         cells from the one holding the min corner to the one holding\n"
-         "                         the max corner. Only obstacles inside it count. Required.\n"
-         "      --z HEIGHT         height of the slice in metres, within the box; the slice is\n"
-         "                         the layer of cells holding it (default: the box's middle)\n"
+         "                         the field's box in metres (min <= max). Required.\n"
+         "      --z HEIGHT         height of the slice in metres, within the box (default: the\n"
+         "                         box's middle)\n"
          "      --max-distance M   distances are capped at M metres, M > 0 (default: "
       << kDefaultMaxDistanceM
       << ")\n"
          "      --unknown occupied|free\n"
-         "                         what cells the map does not know are (DynamicEDTOctomap's\n"
-         "                         treatUnknownAsOccupied). occupied (default): obstacles, so no\n"
-         "                         distance promises clearance through unseen space; free: only\n"
-         "                         occupied cells are obstacles\n"
+         "                         whether unknown cells are obstacles (default: occupied)\n"
          "      --cell-pixels N    pixels per cell side, 1 to "
-      << kMaxCellPixels
-      << " (default: the most, up to\n"
-         "                         "
-      << kDefaultMaxCellPixels << ", that keep the longer side within " << kDefaultSide
-      << " pixels)\n";
-  printMaxDeviceMemoryHelp(out, "A map or a field");
-  out << "                         The field takes 16 bytes per cell of the box.\n"
-         "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE'; --box also as\n"
-         "'--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
-         "\n"
-         "A field over --max-device-memory fails (exit 1) naming the bytes it needs; a box with\n"
-         "more cells along a line than the device transforms in one dispatch, or beyond the\n"
-         "map's key range, and a picture over "
-      << kMaxSide
-      << " pixels a side are usage errors (exit 2).\n"
-         "\n"
-         "Output: the device used, then on stdout the box in cells, the slice's height, its\n"
-         "obstacles, unknown cells and distances, the colour scale, where the slice and the bar\n"
-         "lie in the picture, the time taken and the file written.\n";
+      << kMaxCellPixels << " (default: the most, up to " << kDefaultMaxCellPixels
+      << ",\n"
+         "                         that keep the longer side within "
+      << kDefaultSide << " pixels)\n";
+  printMaxDeviceMemoryHelp(out, "A map or field");
+  out << "  -h, --help             show this help\n"
+         "Values: '--name VALUE' or '--name=VALUE' ('--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX').\n";
 }
 
 namespace {
@@ -222,7 +190,7 @@ class Distance final : public Command {
   std::optional<std::array<double, 6>> box_;
   std::optional<double> z_;
   double max_distance_m_ = kDefaultMaxDistanceM;
-  bool unknown_occupied_ = true;  // DistanceFieldOptions' default: unknown space is no clearance
+  bool unknown_occupied_ = true;   // DistanceFieldOptions' default: unknown space is no clearance
   std::uint32_t cell_pixels_ = 0;  // 0: chosen from the box
 };
 

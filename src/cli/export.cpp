@@ -53,33 +53,22 @@ void printExportHelp(std::ostream& out) {
   out << "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only]\n"
          "              [--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy]\n"
          "\n"
-         "Writes the leaf cells of an OctoMap .bt or .ot map as an ASCII PLY point cloud, one\n"
-         "vertex per leaf (a pruned leaf is one vertex with its larger size), for viewers such\n"
-         "as MeshLab or CloudCompare. Each vertex has:\n"
-         "  float x, y, z       centre of the cell, metres\n"
-         "  float size          edge of the cell, metres\n"
-         "  float log_odds      occupancy log-odds; occupied when >= 0 (probability 0.5)\n"
-         "  uchar red, green, blue   the colour chosen by --color\n"
+         "Writes the leaf cells of an OctoMap .bt or .ot map as an ASCII PLY point cloud (for\n"
+         "MeshLab, CloudCompare, ...), one vertex per leaf: x y z (centre), size (edge),\n"
+         "log_odds (occupied when >= 0) and red green blue, metres throughout.\n"
          "\n"
          "Options:\n"
-         "  -o, --output FILE      the .ply file to write. Written to a temporary file beside\n"
-         "                         it and renamed once complete. Required.\n"
+         "  -o, --output FILE      the .ply file to write. Required.\n"
          "      --occupied-only    only the occupied leaves (default: occupied and free)\n"
          "      --box XMIN YMIN ZMIN XMAX YMAX ZMAX\n"
-         "                         only the leaves that OctoMap's leaf_bbx_iterator visits for\n"
-         "                         this box (metres): every leaf overlapping the box's cells,\n"
-         "                         selected on the device; corners beyond the map's domain are\n"
-         "                         moved onto its border (default: the whole map)\n"
-         "      --color MODE       height: occupied cells by height, blue (low) to red (high)\n"
-         "                         over the z range of the exported occupied cells, free cells\n"
-         "                         grey; occupancy: occupied red, free green (default: height)\n";
-  printMaxDeviceMemoryHelp(out, "A map or a --box selection");
+         "                         only the leaves OctoMap's leaf_bbx_iterator visits for this "
+         "box\n"
+         "                         in metres (default: the whole map)\n"
+         "      --color MODE       height: occupied cells blue (low) to red (high), free grey;\n"
+         "                         occupancy: occupied red, free green (default: height)\n";
+  printMaxDeviceMemoryHelp(out, "A map or selection");
   out << "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE'; --box also as\n"
-         "'--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX'.\n"
-         "\n"
-         "Output: the device used, then on stdout the cells written (occupied and free), the\n"
-         "time taken and the file written.\n";
+         "Values: '--name VALUE' or '--name=VALUE' ('--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX').\n";
 }
 
 namespace {

@@ -70,13 +70,11 @@ std::string paramFix(const std::string& why) {
 // (from 1), or the folder and the image's timestamp and name, as depth.txt lists them.
 std::string scanPlace(const std::string& input, const std::optional<TumSequence>& tum,
                       std::size_t i, std::size_t count) {
-  if (!tum)
-    return input + ": scan " + std::to_string(i + 1) + " of " + std::to_string(count);
+  if (!tum) return input + ": scan " + std::to_string(i + 1) + " of " + std::to_string(count);
   const TumFrame& frame = tum->frames[i];
   char stamp[64];
   std::snprintf(stamp, sizeof(stamp), "%.6f", frame.timestamp);
-  const std::string name =
-      fs::path(frame.image_path).lexically_relative(fs::path(input)).string();
+  const std::string name = fs::path(frame.image_path).lexically_relative(fs::path(input)).string();
   return input + ": depth image " + stamp + " (" + (name.empty() ? frame.image_path : name) +
          ", depth.txt line " + std::to_string(frame.line) + ")";
 }
@@ -130,19 +128,19 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
              "first scan, never reset), cell centre x y z in metres; created 1 = the leaf was "
              "created, 0 = an existing leaf's occupancy flipped; colour blue created, orange "
              "flipped";
-  writeAsciiPly(path, comment.str(), changes.size(),
-                {"float x", "float y", "float z", "uchar created", "uchar red", "uchar green",
-                 "uchar blue"},
-                [&](std::string& text, std::size_t i) {
-                  const ChangedKey& c = changes[i];
-                  const Eigen::Vector3f centre = keyToCoord(resolution, c.key);
-                  for (int a = 0; a < 3; ++a) appendNumber(text, centre[a], ' ');
-                  const Rgb& colour = c.created ? kCreatedBlue : kFlippedOrange;
-                  appendByte(text, c.created ? 1 : 0, ' ');
-                  appendByte(text, colour[0], ' ');
-                  appendByte(text, colour[1], ' ');
-                  appendByte(text, colour[2], '\n');
-                });
+  writeAsciiPly(
+      path, comment.str(), changes.size(),
+      {"float x", "float y", "float z", "uchar created", "uchar red", "uchar green", "uchar blue"},
+      [&](std::string& text, std::size_t i) {
+        const ChangedKey& c = changes[i];
+        const Eigen::Vector3f centre = keyToCoord(resolution, c.key);
+        for (int a = 0; a < 3; ++a) appendNumber(text, centre[a], ' ');
+        const Rgb& colour = c.created ? kCreatedBlue : kFlippedOrange;
+        appendByte(text, c.created ? 1 : 0, ' ');
+        appendByte(text, colour[0], ' ');
+        appendByte(text, colour[1], ' ');
+        appendByte(text, colour[2], '\n');
+      });
 }
 
 // Every output is written before any is renamed into place, so that a failed write (a full
@@ -181,32 +179,21 @@ std::string fileNodesText(const std::vector<std::string>& paths,
 
 void printIntegrateHelp(std::ostream& out) {
   const MapParams defaults;
-  out << "octovk integrate SCANS.graph -o MAP.bt [-o MAP.ot] [options]\n"
-         "octovk integrate DIR -o MAP.bt [-o MAP.ot] [--intrinsics FX FY CX CY]\n"
-         "                 [--depth-scale S] [options]\n"
+  out << "octovk integrate SCANS.graph|DIR -o MAP.bt [-o MAP.ot] [options]\n"
          "\n"
-         "Inserts every scan of an OctoMap scan graph (.graph, as written by log2graph) into one\n"
-         "occupancy map on the Vulkan device and writes it. Each scan's points are moved to the\n"
-         "world by the scan's pose and cast from the pose's position, exactly as OctoMap's\n"
-         "graph2tree does; with the same parameters the files are byte-identical to graph2tree's\n"
-         "(-o X.bt writes graph2tree's X.bt, -o X.ot its X.bt.ot).\n"
-         "\n";
+         "Inserts every scan of an OctoMap scan graph (.graph), or depth image of a TUM RGB-D\n"
+         "folder DIR, into one occupancy map on the Vulkan device and writes it byte-identical to\n"
+         "graph2tree (-o X.bt its X.bt, -o X.ot its X.bt.ot; DIR: on 'octovk convert DIR').\n";
   printTumFolderHelp(out);
-  out << "Each image's points are inserted as one scan cast from the camera's position; the\n"
-         "files are byte-identical to graph2tree's on 'octovk convert DIR -o SCANS.graph'.\n"
-         "\n"
+  out << "\n"
          "Options:\n"
-         "  -o, --output FILE      file to write; repeat for several. The extension picks the\n"
-         "                         format: .bt = max-likelihood binary tree, pruned (OctoMap\n"
-         "                         writeBinary); .ot = full tree with float log-odds (OctoMap\n"
-         "                         write). Each is written to a temporary file beside it and\n"
-         "                         all are renamed into place once every one is complete: a\n"
-         "                         failed run replaces none. Required.\n"
+         "  -o, --output FILE      file to write, repeatable: .bt = max-likelihood, pruned; .ot =\n"
+         "                         full log-odds. All are written or none. Required.\n"
          "  -r, --resolution M     edge of the smallest voxel in metres (default: "
       << defaults.resolution
       << ")\n"
-         "  -m, --max-range M      beams longer than M metres only clear space up to M and mark\n"
-         "                         no occupied cell; negative = unlimited (default: -1)\n"
+         "  -m, --max-range M      beams clear space only up to M metres; < 0 = unlimited "
+         "(default: -1)\n"
          "      --prob-hit P       occupancy probability of a hit, in [0.5, 1) (default: "
       << defaults.prob_hit
       << ")\n"
@@ -219,49 +206,22 @@ void printIntegrateHelp(std::ostream& out) {
          "      --clamping-max P   upper clamping bound, above --clamping-min (default: "
       << defaults.clamping_max
       << ")\n"
-         "      --discretize       reduce each scan to one point per voxel before ray casting\n"
-         "                         (OctoMap's discretize; faster, approximate) (default: off)\n"
+         "      --discretize       one point per voxel before ray casting (default: off)\n"
          "      --rays walk|rt|rt-query|rt-pipeline\n"
-         "                         how each scan finds its cells: walk = a compute shader steps\n"
-         "                         every ray cell by cell; rt = rays traced against an\n"
-         "                         acceleration structure over the boxes a scan can change,\n"
-         "                         built on the device before each scan, stepping only through\n"
-         "                         them, with ray queries where the device has them, else\n"
-         "                         through a ray-tracing pipeline; rt-query, rt-pipeline = rt\n"
-         "                         forced to one of the two (needs a device with it, e.g. Mesa\n"
-         "                         25's lavapipe has both, and no loop limit; refused\n"
-         "                         elsewhere). The map is the same either way (default: walk)\n"
-         "      --changes FILE.ply the keys changed over the whole run, as an ASCII PLY point\n"
-         "                         cloud: OctoMap's change detection on from the first scan and\n"
-         "                         never reset (the KeyBoolMap of changedKeysBegin/End at the\n"
-         "                         end), one vertex per changed finest-level cell, sorted by key:\n"
-         "                         float x, y, z (the cell's centre, metres), uchar created\n"
-         "                         (OctoMap's flag: 1 the leaf was created, 0 an existing leaf's\n"
-         "                         occupancy flipped; a run starts from an empty map, so every\n"
-         "                         key is 1 here: OctoMap keeps a created key's flag when its\n"
-         "                         occupancy flips later), uchar red, green, blue (created blue,\n"
-         "                         flipped orange). Written and renamed with the maps (default:\n"
-         "                         none)\n"
-         "  -q, --quiet            no progress lines on stderr (default: progress on a terminal,\n"
-         "                         or once a run takes longer than a second)\n";
+         "                         how a scan finds its cells: a cell-by-cell walk, or ray "
+         "tracing\n"
+         "                         (rt-query, rt-pipeline force one way); same map (default: "
+         "walk)\n"
+         "      --changes FILE.ply the keys the run changed (OctoMap's change detection) as an\n"
+         "                         ASCII PLY: x y z, uchar created, red green blue (default: "
+         "none)\n"
+         "  -q, --quiet            no progress on stderr (default: on a terminal, or after a "
+         "second)\n";
   printMaxDeviceMemoryHelp(out, "A scan");
   out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE' (several values:\n"
-         "'--intrinsics=FX,FY,CX,CY').\n"
-         "\n"
-         "graph2tree equivalents: -r R = -res R, -m M = -m M, --discretize = -discretize,\n"
-         "--clamping-min A --clamping-max B = -clamping A B, --prob-miss A --prob-hit B =\n"
-         "-sensor A B.\n"
-         "\n"
-         "A graph without scans or points is an error (exit 1): no empty map is written. An\n"
-         "OctoMap map (.bt / .ot) given as the input is refused (exit 2); 'octovk info' reads it.\n"
-         "\n"
-         "Output: the device used, then a summary on stdout (scans, points, skipped points,\n"
-         "insert time, nodes in memory and in each file as 'octovk info' counts them (a .bt is\n"
-         "max-likelihood and pruned, so it may hold fewer), device memory, files written; for\n"
-         "DIR also the images used and skipped and the pixels without depth).\n";
+         "Values: '--name VALUE' or '--name=VALUE' ('--intrinsics=FX,FY,CX,CY').\n";
 }
 
 namespace {
@@ -319,13 +279,13 @@ class Integrate final : public Command {
   // Inserts every scan into `map`; errors name the scan that failed.
   Totals insert(OccupancyMap& map, const Sources& sources, const std::string& input) const;
 
-  bool tum_ = false;  ///< the input is a TUM RGB-D folder, not a scan graph
-  CameraIntrinsics camera_;  ///< --intrinsics, --depth-scale (TUM folders only)
+  bool tum_ = false;           ///< the input is a TUM RGB-D folder, not a scan graph
+  CameraIntrinsics camera_;    ///< --intrinsics, --depth-scale (TUM folders only)
   std::string camera_option_;  ///< the first of those given, for the error on a scan graph
   MapParams params_;
   ScanOptions scan_;  ///< --max-range, --discretize
   bool quiet_ = false;
-  std::string changes_path_;  ///< --changes
+  std::string changes_path_;                   ///< --changes
   std::optional<std::size_t> changes_output_;  ///< its index in the run's output files
 };
 
@@ -340,8 +300,7 @@ void Integrate::check(Invocation& in) {
     checkInput(graph_path);
     if (!camera_option_.empty())
       throw UsageError(camera_option_ + " applies to a TUM RGB-D folder; scan graph '" +
-                       graph_path + "' holds 3D points already: leave " + camera_option_ +
-                       " out");
+                       graph_path + "' holds 3D points already: leave " + camera_option_ + " out");
   }
   in.checkOutputs();
   if (!changes_path_.empty()) {
@@ -525,9 +484,16 @@ int Integrate::run(Invocation& in) {
 std::unique_ptr<Command> makeIntegrate() { return std::make_unique<Integrate>(); }
 
 std::vector<std::string> integrateValueOptions() {
-  std::vector<std::string> names = {"-r",         "--resolution",   "-m",
-                                    "--max-range", "--prob-hit",     "--prob-miss",
-                                    "--clamping-min", "--clamping-max", "--rays", "--changes"};
+  std::vector<std::string> names = {"-r",
+                                    "--resolution",
+                                    "-m",
+                                    "--max-range",
+                                    "--prob-hit",
+                                    "--prob-miss",
+                                    "--clamping-min",
+                                    "--clamping-max",
+                                    "--rays",
+                                    "--changes"};
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
 }

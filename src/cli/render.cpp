@@ -171,57 +171,29 @@ void printRenderHelp(std::ostream& out) {
   out << "octovk render MAP.bt|MAP.ot -o VIEW.png [--eye X Y Z] [--look-at X Y Z] [--size WxH]\n"
          "              [--fov DEG] [--z-max Z]\n"
          "\n"
-         "Renders the occupied cells of an OctoMap .bt or .ot map headless on the Vulkan device:\n"
-         "one ray per pixel from the eye, cast by OctoMap's castRay rules on the device with\n"
-         "unknown space treated as free, stopping at the first occupied cell (each ray starts\n"
-         "where it enters the occupied cells' bounding box: nothing before it can stop it).\n"
-         "The picture is coloured by the height of the cell hit (blue low, red high, over the\n"
-         "z range of the occupied cells shown), lit by the face of the cell the ray entered,\n"
-         "hazier with distance, with outlines where depth jumps; rays that hit nothing show\n"
-         "the background. A picture of "
-      << kLegendMinWidth << "x" << kLegendMinHeight << " pixels or more keeps a strip of "
-      << kLegendWidth
-      << " pixels on\n"
-         "the right for the legend: the height colour bar in metres and a scale bar (a round\n"
-         "length as it appears at the look-at point; nearer things look larger).\n"
+         "Draws the occupied cells of an OctoMap .bt or .ot map headless on the Vulkan device, "
+         "one\n"
+         "OctoMap castRay per pixel (unknown space counts as free), coloured by height; from\n"
+      << kLegendMinWidth << "x" << kLegendMinHeight
+      << " pixels on, with a height bar and a scale bar on the right. It prints the camera\n"
+         "to repeat or adjust.\n"
          "\n"
          "Options:\n"
-         "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Written to a\n"
-         "                         temporary file beside it and renamed once complete.\n"
-         "                         Required.\n"
-         "      --eye X Y Z        camera position in metres (default: on the side of the\n"
-         "                         occupied cells that shows their longer horizontal extent,\n"
-         "                         looking down at "
-      << kDefaultElevationDeg
-      << " degrees, just far enough away for all\n"
-         "                         of them to fit the picture)\n"
-         "      --look-at X Y Z    point at the centre of the picture (default: with the\n"
-         "                         default eye, the point that centres the occupied cells in\n"
-         "                         the picture; with --eye, the centre of their bounding box)\n"
+         "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Required.\n"
+         "      --eye X Y Z        camera position in metres (default: above the occupied cells'\n"
+         "                         longer side, far enough for all of them to fit)\n"
+         "      --look-at X Y Z    point at the picture's centre (default: the occupied cells')\n"
          "      --size WxH         picture size in pixels, each side 1 to "
       << kMaxSide << " (default: " << kDefaultWidth << "x" << kDefaultHeight
       << ")\n"
          "      --fov DEG          vertical field of view in degrees, 1 to 170 (default: "
       << kDefaultFovDeg
       << ")\n"
-         "      --z-max Z          hide everything above height Z metres (cut at the cell\n"
-         "                         boundary nearest Z), e.g. to look into a building through\n"
-         "                         its ceiling (default: nothing hidden)\n";
-  printMaxDeviceMemoryHelp(out, "A map or a batch of rays");
-  out << "                         Under a cap render counts its picture too ("
-      << kPictureBytesPerPixel
-      << " bytes a\n"
-         "                         pixel) and casts its rays in tiles of rows that fit; a\n"
-         "                         --size whose picture does not fit is refused before any\n"
-         "                         work, naming the bytes it needs.\n";
+         "      --z-max Z          hide everything above height Z metres, e.g. a ceiling\n"
+         "                         (default: nothing hidden)\n";
+  printMaxDeviceMemoryHelp(out, "A map or ray batch");
   out << "  -h, --help             show this help\n"
-         "Options take their value as '--name VALUE' or '--name=VALUE'; --eye and --look-at also\n"
-         "as '--eye=X,Y,Z'. Up in the picture is +z (+y when looking straight up or down).\n"
-         "\n"
-         "Output: the device used, then on stdout the picture size, the camera (eye, look-at,\n"
-         "field of view, to repeat or adjust with --eye / --look-at), how many rays hit, the\n"
-         "depth range, the heights the colours span, the scale bar, the time taken and the\n"
-         "file written.\n";
+         "Values: '--name VALUE' or '--name=VALUE' ('--eye=X,Y,Z'). Up in the picture is +z.\n";
 }
 
 namespace {
