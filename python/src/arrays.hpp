@@ -119,6 +119,18 @@ py::object likeInput(py::handle input, py::object result);
 /// errors: raised).
 void warnDeprecated(const std::string& what);
 
+/// `value` where the deprecated keyword `old_name` was not given, else the old argument's value,
+/// with a DeprecationWarning: "OLD is deprecated: name it NEW (WHY); the old name goes in the next
+/// release".
+template <class T>
+T renamed(T value, py::handle old, const char* old_name, const char* new_name,
+          const char* why = "C++'s name") {
+  if (old.is_none()) return value;
+  warnDeprecated(std::string(old_name) + " is deprecated: name it " + new_name + " (" + why +
+                 "); the old name goes in the next release");
+  return old.cast<T>();
+}
+
 /// The address of the memory last handed to the library as a scan's points, a depth image's
 /// pixels or query points (for the tests' zero-copy check: `octovk._last_input_address()`).
 std::uintptr_t lastInputAddress() noexcept;

@@ -150,11 +150,8 @@ py::object autogradFunction() {
 
 // The cap: max_distance_m, or the deprecated `max_distance` where given.
 float maxDistanceOf(float max_distance_m, py::handle max_distance) {
-  if (max_distance.is_none()) return max_distance_m;
-  warnDeprecated(
-      "max_distance is deprecated: name it max_distance_m (metres, as C++'s "
-      "DistanceFieldOptions::max_distance_m); the old name goes in the next release");
-  return max_distance.cast<float>();
+  return renamed(max_distance_m, max_distance, "max_distance", "max_distance_m",
+                 "metres, as C++'s DistanceFieldOptions::max_distance_m");
 }
 
 }  // namespace

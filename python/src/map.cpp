@@ -15,11 +15,8 @@ namespace {
 
 // The range a scan or ray takes: max_range_m, or the deprecated `max_range` where given.
 double rangeOf(double max_range_m, py::handle max_range) {
-  if (max_range.is_none()) return max_range_m;
-  warnDeprecated(
-      "max_range is deprecated: name it max_range_m (metres, as C++'s ScanOptions::max_range_m "
-      "and Ray::max_range_m); the old name goes in the next release");
-  return max_range.cast<double>();
+  return renamed(max_range_m, max_range, "max_range", "max_range_m",
+                 "metres, as C++'s ScanOptions::max_range_m and Ray::max_range_m");
 }
 
 ScanOptions scanOptions(double max_range_m, py::handle max_range, bool discretize) {

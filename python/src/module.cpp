@@ -25,16 +25,6 @@ py::array_t<float> vectorArray(const Eigen::Vector3f& v) {
   return ownedArray(std::vector<float>{v.x(), v.y(), v.z()}, {3});
 }
 
-// `value` where the deprecated `old_name` was not given, else the old argument's value (with a
-// DeprecationWarning naming the new name).
-template <class T>
-T renamed(T value, py::handle old, const char* old_name, const char* new_name) {
-  if (old.is_none()) return value;
-  warnDeprecated(std::string(old_name) + " is deprecated: name it " + new_name +
-                 " (C++'s name); the old name goes in the next release");
-  return old.cast<T>();
-}
-
 void checkResolution(double resolution) {
   if (!(resolution > 0.0) || !std::isfinite(resolution))
     throw py::value_error("resolution: expected the map's cell edge in metres (> 0, finite), got " +
