@@ -1,6 +1,8 @@
 // octovk devices: the Vulkan devices octovk can use, and the one it picks.
 #include <cstdio>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "command.hpp"
 #include "octovk/octovk.hpp"
@@ -37,6 +39,18 @@ const char* backendName(CastRayBackend backend) {
 
 namespace {
 
+// The commands whose Subcommand::large_batches is `large`, as "a, b and c" (from the table, so
+// the line says what main() does).
+std::string commandsWith(bool large) {
+  std::vector<std::string> names;
+  for (const Subcommand& c : subcommands())
+    if (c.large_batches == large) names.emplace_back(c.name);
+  std::string out;
+  for (std::size_t i = 0; i < names.size(); ++i)
+    out += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i];
+  return out;
+}
+
 class Devices final : public Command {
  public:
   int run(Invocation& in) override {
@@ -62,10 +76,10 @@ class Devices final : public Command {
     if (selected.type == "CPU") {
       const CpuDriverThreads threads = cpuDriverThreads();
       if (threads.chosen_by_octovk)
-        std::printf("lavapipe threads: LP_NUM_THREADS=%s, octovk's choice for integrate, info, "
-                    "export, edit, convert and devices (render and distance keep lavapipe's "
-                    "default); set LP_NUM_THREADS to choose\n",
-                    threads.setting.c_str());
+        std::printf("lavapipe threads: LP_NUM_THREADS=%s, octovk's choice for %s (%s keep "
+                    "lavapipe's default); set LP_NUM_THREADS to choose\n",
+                    threads.setting.c_str(), commandsWith(false).c_str(),
+                    commandsWith(true).c_str());
       else if (!threads.setting.empty())
         std::printf("lavapipe threads: LP_NUM_THREADS=%s, from the environment\n",
                     threads.setting.c_str());
