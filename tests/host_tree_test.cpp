@@ -36,7 +36,7 @@ TEST(HostTree, PoolImageAndBackGiveTheSameTree) {
   gpu::PoolState pool{};
   pool.bump = image.blocks;
   pool.root_exists = 1;
-  const HostTree back = hostTreeFromPool(image.nodes, pool);
+  const HostTree back = hostTreeFromPool(image.nodes, image.payload, tree.payload, pool);
   ASSERT_EQ(back.nodes.size(), tree.nodes.size());
   for (std::uint32_t n : {0u, 8u + 1u, 8u + 6u, 3u * 8u, 3u * 8u + 7u}) {
     EXPECT_EQ(back.nodes[n].log_odds, tree.nodes[n].log_odds) << "node " << n;

@@ -232,12 +232,63 @@ class OccupancyMap {
 
   class Impl;
 
+ protected:
+  /// impl_, or kInvalidArgument for a moved-from map.
+  Impl& self() const;
+
  private:
   friend class InteropAccess;  // vulkan_interop.hpp
   friend class FieldAccess;    // distance.hpp (src/field/)
-  /// impl_, or kInvalidArgument for a moved-from map.
-  Impl& self() const;
   std::unique_ptr<Impl> impl_;
+};
+
+/// OctoMap's ColorOcTree on the device: an OccupancyMap whose nodes hold a colour
+/// (MapParams::payload = Payload::kColor). A scan is inserted as ColorOcTree::insertPointCloud
+/// inserts it, then each point's colour is folded into the node search() finds for it, in the
+/// cloud's order (ScanOptions::colors, ColorFold). Pruning is ColorOcTree's: children merge on
+/// their log-odds alone, and the merged node takes child 0's colour, or, where that is set, the
+/// integer mean of the children's set colours. download() gives inner nodes the colours
+/// updateInnerOccupancy() gives them, so a written .ot equals OctoMap's after the same steps.
+class ColorMap : public OccupancyMap {
+ public:
+  /// `params` with its payload set to kColor.
+  ColorMap(Context& context, MapParams params);
+  /// Takes over a map whose payload is kColor (readMapFile of a ColorOcTree file); any other
+  /// is kInvalidArgument, `map` then unchanged.
+  explicit ColorMap(OccupancyMap&& map);
+  using OccupancyMap::insertPointCloud;
+  /// insertPointCloud(points_world, origin_world, options) with options.colors = colors.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, std::span<const Rgb> colors,
+                             ScanOptions options = {});
+  /// The colour of the node search() finds for each point; white where it finds none.
+  std::vector<Rgb> colors(std::span<const Eigen::Vector3f> points);
+};
+
+/// OctoMap's OcTreeStamped on the device: an OccupancyMap whose nodes hold a time stamp in whole
+/// seconds (MapParams::payload = Payload::kStamp). Every node a scan updates takes the scan's
+/// stamp (ScanOptions::stamp, OcTreeStamped's time(NULL)); children merge only where their
+/// log-odds and stamps are equal (OcTreeNodeStamped::operator==).
+class StampedMap : public OccupancyMap {
+ public:
+  /// `params` with its payload set to kStamp.
+  StampedMap(Context& context, MapParams params);
+  /// Takes over a map whose payload is kStamp; any other is kInvalidArgument, `map` unchanged.
+  explicit StampedMap(OccupancyMap&& map);
+  using OccupancyMap::insertPointCloud;
+  /// insertPointCloud(points_world, origin_world, options) with options.stamp = stamp.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, std::uint32_t stamp,
+                             ScanOptions options = {});
+  /// OcTreeStamped::degradeOutdatedNodes with query time `now`: every occupied leaf (pruned
+  /// leaves included) with now - stamp > threshold_s (unsigned, as OctoMap) takes one miss and
+  /// keeps its stamp; then the inner nodes are updated as updateInnerOccupancy() does (their
+  /// stamps become `now`). On the device.
+  void degradeOutdated(std::uint32_t now, std::uint32_t threshold_s);
+  /// The stamp of the node search() finds for each point; 0 where it finds none.
+  std::vector<std::uint32_t> stamps(std::span<const Eigen::Vector3f> points);
+  /// OcTreeStamped::getLastUpdateTime: the root's stamp (0 for an empty map).
+  std::uint32_t lastUpdateTime();
 };
 
 }  // namespace octovk

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <string>
 
 namespace octovk {
@@ -56,6 +57,46 @@ static_assert(static_cast<std::uint32_t>(ScanRays::kRayQuery) ==
               static_cast<std::uint32_t>(ScanRays::kRayTracingPipeline) ==
                   static_cast<std::uint32_t>(CastRayBackend::kRayTracingPipeline));
 
+/// What every node holds besides its log-odds (MapParams::payload): OctoMap's tree type.
+enum class Payload : std::uint32_t {
+  kNone = 0,   ///< OcTree: the log-odds alone
+  kColor = 1,  ///< ColorOcTree: a colour per node (Rgb; white is "no colour yet")
+  kStamp = 2,  ///< OcTreeStamped: a time stamp per node, whole seconds
+};
+/// OctoMap's tree-type name of a payload ("OcTree", "ColorOcTree", "OcTreeStamped").
+const char* treeTypeName(Payload payload);
+
+/// A colour, as OctoMap's ColorOcTreeNode::Color. White (255, 255, 255) is OctoMap's "no colour
+/// yet" (isColorSet() false).
+struct Rgb {
+  std::uint8_t r = 255;
+  std::uint8_t g = 255;
+  std::uint8_t b = 255;
+  friend bool operator==(const Rgb&, const Rgb&) = default;
+};
+/// A colour packed as HostTree::Node::payload and the device hold it: r | g << 8 | b << 16.
+constexpr std::uint32_t packRgb(Rgb c) {
+  return std::uint32_t{c.r} | (std::uint32_t{c.g} << 8) | (std::uint32_t{c.b} << 16);
+}
+constexpr Rgb unpackRgb(std::uint32_t v) {
+  return Rgb{static_cast<std::uint8_t>(v & 0xFFu), static_cast<std::uint8_t>((v >> 8) & 0xFFu),
+             static_cast<std::uint8_t>((v >> 16) & 0xFFu)};
+}
+/// The payload of a new node: white for colour, stamp 0, 0 for none (OctoMap's constructors).
+constexpr std::uint32_t newNodePayload(Payload payload) {
+  return payload == Payload::kColor ? 0x00FFFFFFu : 0u;
+}
+
+/// How a point's colour is folded into its node (ScanOptions::color_fold).
+enum class ColorFold : std::uint32_t {
+  /// ColorOcTree::averageNodeColor: an uncoloured node takes the colour, a coloured one the
+  /// integer mean of its colour and the new one, per channel.
+  kAverage = 0,
+  /// ColorOcTree::integrateNodeColor: weighted by the node's occupancy (OctoMap's double
+  /// arithmetic).
+  kIntegrate = 1,
+};
+
 /// The sensor model and grid, with OctoMap's defaults.
 struct MapParams {
   double resolution = 0.1;
@@ -87,6 +128,9 @@ struct MapParams {
   /// cast_ray_backend), or one with max_device_bytes set (the acceleration structure is not
   /// under the cap), makes the map's constructor throw kMissingFeature / kInvalidArgument.
   ScanRays scan_rays = ScanRays::kWalk;
+  /// What each node holds besides its log-odds. ColorMap and StampedMap set it; an
+  /// OccupancyMap made with kColor or kStamp is the same map without their extra calls.
+  Payload payload = Payload::kNone;
 
   /// Device bytes an empty map with these parameters holds: the smallest max_device_bytes.
   std::size_t minDeviceBytes() const;
@@ -100,6 +144,16 @@ struct MapParams {
 struct ScanOptions {
   double max_range_m = -1.0;  ///< rays longer than this are cut there (no occupied end); < 0: none
   bool discretize = false;    ///< OctoMap's discretize: one ray per distinct end cell
+  /// Colour maps (Payload::kColor): one colour per point (per pixel for a depth image, row by
+  /// row), folded after the scan into the node search() finds for each point, in the cloud's
+  /// order, as ColorOcTree::averageNodeColor (or integrateNodeColor) called for every point.
+  /// Empty: no colour. kInvalidArgument where the count differs from the points' or the map
+  /// holds no colour. The colours are copied before the call returns.
+  std::span<const Rgb> colors{};
+  ColorFold color_fold = ColorFold::kAverage;
+  /// Stamped maps (Payload::kStamp): the scan's time in whole seconds, which every node the scan
+  /// updates takes (OcTreeStamped's time(NULL)). Ignored by other maps.
+  std::uint32_t stamp = 0;
 };
 
 /// A rigid transform with OctoMap's float arithmetic (octomath::Pose6D): rotation applied as

@@ -8,6 +8,8 @@
 #include <span>
 #include <vector>
 
+#include "octovk/params.hpp"
+
 namespace octovk {
 
 /// The tree as the host sees it after an explicit download. Node index = block * 8 + slot;
@@ -17,8 +19,12 @@ struct HostTree {
     float log_odds;
     std::uint32_t children;
     std::uint32_t mask;
+    /// The payload (HostTree::payload): packRgb(colour) or the time stamp; 0 for kNone.
+    std::uint32_t payload = 0;
   };
   bool root_exists = false;
+  /// What the nodes' payload holds (the tree type).
+  Payload payload = Payload::kNone;
   std::vector<Node> nodes;
 };
 
@@ -50,6 +56,9 @@ struct Lookup {
   CellState state = CellState::kUnknown;
   float log_odds = 0.0f;    ///< of the node found (0 when unknown)
   std::uint32_t depth = 0;  ///< depth of the node found, 16 = finest (0 when unknown)
+  /// The node's payload (packRgb(colour) or time stamp; MapParams::payload), 0 when unknown or
+  /// the map has none.
+  std::uint32_t payload = 0;
 };
 
 /// A castRay query, as OctoMap's castRay(origin, direction, end, ignore_unknown, max_range).

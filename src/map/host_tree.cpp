@@ -6,7 +6,7 @@
 
 namespace octovk {
 
-HostTree::Node emptyHostNode() { return {0.0f, gpu::kNoBlock, 0}; }
+HostTree::Node emptyHostNode() { return {0.0f, gpu::kNoBlock, 0, 0}; }
 
 gpu::Node emptyPoolNode() { return {0.0f, gpu::kNoChildren}; }
 
@@ -14,7 +14,10 @@ void copyNodeData(const gpu::Node& from, HostTree::Node& to) { to.log_odds = fro
 
 void copyNodeData(const HostTree::Node& from, gpu::Node& to) { to.log_odds = from.log_odds; }
 
-void copyNodeData(const HostTree::Node& from, HostTree::Node& to) { to.log_odds = from.log_odds; }
+void copyNodeData(const HostTree::Node& from, HostTree::Node& to) {
+  to.log_odds = from.log_odds;
+  to.payload = from.payload;
+}
 
 void checkNodeData(const HostTree::Node& node, std::size_t index, const char* call) {
   // As the .ot reader: a value that no update can give would make a file no reader takes.
@@ -24,8 +27,10 @@ void checkNodeData(const HostTree::Node& node, std::size_t index, const char* ca
                                         "; every node's log-odds must be a finite number");
 }
 
-HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool) {
+HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, std::span<const std::uint32_t> payload,
+                          Payload kind, const gpu::PoolState& pool) {
   HostTree tree;
+  tree.payload = kind;
   tree.root_exists = pool.root_exists != 0;
   const std::size_t count = std::min<std::size_t>(std::size_t{pool.bump} * 8, nodes.size());
   // Device nodes keep a node's existence in the node itself (kFlagLive); the host tree keeps a
@@ -36,6 +41,7 @@ HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState
     HostTree::Node& n = tree.nodes[i];
     n = emptyHostNode();
     copyNodeData(nodes[i], n);
+    if (i < payload.size()) n.payload = payload[i];
     if (block == gpu::kNoChildren || block >= pool.bump || std::size_t{block} * 8 + 8 > count)
       continue;
     n.children = block;
@@ -49,6 +55,7 @@ HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState
 HostTree compactHostTree(const HostTree& tree) {
   HostTree out;
   out.root_exists = tree.root_exists;
+  out.payload = tree.payload;
   // Block 0 holds the root (its other slots are unused), as in every pool.
   out.nodes.assign(8, emptyHostNode());
   if (!tree.root_exists || tree.nodes.size() < 8) return out;
@@ -83,6 +90,7 @@ PoolImage poolImageFromTree(const HostTree& tree) {
   image.blocks = static_cast<std::uint32_t>(blocks);
   image.parents.assign(blocks, gpu::kNoBlock);
   image.nodes.assign(blocks * 8, emptyPoolNode());
+  if (tree.payload != Payload::kNone) image.payload.assign(blocks * 8, newNodePayload(tree.payload));
   image.root_exists = tree.root_exists;
   if (tree.root_exists) {
     if (tree.nodes.empty()) throw Error(ErrorCode::kFormat, "upload: the tree has no root node");
@@ -100,6 +108,7 @@ PoolImage poolImageFromTree(const HostTree& tree) {
       checkNodeData(n, it.node, "upload");
       gpu::Node& g = image.nodes[it.node];
       copyNodeData(n, g);
+      if (!image.payload.empty()) image.payload[it.node] = n.payload;
       g.link = gpu::kNoChildren | gpu::kFlagLive;
       if ((n.mask & gpu::kChildMask) == 0) continue;
       if (it.depth >= gpu::kTreeDepth)
@@ -120,6 +129,37 @@ PoolImage poolImageFromTree(const HostTree& tree) {
   for (std::uint32_t b = 1; b < blocks; ++b)
     if (image.parents[b] == gpu::kNoBlock) image.free_blocks.push_back(b);
   return image;
+}
+
+void averageInnerColors(HostTree& tree) {
+  if (tree.payload != Payload::kColor || !tree.root_exists || tree.nodes.empty()) return;
+  // Children before parents: a depth-first order reversed.
+  std::vector<std::uint32_t> order{gpu::kRootNode};
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const HostTree::Node& n = tree.nodes[order[i]];
+    if ((n.mask & gpu::kChildMask) == 0) continue;
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (n.mask & (1u << s)) order.push_back(n.children * 8 + s);
+  }
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    HostTree::Node& n = tree.nodes[*it];
+    if ((n.mask & gpu::kChildMask) == 0) continue;
+    // ColorOcTreeNode::getAverageChildColor: int sums over the children whose colour is set.
+    int r = 0, g = 0, b = 0, c = 0;
+    for (std::uint32_t s = 0; s < 8; ++s) {
+      if (!(n.mask & (1u << s))) continue;
+      const std::uint32_t v = tree.nodes[n.children * 8 + s].payload;
+      if ((v & 0xFFFFFFu) == 0xFFFFFFu) continue;
+      const Rgb col = unpackRgb(v);
+      r += col.r;
+      g += col.g;
+      b += col.b;
+      ++c;
+    }
+    n.payload = c > 0 ? packRgb(Rgb{static_cast<std::uint8_t>(r / c), static_cast<std::uint8_t>(g / c),
+                                    static_cast<std::uint8_t>(b / c)})
+                      : 0x00FFFFFFu;
+  }
 }
 
 }  // namespace octovk

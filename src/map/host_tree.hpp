@@ -31,8 +31,16 @@ void copyNodeData(const HostTree::Node& from, HostTree::Node& to);
 /// (a log-odds that is not a finite number).
 void checkNodeData(const HostTree::Node& node, std::size_t index, const char* call);
 
-/// The tree that hangs from the root of a downloaded pool (`nodes`: the first pool.bump blocks).
-HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, const gpu::PoolState& pool);
+/// The tree that hangs from the root of a downloaded pool (`nodes`: the first pool.bump blocks;
+/// `payload`: their payload words, empty for Payload::kNone).
+HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, std::span<const std::uint32_t> payload,
+                          Payload kind, const gpu::PoolState& pool);
+
+/// ColorOcTree::updateInnerOccupancy's colours: every inner node that hangs from the root takes
+/// the integer mean of its children's set colours (white where none is set), bottom up. The
+/// device leaves inner colours as OctoMap's updates leave them; a download gives these. Does
+/// nothing unless tree.payload is kColor.
+void averageInnerColors(HostTree& tree);
 
 /// The same tree with its blocks renumbered in breadth-first order from the root, with no block
 /// that nothing points at: what compact() uploads. Throws kInternal on a tree whose links leave
@@ -42,6 +50,7 @@ HostTree compactHostTree(const HostTree& tree);
 /// A HostTree as the device pool holds it, ready to upload.
 struct PoolImage {
   std::vector<gpu::Node> nodes;            ///< blocks * 8
+  std::vector<std::uint32_t> payload;      ///< blocks * 8 payload words (empty for kNone)
   std::vector<std::uint32_t> parents;      ///< per block, the node it hangs under, or kNoBlock
   std::vector<std::uint32_t> free_blocks;  ///< blocks nothing points at (block 0 excepted)
   std::uint32_t blocks = 0;

@@ -50,3 +50,19 @@ std::string MapParams::validate() const {
 }
 
 }  // namespace octovk
+
+namespace octovk {
+
+const char* treeTypeName(Payload payload) {
+  switch (payload) {
+    case Payload::kColor:
+      return "ColorOcTree";
+    case Payload::kStamp:
+      return "OcTreeStamped";
+    case Payload::kNone:
+      break;
+  }
+  return "OcTree";
+}
+
+}  // namespace octovk

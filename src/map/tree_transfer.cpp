@@ -15,7 +15,8 @@ HostTree TreeTransfer::download() {
   core_.stream.begin(core_.buffers.bindings);
   core_.stream.copy(core_.buffers.nodes, staging, count * sizeof(gpu::Node));
   core_.stream.submitAndWait();
-  return hostTreeFromPool({static_cast<const gpu::Node*>(staging.mapped()), count}, pool);
+  return hostTreeFromPool({static_cast<const gpu::Node*>(staging.mapped()), count}, {},
+                          core_.params.payload, pool);
 }
 
 // The pool a tree of `blocks` blocks is uploaded into: a quarter more for the next scans, at least
