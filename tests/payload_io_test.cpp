@@ -1,0 +1,2 @@
+// Filled by the payload work (issue 29).
+#include <gtest/gtest.h>
