@@ -8,7 +8,7 @@ namespace {
 
 const Subcommand kSubcommands[] = {
     {.name = "integrate",
-     .summary = "scans (.graph or a TUM RGB-D folder) into a .bt / .ot map, as graph2tree",
+     .summary = "scans (a .graph or TUM RGB-D folder) into a .bt / .ot map; colour, stamps",
      .print_help = printIntegrateHelp,
      .input = "scan graph or folder",
      .second_input_hint = "; outputs go after -o",
@@ -22,7 +22,8 @@ const Subcommand kSubcommands[] = {
      .make = makeIntegrate,
      .examples = "  octovk integrate scans.graph -o map.bt -o map.ot -r 0.05\n"
                  "  octovk integrate rgbd_dataset_freiburg1_xyz -o map.bt\n"
-                 "  octovk integrate scans.graph -o map.bt --max-range 10 --changes changes.ply\n"},
+                 "  octovk integrate scans.graph -o map.bt --max-range 10 --changes changes.ply\n"
+                 "  octovk integrate rgbd_dataset_freiburg1_xyz --color -o map.ot\n"},
     {.name = "convert",
      .summary = "a TUM RGB-D folder as an OctoMap scan graph (.graph)",
      .print_help = printConvertHelp,

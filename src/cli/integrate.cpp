@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -77,6 +79,88 @@ std::string scanPlace(const std::string& input, const std::optional<TumSequence>
   const std::string name = fs::path(frame.image_path).lexically_relative(fs::path(input)).string();
   return input + ": depth image " + stamp + " (" + (name.empty() ? frame.image_path : name) +
          ", depth.txt line " + std::to_string(frame.line) + ")";
+}
+
+// --degrade-after's value: whole seconds, as OcTreeStamped's stamps.
+std::uint32_t parseSeconds(const ParsedOption& opt) {
+  std::uint32_t value = 0;
+  const char* end = opt.value.data() + opt.value.size();
+  const auto [at, ec] = std::from_chars(opt.value.data(), end, value);
+  if (opt.value.empty() || ec != std::errc() || at != end)
+    throw UsageError(opt.name + " " + opt.value +
+                     ": give whole seconds from 0 to 4294967295 (OcTreeStamped's stamps are whole "
+                     "seconds); e.g. " +
+                     opt.name + " 30");
+  return value;
+}
+
+// --stamps FILE: one stamp a line, in whole seconds, exactly one per scan ('#' comment lines and
+// blank lines skipped). Errors name the file and the line.
+std::vector<std::uint32_t> readStamps(const std::string& path, std::size_t scans) {
+  std::ifstream in(path, std::ios_base::binary);
+  if (!in.is_open())
+    throw Error(ErrorCode::kIo, "cannot read stamps file '" + path + "': " + std::strerror(errno));
+  std::vector<std::uint32_t> stamps;
+  std::size_t number = 0;
+  for (std::string line; std::getline(in, line);) {
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    const std::string text = line.substr(first, line.find_last_not_of(" \t") + 1 - first);
+    const std::string where = "stamps file '" + path + "' line " + std::to_string(number) + ": ";
+    if (stamps.size() == scans)
+      throw Error(ErrorCode::kFormat, where + "a stamp for scan " + std::to_string(scans + 1) +
+                                          ", but the graph holds " + std::to_string(scans) +
+                                          " scans; give one stamp per scan");
+    std::uint32_t stamp = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), stamp);
+    if (ec != std::errc() || end != text.data() + text.size()) {
+      const std::string shown = text.size() > 40 ? text.substr(0, 37) + "..." : text;
+      throw Error(ErrorCode::kFormat,
+                  where + "'" + shown +
+                      "' is not a time stamp; give whole seconds from 0 to 4294967295, one a "
+                      "line (OcTreeStamped's stamps)");
+    }
+    stamps.push_back(stamp);
+  }
+  if (in.bad())
+    throw Error(ErrorCode::kIo, "cannot read stamps file '" + path + "': " + std::strerror(errno));
+  if (stamps.size() != scans)
+    throw Error(ErrorCode::kFormat, "stamps file '" + path + "' holds " +
+                                        std::to_string(stamps.size()) + " stamps (in " +
+                                        std::to_string(number) + " lines) but the graph holds " +
+                                        std::to_string(scans) +
+                                        " scans; give one stamp per scan, one a line");
+  return stamps;
+}
+
+// --stamped: image `i`'s time stamp in whole seconds (its timestamp's floor), as OcTreeStamped
+// holds time(NULL).
+std::uint32_t imageStamp(const std::optional<TumSequence>& tum, std::size_t i) {
+  const double t = std::floor(tum->frames[i].timestamp);
+  if (!(t >= 0.0 && t <= 4294967295.0))
+    throw Error(ErrorCode::kFormat,
+                scanPlace(tum->dir, tum, i, tum->frames.size()) +
+                    ": its time stamp is outside 0 to 4294967295 s, and --stamped gives each "
+                    "image its time stamp in whole seconds (OcTreeStamped's unsigned stamps)");
+  return static_cast<std::uint32_t>(t);
+}
+
+// --color: image `i`'s colour image has the depth image's size (`depth`), pixel for pixel.
+void checkColorSize(const std::optional<TumSequence>& tum, std::size_t i,
+                    const DepthPngSize& depth) {
+  const TumFrame& frame = tum->frames[i];
+  const DepthPngSize size = checkColorPng(frame.color_path);
+  if (size.width != depth.width || size.height != depth.height)
+    throw Error(ErrorCode::kFormat,
+                scanPlace(tum->dir, tum, i, tum->frames.size()) + ": its colour image '" +
+                    frame.color_path + "' (rgb.txt line " + std::to_string(frame.color_line) +
+                    ") is " + std::to_string(size.width) + " x " + std::to_string(size.height) +
+                    " pixels, the depth image " + std::to_string(depth.width) + " x " +
+                    std::to_string(depth.height) +
+                    "; --color needs colour images registered to the depth images, pixel for "
+                    "pixel");
 }
 
 // Progress lines on stderr: on a terminal from the start, elsewhere only once the run has taken
@@ -207,18 +291,15 @@ void printIntegrateHelp(std::ostream& out) {
       << defaults.clamping_max
       << ")\n"
          "      --discretize       one point per voxel before ray casting (default: off)\n"
-         "      --rays walk|rt|rt-query|rt-pipeline\n"
-         "                         how a scan finds its cells: a cell-by-cell walk, or ray "
-         "tracing\n"
-         "                         (rt-query, rt-pipeline force one way); same map (default: "
-         "walk)\n"
-         "      --changes FILE.ply the keys the run changed (OctoMap's change detection) as an\n"
-         "                         ASCII PLY: x y z, uchar created, red green blue (default: "
-         "none)\n"
+         "      --rays walk|rt|rt-query|rt-pipeline  cell walk or ray tracing, not under a cap\n"
+         "      --changes FILE.ply the keys the run changed (OctoMap's change detection) as PLY\n"
          "  -q, --quiet            no progress on stderr (default: on a terminal, or after a "
-         "second)\n";
+         "second)\n"
+         "      --color            DIR: a ColorOcTree (.ot only), each pixel coloured by rgb.txt\n"
+         "      --stamps FILE      .graph: an OcTreeStamped (.ot only), scan i stamped with line i\n"
+         "      --stamped          DIR: an OcTreeStamped (.ot only) with the images' seconds\n"
+         "      --degrade-after S  before each stamped scan, occupied cells older than S s fade\n";
   printMaxDeviceMemoryHelp(out, "A scan");
-  out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Values: '--name VALUE' or '--name=VALUE' ('--intrinsics=FX,FY,CX,CY').\n";
@@ -261,6 +342,14 @@ class Integrate final : public Command {
       quiet_ = true;
     else if (opt.name == "--changes")
       changes_path_ = opt.value;
+    else if (opt.name == "--color")
+      color_ = true;
+    else if (opt.name == "--stamps")
+      stamps_path_ = opt.value;
+    else if (opt.name == "--stamped")
+      stamped_ = true;
+    else if (opt.name == "--degrade-after")
+      degrade_after_ = parseSeconds(opt);
     else if (parseCameraOption(opt, camera_)) {
       if (camera_option_.empty()) camera_option_ = opt.name;
     } else
@@ -272,12 +361,16 @@ class Integrate final : public Command {
   int run(Invocation& in) override;
 
  private:
+  // --color, --stamps, --stamped, --degrade-after: which input each takes, and the payload.
+  void checkPayload(const Invocation& in);
   struct Sources;
   struct Totals;
   // The scans or images of the input, checked before any is inserted.
   Sources readSources(Invocation& in) const;
-  // Inserts every scan into `map`; errors name the scan that failed.
-  Totals insert(OccupancyMap& map, const Sources& sources, const std::string& input) const;
+  // Inserts every scan into `map` (`stamped`: the same map, when it holds stamps); errors name
+  // the scan that failed.
+  Totals insert(OccupancyMap& map, StampedMap* stamped, const Sources& sources,
+                const std::string& input) const;
 
   bool tum_ = false;           ///< the input is a TUM RGB-D folder, not a scan graph
   CameraIntrinsics camera_;    ///< --intrinsics, --depth-scale (TUM folders only)
@@ -287,6 +380,10 @@ class Integrate final : public Command {
   bool quiet_ = false;
   std::string changes_path_;                   ///< --changes
   std::optional<std::size_t> changes_output_;  ///< its index in the run's output files
+  bool color_ = false;                         ///< --color: a ColorOcTree from rgb.txt
+  std::string stamps_path_;                    ///< --stamps: a graph's scans' stamps
+  bool stamped_ = false;                       ///< --stamped: a folder's images' own stamps
+  std::optional<std::uint32_t> degrade_after_;  ///< --degrade-after
 };
 
 void Integrate::check(Invocation& in) {
@@ -302,6 +399,7 @@ void Integrate::check(Invocation& in) {
       throw UsageError(camera_option_ + " applies to a TUM RGB-D folder; scan graph '" +
                        graph_path + "' holds 3D points already: leave " + camera_option_ + " out");
   }
+  checkPayload(in);
   in.checkOutputs();
   if (!changes_path_.empty()) {
     checkOutputFile(changes_path_, {".ply"}, ".ply (ASCII PLY point cloud) for --changes");
@@ -317,11 +415,57 @@ void Integrate::check(Invocation& in) {
   if (!why.empty()) throw UsageError(why + "; " + paramFix(why));
 }
 
-// What a run reads: a scan graph's scans, or a TUM RGB-D folder's images (read one by one).
+void Integrate::checkPayload(const Invocation& in) {
+  const std::string& input = in.input();
+  if (color_ && (stamped_ || !stamps_path_.empty()))
+    throw UsageError(std::string("a map holds colours or time stamps, not both (OctoMap's "
+                                 "ColorOcTree or OcTreeStamped): give --color or ") +
+                     (stamped_ ? "--stamped" : "--stamps") + ", not both");
+  if (stamped_ && !stamps_path_.empty())
+    throw UsageError("--stamped takes a folder's stamps and --stamps a scan graph's: give one");
+  if (color_ && !tum_)
+    throw UsageError("--color takes the colours of a TUM RGB-D folder's rgb.txt images; scan "
+                     "graph '" +
+                     input + "' holds no colours: leave --color out");
+  if (color_) {
+    std::error_code ec;
+    if (!fs::exists(fs::path(input) / "rgb.txt", ec))
+      throw UsageError("folder '" + input +
+                       "' has no rgb.txt, which --color reads ('timestamp filename' lines naming "
+                       "8-bit colour PNGs registered to the depth images)");
+  }
+  if (stamped_ && !tum_)
+    throw UsageError("--stamped takes the time stamps of a TUM RGB-D folder's images; for scan "
+                     "graph '" +
+                     input + "' give --stamps FILE (one stamp per scan)");
+  if (!stamps_path_.empty()) {
+    if (tum_)
+      throw UsageError("--stamps gives a scan graph's scans their stamps; TUM RGB-D folder '" +
+                       input + "' has its own: use --stamped");
+    checkRegularInput(stamps_path_, "stamps file",
+                      "give a text file with one whole-second stamp per scan, one a line");
+  }
+  const bool stamps = stamped_ || !stamps_path_.empty();
+  if (degrade_after_ && !stamps)
+    throw UsageError("--degrade-after needs the scans' time stamps: add --stamps FILE (a scan "
+                     "graph) or --stamped (a TUM RGB-D folder)");
+  params_.payload = color_ ? Payload::kColor : stamps ? Payload::kStamp : Payload::kNone;
+  if (params_.payload == Payload::kNone) return;
+  // A .bt holds one occupancy bit pair per leaf: no colour or stamp, nor their tree type.
+  for (const std::string& output : in.outputs())
+    if (fs::path(output).extension() == ".bt")
+      throw UsageError("'" + output + "': a .bt file holds occupancy only; " +
+                       (color_ ? "--color" : stamped_ ? "--stamped" : "--stamps") +
+                       " makes a " + treeTypeName(params_.payload) + ": write it as -o MAP.ot");
+}
+
+// What a run reads: a scan graph's scans, or a TUM RGB-D folder's images (read one by one), and
+// the scans' stamps (--stamps, --stamped).
 struct Integrate::Sources {
   std::vector<GraphScan> scans;
   std::optional<TumSequence> tum;
   std::uint64_t max_pixels = 0;  // the device's largest depth image (TUM folders)
+  std::vector<std::uint32_t> stamps;  // one per scan, or none
   std::size_t count() const { return tum ? tum->frames.size() : scans.size(); }
 };
 
@@ -346,17 +490,21 @@ Integrate::Sources Integrate::readSources(Invocation& in) const {
   const std::string& graph_path = in.input();
   Sources sources;
   if (tum_) {
-    sources.tum = readTumSequence(graph_path);
+    sources.tum = readTumSequence(graph_path, kTumMaxTimeDifference,
+                                  color_ ? TumColor::kRgbTxt : TumColor::kNone);
     // Every image's format before any work, rather than after minutes of it; then, with the
     // device, the largest image's size from its header, before any image is decoded.
     std::uint64_t largest = 0;
     const TumFrame* largest_frame = nullptr;
-    for (const TumFrame& frame : sources.tum->frames) {
+    for (std::size_t i = 0; i < sources.tum->frames.size(); ++i) {
+      const TumFrame& frame = sources.tum->frames[i];
       const DepthPngSize size = checkDepthPng(frame.image_path);
       if (std::uint64_t{size.width} * size.height > largest) {
         largest = std::uint64_t{size.width} * size.height;
         largest_frame = &frame;
       }
+      if (color_) checkColorSize(*sources.tum, i, size);
+      if (stamped_) sources.stamps.push_back(imageStamp(*sources.tum, i));
     }
     sources.max_pixels = maxDepthImagePixels(in.context());
     if (largest_frame) checkDepthPng(largest_frame->image_path, sources.max_pixels);
@@ -375,11 +523,12 @@ Integrate::Sources Integrate::readSources(Invocation& in) const {
                 "scan graph '" + graph_path + "' holds " + std::to_string(sources.scans.size()) +
                     " scan(s) but no points: there is nothing to integrate and no map was "
                     "written; give a graph whose scans hold points");
+  if (!stamps_path_.empty()) sources.stamps = readStamps(stamps_path_, sources.scans.size());
   return sources;
 }
 
-Integrate::Totals Integrate::insert(OccupancyMap& map, const Sources& sources,
-                                    const std::string& input) const {
+Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped,
+                                    const Sources& sources, const std::string& input) const {
   const std::size_t scan_count = sources.count();
   const bool tum = sources.tum.has_value();
   Progress progress(scan_count, !quiet_);
@@ -393,18 +542,32 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, const Sources& sources,
   try {
     for (; at < scan_count; ++at) {
       ScanTicket ticket = 0;
+      ScanOptions options = scan_;
+      if (!sources.stamps.empty()) {
+        options.stamp = sources.stamps[at];
+        // What has not been seen for longer than the threshold fades before the scan, at its time.
+        if (stamped && degrade_after_) stamped->degradeOutdated(options.stamp, *degrade_after_);
+      }
       if (tum) {
         // As graph2tree on convert's graph: the camera-frame points, cast from the pose's
         // position.
         const TumFrame& frame = sources.tum->frames[at];
         const DepthPng png = readDepthPng(frame.image_path, sources.max_pixels);
-        ticket = map.submitDepthImage(png.image(camera_), frame.T_world_camera, scan_,
+        ColorPng colour;
+        if (color_) {
+          colour = readColorPng(frame.color_path, sources.max_pixels);
+          if (colour.width != png.width || colour.height != png.height)
+            throw Error(ErrorCode::kFormat, "its colour image '" + frame.color_path +
+                                                "' is no longer the depth image's size");
+          options.colors = colour.colors;  // one a pixel; copied by the submission
+        }
+        ticket = map.submitDepthImage(png.image(camera_), frame.T_world_camera, options,
                                       graph2treeSensorOrigin(frame.T_world_camera));
       } else {
         const GraphScan& scan = sources.scans[at];
         ticket =
             map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                                 scan.T_world_sensor, scan_);
+                                 scan.T_world_sensor, options);
       }
       if (at == 0) first_ticket = ticket;
       if (at % 256 == 255) totals.add(map.takeScanStats(), tum);
@@ -437,10 +600,14 @@ int Integrate::run(Invocation& in) {
   std::cout << "device: " << context.device().name << " (" << context.device().type << ")"
             << std::endl;
 
-  OccupancyMap map(context, params_);
+  // params_.payload says what the nodes hold; a stamped map is taken over for degradeOutdated.
+  OccupancyMap plain(context, params_);
+  std::optional<StampedMap> stamped;
+  if (params_.payload == Payload::kStamp) stamped.emplace(std::move(plain));
+  OccupancyMap& map = stamped ? *stamped : plain;
   if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   const auto insert_start = Clock::now();
-  const Totals totals = insert(map, sources, in.input());
+  const Totals totals = insert(map, stamped ? &*stamped : nullptr, sources, in.input());
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t device_bytes = map.deviceBytes();
@@ -468,6 +635,21 @@ int Integrate::run(Invocation& in) {
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));
+  if (color_)
+    report.line("colour",
+                format("ColorOcTree: each depth pixel coloured by rgb.txt's image nearest in time "
+                       "(%zu listed, less than %g s away)",
+                       sources.tum->color_images, kTumMaxTimeDifference));
+  if (!sources.stamps.empty()) {
+    const auto [low, high] = std::minmax_element(sources.stamps.begin(), sources.stamps.end());
+    report.line("stamps", format("OcTreeStamped: %u to %u s, ", *low, *high) +
+                              (stamped_ ? "the images' time stamps in whole seconds"
+                                        : "from " + stamps_path_ + ", one per scan"));
+    if (degrade_after_)
+      report.line("degraded", format("before each scan, occupied cells older than %u s at its "
+                                     "stamp took a miss (degradeOutdatedNodes)",
+                                     *degrade_after_));
+  }
   if (changes_output_) {
     const auto created = static_cast<std::size_t>(std::count_if(
         changes.begin(), changes.end(), [](const ChangedKey& c) { return c.created; }));
@@ -493,7 +675,9 @@ std::vector<std::string> integrateValueOptions() {
                                     "--clamping-min",
                                     "--clamping-max",
                                     "--rays",
-                                    "--changes"};
+                                    "--changes",
+                                    "--stamps",
+                                    "--degrade-after"};
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
 }
@@ -501,6 +685,12 @@ std::vector<std::string> integrateValueOptions() {
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.
 std::size_t writeMap(OccupancyMap& map, const std::string& path) {
+  // A ColorOcTree or OcTreeStamped .ot: OctoMap's tree of the map's payload, through the library
+  // (it writes a temporary of its own beside `path` and renames it).
+  if (map.params().payload != Payload::kNone && fs::path(path).extension() == ".ot") {
+    writeMapFile(map, path);
+    return map.nodeCount();
+  }
   std::unique_ptr<octomap::OcTree> tree = toOcTree(map);  // a fresh one: writeBinary prunes it
   std::ofstream out(path, std::ios_base::binary | std::ios_base::trunc);
   if (!out.is_open())

@@ -1,6 +1,7 @@
 // octovk render: a picture of a map's occupied cells, one castRay per pixel on the device, shaded
-// on the host by height (colour), the face each ray entered (light) and distance (haze), with a
-// legend that gives the heights in metres and a scale bar.
+// on the host by height (colour; a ColorOcTree's cells in their own colours), the face each ray
+// entered (light) and distance (haze), with a legend that gives the heights in metres and a scale
+// bar.
 #include <Eigen/Core>
 #include <algorithm>
 #include <cerrno>
@@ -75,6 +76,7 @@ struct Sample {
   double normal_sign = 1.0;
   double z = 0.0;
   double face_u = 0.0, face_v = 0.0;  // entry point on the face, -1..1 across the cell
+  Rgb colour{255, 255, 255};          // the hit cell's own colour (colour maps)
 };
 
 // Host bytes a ray takes while its tile is cast: its sample, the ray, its result, its pixel and
@@ -173,10 +175,11 @@ void printRenderHelp(std::ostream& out) {
          "\n"
          "Draws the occupied cells of an OctoMap .bt or .ot map headless on the Vulkan device, "
          "one\n"
-         "OctoMap castRay per pixel (unknown space counts as free), coloured by height; from\n"
+         "OctoMap castRay per pixel (unknown space counts as free), coloured by height (a\n"
+         "ColorOcTree .ot: each cell in its own colour); from "
       << kLegendMinWidth << "x" << kLegendMinHeight
-      << " pixels on, with a height bar and a scale bar on the right. It prints the camera\n"
-         "to repeat or adjust.\n"
+      << " pixels on, with a height bar\n"
+         "and a scale bar on the right. It prints the camera to repeat or adjust.\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      the picture to write, 8-bit RGB PNG (.png). Required.\n"
@@ -199,11 +202,13 @@ void printRenderHelp(std::ostream& out) {
 namespace {
 
 // The occupied cells a picture can show (below --z-max), their box, and the heights that the
-// colours span (cell centres: blue at z_low, red at z_low + z_span).
+// colours span (cell centres: blue at z_low, red at z_low + z_span), or for a colour map
+// (ColorOcTree) the cells' own colours instead.
 struct Scene {
   std::vector<OccupancyMap::LeafBoxHost> shown;
   Box occupied;
   double z_low = 0.0, z_span = 1.0;
+  bool own_colours = false;
 };
 
 // How the rays are cast: rows per tile, rays per castRays call.
@@ -305,6 +310,7 @@ class Tracer {
   const RgbImage& image() const { return image_; }
   std::size_t cast() const { return cast_; }
   std::size_t hits() const { return hits_; }
+  std::size_t whiteHits() const { return white_hits_; }
   double depthMin() const { return depth_min_; }
   double depthMax() const { return depth_max_; }
 
@@ -341,13 +347,16 @@ class Tracer {
 
   void flush() {
     std::vector<RayHit> results;
+    std::vector<Rgb> colours;  // colour maps: each result's hit cell's colour
     for (;;) {
       try {
         results.clear();
+        colours.clear();
         for (std::size_t at = 0; at < rays_.size(); at += budget_.ray_batch) {
           const std::size_t n = std::min(budget_.ray_batch, rays_.size() - at);
           const std::vector<RayHit> part = map_.castRays(std::span(rays_).subspan(at, n));
           results.insert(results.end(), part.begin(), part.end());
+          if (scene_.own_colours) addColours(part, colours);
         }
         break;
       } catch (const Error& e) {
@@ -364,6 +373,10 @@ class Tracer {
                                          static_cast<double>(p / width_) + 0.5);
       Sample& s = window_[p - std::size_t{window_row_} * width_];
       s = sampleOf(results[i], camera_.eye, dir, resolution_, ray_start_[i]);
+      if (scene_.own_colours) {
+        s.colour = colours[i];
+        if (s.colour == Rgb{255, 255, 255}) ++white_hits_;
+      }
       depth_min_ = std::min(depth_min_, s.depth);
       depth_max_ = std::max(depth_max_, s.depth);
       ++hits_;
@@ -372,6 +385,27 @@ class Tracer {
     rays_.clear();
     ray_pixel_.clear();
     ray_start_.clear();
+  }
+
+  // The colour of each hit cell of `part` (the leaf search() finds at the cell's centre; its
+  // payload is the packed colour), after those of earlier parts in `colours`; misses are white.
+  void addColours(const std::vector<RayHit>& part, std::vector<Rgb>& colours) {
+    std::vector<Eigen::Vector3f> ends;
+    for (const RayHit& hit : part)
+      if (hit.hit) ends.push_back(hit.end);
+    const std::vector<Lookup> found = map_.search(ends);
+    std::size_t next = 0;
+    for (const RayHit& hit : part) {
+      Rgb colour{255, 255, 255};
+      if (hit.hit) {
+        const Lookup& cell = found[next++];
+        if (cell.state != CellState::kUnknown) {
+          const octovk::Rgb c = unpackRgb(cell.payload);
+          colour = {c.r, c.g, c.b};
+        }
+      }
+      colours.push_back(colour);
+    }
   }
 
   // Shades the rows whose neighbours are cast, and drops the samples no row needs any more.
@@ -410,7 +444,9 @@ class Tracer {
       if ((x > 0 && farther(x - 1, y)) || (x + 1 < width_ && farther(x + 1, y)) ||
           (y > 0 && farther(x, y - 1)) || (y + 1 < height_ && farther(x, y + 1)))
         light_f *= 0.55;
-      image_.set(x, y, scale(heightColor((s.z - scene_.z_low) / scene_.z_span), light_f));
+      const Rgb base =
+          scene_.own_colours ? s.colour : heightColor((s.z - scene_.z_low) / scene_.z_span);
+      image_.set(x, y, scale(base, light_f));
       depths_[std::size_t{y} * width_ + x] = static_cast<float>(s.depth);
     }
   }
@@ -445,7 +481,7 @@ class Tracer {
   std::vector<Ray> rays_;
   std::vector<std::size_t> ray_pixel_;
   std::vector<double> ray_start_;
-  std::size_t cast_ = 0, hits_ = 0;
+  std::size_t cast_ = 0, hits_ = 0, white_hits_ = 0;
   double depth_min_ = std::numeric_limits<double>::max(), depth_max_ = 0.0;
 };
 
@@ -464,12 +500,22 @@ ScaleBar scaleBar(const Camera& camera, double most_pixels) {
   return bar;
 }
 
-// The legend strip at x0 of `canvas`: the height colour bar with its heights in metres, then the
-// scale bar.
+void drawScaleBar(Canvas& canvas, double left, double h, const ScaleBar& bar);
+
+// The legend strip at x0 of `canvas`: the height colour bar with its heights in metres (a colour
+// map's words on its own colours instead), then the scale bar.
 void drawLegend(Canvas& canvas, std::uint32_t x0, const Scene& scene, const ScaleBar& bar) {
   const double h = canvas.height();
   canvas.fill(x0, 0, kLegendWidth, h, kLegendBackground);
   const double left = x0 + 12.0;
+  if (scene.own_colours) {
+    // No height bar: each cell shows the colour the map holds for it.
+    canvas.text("colours: the", left, 16, 13, kLegendText);
+    canvas.text("map's own", left, 34, 13, kLegendText);
+    canvas.text("(ColorOcTree)", left, 52, 13, kLegendText);
+    drawScaleBar(canvas, left, h, bar);
+    return;
+  }
   canvas.text("height", left, 16, 13, kLegendText);
   // The colour bar, highest at the top; its ticks at round heights.
   const double top = 34, bottom = h - 96, bar_w = 16;
@@ -484,7 +530,12 @@ void drawLegend(Canvas& canvas, std::uint32_t x0, const Scene& scene, const Scal
     canvas.line(left + bar_w, y, left + bar_w + 5, y, kLegendText);
     canvas.text(tickText(z, step, "m"), left + bar_w + 9, y, 11, kLegendText);
   }
-  // The scale bar, with what it measures.
+  drawScaleBar(canvas, left, h, bar);
+}
+
+// The scale bar at the legend's foot (`left` its left edge, `h` the canvas height), with what it
+// measures.
+void drawScaleBar(Canvas& canvas, double left, double h, const ScaleBar& bar) {
   const double y = h - 60;
   canvas.text("scale at the look-at", left, y - 26, 11, kLegendText);
   canvas.text(format("point, %s m away", tickText(bar.depth_m, 0.1).c_str()), left, y - 12, 11,
@@ -504,6 +555,7 @@ Scene Render::scene(OccupancyMap& map, const std::string& map_path) const {
   const double z_cut =
       z_max_ ? std::round(*z_max_ / resolution) * resolution : std::numeric_limits<double>::max();
   Scene scene;
+  scene.own_colours = map.params().payload == Payload::kColor;
   scene.shown = map.downloadLeafBoxes();
   std::erase_if(scene.shown, [&](const OccupancyMap::LeafBoxHost& c) {
     return !(c.log_odds >= occupied_log_odds) || c.center[2] - 0.5 * c.size >= z_cut;
@@ -597,9 +649,14 @@ int Render::run(Invocation& in) {
                            pixels));
   if (tracer.hits() > 0)
     report.line("depth", format("%.2f to %.2f m", tracer.depthMin(), tracer.depthMax()));
+  if (shown.own_colours)
+    report.line("colours", format("the map's own (ColorOcTree); %zu of the hits white (no colour "
+                                  "set)",
+                                  tracer.whiteHits()));
+  else
+    report.line("heights", format("%.2f to %.2f m, the cells' centres: blue lowest, red highest",
+                                  shown.z_low, shown.z_low + shown.z_span));
   return report
-      .line("heights", format("%.2f to %.2f m, the cells' centres: blue lowest, red highest",
-                              shown.z_low, shown.z_low + shown.z_span))
       .line("scale", format("%g m = %.0f px at the look-at point, %.2f m from the eye", bar.metres,
                             bar.pixels, bar.depth_m))
       .finish(steps, in.outputs());

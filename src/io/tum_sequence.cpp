@@ -1,5 +1,5 @@
-// TUM RGB-D sequences: depth.txt and groundtruth.txt matched by timestamp, and 16-bit PNG depth
-// images read with libpng. Numbers are parsed with std::from_chars (locale-independent, correctly
+// TUM RGB-D sequences: depth.txt and groundtruth.txt (and rgb.txt, for colour) matched by
+// timestamp, and 16-bit PNG depth images and 8-bit colour PNGs read with libpng. Numbers are parsed with std::from_chars (locale-independent, correctly
 // rounded): timestamps as double, poses as float, so that a pose is exactly the float values
 // OctoMap's Pose6D would hold.
 #include "octovk/tum_sequence.hpp"
@@ -98,7 +98,8 @@ std::ifstream openList(const fs::path& path, const fs::path& real_root, std::uin
   if (!fs::exists(path, ec))
     throw Error(ErrorCode::kIo, "'" + path.string() +
                                     "' does not exist; a TUM RGB-D folder holds depth.txt, "
-                                    "groundtruth.txt and the depth images");
+                                    "groundtruth.txt and the depth images (and rgb.txt and "
+                                    "the colour images, for colour)");
   const fs::path real = fs::canonical(path, ec);
   if (ec) throw Error(ErrorCode::kIo, "cannot resolve '" + path.string() + "': " + ec.message());
   const fs::path inside = real.lexically_relative(real_root);
@@ -133,6 +134,24 @@ T parseField(const std::string& path, const Line& line, std::size_t i, const cha
   if (ec != std::errc() || end != text.data() + text.size() || !std::isfinite(value))
     throw badLine(path, line, std::string(what) + " '" + text + "' is not a finite number");
   return value;
+}
+
+// Images are read from inside the folder only: joined with an absolute name the folder would be
+// dropped, and '..' climbs out of it, either way to any file on the machine. (Symbolic links are
+// resolved and checked where the files are: readTumSequence.) `list` names the list in words
+// ("depth.txt"), `example` a name it could hold.
+void checkImageName(const std::string& path, const Line& line, const char* list,
+                    const char* example) {
+  const fs::path name(line.fields[1]);
+  if (name.is_absolute())
+    throw badLine(path, line,
+                  "the file name '" + line.fields[1] + "' is absolute; " + list +
+                      " names images relative to the folder (e.g. '" + example + "')");
+  if (std::any_of(name.begin(), name.end(), [](const fs::path& part) { return part == ".."; }))
+    throw badLine(path, line,
+                  "the file name '" + line.fields[1] + "' has a '..' component; " + list +
+                      " names images inside the folder (e.g. '" + example +
+                      "'): move the images into it");
 }
 
 std::string seconds(double t) {
@@ -317,20 +336,7 @@ TumSequence associateDepthList(ByteSource& source, std::vector<GroundTruthPose> 
     const double t = parseField<double>(depth_path, line, 0, "the timestamp");
     first = sequence.images_listed == 0 ? t : std::min(first, t);
     last = sequence.images_listed == 0 ? t : std::max(last, t);
-    // Images are read from inside the folder only: joined with an absolute name the folder would
-    // be dropped, and '..' climbs out of it, either way to any file on the machine. (Symbolic
-    // links are resolved and checked where the files are: readTumSequence.)
-    const fs::path name(line.fields[1]);
-    if (name.is_absolute())
-      throw badLine(depth_path, line,
-                    "the file name '" + line.fields[1] +
-                        "' is absolute; depth.txt names images relative to the folder (e.g. "
-                        "'depth/1305031102.160407.png')");
-    if (std::any_of(name.begin(), name.end(), [](const fs::path& part) { return part == ".."; }))
-      throw badLine(depth_path, line,
-                    "the file name '" + line.fields[1] +
-                        "' has a '..' component; depth.txt names images inside the folder (e.g. "
-                        "'depth/1305031102.160407.png'): move the images into it");
+    checkImageName(depth_path, line, "depth.txt", "depth/1305031102.160407.png");
     ++sequence.images_listed;
     // The nearest pose: the first at or after t, or the one before it (the earlier on a tie).
     const auto after = std::lower_bound(
@@ -369,11 +375,98 @@ TumSequence associateDepthList(ByteSource& source, std::vector<GroundTruthPose> 
   return sequence;
 }
 
+std::vector<ListedImage> parseImageList(std::string_view text, const std::string& name) {
+  ByteSource source(text);
+  return parseImageList(source, name);
+}
+
+std::vector<ListedImage> parseImageList(ByteSource& source, const std::string& path) {
+  std::vector<ListedImage> images;
+  DataLines lines(source, path);
+  for (Line line; lines.next(line);) {
+    if (line.fields.size() != 2)
+      throw badLine(path, line,
+                    "expected 2 fields 'timestamp filename', found " +
+                        std::to_string(line.fields.size()));
+    ListedImage image;
+    image.timestamp = parseField<double>(path, line, 0, "the timestamp");
+    checkImageName(path, line, "rgb.txt", "rgb/1305031102.175304.png");
+    image.name = line.fields[1];
+    image.line = line.number;
+    images.push_back(std::move(image));
+  }
+  if (images.empty())
+    throw Error(ErrorCode::kFormat, "'" + path +
+                                        "' lists no images (only comments or blank lines); it "
+                                        "needs lines 'timestamp filename'");
+  return images;
+}
+
+void associateColorImages(TumSequence& sequence, std::vector<ListedImage> images,
+                          const TumListNames& names, double max_time_difference_s) {
+  if (images.empty())
+    throw Error(ErrorCode::kFormat, "'" + names.rgb +
+                                        "' lists no images (only comments or blank lines); it "
+                                        "needs lines 'timestamp filename'");
+  sequence.color_images = images.size();
+  std::stable_sort(images.begin(), images.end(), [](const auto& a, const auto& b) {
+    return a.timestamp < b.timestamp;
+  });
+  const fs::path root(names.dir);
+  for (TumFrame& frame : sequence.frames) {
+    const double t = frame.timestamp;
+    // The nearest image, as for poses: the first at or after t, or the one before it (the
+    // earlier on a tie).
+    const auto after = std::lower_bound(
+        images.begin(), images.end(), t,
+        [](const ListedImage& image, double time) { return image.timestamp < time; });
+    auto nearest = after;
+    if (after == images.end() ||
+        (after != images.begin() && t - std::prev(after)->timestamp <= after->timestamp - t))
+      nearest = std::prev(after);
+    const double gap = std::abs(nearest->timestamp - t);
+    if (!(gap < max_time_difference_s))
+      throw Error(ErrorCode::kFormat,
+                  "'" + names.depth + "' line " + std::to_string(frame.line) + ": depth image " +
+                      seconds(t) + " ('" + frame.image_path + "') has no colour image in '" +
+                      names.rgb + "' less than " + seconds(max_time_difference_s) +
+                      " s away (the nearest, " + seconds(nearest->timestamp) + " on line " +
+                      std::to_string(nearest->line) + ", is " + seconds(gap) +
+                      " s away); a colour map needs a colour image for every depth image with "
+                      "a pose: check that rgb.txt belongs to this sequence, or leave the image "
+                      "out of depth.txt");
+    frame.color_path = (root / nearest->name).string();
+    frame.color_timestamp = nearest->timestamp;
+    frame.color_line = nearest->line;
+  }
+}
+
 }  // namespace io
 
 namespace {
 
-TumSequence readSequence(const std::string& dir, double max_time_difference_s) {
+// Checks that the image `path`, which a list names, exists inside the folder `real_root`
+// (canonical) and is a regular file; `where` begins the messages (list, line and image).
+void checkImageFile(const std::string& path, const fs::path& real_root, const std::string& where) {
+  std::error_code exists_ec;
+  if (!fs::exists(path, exists_ec))
+    throw Error(ErrorCode::kIo, where + " does not exist; check the folder is complete");
+  // A symbolic link (of the image or of a folder on its way) that leads out of the folder reads
+  // any file on the machine, as an absolute or '..' name would: refused alike.
+  std::error_code real_ec;
+  const fs::path real = fs::canonical(path, real_ec);
+  if (real_ec) throw Error(ErrorCode::kIo, where + " cannot be resolved: " + real_ec.message());
+  const fs::path inside = real.lexically_relative(real_root);
+  if (inside.empty() || *inside.begin() == "..")
+    throw Error(ErrorCode::kIo, where + " leads through a symbolic link to '" + real.string() +
+                                    "', outside the folder '" + real_root.string() +
+                                    "'; images are read from inside the folder only: copy the "
+                                    "image into it");
+  if (!fs::is_regular_file(real, exists_ec))
+    throw Error(ErrorCode::kIo, where + " is not a regular file; check the folder is complete");
+}
+
+TumSequence readSequence(const std::string& dir, double max_time_difference_s, TumColor color) {
   const fs::path root(dir);
   std::error_code ec;
   if (!fs::is_directory(root, ec))
@@ -383,6 +476,7 @@ TumSequence readSequence(const std::string& dir, double max_time_difference_s) {
   names.dir = dir;
   names.groundtruth = (root / "groundtruth.txt").string();
   names.depth = (root / "depth.txt").string();
+  names.rgb = (root / "rgb.txt").string();
   // The folder as the lists and images are resolved against it (it may itself be reached by a
   // link).
   const fs::path real_root = fs::canonical(root, ec);
@@ -395,37 +489,31 @@ TumSequence readSequence(const std::string& dir, double max_time_difference_s) {
       io::parseGroundTruth(groundtruth_bytes, names.groundtruth);
   std::ifstream depth = openList(names.depth, real_root, &size);
   io::ByteSource depth_bytes(depth, size, names.depth);
-  return io::associateDepthList(
+  TumSequence sequence = io::associateDepthList(
       depth_bytes, std::move(poses), names, max_time_difference_s, [&](const TumFrame& frame) {
-        const std::string where = "'" + names.depth + "' line " + std::to_string(frame.line) +
-                                  ": depth image '" + frame.image_path + "'";
-        std::error_code exists_ec;
-        if (!fs::exists(frame.image_path, exists_ec))
-          throw Error(ErrorCode::kIo, where + " does not exist; check the folder is complete");
-        // A symbolic link (of the image or of a folder on its way) that leads out of the folder
-        // reads any file on the machine, as an absolute or '..' name would: refused alike.
-        std::error_code real_ec;
-        const fs::path real = fs::canonical(frame.image_path, real_ec);
-        if (real_ec)
-          throw Error(ErrorCode::kIo, where + " cannot be resolved: " + real_ec.message());
-        const fs::path inside = real.lexically_relative(real_root);
-        if (inside.empty() || *inside.begin() == "..")
-          throw Error(ErrorCode::kIo,
-                      where + " leads through a symbolic link to '" + real.string() +
-                          "', outside the folder '" + real_root.string() +
-                          "'; images are read from inside the folder only: copy the image into "
-                          "it");
-        if (!fs::is_regular_file(real, exists_ec))
-          throw Error(ErrorCode::kIo,
-                      where + " is not a regular file; check the folder is complete");
+        checkImageFile(frame.image_path, real_root,
+                       "'" + names.depth + "' line " + std::to_string(frame.line) +
+                           ": depth image '" + frame.image_path + "'");
       });
+  if (color == TumColor::kRgbTxt) {
+    std::ifstream rgb = openList(names.rgb, real_root, &size);
+    io::ByteSource rgb_bytes(rgb, size, names.rgb);
+    io::associateColorImages(sequence, io::parseImageList(rgb_bytes, names.rgb), names,
+                             max_time_difference_s);
+    for (const TumFrame& frame : sequence.frames)
+      checkImageFile(frame.color_path, real_root,
+                     "'" + names.rgb + "' line " + std::to_string(frame.color_line) +
+                         ": colour image '" + frame.color_path + "'");
+  }
+  return sequence;
 }
 
 }  // namespace
 
-TumSequence readTumSequence(const std::string& dir, double max_time_difference_s) {
+TumSequence readTumSequence(const std::string& dir, double max_time_difference_s,
+                            TumColor color) {
   return hostMemoryGuard("readTumSequence",
-                         [&] { return readSequence(dir, max_time_difference_s); });
+                         [&] { return readSequence(dir, max_time_difference_s, color); });
 }
 
 DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
@@ -444,45 +532,77 @@ DepthImage DepthPng::image(const CameraIntrinsics& camera) const {
 
 namespace {
 
-// Reads the header of the PNG in `r` (its source set); throws unless it is a 16-bit grayscale PNG
-// whose pixels its bytes can hold, with at most `max_pixels` pixels (0: no limit).
-void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* width,
-                        png_uint_32* height, std::uint64_t max_pixels) {
+// What a PNG is read as: a depth image (16-bit grayscale) or a colour image (8-bit RGB, RGBA,
+// grayscale or grayscale+alpha).
+enum class PngKind { kDepth, kColor };
+
+const char* pngNoun(PngKind kind) { return kind == PngKind::kDepth ? "depth image" : "colour image"; }
+
+const char* pngFormats(PngKind kind) {
+  return kind == PngKind::kDepth ? "depth images must be 16-bit grayscale PNGs"
+                                 : "colour images must be 8-bit RGB, RGBA or grayscale PNGs";
+}
+
+// The bytes a pixel of an accepted format takes in the file, before deflate.
+std::uint64_t pngPixelBytes(PngKind kind, int color_type) {
+  if (kind == PngKind::kDepth) return 2;
+  switch (color_type) {
+    case PNG_COLOR_TYPE_GRAY: return 1;
+    case PNG_COLOR_TYPE_GRAY_ALPHA: return 2;
+    case PNG_COLOR_TYPE_RGB: return 3;
+    default: return 4;
+  }
+}
+
+bool acceptedFormat(PngKind kind, int bit_depth, int color_type) {
+  if (kind == PngKind::kDepth) return bit_depth == 16 && color_type == PNG_COLOR_TYPE_GRAY;
+  return bit_depth == 8 &&
+         (color_type == PNG_COLOR_TYPE_GRAY || color_type == PNG_COLOR_TYPE_GRAY_ALPHA ||
+          color_type == PNG_COLOR_TYPE_RGB || color_type == PNG_COLOR_TYPE_RGB_ALPHA);
+}
+
+// Reads the header of the PNG in `r` (its source set); throws unless it is of a format `kind`
+// accepts and its bytes can hold its pixels, with at most `max_pixels` pixels (0: no limit).
+// Its colour type in `color_type`.
+void readPngHeader(PngReader& r, const std::string& path, PngKind kind, png_uint_32* width,
+                   png_uint_32* height, std::uint64_t max_pixels, int* color_type) {
+  const std::string noun = pngNoun(kind);
   unsigned char signature[8];
   if (r.read(signature, 8) != 8 || png_sig_cmp(signature, 0, 8) != 0)
-    throw Error(ErrorCode::kFormat, "depth image '" + path +
-                                        "' is not a PNG file; depth images must be 16-bit "
-                                        "grayscale PNGs");
+    throw Error(ErrorCode::kFormat, noun + " '" + path + "' is not a PNG file; " + pngFormats(kind));
   r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &r, pngError, pngWarning);
   if (r.png) r.info = png_create_info_struct(r.png);
   if (!r.png || !r.info)
-    throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': libpng is out of memory");
+    throw Error(ErrorCode::kIo, "cannot read " + noun + " '" + path + "': libpng is out of memory");
   limitPngMemory(r.png);
 
-  int bit_depth = 0, color_type = 0;
-  if (!pngReadHeader(r, width, height, &bit_depth, &color_type))
-    throw Error(ErrorCode::kFormat, "depth image '" + path +
+  int bit_depth = 0;
+  if (!pngReadHeader(r, width, height, &bit_depth, color_type))
+    throw Error(ErrorCode::kFormat, noun + " '" + path +
                                         "' is a corrupt or truncated PNG (libpng: " +
                                         std::string(r.message) + ")");
-  if (bit_depth != 16 || color_type != PNG_COLOR_TYPE_GRAY)
-    throw Error(ErrorCode::kFormat, "depth image '" + path + "' is a " +
-                                        colorTypeName(color_type) + " PNG of bit depth " +
-                                        std::to_string(bit_depth) +
-                                        "; depth images must be 16-bit grayscale PNGs");
+  if (!acceptedFormat(kind, bit_depth, *color_type))
+    throw Error(ErrorCode::kFormat,
+                noun + " '" + path + "' is a " + colorTypeName(*color_type) +
+                    " PNG of bit depth " + std::to_string(bit_depth) + "; " + pngFormats(kind) +
+                    (kind == PngKind::kColor && bit_depth == 16
+                         ? " (16-bit colour is not read: convert the images to 8 bits)"
+                         : ""));
   // libpng's user limit refuses these first (a "corrupt" PNG whose message says so); kept for a
   // libpng built without user limits.
   if (*width > kMaxPngSide || *height > kMaxPngSide)
-    throw Error(ErrorCode::kFormat, "depth image '" + path + "' is " + std::to_string(*width) +
+    throw Error(ErrorCode::kFormat, noun + " '" + path + "' is " + std::to_string(*width) +
                                         " x " + std::to_string(*height) + " pixels; at most " +
                                         std::to_string(kMaxPngSide) + " in each direction");
-  // The pixels' bytes as deflate's input: a filter byte and two bytes a pixel per row (interlaced
+  // The pixels' bytes as deflate's input: a filter byte and the pixels' bytes per row (interlaced
   // images need more). Deflate shrinks data at most 1032-fold, so a file too small to hold them is
   // cut short or damaged: refused before its pixels are allocated (a few kB of file could
   // otherwise claim 8 GiB).
-  const std::uint64_t raw = std::uint64_t{*height} * (1 + 2 * std::uint64_t{*width});
+  const std::uint64_t raw =
+      std::uint64_t{*height} * (1 + pngPixelBytes(kind, *color_type) * std::uint64_t{*width});
   if (r.source_size > 0 && raw > io::kDeflateMaxRatio * r.source_size)
     throw Error(ErrorCode::kFormat,
-                "depth image '" + path + "' is a corrupt or truncated PNG: its header announces " +
+                noun + " '" + path + "' is a corrupt or truncated PNG: its header announces " +
                     std::to_string(*width) + " x " + std::to_string(*height) +
                     " pixels, more than its " + std::to_string(r.source_size) +
                     " bytes can hold");
@@ -490,22 +610,23 @@ void readDepthPngHeader(PngReader& r, const std::string& path, png_uint_32* widt
   const std::uint64_t pixels = std::uint64_t{*width} * *height;
   if (max_pixels != 0 && pixels > max_pixels)
     throw Error(ErrorCode::kInvalidArgument,
-                "depth image '" + path + "' is " + std::to_string(*width) + " x " +
+                noun + " '" + path + "' is " + std::to_string(*width) + " x " +
                     std::to_string(*height) + " = " + std::to_string(pixels) +
                     " pixels; a scan takes at most " + std::to_string(max_pixels) +
                     " points on this device: scale the image down or crop it");
 }
 
-// Opens the file `path` in `r` and reads its header (see readDepthPngHeader).
-void openDepthPng(PngReader& r, const std::string& path, png_uint_32* width, png_uint_32* height,
-                  std::uint64_t max_pixels) {
+// Opens the file `path` in `r` and reads its header (see readPngHeader).
+void openPng(PngReader& r, const std::string& path, PngKind kind, png_uint_32* width,
+             png_uint_32* height, std::uint64_t max_pixels, int* color_type) {
   r.file = std::fopen(path.c_str(), "rb");
   if (!r.file)
-    throw Error(ErrorCode::kIo, "cannot read depth image '" + path + "': " + std::strerror(errno));
+    throw Error(ErrorCode::kIo, std::string("cannot read ") + pngNoun(kind) + " '" + path +
+                                    "': " + std::strerror(errno));
   std::error_code ec;
   if (fs::is_regular_file(path, ec)) r.source_size = fs::file_size(path, ec);
   if (ec) r.source_size = 0;
-  readDepthPngHeader(r, path, width, height, max_pixels);
+  readPngHeader(r, path, kind, width, height, max_pixels, color_type);
 }
 
 // Reads the pixels of the PNG in `r`, whose header has been read.
@@ -525,13 +646,43 @@ DepthPng readDepthPngPixels(PngReader& r, const std::string& path, png_uint_32 w
   return out;
 }
 
+// libpng turns every accepted colour format into 3 bytes a pixel, r g b: the layout of Rgb.
+static_assert(sizeof(Rgb) == 3 && alignof(Rgb) == 1);
+
+bool pngReadColorRows(PngReader& r, png_bytepp rows, int color_type) {
+  if (setjmp(png_jmpbuf(r.png))) return false;
+  if (color_type & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(r.png);
+  if (!(color_type & PNG_COLOR_MASK_COLOR)) png_set_gray_to_rgb(r.png);
+  png_read_image(r.png, rows);
+  png_read_end(r.png, nullptr);
+  return true;
+}
+
+// Reads the pixels of the colour PNG in `r`, whose header has been read.
+ColorPng readColorPngPixels(PngReader& r, const std::string& path, png_uint_32 width,
+                            png_uint_32 height, int color_type) {
+  ColorPng out;
+  out.width = width;
+  out.height = height;
+  out.colors.resize(std::size_t{width} * height);
+  std::vector<png_bytep> rows(height);
+  for (png_uint_32 y = 0; y < height; ++y)
+    rows[y] = reinterpret_cast<png_bytep>(out.colors.data() + std::size_t{y} * width);
+  if (!pngReadColorRows(r, rows.data(), color_type))
+    throw Error(ErrorCode::kFormat, "colour image '" + path +
+                                        "' is a corrupt or truncated PNG (libpng: " +
+                                        std::string(r.message) + ")");
+  return out;
+}
+
 }  // namespace
 
 DepthPngSize checkDepthPng(const std::string& path, std::uint64_t max_pixels) {
   return hostMemoryGuard("checkDepthPng", [&] {
     PngReader r;
     png_uint_32 width = 0, height = 0;
-    openDepthPng(r, path, &width, &height, max_pixels);
+    int color_type = 0;
+    openPng(r, path, PngKind::kDepth, &width, &height, max_pixels, &color_type);
     return DepthPngSize{width, height};
   });
 }
@@ -540,7 +691,8 @@ DepthPng readDepthPng(const std::string& path, std::uint64_t max_pixels) {
   return hostMemoryGuard("readDepthPng", [&] {
     PngReader r;
     png_uint_32 width = 0, height = 0;
-    openDepthPng(r, path, &width, &height, max_pixels);
+    int color_type = 0;
+    openPng(r, path, PngKind::kDepth, &width, &height, max_pixels, &color_type);
     return readDepthPngPixels(r, path, width, height);
   });
 }
@@ -550,8 +702,39 @@ DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
   r.memory = bytes;
   r.source_size = bytes.size();
   png_uint_32 width = 0, height = 0;
-  readDepthPngHeader(r, name, &width, &height, 0);
+  int color_type = 0;
+  readPngHeader(r, name, PngKind::kDepth, &width, &height, 0, &color_type);
   return readDepthPngPixels(r, name, width, height);
+}
+
+DepthPngSize checkColorPng(const std::string& path, std::uint64_t max_pixels) {
+  return hostMemoryGuard("checkColorPng", [&] {
+    PngReader r;
+    png_uint_32 width = 0, height = 0;
+    int color_type = 0;
+    openPng(r, path, PngKind::kColor, &width, &height, max_pixels, &color_type);
+    return DepthPngSize{width, height};
+  });
+}
+
+ColorPng readColorPng(const std::string& path, std::uint64_t max_pixels) {
+  return hostMemoryGuard("readColorPng", [&] {
+    PngReader r;
+    png_uint_32 width = 0, height = 0;
+    int color_type = 0;
+    openPng(r, path, PngKind::kColor, &width, &height, max_pixels, &color_type);
+    return readColorPngPixels(r, path, width, height, color_type);
+  });
+}
+
+ColorPng io::decodeColorPng(std::string_view bytes, const std::string& name) {
+  PngReader r;
+  r.memory = bytes;
+  r.source_size = bytes.size();
+  png_uint_32 width = 0, height = 0;
+  int color_type = 0;
+  readPngHeader(r, name, PngKind::kColor, &width, &height, 0, &color_type);
+  return readColorPngPixels(r, name, width, height, color_type);
 }
 
 }  // namespace octovk
