@@ -41,8 +41,8 @@ void writePng8(const fs::path& path, std::uint32_t width, std::uint32_t height, 
   const std::size_t row_bytes = samples.size() / height;
   std::vector<png_bytep> rows(height);
   for (std::uint32_t y = 0; y < height; ++y) rows[y] = samples.data() + y * row_bytes;
-  ASSERT_TRUE(writePngRows(path.c_str(), width, height, 8, color_type, PNG_INTERLACE_NONE,
-                           rows.data()))
+  ASSERT_TRUE(
+      writePngRows(path.c_str(), width, height, 8, color_type, PNG_INTERLACE_NONE, rows.data()))
       << path;
 }
 
@@ -55,8 +55,8 @@ void writeDepthPng(const fs::path& path, std::uint32_t width, std::uint32_t heig
   }
   std::vector<png_bytep> rows(height);
   for (std::uint32_t y = 0; y < height; ++y) rows[y] = data.data() + y * width * 2;
-  ASSERT_TRUE(writePngRows(path.c_str(), width, height, 16, PNG_COLOR_TYPE_GRAY,
-                           PNG_INTERLACE_NONE, rows.data()))
+  ASSERT_TRUE(writePngRows(path.c_str(), width, height, 16, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+                           rows.data()))
       << path;
 }
 
@@ -121,8 +121,8 @@ ColorSequence makeColorSequence(const fs::path& dir) {
     std::vector<std::uint16_t> depths(kWidth * kHeight);
     for (std::uint32_t v = 0; v < kHeight; ++v)
       for (std::uint32_t u = 0; u < kWidth; ++u) {
-        const Eigen::Vector3d d = r * Eigen::Vector3d((u - double{kCx}) / kFx,
-                                                      (v - double{kCy}) / kFy, 1.0);
+        const Eigen::Vector3d d =
+            r * Eigen::Vector3d((u - double{kCx}) / kFx, (v - double{kCy}) / kFy, 1.0);
         double t = 1e9;
         for (int i = 0; i < 3; ++i) {
           if (d[i] > 0) t = std::min(t, (room_max[i] - o[i]) / d[i]);
@@ -145,8 +145,9 @@ ColorSequence makeColorSequence(const fs::path& dir) {
     seq.rgb_files.push_back(dir / rgb_name);
     std::vector<Rgb> colours(kWidth * kHeight);
     std::vector<unsigned char> samples;
-    const int type = k == 0 ? PNG_COLOR_TYPE_RGB : k == 1 ? PNG_COLOR_TYPE_RGB_ALPHA
-                                                           : PNG_COLOR_TYPE_GRAY;
+    const int type = k == 0   ? PNG_COLOR_TYPE_RGB
+                     : k == 1 ? PNG_COLOR_TYPE_RGB_ALPHA
+                              : PNG_COLOR_TYPE_GRAY;
     for (std::uint32_t v = 0; v < kHeight; ++v)
       for (std::uint32_t u = 0; u < kWidth; ++u) {
         Rgb& c = colours[v * kWidth + u];
@@ -235,7 +236,8 @@ TEST(PayloadCliReader, ColourPngsOfEveryEightBitKind) {
   // Grey with alpha: grey colours, the alpha dropped.
   const fs::path ga = scratch.dir() / "ga.png";
   writePng8(ga, 2, 1, PNG_COLOR_TYPE_GRAY_ALPHA, {17, 0, 200, 255});
-  EXPECT_TRUE(readColorPng(ga.string()).colors == (std::vector<Rgb>{{17, 17, 17}, {200, 200, 200}}));
+  EXPECT_TRUE(readColorPng(ga.string()).colors ==
+              (std::vector<Rgb>{{17, 17, 17}, {200, 200, 200}}));
   // From memory as from the file.
   EXPECT_TRUE(io::decodeColorPng(readFile(seq.rgb_files[0]), "rgb0").colors == seq.colours[0]);
 }
@@ -247,8 +249,8 @@ TEST(PayloadCliReader, RefusesSixteenBitColourAndOtherFormats) {
   {
     std::vector<unsigned char> samples(2 * 2 * 3 * 2, 0x80);
     std::vector<png_bytep> rows = {samples.data(), samples.data() + 12};
-    ASSERT_TRUE(writePngRows(rgb16.c_str(), 2, 2, 16, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
-                             rows.data()));
+    ASSERT_TRUE(
+        writePngRows(rgb16.c_str(), 2, 2, 16, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE, rows.data()));
   }
   const fs::path depth = scratch.dir() / "depth.png";
   writeDepthPng(depth, 2, 2, {1, 2, 3, 4});
@@ -292,13 +294,14 @@ TEST(PayloadCliReader, EachImageTakesTheNearestColourImage) {
     EXPECT_EQ(frame.color_line, std::size_t{k == 0 ? 3u : k == 1 ? 5u : 6u});
   }
   // A tie goes to the earlier image, and one image may serve two depth images.
-  io::TumListNames names{.dir = "D", .depth = "D/depth.txt", .groundtruth = "D/gt", .rgb = "D/rgb.txt"};
+  io::TumListNames names{
+      .dir = "D", .depth = "D/depth.txt", .groundtruth = "D/gt", .rgb = "D/rgb.txt"};
   TumSequence two;
   two.frames.resize(2);
   two.frames[0].timestamp = 10.0;
   two.frames[1].timestamp = 10.004;
-  io::associateColorImages(two, io::parseImageList("9.99 a.png\n10.01 b.png\n", "D/rgb.txt"),
-                           names, kTumMaxTimeDifference);
+  io::associateColorImages(two, io::parseImageList("9.99 a.png\n10.01 b.png\n", "D/rgb.txt"), names,
+                           kTumMaxTimeDifference);
   EXPECT_EQ(two.frames[0].color_path, (fs::path("D") / "a.png").string());
   EXPECT_EQ(two.frames[1].color_path, (fs::path("D") / "b.png").string());
   EXPECT_EQ(two.frames[1].color_line, 2u);
@@ -334,8 +337,8 @@ TEST(PayloadCli, IntegrateColorEqualsColorOcTree) {
   Scratch scratch("payload");
   const ColorSequence seq = makeColorSequence(scratch.dir() / "seq");
   const std::string ot = scratch / "map.ot";
-  std::vector<std::string> args = {"integrate", seq.dir.string(), "--color", "-o",
-                                   ot,          "-r",             "0.1",     "--quiet"};
+  std::vector<std::string> args = {"integrate", seq.dir.string(), "--color", "-o", ot, "-r",
+                                   "0.1",       "--quiet"};
   for (const std::string& a : cameraArgs()) args.push_back(a);
   const RunResult r = runOctovk(args, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
@@ -399,10 +402,10 @@ TEST(PayloadCliBadInput, MissingColourImage) {
   Scratch scratch("payload");
   const ColorSequence seq = makeColorSequence(scratch.dir() / "seq");
   fs::remove(seq.rgb_files[2]);
-  expectIntegrateRefused({"--color"}, 1,
-                         {"rgb.txt' line 6: colour image '" + seq.rgb_files[2].string() +
-                          "' does not exist"},
-                         scratch, seq.dir.string());
+  expectIntegrateRefused(
+      {"--color"}, 1,
+      {"rgb.txt' line 6: colour image '" + seq.rgb_files[2].string() + "' does not exist"}, scratch,
+      seq.dir.string());
 }
 
 TEST(PayloadCliBadInput, SixteenBitColourImage) {
@@ -425,8 +428,7 @@ TEST(PayloadCliBadInput, NoColourImageWithinTheLimit) {
   // The third image's colour image moved 0.03 s later: none within 0.02 s of it.
   const std::string name = seq.rgb_files[2].filename().string();
   const std::string stamp = name.substr(0, name.size() - 4);
-  replaceInFile(seq.dir / "rgb.txt", stamp + " ",
-                fixed(std::stod(stamp) + 0.03, 6) + " ");
+  replaceInFile(seq.dir / "rgb.txt", stamp + " ", fixed(std::stod(stamp) + 0.03, 6) + " ");
   expectIntegrateRefused({"--color"}, 1,
                          {"depth.txt' line 5: depth image 1305031102.241904", "no colour image",
                           "less than 0.020000 s away", "the nearest, 1305031102.215604 on line 5"},
@@ -456,8 +458,8 @@ TEST(PayloadCliBadInput, ColourOptionsInTheWrongPlace) {
   expectIntegrateRefused({"--color", "-o", scratch / "map.bt"}, 2,
                          {"map.bt': a .bt file holds occupancy only", "ColorOcTree", "MAP.ot"},
                          scratch, seq.dir.string());
-  expectIntegrateRefused({"--color", "--stamped"}, 2, {"colours or time stamps, not both"},
-                         scratch, seq.dir.string());
+  expectIntegrateRefused({"--color", "--stamped"}, 2, {"colours or time stamps, not both"}, scratch,
+                         seq.dir.string());
   fs::remove(seq.dir / "rgb.txt");
   expectIntegrateRefused({"--color"}, 2, {"has no rgb.txt, which --color reads"}, scratch,
                          seq.dir.string());
@@ -493,8 +495,7 @@ std::vector<GraphScan> stampScans() {
   std::vector<GraphScan> scans(6);
   for (std::size_t i = 0; i < 4; ++i) {
     scans[i].points_sensor = {{-2.0f, 0.0f, 0.0f}};
-    scans[i].T_world_sensor.translation = {0.0f, i % 2 == 0 ? 0.05f : 0.15f,
-                                           i < 2 ? 0.05f : 0.15f};
+    scans[i].T_world_sensor.translation = {0.0f, i % 2 == 0 ? 0.05f : 0.15f, i < 2 ? 0.05f : 0.15f};
   }
   for (std::size_t i = 4; i < scans.size(); ++i) {
     for (float y = -0.8f; y <= 0.8f; y += 0.05f)
@@ -544,8 +545,8 @@ TEST(PayloadCli, IntegrateStampsEqualsOcTreeStamped) {
   for (const long degrade : {-1L, 10L}) {
     SCOPED_TRACE(degrade);
     const std::string ot = scratch / "map.ot";
-    std::vector<std::string> args = {"integrate", graph,   "--stamps", stamps, "-o",
-                                     ot,          "-r",    "0.1",      "--quiet"};
+    std::vector<std::string> args = {"integrate", graph, "--stamps", stamps,   "-o",
+                                     ot,          "-r",  "0.1",      "--quiet"};
     if (degrade >= 0) args.insert(args.end(), {"--degrade-after", std::to_string(degrade)});
     const RunResult r = runOctovk(args, scratch.dir());
     ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
@@ -576,8 +577,8 @@ TEST(PayloadCliBadInput, WrongStampCountOrLine) {
   const std::string stamps = scratch / "stamps.txt";
   std::ofstream(stamps) << "1\n2\n3\n4\n5\n";
   expectIntegrateRefused({"--stamps", stamps}, 1,
-                         {"stamps file '" + stamps + "' holds 5 stamps", "holds 6 scans"},
-                         scratch, graph);
+                         {"stamps file '" + stamps + "' holds 5 stamps", "holds 6 scans"}, scratch,
+                         graph);
   std::ofstream(stamps) << "1\n2\n3\n4\n5\n# c\n6\n7\n";
   expectIntegrateRefused({"--stamps", stamps}, 1,
                          {"stamps file '" + stamps + "' line 8", "a stamp for scan 7"}, scratch,

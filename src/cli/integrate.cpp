@@ -127,11 +127,10 @@ std::vector<std::uint32_t> readStamps(const std::string& path, std::size_t scans
   if (in.bad())
     throw Error(ErrorCode::kIo, "cannot read stamps file '" + path + "': " + std::strerror(errno));
   if (stamps.size() != scans)
-    throw Error(ErrorCode::kFormat, "stamps file '" + path + "' holds " +
-                                        std::to_string(stamps.size()) + " stamps (in " +
-                                        std::to_string(number) + " lines) but the graph holds " +
-                                        std::to_string(scans) +
-                                        " scans; give one stamp per scan, one a line");
+    throw Error(ErrorCode::kFormat,
+                "stamps file '" + path + "' holds " + std::to_string(stamps.size()) +
+                    " stamps (in " + std::to_string(number) + " lines) but the graph holds " +
+                    std::to_string(scans) + " scans; give one stamp per scan, one a line");
   return stamps;
 }
 
@@ -271,8 +270,8 @@ void printIntegrateHelp(std::ostream& out) {
   printTumFolderHelp(out);
   out << "\n"
          "Options:\n"
-         "  -o, --output FILE      file to write, repeatable: .bt = max-likelihood, pruned; .ot =\n"
-         "                         full log-odds. All are written or none. Required.\n"
+         "  -o, --output FILE      file to write, repeatable, all or none: .bt max-likelihood, .ot "
+         "full\n"
          "  -r, --resolution M     edge of the smallest voxel in metres (default: "
       << defaults.resolution
       << ")\n"
@@ -291,15 +290,18 @@ void printIntegrateHelp(std::ostream& out) {
       << defaults.clamping_max
       << ")\n"
          "      --discretize       one point per voxel before ray casting (default: off)\n"
-         "      --rays walk|rt|rt-query|rt-pipeline  cell walk or ray tracing, not under a cap\n"
-         "      --changes FILE.ply the keys the run changed (OctoMap's change detection) as PLY\n"
+         "      --rays walk|rt|rt-query|rt-pipeline  cell walk or ray tracing (default: walk)\n"
+         "      --changes FILE.ply the run's changed keys as PLY: x y z, uchar created, red green "
+         "blue\n"
          "  -q, --quiet            no progress on stderr (default: on a terminal, or after a "
          "second)\n"
          "      --color            DIR: a ColorOcTree (.ot only), each pixel coloured by rgb.txt\n"
-         "      --stamps FILE      .graph: an OcTreeStamped (.ot only), scan i stamped with line i\n"
+         "      --stamps FILE      .graph: an OcTreeStamped (.ot only), scan i stamped with line "
+         "i\n"
          "      --stamped          DIR: an OcTreeStamped (.ot only) with the images' seconds\n"
          "      --degrade-after S  before each stamped scan, occupied cells older than S s fade\n";
   printMaxDeviceMemoryHelp(out, "A scan");
+  out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Values: '--name VALUE' or '--name=VALUE' ('--intrinsics=FX,FY,CX,CY').\n";
@@ -378,11 +380,11 @@ class Integrate final : public Command {
   MapParams params_;
   ScanOptions scan_;  ///< --max-range, --discretize
   bool quiet_ = false;
-  std::string changes_path_;                   ///< --changes
-  std::optional<std::size_t> changes_output_;  ///< its index in the run's output files
-  bool color_ = false;                         ///< --color: a ColorOcTree from rgb.txt
-  std::string stamps_path_;                    ///< --stamps: a graph's scans' stamps
-  bool stamped_ = false;                       ///< --stamped: a folder's images' own stamps
+  std::string changes_path_;                    ///< --changes
+  std::optional<std::size_t> changes_output_;   ///< its index in the run's output files
+  bool color_ = false;                          ///< --color: a ColorOcTree from rgb.txt
+  std::string stamps_path_;                     ///< --stamps: a graph's scans' stamps
+  bool stamped_ = false;                        ///< --stamped: a folder's images' own stamps
   std::optional<std::uint32_t> degrade_after_;  ///< --degrade-after
 };
 
@@ -424,9 +426,10 @@ void Integrate::checkPayload(const Invocation& in) {
   if (stamped_ && !stamps_path_.empty())
     throw UsageError("--stamped takes a folder's stamps and --stamps a scan graph's: give one");
   if (color_ && !tum_)
-    throw UsageError("--color takes the colours of a TUM RGB-D folder's rgb.txt images; scan "
-                     "graph '" +
-                     input + "' holds no colours: leave --color out");
+    throw UsageError(
+        "--color takes the colours of a TUM RGB-D folder's rgb.txt images; scan "
+        "graph '" +
+        input + "' holds no colours: leave --color out");
   if (color_) {
     std::error_code ec;
     if (!fs::exists(fs::path(input) / "rgb.txt", ec))
@@ -435,9 +438,10 @@ void Integrate::checkPayload(const Invocation& in) {
                        "8-bit colour PNGs registered to the depth images)");
   }
   if (stamped_ && !tum_)
-    throw UsageError("--stamped takes the time stamps of a TUM RGB-D folder's images; for scan "
-                     "graph '" +
-                     input + "' give --stamps FILE (one stamp per scan)");
+    throw UsageError(
+        "--stamped takes the time stamps of a TUM RGB-D folder's images; for scan "
+        "graph '" +
+        input + "' give --stamps FILE (one stamp per scan)");
   if (!stamps_path_.empty()) {
     if (tum_)
       throw UsageError("--stamps gives a scan graph's scans their stamps; TUM RGB-D folder '" +
@@ -447,15 +451,18 @@ void Integrate::checkPayload(const Invocation& in) {
   }
   const bool stamps = stamped_ || !stamps_path_.empty();
   if (degrade_after_ && !stamps)
-    throw UsageError("--degrade-after needs the scans' time stamps: add --stamps FILE (a scan "
-                     "graph) or --stamped (a TUM RGB-D folder)");
+    throw UsageError(
+        "--degrade-after needs the scans' time stamps: add --stamps FILE (a scan "
+        "graph) or --stamped (a TUM RGB-D folder)");
   params_.payload = color_ ? Payload::kColor : stamps ? Payload::kStamp : Payload::kNone;
   if (params_.payload == Payload::kNone) return;
   // A .bt holds one occupancy bit pair per leaf: no colour or stamp, nor their tree type.
   for (const std::string& output : in.outputs())
     if (fs::path(output).extension() == ".bt")
       throw UsageError("'" + output + "': a .bt file holds occupancy only; " +
-                       (color_ ? "--color" : stamped_ ? "--stamped" : "--stamps") +
+                       (color_     ? "--color"
+                        : stamped_ ? "--stamped"
+                                   : "--stamps") +
                        " makes a " + treeTypeName(params_.payload) + ": write it as -o MAP.ot");
 }
 
@@ -464,7 +471,7 @@ void Integrate::checkPayload(const Invocation& in) {
 struct Integrate::Sources {
   std::vector<GraphScan> scans;
   std::optional<TumSequence> tum;
-  std::uint64_t max_pixels = 0;  // the device's largest depth image (TUM folders)
+  std::uint64_t max_pixels = 0;       // the device's largest depth image (TUM folders)
   std::vector<std::uint32_t> stamps;  // one per scan, or none
   std::size_t count() const { return tum ? tum->frames.size() : scans.size(); }
 };
@@ -527,8 +534,8 @@ Integrate::Sources Integrate::readSources(Invocation& in) const {
   return sources;
 }
 
-Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped,
-                                    const Sources& sources, const std::string& input) const {
+Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped, const Sources& sources,
+                                    const std::string& input) const {
   const std::size_t scan_count = sources.count();
   const bool tum = sources.tum.has_value();
   Progress progress(scan_count, !quiet_);

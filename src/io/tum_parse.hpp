@@ -1,7 +1,8 @@
 // The bytes-in half of the TUM RGB-D reader (src/io/tum_sequence.cpp): depth.txt, groundtruth.txt
-// and rgb.txt from their contents, and a 16-bit PNG depth image or an 8-bit colour PNG from memory. No file system:
-// readTumSequence and readDepthPng read the files and call these, and the unit tests and the fuzz
-// targets (tests/fuzz/fuzz_tum_lists.cpp, fuzz_depth_png.cpp) call them on bytes directly.
+// and rgb.txt from their contents, and a 16-bit PNG depth image or an 8-bit colour PNG from memory.
+// No file system: readTumSequence and readDepthPng read the files and call these, and the unit
+// tests and the fuzz targets (tests/fuzz/fuzz_tum_lists.cpp, fuzz_depth_png.cpp) call them on bytes
+// directly.
 #pragma once
 
 #include <cstdint>

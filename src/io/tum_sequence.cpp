@@ -1,7 +1,7 @@
 // TUM RGB-D sequences: depth.txt and groundtruth.txt (and rgb.txt, for colour) matched by
-// timestamp, and 16-bit PNG depth images and 8-bit colour PNGs read with libpng. Numbers are parsed with std::from_chars (locale-independent, correctly
-// rounded): timestamps as double, poses as float, so that a pose is exactly the float values
-// OctoMap's Pose6D would hold.
+// timestamp, and 16-bit PNG depth images and 8-bit colour PNGs read with libpng. Numbers are parsed
+// with std::from_chars (locale-independent, correctly rounded): timestamps as double, poses as
+// float, so that a pose is exactly the float values OctoMap's Pose6D would hold.
 #include "octovk/tum_sequence.hpp"
 
 #include <png.h>
@@ -510,8 +510,7 @@ TumSequence readSequence(const std::string& dir, double max_time_difference_s, T
 
 }  // namespace
 
-TumSequence readTumSequence(const std::string& dir, double max_time_difference_s,
-                            TumColor color) {
+TumSequence readTumSequence(const std::string& dir, double max_time_difference_s, TumColor color) {
   return hostMemoryGuard("readTumSequence",
                          [&] { return readSequence(dir, max_time_difference_s, color); });
 }
@@ -536,7 +535,9 @@ namespace {
 // grayscale or grayscale+alpha).
 enum class PngKind { kDepth, kColor };
 
-const char* pngNoun(PngKind kind) { return kind == PngKind::kDepth ? "depth image" : "colour image"; }
+const char* pngNoun(PngKind kind) {
+  return kind == PngKind::kDepth ? "depth image" : "colour image";
+}
 
 const char* pngFormats(PngKind kind) {
   return kind == PngKind::kDepth ? "depth images must be 16-bit grayscale PNGs"
@@ -569,7 +570,8 @@ void readPngHeader(PngReader& r, const std::string& path, PngKind kind, png_uint
   const std::string noun = pngNoun(kind);
   unsigned char signature[8];
   if (r.read(signature, 8) != 8 || png_sig_cmp(signature, 0, 8) != 0)
-    throw Error(ErrorCode::kFormat, noun + " '" + path + "' is not a PNG file; " + pngFormats(kind));
+    throw Error(ErrorCode::kFormat,
+                noun + " '" + path + "' is not a PNG file; " + pngFormats(kind));
   r.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &r, pngError, pngWarning);
   if (r.png) r.info = png_create_info_struct(r.png);
   if (!r.png || !r.info)
