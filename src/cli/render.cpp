@@ -393,7 +393,7 @@ class Tracer {
     std::vector<Eigen::Vector3f> ends;
     for (const RayHit& hit : part)
       if (hit.hit) ends.push_back(hit.end);
-    const std::vector<Lookup> found = map_.search(ends);
+    const std::vector<Lookup> found = ends.empty() ? std::vector<Lookup>{} : map_.search(ends);
     std::size_t next = 0;
     for (const RayHit& hit : part) {
       Rgb colour{255, 255, 255};
