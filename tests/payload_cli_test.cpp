@@ -518,26 +518,31 @@ std::string writeStampGraph(const Scratch& scratch) {
   return graph;
 }
 
-// The oracle's .ot: each scan as graph2tree inserts it with the clock at its stamp, after a
-// degrade at that stamp when `degrade_after` is not negative.
-std::string stampOracleOt(const std::vector<unsigned int>& stamps, long degrade_after,
-                          const fs::path& out) {
-  StampClockTree tree(0.1);
+// The oracle: each scan as graph2tree inserts it with the clock at its stamp, after a degrade at
+// that stamp when `degrade_after` is not negative.
+std::unique_ptr<StampClockTree> stampOracle(const std::vector<unsigned int>& stamps,
+                                            long degrade_after) {
+  auto tree = std::make_unique<StampClockTree>(0.1);
   const std::vector<GraphScan> scans = stampScans();
   for (std::size_t i = 0; i < scans.size(); ++i) {
-    if (degrade_after >= 0) tree.degradeAt(stamps[i], static_cast<unsigned int>(degrade_after));
-    tree.now = stamps[i];
-    tree.insertPointCloud(toPointcloud(scans[i].points_sensor),
-                          toPoint(graph2treeSensorOrigin(scans[i].T_world_sensor)),
-                          toPose6D(scans[i].T_world_sensor), -1.0, false, false);
+    if (degrade_after >= 0) tree->degradeAt(stamps[i], static_cast<unsigned int>(degrade_after));
+    tree->now = stamps[i];
+    tree->insertPointCloud(toPointcloud(scans[i].points_sensor),
+                           toPoint(graph2treeSensorOrigin(scans[i].T_world_sensor)),
+                           toPose6D(scans[i].T_world_sensor), -1.0, false, false);
   }
-  EXPECT_TRUE(tree.write(out.string()));
+  return tree;
+}
+
+// The oracle's .ot (written to `out`).
+std::string stampOracleOt(const std::vector<unsigned int>& stamps, long degrade_after,
+                          const fs::path& out) {
+  EXPECT_TRUE(stampOracle(stamps, degrade_after)->write(out.string()));
   return readFile(out);
 }
 
 TEST(PayloadCli, IntegrateStampsEqualsOcTreeStamped) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  (void)ctx;  // the program makes its own; a missing device skips (fails under CI)
   Scratch scratch("payload");
   const std::string graph = writeStampGraph(scratch);
   const std::string stamps = scratch / "stamps.txt";
@@ -554,11 +559,28 @@ TEST(PayloadCli, IntegrateStampsEqualsOcTreeStamped) {
               std::string::npos)
         << r.out;
     EXPECT_EQ(r.out.find("degraded:") != std::string::npos, degrade >= 0) << r.out;
+    EXPECT_NE(r.out.find("wrote:         " + ot + ".stamps\n"), std::string::npos) << r.out;
+    EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+    const std::unique_ptr<StampClockTree> oracle = stampOracle(kStamps, degrade);
     const std::string expected = stampOracleOt(kStamps, degrade, scratch.dir() / "oracle.ot");
     EXPECT_TRUE(readFile(ot) == expected) << "the .ot differs from OctoMap's OcTreeStamped";
     std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(ot));
     ASSERT_NE(read, nullptr);
     EXPECT_NE(dynamic_cast<octomap::OcTreeStamped*>(read.get()), nullptr) << read->getTreeType();
+    // The stamps themselves, which the .ot lacks, come back from MAP.ot.stamps: every leaf's.
+    StampedMap map(readMapFile(ctx, ot));
+    std::vector<Eigen::Vector3f> centres;
+    std::vector<unsigned int> expected_stamps;
+    for (auto it = oracle->begin_leafs(), end = oracle->end_leafs(); it != end; ++it) {
+      const octomap::point3d c = it.getCoordinate();
+      centres.emplace_back(c.x(), c.y(), c.z());
+      expected_stamps.push_back(it->getTimestamp());
+    }
+    const std::vector<std::uint32_t> got = map.stamps(centres);
+    ASSERT_EQ(got.size(), expected_stamps.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < got.size(); ++i) differ += got[i] != expected_stamps[i] ? 1 : 0;
+    EXPECT_EQ(differ, 0u) << "of " << got.size() << " leaves";
   }
 }
 

@@ -227,17 +227,42 @@ void writeChanges(const std::string& path, std::vector<ChangedKey> changes, doub
 }
 
 // Every output is written before any is renamed into place, so that a failed write (a full
-// disk) leaves every existing file as it was. The maps are the -o outputs, in order; the change
-// set (`changes_output`, when there is one) follows them. Returns the nodes each map file holds.
+// disk) leaves every existing file as it was. The maps are the -o outputs, in order; a stamped
+// map's stamps files (`stamps_outputs`, one per map, MAP.ot.stamps) and the change set
+// (`changes_output`, when there is one) follow them. Returns the nodes each map file holds.
 std::vector<std::size_t> writeOutputs(OccupancyMap& map, Invocation& in,
+                                      const std::vector<std::size_t>& stamps_outputs,
                                       const std::optional<std::size_t>& changes_output,
                                       const std::vector<ChangedKey>& changes) {
   OutputFiles& outputs = in.files();
   std::vector<std::size_t> nodes(in.outputs().size());
   {
     StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-    for (std::size_t i = 0; i < in.outputs().size(); ++i)
-      outputs.write(i, [&](const std::string& temporary) { nodes[i] = writeMap(map, temporary); });
+    for (std::size_t i = 0; i < in.outputs().size(); ++i) {
+      std::string written;
+      // writeMapFile puts a stamped map's stamps beside the file it writes (its PATH.stamps):
+      // beside the map's temporary, whence they move into their own output's.
+      const auto removeBeside = [&] {
+        std::error_code ec;
+        if (!written.empty()) fs::remove(written + ".stamps", ec);
+      };
+      try {
+        outputs.write(i, [&](const std::string& temporary) {
+          written = temporary;
+          nodes[i] = writeMap(map, temporary);
+        });
+        if (i < stamps_outputs.size())
+          outputs.write(stamps_outputs[i], [&](const std::string& temporary) {
+            std::error_code ec;
+            fs::rename(written + ".stamps", temporary, ec);
+            if (ec)
+              throw Error(ErrorCode::kIo, "cannot write '" + temporary + "': " + ec.message());
+          });
+      } catch (...) {
+        removeBeside();
+        throw;
+      }
+    }
   }
   if (changes_output)
     outputs.write(*changes_output, [&](const std::string& temporary) {
@@ -382,6 +407,7 @@ class Integrate final : public Command {
   bool quiet_ = false;
   std::string changes_path_;                    ///< --changes
   std::optional<std::size_t> changes_output_;   ///< its index in the run's output files
+  std::vector<std::size_t> stamps_outputs_;     ///< each -o map's stamps file, by index
   bool color_ = false;                          ///< --color: a ColorOcTree from rgb.txt
   std::string stamps_path_;                     ///< --stamps: a graph's scans' stamps
   bool stamped_ = false;                        ///< --stamped: a folder's images' own stamps
@@ -403,6 +429,11 @@ void Integrate::check(Invocation& in) {
   }
   checkPayload(in);
   in.checkOutputs();
+  // A stamped map's .ot holds no stamps (OctoMap writes none): they go beside it, written and
+  // renamed with it, so that readMapFile finds the map's own.
+  if (params_.payload == Payload::kStamp)
+    for (const std::string& output : in.outputs())
+      stamps_outputs_.push_back(in.addOptionOutput(output + ".stamps"));
   if (!changes_path_.empty()) {
     checkOutputFile(changes_path_, {".ply"}, ".ply (ASCII PLY point cloud) for --changes");
     changes_output_ = in.addOptionOutput(changes_path_);
@@ -621,7 +652,8 @@ int Integrate::run(Invocation& in) {
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
   if (changes_output_) changes = map.changedKeys();
-  const std::vector<std::size_t> file_nodes = writeOutputs(map, in, changes_output_, changes);
+  const std::vector<std::size_t> file_nodes =
+      writeOutputs(map, in, stamps_outputs_, changes_output_, changes);
   const double total_s = secondsSince(run_start);
 
   const std::size_t scans = sources.count();
@@ -651,7 +683,8 @@ int Integrate::run(Invocation& in) {
     const auto [low, high] = std::minmax_element(sources.stamps.begin(), sources.stamps.end());
     report.line("stamps", format("OcTreeStamped: %u to %u s, ", *low, *high) +
                               (stamped_ ? "the images' time stamps in whole seconds"
-                                        : "from " + stamps_path_ + ", one per scan"));
+                                        : "from " + stamps_path_ + ", one per scan") +
+                              "; kept in MAP.ot.stamps (a .ot holds none)");
     if (degrade_after_)
       report.line("degraded", format("before each scan, occupied cells older than %u s at its "
                                      "stamp took a miss (degradeOutdatedNodes)",
@@ -664,6 +697,8 @@ int Integrate::run(Invocation& in) {
                                   changes.size() - created));
   }
   report.wrote(in.outputs());
+  for (const std::string& output : in.outputs())
+    if (!stamps_outputs_.empty()) report.wrote(output + ".stamps");
   if (changes_output_) report.wrote(changes_path_);
   return report.print();
 }
