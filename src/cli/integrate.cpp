@@ -295,8 +295,8 @@ void printIntegrateHelp(std::ostream& out) {
   printTumFolderHelp(out);
   out << "\n"
          "Options:\n"
-         "  -o, --output FILE      file to write, repeatable, all or none: .bt max-likelihood, .ot "
-         "full\n"
+         "  -o, --output FILE      file to write, repeatable, all or none: .bt max-likelihood, "
+         ".ot full\n"
          "  -r, --resolution M     edge of the smallest voxel in metres (default: "
       << defaults.resolution
       << ")\n"
@@ -316,13 +316,13 @@ void printIntegrateHelp(std::ostream& out) {
       << ")\n"
          "      --discretize       one point per voxel before ray casting (default: off)\n"
          "      --rays walk|rt|rt-query|rt-pipeline  cell walk or ray tracing (default: walk)\n"
-         "      --changes FILE.ply the run's changed keys as PLY: x y z, uchar created, red green "
-         "blue\n"
+         "      --changes FILE.ply the run's changed keys as PLY: x y z, uchar created, "
+         "red green blue\n"
          "  -q, --quiet            no progress on stderr (default: on a terminal, or after a "
          "second)\n"
          "      --color            DIR: a ColorOcTree (.ot only), each pixel coloured by rgb.txt\n"
-         "      --stamps FILE      .graph: an OcTreeStamped (.ot only), scan i stamped with line "
-         "i\n"
+         "      --stamps FILE      .graph: an OcTreeStamped (.ot only), scan i stamped "
+         "with line i\n"
          "      --stamped          DIR: an OcTreeStamped (.ot only) with the images' seconds\n"
          "      --degrade-after S  before each stamped scan, occupied cells older than S s fade\n";
   printMaxDeviceMemoryHelp(out, "A scan");
@@ -541,8 +541,8 @@ Integrate::Sources Integrate::readSources(Invocation& in) const {
         largest = std::uint64_t{size.width} * size.height;
         largest_frame = &frame;
       }
-      if (color_) checkColorSize(*sources.tum, i, size);
-      if (stamped_) sources.stamps.push_back(imageStamp(*sources.tum, i));
+      if (color_) checkColorSize(sources.tum, i, size);
+      if (stamped_) sources.stamps.push_back(imageStamp(sources.tum, i));
     }
     sources.max_pixels = maxDepthImagePixels(in.context());
     if (largest_frame) checkDepthPng(largest_frame->image_path, sources.max_pixels);
