@@ -347,16 +347,13 @@ class Tracer {
 
   void flush() {
     std::vector<RayHit> results;
-    std::vector<Rgb> colours;  // colour maps: each result's hit cell's colour
     for (;;) {
       try {
         results.clear();
-        colours.clear();
         for (std::size_t at = 0; at < rays_.size(); at += budget_.ray_batch) {
           const std::size_t n = std::min(budget_.ray_batch, rays_.size() - at);
           const std::vector<RayHit> part = map_.castRays(std::span(rays_).subspan(at, n));
           results.insert(results.end(), part.begin(), part.end());
-          if (scene_.own_colours) addColours(part, colours);
         }
         break;
       } catch (const Error& e) {
@@ -374,7 +371,9 @@ class Tracer {
       Sample& s = window_[p - std::size_t{window_row_} * width_];
       s = sampleOf(results[i], camera_.eye, dir, resolution_, ray_start_[i]);
       if (scene_.own_colours) {
-        s.colour = colours[i];
+        // castRays gives a colour map's hit cell's colour, packed (the leaf search() finds).
+        const octovk::Rgb c = unpackRgb(results[i].payload);
+        s.colour = {c.r, c.g, c.b};
         if (s.colour == Rgb{255, 255, 255}) ++white_hits_;
       }
       depth_min_ = std::min(depth_min_, s.depth);
@@ -385,27 +384,6 @@ class Tracer {
     rays_.clear();
     ray_pixel_.clear();
     ray_start_.clear();
-  }
-
-  // The colour of each hit cell of `part` (the leaf search() finds at the cell's centre; its
-  // payload is the packed colour), after those of earlier parts in `colours`; misses are white.
-  void addColours(const std::vector<RayHit>& part, std::vector<Rgb>& colours) {
-    std::vector<Eigen::Vector3f> ends;
-    for (const RayHit& hit : part)
-      if (hit.hit) ends.push_back(hit.end);
-    const std::vector<Lookup> found = ends.empty() ? std::vector<Lookup>{} : map_.search(ends);
-    std::size_t next = 0;
-    for (const RayHit& hit : part) {
-      Rgb colour{255, 255, 255};
-      if (hit.hit) {
-        const Lookup& cell = found[next++];
-        if (cell.state != CellState::kUnknown) {
-          const octovk::Rgb c = unpackRgb(cell.payload);
-          colour = {c.r, c.g, c.b};
-        }
-      }
-      colours.push_back(colour);
-    }
   }
 
   // Shades the rows whose neighbours are cast, and drops the samples no row needs any more.
