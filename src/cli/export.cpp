@@ -181,9 +181,9 @@ std::size_t Export::write(Invocation& in, OccupancyMap& map,
   const bool has_colours = map.params().payload == Payload::kColor;
   const Coloring coloring = coloring_.value_or(has_colours ? Coloring::kMap : Coloring::kHeight);
   if (coloring == Coloring::kMap && !has_colours)
-    throw UsageError("--color map: '" + in.input() + "' is an " +
-                     treeTypeName(map.params().payload) +
-                     ", which holds no colours (a ColorOcTree does); use --color height or "
+    throw UsageError("--color map: '" + in.input() + "' holds " +
+                     (map.params().payload == Payload::kStamp ? "an OcTreeStamped" : "an OcTree") +
+                     ", which has no colours (a ColorOcTree does); use --color height or "
                      "--color occupancy");
   const float occupied_log_odds = occupancyLogOdds(map.params());
   std::size_t occupied = 0;

@@ -78,6 +78,12 @@ constexpr Payload payloadOf(const octomap::OcTree*) { return Payload::kNone; }
 constexpr Payload payloadOf(const octomap::ColorOcTree*) { return Payload::kColor; }
 constexpr Payload payloadOf(const octomap::OcTreeStamped*) { return Payload::kStamp; }
 
+// "an OcTree", "a ColorOcTree", "an OcTreeStamped".
+std::string typeWithArticle(Payload payload) {
+  const std::string name = treeTypeName(payload);
+  return (name.front() == 'O' ? "an " : "a ") + name;
+}
+
 std::string extensionOf(const std::string& path) {
   return std::filesystem::path(path).extension().string();
 }
@@ -117,8 +123,8 @@ std::unique_ptr<Tree> mapAs(OccupancyMap& map, const char* call) {
   const Payload want = payloadOf(static_cast<const Tree*>(nullptr));
   if (map.params().payload != want)
     throw Error(ErrorCode::kInvalidArgument,
-                std::string(call) + ": the map is a " + treeTypeName(map.params().payload) +
-                    ", not a " + treeTypeName(want));
+                std::string(call) + ": the map is " + typeWithArticle(map.params().payload) +
+                    ", not " + typeWithArticle(want));
   return buildTree<Tree>(map.download(), map.params());
 }
 
@@ -439,8 +445,8 @@ void messageToMap(OccupancyMap& map, const MapMessage& message, const std::strin
                     " m; read it into a new map (messageToMap(context, message)) instead");
   if (host.payload != map.params().payload)
     throw Error(ErrorCode::kInvalidArgument,
-                "messageToMap: '" + name + "' holds a " + treeTypeName(host.payload) +
-                    ", the map is a " + treeTypeName(map.params().payload) +
+                "messageToMap: '" + name + "' holds " + typeWithArticle(host.payload) +
+                    ", the map is " + typeWithArticle(map.params().payload) +
                     "; read it into a new map (messageToMap(context, message)) instead");
   hostMemoryGuard("messageToMap", [&] { map.upload(host); });
 }
