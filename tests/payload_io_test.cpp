@@ -347,7 +347,16 @@ TEST(PayloadIoMap, ColorMapWritesOctoMapsBytesAndReadsThemBack) {
   tree->writeData(data);
   EXPECT_TRUE(sameBytes(data.str(), std::string(full.data.begin(), full.data.end())));
   OccupancyMap from_message = messageToMap(ctx, full);
-  EXPECT_EQ(from_message.params().payload, Payload::kColor);
+  ASSERT_EQ(from_message.params().payload, Payload::kColor);
+  ColorMap color_message(std::move(from_message));
+  EXPECT_TRUE(sameNodes(*tree, *toColorOcTree(color_message)));
+
+  // A ColorOcTree .bt holds no colours: a colour map, every colour white.
+  test::writeBytes(bt, btOf(*colorTree()));
+  OccupancyMap from_bt = readMapFile(ctx, bt);
+  EXPECT_EQ(from_bt.params().payload, Payload::kColor);
+  for (const HostTree::Node& n : from_bt.download().nodes)
+    ASSERT_EQ(n.payload, packRgb(Rgb{})) << "a colour read from a .bt";
 }
 
 TEST(PayloadIoMap, StampedMapWritesItsStampsBesideTheOt) {
@@ -370,6 +379,20 @@ TEST(PayloadIoMap, StampedMapWritesItsStampsBesideTheOt) {
   auto a = tree->begin_tree();
   for (auto b = back->begin_tree(); b != back->end_tree(); ++a, ++b)
     ASSERT_EQ(a->getTimestamp(), b->getTimestamp());
+
+  // The stream writer the program's outputs use: the same bytes and sidecar.
+  std::ostringstream stream;
+  std::string sidecar;
+  EXPECT_EQ(writeMapStream(map, stream, /*binary=*/false, &sidecar), tree->size());
+  EXPECT_TRUE(sameBytes(test::fileBytes(ot), stream.str()));
+  EXPECT_EQ(sidecar, test::fileBytes(ot + ".stamps"));
+
+  // A message holds no stamps: read back as a stamped map, stamps 0.
+  const MapMessage full = fullMapToMessage(map);
+  EXPECT_EQ(full.id, "OcTreeStamped");
+  OccupancyMap from_message = messageToMap(ctx, full);
+  EXPECT_EQ(from_message.params().payload, Payload::kStamp);
+  EXPECT_EQ(from_message.nodeCount(), tree->size());
 }
 
 TEST(PayloadIoMap, StampedOtWithoutSidecarReadsWithStampsZero) {

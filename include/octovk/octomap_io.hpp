@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,13 @@ void fromOcTreeStamped(StampedMap& map, const octomap::OcTreeStamped& tree);
 /// write (an I/O error, or the host out of memory: kOutOfHostMemory) leaves no partial file
 /// behind and the file it was to replace as it was.
 void writeMapFile(OccupancyMap& map, const std::string& path);
+
+/// What writeMapFile writes, into `out` (`binary`: the .bt, else the .ot) for a caller that makes
+/// its files atomic itself (the program's outputs); check `out` afterwards. For a stamped map's
+/// .ot, `stamps` (when given) receives the bytes of its `PATH.stamps` (else it is left empty).
+/// Returns the node count written (for .bt after writeBinary's pruning). Downloads the map.
+std::size_t writeMapStream(OccupancyMap& map, std::ostream& out, bool binary,
+                           std::string* stamps = nullptr);
 
 /// Reads a .bt or .ot file into a new map on `context`, with the file's resolution and
 /// MapParams' default sensor model (neither format stores one: OctoMap's readers also keep their

@@ -258,6 +258,14 @@ bool writeBytes(const std::string& file, const std::string& target, const std::s
   return out.good();
 }
 
+// The map as OctoMap's tree of its type, downloaded; a stamped map's sidecar into `stamps`.
+std::unique_ptr<octomap::AbstractOccupancyOcTree> treeToWrite(OccupancyMap& map,
+                                                              std::string* stamps) {
+  const HostTree host = map.download();
+  if (stamps) *stamps = host.payload == Payload::kStamp ? io::stampsFile(host) : std::string();
+  return io::octomapTreeOf(host, map.params());
+}
+
 std::string temporaryName(const std::string& path) {
   return path + ".tmp-" + std::to_string(::getpid());
 }
@@ -277,13 +285,9 @@ void writeTreeFile(OccupancyMap& map, const std::string& path) {
   // A stamped map's .ot: its stamps beside it, since OctoMap's .ot holds none.
   const bool with_stamps = map.params().payload == Payload::kStamp && ext == ".ot";
   const std::string stamps_path = path + ".stamps";
-  std::unique_ptr<octomap::AbstractOccupancyOcTree> tree;
   std::string stamps;
-  {
-    const HostTree host = map.download();
-    if (with_stamps) stamps = io::stampsFile(host);
-    tree = io::octomapTreeOf(host, map.params());
-  }
+  const std::unique_ptr<octomap::AbstractOccupancyOcTree> tree =
+      treeToWrite(map, with_stamps ? &stamps : nullptr);
   // Removed on any way out but the rename, from before it is created: opening the stream can
   // create the file, then fail allocating its buffer.
   TemporaryFile tmp(temporaryName(path));
@@ -373,6 +377,20 @@ OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t
 }
 
 }  // namespace
+
+std::size_t writeMapStream(OccupancyMap& map, std::ostream& out, bool binary,
+                           std::string* stamps) {
+  return hostMemoryGuard("writeMapStream", [&] {
+    const std::unique_ptr<octomap::AbstractOccupancyOcTree> tree =
+        treeToWrite(map, binary ? nullptr : stamps);
+    if (binary && stamps) stamps->clear();
+    if (binary)
+      tree->writeBinary(out);  // prunes to max-likelihood first
+    else
+      tree->write(out);
+    return tree->size();
+  });
+}
 
 void writeMapFile(OccupancyMap& map, const std::string& path) {
   hostMemoryGuard("writeMapFile", [&] { writeTreeFile(map, path); });
