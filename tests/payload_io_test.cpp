@@ -6,6 +6,7 @@
 // PayloadIoMap: through a map (upload / download carry the payload words).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -386,6 +387,20 @@ TEST(PayloadIoMap, StampedMapWritesItsStampsBesideTheOt) {
   EXPECT_EQ(writeMapStream(map, stream, /*binary=*/false, &sidecar), tree->size());
   EXPECT_TRUE(sameBytes(test::fileBytes(ot), stream.str()));
   EXPECT_EQ(sidecar, test::fileBytes(ot + ".stamps"));
+
+  // info gives the leaves' oldest and newest stamps, from the sidecar.
+  std::uint32_t oldest = ~0u, newest = 0;
+  for (auto it = tree->begin_leafs(); it != tree->end_leafs(); ++it) {
+    oldest = std::min(oldest, it->getTimestamp());
+    newest = std::max(newest, it->getTimestamp());
+  }
+  const test::RunResult info = test::runOctovk({"info", ot}, fs::path(ot).parent_path());
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("OcTreeStamped"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("oldest " + std::to_string(oldest) + ", newest " +
+                          std::to_string(newest)),
+            std::string::npos)
+      << info.out;
 
   // A message holds no stamps: read back as a stamped map, stamps 0.
   const MapMessage full = fullMapToMessage(map);

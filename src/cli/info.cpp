@@ -104,8 +104,10 @@ LeafCounts countLeaves(OccupancyMap& map) {
 std::string payloadText(OccupancyMap& map, const std::string& path) {
   const Payload payload = map.params().payload;
   if (payload == Payload::kNone) return {};
-  const bool stamps_stored = std::filesystem::exists(path + ".stamps");
-  if (payload == Payload::kStamp && !stamps_stored)
+  // readMapFile takes a stamped .ot's stamps from beside it; a .bt never has any.
+  const bool is_ot = std::filesystem::path(path).extension() == ".ot";
+  if (payload == Payload::kStamp && !is_ot) return "none stored (a .bt holds none: every stamp 0)";
+  if (payload == Payload::kStamp && !std::filesystem::exists(path + ".stamps"))
     return "none stored (no " + path + ".stamps beside the map: every stamp 0)";
   HostTree tree;
   try {
