@@ -11,10 +11,10 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
-#include <stdexcept>
-#include <type_traits>
 #include <sstream>
+#include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -140,9 +140,8 @@ template <class Tree>
   if (expected == actual) return ::testing::AssertionSuccess();
   std::size_t i = 0;
   while (i < expected.size() && i < actual.size() && expected[i] == actual[i]) ++i;
-  return ::testing::AssertionFailure()
-         << "sizes " << expected.size() << " and " << actual.size() << ", first difference at byte "
-         << i;
+  return ::testing::AssertionFailure() << "sizes " << expected.size() << " and " << actual.size()
+                                       << ", first difference at byte " << i;
 }
 
 template <class Tree>
@@ -300,12 +299,11 @@ TEST(PayloadIoFiles, StampsSidecarRoundTripsAndRefusesWhatIsNotItsTree) {
   for (std::size_t i = 0; i < read.nodes.size(); ++i)
     EXPECT_EQ(read.nodes[i].payload, stamped.nodes[i].payload) << "node " << i;
 
-  const auto refused = [&](const std::string& bytes, const HostTree& target,
-                           const std::string& why, const char* what) {
+  const auto refused = [&](const std::string& bytes, const HostTree& target, const std::string& why,
+                           const char* what) {
     HostTree copy = target;
-    const std::string message =
-        payloadError([&] { io::applyStampsFile(bytes, copy, "map.ot.stamps"); },
-                     ErrorCode::kFormat, what);
+    const std::string message = payloadError(
+        [&] { io::applyStampsFile(bytes, copy, "map.ot.stamps"); }, ErrorCode::kFormat, what);
     EXPECT_NE(message.find("'map.ot.stamps'"), std::string::npos) << what << ": " << message;
     EXPECT_NE(message.find(why), std::string::npos) << what << ": " << message;
     EXPECT_NE(message.find("delete it"), std::string::npos) << what << ": " << message;
@@ -412,9 +410,9 @@ TEST(PayloadIoMap, StampedMapWritesItsStampsBesideTheOt) {
   const test::RunResult info = test::runOctovk({"info", ot}, fs::path(ot).parent_path());
   ASSERT_EQ(info.exit_code, 0) << info.err;
   EXPECT_NE(info.out.find("OcTreeStamped"), std::string::npos) << info.out;
-  EXPECT_NE(info.out.find("oldest " + std::to_string(oldest) + ", newest " +
-                          std::to_string(newest)),
-            std::string::npos)
+  EXPECT_NE(
+      info.out.find("oldest " + std::to_string(oldest) + ", newest " + std::to_string(newest)),
+      std::string::npos)
       << info.out;
 
   // A message holds no stamps: read back as a stamped map, stamps 0.
@@ -444,16 +442,15 @@ TEST(PayloadIoMap, DamagedColorFileAndBadSidecarAreRefusedByReadMapFile) {
   const std::string cut = tmpFile("cut_color.ot");
   const std::string ot = otOf(*color);
   test::writeBytes(cut, ot.substr(0, ot.size() - 3));
-  std::string message = payloadError([&] { (void)readMapFile(ctx, cut); }, ErrorCode::kFormat,
-                                     "cut colour file");
+  std::string message =
+      payloadError([&] { (void)readMapFile(ctx, cut); }, ErrorCode::kFormat, "cut colour file");
   EXPECT_NE(message.find("'" + cut + "'"), std::string::npos) << message;
 
   const std::unique_ptr<octomap::OcTreeStamped> stamped = stampedTree();
   const std::string path = tmpFile("bad_sidecar.ot");
   test::writeBytes(path, otOf(*stamped));
   test::writeBytes(path + ".stamps", "OVKSTAMP and then nothing useful");
-  message = payloadError([&] { (void)readMapFile(ctx, path); }, ErrorCode::kFormat,
-                         "bad sidecar");
+  message = payloadError([&] { (void)readMapFile(ctx, path); }, ErrorCode::kFormat, "bad sidecar");
   EXPECT_NE(message.find("'" + path + ".stamps'"), std::string::npos) << message;
   EXPECT_NE(message.find("delete it"), std::string::npos) << message;
 }

@@ -77,10 +77,10 @@ OccupancyMap readMapFile(Context& context, const std::string& path,
                          std::size_t max_device_bytes = 0);
 
 /// The body of an octomap_msgs/Octomap message (everything but its ROS header), as OctoMap's
-/// octomap_msgs conversions fill it: `id` the tree type ("OcTree", "ColorOcTree", "OcTreeStamped"), `resolution` in metres,
-/// `binary` and `data`, the bytes of OctoMap's writeBinaryData() (binary: one occupied or free
-/// state per leaf, the tree not pruned or converted first) or writeData() (full: every node's
-/// float log-odds). Nothing of a file's text header is in `data`.
+/// octomap_msgs conversions fill it: `id` the tree type ("OcTree", "ColorOcTree", "OcTreeStamped"),
+/// `resolution` in metres, `binary` and `data`, the bytes of OctoMap's writeBinaryData() (binary:
+/// one occupied or free state per leaf, the tree not pruned or converted first) or writeData()
+/// (full: every node's float log-odds). Nothing of a file's text header is in `data`.
 struct MapMessage {
   std::string id = "OcTree";
   double resolution = 0.0;

@@ -91,8 +91,7 @@ class Export final : public Command {
       else if (opt.value == "occupancy")
         coloring_ = Coloring::kOccupancy;
       else
-        throw UsageError("--color expects 'map', 'height' or 'occupancy', got '" + opt.value +
-                         "'");
+        throw UsageError("--color expects 'map', 'height' or 'occupancy', got '" + opt.value + "'");
     } else {
       return false;
     }

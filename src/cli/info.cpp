@@ -1,5 +1,5 @@
-// octovk info: what a map file holds (tree type, resolution, nodes, leaves by state, bounds, colours
-// or stamps, device memory), counted on the device from the map's leaf boxes.
+// octovk info: what a map file holds (tree type, resolution, nodes, leaves by state, bounds,
+// colours or stamps, device memory), counted on the device from the map's leaf boxes.
 #include <algorithm>
 #include <filesystem>
 #include <iostream>

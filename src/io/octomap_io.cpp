@@ -104,7 +104,7 @@ std::unique_ptr<Tree> buildTree(const HostTree& host, const MapParams& params) {
   if (!host.root_exists) return tree;
   using Node = typename Tree::NodeType;
   std::function<void(std::uint32_t, Node*, unsigned)> build = [&](std::uint32_t index, Node* node,
-                                                                   unsigned depth) {
+                                                                  unsigned depth) {
     const HostTree::Node& n = host.nodes.at(index);
     copyNodeData(n, *node);
     if (depth >= 16) return;
@@ -122,9 +122,9 @@ template <class Tree>
 std::unique_ptr<Tree> mapAs(OccupancyMap& map, const char* call) {
   const Payload want = payloadOf(static_cast<const Tree*>(nullptr));
   if (map.params().payload != want)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string(call) + ": the map is " + typeWithArticle(map.params().payload) +
-                    ", not " + typeWithArticle(want));
+    throw Error(ErrorCode::kInvalidArgument, std::string(call) + ": the map is " +
+                                                 typeWithArticle(map.params().payload) + ", not " +
+                                                 typeWithArticle(want));
   return buildTree<Tree>(map.download(), map.params());
 }
 
@@ -202,9 +202,8 @@ std::unique_ptr<octomap::AbstractOccupancyOcTree> io::octomapTreeOf(const HostTr
 }
 
 std::unique_ptr<octomap::OcTree> toOcTree(OccupancyMap& map) {
-  return hostMemoryGuard("toOcTree", [&] {
-    return buildTree<octomap::OcTree>(map.download(), map.params());
-  });
+  return hostMemoryGuard("toOcTree",
+                         [&] { return buildTree<octomap::OcTree>(map.download(), map.params()); });
 }
 
 void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
@@ -308,8 +307,7 @@ void writeTreeFile(OccupancyMap& map, const std::string& path) {
   if (with_stamps) {
     stamps_tmp.emplace(temporaryName(stamps_path));
     if (!writeBytes(stamps_tmp->path(), stamps_path, stamps))
-      throw Error(ErrorCode::kIo,
-                  "failed writing '" + stamps_path + "' (disk full or I/O error)");
+      throw Error(ErrorCode::kIo, "failed writing '" + stamps_path + "' (disk full or I/O error)");
   }
   if (std::rename(tmp.path().c_str(), path.c_str()) != 0)
     throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
@@ -378,8 +376,7 @@ OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t
 
 }  // namespace
 
-std::size_t writeMapStream(OccupancyMap& map, std::ostream& out, bool binary,
-                           std::string* stamps) {
+std::size_t writeMapStream(OccupancyMap& map, std::ostream& out, bool binary, std::string* stamps) {
   return hostMemoryGuard("writeMapStream", [&] {
     const std::unique_ptr<octomap::AbstractOccupancyOcTree> tree =
         treeToWrite(map, binary ? nullptr : stamps);
@@ -442,8 +439,8 @@ MapMessage binaryMapToMessage(OccupancyMap& map) { return messageOf(map, true); 
 
 MapMessage fullMapToMessage(OccupancyMap& map) { return messageOf(map, false); }
 
-OccupancyMap messageToMap(Context& context, const MapMessage& message,
-                          std::size_t max_device_bytes, const std::string& name) {
+OccupancyMap messageToMap(Context& context, const MapMessage& message, std::size_t max_device_bytes,
+                          const std::string& name) {
   MapParams params;
   const HostTree host = treeOf(message, name, params.resolution);
   params.payload = host.payload;

@@ -21,8 +21,9 @@ namespace octovk::io {
 
 /// A tree as OctoMap reads it: of the type its file or message names (OcTree, ColorOcTree,
 /// OcTreeStamped), in the order of Payload's kinds.
-using AnyTree = std::variant<std::unique_ptr<octomap::OcTree>, std::unique_ptr<octomap::ColorOcTree>,
-                             std::unique_ptr<octomap::OcTreeStamped>>;
+using AnyTree =
+    std::variant<std::unique_ptr<octomap::OcTree>, std::unique_ptr<octomap::ColorOcTree>,
+                 std::unique_ptr<octomap::OcTreeStamped>>;
 
 /// The payload of a tree type name (treeTypeName's inverse); false for a type octovk cannot read.
 bool payloadOfTreeType(std::string_view id, Payload& payload);
@@ -37,8 +38,9 @@ struct TreeHeader {
 
 /// Reads and checks the header of a .bt (`binary`) or .ot file: the first line OctoMap writes,
 /// then only comment lines (first word starting with '#'), blank lines and exactly one each of
-/// "id TYPE" (OcTree, ColorOcTree or OcTreeStamped), "size N", "res R" (R finite, positive and a resolution a map can have), ending
-/// with a "data" line. Throws Error(kFormat) naming `name` otherwise.
+/// "id TYPE" (OcTree, ColorOcTree or OcTreeStamped), "size N", "res R" (R finite, positive and a
+/// resolution a map can have), ending with a "data" line. Throws Error(kFormat) naming `name`
+/// otherwise.
 TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::string& name);
 
 /// Checks a whole .bt (`binary`) or .ot file and reads its node records with OctoMap's reader.
@@ -59,8 +61,8 @@ AnyTree parseTreeFile(ByteSource& source, bool binary, const std::string& name);
 /// an octomap_msgs/Octomap) with the same record walk as parseTreeFile, without a header: `id`
 /// must be "OcTree", "ColorOcTree" or "OcTreeStamped" and `resolution` one a map can have; no
 /// node count is announced. Throws Error(kFormat) naming `name` and the fault.
-AnyTree parseTreeBody(std::string_view body, bool binary, const std::string& id,
-                      double resolution, const std::string& name);
+AnyTree parseTreeBody(std::string_view body, bool binary, const std::string& id, double resolution,
+                      const std::string& name);
 
 // ---- between OctoMap's trees and the host tree (octomap_io.cpp) ----
 

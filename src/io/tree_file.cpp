@@ -239,8 +239,7 @@ std::unique_ptr<Tree> readWithOctoMap(std::string_view data, bool binary, double
 // start in `source` (offsets in messages count from the start of what the caller names);
 // `announced`: the node count a file's header gives (a message has none).
 AnyTree readTreeData(ByteSource& source, std::uint64_t offset, bool binary, Payload payload,
-                     double resolution, std::optional<std::uint64_t> announced,
-                     const Fault& bad) {
+                     double resolution, std::optional<std::uint64_t> announced, const Fault& bad) {
   const std::size_t data_bytes = recordDataBytes(payload);
   const std::uint64_t apparent = source.size() > offset ? source.size() - offset : 0;
   std::uint64_t at = offset;
@@ -264,8 +263,8 @@ AnyTree readTreeData(ByteSource& source, std::uint64_t offset, bool binary, Payl
     std::size_t top = 0;
     nodes = binary ? 1 : 0;  // .bt: records list children; the root has none
     const auto where = [&](unsigned depth) {
-      return "the node record at byte " + std::to_string(at) + " (depth " +
-             std::to_string(depth) + ")";
+      return "the node record at byte " + std::to_string(at) + " (depth " + std::to_string(depth) +
+             ")";
     };
     const auto record = [&](unsigned depth) {
       if (binary) {  // 2 bits per child: 00 none, 01 occupied leaf, 10 free leaf, 11 inner node
@@ -348,8 +347,8 @@ AnyTree parseTreeFile(ByteSource& source, bool binary, const std::string& name) 
   return readTreeData(source, h.data_at, binary, payload, h.resolution, h.size, bad);
 }
 
-AnyTree parseTreeBody(std::string_view body, bool binary, const std::string& id,
-                      double resolution, const std::string& name) {
+AnyTree parseTreeBody(std::string_view body, bool binary, const std::string& id, double resolution,
+                      const std::string& name) {
   const Fault bad(name, binary, /*message=*/true);
   Payload payload = Payload::kNone;
   if (!payloadOfTreeType(id, payload)) throw bad(unknownTreeType(id));
@@ -465,8 +464,9 @@ void applyStampsFile(ByteSource& source, HostTree& tree, const std::string& name
   };
   if (source.size() != expected) throw wrong_size(source.size());
   if (digest != treeDigest(tree))
-    throw bad("its digest of the map's nodes differs from the map's (the same node count, "
-              "other values or shape)");
+    throw bad(
+        "its digest of the map's nodes differs from the map's (the same node count, "
+        "other values or shape)");
   std::vector<std::uint32_t> stamps(order.size());
   for (std::size_t k = 0; k < order.size(); ++k) {
     const std::uint64_t at = kStampsHeaderBytes + 4 * std::uint64_t{k};

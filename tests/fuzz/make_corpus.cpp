@@ -1,7 +1,7 @@
 // Writes the fuzz targets' seed corpus into DIR/{bt,ot,message,graph,tum_lists,depth_png}/: tiny
-// maps (OcTree, ColorOcTree, OcTreeStamped), map message bodies and graphs with OctoMap's own writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt)
-// and tiny 16-bit PNGs with libpng. Usage: octovk_fuzz_corpus DIR (tests/fuzz/corpus holds its
-// output).
+// maps (OcTree, ColorOcTree, OcTreeStamped), map message bodies and graphs with OctoMap's own
+// writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt) and tiny 16-bit PNGs with
+// libpng. Usage: octovk_fuzz_corpus DIR (tests/fuzz/corpus holds its output).
 #include <octomap/ColorOcTree.h>
 #include <octomap/OcTree.h>
 #include <octomap/OcTreeStamped.h>
@@ -43,7 +43,8 @@ octomap::ColorOcTree tinyColorTree() {
     const octomap::point3d p(0.1f * static_cast<float>(i % 3), 0.1f * static_cast<float>(i / 3),
                              0.5f);
     tree.updateNode(p, true);
-    if (i % 2 == 0) tree.setNodeColor(p.x(), p.y(), p.z(), static_cast<std::uint8_t>(40 * i), 7, 200);
+    if (i % 2 == 0)
+      tree.setNodeColor(p.x(), p.y(), p.z(), static_cast<std::uint8_t>(40 * i), 7, 200);
   }
   tree.updateInnerOccupancy();
   return tree;
