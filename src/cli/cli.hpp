@@ -10,6 +10,7 @@
 #include <functional>
 #include <iosfwd>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -231,5 +232,12 @@ float occupancyLogOdds(const MapParams& params);
 /// into `path` (an output's temporary; integrate.cpp). Returns the nodes the file holds, as
 /// OctoMap's size() counts them when it reads the file back (a .bt's after pruning).
 std::size_t writeMap(OccupancyMap& map, const std::string& path);
+
+/// writeMap into output `index` of `outputs`; a stamped map's .ot also puts its stamps (which
+/// writeMapFile writes beside the file as PATH.stamps) into output `stamps_index`, which the
+/// command added as the map's path + ".stamps" (Invocation::addOptionOutput), so that they are
+/// renamed with the map, all or nothing. Returns what writeMap returns.
+std::size_t writeMapOutput(OccupancyMap& map, OutputFiles& outputs, std::size_t index,
+                           std::optional<std::size_t> stamps_index);
 
 }  // namespace octovk::cli

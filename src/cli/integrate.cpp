@@ -238,31 +238,10 @@ std::vector<std::size_t> writeOutputs(OccupancyMap& map, Invocation& in,
   std::vector<std::size_t> nodes(in.outputs().size());
   {
     StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-    for (std::size_t i = 0; i < in.outputs().size(); ++i) {
-      std::string written;
-      // writeMapFile puts a stamped map's stamps beside the file it writes (its PATH.stamps):
-      // beside the map's temporary, whence they move into their own output's.
-      const auto removeBeside = [&] {
-        std::error_code ec;
-        if (!written.empty()) fs::remove(written + ".stamps", ec);
-      };
-      try {
-        outputs.write(i, [&](const std::string& temporary) {
-          written = temporary;
-          nodes[i] = writeMap(map, temporary);
-        });
-        if (i < stamps_outputs.size())
-          outputs.write(stamps_outputs[i], [&](const std::string& temporary) {
-            std::error_code ec;
-            fs::rename(written + ".stamps", temporary, ec);
-            if (ec)
-              throw Error(ErrorCode::kIo, "cannot write '" + temporary + "': " + ec.message());
-          });
-      } catch (...) {
-        removeBeside();
-        throw;
-      }
-    }
+    for (std::size_t i = 0; i < in.outputs().size(); ++i)
+      nodes[i] = writeMapOutput(
+          map, outputs, i,
+          i < stamps_outputs.size() ? std::optional<std::size_t>(stamps_outputs[i]) : std::nullopt);
   }
   if (changes_output)
     outputs.write(*changes_output, [&](const std::string& temporary) {
@@ -722,6 +701,31 @@ std::vector<std::string> integrateValueOptions() {
                                     "--degrade-after"};
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
+}
+
+std::size_t writeMapOutput(OccupancyMap& map, OutputFiles& outputs, std::size_t index,
+                           std::optional<std::size_t> stamps_index) {
+  std::size_t nodes = 0;
+  std::string written;
+  try {
+    outputs.write(index, [&](const std::string& temporary) {
+      written = temporary;
+      nodes = writeMap(map, temporary);
+    });
+    // writeMapFile puts a stamped map's stamps beside the file it writes (its PATH.stamps):
+    // beside the map's temporary, whence they move into their own output's.
+    if (stamps_index)
+      outputs.write(*stamps_index, [&](const std::string& temporary) {
+        std::error_code ec;
+        fs::rename(written + ".stamps", temporary, ec);
+        if (ec) throw Error(ErrorCode::kIo, "cannot write '" + temporary + "': " + ec.message());
+      });
+  } catch (...) {
+    std::error_code ec;
+    if (!written.empty()) fs::remove(written + ".stamps", ec);
+    throw;
+  }
+  return nodes;
 }
 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
