@@ -72,8 +72,10 @@ std::uint32_t secondsOf(py::handle value, const char* arg) {
 ColorFold colorFoldOf(const std::string& fold) {
   if (fold == "average") return ColorFold::kAverage;
   if (fold == "integrate") return ColorFold::kIntegrate;
-  throw py::value_error("color_fold: expected 'average' (ColorOcTree::averageNodeColor) or "
-                        "'integrate' (integrateNodeColor), got '" + fold + "'");
+  throw py::value_error(
+      "color_fold: expected 'average' (ColorOcTree::averageNodeColor) or "
+      "'integrate' (integrateNodeColor), got '" +
+      fold + "'");
 }
 
 // A scan's colours (ColorMap): `colors` None (no colour), or uint8 with one r, g, b per point or
@@ -471,8 +473,8 @@ void bindColorMap(py::module_& m) {
   cls.def(
       "insert_depth_image",
       [](PyColorMap& self, py::handle depth, float fx, float fy, float cx, float cy,
-         float depth_scale, py::handle pose, double max_range_m, bool discretize,
-         py::handle colors, const std::string& color_fold, py::handle max_range) {
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle colors,
+         const std::string& color_fold, py::handle max_range) {
         DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
                        max_range);
         scan.colors(colors, color_fold);
@@ -491,8 +493,8 @@ void bindColorMap(py::module_& m) {
   cls.def(
       "submit_depth_image",
       [](PyColorMap& self, py::handle depth, float fx, float fy, float cx, float cy,
-         float depth_scale, py::handle pose, double max_range_m, bool discretize,
-         py::handle colors, const std::string& color_fold, py::handle max_range) {
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle colors,
+         const std::string& color_fold, py::handle max_range) {
         DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
                        max_range);
         scan.colors(colors, color_fold);
@@ -590,8 +592,8 @@ void bindStampedMap(py::module_& m) {
   cls.def(
       "insert_depth_image",
       [](PyStampedMap& self, py::handle depth, float fx, float fy, float cx, float cy,
-         float depth_scale, py::handle pose, double max_range_m, bool discretize,
-         py::handle stamp, py::handle max_range) {
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle stamp,
+         py::handle max_range) {
         DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
                        max_range);
         scan.stamp(stamp);
@@ -609,8 +611,8 @@ void bindStampedMap(py::module_& m) {
   cls.def(
       "submit_depth_image",
       [](PyStampedMap& self, py::handle depth, float fx, float fy, float cx, float cy,
-         float depth_scale, py::handle pose, double max_range_m, bool discretize,
-         py::handle stamp, py::handle max_range) {
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle stamp,
+         py::handle max_range) {
         DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
                        max_range);
         scan.stamp(stamp);

@@ -152,15 +152,11 @@ int payloadScan(int argc, char** argv) {
       }
     }
     tree.updateInnerOccupancy();
-    return writeOut(argv[6], searchWithPayload(tree, readFloats(argv[5]),
-                                               [](const octomap::ColorOcTreeNode& n) {
-                                                 const auto c = n.getColor();
-                                                 return std::uint32_t{c.r} |
-                                                        (std::uint32_t{c.g} << 8) |
-                                                        (std::uint32_t{c.b} << 16);
-                                               }))
-               ? 0
-               : 1;
+    const auto packed = [](const octomap::ColorOcTreeNode& n) {
+      const octomap::ColorOcTreeNode::Color c = n.getColor();
+      return std::uint32_t{c.r} | (std::uint32_t{c.g} << 8) | (std::uint32_t{c.b} << 16);
+    };
+    return writeOut(argv[6], searchWithPayload(tree, readFloats(argv[5]), packed)) ? 0 : 1;
   }
   if (command == "stampscan" && (argc == 6 || argc == 8)) {
     StampedAt tree(resolution);
@@ -177,13 +173,10 @@ int payloadScan(int argc, char** argv) {
           tree.integrateMissNoTime(&*it);
       tree.updateInnerOccupancy();
     }
-    return writeOut(argv[argc - 1],
-                    searchWithPayload(tree, readFloats(argv[4]),
-                                      [](const octomap::OcTreeNodeStamped& n) {
-                                        return std::uint32_t{n.getTimestamp()};
-                                      }))
-               ? 0
-               : 1;
+    const auto stamp = [](const octomap::OcTreeNodeStamped& n) {
+      return std::uint32_t{n.getTimestamp()};
+    };
+    return writeOut(argv[argc - 1], searchWithPayload(tree, readFloats(argv[4]), stamp)) ? 0 : 1;
   }
   std::cerr << "octovk_py_oracle: wrong arguments for " << command << "\n";
   return 1;
