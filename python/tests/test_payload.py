@@ -5,6 +5,7 @@ python/tests/octomap_oracle.cpp), bit for bit. The values need the device side o
 
 import numpy as np
 import pytest
+import torch
 
 import octovk
 from conftest import room_scans, run, tool, unproject
@@ -157,6 +158,21 @@ def test_colors_come_as_the_points_come(context):
     s.submit_point_cloud(p4, (0, 0, 0), colors=rgba[:, :3], copy=True)
     s.flush()
     np.testing.assert_array_equal(s.colors(p4, copy=True), m.colors(three_points()))
+
+
+def test_torch_tensors_in_give_tensors_out(context):
+    p = torch.from_numpy(three_points())
+    c = octovk.ColorMap(0.1)
+    c.insert_point_cloud(p, (0, 0, 0), colors=torch.tensor([[10, 20, 30], [20, 40, 60],
+                                                            [1, 2, 3]], dtype=torch.uint8))
+    got = c.colors(p)
+    assert isinstance(got, torch.Tensor) and got.dtype == torch.uint8 and got.shape == (3, 3)
+    assert got.tolist() == [[15, 30, 45], [15, 30, 45], [1, 2, 3]]
+    s = octovk.StampedMap(0.1)
+    s.insert_point_cloud(p, (0, 0, 0), stamp=2**32 - 1)
+    stamps = s.stamps(p)  # torch has no uint32: int64, which holds every stamp
+    assert isinstance(stamps, torch.Tensor) and stamps.dtype == torch.int64
+    assert stamps.tolist() == [2**32 - 1] * 3
 
 
 @pytest.mark.parametrize("submit", [False, True], ids=["insert", "submit"])
