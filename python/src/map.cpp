@@ -319,7 +319,9 @@ constexpr const char* kMapDoc =
     "and may raise a scan's error.\n\n"
     "The GIL is released while the device works; one thread at a time uses a map (calls from "
     "several threads are serialised). A map keeps its Context alive. Library errors raise "
-    "octovk.Error subclasses; a call that raises leaves the map as it was.";
+    "octovk.Error subclasses; a call that raises leaves the map as it was.\n\n"
+    "ColorMap and StampedMap (OctoMap's ColorOcTree and OcTreeStamped) are Maps whose nodes "
+    "also hold a colour or a time stamp.";
 
 // Binds `cls`'s constructor: an empty Self holding a Kind (OccupancyMap, ColorMap, StampedMap)
 // made from the keywords every map takes; `what` starts the docstring.
