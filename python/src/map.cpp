@@ -324,7 +324,7 @@ constexpr const char* kMapDoc =
     "also hold a colour or a time stamp.";
 
 // Binds `cls`'s constructor: an empty Self holding a Kind (OccupancyMap, ColorMap, StampedMap)
-// made from the keywords every map takes; `what` starts the docstring.
+// made from the keywords every map takes; `doc` starts the docstring.
 template <class Self, class Kind, class Class>
 void defInit(Class& cls, const char* doc) {
   cls.def(py::init([](double resolution, double prob_hit, double prob_miss, double clamping_min,
