@@ -344,5 +344,7 @@ def test_payload_maps_written_and_read_back_keep_their_class_and_colors(context,
     s.write(tmp_path / "stamped.ot")
     back = octovk.Map.read(tmp_path / "stamped.ot")
     assert type(back) is octovk.StampedMap and back.node_count() == s.node_count()
+    # OctoMap's .ot holds no stamps: they come back from the stamped.ot.stamps beside it.
+    np.testing.assert_array_equal(back.stamps(three_points()), [1000] * 3)
     with pytest.raises(octovk.FormatError, match="its tree type is ColorOcTree, not OcTreeStamped"):
         octovk.StampedMap.read(tmp_path / "color.ot")
