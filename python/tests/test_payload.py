@@ -125,6 +125,10 @@ def test_colors_average_in_the_clouds_order_and_set_new_cells(context):
     got = m.colors(np.concatenate([SAME_CELL, OTHER_CELL, FREE_CELL, UNKNOWN]))
     assert got.dtype == np.uint8 and got.shape == (5, 3)
     np.testing.assert_array_equal(got, [[27, 55, 82], [27, 55, 82], [1, 2, 3], WHITE, WHITE])
+    # The colour of the cell a ray hits: colors() of its end, the hit cell's centre.
+    hit, end = m.cast_rays((0, 0, 0), np.array([[1, 0, 0], [0, 1, 0]], np.float32))
+    assert hit.tolist() == [1, 1]
+    np.testing.assert_array_equal(m.colors(end), [[27, 55, 82], [1, 2, 3]])
     # A second scan averages with what the cells hold; a scan without colours leaves them.
     m.insert_point_cloud(OTHER_CELL, (0, 0, 0), colors=np.array([[3, 4, 5]], np.uint8))
     m.insert_point_cloud(OTHER_CELL, (0, 0, 0))
