@@ -1,2 +1,711 @@
-// Filled by the payload work (issue 29).
-#include <gtest/gtest.h>
+// ColorMap and StampedMap against OctoMap's ColorOcTree and OcTreeStamped (issue 29): the same
+// scans into both, and after every scan the trees equal node by node (log-odds bits, colours of
+// all nodes after updateInnerOccupancy, stamps of leaves); then every other feature on payload
+// maps (search, castRays, leavesInBox, clearBox, keepBox, change detection, compact, download and
+// upload, .ot files) keeps the colours and stamps OctoMap would.
+#include <octomap/ScanGraph.h>
+#include <octomap/octomap.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <mutex>
+
+#include "changed_keys.hpp"
+#include "payload_oracle.hpp"
+
+namespace octovk::test {
+namespace {
+
+// ---- one scan into both ------------------------------------------------------------------------
+
+/// ColorOcTree::insertPointCloud, then averageNodeColor (integrateNodeColor) for every point in
+/// order, then updateInnerOccupancy(); the map's scan; the trees compared.
+::testing::AssertionResult insertColorBoth(ColorMap& map, octomap::ColorOcTree& oracle,
+                                           const std::vector<Eigen::Vector3f>& points,
+                                           const Eigen::Vector3f& origin,
+                                           const std::vector<Rgb>& colors, double max_range,
+                                           bool discretize, ColorFold fold = ColorFold::kAverage) {
+  oracle.insertPointCloud(toPointcloud(points), toPoint(origin), max_range, false, discretize);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i];
+    const Rgb& c = colors[i];
+    if (fold == ColorFold::kAverage)
+      oracle.averageNodeColor(p.x(), p.y(), p.z(), c.r, c.g, c.b);
+    else
+      oracle.integrateNodeColor(p.x(), p.y(), p.z(), c.r, c.g, c.b);
+  }
+  oracle.updateInnerOccupancy();
+  const ScanStats s = map.insertPointCloud(
+      points, origin, colors,
+      {.max_range_m = max_range, .discretize = discretize, .color_fold = fold});
+  if (s.nodes != oracle.size())
+    return ::testing::AssertionFailure()
+           << "ScanStats::nodes " << s.nodes << " but OctoMap has " << oracle.size() << " nodes";
+  return samePayloadTree(oracle, map.download(), Payload::kColor);
+}
+
+/// OcTreeStamped (stamping `stamp`) and the map's scan with that stamp; the trees compared.
+::testing::AssertionResult insertStampedBoth(StampedMap& map, StampedOracle& oracle,
+                                             const std::vector<Eigen::Vector3f>& points,
+                                             const Eigen::Vector3f& origin, std::uint32_t stamp,
+                                             double max_range = -1.0, bool discretize = false) {
+  oracle.setScanTime(stamp);
+  oracle.insertPointCloud(toPointcloud(points), toPoint(origin), max_range, false, discretize);
+  const ScanStats s =
+      map.insertPointCloud(points, origin, stamp, {.max_range_m = max_range, .discretize = discretize});
+  if (s.nodes != oracle.size())
+    return ::testing::AssertionFailure()
+           << "ScanStats::nodes " << s.nodes << " but OctoMap has " << oracle.size() << " nodes";
+  return samePayloadTree(oracle, map.download(), Payload::kStamp);
+}
+
+/// The map's stamps(points) against OctoMap's search()->getTimestamp() (0 where none).
+::testing::AssertionResult sameStamps(StampedMap& map, const StampedOracle& oracle,
+                                      const std::vector<Eigen::Vector3f>& points) {
+  const std::vector<std::uint32_t> got = map.stamps(points);
+  if (got.size() != points.size())
+    return ::testing::AssertionFailure() << got.size() << " stamps for " << points.size();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto* n = oracle.search(toPoint(points[i]));
+    const std::uint32_t want = n ? n->getTimestamp() : 0u;
+    if (got[i] != want)
+      return ::testing::AssertionFailure()
+             << "point " << i << " (" << points[i].transpose() << "): stamp OctoMap " << want
+             << ", octovk " << got[i];
+  }
+  return ::testing::AssertionSuccess();
+}
+
+/// The map's colors(points) against OctoMap's search()->getColor() (white where none).
+::testing::AssertionResult sameColors(ColorMap& map, const octomap::ColorOcTree& oracle,
+                                      const std::vector<Eigen::Vector3f>& points) {
+  const std::vector<Rgb> got = map.colors(points);
+  if (got.size() != points.size())
+    return ::testing::AssertionFailure() << got.size() << " colours for " << points.size();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto* n = oracle.search(toPoint(points[i]));
+    const std::uint32_t want = n ? payloadOf(*n) : packRgb(Rgb{});
+    if (packRgb(got[i]) != want)
+      return ::testing::AssertionFailure()
+             << "point " << i << " (" << points[i].transpose() << "): colour OctoMap "
+             << payloadText(Payload::kColor, want) << ", octovk "
+             << payloadText(Payload::kColor, packRgb(got[i]));
+  }
+  return ::testing::AssertionSuccess();
+}
+
+// A wall two cells thick (x cells 16 and 17 from the origin's cell, one octant deep) over y and z
+// cells [y0, y1) x [-8, 8), four points per cell and layer: once clamped, its octants prune.
+std::vector<Eigen::Vector3f> thickWall(float res, int y0, int y1) {
+  std::vector<Eigen::Vector3f> pts;
+  for (int layer = 16; layer <= 17; ++layer)
+    for (int y = 2 * y0; y < 2 * y1; ++y)
+      for (int z = -16; z < 16; ++z)
+        pts.emplace_back((static_cast<float>(layer) + 0.25f) * res,
+                         (static_cast<float>(y) * 0.5f + 0.2f) * res,
+                         (static_cast<float>(z) * 0.5f + 0.3f) * res);
+  return pts;
+}
+
+std::size_t prunedOccupiedLeaves(const octomap::ColorOcTree& tree) {
+  std::size_t n = 0;
+  for (auto it = tree.begin_leafs(), end = tree.end_leafs(); it != end; ++it)
+    n += it.getDepth() < 16 && tree.isNodeOccupied(*it);
+  return n;
+}
+
+// ---- ColorMap: scans that prune, expand, fold several points per cell ---------------------------
+
+struct ColorCase {
+  double resolution;
+  bool discretize;
+  ColorFold fold;
+};
+
+void PrintTo(const ColorCase& c, std::ostream* os) {
+  *os << "resolution " << c.resolution << ", discretize " << c.discretize << ", "
+      << (c.fold == ColorFold::kAverage ? "average" : "integrate");
+}
+
+std::string colorCaseName(const ::testing::TestParamInfo<ColorCase>& info) {
+  const ColorCase& c = info.param;
+  return "res" + std::to_string(std::lround(c.resolution * 1000)) + "mm" +
+         (c.discretize ? "_discretize" : "") +
+         (c.fold == ColorFold::kAverage ? "_average" : "_integrate");
+}
+
+class ColorScans : public ::testing::TestWithParam<ColorCase> {};
+
+// Repeated wall scans clamp the wall, whose octants prune with the children's averaged colours;
+// a crossing scan from behind expands them (children copy the colour); a scan whose max range
+// stops short of the wall still folds its colours into the wall's nodes.
+TEST_P(ColorScans, WallPrunesExpandsAndFoldsEqualColorOcTree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const ColorCase c = GetParam();
+  const MapParams params = withResolution(c.resolution);
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  const float res = static_cast<float>(c.resolution);
+  const Eigen::Vector3f origin(0.5f * res, 0.5f * res, 0.5f * res);
+  const auto wall = thickWall(res, -8, 8);
+  std::size_t scan = 0;
+  for (int rep = 0; rep < 6; ++rep, ++scan)
+    ASSERT_TRUE(insertColorBoth(map, *oracle, wall, origin, colorsOf(scan, wall.size()), -1.0,
+                                c.discretize, c.fold))
+        << "wall scan " << rep;
+  EXPECT_GT(prunedOccupiedLeaves(*oracle), 10u) << "the clamped wall should have pruned";
+  EXPECT_TRUE(sameColors(map, *oracle, wall));
+
+  // From behind the wall towards points in front of it: the rays cross the pruned wall.
+  const Eigen::Vector3f behind(30.5f * res, 2.5f * res, 1.5f * res);
+  std::vector<Eigen::Vector3f> cross;
+  for (int i = 0; i < 60; ++i) {
+    const float t = static_cast<float>(i) / 60.0f;
+    cross.emplace_back((6.0f + 4.0f * t) * res, (-6.0f + 12.0f * t) * res, (5.0f - 10.0f * t) * res);
+  }
+  for (int rep = 0; rep < 2; ++rep, ++scan)
+    ASSERT_TRUE(insertColorBoth(map, *oracle, cross, behind, colorsOf(scan, cross.size()), -1.0,
+                                c.discretize, c.fold))
+        << "crossing scan " << rep;
+
+  // A max range short of the wall: no occupied update, but the points' colours still go to the
+  // nodes search() finds (the wall's, existing from before).
+  const double short_range = 10.0 * c.resolution;
+  std::size_t beyond_found = 0;
+  for (const auto& p : wall)
+    beyond_found += (p - origin).norm() > short_range && oracle->search(toPoint(p)) != nullptr;
+  EXPECT_GT(beyond_found, wall.size() / 2);
+  ASSERT_TRUE(insertColorBoth(map, *oracle, wall, origin, colorsOf(scan++, wall.size()),
+                              short_range, c.discretize, c.fold));
+
+  // The wall again: expanded nodes clamp and prune again.
+  for (int rep = 0; rep < 3; ++rep, ++scan)
+    ASSERT_TRUE(insertColorBoth(map, *oracle, wall, origin, colorsOf(scan, wall.size()), -1.0,
+                                c.discretize, c.fold))
+        << "wall again, scan " << rep;
+  EXPECT_TRUE(sameColors(map, *oracle, wall));
+  EXPECT_TRUE(sameColors(map, *oracle, cross));
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, ColorScans,
+                         ::testing::Values(ColorCase{0.1, false, ColorFold::kAverage},
+                                           ColorCase{0.05, true, ColorFold::kAverage},
+                                           ColorCase{0.2, false, ColorFold::kAverage},
+                                           ColorCase{0.1, false, ColorFold::kIntegrate},
+                                           ColorCase{0.05, true, ColorFold::kIntegrate}),
+                         colorCaseName);
+
+// Random scans with repeated origins, every fifth point given twice more (several points in one
+// cell of one scan), max range and discretize by turns.
+TEST_P(ColorScans, RandomScansEqualColorOcTree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const ColorCase c = GetParam();
+  const MapParams params = withResolution(c.resolution);
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  std::mt19937 rng(static_cast<unsigned>(c.resolution * 1000) + c.discretize);
+  const float radius = static_cast<float>(c.resolution * 30);
+  for (std::size_t scan = 0; scan < 6; ++scan) {
+    const Eigen::Vector3f origin(static_cast<float>(c.resolution * (scan % 2)),
+                                 static_cast<float>(-c.resolution * 0.5 * (scan % 3)), 0.0f);
+    std::vector<Eigen::Vector3f> pts;
+    for (const auto& p : randomScan(rng, origin, 300, radius)) {
+      pts.push_back(p);
+      if (pts.size() % 5 == 0) {
+        pts.push_back(p);
+        pts.push_back(p + Eigen::Vector3f::Constant(0.01f * radius / 30.0f));
+      }
+    }
+    const double max_range = scan % 3 == 1 ? 0.6 * radius : -1.0;
+    const bool discretize = c.discretize != (scan % 2 == 1);
+    ASSERT_TRUE(insertColorBoth(map, *oracle, pts, origin, colorsOf(scan, pts.size()), max_range,
+                                discretize, c.fold))
+        << "scan " << scan;
+  }
+  EXPECT_GT(oracle->size(), 500u);
+}
+
+// ---- StampedMap ----------------------------------------------------------------------------------
+
+// Two halves of a thick wall clamped at different times: the octants that straddle the halves
+// are equal in log-odds but not in stamp, so OcTreeStamped keeps them (a plain OcTree prunes
+// them); degradeOutdated mid-run degrades one half; later scans early-abort on clamped leaves,
+// which keep their stamps; a query time before the stamps wraps (unsigned) and degrades all.
+TEST(StampedScans, StampsPreventPruningDegradeAndEarlyAbortEqualOcTreeStamped) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (const double resolution : {0.1, 0.05}) {
+    SCOPED_TRACE("resolution " + std::to_string(resolution));
+    const MapParams params = withResolution(resolution);
+    StampedMap map(ctx, params);
+    StampedOracle oracle(params);
+    octomap::OcTree plain = makeOracle(params);
+    const float res = static_cast<float>(resolution);
+    const Eigen::Vector3f origin(0.5f * res, 0.5f * res, 0.5f * res);
+    // y cells [-4, 1) and [1, 4): the octant of y cells 0 and 1 straddles the halves.
+    const auto half_a = thickWall(res, -4, 1);
+    const auto half_b = thickWall(res, 1, 4);
+    std::uint32_t t = 100;
+    for (const auto* half : {&half_a, &half_b})
+      for (int rep = 0; rep < 5; ++rep) {
+        ++t;
+        ASSERT_TRUE(insertStampedBoth(map, oracle, *half, origin, t)) << "stamp " << t;
+        plain.insertPointCloud(toPointcloud(*half), toPoint(origin));
+      }
+    EXPECT_GT(oracle.size(), plain.size()) << "the stamps should have kept octants from pruning";
+    std::vector<Eigen::Vector3f> probes = half_a;
+    probes.insert(probes.end(), half_b.begin(), half_b.end());
+    probes.emplace_back(-40.0f * res, 0.0f, 0.0f);  // unknown
+    EXPECT_TRUE(sameStamps(map, oracle, probes));
+    EXPECT_EQ(map.lastUpdateTime(), t);
+
+    // Half a (stamp 105) is older than 5 s at 112, half b (110) is not.
+    oracle.degradeOutdated(112, 5);
+    map.degradeOutdated(112, 5);
+    ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp)) << "after degrade";
+    EXPECT_EQ(map.lastUpdateTime(), 112u);
+    std::size_t degraded = 0;
+    for (auto it = oracle.begin_leafs(), end = oracle.end_leafs(); it != end; ++it)
+      degraded += oracle.isNodeOccupied(*it) && it->getLogOdds() < oracle.getClampingThresMaxLog();
+    EXPECT_GT(degraded, 0u);
+
+    // Half a again at 113 (back to clamped, new stamp); half b at 114 early-aborts: keeps 110.
+    ASSERT_TRUE(insertStampedBoth(map, oracle, half_a, origin, 113));
+    ASSERT_TRUE(insertStampedBoth(map, oracle, half_b, origin, 114, -1.0, true));
+    EXPECT_TRUE(sameStamps(map, oracle, probes));
+    const auto* kept = oracle.search(toPoint(half_b.front()));
+    ASSERT_NE(kept, nullptr);
+    EXPECT_EQ(kept->getTimestamp(), 110u);
+
+    // A query time before every stamp: now - stamp wraps, so every occupied leaf degrades.
+    oracle.degradeOutdated(50, 1000);
+    map.degradeOutdated(50, 1000);
+    ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp)) << "after wrapped degrade";
+    ASSERT_TRUE(insertStampedBoth(map, oracle, half_b, origin, 115, 12.0 * resolution));
+    EXPECT_TRUE(sameStamps(map, oracle, probes));
+  }
+}
+
+// Random scans with increasing stamps, repeated origins, max range and discretize, and
+// degradeOutdated every third scan.
+TEST(StampedScans, RandomScansWithDegradeEqualOcTreeStamped) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  StampedMap map(ctx, params);
+  StampedOracle oracle(params);
+  std::mt19937 rng(29);
+  const float radius = 1.5f;
+  std::vector<Eigen::Vector3f> all;
+  for (std::uint32_t scan = 0; scan < 9; ++scan) {
+    const Eigen::Vector3f origin(0.05f * static_cast<float>(scan % 2), 0.0f,
+                                 -0.025f * static_cast<float>(scan % 3));
+    const auto pts = randomScan(rng, origin, 400, radius);
+    all.insert(all.end(), pts.begin(), pts.begin() + 50);
+    const std::uint32_t stamp = 1000 + 3 * scan;
+    ASSERT_TRUE(insertStampedBoth(map, oracle, pts, origin, stamp,
+                                  scan % 4 == 1 ? 0.7 * radius : -1.0, scan % 3 == 2))
+        << "scan " << scan;
+    if (scan % 3 == 2) {
+      oracle.degradeOutdated(stamp + 1, 4);
+      map.degradeOutdated(stamp + 1, 4);
+      ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp))
+          << "degrade after scan " << scan;
+    }
+  }
+  EXPECT_TRUE(sameStamps(map, oracle, all));
+}
+
+// ---- a real multi-scan log: the first scans of FR-079 ------------------------------------------
+
+constexpr std::size_t kFr079Scans = 12;
+
+struct WorldScan {
+  std::vector<Eigen::Vector3f> points;
+  Eigen::Vector3f origin;
+};
+
+// fr079.clf.bz2 -> OctoMap's text log (clf2log.py) -> ScanGraph::readPlainASCII (what log2graph
+// does), each scan moved to the world as graph2tree moves it. Made once; empty with `why` set.
+const std::vector<WorldScan>& fr079Scans(std::string* why) {
+  static std::vector<WorldScan> scans;
+  static std::string error;
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const std::string dir = OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR) + "/fr079-2d";
+    const std::string log = tmpPath("payload_fr079." + std::to_string(::getpid()) + ".log");
+    if (shell("python3 '" + dir + "/clf2log.py' '" + dir + "/fr079.clf.bz2' '" + log + "' " +
+              std::to_string(kFr079Scans) + " > /dev/null") != 0) {
+      error = "clf2log.py failed on " + dir;
+      return;
+    }
+    octomap::ScanGraph graph;
+    {
+      QuietCout quiet;
+      graph.readPlainASCII(log);
+    }
+    std::remove(log.c_str());
+    for (octomap::ScanNode* node : graph) {
+      const octomath::Pose6D pose = node->pose;
+      octomap::Pointcloud cloud = *node->scan;
+      cloud.transform(pose);
+      const octomap::point3d o = pose.transform(pose.inv().transform(pose.trans()));
+      WorldScan s;
+      for (const auto& p : cloud) s.points.emplace_back(p.x(), p.y(), p.z());
+      s.origin = Eigen::Vector3f(o.x(), o.y(), o.z());
+      scans.push_back(std::move(s));
+    }
+    if (scans.size() != kFr079Scans) error = "read " + std::to_string(scans.size()) + " scans";
+  });
+  if (why) *why = error;
+  return scans;
+}
+
+TEST(RealLog, Fr079FirstScansColorMapEqualsColorOcTree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  std::string why;
+  const auto& scans = fr079Scans(&why);
+  ASSERT_TRUE(why.empty()) << why;
+  const MapParams params = withResolution(0.1);
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  for (std::size_t i = 0; i < scans.size(); ++i)
+    ASSERT_TRUE(insertColorBoth(map, *oracle, scans[i].points, scans[i].origin,
+                                colorsOf(i, scans[i].points.size()), i % 4 == 3 ? 8.0 : -1.0,
+                                false))
+        << "scan " << i;
+  EXPECT_TRUE(sameColors(map, *oracle, scans.back().points));
+}
+
+TEST(RealLog, Fr079FirstScansStampedMapEqualsOcTreeStamped) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  std::string why;
+  const auto& scans = fr079Scans(&why);
+  ASSERT_TRUE(why.empty()) << why;
+  const MapParams params = withResolution(0.1);
+  StampedMap map(ctx, params);
+  StampedOracle oracle(params);
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const auto stamp = static_cast<std::uint32_t>(5000 + 2 * i);
+    ASSERT_TRUE(insertStampedBoth(map, oracle, scans[i].points, scans[i].origin, stamp))
+        << "scan " << i;
+    if (i == scans.size() / 2) {
+      oracle.degradeOutdated(stamp, 5);
+      map.degradeOutdated(stamp, 5);
+      ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp)) << "degrade";
+    }
+  }
+  EXPECT_TRUE(sameStamps(map, oracle, scans.front().points));
+}
+
+// ---- every other feature on payload maps ---------------------------------------------------------
+
+// Random scans with colours and stamps (occupied, free and pruned leaves, unknown space).
+struct ColorScene {
+  ColorMap map;
+  std::unique_ptr<octomap::ColorOcTree> oracle;
+};
+struct StampedScene {
+  StampedMap map;
+  std::unique_ptr<StampedOracle> oracle;
+};
+
+ColorScene colorScene(Context& ctx, double resolution, unsigned seed) {
+  const MapParams params = withResolution(resolution);
+  ColorScene s{ColorMap(ctx, params), makeColorOracle(params)};
+  std::mt19937 rng(seed);
+  for (std::size_t i = 0; i < 4; ++i) {
+    const Eigen::Vector3f origin(0.3f * static_cast<float>(i), 0.0f, 0.1f);
+    const auto pts = randomScan(rng, origin, 1200, 2.0f);
+    EXPECT_TRUE(insertColorBoth(s.map, *s.oracle, pts, origin, colorsOf(i, pts.size()), -1.0,
+                                false));
+  }
+  return s;
+}
+
+StampedScene stampedScene(Context& ctx, double resolution, unsigned seed) {
+  const MapParams params = withResolution(resolution);
+  StampedScene s{StampedMap(ctx, params), std::make_unique<StampedOracle>(params)};
+  std::mt19937 rng(seed);
+  for (std::uint32_t i = 0; i < 4; ++i) {
+    const Eigen::Vector3f origin(0.3f * static_cast<float>(i), 0.0f, 0.1f);
+    const auto pts = randomScan(rng, origin, 1200, 2.0f);
+    EXPECT_TRUE(insertStampedBoth(s.map, *s.oracle, pts, origin, 700 + 10 * i));
+  }
+  return s;
+}
+
+// search() on both: state, log-odds, depth and payload of the node found.
+template <class Map, class Tree>
+void expectSameLookups(Map& map, const Tree& oracle, Payload kind) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-2.5f, 2.5f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 2000; ++i) pts.emplace_back(u(rng), u(rng), 0.3f * u(rng));
+  pts.emplace_back(std::nanf(""), 0.0f, 0.0f);
+  const std::vector<Lookup> got = map.search(pts);
+  ASSERT_EQ(got.size(), pts.size());
+  std::size_t known = 0, coloured = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const auto* n = oracle.search(pts[i].x(), pts[i].y(), pts[i].z());
+    if (!n) {
+      EXPECT_EQ(got[i].state, CellState::kUnknown) << "point " << i;
+      EXPECT_EQ(got[i].payload, 0u) << "point " << i;
+      continue;
+    }
+    ++known;
+    unsigned depth = 16;
+    while (depth > 1 && oracle.search(pts[i].x(), pts[i].y(), pts[i].z(), depth - 1) == n) --depth;
+    EXPECT_EQ(got[i].state, oracle.isNodeOccupied(n) ? CellState::kOccupied : CellState::kFree)
+        << "point " << i;
+    EXPECT_EQ(floatBits(got[i].log_odds), floatBits(n->getLogOdds())) << "point " << i;
+    EXPECT_EQ(got[i].depth, depth) << "point " << i;
+    EXPECT_EQ(got[i].payload, payloadOf(*n))
+        << "point " << i << ": OctoMap " << payloadText(kind, payloadOf(*n)) << ", octovk "
+        << payloadText(kind, got[i].payload);
+    coloured += payloadOf(*n) != newNodePayload(kind);
+  }
+  EXPECT_GT(known, pts.size() / 10);
+  EXPECT_GT(coloured, 10u) << "the probes should find coloured or stamped nodes";
+}
+
+TEST(PayloadFeatures, SearchGivesColoursAndStamps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ColorScene c = colorScene(ctx, 0.1, 1);
+  expectSameLookups(c.map, *c.oracle, Payload::kColor);
+  StampedScene s = stampedScene(ctx, 0.1, 2);
+  expectSameLookups(s.map, *s.oracle, Payload::kStamp);
+}
+
+template <class Map, class Tree>
+void expectSameRays(Map& map, const Tree& oracle) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 600; ++i) {
+    Ray r;
+    r.origin = Eigen::Vector3f(0.3f * u(rng), 0.3f * u(rng), 0.1f);
+    r.direction = Eigen::Vector3f(u(rng), u(rng), 0.5f * u(rng));
+    r.ignore_unknown = i % 2 == 1;
+    r.max_range_m = i % 3 == 0 ? 1.0 : -1.0;
+    rays.push_back(r);
+  }
+  const auto got = map.castRays(rays);
+  ASSERT_EQ(got.size(), rays.size());
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const Ray& r = rays[i];
+    octomap::point3d end = toPoint(r.origin);
+    const bool hit =
+        oracle.castRay(toPoint(r.origin), toPoint(r.direction), end, r.ignore_unknown, r.max_range_m);
+    hits += hit;
+    EXPECT_EQ(got[i].hit, hit) << "ray " << i;
+    EXPECT_EQ(got[i].end, Eigen::Vector3f(end.x(), end.y(), end.z())) << "ray " << i;
+  }
+  EXPECT_GT(hits, rays.size() / 10);
+}
+
+TEST(PayloadFeatures, CastRaysOnPayloadMaps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ColorScene c = colorScene(ctx, 0.1, 3);
+  expectSameRays(c.map, *c.oracle);
+  StampedScene s = stampedScene(ctx, 0.1, 4);
+  expectSameRays(s.map, *s.oracle);
+}
+
+template <class Map, class Tree>
+void expectSameBoxLeaves(Map& map, const Tree& oracle) {
+  using Leaf = std::tuple<float, float, float, float, float>;
+  const Eigen::Vector3f lo(-1.0f, -0.7f, -0.3f), hi(0.9f, 1.3f, 0.25f);
+  for (bool occupied_only : {false, true}) {
+    std::vector<Leaf> want, got;
+    for (auto it = oracle.begin_leafs_bbx(toPoint(lo), toPoint(hi)), end = oracle.end_leafs_bbx();
+         it != end; ++it) {
+      if (occupied_only && !oracle.isNodeOccupied(*it)) continue;
+      const octomap::point3d p = it.getCoordinate();
+      want.emplace_back(p.x(), p.y(), p.z(), static_cast<float>(it.getSize()), it->getLogOdds());
+    }
+    for (const auto& l : map.leavesInBox(lo, hi, occupied_only))
+      got.emplace_back(l.center[0], l.center[1], l.center[2], l.size, l.log_odds);
+    std::sort(want.begin(), want.end());
+    std::sort(got.begin(), got.end());
+    EXPECT_GT(want.size(), 10u);
+    EXPECT_EQ(got, want) << (occupied_only ? "occupied only" : "all leaves");
+  }
+}
+
+TEST(PayloadFeatures, LeavesInBoxOnPayloadMaps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ColorScene c = colorScene(ctx, 0.1, 5);
+  expectSameBoxLeaves(c.map, *c.oracle);
+  StampedScene s = stampedScene(ctx, 0.1, 6);
+  expectSameBoxLeaves(s.map, *s.oracle);
+}
+
+// clear_bbx: the leaves' log-odds to the lower clamp, colours and stamps untouched, then
+// updateInnerOccupancy (ColorOcTree's averages the inner colours again); a scan after it.
+template <class Tree>
+void clearOracle(Tree& tree, const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
+  for (auto it = tree.begin_leafs_bbx(toPoint(min), toPoint(max)), end = tree.end_leafs_bbx();
+       it != end; ++it)
+    it->setLogOdds(tree.getClampingThresMinLog());
+  tree.updateInnerOccupancy();
+}
+
+TEST(PayloadFeatures, ClearBoxKeepsColoursAndStamps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const Eigen::Vector3f lo(0.2f, -0.5f, -0.4f), hi(1.1f, 0.7f, 0.6f);
+  std::mt19937 rng(12);
+  const Eigen::Vector3f origin(0.5f, 0.1f, 0.0f);
+  const auto after = randomScan(rng, origin, 800, 1.5f);
+  {
+    ColorScene c = colorScene(ctx, 0.1, 7);
+    clearOracle(*c.oracle, lo, hi);
+    c.map.clearBox(lo, hi);
+    ASSERT_TRUE(samePayloadTree(*c.oracle, c.map.download(), Payload::kColor)) << "colour map";
+    ASSERT_TRUE(insertColorBoth(c.map, *c.oracle, after, origin, colorsOf(9, after.size()), -1.0,
+                                false))
+        << "colour map, scan after the clear";
+  }
+  {
+    StampedScene s = stampedScene(ctx, 0.1, 8);
+    clearOracle(*s.oracle, lo, hi);
+    s.map.clearBox(lo, hi);
+    ASSERT_TRUE(samePayloadTree(*s.oracle, s.map.download(), Payload::kStamp)) << "stamped map";
+    ASSERT_TRUE(insertStampedBoth(s.map, *s.oracle, after, origin, 900))
+        << "stamped map, scan after the clear";
+  }
+}
+
+// keepBox keeps the leaves leaf_bbx_iterator visits with their colours and stamps (OctoMap's
+// deleteNode-based keep, written leaf by leaf as tests/octomap_keep_box.hpp does); compact()
+// after it keeps them too; a scan after both matches OctoMap on the kept tree.
+TEST(PayloadFeatures, KeepBoxAndCompactKeepColoursAndStamps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const Eigen::Vector3f lo(-0.8f, -0.9f, -0.35f), hi(0.9f, 0.6f, 0.45f);
+  std::mt19937 rng(13);
+  const Eigen::Vector3f origin(0.1f, 0.1f, 0.0f);
+  const auto after = randomScan(rng, origin, 800, 1.2f);
+  {
+    ColorScene c = colorScene(ctx, 0.1, 9);
+    const std::size_t before = c.oracle->size();
+    auto kept = keepBoxOracle(*c.oracle, lo, hi);
+    c.map.keepBox(lo, hi);
+    EXPECT_LT(kept->size(), before / 2);
+    ASSERT_TRUE(samePayloadTree(*kept, c.map.download(), Payload::kColor)) << "colour keepBox";
+    c.map.compact();
+    ASSERT_TRUE(samePayloadTree(*kept, c.map.download(), Payload::kColor)) << "colour compact";
+    ASSERT_TRUE(
+        insertColorBoth(c.map, *kept, after, origin, colorsOf(10, after.size()), -1.0, false))
+        << "colour map, scan after keepBox";
+  }
+  {
+    StampedScene s = stampedScene(ctx, 0.1, 10);
+    auto kept = keepBoxOracle(*s.oracle, lo, hi);
+    s.map.keepBox(lo, hi);
+    ASSERT_TRUE(samePayloadTree(*kept, s.map.download(), Payload::kStamp)) << "stamped keepBox";
+    s.map.compact();
+    ASSERT_TRUE(samePayloadTree(*kept, s.map.download(), Payload::kStamp)) << "stamped compact";
+    ASSERT_TRUE(insertStampedBoth(s.map, *kept, after, origin, 950))
+        << "stamped map, scan after keepBox";
+  }
+}
+
+// Change detection on payload maps notes the keys OctoMap's trees note (a stamped tree prunes
+// differently, so its keys are its own).
+TEST(PayloadFeatures, ChangeDetectionOnPayloadMaps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  std::mt19937 rng(14);
+  ColorScene c = colorScene(ctx, 0.1, 11);
+  StampedScene s = stampedScene(ctx, 0.1, 12);
+  c.map.enableChangeDetection(true);
+  c.oracle->enableChangeDetection(true);
+  s.map.enableChangeDetection(true);
+  s.oracle->enableChangeDetection(true);
+  for (std::uint32_t i = 0; i < 2; ++i) {
+    const Eigen::Vector3f origin(-0.2f, 0.1f * static_cast<float>(i), 0.05f);
+    const auto pts = randomScan(rng, origin, 800, 1.8f);
+    ASSERT_TRUE(insertColorBoth(c.map, *c.oracle, pts, origin, colorsOf(20 + i, pts.size()), -1.0,
+                                false));
+    ASSERT_TRUE(insertStampedBoth(s.map, *s.oracle, pts, origin, 800 + i));
+  }
+  auto keys = [](const auto& tree) {
+    std::vector<KeyFlag> out;
+    for (auto it = tree.changedKeysBegin(); it != tree.changedKeysEnd(); ++it)
+      out.emplace_back(it->first[0], it->first[1], it->first[2], it->second);
+    std::sort(out.begin(), out.end());
+    return out;
+  };
+  const auto want_c = keys(*c.oracle);
+  const auto want_s = keys(*s.oracle);
+  EXPECT_GT(want_c.size(), 100u);
+  EXPECT_EQ(ourChanges(c.map), want_c) << "colour map";
+  EXPECT_EQ(ourChanges(s.map), want_s) << "stamped map";
+}
+
+// download() then upload() into a fresh map of the same payload gives the same tree, colours
+// and stamps included, and scans after the upload go on as OctoMap's; a tree of another payload
+// is refused with the map unchanged.
+TEST(PayloadFeatures, DownloadUploadRoundTripKeepsColoursAndStamps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  std::mt19937 rng(15);
+  const Eigen::Vector3f origin(0.2f, -0.1f, 0.0f);
+  const auto after = randomScan(rng, origin, 800, 1.6f);
+  {
+    ColorScene c = colorScene(ctx, 0.1, 13);
+    const HostTree tree = c.map.download();
+    ColorMap copy(ctx, c.map.params());
+    copy.upload(tree);
+    ASSERT_TRUE(samePayloadTree(*c.oracle, copy.download(), Payload::kColor));
+    ASSERT_TRUE(insertColorBoth(copy, *c.oracle, after, origin, colorsOf(30, after.size()), -1.0,
+                                false));
+    StampedMap other(ctx, c.map.params());
+    try {
+      other.upload(tree);
+      ADD_FAILURE() << "a colour tree uploaded into a stamped map";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+    }
+    EXPECT_FALSE(other.download().root_exists) << "the refused upload changed the map";
+  }
+  {
+    StampedScene s = stampedScene(ctx, 0.1, 14);
+    const HostTree tree = s.map.download();
+    StampedMap copy(ctx, s.map.params());
+    copy.upload(tree);
+    ASSERT_TRUE(samePayloadTree(*s.oracle, copy.download(), Payload::kStamp));
+    ASSERT_TRUE(insertStampedBoth(copy, *s.oracle, after, origin, 990));
+    OccupancyMap plain(ctx, withResolution(0.1));
+    try {
+      plain.upload(tree);
+      ADD_FAILURE() << "a stamped tree uploaded into a plain map";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+    }
+  }
+}
+
+// ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write -------------------
+
+TEST(PayloadFiles, OtBytesEqualOctoMapWrite) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  {
+    ColorScene c = colorScene(ctx, 0.1, 16);
+    std::stringstream want;
+    c.oracle->write(want);
+    const std::string path = tmpPath("payload_oracle_color." + std::to_string(::getpid()) + ".ot");
+    writeMapFile(c.map, path);
+    EXPECT_TRUE(fileBytes(path) == want.str()) << "ColorOcTree .ot bytes differ";
+    std::remove(path.c_str());
+  }
+  {
+    StampedScene s = stampedScene(ctx, 0.1, 17);
+    std::stringstream want;
+    s.oracle->write(want);
+    const std::string path = tmpPath("payload_oracle_stamp." + std::to_string(::getpid()) + ".ot");
+    writeMapFile(s.map, path);
+    EXPECT_TRUE(fileBytes(path) == want.str()) << "OcTreeStamped .ot bytes differ";
+    std::remove(path.c_str());
+  }
+}
+
+}  // namespace
+}  // namespace octovk::test
