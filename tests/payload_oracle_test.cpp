@@ -206,8 +206,9 @@ TEST_P(ColorScans, RandomScansEqualColorOcTree) {
   std::mt19937 rng(static_cast<unsigned>(c.resolution * 1000) + c.discretize);
   const float radius = static_cast<float>(c.resolution * 30);
   for (std::size_t scan = 0; scan < 6; ++scan) {
-    const Eigen::Vector3f origin(static_cast<float>(c.resolution * (scan % 2)),
-                                 static_cast<float>(-c.resolution * 0.5 * (scan % 3)), 0.0f);
+    const auto k = static_cast<double>(scan);
+    const Eigen::Vector3f origin(static_cast<float>(c.resolution * std::fmod(k, 2.0)),
+                                 static_cast<float>(-c.resolution * 0.5 * std::fmod(k, 3.0)), 0.0f);
     std::vector<Eigen::Vector3f> pts;
     for (const auto& p : randomScan(rng, origin, 300, radius)) {
       pts.push_back(p);
@@ -443,26 +444,37 @@ void expectSameLookups(Map& map, const Tree& oracle, Payload kind) {
   pts.emplace_back(std::nanf(""), 0.0f, 0.0f);
   const std::vector<Lookup> got = map.search(pts);
   ASSERT_EQ(got.size(), pts.size());
-  std::size_t known = 0, coloured = 0;
+  std::size_t known = 0, coloured = 0, wrong = 0;
+  std::string first;  // the first point that differs, in words
   for (std::size_t i = 0; i < pts.size(); ++i) {
     const auto* n = oracle.search(pts[i].x(), pts[i].y(), pts[i].z());
-    if (!n) {
-      EXPECT_EQ(got[i].state, CellState::kUnknown) << "point " << i;
-      EXPECT_EQ(got[i].payload, 0u) << "point " << i;
-      continue;
+    Lookup want;
+    if (n) {
+      ++known;
+      want.state = oracle.isNodeOccupied(n) ? CellState::kOccupied : CellState::kFree;
+      want.log_odds = n->getLogOdds();
+      want.depth = 16;
+      while (want.depth > 1 &&
+             oracle.search(pts[i].x(), pts[i].y(), pts[i].z(), want.depth - 1) == n)
+        --want.depth;
+      want.payload = payloadOf(*n);
+      coloured += want.payload != newNodePayload(kind);
     }
-    ++known;
-    unsigned depth = 16;
-    while (depth > 1 && oracle.search(pts[i].x(), pts[i].y(), pts[i].z(), depth - 1) == n) --depth;
-    EXPECT_EQ(got[i].state, oracle.isNodeOccupied(n) ? CellState::kOccupied : CellState::kFree)
-        << "point " << i;
-    EXPECT_EQ(floatBits(got[i].log_odds), floatBits(n->getLogOdds())) << "point " << i;
-    EXPECT_EQ(got[i].depth, depth) << "point " << i;
-    EXPECT_EQ(got[i].payload, payloadOf(*n))
-        << "point " << i << ": OctoMap " << payloadText(kind, payloadOf(*n)) << ", octovk "
-        << payloadText(kind, got[i].payload);
-    coloured += payloadOf(*n) != newNodePayload(kind);
+    const Lookup& g = got[i];
+    if (g.state == want.state && floatBits(g.log_odds) == floatBits(want.log_odds) &&
+        g.depth == want.depth && g.payload == want.payload)
+      continue;
+    if (wrong++ == 0) {
+      std::ostringstream out;
+      out << "point " << i << " (" << pts[i].transpose() << "): OctoMap state "
+          << static_cast<int>(want.state) << " log-odds " << want.log_odds << " depth "
+          << want.depth << " payload " << payloadText(kind, want.payload) << "; octovk state "
+          << static_cast<int>(g.state) << " log-odds " << g.log_odds << " depth " << g.depth
+          << " payload " << payloadText(kind, g.payload);
+      first = out.str();
+    }
   }
+  EXPECT_EQ(wrong, 0u) << "lookups differ from OctoMap's search(); the first: " << first;
   EXPECT_GT(known, pts.size() / 10);
   EXPECT_GT(coloured, 10u) << "the probes should find coloured or stamped nodes";
 }
@@ -490,16 +502,24 @@ void expectSameRays(Map& map, const Tree& oracle) {
   }
   const auto got = map.castRays(rays);
   ASSERT_EQ(got.size(), rays.size());
-  std::size_t hits = 0;
+  std::size_t hits = 0, wrong = 0;
+  std::string first;
   for (std::size_t i = 0; i < rays.size(); ++i) {
     const Ray& r = rays[i];
     octomap::point3d end = toPoint(r.origin);
     const bool hit =
         oracle.castRay(toPoint(r.origin), toPoint(r.direction), end, r.ignore_unknown, r.max_range_m);
     hits += hit;
-    EXPECT_EQ(got[i].hit, hit) << "ray " << i;
-    EXPECT_EQ(got[i].end, Eigen::Vector3f(end.x(), end.y(), end.z())) << "ray " << i;
+    const Eigen::Vector3f want(end.x(), end.y(), end.z());
+    if (got[i].hit == hit && got[i].end == want) continue;
+    if (wrong++ == 0) {
+      std::ostringstream out;
+      out << "ray " << i << ": OctoMap hit " << hit << " end (" << want.transpose()
+          << "); octovk hit " << got[i].hit << " end (" << got[i].end.transpose() << ")";
+      first = out.str();
+    }
   }
+  EXPECT_EQ(wrong, 0u) << "castRay answers differ; the first: " << first;
   EXPECT_GT(hits, rays.size() / 10);
 }
 
