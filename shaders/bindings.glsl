@@ -45,6 +45,8 @@ OCTOVK_ADDRESSED(EndpointKeysRef, uint64_t, 8);
 OCTOVK_ADDRESSED(WalksRef, WalkState, 8);
 OCTOVK_ADDRESSED(SlotsRef, uint, 4);
 OCTOVK_ADDRESSED(CellListRef, uint, 4);
+OCTOVK_ADDRESSED(PayloadRef, uint, 4);
+OCTOVK_ADDRESSED(ColorFoldRef, uint, 4);
 #define POINTS (PointsRef(buffer_address[kBindPoints]).v)
 #define CELL_SET_KEYS (CellSetKeysRef(buffer_address[kBindCellSetKeys]).v)
 #define CELL_SET_FLAGS (CellSetFlagsRef(buffer_address[kBindCellSetFlags]).v)
@@ -59,6 +61,9 @@ OCTOVK_ADDRESSED(CellListRef, uint, 4);
 #define WALKS (WalksRef(buffer_address[kBindWalks]).v)
 #define SLOTS (SlotsRef(buffer_address[kBindSlots]).v)
 #define CELL_LIST (CellListRef(buffer_address[kBindCellList]).v)
+// A node's payload word (node.glsl alone reads and writes it; only where params.payload says so).
+#define PAYLOAD (PayloadRef(buffer_address[kBindPayload]).v)
+#define COLOR_FOLD (ColorFoldRef(buffer_address[kBindColorFold]).v)
 // A depth image: its camera, then its pixels as words (kBindDepth).
 layout(buffer_reference, std430, buffer_reference_align = 4) buffer DepthRef {
   DepthCamera camera;

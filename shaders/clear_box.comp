@@ -15,7 +15,12 @@
 //   deepest up): updateInnerOccupancy: the node each block hangs under takes the maximum log-odds
 //   of the block's live slots (getMaxChildLogOdds), the block read whole. Levels run bottom-up
 //   with a barrier between, so a node's children are final when it reads them; each node is
-//   written by the one invocation of its child block.
+//   written by the one invocation of its child block. Payloads as updateInnerOccupancy gives them
+//   (node.glsl's innerNodeData); kClearBoxInnerAt stamps the nodes with pc.now.
+// kClearBoxDegrade (over every block of the pool): OcTreeStamped::degradeOutdatedNodes at query
+//   time pc.now: each live leaf (a pruned one included) that is occupied and whose stamp is more
+//   than pc.threshold seconds older (unsigned difference, as OctoMap) takes one miss, clamped,
+//   its stamp kept (integrateMissNoTime); no node is created, expanded or pruned.
 #include "tree_search.glsl"
 #include "block_key.glsl"
 
@@ -27,15 +32,31 @@ OCTOVK_ADDRESSED(BlockListsRef, uint, 4);
 #define block_lists (BlockListsRef(buffer_address[kBindLeafBoxes]).v)
 
 void main() {
-  if (pc.mode == kClearBoxInner) {
+  if (pc.mode == kClearBoxInner || pc.mode == kClearBoxInnerAt) {
     uint n = invocationIndex();
     if (n >= counters.touched_count[pc.level]) return;
     uint block = block_lists[pc.level * pool.capacity + n];
-    setNodeData(BLOCK_PARENT[block], innerNodeData(block));
+    uint parent = BLOCK_PARENT[block];
+    setNodeData(parent, innerNodeData(parent, block, pc.mode == kClearBoxInnerAt, pc.now));
     return;
   }
   uint b = invocationIndex();
   if (b >= pool.bump) return;
+  if (pc.mode == kClearBoxDegrade) {
+    uint first = b == 0u ? kRootNode : b * 8u;
+    uint last = b == 0u ? kRootNode : b * 8u + 7u;
+    if (b == 0u && pool.root_exists == 0u) return;
+    if (b != 0u && BLOCK_PARENT[b] == kNoBlock) return;
+    for (uint n = first; n <= last; ++n) {
+      if (!linkLiveLeaf(settledLinkOf(n)) || !nodeOccupied(n)) continue;
+      if (pc.now - nodePayload(n) <= pc.threshold) continue;
+      precise float value = nodeLogOdds(n) + params.prob_miss_log;
+      if (value < params.clamp_min_log) value = params.clamp_min_log;
+      else if (value > params.clamp_max_log) value = params.clamp_max_log;
+      setNodeLogOdds(n, value);
+    }
+    return;
+  }
   if (pc.mode == kClearBoxLeaves) {
     uvec3 lo = uvec3(box.min_x, box.min_y, box.min_z);
     uvec3 hi = uvec3(box.max_x, box.max_y, box.max_z);

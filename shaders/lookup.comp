@@ -23,7 +23,8 @@ void main() {
     uint node, depth;
     if (searchNode(k, node, depth)) {
       float v = nodeLogOdds(node);
-      r = LookupResult(v >= params.occupancy_log ? kCellOccupied : kCellFree, v, depth, 0u);
+      r = LookupResult(v >= params.occupancy_log ? kCellOccupied : kCellFree, v, depth,
+                       nodePayload(node));
     }
   }
   lookup_results[pc.first_result + i] = r;

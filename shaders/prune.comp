@@ -18,7 +18,7 @@ void main() {
   // and listParent marks the level above.
   uint block = settledLinkOf(n) & kBlockMask;
   bool collapsible;
-  NodeData inner = summariseChildren(block, collapsible);
+  NodeData inner = summariseChildren(n, block, collapsible);
   if (collapsible) {
     setNodeData(n, prunedNodeData(block));
     setLink(n, kNoChildren | kFlagLive);

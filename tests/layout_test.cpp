@@ -56,14 +56,15 @@ static_assert(offsetof(OccupancyMap::LeafBoxHost, center) == offsetof(LeafBox, c
 static_assert(offsetof(OccupancyMap::LeafBoxHost, size) == offsetof(LeafBox, size));
 static_assert(offsetof(OccupancyMap::LeafBoxHost, log_odds) == offsetof(LeafBox, log_odds));
 
-static_assert(kBindingCount == 21);
+static_assert(kBindingCount == 23);
 static_assert(kBindParams == 0 && kBindCounters == 1 && kBindPool == 2 && kBindPoints == 3 &&
               kBindCellSetKeys == 4 && kBindCellSetFlags == 5 && kBindNodes == 6 &&
               kBindBlockParents == 7 && kBindFreeStack == 8 && kBindActive == 9 &&
               kBindTouched == 10 && kBindNewBlocks == 11 && kBindLeafBoxes == 12 &&
               kBindEndpointKeys == 13 && kBindQueryIn == 14 && kBindQueryOut == 15 &&
               kBindWalks == 16 && kBindSlots == 17 && kBindCellList == 18 && kBindDepth == 19 &&
-              kBindChanges == 20 && kBindAddresses == 21);
+              kBindChanges == 20 && kBindPayload == 21 && kBindColorFold == 22 &&
+              kBindAddresses == 23);
 
 TEST(Layout, HostSizesAreTheStatedOnes) {
   // The generated static_asserts hold at compile time; the sizes again at run time, for the
@@ -296,7 +297,7 @@ TEST(Layout, ShadersReachNodesThroughNodeGlsl) {
   namespace fs = std::filesystem;
   const fs::path dir = OCTOVK_PATH(OCTOVK_SOURCE_DIR) + "/shaders";
   ASSERT_TRUE(fs::is_directory(dir)) << dir << " is missing: OCTOVK_SOURCE_DIR must hold shaders/";
-  const std::regex names_nodes("\\bNODES\\b");
+  const std::regex names_nodes("\\b(NODES|PAYLOAD)\\b");
   std::size_t files = 0;
   for (const auto& entry : fs::directory_iterator(dir)) {
     const std::string name = entry.path().filename().string();

@@ -24,7 +24,7 @@ struct LookupResult {
   uint state;      // 4B (0)  kCellUnknown / kCellFree / kCellOccupied
   float log_odds;  // 4B (4)  of the node found (0 when unknown)
   uint depth;      // 4B (8)  depth of the node found (0 when unknown)
-  uint pad0;       // 4B (12)
+  uint payload;    // 4B (12) its payload word (packed colour or stamp; 0 when none)
 };
 
 // One castRay query. 40 B.

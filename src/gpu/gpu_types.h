@@ -103,7 +103,7 @@ struct PoolState {
   uint pad0;         // 4B (28)
 };
 
-// Per-scan parameters, written once per scan. 120 B.
+// Per-scan parameters, written once per scan. 128 B.
 struct ScanParams {
   double resolution;         // 8B (0)
   double resolution_factor;  // 8B (8)
@@ -131,7 +131,27 @@ struct ScanParams {
   float occupancy_log;       // 4B (104) occupancy threshold (isNodeOccupied: log-odds >= this)
   uint changes_log2;         // 4B (108) change detection: log2 of the change set's slots; 0: off
   uint cell_capacity;        // 4B (112) entries of the cell list and the active-cell list
-  uint pad0;                 // 4B (116)
+  uint payload;              // 4B (116) kPayload*: what PAYLOAD holds per node
+  uint stamp;                // 4B (120) kPayloadStamp: the scan's time stamp
+  uint pad0;                 // 4B (124)
+};
+
+// What a node holds besides its log-odds (MapParams::payload): PAYLOAD, one word per node.
+OCTOVK_CONST uint kPayloadNone = 0u;
+OCTOVK_CONST uint kPayloadColor = 1u;  // r | g << 8 | b << 16; white (0xFFFFFF): no colour
+OCTOVK_CONST uint kPayloadStamp = 2u;  // whole seconds
+OCTOVK_CONST uint kColorUnset = 0x00FFFFFFu;
+OCTOVK_CONST uint kFoldEmpty = 0xFFFFFFFFu;  // an empty entry of the colour fold's table or list
+
+// color_fold (kBindColorFold: the scan's colours, one word per point, at 0; the list links at
+// point_capacity; the table of (node, first point) pairs at 2 * point_capacity). 16 B.
+OCTOVK_CONST uint kColorFoldGroup = 0u;  // per point: its node found, the point pushed on its list
+OCTOVK_CONST uint kColorFoldApply = 1u;  // per table entry: the node's points in order, folded
+struct ColorFoldConstants {
+  uint mode;            // 4B (0)  kColorFold*
+  uint point_capacity;  // 4B (4)  where the links and the table start
+  uint table_log2;      // 4B (8)  the table's entries: 2^table_log2
+  uint pad0;            // 4B (12)
 };
 
 // A node that gets a block of children in this scan: one per entry of the second set, at the
@@ -488,11 +508,17 @@ struct RehashChangesConstants {
 OCTOVK_CONST uint kClearBoxLeaves = 0u;  // the leaves in the BoxQuery to the lower clamping bound
 OCTOVK_CONST uint kClearBoxInner = 1u;   // the nodes at `level` with children: their max
 OCTOVK_CONST uint kClearBoxDepths = 2u;  // the live blocks listed by depth, for kClearBoxInner
+// OcTreeStamped::degradeOutdatedNodes: every live occupied leaf with now - stamp > threshold
+// (unsigned) takes one miss, keeping its stamp.
+OCTOVK_CONST uint kClearBoxDegrade = 3u;
+// kClearBoxInner whose nodes take the stamp `now` (degrade's updateInnerOccupancy); plain
+// kClearBoxInner gives a stamped node its newest child's stamp.
+OCTOVK_CONST uint kClearBoxInnerAt = 4u;
 struct ClearBoxConstants {
   uint mode;   // 4B (0)  kClearBox*
-  uint level;  // 4B (4)  kClearBoxInner: depth of the nodes updated
-  uint pad0;   // 4B (8)
-  uint pad1;   // 4B (12)
+  uint level;      // 4B (4)  kClearBoxInner: depth of the nodes updated
+  uint now;        // 4B (8)  kClearBoxDegrade, kClearBoxInnerAt: the query time
+  uint threshold;  // 4B (12) kClearBoxDegrade: the age (seconds) beyond which a leaf degrades
 };
 
 // keep_box. 16 B. Marks use kFlagTouched (clear between scans; keep_box clears what it set).
@@ -539,20 +565,22 @@ OCTOVK_CONST uint kBindSlots =
 OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
 OCTOVK_CONST uint kBindDepth = 19u;     // a depth image: DepthCamera, then its pixels
 OCTOVK_CONST uint kBindChanges = 20u;   // the changed keys: ChangeHeader, then ChangeSlots
-OCTOVK_CONST uint kBindingCount = 21u;
+OCTOVK_CONST uint kBindPayload = 21u;   // a word per node (ScanParams::payload), or one word
+OCTOVK_CONST uint kBindColorFold = 22u; // a colour scan's colours, links and table (color_fold)
+OCTOVK_CONST uint kBindingCount = 23u;
 // The map's arrays that can outgrow one descriptor's range (maxStorageBufferRange: 128 MiB on
 // lavapipe, while a 0.02 m map's node pool alone takes 454 MiB) are not bound by descriptor:
 // the shaders reach them by device address (GL_EXT_buffer_reference). Their addresses, indexed
 // by binding, are in a table bound at kBindAddresses (uint64_t[kBindingCount]; 0 elsewhere).
 // Params, counters, pool state and the two query bindings stay descriptors (small, or ranges
 // of a caller's buffers).
-OCTOVK_CONST uint kBindAddresses = 21u;
+OCTOVK_CONST uint kBindAddresses = 23u;
 OCTOVK_CONST uint kAddressedBindings =
     (1u << kBindPoints) | (1u << kBindCellSetKeys) | (1u << kBindCellSetFlags) |
     (1u << kBindNodes) | (1u << kBindBlockParents) | (1u << kBindFreeStack) | (1u << kBindActive) |
     (1u << kBindTouched) | (1u << kBindNewBlocks) | (1u << kBindLeafBoxes) |
     (1u << kBindEndpointKeys) | (1u << kBindWalks) | (1u << kBindSlots) | (1u << kBindCellList) |
-    (1u << kBindDepth) | (1u << kBindChanges);
+    (1u << kBindDepth) | (1u << kBindChanges) | (1u << kBindPayload) | (1u << kBindColorFold);
 
 // Scans through ray tracing (MapParams::scan_rays = kRayTracing; scan_rays_rt.comp). Its boxes
 // are written by accel_boxes in two more modes into a boxes buffer of the same layout

@@ -13,11 +13,12 @@ std::uint32_t poolBlockLimit(std::size_t max_nodes) {
   return static_cast<std::uint32_t>(std::clamp<std::uint64_t>(max_nodes / 8, 2, kMax));
 }
 
-std::size_t MapBuffers::initialBytes(std::uint32_t block_limit) {
-  return kFixedBytes + 4 * kSmallQuery + (3 + kFramesInFlight) * kSmallBuffer + hashBytes(kInitialHashLog2) +
+std::size_t MapBuffers::initialBytes(std::uint32_t block_limit, Payload payload) {
+  const bool with = payload != Payload::kNone;
+  return kFixedBytes + 4 * kSmallQuery + (4 + kFramesInFlight + (with ? 0 : 1)) * kSmallBuffer + hashBytes(kInitialHashLog2) +
          endpointBytes(kInitialHashLog2) + slotBytes(kInitialHashLog2, kInitialHashLog2) +
          listBytes(kInitialActive) +
-         std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} * kBlockBytes;
+         std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} * blockBytes(with);
 }
 
 }  // namespace octovk

@@ -3,6 +3,7 @@
 // fuzzers link buffer_sizes.cpp without a device).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 
@@ -34,6 +35,19 @@ inline std::size_t listBytes(std::size_t active) {
 // Nodes, block parents, free stack and leaf boxes of one block.
 constexpr std::size_t kBlockBytes =
     8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
+// A block's payload words (MapParams::payload other than kNone).
+constexpr std::size_t kPayloadBlockBytes = 8 * sizeof(std::uint32_t);
+inline std::size_t blockBytes(bool payload) {
+  return kBlockBytes + (payload ? kPayloadBlockBytes : 0);
+}
+// A colour scan's fold buffer for `count` points (color_fold.comp): a colour and a link per
+// point, then a table of (node, head) pairs with 2^colorTableLog2(count) entries.
+inline std::uint32_t colorTableLog2(std::size_t count) {
+  return nextPow2Log2(std::max<std::size_t>(2 * count, 64));
+}
+inline std::size_t colorFoldBytes(std::size_t count) {
+  return (2 * count + 2 * (std::size_t{1} << colorTableLog2(count))) * sizeof(std::uint32_t);
+}
 // The change set of 2^log2 slots (change detection on); log2 0: the one-slot set a map holds
 // while change detection was never on.
 inline std::size_t changesBytes(std::uint32_t log2) {

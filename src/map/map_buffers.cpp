@@ -44,12 +44,13 @@ std::string mib(std::size_t bytes) {
 }  // namespace
 
 MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit,
-                       std::size_t max_bytes)
+                       std::size_t max_bytes, Payload payload_kind)
     : bindings(device),
       device_(device),
       stream_(stream),
       block_limit_(block_limit),
-      max_bytes_(max_bytes) {
+      max_bytes_(max_bytes),
+      payload_kind_(payload_kind) {
   // MapParams::validate refuses a cap below initialBytes(); the checks below hold it anyway.
   params = vk::Buffer(device_, sizeof(gpu::ScanParams), false);
   counters = vk::Buffer(device_, sizeof(gpu::ScanCounters), false);
@@ -61,6 +62,7 @@ MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint3
   uploads.resize(kFramesInFlight);
   for (vk::Buffer& u : uploads) u = vk::Buffer(device_, kSmallBuffer, true);
   depth = vk::Buffer(device_, kSmallBuffer, false);
+  color_fold = vk::Buffer(device_, kSmallBuffer, false);
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
   allocateLists(kInitialActive);
   allocatePool(std::min<std::uint32_t>(kInitialBlocks, block_limit_), /*copy_old=*/false);
@@ -75,7 +77,7 @@ BufferBytes MapBuffers::bytesByUse() const {
   b.queries = query_in.size() + query_out.size() + query_staging_in.size() +
               query_staging_out.size() + scene_bytes_;
   for (const vk::Buffer* x :
-       {&params, &counters, &pool, &readback, &points, &walks, &depth, &cell_set_keys,
+       {&params, &counters, &pool, &readback, &points, &walks, &depth, &color_fold, &cell_set_keys,
         &cell_set_flags, &cell_list, &cells, &endpoint_keys, &prefix_blocks, &slots, &touched})
     b.scratch += x->size();
   b.scratch += uploadBytes();
@@ -202,29 +204,35 @@ void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old) {
 
 void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks,
                                      bool copy_old) {
+  const bool with_payload = payload_kind_ != Payload::kNone;
+  const std::size_t block_bytes = blockBytes(with_payload);
   const std::size_t held =
-      nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size();
-  if (min_blocks > 0 && min_blocks < blocks && !fits(held, std::size_t{blocks} * kBlockBytes)) {
+      nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size() + payload.size();
+  if (min_blocks > 0 && min_blocks < blocks && !fits(held, std::size_t{blocks} * block_bytes)) {
     // The most blocks the cap leaves room for, if that is enough.
     const std::size_t others = deviceBytes() - held;
-    const std::size_t room = max_bytes_ > others ? (max_bytes_ - others) / kBlockBytes : 0;
+    const std::size_t room = max_bytes_ > others ? (max_bytes_ - others) / block_bytes : 0;
     if (room >= min_blocks)
       blocks = static_cast<std::uint32_t>(std::min<std::size_t>(room, blocks));
   }
-  checkBudget(held, std::size_t{blocks} * kBlockBytes,
+  checkBudget(held, std::size_t{blocks} * block_bytes,
               "growing the node pool to " + std::to_string(std::size_t{blocks} * 8) +
-                  " nodes (with their leaf boxes, " + std::to_string(kBlockBytes) +
+                  " nodes (with their leaf boxes, " + std::to_string(block_bytes) +
                   " bytes per block of 8)");
   vk::Buffer new_nodes(device_, std::size_t{blocks} * 8 * sizeof(gpu::Node), false);
   vk::Buffer parents(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
   vk::Buffer stack(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
   vk::Buffer leaves(device_, std::size_t{blocks} * 8 * sizeof(gpu::LeafBox), false);
+  vk::Buffer words(device_,
+                   with_payload ? std::size_t{blocks} * 8 * sizeof(std::uint32_t) : kSmallBuffer,
+                   false);
   if (copy_old) {
     stream_.begin(bindings);
     stream_.copy(nodes, new_nodes, nodes.size());
     stream_.copy(block_parents, parents, block_parents.size());
     stream_.copy(free_stack, stack, free_stack.size());
     stream_.copy(leaf_boxes, leaves, leaf_boxes.size());  // as they were: a rebuild may not follow
+    if (with_payload && payload.valid()) stream_.copy(payload, words, payload.size());
     stream_.update(pool, &blocks, sizeof(blocks), offsetof(gpu::PoolState, capacity));
     stream_.submitAndWait();
   }
@@ -232,6 +240,7 @@ void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blo
   block_parents = std::move(parents);
   free_stack = std::move(stack);
   leaf_boxes = std::move(leaves);
+  payload = std::move(words);
   pool_blocks_ = blocks;
   rebind();
 }
@@ -243,13 +252,14 @@ void MapBuffers::releaseScratch() {
   if (point_capacity_ > 0 || uploadBytes() != kFramesInFlight * kSmallBuffer ||
       depth.size() != kSmallBuffer) {
     vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);
-    vk::Buffer d(device_, kSmallBuffer, false);
+    vk::Buffer d(device_, kSmallBuffer, false), f(device_, kSmallBuffer, false);
     std::vector<vk::Buffer> u(kFramesInFlight);
     for (vk::Buffer& x : u) x = vk::Buffer(device_, kSmallBuffer, true);
     points = std::move(p);
     walks = std::move(w);
     uploads = std::move(u);
     depth = std::move(d);
+    color_fold = std::move(f);
     point_capacity_ = 0;
     rebind();
   }
@@ -281,16 +291,27 @@ void MapBuffers::resetPool() {
 
 void MapBuffers::ensurePoints(std::size_t count) {
   if (count <= point_capacity_) return;
-  const std::size_t held = points.size() + uploadBytes() + walks.size();
+  const bool colors = payload_kind_ == Payload::kColor;
+  const std::size_t held = points.size() + uploadBytes() + walks.size() + color_fold.size();
+  // A colour map's staging holds each point's colour after the points, and its fold buffer the
+  // colours, links and table.
+  const auto bytesFor = [&](std::size_t n) {
+    return pointBytes(n) + (colors ? n * sizeof(std::uint32_t) * kFramesInFlight +
+                                         colorFoldBytes(n)
+                                   : 0);
+  };
   std::size_t cap = std::max(count, point_capacity_ * 2);
-  if (!fits(held, pointBytes(cap))) cap = count;  // no headroom where the cap allows none
-  checkBudget(held, pointBytes(cap),
+  if (!fits(held, bytesFor(cap))) cap = count;  // no headroom where the cap allows none
+  checkBudget(held, bytesFor(cap),
               "taking a scan of " + std::to_string(count) + " points (" +
-                  std::to_string(pointBytes(1)) + " bytes per point: points, staging, walks)");
+                  std::to_string(bytesFor(1)) + " bytes per point: points, staging, walks" +
+                  (colors ? ", colours" : "") + ")");
   vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
   std::vector<vk::Buffer> staging(kFramesInFlight);
-  for (vk::Buffer& x : staging) x = vk::Buffer(device_, cap * 3 * sizeof(float), true);
+  for (vk::Buffer& x : staging) x = vk::Buffer(device_, cap * stagingBytesPerPoint(), true);
   vk::Buffer walk_lists(device_, 2 * cap * sizeof(gpu::WalkState), false);
+  vk::Buffer fold(device_, colors ? colorFoldBytes(cap) : kSmallBuffer, false);
+  color_fold = std::move(fold);
   points = std::move(device_points);
   uploads = std::move(staging);
   walks = std::move(walk_lists);
@@ -358,13 +379,13 @@ void MapBuffers::ensureQueries(std::size_t in_bytes, std::size_t out_bytes) {
 
 void MapBuffers::rebind() {
   if (!nodes.valid() || !cell_set_keys.valid() || !touched.valid() || !query_in.valid() ||
-      !slots.valid() || !changes.valid())
+      !slots.valid() || !changes.valid() || !payload.valid() || !color_fold.valid())
     return;
   const std::array<const vk::Buffer*, gpu::kBindingCount> buffers = {
       &params,     &counters,      &pool,       &points,    &cell_set_keys, &cell_set_flags,
       &nodes,      &block_parents, &free_stack, &cells,     &touched,       &prefix_blocks,
       &leaf_boxes, &endpoint_keys, &query_in,   &query_out, &walks,         &slots,
-      &cell_list,  &depth,         &changes};
+      &cell_list,  &depth,         &changes,    &payload,  &color_fold};
   bindings.update(buffers);
 }
 

@@ -61,11 +61,13 @@ class MapBuffers {
  public:
   /// Allocates the initial buffers; `block_limit` caps the pool (MapParams::max_nodes),
   /// `max_bytes` all buffers (MapParams::max_device_bytes, 0: no cap; at least initialBytes()).
+  /// `payload`: a word per node beside the pool (kColor, kStamp), and for kColor the colour
+  /// fold's buffer per scan.
   MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint32_t block_limit,
-             std::size_t max_bytes = 0);
+             std::size_t max_bytes = 0, Payload payload = Payload::kNone);
 
   /// Bytes of the buffers the constructor makes: the least a map with this pool limit holds.
-  static std::size_t initialBytes(std::uint32_t block_limit);
+  static std::size_t initialBytes(std::uint32_t block_limit, Payload payload = Payload::kNone);
 
   // Growth. Each checks the cap first (BudgetError, nothing changed), makes all new buffers
   // before dropping an old one, so a failed allocation leaves the map as it was, then rebinds.
@@ -83,7 +85,8 @@ class MapBuffers {
   /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
   /// and waits).
   void allocatePool(std::uint32_t blocks, bool copy_old);
-  /// Points, their staging (one per frame) and the walk lists for at least `count` points.
+  /// Points, their staging (one per frame; with room for a colour per point in a colour map)
+  /// and the walk lists, and a colour map's fold buffer, for at least `count` points.
   void ensurePoints(std::size_t count);
   /// The depth-image buffer (DepthCamera + pixels) of at least `bytes`, and each frame's upload
   /// staging as large.
@@ -144,7 +147,14 @@ class MapBuffers {
 
   /// Every buffer of the map, staging included, and the scenes: what the cap limits.
   std::size_t deviceBytes() const { return bytesByUse().total(); }
-  std::size_t poolBytes() const { return nodes.size() + block_parents.size() + free_stack.size(); }
+  std::size_t poolBytes() const {
+    return nodes.size() + block_parents.size() + free_stack.size() + payload.size();
+  }
+  Payload payloadKind() const noexcept { return payload_kind_; }
+  /// Bytes per point of the upload staging: x, y, z floats, and a colour word in a colour map.
+  std::size_t stagingBytesPerPoint() const noexcept {
+    return 3 * sizeof(float) + (payload_kind_ == Payload::kColor ? sizeof(std::uint32_t) : 0);
+  }
   BufferBytes bytesByUse() const;
   std::size_t maxBytes() const noexcept { return max_bytes_; }
   /// The upload staging of all frames.
@@ -170,6 +180,8 @@ class MapBuffers {
   vk::Buffer slots;    // filled slots of the cell set, then of the second set
   vk::Buffer depth;    // a depth image: gpu::DepthCamera, then its pixels
   vk::Buffer changes;  // the change set: gpu::ChangeHeader, then gpu::ChangeSlots
+  vk::Buffer payload;     // a word per pool node (MapParams::payload), else one small buffer
+  vk::Buffer color_fold;  // a colour scan's colours, links and table (colorFoldBytes)
 
  private:
   /// (Re)makes the sets whose size differs from 2^hash_log2 / 2^endpoint_log2 and the slot
@@ -194,6 +206,7 @@ class MapBuffers {
   std::uint32_t pool_blocks_ = 0;
   std::size_t point_capacity_ = 0;
   std::uint32_t changes_log2_ = 0;
+  Payload payload_kind_ = Payload::kNone;
 };
 
 }  // namespace octovk

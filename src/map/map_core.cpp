@@ -18,7 +18,8 @@ MapCore::MapCore(vk::Device& device, const MapParams& params)
       logs(ref::LogOddsParams::from(params)),
       stream(device, kFramesInFlight),
       // Most blocks the pool may have: MapParams::max_nodes, and 2^32 nodes.
-      buffers(device, stream, poolBlockLimit(params.max_nodes), params.max_device_bytes),
+      buffers(device, stream, poolBlockLimit(params.max_nodes), params.max_device_bytes,
+              params.payload),
       rec(device, stream, buffers) {}
 
 gpu::ScanParams MapCore::scanParams(const Eigen::Vector3f& origin, const Pose* pose,
@@ -42,6 +43,7 @@ gpu::ScanParams MapCore::scanParams(const Eigen::Vector3f& origin, const Pose* p
   sp.active_capacity = static_cast<std::uint32_t>(buffers.activeCapacity());
   sp.cell_capacity = (1u << buffers.hashLog2()) * kCellsPerBrickSlot;
   sp.occupancy_log = logs.occupancy;
+  sp.payload = static_cast<std::uint32_t>(params.payload);
   if (pose) {
     sp.rot_u = pose->rotation.w();
     sp.rot_x = pose->rotation.x();

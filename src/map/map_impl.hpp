@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -104,6 +105,22 @@ class OccupancyMap::Impl {
   void clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
     flush();
     edits_.clearBox(min, max);
+  }
+  /// The root's payload word (0 without a root or a payload): OcTreeStamped's last update time.
+  std::uint32_t rootPayload() {
+    flush();
+    if (core_.params.payload == Payload::kNone || core_.readPool().root_exists == 0) return 0;
+    vk::Buffer staging(core_.device, sizeof(std::uint32_t), true);
+    core_.stream.begin(core_.buffers.bindings);
+    core_.stream.copy(core_.buffers.payload, staging, sizeof(std::uint32_t));
+    core_.stream.submitAndWait();
+    std::uint32_t word = 0;
+    std::memcpy(&word, staging.mapped(), sizeof(word));
+    return word;
+  }
+  void degradeOutdated(std::uint32_t now, std::uint32_t threshold) {
+    flush();
+    edits_.degrade(now, threshold);
   }
   void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
     flush();

@@ -11,7 +11,7 @@ bool inOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
 }  // namespace
 
 std::size_t MapParams::minDeviceBytes() const {
-  return MapBuffers::initialBytes(poolBlockLimit(max_nodes));
+  return MapBuffers::initialBytes(poolBlockLimit(max_nodes), payload);
 }
 
 std::string MapParams::validate() const {

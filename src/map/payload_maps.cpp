@@ -72,13 +72,11 @@ std::vector<std::uint32_t> StampedMap::stamps(std::span<const Eigen::Vector3f> p
 namespace octovk {
 
 void StampedMap::degradeOutdated(std::uint32_t now, std::uint32_t threshold_s) {
-  (void)now;
-  (void)threshold_s;
-  throw Error(ErrorCode::kInternal, "degradeOutdated: not built yet");
+  hostMemoryGuard("degradeOutdated", [&] { self().degradeOutdated(now, threshold_s); });
 }
 
 std::uint32_t StampedMap::lastUpdateTime() {
-  throw Error(ErrorCode::kInternal, "lastUpdateTime: not built yet");
+  return hostMemoryGuard("lastUpdateTime", [&] { return self().rootPayload(); });
 }
 
 }  // namespace octovk

@@ -28,6 +28,7 @@ void ScanPipeline::record(PendingScan& p) {
   gpu::ScanParams sp = core_.scanParams(p.origin, p.pose ? &*p.pose : nullptr,
                                         p.options.max_range_m, p.count);  // sizes may grow
   sp.changes_log2 = changes_.scanLog2();
+  sp.stamp = p.options.stamp;
   p.noted_changes = sp.changes_log2 != 0;
   passes::RayKeysInput input = p.input;
   if (p.input_at == ScanInput::kStaging)
@@ -47,6 +48,9 @@ void ScanPipeline::record(PendingScan& p) {
   passes::recordClassify(rec, input.discretize, sp.point_count);
   passes::recordTreeUpdate(rec);
   passes::recordPrune(rec);
+  if (input.colors)
+    passes::recordColorFold(rec, p.count, core_.buffers.uploads[p.staging_frame].handle(),
+                            input.colors_offset);
   if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec);
   if (p.queries) passes::recordQueries(rec, core_.queryParams(), *p.queries);
   passes::recordClearSets(rec);
@@ -89,6 +93,7 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
   const auto start = std::chrono::steady_clock::now();
   const std::size_t count = source.count();
   checkScan(core_.device, count, origin, pose, options);
+  checkPayloadOptions(core_.params.payload, count, options);
   if (queries && !queries_.fitsOneBatch(queries->rays.size(), queries->lookups.size()))
     throw Error(ErrorCode::kInvalidArgument,
                 "insertPointCloud with queries: " + std::to_string(queries->rays.size()) +
@@ -120,6 +125,11 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
     p.staging_frame = core_.stream.nextFrame();
     p.input_at = source.device == VK_NULL_HANDLE ? ScanInput::kStaging : ScanInput::kCaller;
     p.input = stage(source, core_.buffers.uploads[p.staging_frame]);
+    if (!options.colors.empty()) {
+      p.input.colors = true;
+      p.input.colors_offset = stageColors(source, p.input, options.colors,
+                                          core_.buffers.uploads[p.staging_frame]);
+    }
     p.input.transform = pose != nullptr;
     p.input.discretize = options.discretize;
     p.input.walk_rounds =
@@ -128,6 +138,7 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
     p.origin = origin;
     if (pose) p.pose = *pose;
     p.options = options;
+    p.options.colors = {};  // staged: the caller's span may go once this returns
     p.count = count;
     p.queries = queries;
     p.results = results;

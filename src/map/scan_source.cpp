@@ -44,6 +44,37 @@ void checkScan(const vk::Device& device, std::size_t count, const Eigen::Vector3
                     " (maxComputeWorkGroupCount x 64); split the scan");
 }
 
+void checkPayloadOptions(Payload payload, std::size_t count, const ScanOptions& options) {
+  if (options.colors.empty()) return;
+  if (payload != Payload::kColor)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("insertPointCloud: colours were given, but the map is a ") +
+                    treeTypeName(payload) +
+                    ", which holds no colour; make a ColorMap (MapParams::payload = "
+                    "Payload::kColor) to keep colours");
+  if (options.colors.size() != count)
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: " + std::to_string(options.colors.size()) +
+                    " colours for " + std::to_string(count) +
+                    " points (or depth pixels); give exactly one colour per point");
+  if (options.color_fold != ColorFold::kAverage)
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: ColorFold::kIntegrate (integrateNodeColor, OctoMap's "
+                "occupancy-weighted double arithmetic) is not available on the device yet; use "
+                "ColorFold::kAverage (averageNodeColor)");
+}
+
+VkDeviceSize stageColors(const ScanSource& source, const passes::RayKeysInput& input,
+                         std::span<const Rgb> colors, vk::Buffer& upload) {
+  // After the points or pixels the frame staged; at 0 where they come from a caller's buffer.
+  const std::size_t offset =
+      source.device != VK_NULL_HANDLE ? 0 : wholeWords(static_cast<std::size_t>(input.bytes));
+  auto* words = reinterpret_cast<std::uint32_t*>(static_cast<unsigned char*>(upload.mapped()) +
+                                                 offset);
+  for (std::size_t i = 0; i < colors.size(); ++i) words[i] = packRgb(colors[i]);
+  return offset;
+}
+
 std::size_t depthBytesOf(const ScanSource& source) {
   if (!source.depth) return 0;
   return sizeof(gpu::DepthCamera) + wholeWords(pixelBytes(source));

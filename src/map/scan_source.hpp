@@ -33,6 +33,9 @@ struct ScanSource {
 /// Throws kInvalidArgument naming the first bad input of a scan of `count` points on `device`.
 void checkScan(const vk::Device& device, std::size_t count, const Eigen::Vector3f& origin,
                const Pose* pose, const ScanOptions& options);
+/// Throws kInvalidArgument where a scan's colours do not fit the map (no colour payload, a count
+/// other than the points', a fold the device does not do).
+void checkPayloadOptions(Payload payload, std::size_t count, const ScanOptions& options);
 /// Bytes of depth-image buffer a scan needs (DepthCamera and whole words of pixels); 0 for
 /// points.
 std::size_t depthBytesOf(const ScanSource& source);
@@ -43,5 +46,9 @@ double worstSteps(const ScanSource& source, const Eigen::Vector3f& origin_world,
 /// Where the ray pass reads the scan's input: `upload` (a frame's staging), after writing the
 /// host's points or pixels into it, or the caller's buffer.
 passes::RayKeysInput stage(const ScanSource& source, vk::Buffer& upload);
+/// Writes a colour scan's colours (packed words) into `upload` after what stage() put there
+/// (`input`), and returns their offset.
+VkDeviceSize stageColors(const ScanSource& source, const passes::RayKeysInput& input,
+                         std::span<const Rgb> colors, vk::Buffer& upload);
 
 }  // namespace octovk

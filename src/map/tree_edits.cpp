@@ -43,6 +43,16 @@ void TreeEdits::keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) 
   });
 }
 
+void TreeEdits::degrade(std::uint32_t now, std::uint32_t threshold) {
+  if (core_.params.payload != Payload::kStamp)
+    throw Error(ErrorCode::kInvalidArgument,
+                "degradeOutdated: the map holds no time stamps; make a StampedMap");
+  core_.stream.begin(core_.buffers.bindings);
+  passes::recordDegrade(core_.rec, core_.queryParams(), now, threshold);
+  core_.stream.submitAndWait();
+  treeChanged();
+}
+
 template <typename Record>
 void TreeEdits::edit(const char* call, const Eigen::Vector3f& min, const Eigen::Vector3f& max,
                      Record record) {

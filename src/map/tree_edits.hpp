@@ -22,6 +22,9 @@ class TreeEdits {
   /// Change detection does not see it (OctoMap's deleteNode leaves the changed keys alone).
   /// kInvalidArgument (map unchanged) for a NaN corner or min > max.
   void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max);
+  /// StampedMap::degradeOutdated: OcTreeStamped::degradeOutdatedNodes at `now`, then
+  /// updateInnerOccupancy (inner stamps `now`).
+  void degrade(std::uint32_t now, std::uint32_t threshold);
 
  private:
   /// One edit: the box checked and turned into keys (none when a corner is outside the map),

@@ -11,12 +11,20 @@ namespace octovk {
 HostTree TreeTransfer::download() {
   const gpu::PoolState pool = core_.readPool();
   const std::size_t count = std::size_t{pool.bump} * 8;
-  vk::Buffer staging(core_.device, count * sizeof(gpu::Node), true);
+  const Payload kind = core_.params.payload;
+  const std::size_t node_bytes = count * sizeof(gpu::Node);
+  const std::size_t payload_bytes = kind != Payload::kNone ? count * sizeof(std::uint32_t) : 0;
+  vk::Buffer staging(core_.device, node_bytes + payload_bytes, true);
   core_.stream.begin(core_.buffers.bindings);
-  core_.stream.copy(core_.buffers.nodes, staging, count * sizeof(gpu::Node));
+  core_.stream.copy(core_.buffers.nodes, staging, node_bytes);
+  if (payload_bytes) core_.stream.copy(core_.buffers.payload, staging, payload_bytes, 0, node_bytes);
   core_.stream.submitAndWait();
-  return hostTreeFromPool({static_cast<const gpu::Node*>(staging.mapped()), count}, {},
-                          core_.params.payload, pool);
+  const auto* bytes = static_cast<const unsigned char*>(staging.mapped());
+  HostTree tree = hostTreeFromPool(
+      {reinterpret_cast<const gpu::Node*>(bytes), count},
+      {reinterpret_cast<const std::uint32_t*>(bytes + node_bytes), payload_bytes / 4}, kind, pool);
+  averageInnerColors(tree);  // ColorOcTree::updateInnerOccupancy's colours
+  return tree;
 }
 
 // The pool a tree of `blocks` blocks is uploaded into: a quarter more for the next scans, at least
@@ -36,6 +44,12 @@ void TreeTransfer::compact() {
 }
 
 void TreeTransfer::upload(const HostTree& tree, bool shrink) {
+  if (tree.payload != core_.params.payload)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("upload: the tree is a ") + treeTypeName(tree.payload) +
+                    " and the map a " + treeTypeName(core_.params.payload) +
+                    "; upload a tree of the map's type (HostTree::payload), or make the map "
+                    "with the tree's payload");
   const std::size_t blocks = std::max<std::size_t>((tree.nodes.size() + 7) / 8, 1);
   if (blocks > core_.buffers.blockLimit())
     throw Error(ErrorCode::kOutOfDeviceMemory,
@@ -49,12 +63,15 @@ void TreeTransfer::upload(const HostTree& tree, bool shrink) {
   const std::size_t node_bytes = image.nodes.size() * sizeof(gpu::Node);
   const std::size_t meta_bytes = image.parents.size() * sizeof(std::uint32_t);
   const std::size_t free_bytes = image.free_blocks.size() * sizeof(std::uint32_t);
-  vk::Buffer staging(core_.device, node_bytes + meta_bytes + free_bytes, true);
+  const std::size_t payload_bytes = image.payload.size() * sizeof(std::uint32_t);
+  vk::Buffer staging(core_.device, node_bytes + meta_bytes + free_bytes + payload_bytes, true);
   auto* bytes = static_cast<unsigned char*>(staging.mapped());
   std::memcpy(bytes, image.nodes.data(), node_bytes);
   std::memcpy(bytes + node_bytes, image.parents.data(), meta_bytes);
   if (free_bytes)
     std::memcpy(bytes + node_bytes + meta_bytes, image.free_blocks.data(), free_bytes);
+  if (payload_bytes)
+    std::memcpy(bytes + node_bytes + meta_bytes + free_bytes, image.payload.data(), payload_bytes);
   scenes_.releaseUnderCap();
   const std::uint32_t capacity = capacityFor(image.blocks);
   if (capacity > core_.buffers.poolBlocks() || (shrink && capacity < core_.buffers.poolBlocks()))
@@ -74,6 +91,9 @@ void TreeTransfer::upload(const HostTree& tree, bool shrink) {
   core_.stream.copy(staging, core_.buffers.nodes, node_bytes);
   core_.stream.copy(staging, core_.buffers.block_parents, meta_bytes, node_bytes);
   core_.stream.copy(staging, core_.buffers.free_stack, free_bytes, node_bytes + meta_bytes);
+  if (payload_bytes)
+    core_.stream.copy(staging, core_.buffers.payload, payload_bytes,
+                      node_bytes + meta_bytes + free_bytes);
   core_.stream.barrier();
   passes::recordLeafBoxes(core_.rec);
   core_.stream.submitAndWait();

@@ -40,6 +40,9 @@ struct RayKeysInput {
   /// The rays are traced (ScanRays' ray tracing, recordScanRaysRt) instead of walked: stop
   /// after the input stages (upload, unproject, transform, discretize).
   bool trace = false;
+  /// A colour per point was staged in the frame's upload buffer at `colors_offset` (ColorFold).
+  bool colors = false;
+  VkDeviceSize colors_offset = 0;
 };
 /// Uploads the parameters, fresh counters and the staged points (or depth image), then
 /// unproject, transform, discretize and the ray walk (with its continuations) into the cell set.
@@ -73,6 +76,13 @@ void recordTreeUpdate(Recorder& r);
 
 /// Inner-node values and pruning, level by level from the deepest, over the touched lists.
 void recordPrune(Recorder& r);
+
+// ---- color_fold.cpp ----
+
+/// A colour scan's fold (ColorOcTree::averageNodeColor per point, in order), after its tree
+/// passes: the scan's `count` colours copied from `source` at `offset` (packed words), the
+/// table emptied, then color_fold's two modes. Nothing happens on the device for a refused scan.
+void recordColorFold(Recorder& r, std::size_t count, VkBuffer source, VkDeviceSize offset);
 
 // ---- leaf_boxes.cpp ----
 
@@ -209,6 +219,10 @@ void recordRehashChanges(Recorder& r, VkDeviceAddress old_set, std::uint32_t old
 /// the maximum of its children, bottom-up (updateInnerOccupancy; nothing is pruned). Sets `sp`.
 /// With `box` null it is updateInnerOccupancy alone, as keepBox ends.
 void recordClearBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* box);
+/// OcTreeStamped::degradeOutdatedNodes at query time `now` (one miss on every occupied leaf older
+/// than `threshold` seconds, stamps kept), then updateInnerOccupancy with inner stamps `now`.
+void recordDegrade(Recorder& r, const gpu::ScanParams& sp, std::uint32_t now,
+                   std::uint32_t threshold);
 
 // ---- keep_box.cpp: map surgery ----
 

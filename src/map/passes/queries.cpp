@@ -204,7 +204,7 @@ void collectQueries(const MapBuffers& buffers, const QueryRequest& q,
   for (std::size_t i = 0; i < q.lookups.size(); ++i) {
     gpu::LookupResult res;
     std::memcpy(&res, bytes + (q.rays.size() + i) * sizeof(res), sizeof(res));
-    out.lookups[i] = {static_cast<CellState>(res.state), res.log_odds, res.depth};
+    out.lookups[i] = {static_cast<CellState>(res.state), res.log_odds, res.depth, res.payload};
   }
 }
 

@@ -1,0 +1,103 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// A colour scan's colours folded into the map after its tree passes: for every point i, in the
+// cloud's order, ColorOcTree::averageNodeColor(point_i, colour_i) on the node search() finds.
+// Points that fall in one node are folded in order by one invocation; nodes are independent.
+// kColorFoldGroup (per point): its node (a NaN point, one outside the map or in unknown space
+//   has none and is skipped, as OctoMap's coordToKeyChecked / search skip it), that node's entry
+//   in the table (open addressing, claimed by compare-and-swap), and the point pushed on the
+//   entry's list (atomic exchange of the head; the links say nothing of the order).
+// kColorFoldApply (per table entry): the entry's list sorted by point index (a merge sort of the
+//   linked list, n log n, in place), then the fold in that order on the node's colour.
+// Nothing is done for a scan the device refused (kStatusNotApplied): it runs again whole.
+#define OCTOVK_NODES_READ_ONLY
+#include "tree_search.glsl"
+
+layout(push_constant) uniform PushBlock { ColorFoldConstants pc; };
+
+uint colorOf(uint i) { return COLOR_FOLD[i]; }
+uint linkAfter(uint i) { return COLOR_FOLD[pc.point_capacity + i]; }
+void setLinkAfter(uint i, uint next) { COLOR_FOLD[pc.point_capacity + i] = next; }
+uint tableWord(uint entry, uint w) { return 2u * pc.point_capacity + 2u * entry + w; }
+
+// Simon Tatham's bottom-up merge sort of a singly linked list, by point index.
+uint sortedList(uint head) {
+  for (uint run = 1u;; run *= 2u) {
+    uint p = head, tail = kFoldEmpty, merges = 0u;
+    head = kFoldEmpty;
+    while (p != kFoldEmpty) {
+      ++merges;
+      uint q = p, p_size = 0u;
+      for (uint i = 0u; i < run && q != kFoldEmpty; ++i) {
+        ++p_size;
+        q = linkAfter(q);
+      }
+      uint q_size = run;
+      while (p_size > 0u || (q_size > 0u && q != kFoldEmpty)) {
+        uint e;
+        if (p_size == 0u) {
+          e = q;
+          q = linkAfter(q);
+          --q_size;
+        } else if (q_size == 0u || q == kFoldEmpty || p < q) {
+          e = p;
+          p = linkAfter(p);
+          --p_size;
+        } else {
+          e = q;
+          q = linkAfter(q);
+          --q_size;
+        }
+        if (tail == kFoldEmpty) head = e;
+        else setLinkAfter(tail, e);
+        tail = e;
+      }
+      p = q;
+    }
+    if (tail != kFoldEmpty) setLinkAfter(tail, kFoldEmpty);
+    if (merges <= 1u) return head;
+  }
+  return head;
+}
+
+// averageNodeColor's step: an unset colour takes the new one, a set one the int mean per channel.
+uint averaged(uint old, uint c) {
+  if (!colorSet(old)) return c;
+  uvec3 a = uvec3(old & 0xFFu, (old >> 8) & 0xFFu, (old >> 16) & 0xFFu);
+  uvec3 b = uvec3(c & 0xFFu, (c >> 8) & 0xFFu, (c >> 16) & 0xFFu);
+  uvec3 m = (a + b) / 2u;
+  return m.x | (m.y << 8) | (m.z << 16);
+}
+
+void main() {
+  if ((counters.status & kStatusNotApplied) != 0u) return;
+  uint i = invocationIndex();
+  uint mask = (1u << pc.table_log2) - 1u;
+  if (pc.mode == kColorFoldGroup) {
+    if (i >= params.point_count) return;
+    uvec3 k;
+    if (!coordToKeyChecked(POINTS[3u * i], k.x) || !coordToKeyChecked(POINTS[3u * i + 1u], k.y) ||
+        !coordToKeyChecked(POINTS[3u * i + 2u], k.z))
+      return;
+    uint node, depth;
+    if (!searchNode(k, node, depth)) return;
+    // The load of the table is at most a half (2^table_log2 >= 2 * points): a free entry is
+    // always found.
+    uint e = (node * 2654435761u) & mask;
+    for (;;) {
+      uint was = atomicCompSwap(COLOR_FOLD[tableWord(e, 0u)], kFoldEmpty, node);
+      if (was == kFoldEmpty || was == node) break;
+      e = (e + 1u) & mask;
+    }
+    setLinkAfter(i, atomicExchange(COLOR_FOLD[tableWord(e, 1u)], i));
+    return;
+  }
+  // kColorFoldApply
+  if (i > mask) return;
+  uint node = COLOR_FOLD[tableWord(i, 0u)];
+  if (node == kFoldEmpty) return;
+  uint c = nodePayload(node);
+  for (uint p = sortedList(COLOR_FOLD[tableWord(i, 1u)]); p != kFoldEmpty; p = linkAfter(p))
+    c = averaged(c, colorOf(p));
+  setNodePayload(node, c);
+}
