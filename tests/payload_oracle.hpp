@@ -130,6 +130,9 @@ template <class Tree>
         out << (cx ? "inner in OctoMap, leaf in octovk" : "leaf in OctoMap, inner in octovk");
         return false;
       }
+      // Children first: a wrong inner colour is the average of wrong children, so the deepest
+      // difference is the one to name.
+      if (depth < 16 && cx && !children(x, y, depth, kx, ky, kz)) return false;
       const bool check_payload = kind == Payload::kColor || (kind == Payload::kStamp && !cx);
       if (check_payload && payloadOf(*x) != y->payload) {
         where();
@@ -138,7 +141,14 @@ template <class Tree>
             << " (" << (cx ? "inner" : "leaf") << ", log-odds " << x->getLogOdds() << ")";
         return false;
       }
-      if (depth >= 16 || !cx) return true;
+      return true;
+    }
+    bool children(const Node* x, const HostTree::Node* y, unsigned depth, unsigned kx,
+                  unsigned ky, unsigned kz) {
+      auto where = [&] {
+        out << "children of the node at depth " << depth << " key (" << kx << ", " << ky << ", "
+            << kz << "): ";
+      };
       const unsigned bit = 15 - depth;
       for (unsigned i = 0; i < 8; ++i) {
         const Node* xc = a.nodeChildExists(x, i) ? a.getNodeChild(x, i) : nullptr;

@@ -7,8 +7,13 @@
 #include <octomap/octomap.h>
 #include <unistd.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <mutex>
+#include <random>
+#include <tuple>
 
 #include "changed_keys.hpp"
 #include "payload_oracle.hpp"
@@ -226,6 +231,190 @@ TEST_P(ColorScans, RandomScansEqualColorOcTree) {
   EXPECT_GT(oracle->size(), 500u);
 }
 
+// Another way in for the colours: the sensor-frame cloud (points moved by the pose on the
+// device) and a depth image (a colour per pixel, row by row; pixels without depth skip theirs).
+// OctoMap's insertPointCloud(scan, sensor_origin, frame_origin), then the colours of the points
+// it moved, in order.
+::testing::AssertionResult colorOracleInSensorFrame(octomap::ColorOcTree& oracle,
+                                                    const std::vector<Eigen::Vector3f>& points,
+                                                    const Eigen::Vector3f& origin,
+                                                    const Pose& pose,
+                                                    const std::vector<Rgb>& colors) {
+  if (points.size() != colors.size())
+    return ::testing::AssertionFailure() << points.size() << " points, " << colors.size()
+                                         << " colours";
+  const octomath::Pose6D frame = toPose6D(pose);
+  oracle.insertPointCloud(toPointcloud(points), toPoint(origin), frame);
+  octomap::Pointcloud world = toPointcloud(points);
+  world.transform(frame);
+  for (std::size_t i = 0; i < world.size(); ++i)
+    oracle.averageNodeColor(world[i].x(), world[i].y(), world[i].z(), colors[i].r, colors[i].g,
+                            colors[i].b);
+  oracle.updateInnerOccupancy();
+  return ::testing::AssertionSuccess();
+}
+
+TEST(ColorInputs, SensorFrameCloudAndDepthImageEqualColorOcTree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  std::mt19937 rng(31);
+  Pose pose;
+  pose.translation = Eigen::Vector3f(0.3f, -0.2f, 0.15f);
+  pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.7f, Eigen::Vector3f(0.2f, 0.3f, 1.0f).normalized()));
+  for (std::size_t scan = 0; scan < 2; ++scan) {
+    const Eigen::Vector3f origin(0.02f, 0.0f, 0.01f);
+    const auto pts = randomScan(rng, origin, 600, 1.2f);
+    const auto colors = colorsOf(40 + scan, pts.size());
+    ASSERT_TRUE(colorOracleInSensorFrame(*oracle, pts, origin, pose, colors));
+    const ScanStats s = map.insertPointCloud(pts, origin, pose, {.colors = colors});
+    EXPECT_EQ(s.nodes, oracle->size());
+    ASSERT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << "cloud " << scan;
+  }
+  // A 40 x 30 image of a slanted plane 1-2 m away, some pixels without depth.
+  DepthImage cam;
+  cam.width = 40;
+  cam.height = 30;
+  cam.fx = cam.fy = 30.0f;
+  cam.cx = 19.5f;
+  cam.cy = 14.5f;
+  cam.encoding = DepthImage::Encoding::kFloat32;
+  cam.depth_scale = 1.0f;
+  std::vector<float> depth(std::size_t{cam.width} * cam.height);
+  for (std::size_t i = 0; i < depth.size(); ++i)
+    depth[i] = 1.0f + 0.02f * static_cast<float>(i % cam.width) +
+               0.01f * static_cast<float>(i / cam.width);
+  depth[3] = 0.0f;
+  depth[77] = std::numeric_limits<float>::quiet_NaN();
+  depth[500] = 0.0f;
+  cam.depths = std::span<const float>(depth);
+  const auto pixel_colors = colorsOf(50, depth.size());
+  std::vector<Rgb> point_colors;
+  for (std::size_t i = 0; i < depth.size(); ++i)
+    if (std::isnormal(depth[i])) point_colors.push_back(pixel_colors[i]);
+  const auto points = unprojectDepthImage(cam);
+  ASSERT_EQ(points.size(), depth.size() - 3);
+  const Eigen::Vector3f origin_camera(0.01f, 0.0f, 0.0f);
+  for (int view = 0; view < 2; ++view) {
+    ASSERT_TRUE(colorOracleInSensorFrame(*oracle, points, origin_camera, pose, point_colors));
+    (void)map.insertDepthImage(cam, pose, {.colors = pixel_colors}, origin_camera);
+    ASSERT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << "image " << view;
+  }
+}
+
+// Scans submitted back to back (the colour and stamp staged per frame, refused scans run again
+// as the pool grows): the same map as the blocking scans, colours and stamps included. The
+// colour vectors are overwritten after each submit (they are copied).
+TEST(PayloadStreaming, SubmittedScansEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  ColorMap cmap(ctx, params);
+  auto coracle = makeColorOracle(params);
+  StampedMap smap(ctx, params);
+  StampedOracle soracle(params);
+  std::mt19937 rng(33);
+  std::vector<Rgb> colors;
+  for (std::uint32_t scan = 0; scan < 6; ++scan) {
+    const Eigen::Vector3f origin(0.05f * static_cast<float>(scan % 2), 0.0f, 0.0f);
+    const auto pts = randomScan(rng, origin, 1500, 1.0f + 0.4f * static_cast<float>(scan));
+    colors = colorsOf(60 + scan, pts.size());
+    coracle->insertPointCloud(toPointcloud(pts), toPoint(origin));
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      coracle->averageNodeColor(pts[i].x(), pts[i].y(), pts[i].z(), colors[i].r, colors[i].g,
+                                colors[i].b);
+    soracle.setScanTime(3000 + scan);
+    soracle.insertPointCloud(toPointcloud(pts), toPoint(origin));
+    (void)cmap.submitPointCloud(pts, origin, {.colors = colors});
+    (void)smap.submitPointCloud(pts, origin, {.stamp = 3000 + scan});
+    std::fill(colors.begin(), colors.end(), Rgb{1, 2, 3});
+  }
+  cmap.flush();
+  smap.flush();
+  coracle->updateInnerOccupancy();
+  EXPECT_TRUE(samePayloadTree(*coracle, cmap.download(), Payload::kColor));
+  EXPECT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp));
+}
+
+// Many points in few nodes, in shuffled order (the integer mean depends on the order), some
+// white; then a scan with no colours whose pruning still averages the children's colours.
+TEST(ColorInputs, ManyPointsPerNodeAndScansWithoutColours) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  std::mt19937 rng(35);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 12000; ++i)  // 4 x 4 x 2 cells of a 2-cell-thick wall
+    pts.emplace_back(1.6f + 0.2f * u(rng), 0.4f * u(rng), 0.4f * u(rng));
+  const Eigen::Vector3f origin(0.05f, 0.05f, 0.05f);
+  for (std::size_t scan = 0; scan < 3; ++scan) {
+    std::shuffle(pts.begin(), pts.end(), rng);
+    ASSERT_TRUE(insertColorBoth(map, *oracle, pts, origin, colorsOf(70 + scan, pts.size()), -1.0,
+                                scan == 1))
+        << "scan " << scan;
+  }
+  // Without colours: the occupancy only, and the pruning of the now clamped wall averages the
+  // children's colours (ColorOcTree::pruneNode).
+  for (int rep = 0; rep < 3; ++rep) {
+    oracle->insertPointCloud(toPointcloud(pts), toPoint(origin));
+    oracle->updateInnerOccupancy();
+    (void)map.insertPointCloud(pts, origin);
+    ASSERT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << "no colours " << rep;
+  }
+  EXPECT_GT(prunedOccupiedLeaves(*oracle), 0u);
+  EXPECT_TRUE(sameColors(map, *oracle, pts));
+}
+
+// Calls that throw leave a payload map as it was: colours of the wrong count, colours for a
+// stamped map, a scan beyond max_nodes (its colours not folded either).
+TEST(ColorInputs, RefusedScansLeaveColoursAndStampsAsTheyWere) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = withResolution(0.1);
+  params.max_nodes = 20000;
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  const Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  const auto small = sphere(0.5f, 300, origin);
+  ASSERT_TRUE(insertColorBoth(map, *oracle, small, origin, colorsOf(80, small.size()), -1.0,
+                              false));
+  auto expectRefused = [&](const char* what, auto&& call, ErrorCode code) {
+    try {
+      call();
+      ADD_FAILURE() << what << " did not throw";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), code) << what << ": " << e.what();
+    }
+    EXPECT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << what;
+  };
+  expectRefused("one colour too few",
+                [&] {
+                  const auto colors = colorsOf(81, small.size() - 1);
+                  map.insertPointCloud(small, origin, colors);
+                },
+                ErrorCode::kInvalidArgument);
+  const auto big = sphere(6.0f, 20000, origin);
+  expectRefused("a scan beyond max_nodes",
+                [&] {
+                  const auto colors = colorsOf(82, big.size());
+                  map.insertPointCloud(big, origin, colors);
+                },
+                ErrorCode::kOutOfDeviceMemory);
+  // The map still folds colours afterwards.
+  ASSERT_TRUE(insertColorBoth(map, *oracle, small, origin, colorsOf(83, small.size()), -1.0,
+                              false));
+  StampedMap stamped(ctx, withResolution(0.1));
+  const auto colors = colorsOf(84, small.size());
+  try {
+    stamped.insertPointCloud(small, origin, {.colors = colors});
+    ADD_FAILURE() << "colours accepted by a stamped map";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+  }
+  EXPECT_FALSE(stamped.download().root_exists);
+}
+
 // ---- StampedMap ----------------------------------------------------------------------------------
 
 // Two halves of a thick wall clamped at different times: the octants that straddle the halves
@@ -313,6 +502,39 @@ TEST(StampedScans, RandomScansWithDegradeEqualOcTreeStamped) {
     }
   }
   EXPECT_TRUE(sameStamps(map, oracle, all));
+}
+
+// Scans that share one stamp prune as a plain OcTree does; degradeOutdated is no change for
+// change detection (integrateMissNoTime does not note keys); an empty map's last update is 0.
+TEST(StampedScans, SameStampPrunesLikeOcTreeAndDegradeIsNoChange) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  StampedMap map(ctx, params);
+  EXPECT_EQ(map.lastUpdateTime(), 0u);
+  StampedOracle oracle(params);
+  octomap::OcTree plain = makeOracle(params);
+  const float res = 0.1f;
+  const Eigen::Vector3f origin(0.5f * res, 0.5f * res, 0.5f * res);
+  const auto wall = thickWall(res, -4, 4);
+  for (int rep = 0; rep < 6; ++rep) {
+    ASSERT_TRUE(insertStampedBoth(map, oracle, wall, origin, 77)) << "scan " << rep;
+    plain.insertPointCloud(toPointcloud(wall), toPoint(origin));
+  }
+  EXPECT_EQ(oracle.size(), plain.size());
+  map.enableChangeDetection(true);
+  oracle.enableChangeDetection(true);
+  ASSERT_TRUE(insertStampedBoth(map, oracle, thickWall(res, 4, 6), origin, 80));
+  const auto before = ourChanges(map);
+  EXPECT_GT(before.size(), 10u);
+  oracle.degradeOutdated(90, 5);
+  map.degradeOutdated(90, 5);
+  ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp));
+  std::vector<KeyFlag> want;
+  for (auto it = oracle.changedKeysBegin(); it != oracle.changedKeysEnd(); ++it)
+    want.emplace_back(it->first[0], it->first[1], it->first[2], it->second);
+  std::sort(want.begin(), want.end());
+  EXPECT_EQ(ourChanges(map), want);
+  EXPECT_EQ(ourChanges(map), before);
 }
 
 // ---- a real multi-scan log: the first scans of FR-079 ------------------------------------------
@@ -705,6 +927,16 @@ TEST(PayloadFeatures, DownloadUploadRoundTripKeepsColoursAndStamps) {
 
 // ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write -------------------
 
+::testing::AssertionResult sameBytes(const std::string& want, const std::string& got) {
+  if (want == got) return ::testing::AssertionSuccess();
+  const auto diff = std::mismatch(want.begin(), want.end(), got.begin(), got.end());
+  const auto at = static_cast<std::size_t>(diff.first - want.begin());
+  return ::testing::AssertionFailure()
+         << "OctoMap wrote " << want.size() << " bytes, octovk " << got.size()
+         << "; first difference at byte " << at << " (OctoMap's header: "
+         << want.substr(0, std::min<std::size_t>(want.find("data\n") + 5, 120)) << ")";
+}
+
 TEST(PayloadFiles, OtBytesEqualOctoMapWrite) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   {
@@ -713,7 +945,7 @@ TEST(PayloadFiles, OtBytesEqualOctoMapWrite) {
     c.oracle->write(want);
     const std::string path = tmpPath("payload_oracle_color." + std::to_string(::getpid()) + ".ot");
     writeMapFile(c.map, path);
-    EXPECT_TRUE(fileBytes(path) == want.str()) << "ColorOcTree .ot bytes differ";
+    EXPECT_TRUE(sameBytes(want.str(), fileBytes(path))) << "ColorOcTree .ot";
     std::remove(path.c_str());
   }
   {
@@ -722,7 +954,7 @@ TEST(PayloadFiles, OtBytesEqualOctoMapWrite) {
     s.oracle->write(want);
     const std::string path = tmpPath("payload_oracle_stamp." + std::to_string(::getpid()) + ".ot");
     writeMapFile(s.map, path);
-    EXPECT_TRUE(fileBytes(path) == want.str()) << "OcTreeStamped .ot bytes differ";
+    EXPECT_TRUE(sameBytes(want.str(), fileBytes(path))) << "OcTreeStamped .ot";
     std::remove(path.c_str());
   }
 }
