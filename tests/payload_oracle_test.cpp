@@ -415,6 +415,67 @@ TEST(ColorInputs, RefusedScansLeaveColoursAndStampsAsTheyWere) {
   EXPECT_FALSE(stamped.download().root_exists);
 }
 
+// End points exactly on cell borders (k * resolution, signed zeros) and at cell centres, from
+// origins on borders and centres: the fold's key of each point is OctoMap's coordToKeyChecked.
+TEST(ColorInputs, PointsOnCellBordersFoldIntoOctoMapsCells) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (const double resolution : {0.1, 0.02}) {
+    SCOPED_TRACE("resolution " + std::to_string(resolution));
+    const MapParams params = withResolution(resolution);
+    ColorMap map(ctx, params);
+    auto oracle = makeColorOracle(params);
+    const auto r = static_cast<float>(resolution);
+    std::vector<Eigen::Vector3f> pts = {{0.0f, -0.0f, 0.0f}, {-0.0f, -0.0f, -0.0f}};
+    for (int k = -6; k <= 6; ++k) {
+      const auto fk = static_cast<float>(k);
+      pts.emplace_back(fk * r, 0.0f, -fk * r);
+      pts.emplace_back(fk * r, fk * r, fk * r);
+      pts.emplace_back((fk + 0.5f) * r, -0.0f, (fk - 0.5f) * r);
+      pts.emplace_back(static_cast<float>(k * resolution), 3.0f * r, static_cast<float>(-k * resolution));
+    }
+    std::size_t scan = 0;
+    for (const Eigen::Vector3f& origin :
+         {Eigen::Vector3f(0.0f, 0.0f, 0.0f), Eigen::Vector3f(0.5f * r, 0.5f * r, 0.5f * r),
+          Eigen::Vector3f(-7.0f * r, 7.0f * r, r)})
+      for (const bool discretize : {false, true})
+        ASSERT_TRUE(insertColorBoth(map, *oracle, pts, origin, colorsOf(90 + scan++, pts.size()),
+                                    -1.0, discretize))
+            << "origin " << origin.transpose() << (discretize ? ", discretize" : "");
+    EXPECT_TRUE(sameColors(map, *oracle, pts));
+  }
+}
+
+// A plain map, a colour map and a stamped map on one Context, scans interleaved: each equals its
+// own OctoMap tree (no pipeline or buffer state of one payload leaks into another map's scans).
+TEST(PayloadFeatures, PlainColourAndStampedMapsInterleaved) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.05);
+  OccupancyMap plain(ctx, params);
+  octomap::OcTree plain_oracle = makeOracle(params);
+  ColorMap cmap(ctx, params);
+  auto coracle = makeColorOracle(params);
+  StampedMap smap(ctx, params);
+  StampedOracle soracle(params);
+  std::mt19937 rng(37);
+  for (std::uint32_t scan = 0; scan < 3; ++scan) {
+    const Eigen::Vector3f origin(0.05f * static_cast<float>(scan), 0.0f, 0.0f);
+    const auto pts = randomScan(rng, origin, 700, 1.5f);
+    ASSERT_TRUE(insertColorBoth(cmap, *coracle, pts, origin, colorsOf(95 + scan, pts.size()), -1.0,
+                                false));
+    ASSERT_TRUE(insertBoth(plain, plain_oracle, pts, origin, -1.0, false));
+    ASSERT_TRUE(insertStampedBoth(smap, soracle, pts, origin, 4000 + scan));
+  }
+  EXPECT_TRUE(samePayloadTree(*coracle, cmap.download(), Payload::kColor));
+  const HostTree p = plain.download();
+  EXPECT_EQ(p.payload, Payload::kNone);
+  for (const auto& n : p.nodes) {
+    if (n.payload != 0u) {
+      ADD_FAILURE() << "a plain map's node carries payload " << n.payload;
+      break;
+    }
+  }
+}
+
 // ---- StampedMap ----------------------------------------------------------------------------------
 
 // Two halves of a thick wall clamped at different times: the octants that straddle the halves
