@@ -87,9 +87,9 @@ template <class Tree>
                                            Payload kind) {
   using Node = typename Tree::NodeType;
   if (actual.payload != kind)
-    return ::testing::AssertionFailure() << "downloaded tree's payload kind is "
-                                         << treeTypeName(actual.payload) << ", expected "
-                                         << treeTypeName(kind);
+    return ::testing::AssertionFailure()
+           << "downloaded tree's payload kind is " << treeTypeName(actual.payload) << ", expected "
+           << treeTypeName(kind);
   std::ostringstream out;
   std::size_t compared = 0;
   struct Walk {
@@ -143,8 +143,8 @@ template <class Tree>
       }
       return true;
     }
-    bool children(const Node* x, const HostTree::Node* y, unsigned depth, unsigned kx,
-                  unsigned ky, unsigned kz) {
+    bool children(const Node* x, const HostTree::Node* y, unsigned depth, unsigned kx, unsigned ky,
+                  unsigned kz) {
       auto where = [&] {
         out << "children of the node at depth " << depth << " key (" << kx << ", " << ky << ", "
             << kz << "): ";
@@ -173,7 +173,8 @@ template <class Tree>
   const HostTree::Node* root =
       actual.root_exists && !actual.nodes.empty() ? &actual.nodes[0] : nullptr;
   Walk walk{expected, actual, kind, out, compared};
-  if (!walk(expected.getRoot(), root, 0, 0, 0, 0)) return ::testing::AssertionFailure() << out.str();
+  if (!walk(expected.getRoot(), root, 0, 0, 0, 0))
+    return ::testing::AssertionFailure() << out.str();
   if (compared != expected.size())
     return ::testing::AssertionFailure()
            << "compared " << compared << " nodes but OctoMap has " << expected.size();

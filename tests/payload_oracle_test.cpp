@@ -3,6 +3,8 @@
 // all nodes after updateInnerOccupancy, stamps of leaves); then every other feature on payload
 // maps (search, castRays, leavesInBox, clearBox, keepBox, change detection, compact, download and
 // upload, .ot files) keeps the colours and stamps OctoMap would.
+#include "payload_oracle.hpp"
+
 #include <octomap/ScanGraph.h>
 #include <octomap/octomap.h>
 #include <unistd.h>
@@ -16,7 +18,6 @@
 #include <tuple>
 
 #include "changed_keys.hpp"
-#include "payload_oracle.hpp"
 
 namespace octovk::test {
 namespace {
@@ -56,8 +57,8 @@ namespace {
                                              double max_range = -1.0, bool discretize = false) {
   oracle.setScanTime(stamp);
   oracle.insertPointCloud(toPointcloud(points), toPoint(origin), max_range, false, discretize);
-  const ScanStats s =
-      map.insertPointCloud(points, origin, stamp, {.max_range_m = max_range, .discretize = discretize});
+  const ScanStats s = map.insertPointCloud(points, origin, stamp,
+                                           {.max_range_m = max_range, .discretize = discretize});
   if (s.nodes != oracle.size())
     return ::testing::AssertionFailure()
            << "ScanStats::nodes " << s.nodes << " but OctoMap has " << oracle.size() << " nodes";
@@ -74,9 +75,8 @@ namespace {
     const auto* n = oracle.search(toPoint(points[i]));
     const std::uint32_t want = n ? n->getTimestamp() : 0u;
     if (got[i] != want)
-      return ::testing::AssertionFailure()
-             << "point " << i << " (" << points[i].transpose() << "): stamp OctoMap " << want
-             << ", octovk " << got[i];
+      return ::testing::AssertionFailure() << "point " << i << " (" << points[i].transpose()
+                                           << "): stamp OctoMap " << want << ", octovk " << got[i];
   }
   return ::testing::AssertionSuccess();
 }
@@ -166,7 +166,8 @@ TEST_P(ColorScans, WallPrunesExpandsAndFoldsEqualColorOcTree) {
   std::vector<Eigen::Vector3f> cross;
   for (int i = 0; i < 60; ++i) {
     const float t = static_cast<float>(i) / 60.0f;
-    cross.emplace_back((6.0f + 4.0f * t) * res, (-6.0f + 12.0f * t) * res, (5.0f - 10.0f * t) * res);
+    cross.emplace_back((6.0f + 4.0f * t) * res, (-6.0f + 12.0f * t) * res,
+                       (5.0f - 10.0f * t) * res);
   }
   for (int rep = 0; rep < 2; ++rep, ++scan)
     ASSERT_TRUE(insertColorBoth(map, *oracle, cross, behind, colorsOf(scan, cross.size()), -1.0,
@@ -237,12 +238,11 @@ TEST_P(ColorScans, RandomScansEqualColorOcTree) {
 // it moved, in order.
 ::testing::AssertionResult colorOracleInSensorFrame(octomap::ColorOcTree& oracle,
                                                     const std::vector<Eigen::Vector3f>& points,
-                                                    const Eigen::Vector3f& origin,
-                                                    const Pose& pose,
+                                                    const Eigen::Vector3f& origin, const Pose& pose,
                                                     const std::vector<Rgb>& colors) {
   if (points.size() != colors.size())
-    return ::testing::AssertionFailure() << points.size() << " points, " << colors.size()
-                                         << " colours";
+    return ::testing::AssertionFailure()
+           << points.size() << " points, " << colors.size() << " colours";
   const octomath::Pose6D frame = toPose6D(pose);
   oracle.insertPointCloud(toPointcloud(points), toPoint(origin), frame);
   octomap::Pointcloud world = toPointcloud(points);
@@ -262,7 +262,8 @@ TEST(ColorInputs, SensorFrameCloudAndDepthImageEqualColorOcTree) {
   std::mt19937 rng(31);
   Pose pose;
   pose.translation = Eigen::Vector3f(0.3f, -0.2f, 0.15f);
-  pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.7f, Eigen::Vector3f(0.2f, 0.3f, 1.0f).normalized()));
+  pose.rotation =
+      Eigen::Quaternionf(Eigen::AngleAxisf(0.7f, Eigen::Vector3f(0.2f, 0.3f, 1.0f).normalized()));
   for (std::size_t scan = 0; scan < 2; ++scan) {
     const Eigen::Vector3f origin(0.02f, 0.0f, 0.01f);
     const auto pts = randomScan(rng, origin, 600, 1.2f);
@@ -377,8 +378,8 @@ TEST(ColorInputs, RefusedScansLeaveColoursAndStampsAsTheyWere) {
   auto oracle = makeColorOracle(params);
   const Eigen::Vector3f origin = Eigen::Vector3f::Zero();
   const auto small = sphere(0.5f, 300, origin);
-  ASSERT_TRUE(insertColorBoth(map, *oracle, small, origin, colorsOf(80, small.size()), -1.0,
-                              false));
+  ASSERT_TRUE(
+      insertColorBoth(map, *oracle, small, origin, colorsOf(80, small.size()), -1.0, false));
   auto expectRefused = [&](const char* what, auto&& call, ErrorCode code) {
     try {
       call();
@@ -388,22 +389,24 @@ TEST(ColorInputs, RefusedScansLeaveColoursAndStampsAsTheyWere) {
     }
     EXPECT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << what;
   };
-  expectRefused("one colour too few",
-                [&] {
-                  const auto colors = colorsOf(81, small.size() - 1);
-                  map.insertPointCloud(small, origin, colors);
-                },
-                ErrorCode::kInvalidArgument);
+  expectRefused(
+      "one colour too few",
+      [&] {
+        const auto colors = colorsOf(81, small.size() - 1);
+        map.insertPointCloud(small, origin, colors);
+      },
+      ErrorCode::kInvalidArgument);
   const auto big = sphere(6.0f, 20000, origin);
-  expectRefused("a scan beyond max_nodes",
-                [&] {
-                  const auto colors = colorsOf(82, big.size());
-                  map.insertPointCloud(big, origin, colors);
-                },
-                ErrorCode::kOutOfDeviceMemory);
+  expectRefused(
+      "a scan beyond max_nodes",
+      [&] {
+        const auto colors = colorsOf(82, big.size());
+        map.insertPointCloud(big, origin, colors);
+      },
+      ErrorCode::kOutOfDeviceMemory);
   // The map still folds colours afterwards.
-  ASSERT_TRUE(insertColorBoth(map, *oracle, small, origin, colorsOf(83, small.size()), -1.0,
-                              false));
+  ASSERT_TRUE(
+      insertColorBoth(map, *oracle, small, origin, colorsOf(83, small.size()), -1.0, false));
   StampedMap stamped(ctx, withResolution(0.1));
   const auto colors = colorsOf(84, small.size());
   try {
@@ -431,7 +434,8 @@ TEST(ColorInputs, PointsOnCellBordersFoldIntoOctoMapsCells) {
       pts.emplace_back(fk * r, 0.0f, -fk * r);
       pts.emplace_back(fk * r, fk * r, fk * r);
       pts.emplace_back((fk + 0.5f) * r, -0.0f, (fk - 0.5f) * r);
-      pts.emplace_back(static_cast<float>(k * resolution), 3.0f * r, static_cast<float>(-k * resolution));
+      pts.emplace_back(static_cast<float>(k * resolution), 3.0f * r,
+                       static_cast<float>(-k * resolution));
     }
     std::size_t scan = 0;
     for (const Eigen::Vector3f& origin :
@@ -460,8 +464,8 @@ TEST(PayloadFeatures, PlainColourAndStampedMapsInterleaved) {
   for (std::uint32_t scan = 0; scan < 3; ++scan) {
     const Eigen::Vector3f origin(0.05f * static_cast<float>(scan), 0.0f, 0.0f);
     const auto pts = randomScan(rng, origin, 700, 1.5f);
-    ASSERT_TRUE(insertColorBoth(cmap, *coracle, pts, origin, colorsOf(95 + scan, pts.size()), -1.0,
-                                false));
+    ASSERT_TRUE(
+        insertColorBoth(cmap, *coracle, pts, origin, colorsOf(95 + scan, pts.size()), -1.0, false));
     ASSERT_TRUE(insertBoth(plain, plain_oracle, pts, origin, -1.0, false));
     ASSERT_TRUE(insertStampedBoth(smap, soracle, pts, origin, 4000 + scan));
   }
@@ -476,7 +480,8 @@ TEST(PayloadFeatures, PlainColourAndStampedMapsInterleaved) {
   }
 }
 
-// ---- StampedMap ----------------------------------------------------------------------------------
+// ---- StampedMap
+// ----------------------------------------------------------------------------------
 
 // Two halves of a thick wall clamped at different times: the octants that straddle the halves
 // are equal in log-odds but not in stamp, so OcTreeStamped keeps them (a plain OcTree prunes
@@ -530,7 +535,8 @@ TEST(StampedScans, StampsPreventPruningDegradeAndEarlyAbortEqualOcTreeStamped) {
     // A query time before every stamp: now - stamp wraps, so every occupied leaf degrades.
     oracle.degradeOutdated(50, 1000);
     map.degradeOutdated(50, 1000);
-    ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp)) << "after wrapped degrade";
+    ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp))
+        << "after wrapped degrade";
     ASSERT_TRUE(insertStampedBoth(map, oracle, half_b, origin, 115, 12.0 * resolution));
     EXPECT_TRUE(sameStamps(map, oracle, probes));
   }
@@ -680,7 +686,8 @@ TEST(RealLog, Fr079FirstScansStampedMapEqualsOcTreeStamped) {
   EXPECT_TRUE(sameStamps(map, oracle, scans.front().points));
 }
 
-// ---- every other feature on payload maps ---------------------------------------------------------
+// ---- every other feature on payload maps
+// ---------------------------------------------------------
 
 // Random scans with colours and stamps (occupied, free and pruned leaves, unknown space).
 struct ColorScene {
@@ -699,8 +706,8 @@ ColorScene colorScene(Context& ctx, double resolution, unsigned seed) {
   for (std::size_t i = 0; i < 4; ++i) {
     const Eigen::Vector3f origin(0.3f * static_cast<float>(i), 0.0f, 0.1f);
     const auto pts = randomScan(rng, origin, 1200, 2.0f);
-    EXPECT_TRUE(insertColorBoth(s.map, *s.oracle, pts, origin, colorsOf(i, pts.size()), -1.0,
-                                false));
+    EXPECT_TRUE(
+        insertColorBoth(s.map, *s.oracle, pts, origin, colorsOf(i, pts.size()), -1.0, false));
   }
   return s;
 }
@@ -790,8 +797,8 @@ void expectSameRays(Map& map, const Tree& oracle) {
   for (std::size_t i = 0; i < rays.size(); ++i) {
     const Ray& r = rays[i];
     octomap::point3d end = toPoint(r.origin);
-    const bool hit =
-        oracle.castRay(toPoint(r.origin), toPoint(r.direction), end, r.ignore_unknown, r.max_range_m);
+    const bool hit = oracle.castRay(toPoint(r.origin), toPoint(r.direction), end, r.ignore_unknown,
+                                    r.max_range_m);
     hits += hit;
     const Eigen::Vector3f want(end.x(), end.y(), end.z());
     if (got[i].hit == hit && got[i].end == want) continue;
@@ -864,8 +871,8 @@ TEST(PayloadFeatures, ClearBoxKeepsColoursAndStamps) {
     clearOracle(*c.oracle, lo, hi);
     c.map.clearBox(lo, hi);
     ASSERT_TRUE(samePayloadTree(*c.oracle, c.map.download(), Payload::kColor)) << "colour map";
-    ASSERT_TRUE(insertColorBoth(c.map, *c.oracle, after, origin, colorsOf(9, after.size()), -1.0,
-                                false))
+    ASSERT_TRUE(
+        insertColorBoth(c.map, *c.oracle, after, origin, colorsOf(9, after.size()), -1.0, false))
         << "colour map, scan after the clear";
   }
   {
@@ -926,8 +933,8 @@ TEST(PayloadFeatures, ChangeDetectionOnPayloadMaps) {
   for (std::uint32_t i = 0; i < 2; ++i) {
     const Eigen::Vector3f origin(-0.2f, 0.1f * static_cast<float>(i), 0.05f);
     const auto pts = randomScan(rng, origin, 800, 1.8f);
-    ASSERT_TRUE(insertColorBoth(c.map, *c.oracle, pts, origin, colorsOf(20 + i, pts.size()), -1.0,
-                                false));
+    ASSERT_TRUE(
+        insertColorBoth(c.map, *c.oracle, pts, origin, colorsOf(20 + i, pts.size()), -1.0, false));
     ASSERT_TRUE(insertStampedBoth(s.map, *s.oracle, pts, origin, 800 + i));
   }
   auto keys = [](const auto& tree) {
@@ -958,8 +965,8 @@ TEST(PayloadFeatures, DownloadUploadRoundTripKeepsColoursAndStamps) {
     ColorMap copy(ctx, c.map.params());
     copy.upload(tree);
     ASSERT_TRUE(samePayloadTree(*c.oracle, copy.download(), Payload::kColor));
-    ASSERT_TRUE(insertColorBoth(copy, *c.oracle, after, origin, colorsOf(30, after.size()), -1.0,
-                                false));
+    ASSERT_TRUE(
+        insertColorBoth(copy, *c.oracle, after, origin, colorsOf(30, after.size()), -1.0, false));
     StampedMap other(ctx, c.map.params());
     try {
       other.upload(tree);
@@ -986,7 +993,8 @@ TEST(PayloadFeatures, DownloadUploadRoundTripKeepsColoursAndStamps) {
   }
 }
 
-// ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write -------------------
+// ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write
+// -------------------
 
 ::testing::AssertionResult sameBytes(const std::string& want, const std::string& got) {
   if (want == got) return ::testing::AssertionSuccess();
