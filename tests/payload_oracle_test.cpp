@@ -604,6 +604,73 @@ TEST(StampedScans, SameStampPrunesLikeOcTreeAndDegradeIsNoChange) {
   EXPECT_EQ(ourChanges(map), before);
 }
 
+// A solid block of 8 x 8 x 8 cells, aligned, clamped occupied: it prunes three levels up (one
+// node of depth 13), colours averaged over averages, stamps from child 0; degradeOutdated
+// degrades that leaf as one; a miss through a corner expands it three levels (children copy
+// colour and stamp) and the fold of the next scan lands in the new leaves.
+std::vector<Eigen::Vector3f> solidBlock(float res, int x0, int cells) {
+  std::vector<Eigen::Vector3f> pts;
+  for (int x = 0; x < cells; ++x)
+    for (int y = 0; y < cells; ++y)
+      for (int z = 0; z < cells; ++z)
+        pts.emplace_back((static_cast<float>(x0 + x) + 0.5f) * res,
+                         (static_cast<float>(y) + 0.4f) * res,
+                         (static_cast<float>(z) + 0.6f) * res);
+  return pts;
+}
+
+TEST(PayloadScans, BlockPrunesThreeLevelsDegradesAndExpands) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  const float res = 0.1f;
+  const Eigen::Vector3f origin(-20.0f * res, 4.5f * res, 4.5f * res);
+  const auto block = solidBlock(res, 0, 8);
+  const auto corner = solidBlock(res, 0, 1);
+  ColorMap cmap(ctx, params);
+  auto coracle = makeColorOracle(params);
+  StampedMap smap(ctx, params);
+  StampedOracle soracle(params);
+  for (std::uint32_t rep = 0; rep < 6; ++rep) {
+    ASSERT_TRUE(insertColorBoth(cmap, *coracle, block, origin, colorsOf(110 + rep, block.size()),
+                                -1.0, false))
+        << "colour scan " << rep;
+    ASSERT_TRUE(insertStampedBoth(smap, soracle, block, origin, 500 + rep)) << "stamped " << rep;
+  }
+  std::size_t depth13 = 0;
+  for (auto it = soracle.begin_leafs(), end = soracle.end_leafs(); it != end; ++it)
+    depth13 += it.getDepth() == 13 && soracle.isNodeOccupied(*it);
+  EXPECT_EQ(depth13, 1u) << "the block should prune to one node of depth 13";
+  soracle.degradeOutdated(520, 10);
+  smap.degradeOutdated(520, 10);
+  ASSERT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp)) << "degrade";
+  // A miss through the corner cell from the other side: expands the pruned block.
+  const Eigen::Vector3f behind(30.5f * res, 0.4f * res, 0.6f * res);
+  const std::vector<Eigen::Vector3f> through = {
+      Eigen::Vector3f(-3.5f * res, 0.4f * res, 0.6f * res)};
+  ASSERT_TRUE(insertColorBoth(cmap, *coracle, through, behind, colorsOf(120, 1), -1.0, false));
+  ASSERT_TRUE(insertStampedBoth(smap, soracle, through, behind, 530));
+  EXPECT_NE(soracle.search(toPoint(corner[0])), soracle.search(toPoint(corner[0]), 13))
+      << "the miss should have expanded the block";
+  ASSERT_TRUE(
+      insertColorBoth(cmap, *coracle, corner, origin, colorsOf(121, corner.size()), -1.0, false));
+  ASSERT_TRUE(insertStampedBoth(smap, soracle, corner, origin, 531));
+  EXPECT_TRUE(sameColors(cmap, *coracle, block));
+  EXPECT_TRUE(sameStamps(smap, soracle, block));
+}
+
+// One scan of 30,000 points in as many cells: the fold's table holds a node per point.
+TEST(PayloadScans, ManyNodesInOneColourScan) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.02);
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  std::mt19937 rng(39);
+  const Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  const auto pts = randomScan(rng, origin, 30000, 0.5f);
+  ASSERT_TRUE(insertColorBoth(map, *oracle, pts, origin, colorsOf(130, pts.size()), -1.0, false));
+  ASSERT_TRUE(insertColorBoth(map, *oracle, pts, origin, colorsOf(131, pts.size()), -1.0, true));
+}
+
 // ---- a real multi-scan log: the first scans of FR-079 ------------------------------------------
 
 constexpr std::size_t kFr079Scans = 12;
