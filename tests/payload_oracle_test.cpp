@@ -845,7 +845,7 @@ TEST(PayloadFeatures, SearchGivesColoursAndStamps) {
 }
 
 template <class Map, class Tree>
-void expectSameRays(Map& map, const Tree& oracle) {
+void expectSameRays(Map& map, const Tree& oracle, Payload kind) {
   std::mt19937 rng(8);
   std::uniform_real_distribution<float> u(-1.0f, 1.0f);
   std::vector<Ray> rays;
@@ -859,7 +859,7 @@ void expectSameRays(Map& map, const Tree& oracle) {
   }
   const auto got = map.castRays(rays);
   ASSERT_EQ(got.size(), rays.size());
-  std::size_t hits = 0, wrong = 0;
+  std::size_t hits = 0, wrong = 0, hit_payloads = 0;
   std::string first;
   for (std::size_t i = 0; i < rays.size(); ++i) {
     const Ray& r = rays[i];
@@ -868,24 +868,33 @@ void expectSameRays(Map& map, const Tree& oracle) {
                                     r.max_range_m);
     hits += hit;
     const Eigen::Vector3f want(end.x(), end.y(), end.z());
-    if (got[i].hit == hit && got[i].end == want) continue;
+    // The hit cell's payload: OctoMap's search() at the end (the hit cell's centre).
+    std::uint32_t want_payload = 0;
+    if (hit) {
+      const auto* n = oracle.search(end);
+      want_payload = n ? payloadOf(*n) : 0u;
+      hit_payloads += want_payload != newNodePayload(kind);
+    }
+    if (got[i].hit == hit && got[i].end == want && got[i].payload == want_payload) continue;
     if (wrong++ == 0) {
       std::ostringstream out;
-      out << "ray " << i << ": OctoMap hit " << hit << " end (" << want.transpose()
-          << "); octovk hit " << got[i].hit << " end (" << got[i].end.transpose() << ")";
+      out << "ray " << i << ": OctoMap hit " << hit << " end (" << want.transpose() << ") payload "
+          << payloadText(kind, want_payload) << "; octovk hit " << got[i].hit << " end ("
+          << got[i].end.transpose() << ") payload " << payloadText(kind, got[i].payload);
       first = out.str();
     }
   }
   EXPECT_EQ(wrong, 0u) << "castRay answers differ; the first: " << first;
   EXPECT_GT(hits, rays.size() / 10);
+  EXPECT_GT(hit_payloads, hits / 2) << "most hit cells should be coloured or stamped";
 }
 
 TEST(PayloadFeatures, CastRaysOnPayloadMaps) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   ColorScene c = colorScene(ctx, 0.1, 3);
-  expectSameRays(c.map, *c.oracle);
+  expectSameRays(c.map, *c.oracle, Payload::kColor);
   StampedScene s = stampedScene(ctx, 0.1, 4);
-  expectSameRays(s.map, *s.oracle);
+  expectSameRays(s.map, *s.oracle, Payload::kStamp);
 }
 
 template <class Map, class Tree>
@@ -913,6 +922,17 @@ TEST(PayloadFeatures, LeavesInBoxOnPayloadMaps) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   ColorScene c = colorScene(ctx, 0.1, 5);
   expectSameBoxLeaves(c.map, *c.oracle);
+  // A leaf's colour is colors() at its centre (pruned leaves included).
+  std::vector<Eigen::Vector3f> centres;
+  std::vector<std::uint32_t> want;
+  for (const auto& l : c.map.leavesInBox({-1.0f, -0.7f, -0.3f}, {0.9f, 1.3f, 0.25f})) {
+    centres.emplace_back(l.center[0], l.center[1], l.center[2]);
+    const auto* n = c.oracle->search(toPoint(centres.back()));
+    want.push_back(n ? payloadOf(*n) : 0u);
+  }
+  std::vector<std::uint32_t> got;
+  for (const Rgb& col : c.map.colors(centres)) got.push_back(packRgb(col));
+  EXPECT_EQ(got, want);
   StampedScene s = stampedScene(ctx, 0.1, 6);
   expectSameBoxLeaves(s.map, *s.oracle);
 }
