@@ -332,6 +332,10 @@ TEST(PayloadStreaming, SubmittedScansEqualOctoMap) {
   }
   cmap.flush();
   smap.flush();
+  std::size_t reruns = 0;
+  for (OccupancyMap* m : {static_cast<OccupancyMap*>(&cmap), static_cast<OccupancyMap*>(&smap)})
+    for (const ScanStats& st : m->takeScanStats()) reruns += st.cell_set_attempts > 1;
+  EXPECT_GT(reruns, 0u) << "some submitted scans should have been refused and run again";
   coracle->updateInnerOccupancy();
   EXPECT_TRUE(samePayloadTree(*coracle, cmap.download(), Payload::kColor));
   EXPECT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp));
@@ -1078,6 +1082,39 @@ TEST(PayloadFeatures, DownloadUploadRoundTripKeepsColoursAndStamps) {
       EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
     }
   }
+}
+
+// An OccupancyMap made with a payload is the same map as ColorMap / StampedMap (its options
+// carry the colours and the stamp), and those classes take it over; a map of another payload
+// is refused and stays usable.
+TEST(PayloadFeatures, OccupancyMapWithPayloadAndTakeOver) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = withResolution(0.1);
+  params.payload = Payload::kColor;
+  OccupancyMap generic(ctx, params);
+  auto oracle = makeColorOracle(params);
+  std::mt19937 rng(41);
+  const Eigen::Vector3f origin(0.1f, 0.0f, 0.0f);
+  const auto pts = randomScan(rng, origin, 600, 1.5f);
+  const auto colors = colorsOf(140, pts.size());
+  oracle->insertPointCloud(toPointcloud(pts), toPoint(origin));
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    oracle->averageNodeColor(pts[i].x(), pts[i].y(), pts[i].z(), colors[i].r, colors[i].g,
+                             colors[i].b);
+  oracle->updateInnerOccupancy();
+  (void)generic.insertPointCloud(pts, origin, {.colors = colors});
+  ASSERT_TRUE(samePayloadTree(*oracle, generic.download(), Payload::kColor));
+  try {
+    StampedMap wrong(std::move(generic));
+    ADD_FAILURE() << "a colour map taken over as a stamped map";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+  }
+  ColorMap taken(std::move(generic));
+  EXPECT_TRUE(samePayloadTree(*oracle, taken.download(), Payload::kColor));
+  const auto more = randomScan(rng, origin, 400, 1.5f);
+  EXPECT_TRUE(
+      insertColorBoth(taken, *oracle, more, origin, colorsOf(141, more.size()), -1.0, false));
 }
 
 // ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write
