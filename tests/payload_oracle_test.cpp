@@ -18,6 +18,7 @@
 #include <tuple>
 
 #include "changed_keys.hpp"
+#include "rt_paths.hpp"
 
 namespace octovk::test {
 namespace {
@@ -1116,6 +1117,45 @@ TEST(PayloadFeatures, OccupancyMapWithPayloadAndTakeOver) {
   EXPECT_TRUE(
       insertColorBoth(taken, *oracle, more, origin, colorsOf(141, more.size()), -1.0, false));
 }
+
+// Scans and castRay through ray tracing (MapParams::scan_rays, cast_ray_backend) on payload
+// maps: the traced scan jumps over clamped free leaves, whose updates OctoMap aborts (their
+// stamps stay); the trees, colours and stamps equal OctoMap's after every scan. Runs where the
+// device traces rays (the Mesa 25 lavapipe step of scripts/test.sh), skipped with the reason
+// elsewhere.
+class PayloadRtScan : public ::testing::TestWithParam<ScanRays> {};
+
+TEST_P(PayloadRtScan, ScansAndRaysEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const ScanRays path = GetParam();
+  OCTOVK_REQUIRE_TRACE_PATH(ctx, path);
+  MapParams params = withResolution(0.1);
+  params.scan_rays = path;
+  params.cast_ray_backend = static_cast<CastRayBackend>(path);  // numbered alike
+  ColorMap cmap(ctx, params);
+  auto coracle = makeColorOracle(params);
+  StampedMap smap(ctx, params);
+  StampedOracle soracle(params);
+  std::mt19937 rng(43);
+  for (std::uint32_t scan = 0; scan < 8; ++scan) {
+    const Eigen::Vector3f origin(0.05f * static_cast<float>(scan % 2), 0.0f, 0.05f);
+    const auto pts = randomScan(rng, origin, 800, 2.0f);
+    const double max_range = scan % 3 == 2 ? 1.2 : -1.0;
+    ASSERT_TRUE(insertColorBoth(cmap, *coracle, pts, origin, colorsOf(150 + scan, pts.size()),
+                                max_range, scan % 4 == 3))
+        << tracePathName(path) << " colour scan " << scan;
+    ASSERT_TRUE(insertStampedBoth(smap, soracle, pts, origin, 6000 + scan, max_range, false))
+        << tracePathName(path) << " stamped scan " << scan;
+  }
+  expectSameRays(cmap, *coracle, Payload::kColor);
+  expectSameRays(smap, soracle, Payload::kStamp);
+}
+
+INSTANTIATE_TEST_SUITE_P(Paths, PayloadRtScan,
+                         ::testing::Values(ScanRays::kRayQuery, ScanRays::kRayTracingPipeline),
+                         [](const ::testing::TestParamInfo<ScanRays>& info) {
+                           return std::string(tracePathName(info.param));
+                         });
 
 // ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write
 // -------------------
