@@ -1157,6 +1157,61 @@ INSTANTIATE_TEST_SUITE_P(Paths, PayloadRtScan,
                            return std::string(tracePathName(info.param));
                          });
 
+// A scan with queries in the same command stream: the lookups and rays see the scan's colours
+// and stamps (the fold runs before them).
+TEST(PayloadFeatures, QueriesAfterTheScanSeeItsColoursAndStamps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  ColorMap cmap(ctx, params);
+  auto coracle = makeColorOracle(params);
+  StampedMap smap(ctx, params);
+  StampedOracle soracle(params);
+  std::mt19937 rng(45);
+  for (std::uint32_t scan = 0; scan < 3; ++scan) {
+    const Eigen::Vector3f origin(0.1f * static_cast<float>(scan), 0.0f, 0.0f);
+    const auto pts = randomScan(rng, origin, 700, 1.5f);
+    const auto colors = colorsOf(160 + scan, pts.size());
+    std::vector<Ray> rays;
+    for (std::size_t i = 0; i < 100; ++i) rays.push_back(Ray{origin, pts[i] - origin});
+    coracle->insertPointCloud(toPointcloud(pts), toPoint(origin));
+    for (std::size_t i = 0; i < pts.size(); ++i)
+      coracle->averageNodeColor(pts[i].x(), pts[i].y(), pts[i].z(), colors[i].r, colors[i].g,
+                                colors[i].b);
+    soracle.setScanTime(7000 + scan);
+    soracle.insertPointCloud(toPointcloud(pts), toPoint(origin));
+    QueryResults cres, sres;
+    (void)cmap.insertPointCloud(pts, origin, {.colors = colors}, {pts, rays}, cres);
+    (void)smap.insertPointCloud(pts, origin, {.stamp = 7000 + scan}, {pts, rays}, sres);
+    ASSERT_EQ(cres.lookups.size(), pts.size());
+    ASSERT_EQ(sres.lookups.size(), pts.size());
+    std::size_t wrong_c = 0, wrong_s = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const auto* c = coracle->search(toPoint(pts[i]));
+      const auto* t = soracle.search(toPoint(pts[i]));
+      wrong_c += cres.lookups[i].payload != (c ? payloadOf(*c) : 0u);
+      wrong_s += sres.lookups[i].payload != (t ? payloadOf(*t) : 0u);
+    }
+    EXPECT_EQ(wrong_c, 0u) << "scan " << scan << ": lookups with a stale colour";
+    EXPECT_EQ(wrong_s, 0u) << "scan " << scan << ": lookups with a stale stamp";
+    std::size_t wrong_rays = 0;
+    std::string first;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      octomap::point3d end;
+      const bool hit = coracle->castRay(toPoint(rays[i].origin), toPoint(rays[i].direction), end);
+      const auto* n = hit ? coracle->search(end) : nullptr;
+      const std::uint32_t want = n ? payloadOf(*n) : 0u;
+      if (cres.rays[i].hit == hit && cres.rays[i].payload == want) continue;
+      if (wrong_rays++ == 0)
+        first = "ray " + std::to_string(i) + ": OctoMap hit " + std::to_string(hit) + " colour " +
+                payloadText(Payload::kColor, want) + "; octovk hit " +
+                std::to_string(cres.rays[i].hit) + " payload " +
+                payloadText(Payload::kColor, cres.rays[i].payload);
+    }
+    EXPECT_EQ(wrong_rays, 0u) << "scan " << scan
+                              << ": rays' hit colours differ; the first: " << first;
+  }
+}
+
 // ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write
 // -------------------
 
