@@ -1212,6 +1212,40 @@ TEST(PayloadFeatures, QueriesAfterTheScanSeeItsColoursAndStamps) {
   }
 }
 
+// The distance field of a colour or stamped map equals the plain map's of the same scans (the
+// payload is no obstacle), built from scratch and after an update() that follows a scan.
+TEST(PayloadFeatures, DistanceFieldOnPayloadMaps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  OccupancyMap plain(ctx, params);
+  ColorMap cmap(ctx, params);
+  StampedMap smap(ctx, params);
+  std::mt19937 rng(47);
+  auto scan = [&](std::uint32_t i) {
+    const Eigen::Vector3f origin(0.1f * static_cast<float>(i), 0.0f, 0.0f);
+    const auto pts = randomScan(rng, origin, 600, 1.5f);
+    (void)plain.insertPointCloud(pts, origin);
+    (void)cmap.insertPointCloud(pts, origin, colorsOf(170 + i, pts.size()));
+    (void)smap.insertPointCloud(pts, origin, 8000 + i);
+  };
+  for (std::uint32_t i = 0; i < 3; ++i) scan(i);
+  const Eigen::Vector3f lo(-1.0f, -1.0f, -0.5f), hi(1.0f, 1.0f, 0.5f);
+  DistanceField fp(plain, lo, hi), fc(cmap, lo, hi), fs(smap, lo, hi);
+  const auto want = fp.download().squared_cells;
+  std::size_t obstacles = 0;
+  for (const std::uint32_t d : want) obstacles += d == 0;
+  EXPECT_GT(obstacles, 10u);
+  EXPECT_EQ(fc.download().squared_cells, want) << "colour map";
+  EXPECT_EQ(fs.download().squared_cells, want) << "stamped map";
+  scan(3);
+  fp.update();
+  fc.update();
+  fs.update();
+  const auto again = fp.download().squared_cells;
+  EXPECT_EQ(fc.download().squared_cells, again) << "colour map after update";
+  EXPECT_EQ(fs.download().squared_cells, again) << "stamped map after update";
+}
+
 // ---- files: writeMapFile's .ot equals ColorOcTree::write / OcTreeStamped::write
 // -------------------
 
