@@ -401,7 +401,7 @@ TEST(ColorInputs, RefusedScansLeaveColoursAndStampsAsTheyWere) {
         map.insertPointCloud(small, origin, colors);
       },
       ErrorCode::kInvalidArgument);
-  const auto big = sphere(6.0f, 20000, origin);
+  const auto big = sphere(4.0f, 4000, origin);
   expectRefused(
       "a scan beyond max_nodes",
       [&] {
@@ -412,6 +412,18 @@ TEST(ColorInputs, RefusedScansLeaveColoursAndStampsAsTheyWere) {
   // The map still folds colours afterwards.
   ASSERT_TRUE(
       insertColorBoth(map, *oracle, small, origin, colorsOf(83, small.size()), -1.0, false));
+  // A stamped scan beyond max_nodes leaves the stamps as they were.
+  StampedMap limited(ctx, params);
+  StampedOracle soracle(params);
+  ASSERT_TRUE(insertStampedBoth(limited, soracle, small, origin, 10));
+  try {
+    limited.insertPointCloud(big, origin, 11u);
+    ADD_FAILURE() << "a stamped scan beyond max_nodes did not throw";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
+  }
+  EXPECT_TRUE(samePayloadTree(soracle, limited.download(), Payload::kStamp));
+  ASSERT_TRUE(insertStampedBoth(limited, soracle, small, origin, 12));
   StampedMap stamped(ctx, withResolution(0.1));
   const auto colors = colorsOf(84, small.size());
   try {
