@@ -303,6 +303,13 @@ TEST(ColorInputs, SensorFrameCloudAndDepthImageEqualColorOcTree) {
     (void)map.insertDepthImage(cam, pose, {.colors = pixel_colors}, origin_camera);
     ASSERT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << "image " << view;
   }
+  // Submitted (the pixels and colours staged, copied before the call returns).
+  std::vector<Rgb> staged = pixel_colors;
+  ASSERT_TRUE(colorOracleInSensorFrame(*oracle, points, origin_camera, pose, point_colors));
+  (void)map.submitDepthImage(cam, pose, {.colors = staged}, origin_camera);
+  std::fill(staged.begin(), staged.end(), Rgb{9, 9, 9});
+  map.flush();
+  EXPECT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << "submitted image";
 }
 
 // Scans submitted back to back (the colour and stamp staged per frame, refused scans run again
