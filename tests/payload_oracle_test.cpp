@@ -1297,6 +1297,60 @@ TEST(PayloadFiles, OtBytesEqualOctoMapWrite) {
     writeMapFile(s.map, path);
     EXPECT_TRUE(sameBytes(want.str(), fileBytes(path))) << "OcTreeStamped .ot";
     std::remove(path.c_str());
+    std::remove((path + ".stamps").c_str());
+  }
+}
+
+// Files in the middle of a run: OctoMap's ColorOcTree .ot read by octovk (readMapFile, taken
+// over by ColorMap) and octovk's stamped .ot with its stamps read back, then more scans into
+// both, equal to OctoMap's going on with its own tree; the files written at the end equal
+// OctoMap's bytes.
+TEST(PayloadFiles, ReadMidRunThenScanOn) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  const float res = 0.1f;
+  const Eigen::Vector3f origin(0.5f * res, 0.5f * res, 0.5f * res);
+  const auto wall = thickWall(res, -4, 4);
+  const std::string stem = tmpPath("payload_oracle_mid." + std::to_string(::getpid()));
+  {
+    ColorMap first(ctx, params);
+    auto oracle = makeColorOracle(params);
+    for (std::size_t rep = 0; rep < 6; ++rep)
+      ASSERT_TRUE(insertColorBoth(first, *oracle, wall, origin, colorsOf(180 + rep, wall.size()),
+                                  -1.0, false));
+    ASSERT_TRUE(oracle->write(stem + ".color.ot"));
+    ColorMap map(readMapFile(ctx, stem + ".color.ot"));
+    ASSERT_TRUE(samePayloadTree(*oracle, map.download(), Payload::kColor)) << "read back";
+    const auto half = thickWall(res, -4, 0);
+    for (std::size_t rep = 0; rep < 2; ++rep)
+      ASSERT_TRUE(insertColorBoth(map, *oracle, half, origin, colorsOf(190 + rep, half.size()),
+                                  -1.0, false))
+          << "after the read, scan " << rep;
+    std::stringstream want;
+    oracle->write(want);
+    writeMapFile(map, stem + ".color2.ot");
+    EXPECT_TRUE(sameBytes(want.str(), fileBytes(stem + ".color2.ot")));
+    std::remove((stem + ".color.ot").c_str());
+    std::remove((stem + ".color2.ot").c_str());
+  }
+  {
+    StampedMap first(ctx, params);
+    StampedOracle oracle(params);
+    for (std::uint32_t rep = 0; rep < 6; ++rep)
+      ASSERT_TRUE(insertStampedBoth(first, oracle, rep < 3 ? wall : thickWall(res, -4, 0), origin,
+                                    200 + rep));
+    writeMapFile(first, stem + ".stamp.ot");
+    StampedMap map(readMapFile(ctx, stem + ".stamp.ot"));
+    ASSERT_TRUE(samePayloadTree(oracle, map.download(), Payload::kStamp)) << "read back";
+    oracle.degradeOutdated(210, 5);
+    map.degradeOutdated(210, 5);
+    ASSERT_TRUE(insertStampedBoth(map, oracle, wall, origin, 211)) << "after the read";
+    std::stringstream want;
+    oracle.write(want);
+    writeMapFile(map, stem + ".stamp2.ot");
+    EXPECT_TRUE(sameBytes(want.str(), fileBytes(stem + ".stamp2.ot")));
+    for (const char* f : {".stamp.ot", ".stamp.ot.stamps", ".stamp2.ot", ".stamp2.ot.stamps"})
+      std::remove((stem + f).c_str());
   }
 }
 
