@@ -602,6 +602,9 @@ TEST(StampedScans, SameStampPrunesLikeOcTreeAndDegradeIsNoChange) {
   const MapParams params = withResolution(0.1);
   StampedMap map(ctx, params);
   EXPECT_EQ(map.lastUpdateTime(), 0u);
+  map.degradeOutdated(100, 5);  // an empty map: nothing to degrade, still empty
+  EXPECT_FALSE(map.download().root_exists);
+  EXPECT_EQ(map.lastUpdateTime(), 0u);
   StampedOracle oracle(params);
   octomap::OcTree plain = makeOracle(params);
   const float res = 0.1f;
