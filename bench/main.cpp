@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 using octovk::bench::BenchOptions;
 
 const char* const kWorkloads[] = {"paper",   "scandat",  "fr079", "scaling",
-                                   "queries", "distance", "edits"};
+                                  "queries", "distance", "edits", "payloads"};
 
 struct Args {
   BenchOptions bench;
@@ -61,9 +61,13 @@ void printHelp(const char* data_dir) {
       "  edits    clearBox and keepBox on the paper map at 0.05 m against OctoMap's loops\n"
       "           (clear_bbx: leaf_bbx_iterator + updateInnerOccupancy; keep: a tree rebuilt\n"
       "           from leaf_bbx_iterator's leaves), four boxes, every result compared\n"
+      "  payloads the first FR-079 scans (500; 100 with --quick; or --fr079-scans) at 0.1 and\n"
+      "           0.05 m into OcTree, ColorOcTree (+ averageNodeColor per point) and\n"
+      "           OcTreeStamped, and into OccupancyMap, ColorMap and StampedMap: time per scan\n"
       "\n"
       "Options:\n"
-      "  --workload W        paper, scandat, fr079, scaling, queries, distance, edits or all;\n"
+      "  --workload W        paper, scandat, fr079, scaling, queries, distance, edits, payloads\n"
+      "                      or all;\n"
       "                      repeat or comma-separate to pick several (default: all)\n"
       "  --resolutions LIST  comma-separated resolutions in metres for paper, scandat and fr079\n"
       "                      (default: each workload's own, listed above)\n"
@@ -150,8 +154,9 @@ Args parseArgs(int argc, char** argv) {
         bool known = w == "all";
         for (const char* k : kWorkloads) known = known || w == k;
         if (!known)
-          usageError("unknown workload '" + w +
-                     "'; use paper, scandat, fr079, scaling, queries, distance, edits or all");
+          usageError(
+              "unknown workload '" + w +
+              "'; use paper, scandat, fr079, scaling, queries, distance, edits, payloads or all");
         if (w == "all")
           a.workloads.assign(std::begin(kWorkloads), std::end(kWorkloads));
         else
@@ -241,7 +246,7 @@ void warmUp(octovk::Context& context) {
 int main(int argc, char** argv) {
   const Args args = parseArgs(argc, argv);
   if (wants(args, "scandat")) checkFile(args.bench.scandat_path, "--scandat");
-  if (wants(args, "fr079")) checkFile(args.bench.fr079_path, "--fr079");
+  if (wants(args, "fr079") || wants(args, "payloads")) checkFile(args.bench.fr079_path, "--fr079");
 
   auto context_result = octovk::Context::create();
   if (!context_result) {
@@ -298,6 +303,7 @@ int main(int argc, char** argv) {
     if (wants(args, "queries")) octovk::bench::runQueries(context, args.bench, json);
     if (wants(args, "distance")) octovk::bench::runDistance(context, args.bench, json);
     if (wants(args, "edits")) octovk::bench::runEdits(context, args.bench, json);
+    if (wants(args, "payloads")) octovk::bench::runPayloads(context, args.bench, json);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "octovk_bench: %s\n", e.what());
     return 1;

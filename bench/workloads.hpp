@@ -42,9 +42,13 @@ void runFr079(Context& context, const BenchOptions& options, JsonWriter& json);
 void runScaling(Context& context, const BenchOptions& options, JsonWriter& json);
 /// Point lookups and castRay on the paper map at 0.05 m (in queries.cpp).
 void runQueries(Context& context, const BenchOptions& options, JsonWriter& json);
-/// DistanceField against dynamicEDT3D's DynamicEDTOctomap on the paper map at 0.05 m (distance.cpp).
+/// DistanceField against dynamicEDT3D's DynamicEDTOctomap on the paper map at 0.05 m
+/// (distance.cpp).
 void runDistance(Context& context, const BenchOptions& options, JsonWriter& json);
 /// clearBox and keepBox against OctoMap's loops on the paper map at 0.05 m (edits.cpp).
 void runEdits(Context& context, const BenchOptions& options, JsonWriter& json);
+/// Colour and time stamps: OcTree, ColorOcTree and OcTreeStamped against OccupancyMap, ColorMap
+/// and StampedMap on the first FR-079 scans (payloads.cpp).
+void runPayloads(Context& context, const BenchOptions& options, JsonWriter& json);
 
 }  // namespace octovk::bench

@@ -3,7 +3,7 @@ python/src/*.cpp, and python/tests/test_api.py checks that this stub names what 
 
 import enum
 import os
-from typing import Any, ClassVar, Optional, Sequence, Tuple, Union
+from typing import Any, ClassVar, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -171,6 +171,7 @@ class Map:
                  cast_ray_backend: CastRayBackend = CastRayBackend.AUTO,
                  scan_rays: ScanRays = ScanRays.WALK,
                  context: Optional[Context] = None) -> None: ...
+    # Returns the class of the file's tree type: Map, ColorMap or StampedMap.
     @staticmethod
     def read(path: PathLike, *, context: Optional[Context] = None,
              max_device_bytes: int = 0) -> Map: ...
@@ -243,6 +244,77 @@ class Map:
     def occupancy_threshold(self) -> float: ...
     @property
     def max_device_bytes(self) -> int: ...
+
+# colors: uint8 (N, 3) per point ((H, W, 3) for an organised cloud or a depth image).
+ColorFold = Literal["average", "integrate"]
+
+class ColorMap(Map):
+    """ColorOcTree: a Map whose nodes hold a colour (white: none yet)."""
+    def __init__(self, resolution: float = 0.1, *, prob_hit: float = 0.7, prob_miss: float = 0.4,
+                 clamping_min: float = 0.1192, clamping_max: float = 0.971,
+                 occupancy_threshold: float = 0.5, max_nodes: int = 0,
+                 max_device_bytes: int = 0,
+                 cast_ray_backend: CastRayBackend = CastRayBackend.AUTO,
+                 scan_rays: ScanRays = ScanRays.WALK,
+                 context: Optional[Context] = None) -> None: ...
+    @staticmethod
+    def read(path: PathLike, *, context: Optional[Context] = None,
+             max_device_bytes: int = 0) -> ColorMap: ...
+    def insert_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
+                           max_range_m: float = -1.0, discretize: bool = False, *,
+                           colors: Optional[ArrayLike] = None, color_fold: ColorFold = "average",
+                           copy: bool = False, max_range: Optional[float] = None
+                           ) -> ScanStats: ...
+    def submit_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
+                           max_range_m: float = -1.0, discretize: bool = False, *,
+                           colors: Optional[ArrayLike] = None, color_fold: ColorFold = "average",
+                           copy: bool = False, max_range: Optional[float] = None) -> int: ...
+    def insert_depth_image(self, depth: ArrayLike, fx: float, fy: float, cx: float, cy: float,
+                           depth_scale: float, pose: PoseLike = None, max_range_m: float = -1.0,
+                           discretize: bool = False, *, colors: Optional[ArrayLike] = None,
+                           color_fold: ColorFold = "average", max_range: Optional[float] = None
+                           ) -> ScanStats: ...
+    def submit_depth_image(self, depth: ArrayLike, fx: float, fy: float, cx: float, cy: float,
+                           depth_scale: float, pose: PoseLike = None, max_range_m: float = -1.0,
+                           discretize: bool = False, *, colors: Optional[ArrayLike] = None,
+                           color_fold: ColorFold = "average", max_range: Optional[float] = None
+                           ) -> int: ...
+    # uint8 r, g, b per point ((N, 3) or (H, W, 3)); white where search finds no node.
+    def colors(self, points: ArrayLike, *, copy: bool = False) -> ArrayLike: ...
+
+class StampedMap(Map):
+    """OcTreeStamped: a Map whose nodes hold a time stamp in whole seconds."""
+    def __init__(self, resolution: float = 0.1, *, prob_hit: float = 0.7, prob_miss: float = 0.4,
+                 clamping_min: float = 0.1192, clamping_max: float = 0.971,
+                 occupancy_threshold: float = 0.5, max_nodes: int = 0,
+                 max_device_bytes: int = 0,
+                 cast_ray_backend: CastRayBackend = CastRayBackend.AUTO,
+                 scan_rays: ScanRays = ScanRays.WALK,
+                 context: Optional[Context] = None) -> None: ...
+    @staticmethod
+    def read(path: PathLike, *, context: Optional[Context] = None,
+             max_device_bytes: int = 0) -> StampedMap: ...
+    # stamp: whole seconds, 0 to 2**32 - 1; None: int(time.time()).
+    def insert_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
+                           max_range_m: float = -1.0, discretize: bool = False, *,
+                           stamp: Optional[int] = None, copy: bool = False,
+                           max_range: Optional[float] = None) -> ScanStats: ...
+    def submit_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
+                           max_range_m: float = -1.0, discretize: bool = False, *,
+                           stamp: Optional[int] = None, copy: bool = False,
+                           max_range: Optional[float] = None) -> int: ...
+    def insert_depth_image(self, depth: ArrayLike, fx: float, fy: float, cx: float, cy: float,
+                           depth_scale: float, pose: PoseLike = None, max_range_m: float = -1.0,
+                           discretize: bool = False, *, stamp: Optional[int] = None,
+                           max_range: Optional[float] = None) -> ScanStats: ...
+    def submit_depth_image(self, depth: ArrayLike, fx: float, fy: float, cx: float, cy: float,
+                           depth_scale: float, pose: PoseLike = None, max_range_m: float = -1.0,
+                           discretize: bool = False, *, stamp: Optional[int] = None,
+                           max_range: Optional[float] = None) -> int: ...
+    def degrade_outdated(self, threshold_s: int, now: Optional[int] = None) -> None: ...
+    # uint32 per point ((N,) or (H, W); an int64 tensor for torch); 0 where no node is found.
+    def stamps(self, points: ArrayLike, *, copy: bool = False) -> ArrayLike: ...
+    def last_update_time(self) -> int: ...
 
 class DistanceField:
     OUTSIDE: ClassVar[float]  # -1.0

@@ -980,13 +980,13 @@ TEST(cliOutputs, ReadingErrorsNameTheFileAndTheFault) {
     std::ofstream(path, std::ios_base::binary) << edited;
     return path;
   };
-  const std::string color = variant("color.bt", "id OcTree", "id ColorOcTree");
+  const std::string color = variant("foo.bt", "id OcTree", "id Foo");
   const std::string two_res = variant("two_res.bt", "res 0.1", "res 0.2 0.3");
   const std::string deep = scratch / "deep.bt";
   std::ofstream(deep, std::ios_base::binary)
       << bytes.substr(0, bytes.find("\ndata\n") + 6) << std::string(200000, '\xff');
   for (const auto& [path, fault] : std::vector<std::pair<std::string, std::string>>{
-           {color, "'ColorOcTree', not a plain OcTree"},
+           {color, "'Foo'; octovk reads OcTree, ColorOcTree and OcTreeStamped"},
            {two_res, "must be 'res' and one value"},
            {deep, "deeper than a tree's 16 levels"}}) {
     for (const std::vector<std::string>& args :

@@ -149,8 +149,9 @@ TEST(MapMessage, DamagedBodiesAreRefusedAndTheMapKept) {
                     "msg-under-test", why, what);
     };
     MapMessage m = good;
-    m.id = "ColorOcTree";
-    refused(m, ErrorCode::kFormat, "not a plain OcTree", "another tree type");
+    m.id = "Foo";
+    refused(m, ErrorCode::kFormat, "'Foo'; octovk reads OcTree, ColorOcTree and OcTreeStamped",
+            "another tree type");
     for (const double res : {0.0, -0.1, std::nan(""), std::numeric_limits<double>::infinity()}) {
       m = good;
       m.resolution = res;

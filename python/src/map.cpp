@@ -4,6 +4,7 @@
 #include <pybind11/eval.h>
 #include <pybind11/stl.h>
 
+#include <ctime>
 #include <optional>
 
 #include "arrays.hpp"
@@ -50,6 +51,143 @@ DepthImage depthImage(const ArrayView& depth, float fx, float fy, float cx, floa
   image.depth_scale = depth_scale;
   return image;
 }
+
+// A whole number of seconds for a stamp argument (`arg`): an int from 0 to 2**32 - 1 (numpy
+// integers too), or None for the clock's now (time(NULL), as OcTreeStamped takes it).
+std::uint32_t secondsOf(py::handle value, const char* arg) {
+  if (value.is_none()) return static_cast<std::uint32_t>(std::time(nullptr));
+  const std::string why = std::string(arg) +
+                          ": expected whole seconds, an int from 0 to 2**32 - 1 (as "
+                          "int(time.time()) gives them), got ";
+  // bool is an int to Python, but True as a time is a slip.
+  if (PyBool_Check(value.ptr()) || !PyIndex_Check(value.ptr()))
+    throw py::value_error(why + std::string(py::repr(value)));
+  const auto seconds = py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()));
+  if (!seconds) throw py::error_already_set();
+  if (seconds < py::int_(0) || seconds > py::int_(0xFFFFFFFFull))
+    throw py::value_error(why + std::string(py::repr(seconds)));
+  return seconds.cast<std::uint32_t>();
+}
+
+ColorFold colorFoldOf(const std::string& fold) {
+  if (fold == "average") return ColorFold::kAverage;
+  if (fold == "integrate") return ColorFold::kIntegrate;
+  throw py::value_error(
+      "color_fold: expected 'average' (ColorOcTree::averageNodeColor) or "
+      "'integrate' (integrateNodeColor), got '" +
+      fold + "'");
+}
+
+// A scan's colours (ColorMap): `colors` None (no colour), or uint8 with one r, g, b per point or
+// pixel, of shape `lead` + (3,); read in place while it lives, or copied where its strides ask
+// for it (the library copies the colours before the call returns anyway).
+class ScanColors {
+  static constexpr const char* kColorsAre =
+      " (colors: one uint8 r, g, b from 0 to 255 per point, or per pixel of a depth image; "
+      "floats from 0 to 1 become (colors * 255).round().astype(np.uint8))";
+
+ public:
+  ScanColors(py::handle colors, const std::string& fold, const std::vector<py::ssize_t>& lead,
+             Copy copy)
+      : fold_(colorFoldOf(fold)) {
+    if (colors.is_none()) return;
+    const auto dtypes = std::initializer_list<DType>{DType::kUint8};
+    try {
+      if (lead.size() == 1)
+        view_.emplace(colors, "colors", dtypes, std::initializer_list<std::ptrdiff_t>{lead[0], 3},
+                      false, copy);
+      else
+        view_.emplace(colors, "colors", dtypes,
+                      std::initializer_list<std::ptrdiff_t>{lead[0], lead[1], 3}, false, copy);
+    } catch (const py::type_error& e) {
+      throw py::type_error(std::string(e.what()) + kColorsAre);
+    } catch (const py::value_error& e) {
+      throw py::value_error(std::string(e.what()) + kColorsAre);
+    }
+  }
+
+  void applyTo(ScanOptions& options) const {
+    static_assert(sizeof(Rgb) == 3 && alignof(Rgb) == 1);
+    options.color_fold = fold_;
+    if (view_) options.colors = {static_cast<const Rgb*>(view_->data()), view_->size() / 3};
+  }
+
+ private:
+  ColorFold fold_;
+  std::optional<ArrayView> view_;
+};
+
+// A point cloud scan's arguments, checked and read in place: Map.insert_point_cloud and
+// submit_point_cloud, and their ColorMap and StampedMap forms (colors, stamp).
+class PointScan {
+ public:
+  PointScan(py::handle points, py::handle origin, py::handle pose, double max_range_m,
+            bool discretize, bool copy, py::handle max_range)
+      : points_(points, "points", Layout::kPoints, {DType::kFloat32}, copyArgument(copy)),
+        origin_(toVector3(origin, "origin")),
+        posed_(!pose.is_none()),
+        pose_(toPose(pose, "pose")),
+        options_(scanOptions(max_range_m, max_range, discretize)) {}
+
+  void colors(py::handle colors, const std::string& fold) {
+    colors_.emplace(colors, fold, points_.leading(), Copy::kAllowed);
+    colors_->applyTo(options_);
+  }
+  void stamp(py::handle stamp) { options_.stamp = secondsOf(stamp, "stamp"); }
+
+  ScanStats insert(OccupancyMap& map) const {
+    return posed_ ? map.insertPointCloud(points_.points(), origin_, pose_, options_)
+                  : map.insertPointCloud(points_.points(), origin_, options_);
+  }
+  ScanTicket submit(OccupancyMap& map) const {
+    return posed_ ? map.submitPointCloud(points_.points(), origin_, pose_, options_)
+                  : map.submitPointCloud(points_.points(), origin_, options_);
+  }
+  const void* data() const { return points_.data(); }
+
+ private:
+  const ArrayView points_;
+  const Eigen::Vector3f origin_;
+  const bool posed_;
+  const Pose pose_;
+  ScanOptions options_;
+  std::optional<ScanColors> colors_;
+};
+
+// A depth image scan's arguments, as PointScan's: colors are one per pixel, (H, W, 3).
+class DepthScan {
+ public:
+  DepthScan(py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
+            py::handle pose, double max_range_m, bool discretize, py::handle max_range)
+      : pixels_(depth, "depth", Layout::kDepth, {DType::kFloat32, DType::kUint16}),
+        image_(depthImage(pixels_, fx, fy, cx, cy, depth_scale)),
+        pose_(toPose(pose, "pose")),
+        options_(scanOptions(max_range_m, max_range, discretize)) {}
+
+  void colors(py::handle colors, const std::string& fold) {
+    colors_.emplace(colors, fold,
+                    std::vector<py::ssize_t>{static_cast<py::ssize_t>(image_.height),
+                                             static_cast<py::ssize_t>(image_.width)},
+                    Copy::kAllowed);
+    colors_->applyTo(options_);
+  }
+  void stamp(py::handle stamp) { options_.stamp = secondsOf(stamp, "stamp"); }
+
+  ScanStats insert(OccupancyMap& map) const {
+    return map.insertDepthImage(image_, pose_, options_);
+  }
+  ScanTicket submit(OccupancyMap& map) const {
+    return map.submitDepthImage(image_, pose_, options_);
+  }
+  const void* data() const { return pixels_.data(); }
+
+ private:
+  const ArrayView pixels_;
+  const DepthImage image_;
+  const Pose pose_;
+  ScanOptions options_;
+  std::optional<ScanColors> colors_;
+};
 
 // One result column of `shape`: the caller's `out` array (checked) or a new one.
 template <class T>
@@ -181,7 +319,359 @@ constexpr const char* kMapDoc =
     "and may raise a scan's error.\n\n"
     "The GIL is released while the device works; one thread at a time uses a map (calls from "
     "several threads are serialised). A map keeps its Context alive. Library errors raise "
-    "octovk.Error subclasses; a call that raises leaves the map as it was.";
+    "octovk.Error subclasses; a call that raises leaves the map as it was.\n\n"
+    "ColorMap and StampedMap (OctoMap's ColorOcTree and OcTreeStamped) are Maps whose nodes "
+    "also hold a colour or a time stamp.";
+
+// Binds `cls`'s constructor: an empty Self holding a Kind (OccupancyMap, ColorMap, StampedMap)
+// made from the keywords every map takes; `doc` starts the docstring.
+template <class Self, class Kind, class Class>
+void defInit(Class& cls, const char* doc) {
+  cls.def(py::init([](double resolution, double prob_hit, double prob_miss, double clamping_min,
+                      double clamping_max, double occupancy_threshold, std::size_t max_nodes,
+                      std::size_t max_device_bytes, CastRayBackend cast_ray_backend,
+                      ScanRays scan_rays, py::object context) {
+            MapParams params;
+            params.resolution = resolution;
+            params.prob_hit = prob_hit;
+            params.prob_miss = prob_miss;
+            params.clamping_min = clamping_min;
+            params.clamping_max = clamping_max;
+            params.occupancy_threshold = occupancy_threshold;
+            params.max_nodes = max_nodes;
+            params.max_device_bytes = max_device_bytes;
+            params.cast_ray_backend = cast_ray_backend;
+            params.scan_rays = scan_rays;
+            context = orDefault(std::move(context));
+            Context& ctx = contextOf(context);
+            std::optional<Kind> made;
+            {
+              py::gil_scoped_release release;
+              made.emplace(ctx, params);
+            }
+            return std::make_unique<Self>(std::move(context), std::move(*made));
+          }),
+          py::arg("resolution") = 0.1, py::kw_only(), py::arg("prob_hit") = 0.7,
+          py::arg("prob_miss") = 0.4, py::arg("clamping_min") = 0.1192,
+          py::arg("clamping_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
+          py::arg("max_nodes") = 0, py::arg("max_device_bytes") = 0,
+          py::arg("cast_ray_backend") = CastRayBackend::kAuto,
+          py::arg("scan_rays") = ScanRays::kWalk, py::arg("context") = py::none(),
+          (std::string(doc) +
+           " resolution: edge of the finest cells in metres; prob_hit, prob_miss, "
+           "clamping_min, clamping_max, occupancy_threshold: OctoMap's sensor model (its "
+           "defaults); max_nodes / max_device_bytes cap the node pool / everything the map holds "
+           "on the device (0: no cap); cast_ray_backend: how cast_rays runs (AUTO: ray tracing "
+           "where the device has it); scan_rays: how scans find their cells; context: a Context "
+           "(None: default_context()). Raises InvalidArgumentError naming a bad value.")
+              .c_str());
+}
+
+// The map in `path` as the class of its tree type (params().payload): Map, ColorMap or
+// StampedMap; with `want`, a FormatError where the file holds another tree type.
+py::object readMap(py::handle path, py::object context, std::size_t max_device_bytes,
+                   std::optional<Payload> want) {
+  const std::string file = pathString(path, "path");
+  context = orDefault(std::move(context));
+  Context& ctx = contextOf(context);
+  std::optional<OccupancyMap> made;
+  {
+    py::gil_scoped_release release;
+    made.emplace(readMapFile(ctx, file, max_device_bytes));
+  }
+  const Payload payload = made->params().payload;
+  if (want && payload != *want)
+    throw Error(ErrorCode::kFormat, file + ": its tree type is " + treeTypeName(payload) +
+                                        ", not " + treeTypeName(*want) +
+                                        "; octovk.Map.read(path) reads every tree type, as the "
+                                        "class it names");
+  switch (payload) {
+    case Payload::kColor:
+      return py::cast(std::make_unique<PyColorMap>(context, ColorMap(std::move(*made))));
+    case Payload::kStamp:
+      return py::cast(std::make_unique<PyStampedMap>(context, StampedMap(std::move(*made))));
+    case Payload::kNone:
+      break;
+  }
+  return py::cast(std::make_unique<Map>(context, std::move(*made)));
+}
+
+constexpr const char* kColorMapDoc =
+    "OctoMap's ColorOcTree on a Vulkan device (octovk::ColorMap): a Map whose nodes also hold a "
+    "colour, and everything a Map offers.\n\n"
+    "A scan with colors (uint8, one r, g, b per point) is inserted as ColorOcTree's "
+    "insertPointCloud, then each point's colour is folded into the node search() finds for it, "
+    "in the cloud's order: averageNodeColor (color_fold='average': a node without colour takes "
+    "it, a coloured one the integer mean) or integrateNodeColor ('integrate'). White "
+    "(255, 255, 255) is OctoMap's 'no colour yet'. Files written are ColorOcTree .ot files "
+    "(a .bt holds no colour); Map.read returns a ColorMap for them.";
+
+constexpr const char* kStampedMapDoc =
+    "OctoMap's OcTreeStamped on a Vulkan device (octovk::StampedMap): a Map whose nodes also "
+    "hold a time stamp in whole seconds, and everything a Map offers.\n\n"
+    "Every leaf a scan updates takes the scan's stamp (stamp=, OcTreeStamped's time(NULL); "
+    "None: the clock's now); degrade_outdated() gives occupied leaves older than a threshold one "
+    "miss, as degradeOutdatedNodes. Children merge only where their log-odds and stamps are "
+    "equal. Map.read returns a StampedMap for an OcTreeStamped file.";
+
+constexpr const char* kColorsDoc =
+    " colors: None (no colour) or uint8 with one r, g, b per point, of the points' shape with 3 "
+    "last ((N, 3), or (H, W, 3) for an organised cloud; read in place, copied where not "
+    "C-contiguous); color_fold: 'average' (ColorOcTree::averageNodeColor) or 'integrate' "
+    "(integrateNodeColor).";
+
+void bindColorMap(py::module_& m) {
+  py::class_<PyColorMap, Map> cls(m, "ColorMap", kColorMapDoc);
+  defInit<PyColorMap, ColorMap>(cls, "An empty colour map (ColorOcTree).");
+  cls.def_static(
+      "read",
+      [](py::handle path, py::object context, std::size_t max_device_bytes) {
+        return readMap(path, std::move(context), max_device_bytes, Payload::kColor);
+      },
+      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
+      py::arg("max_device_bytes") = 0,
+      "A new ColorMap from an OctoMap ColorOcTree .ot file; FormatError for another tree type "
+      "(Map.read reads every type). context and max_device_bytes as in Map.read.");
+
+  cls.def(
+      "insert_point_cloud",
+      [](PyColorMap& self, py::handle points, py::handle origin, py::handle pose,
+         double max_range_m, bool discretize, py::handle colors, const std::string& color_fold,
+         bool copy, py::handle max_range) {
+        PointScan scan(points, origin, pose, max_range_m, discretize, copy, max_range);
+        scan.colors(colors, color_fold);
+        noteInput(scan.data());
+        return self.run([&](OccupancyMap& map) { return scan.insert(map); });
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("colors") = py::none(), py::arg("color_fold") = "average", py::arg("copy") = false,
+      py::arg("max_range") = py::none(),
+      (std::string("Map.insert_point_cloud (points, origin, pose, max_range_m, discretize, "
+                   "copy, max_range as there), then each point's colour folded into its node.") +
+       kColorsDoc + " Returns ScanStats.")
+          .c_str());
+  cls.def(
+      "submit_point_cloud",
+      [](PyColorMap& self, py::handle points, py::handle origin, py::handle pose,
+         double max_range_m, bool discretize, py::handle colors, const std::string& color_fold,
+         bool copy, py::handle max_range) {
+        PointScan scan(points, origin, pose, max_range_m, discretize, copy, max_range);
+        scan.colors(colors, color_fold);
+        noteInput(scan.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) { return scan.submit(map); });
+        self.noteTicket(ticket);
+        return ticket;
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("colors") = py::none(), py::arg("color_fold") = "average", py::arg("copy") = false,
+      py::arg("max_range") = py::none(),
+      (std::string("insert_point_cloud(points, origin, pose, max_range_m, discretize, colors, "
+                   "color_fold, copy, max_range) without waiting (points and colours are "
+                   "copied before it returns). Returns the scan's ticket.") +
+       kColorsDoc)
+          .c_str());
+  cls.def(
+      "insert_depth_image",
+      [](PyColorMap& self, py::handle depth, float fx, float fy, float cx, float cy,
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle colors,
+         const std::string& color_fold, py::handle max_range) {
+        DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
+                       max_range);
+        scan.colors(colors, color_fold);
+        noteInput(scan.data());
+        return self.run([&](OccupancyMap& map) { return scan.insert(map); });
+      },
+      py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
+      py::arg("discretize") = false, py::kw_only(), py::arg("colors") = py::none(),
+      py::arg("color_fold") = "average", py::arg("max_range") = py::none(),
+      "Map.insert_depth_image (depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, "
+      "discretize, max_range as there), then each pixel's colour folded into the node of its "
+      "point, row by row (skipped pixels fold nothing). colors: None or uint8 (H, W, 3), one "
+      "r, g, b per pixel (an RGB image registered to the depth image); color_fold: 'average' "
+      "or 'integrate', as in insert_point_cloud. Returns ScanStats.");
+  cls.def(
+      "submit_depth_image",
+      [](PyColorMap& self, py::handle depth, float fx, float fy, float cx, float cy,
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle colors,
+         const std::string& color_fold, py::handle max_range) {
+        DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
+                       max_range);
+        scan.colors(colors, color_fold);
+        noteInput(scan.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) { return scan.submit(map); });
+        self.noteTicket(ticket);
+        return ticket;
+      },
+      py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
+      py::arg("discretize") = false, py::kw_only(), py::arg("colors") = py::none(),
+      py::arg("color_fold") = "average", py::arg("max_range") = py::none(),
+      "insert_depth_image(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize, "
+      "colors, color_fold, max_range) without waiting (pixels and colours are copied before "
+      "it returns). Returns the scan's ticket.");
+
+  cls.def(
+      "colors",
+      [](PyColorMap& self, py::handle points, bool copy) {
+        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
+                            copyArgument(copy));
+        noteInput(pts.data());
+        const std::vector<Rgb> found =
+            self.runAs<ColorMap>([&](ColorMap& map) { return map.colors(pts.points()); });
+        std::vector<std::uint8_t> bytes(3 * found.size());
+        for (std::size_t i = 0; i < found.size(); ++i) {
+          bytes[3 * i] = found[i].r;
+          bytes[3 * i + 1] = found[i].g;
+          bytes[3 * i + 2] = found[i].b;
+        }
+        return likeInput(points, ownedArray(std::move(bytes), withExtent(pts.leading(), 3)));
+      },
+      py::arg("points"), py::kw_only(), py::arg("copy") = false,
+      "The colour of the node search() finds for each of points (float32 (N, 3), (H, W, 3) or "
+      "(N, 4) as in search), on the device: uint8 (N, 3) r, g, b ((H, W, 3) for an organised "
+      "cloud), white (255, 255, 255) where search finds no node or the node has no colour yet; "
+      "a torch tensor when points is one. copy: as in search.");
+  cls.def("__repr__", [](const PyColorMap& self) {
+    return "ColorMap(resolution=" + std::to_string(self.map().params().resolution) + ")";
+  });
+}
+
+void bindStampedMap(py::module_& m) {
+  py::class_<PyStampedMap, Map> cls(m, "StampedMap", kStampedMapDoc);
+  defInit<PyStampedMap, StampedMap>(cls, "An empty stamped map (OcTreeStamped).");
+  cls.def_static(
+      "read",
+      [](py::handle path, py::object context, std::size_t max_device_bytes) {
+        return readMap(path, std::move(context), max_device_bytes, Payload::kStamp);
+      },
+      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
+      py::arg("max_device_bytes") = 0,
+      "A new StampedMap from an OctoMap OcTreeStamped .ot file; FormatError for another tree "
+      "type (Map.read reads every type). context and max_device_bytes as in Map.read.");
+
+  constexpr const char* kStampDoc =
+      " stamp: the scan's time in whole seconds, an int from 0 to 2**32 - 1, which every leaf "
+      "the scan updates takes (OcTreeStamped's time(NULL)); None: the clock's now "
+      "(int(time.time())).";
+  cls.def(
+      "insert_point_cloud",
+      [](PyStampedMap& self, py::handle points, py::handle origin, py::handle pose,
+         double max_range_m, bool discretize, py::handle stamp, bool copy, py::handle max_range) {
+        PointScan scan(points, origin, pose, max_range_m, discretize, copy, max_range);
+        scan.stamp(stamp);
+        noteInput(scan.data());
+        return self.run([&](OccupancyMap& map) { return scan.insert(map); });
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("stamp") = py::none(), py::arg("copy") = false, py::arg("max_range") = py::none(),
+      (std::string("Map.insert_point_cloud (points, origin, pose, max_range_m, discretize, "
+                   "copy, max_range as there) at time stamp.") +
+       kStampDoc + " Returns ScanStats.")
+          .c_str());
+  cls.def(
+      "submit_point_cloud",
+      [](PyStampedMap& self, py::handle points, py::handle origin, py::handle pose,
+         double max_range_m, bool discretize, py::handle stamp, bool copy, py::handle max_range) {
+        PointScan scan(points, origin, pose, max_range_m, discretize, copy, max_range);
+        scan.stamp(stamp);
+        noteInput(scan.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) { return scan.submit(map); });
+        self.noteTicket(ticket);
+        return ticket;
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("stamp") = py::none(), py::arg("copy") = false, py::arg("max_range") = py::none(),
+      (std::string("insert_point_cloud(points, origin, pose, max_range_m, discretize, stamp, "
+                   "copy, max_range) without waiting. Returns the scan's ticket.") +
+       kStampDoc)
+          .c_str());
+  cls.def(
+      "insert_depth_image",
+      [](PyStampedMap& self, py::handle depth, float fx, float fy, float cx, float cy,
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle stamp,
+         py::handle max_range) {
+        DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
+                       max_range);
+        scan.stamp(stamp);
+        noteInput(scan.data());
+        return self.run([&](OccupancyMap& map) { return scan.insert(map); });
+      },
+      py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
+      py::arg("discretize") = false, py::kw_only(), py::arg("stamp") = py::none(),
+      py::arg("max_range") = py::none(),
+      (std::string("Map.insert_depth_image (depth, fx, fy, cx, cy, depth_scale, pose, "
+                   "max_range_m, discretize, max_range as there) at time stamp.") +
+       kStampDoc + " Returns ScanStats.")
+          .c_str());
+  cls.def(
+      "submit_depth_image",
+      [](PyStampedMap& self, py::handle depth, float fx, float fy, float cx, float cy,
+         float depth_scale, py::handle pose, double max_range_m, bool discretize, py::handle stamp,
+         py::handle max_range) {
+        DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
+                       max_range);
+        scan.stamp(stamp);
+        noteInput(scan.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) { return scan.submit(map); });
+        self.noteTicket(ticket);
+        return ticket;
+      },
+      py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
+      py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
+      py::arg("discretize") = false, py::kw_only(), py::arg("stamp") = py::none(),
+      py::arg("max_range") = py::none(),
+      (std::string("insert_depth_image(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, "
+                   "discretize, stamp, max_range) without waiting. Returns the scan's ticket.") +
+       kStampDoc)
+          .c_str());
+
+  cls.def(
+      "degrade_outdated",
+      [](PyStampedMap& self, py::handle threshold_s, py::handle now) {
+        const std::uint32_t threshold = secondsOf(threshold_s, "threshold_s");
+        const std::uint32_t at = secondsOf(now, "now");
+        self.runAs<StampedMap>([&](StampedMap& map) { map.degradeOutdated(at, threshold); });
+      },
+      py::arg("threshold_s"), py::arg("now") = py::none(),
+      "OcTreeStamped::degradeOutdatedNodes(threshold_s) at time now, on the device: every "
+      "occupied leaf (pruned leaves included) with now - stamp > threshold_s (seconds, "
+      "unsigned as OctoMap) takes one miss and keeps its stamp; then the inner nodes are "
+      "updated (their stamps become now). threshold_s, now: ints from 0 to 2**32 - 1; now None: "
+      "the clock's now (int(time.time())), as OctoMap.");
+  cls.def(
+      "stamps",
+      [](PyStampedMap& self, py::handle points, bool copy) {
+        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
+                            copyArgument(copy));
+        noteInput(pts.data());
+        std::vector<std::uint32_t> found =
+            self.runAs<StampedMap>([&](StampedMap& map) { return map.stamps(pts.points()); });
+        py::object out = ownedArray(std::move(found), pts.leading());
+        if (!isTorch(points)) return out;
+        // torch (before 2.3) has no uint32: the stamps as int64, which holds every one.
+        return py::module_::import("torch").attr("from_numpy")(out.attr("astype")("int64"));
+      },
+      py::arg("points"), py::kw_only(), py::arg("copy") = false,
+      "The time stamp (whole seconds) of the node search() finds for each of points (float32 "
+      "(N, 3), (H, W, 3) or (N, 4) as in search), on the device: uint32 (N,) ((H, W) for an "
+      "organised cloud; an int64 torch tensor when points is one), 0 where search finds no node. "
+      "copy: as in search.");
+  cls.def(
+      "last_update_time",
+      [](PyStampedMap& self) {
+        return self.runAs<StampedMap>([](StampedMap& map) { return map.lastUpdateTime(); });
+      },
+      "OcTreeStamped::getLastUpdateTime: the root's stamp, in seconds (0 for an empty map).");
+  cls.def("__repr__", [](const PyStampedMap& self) {
+    return "StampedMap(resolution=" + std::to_string(self.map().params().resolution) + ")";
+  });
+}
 
 }  // namespace
 
@@ -220,61 +710,18 @@ void bindMap(py::module_& m) {
                     "cast_rays calls answered by the walk because of max_device_bytes");
 
   py::class_<Map> map(m, "Map", kMapDoc);
-  map.def(py::init([](double resolution, double prob_hit, double prob_miss, double clamping_min,
-                      double clamping_max, double occupancy_threshold, std::size_t max_nodes,
-                      std::size_t max_device_bytes, CastRayBackend cast_ray_backend,
-                      ScanRays scan_rays, py::object context) {
-            MapParams params;
-            params.resolution = resolution;
-            params.prob_hit = prob_hit;
-            params.prob_miss = prob_miss;
-            params.clamping_min = clamping_min;
-            params.clamping_max = clamping_max;
-            params.occupancy_threshold = occupancy_threshold;
-            params.max_nodes = max_nodes;
-            params.max_device_bytes = max_device_bytes;
-            params.cast_ray_backend = cast_ray_backend;
-            params.scan_rays = scan_rays;
-            context = orDefault(std::move(context));
-            Context& ctx = contextOf(context);
-            std::optional<OccupancyMap> made;
-            {
-              py::gil_scoped_release release;
-              made.emplace(ctx, params);
-            }
-            return std::make_unique<Map>(std::move(context), std::move(*made));
-          }),
-          py::arg("resolution") = 0.1, py::kw_only(), py::arg("prob_hit") = 0.7,
-          py::arg("prob_miss") = 0.4, py::arg("clamping_min") = 0.1192,
-          py::arg("clamping_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
-          py::arg("max_nodes") = 0, py::arg("max_device_bytes") = 0,
-          py::arg("cast_ray_backend") = CastRayBackend::kAuto,
-          py::arg("scan_rays") = ScanRays::kWalk, py::arg("context") = py::none(),
-          "An empty map. resolution: edge of the finest cells in metres; prob_hit, prob_miss, "
-          "clamping_min, clamping_max, occupancy_threshold: OctoMap's sensor model (its "
-          "defaults); max_nodes / max_device_bytes cap the node pool / everything the map holds "
-          "on the device (0: no cap); cast_ray_backend: how cast_rays runs (AUTO: ray tracing "
-          "where the device has it); scan_rays: how scans find their cells; context: a Context "
-          "(None: default_context()). Raises InvalidArgumentError naming a bad value.");
-
+  defInit<Map, OccupancyMap>(map, "An empty map.");
   map.def_static(
       "read",
       [](py::handle path, py::object context, std::size_t max_device_bytes) {
-        const std::string file = pathString(path, "path");
-        context = orDefault(std::move(context));
-        Context& ctx = contextOf(context);
-        std::optional<OccupancyMap> made;
-        {
-          py::gil_scoped_release release;
-          made.emplace(readMapFile(ctx, file, max_device_bytes));
-        }
-        return std::make_unique<Map>(std::move(context), std::move(*made));
+        return readMap(path, std::move(context), max_device_bytes, std::nullopt);
       },
       py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
       py::arg("max_device_bytes") = 0,
       "A new map from an OctoMap .bt or .ot file (the file's resolution and, for .ot, its "
-      "sensor model). Raises FormatError naming the file and the fault, IoError, or "
-      "OutOfDeviceMemoryError when it does not fit under max_device_bytes.");
+      "sensor model), of the class its tree type names: Map (OcTree), ColorMap (ColorOcTree) "
+      "or StampedMap (OcTreeStamped). Raises FormatError naming the file and the fault, "
+      "IoError, or OutOfDeviceMemoryError when it does not fit under max_device_bytes.");
 
   map.def(
       "write",
@@ -291,17 +738,9 @@ void bindMap(py::module_& m) {
       "insert_point_cloud",
       [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range_m,
          bool discretize, bool copy, py::handle max_range) {
-        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
-                            copyArgument(copy));
-        const Eigen::Vector3f o = toVector3(origin, "origin");
-        const bool posed = !pose.is_none();
-        const Pose T = toPose(pose, "pose");
-        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
-        noteInput(pts.data());
-        return self.run([&](OccupancyMap& map) {
-          return posed ? map.insertPointCloud(pts.points(), o, T, options)
-                       : map.insertPointCloud(pts.points(), o, options);
-        });
+        const PointScan scan(points, origin, pose, max_range_m, discretize, copy, max_range);
+        noteInput(scan.data());
+        return self.run([&](OccupancyMap& map) { return scan.insert(map); });
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
       py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
@@ -319,17 +758,9 @@ void bindMap(py::module_& m) {
       "submit_point_cloud",
       [](Map& self, py::handle points, py::handle origin, py::handle pose, double max_range_m,
          bool discretize, bool copy, py::handle max_range) {
-        const ArrayView pts(points, "points", Layout::kPoints, {DType::kFloat32},
-                            copyArgument(copy));
-        const Eigen::Vector3f o = toVector3(origin, "origin");
-        const bool posed = !pose.is_none();
-        const Pose T = toPose(pose, "pose");
-        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
-        noteInput(pts.data());
-        const ScanTicket ticket = self.run([&](OccupancyMap& map) {
-          return posed ? map.submitPointCloud(pts.points(), o, T, options)
-                       : map.submitPointCloud(pts.points(), o, options);
-        });
+        const PointScan scan(points, origin, pose, max_range_m, discretize, copy, max_range);
+        noteInput(scan.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) { return scan.submit(map); });
         self.noteTicket(ticket);
         return ticket;
       },
@@ -346,12 +777,10 @@ void bindMap(py::module_& m) {
       "insert_depth_image",
       [](Map& self, py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
          py::handle pose, double max_range_m, bool discretize, py::handle max_range) {
-        const ArrayView pixels(depth, "depth", Layout::kDepth, {DType::kFloat32, DType::kUint16});
-        const DepthImage image = depthImage(pixels, fx, fy, cx, cy, depth_scale);
-        const Pose T = toPose(pose, "pose");
-        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
-        noteInput(pixels.data());
-        return self.run([&](OccupancyMap& map) { return map.insertDepthImage(image, T, options); });
+        const DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
+                             max_range);
+        noteInput(scan.data());
+        return self.run([&](OccupancyMap& map) { return scan.insert(map); });
       },
       py::arg("depth"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"),
       py::arg("depth_scale"), py::arg("pose") = py::none(), py::arg("max_range_m") = -1.0,
@@ -368,13 +797,10 @@ void bindMap(py::module_& m) {
       "submit_depth_image",
       [](Map& self, py::handle depth, float fx, float fy, float cx, float cy, float depth_scale,
          py::handle pose, double max_range_m, bool discretize, py::handle max_range) {
-        const ArrayView pixels(depth, "depth", Layout::kDepth, {DType::kFloat32, DType::kUint16});
-        const DepthImage image = depthImage(pixels, fx, fy, cx, cy, depth_scale);
-        const Pose T = toPose(pose, "pose");
-        const ScanOptions options = scanOptions(max_range_m, max_range, discretize);
-        noteInput(pixels.data());
-        const ScanTicket ticket =
-            self.run([&](OccupancyMap& map) { return map.submitDepthImage(image, T, options); });
+        const DepthScan scan(depth, fx, fy, cx, cy, depth_scale, pose, max_range_m, discretize,
+                             max_range);
+        noteInput(scan.data());
+        const ScanTicket ticket = self.run([&](OccupancyMap& map) { return scan.submit(map); });
         self.noteTicket(ticket);
         return ticket;
       },
@@ -655,6 +1081,9 @@ void bindMap(py::module_& m) {
   map.def("__repr__", [](const Map& self) {
     return "Map(resolution=" + std::to_string(self.map().params().resolution) + ")";
   });
+
+  bindColorMap(m);
+  bindStampedMap(m);
 }
 
 }  // namespace octovk::python

@@ -1,5 +1,6 @@
 // octovk.Map's C++ side: the OccupancyMap with its Context and the one lock that orders the
-// threads using it (map.cpp binds it; distance.cpp's fields run under the same lock).
+// threads using it (map.cpp binds it; distance.cpp's fields run under the same lock), and
+// octovk.ColorMap / octovk.StampedMap, the same with a ColorMap or StampedMap inside.
 #pragma once
 
 #include <pybind11/pybind11.h>
@@ -8,6 +9,7 @@
 #include <chrono>
 #include <mutex>
 #include <thread>
+#include <variant>
 
 #include "checked.hpp"
 #include "octovk/octovk.hpp"
@@ -18,7 +20,11 @@ namespace py = pybind11;
 
 class Map {
  public:
-  Map(py::object context, OccupancyMap map) : context_(std::move(context)), map_(std::move(map)) {}
+  /// The C++ map inside: which one decides the Python class (Map, ColorMap, StampedMap).
+  using Held = std::variant<OccupancyMap, ColorMap, StampedMap>;
+
+  Map(py::object context, Held map) : context_(std::move(context)), map_(std::move(map)) {}
+  virtual ~Map() = default;
 
   /// Runs `work` on the map with the GIL released and the map's lock held (a map is used by one
   /// thread at a time; Python threads sharing one are ordered here). `work` touches no Python
@@ -27,7 +33,16 @@ class Map {
   auto run(Work&& work) {
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
-    return work(map_);
+    return work(base());
+  }
+
+  /// run() on the map as the `Kind` it holds (ColorMap, StampedMap): only PyColorMap and
+  /// PyStampedMap call it, which are made holding that kind.
+  template <class Kind, class Work>
+  auto runAs(Work&& work) {
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    return work(std::get<Kind>(map_));
   }
 
   /// Waits until every submitted scan is in the map, polling so that a signal (Ctrl-C) is
@@ -54,15 +69,37 @@ class Map {
   void noteTicket(ScanTicket ticket) { last_ticket_ = std::max(last_ticket_, ticket); }
 
   const py::object& context() const { return context_; }
-  const OccupancyMap& map() const { return map_; }
+  const OccupancyMap& map() const {
+    return std::visit([](const auto& m) -> const OccupancyMap& { return m; }, map_);
+  }
 
  private:
+  OccupancyMap& base() {
+    return std::visit([](auto& m) -> OccupancyMap& { return m; }, map_);
+  }
+
   py::object context_;  // keeps the Context (and so the device) alive while the map lives
   std::mutex mutex_;
-  OccupancyMap map_;
+  Held map_;
   ScanTicket last_ticket_ = 0;
+};
+
+/// octovk.ColorMap: a Map holding a ColorMap (ColorOcTree).
+class PyColorMap : public Map {
+ public:
+  PyColorMap(py::object context, ColorMap map)
+      : Map(std::move(context), Held(std::in_place_type<ColorMap>, std::move(map))) {}
+};
+
+/// octovk.StampedMap: a Map holding a StampedMap (OcTreeStamped).
+class PyStampedMap : public Map {
+ public:
+  PyStampedMap(py::object context, StampedMap map)
+      : Map(std::move(context), Held(std::in_place_type<StampedMap>, std::move(map))) {}
 };
 
 }  // namespace octovk::python
 
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Map)
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyColorMap)
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyStampedMap)

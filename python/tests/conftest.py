@@ -88,3 +88,19 @@ def room_scans(seed=7, scans=4, points=800, z_spread=0.3):
         r = (1.5 + 0.5 * rng.uniform(-1, 1, (len(d), 1))).astype(np.float32)
         out.append((np.ascontiguousarray(origin + d * r, np.float32), origin))
     return out
+
+
+def unproject(depth, fx, fy, cx, cy, depth_scale, with_mask=False):
+    """DepthImage's unprojection in float32, in its order of operations (include/octovk/scan.hpp);
+    with_mask: also the (H, W) mask of the pixels kept (the others are skipped)."""
+    h, w = depth.shape
+    d = depth.astype(np.float32)
+    v, u = np.meshgrid(np.arange(h, dtype=np.float32), np.arange(w, dtype=np.float32),
+                       indexing="ij")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = d / np.float32(depth_scale)
+        keep = np.isfinite(d) & (d != 0) & np.isfinite(z) & (z != 0)
+        x = ((u - np.float32(cx)) * z) / np.float32(fx)
+        y = ((v - np.float32(cy)) * z) / np.float32(fy)
+    points = np.ascontiguousarray(np.stack([x[keep], y[keep], z[keep]], axis=1), np.float32)
+    return (points, keep) if with_mask else points

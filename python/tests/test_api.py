@@ -15,7 +15,8 @@ import pytest
 import octovk
 
 STUB = os.path.join(os.path.dirname(octovk.__file__), "octovk.pyi")
-TYPE_ALIASES = {"ArrayLike", "Vector3", "PoseLike", "PathLike", "FloatArray", "ByteArray"}
+TYPE_ALIASES = {"ArrayLike", "Vector3", "PoseLike", "PathLike", "FloatArray", "ByteArray",
+                "ColorFold"}
 
 
 def stub_tree():
@@ -83,8 +84,25 @@ def test_stub_names_what_the_module_binds():
     assert public(dir(octovk)) == stub_names
 
 
+def stub_members(node, classes):
+    """The names a stub class declares, with those of its stub base classes (ColorMap(Map))."""
+    members = set()
+    for base in node.bases:
+        if isinstance(base, ast.Name) and base.id in classes:
+            members |= stub_members(classes[base.id], classes)
+    for item in node.body:
+        if isinstance(item, ast.FunctionDef):
+            members.add(item.name)
+        elif isinstance(item, ast.AnnAssign):
+            members.add(item.target.id)
+        elif isinstance(item, ast.Assign):
+            members |= {t.id for t in item.targets}
+    return members
+
+
 def test_stub_classes_and_signatures_match_the_module():
     checked = 0
+    classes = {n.name: n for n in stub_tree().body if isinstance(n, ast.ClassDef)}
     for node in stub_tree().body:
         if isinstance(node, ast.FunctionDef):
             assert stub_parameters(node) == bound_parameters(getattr(octovk, node.name)), node.name
@@ -92,20 +110,15 @@ def test_stub_classes_and_signatures_match_the_module():
         if not isinstance(node, ast.ClassDef) or issubclass(getattr(octovk, node.name), Exception):
             continue
         cls = getattr(octovk, node.name)
-        members = set()
         for item in node.body:
             if isinstance(item, ast.FunctionDef):
-                members.add(item.name)
                 if not any(isinstance(d, ast.Name) and d.id == "property"
                            for d in item.decorator_list):
                     bound = getattr(cls, item.name)
                     assert stub_parameters(item) == bound_parameters(bound), \
                         f"{node.name}.{item.name}"
                     checked += 1
-            elif isinstance(item, ast.AnnAssign):
-                members.add(item.target.id)
-            elif isinstance(item, ast.Assign):
-                members |= {t.id for t in item.targets}
+        members = stub_members(node, classes)
         if hasattr(cls, "__members__"):  # an enum: its values
             assert set(cls.__members__) == members - {"name", "value", "__int__"}, node.name
         else:

@@ -61,6 +61,9 @@ ARGUMENTS = {
     "submit_depth_image": ("D", 1.0, 1.0, 1.0, 1.0, 1.0),
     "finished": (1,),
     "search": ("P",),
+    "colors": ("P",),
+    "stamps": ("P",),
+    "degrade_outdated": (0,),
     "cast_rays": ((0, 0, 0), "P"),
     "leaves_in_box": ((0, 0, 0), (1, 1, 1)),
     "clear_box": ((0, 0, 0), (1, 1, 1)),
@@ -156,8 +159,8 @@ def members(owner):
 
 def test_uninitialised_objects_raise_instead_of_crashing(context):
     classes = members(octovk)
-    assert {octovk.Map, octovk.Context, octovk.DistanceField, octovk.Pose,
-            octovk.ScanRays} <= set(classes)
+    assert {octovk.Map, octovk.ColorMap, octovk.StampedMap, octovk.Context,
+            octovk.DistanceField, octovk.Pose, octovk.ScanRays} <= set(classes)
     expected = sum(len(members(c)) for c in classes) + 8
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [os.path.dirname(__file__), os.environ.get("PYTHONPATH", "")]))

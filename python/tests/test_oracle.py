@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import octovk
-from conftest import octomap_data, require, room_scans, run, tool
+from conftest import octomap_data, require, room_scans, run, tool, unproject
 
 SEARCH_RECORD = np.dtype([("state", "u1"), ("log_odds", "<f4"), ("depth", "u1")])
 RAY_RECORD = np.dtype([("hit", "u1"), ("end", "<f4", (3,))])
@@ -181,20 +181,6 @@ def test_leaves_in_box_equal_octomap_iterator(room, tmp_path, occupied_only):
     key = lambda a: sorted(map(tuple, a.view(np.uint32).tolist()))  # noqa: E731
     assert key(got) == key(want)
     assert m.leaves_in_box((-1e7, 0, 0), (1, 1, 1))[0].shape == (0, 3)
-
-
-def unproject(depth, fx, fy, cx, cy, depth_scale):
-    """DepthImage's unprojection in float32, in its order of operations (include/octovk/scan.hpp)."""
-    h, w = depth.shape
-    d = depth.astype(np.float32)
-    v, u = np.meshgrid(np.arange(h, dtype=np.float32), np.arange(w, dtype=np.float32),
-                       indexing="ij")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = d / np.float32(depth_scale)
-        keep = np.isfinite(d) & (d != 0) & np.isfinite(z) & (z != 0)
-        x = ((u - np.float32(cx)) * z) / np.float32(fx)
-        y = ((v - np.float32(cy)) * z) / np.float32(fy)
-    return np.ascontiguousarray(np.stack([x[keep], y[keep], z[keep]], axis=1), np.float32)
 
 
 @pytest.mark.parametrize("dtype", [np.uint16, np.float32])
