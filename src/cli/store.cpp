@@ -1,0 +1,1 @@
+// octovk store: placeholder

@@ -1,0 +1,218 @@
+// The map store (issue 31): tiles and the tree rebuilt from them against OctoMap's own trees
+// (graph2tree's files, trees built with OctoMap), and the SQLite store through the program against
+// graph2tree: export after integrate --store, a second run continuing the map, a killed writer.
+#include <gtest/gtest.h>
+#include <octomap/OcTree.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <cstdio>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "cli_support.hpp"
+#include "octovk/octomap_io.hpp"
+#include "store/store.hpp"
+#include "store/tiles.hpp"
+#include "test_support.hpp"
+
+namespace octovk {
+namespace {
+
+using test::quote;
+using test::readFile;
+using test::RunResult;
+using test::runOctovk;
+using test::runShell;
+using test::Scratch;
+
+// OctoMap's tree as a host tree (breadth first, as fromOcTree lays it out), on the host.
+HostTree hostTreeOf(const octomap::OcTree& tree) {
+  HostTree host;
+  const octomap::OcTreeNode* root = tree.getRoot();
+  host.root_exists = root != nullptr;
+  if (!root) return host;
+  const HostTree::Node leaf{0.0f, 0xFFFFFFFFu, 0, 0};
+  host.nodes.assign(8, leaf);
+  host.nodes[0].log_odds = root->getLogOdds();
+  std::vector<std::pair<const octomap::OcTreeNode*, std::size_t>> queue{{root, 0}};
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const auto [node, index] = queue[head];
+    if (!tree.nodeHasChildren(node)) continue;
+    const auto block = static_cast<std::uint32_t>(host.nodes.size() / 8);
+    host.nodes.resize(host.nodes.size() + 8, leaf);
+    std::uint32_t mask = 0;
+    for (unsigned i = 0; i < 8; ++i) {
+      if (!tree.nodeChildExists(node, i)) continue;
+      const octomap::OcTreeNode* child = tree.getNodeChild(node, i);
+      host.nodes[block * 8 + i].log_odds = child->getLogOdds();
+      queue.emplace_back(child, block * 8 + i);
+      mask |= 1u << i;
+    }
+    host.nodes[index].children = block;
+    host.nodes[index].mask = mask;
+  }
+  return host;
+}
+
+// OctoMap's .ot bytes of a tree (OcTree::write, as graph2tree writes X.bt.ot).
+std::string otBytes(const octomap::OcTree& tree) {
+  std::ostringstream out;
+  tree.write(out);
+  return out.str();
+}
+
+// The .ot bytes of `tree` after tiles at `depth` -> tree -> OctoMap's writer.
+std::string roundTrip(const octomap::OcTree& tree, unsigned depth, std::size_t* tile_count) {
+  const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(tree), depth);
+  if (tile_count) *tile_count = tiles.size();
+  MapParams params;
+  params.resolution = tree.getResolution();
+  return otBytes(*store::ocTreeOf(store::treeFromTiles(tiles, depth), params));
+}
+
+octomap::OcTreeKey keyOf(int x, int y, int z) {
+  return octomap::OcTreeKey(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y),
+                            static_cast<octomap::key_type>(z));
+}
+
+bool isExecutable(const std::string& path) {
+  return !path.empty() && ::access(path.c_str(), X_OK) == 0;
+}
+
+#define REQUIRE_GRAPH2TREE()                                                   \
+  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                         \
+    if (test::runningInCi()) FAIL() << "graph2tree missing under CI";          \
+    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";       \
+  }
+
+// graph2tree's .ot of OctoMap's sample scan, cut at every depth and rebuilt: byte-identical.
+TEST(StoreTiles, RoundTripOfGraph2treeMapIsByteIdentical) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::string graph = std::string(OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR)) +
+                            "/spherical_scan.graph";
+  const std::string ref = scratch / "ref.bt";
+  const RunResult g2t = runShell(quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) +
+                                     " -o " + quote(ref) + " -res 0.05",
+                                 scratch.dir());
+  ASSERT_EQ(g2t.exit_code, 0) << g2t.out << g2t.err;
+  const std::string expected = readFile(ref + ".ot");
+  std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(ref + ".ot"));
+  auto* tree = dynamic_cast<octomap::OcTree*>(read.get());
+  ASSERT_NE(tree, nullptr);
+  ASSERT_EQ(otBytes(*tree), expected);
+  for (unsigned depth : {1u, 4u, 6u, 8u, store::kTileDepth, 13u, 16u}) {
+    std::size_t tiles = 0;
+    EXPECT_EQ(roundTrip(*tree, depth, &tiles), expected) << "tile depth " << depth;
+    EXPECT_GT(tiles, 0u);
+  }
+}
+
+// Pruning across tiles: uniform regions larger than a tile are single leaves above the tile
+// depth in OctoMap's tree (tiles of their own), and 8 equal tile roots merge into their parent.
+TEST(StoreTiles, PruningAcrossTilesAsOctoMap) {
+  octomap::OcTree tree(0.1);
+  // A 16^3 cube of free cells (pruned to one leaf at depth 12), a 4^3 cube of occupied cells
+  // beside it (one leaf at depth 14), and scattered cells of both kinds.
+  for (int x = 0; x < 16; ++x)
+    for (int y = 0; y < 16; ++y)
+      for (int z = 0; z < 16; ++z)
+        tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), false);
+  for (int x = 16; x < 20; ++x)
+    for (int y = 0; y < 4; ++y)
+      for (int z = 0; z < 4; ++z)
+        tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), true);
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> cell(32700, 32840);
+  for (int i = 0; i < 3000; ++i)
+    tree.updateNode(keyOf(cell(rng), cell(rng), cell(rng)), i % 3 == 0);
+  // A cell flipped back: its cube is uniform again and OctoMap prunes it again.
+  tree.updateNode(keyOf(32770, 32770, 32770), true);
+  tree.updateNode(keyOf(32770, 32770, 32770), false);
+  const std::string expected = otBytes(tree);
+  for (unsigned depth = 1; depth <= 16; ++depth)
+    EXPECT_EQ(roundTrip(tree, depth, nullptr), expected) << "tile depth " << depth;
+  // A uniform 16^3 cube alone: one leaf at depth 12, a tile of its own above tile depth 14.
+  octomap::OcTree uniform(0.1);
+  for (int x = 0; x < 16; ++x)
+    for (int y = 0; y < 16; ++y)
+      for (int z = 0; z < 16; ++z) uniform.updateNode(keyOf(x, y, z), true);
+  const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(uniform), 14);
+  ASSERT_EQ(tiles.size(), 1u);
+  EXPECT_EQ(store::tileKeyDepth(tiles[0].key), 12u);
+  EXPECT_EQ(tiles[0].body.size(), 5u);
+  EXPECT_EQ(roundTrip(uniform, 14, nullptr), otBytes(uniform));
+  EXPECT_EQ(roundTrip(octomap::OcTree(0.1), 8, nullptr), otBytes(octomap::OcTree(0.1)));
+}
+
+// Tiles of a tree OctoMap left unpruned (lazy updates): the rebuilt tree is OctoMap's after
+// updateInnerOccupancy() and prune(): 8 equal tile roots become one leaf above them.
+TEST(StoreTiles, EqualSiblingTilesArePrunedAsOctoMapPrunes) {
+  octomap::OcTree lazy(0.1);
+  for (int i = 0; i < 8; ++i)  // 8 siblings at depth 16, then 8 at depth 16 under another parent
+    for (int base : {0, 64}) lazy.updateNode(keyOf(base + (i & 1), (i >> 1) & 1, i >> 2), true, true);
+  lazy.updateNode(keyOf(200, 0, 0), false, true);
+  const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(lazy), 16);
+  EXPECT_EQ(tiles.size(), 17u);
+  MapParams params;
+  params.resolution = 0.1;
+  const std::string rebuilt = otBytes(*store::ocTreeOf(store::treeFromTiles(tiles, 16), params));
+  lazy.updateInnerOccupancy();
+  lazy.prune();
+  EXPECT_EQ(rebuilt, otBytes(lazy));
+  EXPECT_EQ(store::tilesOf(hostTreeOf(lazy), 16).size(), 3u);  // two leaves at depth 15, one at 16
+}
+
+TEST(StoreTiles, KeysSortInNodeStreamOrderAndNameTheirCorner) {
+  const std::uint64_t a = store::tileKey(2, 0b000111);  // child 0, then 7
+  const std::uint64_t b = store::tileKey(1, 0b001);     // child 1
+  const std::uint64_t c = store::tileKey(2, 0b001000);  // child 1, then 0: after its parent
+  EXPECT_LT(a, b);
+  EXPECT_LT(b, c);
+  EXPECT_EQ(store::tileKeyDepth(c), 2u);
+  const Key corner = store::tileKeyCorner(store::tileKey(2, 0b111001));  // x y z, then x
+  EXPECT_EQ(corner, (Key{0x8000 | 0x4000, 0x8000, 0x8000}));
+}
+
+// A damaged body or key is an error naming the tile, never a wrong tree.
+TEST(StoreTiles, DamagedTilesAreRefusedWithTheirName) {
+  octomap::OcTree tree(0.1);
+  for (int i = 0; i < 50; ++i) tree.updateNode(keyOf(32768 + i, 32768, 32768), true);
+  std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(tree), 12);
+  ASSERT_GT(tiles.size(), 2u);
+  const auto refused = [&](std::vector<store::Tile> damaged, const std::string& why) {
+    try {
+      store::treeFromTiles(damaged, 12);
+      ADD_FAILURE() << "accepted: " << why;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kFormat);
+      EXPECT_NE(std::string(e.what()).find("tile "), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  auto cut = tiles;
+  cut[1].body.pop_back();
+  refused(cut, "runs past its end");
+  auto longer = tiles;
+  longer[1].body += "x";
+  refused(longer, "follow its last node record");
+  auto twice = tiles;
+  twice.push_back(tiles[0]);
+  refused(twice, "already covers");
+  auto nan = tiles;
+  const float bad = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(nan[0].body.data(), &bad, sizeof(float));
+  refused(nan, "not a finite number");
+  auto deep = tiles;
+  deep[0].key = store::tileKey(13, 0);
+  refused(deep, "no tile key");
+}
+
+}  // namespace
+}  // namespace octovk
