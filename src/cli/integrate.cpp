@@ -23,6 +23,7 @@
 #include "ply.hpp"
 #include "png.hpp"
 #include "report.hpp"
+#include "store.hpp"
 
 namespace octovk::cli {
 
@@ -219,6 +220,7 @@ void printIntegrateHelp(std::ostream& out) {
          "second)\n";
   printMaxDeviceMemoryHelp(out, "A scan");
   out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
+  IntegrateStore::printHelp(out);
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Values: '--name VALUE' or '--name=VALUE' ('--intrinsics=FX,FY,CX,CY').\n";
@@ -229,6 +231,7 @@ namespace {
 class Integrate final : public Command {
  public:
   bool option(const ParsedOption& opt) override {
+    if (store_->option(opt)) return true;  // --store, --map
     if (opt.name == "-r" || opt.name == "--resolution")
       params_.resolution = parseNumber(opt, "0.05");
     else if (opt.name == "-m" || opt.name == "--max-range")
@@ -287,6 +290,7 @@ class Integrate final : public Command {
   bool quiet_ = false;
   std::string changes_path_;                   ///< --changes
   std::optional<std::size_t> changes_output_;  ///< its index in the run's output files
+  std::unique_ptr<IntegrateStore> store_ = std::make_unique<IntegrateStore>();  ///< --store
 };
 
 void Integrate::check(Invocation& in) {
@@ -302,7 +306,7 @@ void Integrate::check(Invocation& in) {
       throw UsageError(camera_option_ + " applies to a TUM RGB-D folder; scan graph '" +
                        graph_path + "' holds 3D points already: leave " + camera_option_ + " out");
   }
-  in.checkOutputs();
+  if (!store_->enabled() || !in.outputs().empty()) in.checkOutputs();  // -o optional with --store
   if (!changes_path_.empty()) {
     checkOutputFile(changes_path_, {".ply"}, ".ply (ASCII PLY point cloud) for --changes");
     changes_output_ = in.addOptionOutput(changes_path_);
@@ -407,6 +411,7 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, const Sources& sources,
                                  scan.T_world_sensor, scan_);
       }
       if (at == 0) first_ticket = ticket;
+      store_->commit(map, input, at);  // --store: waits for the scan, commits it
       if (at % 256 == 255) totals.add(map.takeScanStats(), tum);
       progress.update(at + 1);
     }
@@ -437,7 +442,9 @@ int Integrate::run(Invocation& in) {
   std::cout << "device: " << context.device().name << " (" << context.device().type << ")"
             << std::endl;
 
+  store_->open(params_);  // --store: an existing map's parameters
   OccupancyMap map(context, params_);
+  store_->load(map);
   if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   const auto insert_start = Clock::now();
   const Totals totals = insert(map, sources, in.input());
@@ -447,7 +454,9 @@ int Integrate::run(Invocation& in) {
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
   if (changes_output_) changes = map.changedKeys();
-  const std::vector<std::size_t> file_nodes = writeOutputs(map, in, changes_output_, changes);
+  const bool writes = !in.outputs().empty() || changes_output_;  // none with --store alone
+  const std::vector<std::size_t> file_nodes =
+      writes ? writeOutputs(map, in, changes_output_, changes) : std::vector<std::size_t>{};
   const double total_s = secondsSince(run_start);
 
   const std::size_t scans = sources.count();
@@ -464,7 +473,7 @@ int Integrate::run(Invocation& in) {
             format("%.3f s, %.3f ms/scan (run total %.3f s, with reading and writing)", insert_s,
                    scans == 0 ? 0.0 : insert_s * 1e3 / static_cast<double>(scans), total_s))
       .line("nodes", std::to_string(nodes) + " in memory (graph2tree's 'Tree size')")
-      .line("file nodes", fileNodesText(in.outputs(), file_nodes))
+      .line("file nodes", writes ? fileNodesText(in.outputs(), file_nodes) : "no file (-o)")
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));
@@ -474,6 +483,7 @@ int Integrate::run(Invocation& in) {
     report.line("changes", format("%zu keys (%zu created, %zu flipped)", changes.size(), created,
                                   changes.size() - created));
   }
+  store_->report(report);
   report.wrote(in.outputs());
   if (changes_output_) report.wrote(changes_path_);
   return report.print();
@@ -493,7 +503,9 @@ std::vector<std::string> integrateValueOptions() {
                                     "--clamping-min",
                                     "--clamping-max",
                                     "--rays",
-                                    "--changes"};
+                                    "--changes",
+                                    "--store",
+                                    "--map"};
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
 }

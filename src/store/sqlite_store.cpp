@@ -100,6 +100,16 @@ class Statement {
 class SqliteStore final : public Store {
  public:
   SqliteStore(const std::string& path, bool create) : path_(path) {
+    try {
+      openAndCheck(create);
+    } catch (...) {
+      sqlite3_close(db_);
+      throw;
+    }
+  }
+
+  void openAndCheck(bool create) {
+    const std::string& path = path_;
     namespace fs = std::filesystem;
     std::error_code ec;
     if (!create && !fs::exists(path, ec))
@@ -123,8 +133,11 @@ class SqliteStore final : public Store {
     }
     if (version == 0) {
       // Not an octovk store yet: refuse a database that holds tables of something else.
-      Statement s(db_, "SELECT count(*) FROM sqlite_master", where("reading its tables"));
-      const std::int64_t objects = s.step() ? s.integer(0) : 0;
+      std::int64_t objects = 0;
+      {
+        Statement s(db_, "SELECT count(*) FROM sqlite_master", where("reading its tables"));
+        if (s.step()) objects = s.integer(0);
+      }
       if (objects != 0)
         throw Error(ErrorCode::kInvalidArgument,
                     "'" + path + "' is an SQLite database but no octovk store; give another file");
