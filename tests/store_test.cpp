@@ -216,3 +216,169 @@ TEST(StoreTiles, DamagedTilesAreRefusedWithTheirName) {
 
 }  // namespace
 }  // namespace octovk
+
+namespace octovk {
+namespace {
+
+using test::OctovkProcess;
+using test::pollUntil;
+
+// A small scan graph: `count` scans of a 4 x 3 x 2.5 m room's walls and floor (about 300 points
+// each) seen from poses along a line, `shift` moving the whole room.
+std::vector<GraphScan> roomScans(std::size_t count, float shift) {
+  std::vector<GraphScan> scans(count);
+  for (std::size_t s = 0; s < count; ++s) {
+    GraphScan& scan = scans[s];
+    const float t = 0.15f * static_cast<float>(s);
+    scan.T_world_sensor.translation = Eigen::Vector3f(t + shift, 0.2f * std::sin(t), 1.0f);
+    for (int i = 0; i < 300; ++i) {
+      const float u = static_cast<float>(i % 20) / 20.0f, v = static_cast<float>(i / 20) / 15.0f;
+      Eigen::Vector3f world;
+      switch (i % 3) {
+        case 0: world = {4.0f + shift, -1.5f + 3.0f * u, 2.5f * v}; break;
+        case 1: world = {4.0f * u + shift, 1.5f, 2.5f * v}; break;
+        default: world = {4.0f * u + shift, -1.5f + 3.0f * v, 0.0f}; break;
+      }
+      scan.points_sensor.push_back(world - scan.T_world_sensor.translation);
+    }
+  }
+  return scans;
+}
+
+void writeGraph(const std::string& path, const std::vector<GraphScan>& scans) {
+  writeScanGraph(path, scans.size(), [&](std::size_t i) { return scans[i]; });
+}
+
+// graph2tree's .ot of `graph` at 0.1 m (its X.bt.ot).
+std::string graph2treeOt(const std::string& graph, const Scratch& scratch) {
+  const std::string out = scratch / "graph2tree.bt";
+  const RunResult r = runShell(quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) +
+                                   " -o " + quote(out) + " -res 0.1",
+                               scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  return readFile(out + ".ot");
+}
+
+std::string exportOt(const std::string& store, const Scratch& scratch) {
+  const std::string out = scratch / "export.ot";
+  const RunResult r = runOctovk({"store", "export", store, "-o", out}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  return readFile(out);
+}
+
+// The summary's "store writes:" line: the bytes written per scan.
+void printStoreWrites(const std::string& summary) {
+  const std::size_t at = summary.find("store writes:");
+  ASSERT_NE(at, std::string::npos) << summary;
+  std::cout << "[ bytes    ] " << summary.substr(at, summary.find('\n', at) - at) << "\n";
+}
+
+TEST(StoreCli, ExportAfterIntegrateIsGraph2treesMap) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::string graph = scratch / "room.graph";
+  writeGraph(graph, roomScans(6, 0.0f));
+  const std::string store = scratch / "map.sqlite";
+  const RunResult r = runOctovk({"integrate", graph, "--store", store, "-r", "0.1", "-q"},
+                                scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  printStoreWrites(r.out);
+  const std::string expected = graph2treeOt(graph, scratch);
+  EXPECT_EQ(exportOt(store, scratch), expected);
+  // .bt too: OctoMap's writer, with the stored sensor model.
+  const RunResult bt = runOctovk({"store", "export", store, "-o", scratch / "e.bt"}, scratch.dir());
+  ASSERT_EQ(bt.exit_code, 0) << bt.err;
+  EXPECT_EQ(readFile(scratch / "e.bt"), readFile(scratch / "graph2tree.bt"));
+  const RunResult log = runOctovk({"store", "log", store}, scratch.dir());
+  ASSERT_EQ(log.exit_code, 0) << log.err;
+  std::string lines;
+  for (int i = 0; i < 6; ++i)
+    lines += std::to_string(i + 1) + " " + graph + " " + std::to_string(i) + "\n";
+  EXPECT_EQ(log.out, lines);
+}
+
+TEST(StoreCli, SecondRunContinuesTheMapAndKeepsItsResolution) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  const std::string store = scratch / "map.sqlite";
+  ASSERT_EQ(runOctovk({"integrate", graph_a, "--store", store, "-r", "0.1", "-q"}, scratch.dir())
+                .exit_code,
+            0);
+  // Another resolution is refused, and the store is left as it was.
+  const RunResult refused =
+      runOctovk({"integrate", graph_b, "--store", store, "-r", "0.05", "-q"}, scratch.dir());
+  test::expectOneErrorLine(refused, 2, {"--resolution 0.05", "resolution 0.1", store});
+  // No --resolution: the map's own; the run starts from the committed map.
+  const RunResult second =
+      runOctovk({"integrate", graph_b, "--store", store, "-q", "-o", scratch / "direct.ot"},
+                scratch.dir());
+  ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
+  EXPECT_NE(second.out.find("(continued): 3 scans committed"), std::string::npos) << second.out;
+  printStoreWrites(second.out);
+  std::vector<GraphScan> both = a;
+  both.insert(both.end(), b.begin(), b.end());
+  const std::string graph_both = scratch / "both.graph";
+  writeGraph(graph_both, both);
+  const std::string expected = graph2treeOt(graph_both, scratch);
+  EXPECT_EQ(exportOt(store, scratch), expected);
+  EXPECT_EQ(readFile(scratch / "direct.ot"), expected);  // the run's own map, loaded from the store
+  const RunResult log = runOctovk({"store", "log", store}, scratch.dir());
+  std::string lines;
+  for (int i = 0; i < 7; ++i)
+    lines += std::to_string(i + 1) + " " + (i < 4 ? graph_a : graph_b) + " " +
+             std::to_string(i < 4 ? i : i - 4) + "\n";
+  EXPECT_EQ(log.out, lines);
+}
+
+// A writer killed mid-run: the store holds exactly the scans its log lists, as OctoMap builds
+// them (graph2tree on a graph of those scans), and a later run goes on from there.
+TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::vector<GraphScan> scans = roomScans(120, 0.0f);
+  const std::string graph = scratch / "long.graph";
+  writeGraph(graph, scans);
+  const std::string path = scratch / "map.sqlite";
+  std::size_t committed = 0;
+  {
+    OctovkProcess writer({"integrate", graph, "--store", path, "-r", "0.1", "-q"}, scratch.dir());
+    ASSERT_TRUE(writer.started());
+    const bool some = pollUntil(
+        [&] {
+          try {
+            auto store = store::Store::open(path, false);
+            committed = store->map("default") ? store->log("default").size() : 0;
+          } catch (const Error&) {
+            committed = 0;  // not created yet
+          }
+          return committed >= 3;
+        },
+        std::chrono::seconds(120));
+    writer.signal(SIGKILL);
+    const RunResult r = writer.wait();
+    ASSERT_TRUE(some) << r.out << r.err;
+    EXPECT_EQ(r.exit_code, 128 + SIGKILL) << "the writer ended before it was killed: " << r.out;
+  }
+  auto store = store::Store::open(path, false);
+  const std::vector<store::LogEntry> log = store->log("default");
+  ASSERT_GE(log.size(), committed);
+  ASSERT_LT(log.size(), scans.size());
+  std::cout << "[ killed   ] after " << log.size() << " of " << scans.size()
+            << " scans committed\n";
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    EXPECT_EQ(log[i].seq, i + 1);
+    EXPECT_EQ(log[i].source, graph);
+    EXPECT_EQ(log[i].scan, i);
+  }
+  const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(log.size()));
+  const std::string graph_kept = scratch / "kept.graph";
+  writeGraph(graph_kept, kept);
+  EXPECT_EQ(exportOt(path, scratch), graph2treeOt(graph_kept, scratch));
+}
+
+}  // namespace
+}  // namespace octovk

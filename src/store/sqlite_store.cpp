@@ -138,9 +138,11 @@ class SqliteStore final : public Store {
         Statement s(db_, "SELECT count(*) FROM sqlite_master", where("reading its tables"));
         if (s.step()) objects = s.integer(0);
       }
-      if (objects != 0)
+      if (objects != 0 || !create)
         throw Error(ErrorCode::kInvalidArgument,
-                    "'" + path + "' is an SQLite database but no octovk store; give another file");
+                    "'" + path + "' is no octovk store (" +
+                        (objects != 0 ? "an SQLite database of something else" : "empty") +
+                        "); give the file 'octovk integrate ... --store' wrote");
       exec("PRAGMA journal_mode = WAL");
       exec("BEGIN IMMEDIATE");
       try {
