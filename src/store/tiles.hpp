@@ -18,10 +18,11 @@ class OcTree;
 
 namespace octovk::store {
 
-/// The depth (of OctoMap's 16) at which the map is cut. Depth 10 was measured against 8 on FR-079
-/// (docs/store.md, 'Tiles'): at 0.05 m a tile is a 3.2 m cube, and a scan rewrites about a third
-/// of the bytes it would with 12.8 m tiles.
-inline constexpr unsigned kTileDepth = 10;
+/// The depth (of OctoMap's 16) at which the map is cut: a tile is 16^3 finest cells (0.8 m at
+/// 0.05 m). Measured on FR-079's first 500 scans (docs/store.md, 'Tile depth'): a scan rewrites
+/// 85 KB at depth 12 against 214 KB at 10 and 390 KB at 8 (0.05 m), in 65 tiles; depth 13 halves
+/// the bytes again with 2.3x the tiles, too small a unit for a device's working set.
+inline constexpr unsigned kTileDepth = 12;
 /// The version of the tile key and body formats below; a store records it and refuses others.
 inline constexpr unsigned kTileFormat = 1;
 
