@@ -227,8 +227,11 @@ int runStoreActions(const std::vector<std::string>& args) {
   const std::string& action = args.front();
   if (action == "-h" || action == "--help" || action == "help") {
     printStoreHelp(std::cout);
+    std::cout << "\nExamples:\n";
+    for (const Subcommand& s : kActions) std::cout << s.examples;
     std::cout << "\n";
     printEnvironmentPointer(std::cout);
+    std::cout << "Details: docs/store.md.\n";
     return kExitOk;
   }
   for (const Subcommand& s : kActions)
@@ -323,11 +326,7 @@ void IntegrateStore::report(Report& report) const {
 }
 
 void IntegrateStore::printHelp(std::ostream& out) {
-  out << "      --store FILE       also keep the map in a store (an SQLite file, created if\n"
-         "                         missing): read from it first, each scan committed to it with\n"
-         "                         its log row; -o is then optional (see 'octovk store --help')\n"
-         "      --map NAME         the store's map (default: default); a map keeps its\n"
-         "                         resolution and sensor model: other values are refused\n";
+  out << "      --store FILE       keep the map in a store too, scan by scan (--map NAME: which)\n";
 }
 
 }  // namespace octovk::cli
