@@ -382,3 +382,39 @@ TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
 
 }  // namespace
 }  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// The back end itself: a commit whose sequence number is not the next one (another writer came
+// first) is refused and writes nothing; a file that is no store is refused by name.
+TEST(StoreBackEnd, StaleCommitIsRefusedAndWritesNothing) {
+  Scratch scratch("store");
+  const std::string path = scratch / "s.sqlite";
+  auto store = store::Store::open(path, true);
+  MapParams params;
+  params.resolution = 0.2;
+  store->createMap("m", params);
+  const std::vector<store::Tile> one = {{store::tileKey(12, 5), std::string(5, '\0')}};
+  store->commit("m", one, {}, {1, "a.graph", 0, 1});
+  const std::vector<store::Tile> two = {{store::tileKey(12, 6), std::string(5, '\0')}};
+  try {
+    store->commit("m", two, {}, {1, "b.graph", 0, 2});  // seq 1 again: stale
+    ADD_FAILURE() << "a stale commit was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("another writer"), std::string::npos) << e.what();
+  }
+  std::uint64_t seq = 0;
+  EXPECT_EQ(store->tiles("m", &seq), one);
+  EXPECT_EQ(seq, 1u);
+  ASSERT_EQ(store->log("m").size(), 1u);
+  EXPECT_EQ(store->map("m")->params.resolution, 0.2);
+  store.reset();
+  { std::ofstream(scratch / "empty.sqlite"); }
+  EXPECT_THROW(store::Store::open(scratch / "empty.sqlite", false), Error);
+  EXPECT_THROW(store::Store::open(scratch / "missing.sqlite", false), Error);
+}
+
+}  // namespace
+}  // namespace octovk
