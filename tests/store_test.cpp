@@ -418,3 +418,61 @@ TEST(StoreBackEnd, StaleCommitIsRefusedAndWritesNothing) {
 
 }  // namespace
 }  // namespace octovk
+
+#ifdef OCTOVK_STORE_POSTGRES_TESTS
+// Against a real PostgreSQL server, which tests/store_postgres.sh starts (its own binary: these
+// tests are run only by that script, never skipped).
+namespace octovk {
+namespace {
+
+std::string postgresUri() {
+  const char* uri = std::getenv("OCTOVK_TEST_POSTGRES");
+  return uri ? uri : "";
+}
+
+TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
+  REQUIRE_GRAPH2TREE();
+  const std::string uri = postgresUri();
+  ASSERT_FALSE(uri.empty()) << "run through tests/store_postgres.sh, which starts the server";
+  Scratch scratch("store");
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  const std::string map = "room" + std::to_string(::getpid());
+  const RunResult first =
+      runOctovk({"integrate", graph_a, "--store", uri, "--map", map, "-r", "0.1", "-q"},
+                scratch.dir());
+  ASSERT_EQ(first.exit_code, 0) << first.out << first.err;
+  printStoreWrites(first.out);
+  const std::string out_a = scratch / "a.ot";
+  ASSERT_EQ(runOctovk({"store", "export", uri, "--map", map, "-o", out_a}, scratch.dir()).exit_code,
+            0);
+  EXPECT_EQ(readFile(out_a), graph2treeOt(graph_a, scratch));
+  const RunResult second =
+      runOctovk({"integrate", graph_b, "--store", uri, "--map", map, "-q"}, scratch.dir());
+  ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
+  EXPECT_NE(second.out.find("(continued): 3 scans committed"), std::string::npos) << second.out;
+  printStoreWrites(second.out);
+  std::vector<GraphScan> both = a;
+  both.insert(both.end(), b.begin(), b.end());
+  writeGraph(scratch / "both.graph", both);
+  const std::string out = scratch / "both.ot";
+  ASSERT_EQ(runOctovk({"store", "export", uri, "--map", map, "-o", out}, scratch.dir()).exit_code,
+            0);
+  EXPECT_EQ(readFile(out), graph2treeOt(scratch / "both.graph", scratch));
+  const RunResult log = runOctovk({"store", "log", uri, "--map", map}, scratch.dir());
+  EXPECT_EQ(std::count(log.out.begin(), log.out.end(), '\n'), 7) << log.out;
+  const RunResult info = runOctovk({"store", "info", uri}, scratch.dir());
+  EXPECT_NE(info.out.find("(PostgreSQL)"), std::string::npos) << info.out;
+  // A stale commit is refused there too, and writes nothing.
+  auto store = store::Store::open(uri, false);
+  const std::vector<store::Tile> tile = {{store::tileKey(12, 9), std::string(5, '\0')}};
+  EXPECT_THROW(store->commit(map, tile, {}, {3, "x", 0, 0}), Error);
+  EXPECT_EQ(store->log(map).size(), 7u);
+  EXPECT_EQ(store->map(map)->last_seq, 7u);
+}
+
+}  // namespace
+}  // namespace octovk
+#endif

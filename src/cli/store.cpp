@@ -23,6 +23,7 @@ constexpr const char* kDefaultMap = "default";
 
 void checkStoreInput(const std::string& path, const std::string& usage) {
   if (path.empty()) throw UsageError("no store given; usage: " + usage);
+  if (store::isPostgresLocation(path)) return;  // a server's, not a file
   checkRegularInput(path, "store", "give the SQLite file 'octovk integrate ... --store' wrote");
 }
 
@@ -151,7 +152,11 @@ class StoreInfo final : public Command {
     const auto store = store::Store::open(in.input(), /*create=*/false);
     const std::vector<store::MapInfo> maps = store->maps();
     Report report(10);
-    report.line("store", in.input() + format(" (SQLite), %zu map(s)", maps.size()));
+    report.line("store", store->location() + format(" (%s), %zu map(s)",
+                                                   store::isPostgresLocation(in.input())
+                                                       ? "PostgreSQL"
+                                                       : "SQLite",
+                                                   maps.size()));
     for (const store::MapInfo& m : maps) {
       const MapParams& p = m.params;
       report.line("map", m.name)
@@ -279,7 +284,7 @@ void IntegrateStore::open(MapParams& params) {
       if (name == option || (std::string(option) == "--resolution" && name == "-r"))
         throw UsageError(format("%s %g: map '%s' of store '%s' has %s %g; give that or leave "
                                 "%s out (a map keeps its parameters)",
-                                option, given, map_name_.c_str(), path_.c_str(), option + 2, kept,
+                                option, given, map_name_.c_str(), store_->location().c_str(), option + 2, kept,
                                 option));
   };
   refuse("--resolution", params.resolution, stored.resolution);
@@ -316,7 +321,7 @@ void IntegrateStore::commit(OccupancyMap& map, const std::string& source, std::s
 void IntegrateStore::report(Report& report) const {
   if (!writer_) return;
   const double per_scan = scans_ == 0 ? 0.0 : 1.0 / static_cast<double>(scans_);
-  report.line("store", format("%s, map '%s' (%s): %zu scans committed", path_.c_str(),
+  report.line("store", format("%s, map '%s' (%s): %zu scans committed", store_->location().c_str(),
                               map_name_.c_str(), existed_ ? "continued" : "created", scans_))
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "

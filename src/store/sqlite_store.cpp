@@ -340,11 +340,7 @@ class SqliteStore final : public Store {
 }  // namespace
 
 std::unique_ptr<Store> Store::open(const std::string& location, bool create) {
-  if (location.rfind("postgresql://", 0) == 0 || location.rfind("postgres://", 0) == 0)
-    throw Error(ErrorCode::kInvalidArgument,
-                "store '" + location +
-                    "': the PostgreSQL back end is not built yet; give an SQLite file "
-                    "(--store map.sqlite)");
+  if (isPostgresLocation(location)) return openPostgresStore(location);
   return std::make_unique<SqliteStore>(location, create);
 }
 

@@ -54,7 +54,8 @@ struct CommitStats {
 class Store {
  public:
   virtual ~Store() = default;
-  /// The store at `location`: an SQLite file (created when `create` and missing).
+  /// The store at `location`: a PostgreSQL connection URI (postgresql://...), or an SQLite file
+  /// (created when `create` and missing).
   static std::unique_ptr<Store> open(const std::string& location, bool create);
 
   /// How messages name the store ("map.sqlite").
@@ -72,6 +73,11 @@ class Store {
   virtual void commit(const std::string& name, std::span<const Tile> changed,
                       std::span<const std::uint64_t> removed, const LogEntry& entry) = 0;
 };
+
+/// Whether `location` names a PostgreSQL store (postgresql://... or postgres://...).
+bool isPostgresLocation(const std::string& location);
+/// The PostgreSQL store at `location`, a libpq connection URI (its schema created when missing).
+std::unique_ptr<Store> openPostgresStore(const std::string& location);
 
 /// A map in a store, written after each scan: keeps a hash of each committed tile to find the
 /// tiles a scan changed.
