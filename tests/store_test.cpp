@@ -1,6 +1,8 @@
 // The map store (issue 31): tiles and the tree rebuilt from them against OctoMap's own trees
 // (graph2tree's files, trees built with OctoMap), and the SQLite store through the program against
 // graph2tree: export after integrate --store, a second run continuing the map, a killed writer.
+#include "store/store.hpp"
+
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
 #include <signal.h>
@@ -8,16 +10,15 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 #include <limits>
-#include <cstdio>
 #include <random>
 #include <sstream>
 #include <thread>
 
 #include "cli_support.hpp"
 #include "octovk/octomap_io.hpp"
-#include "store/store.hpp"
 #include "store/tiles.hpp"
 #include "test_support.hpp"
 
@@ -26,8 +27,8 @@ namespace {
 
 using test::quote;
 using test::readFile;
-using test::RunResult;
 using test::runOctovk;
+using test::RunResult;
 using test::runShell;
 using test::Scratch;
 
@@ -85,18 +86,18 @@ bool isExecutable(const std::string& path) {
   return !path.empty() && ::access(path.c_str(), X_OK) == 0;
 }
 
-#define REQUIRE_GRAPH2TREE()                                                   \
-  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                         \
-    if (test::runningInCi()) FAIL() << "graph2tree missing under CI";          \
-    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";       \
+#define REQUIRE_GRAPH2TREE()                                             \
+  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                   \
+    if (test::runningInCi()) FAIL() << "graph2tree missing under CI";    \
+    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools"; \
   }
 
 // graph2tree's .ot of OctoMap's sample scan, cut at every depth and rebuilt: byte-identical.
 TEST(StoreTiles, RoundTripOfGraph2treeMapIsByteIdentical) {
   REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
-  const std::string graph = std::string(OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR)) +
-                            "/spherical_scan.graph";
+  const std::string graph =
+      std::string(OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR)) + "/spherical_scan.graph";
   const std::string ref = scratch / "ref.bt";
   const RunResult g2t = runShell(quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) +
                                      " -o " + quote(ref) + " -res 0.05",
@@ -122,12 +123,10 @@ TEST(StoreTiles, PruningAcrossTilesAsOctoMap) {
   // beside it (one leaf at depth 14), and scattered cells of both kinds.
   for (int x = 0; x < 16; ++x)
     for (int y = 0; y < 16; ++y)
-      for (int z = 0; z < 16; ++z)
-        tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), false);
+      for (int z = 0; z < 16; ++z) tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), false);
   for (int x = 16; x < 20; ++x)
     for (int y = 0; y < 4; ++y)
-      for (int z = 0; z < 4; ++z)
-        tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), true);
+      for (int z = 0; z < 4; ++z) tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), true);
   std::mt19937 rng(7);
   std::uniform_int_distribution<int> cell(32700, 32840);
   for (int i = 0; i < 3000; ++i)
@@ -156,7 +155,8 @@ TEST(StoreTiles, PruningAcrossTilesAsOctoMap) {
 TEST(StoreTiles, EqualSiblingTilesArePrunedAsOctoMapPrunes) {
   octomap::OcTree lazy(0.1);
   for (int i = 0; i < 8; ++i)  // 8 siblings at depth 16, then 8 at depth 16 under another parent
-    for (int base : {0, 64}) lazy.updateNode(keyOf(base + (i & 1), (i >> 1) & 1, i >> 2), true, true);
+    for (int base : {0, 64})
+      lazy.updateNode(keyOf(base + (i & 1), (i >> 1) & 1, i >> 2), true, true);
   lazy.updateNode(keyOf(200, 0, 0), false, true);
   const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(lazy), 16);
   EXPECT_EQ(tiles.size(), 17u);
@@ -235,9 +235,15 @@ std::vector<GraphScan> roomScans(std::size_t count, float shift) {
       const float u = static_cast<float>(i % 20) / 20.0f, v = static_cast<float>(i / 20) / 15.0f;
       Eigen::Vector3f world;
       switch (i % 3) {
-        case 0: world = {4.0f + shift, -1.5f + 3.0f * u, 2.5f * v}; break;
-        case 1: world = {4.0f * u + shift, 1.5f, 2.5f * v}; break;
-        default: world = {4.0f * u + shift, -1.5f + 3.0f * v, 0.0f}; break;
+        case 0:
+          world = {4.0f + shift, -1.5f + 3.0f * u, 2.5f * v};
+          break;
+        case 1:
+          world = {4.0f * u + shift, 1.5f, 2.5f * v};
+          break;
+        default:
+          world = {4.0f * u + shift, -1.5f + 3.0f * v, 0.0f};
+          break;
       }
       scan.points_sensor.push_back(world - scan.T_world_sensor.translation);
     }
@@ -279,8 +285,8 @@ TEST(StoreCli, ExportAfterIntegrateIsGraph2treesMap) {
   const std::string graph = scratch / "room.graph";
   writeGraph(graph, roomScans(6, 0.0f));
   const std::string store = scratch / "map.sqlite";
-  const RunResult r = runOctovk({"integrate", graph, "--store", store, "-r", "0.1", "-q"},
-                                scratch.dir());
+  const RunResult r =
+      runOctovk({"integrate", graph, "--store", store, "-r", "0.1", "-q"}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   printStoreWrites(r.out);
   const std::string expected = graph2treeOt(graph, scratch);
@@ -313,9 +319,8 @@ TEST(StoreCli, SecondRunContinuesTheMapAndKeepsItsResolution) {
       runOctovk({"integrate", graph_b, "--store", store, "-r", "0.05", "-q"}, scratch.dir());
   test::expectOneErrorLine(refused, 2, {"--resolution 0.05", "resolution 0.1", store});
   // No --resolution: the map's own; the run starts from the committed map.
-  const RunResult second =
-      runOctovk({"integrate", graph_b, "--store", store, "-q", "-o", scratch / "direct.ot"},
-                scratch.dir());
+  const RunResult second = runOctovk(
+      {"integrate", graph_b, "--store", store, "-q", "-o", scratch / "direct.ot"}, scratch.dir());
   ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
   EXPECT_NE(second.out.find("(continued): 3 scans committed"), std::string::npos) << second.out;
   printStoreWrites(second.out);
@@ -440,9 +445,8 @@ TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
   writeGraph(graph_a, a);
   writeGraph(graph_b, b);
   const std::string map = "room" + std::to_string(::getpid());
-  const RunResult first =
-      runOctovk({"integrate", graph_a, "--store", uri, "--map", map, "-r", "0.1", "-q"},
-                scratch.dir());
+  const RunResult first = runOctovk(
+      {"integrate", graph_a, "--store", uri, "--map", map, "-r", "0.1", "-q"}, scratch.dir());
   ASSERT_EQ(first.exit_code, 0) << first.out << first.err;
   printStoreWrites(first.out);
   const std::string out_a = scratch / "a.ot";

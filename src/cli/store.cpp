@@ -61,9 +61,9 @@ class StoreExport final : public Command {
     const auto store = store::Store::open(in.input(), /*create=*/false);
     const std::optional<store::MapInfo> info = store->map(map_);
     if (!info)
-      throw Error(ErrorCode::kInvalidArgument,
-                  "store '" + in.input() + "' holds no map '" + map_ + "'; 'octovk store info " +
-                      in.input() + "' lists its maps");
+      throw Error(ErrorCode::kInvalidArgument, "store '" + in.input() + "' holds no map '" + map_ +
+                                                   "'; 'octovk store info " + in.input() +
+                                                   "' lists its maps");
     const HostTree tree = store::loadTree(*store, map_);
     std::size_t nodes = 0;
     {
@@ -72,8 +72,10 @@ class StoreExport final : public Command {
         std::unique_ptr<octomap::OcTree> ot = store::ocTreeOf(tree, info->params);
         std::ofstream out(temporary, std::ios_base::binary | std::ios_base::trunc);
         if (!out.is_open())
-          throw Error(ErrorCode::kIo, "cannot write '" + in.output() + "': " + std::strerror(errno));
-        bool ok = fs::path(in.output()).extension() == ".bt" ? ot->writeBinary(out) : ot->write(out);
+          throw Error(ErrorCode::kIo,
+                      "cannot write '" + in.output() + "': " + std::strerror(errno));
+        bool ok =
+            fs::path(in.output()).extension() == ".bt" ? ot->writeBinary(out) : ot->write(out);
         out.close();
         if (!ok || !out.good())
           throw Error(ErrorCode::kIo,
@@ -83,8 +85,9 @@ class StoreExport final : public Command {
     }
     in.files().commit();
     Report report(10);
-    report.line("map", map_ + format(" (resolution %g m), %llu scans", info->params.resolution,
-                                     static_cast<unsigned long long>(info->scans)))
+    report
+        .line("map", map_ + format(" (resolution %g m), %llu scans", info->params.resolution,
+                                   static_cast<unsigned long long>(info->scans)))
         .line("nodes", std::to_string(nodes) + " in the file")
         .wrote(in.output());
     return report.print();
@@ -101,7 +104,8 @@ void printStoreLogHelp(std::ostream& out) {
          "\n"
          "Prints the committed scans of a map, one line each, in commit order:\n"
          "  SEQ SOURCE SCAN\n"
-         "SEQ counts the map's commits from 1, SOURCE is the input as integrate was given it, SCAN\n"
+         "SEQ counts the map's commits from 1, SOURCE is the input as integrate was given it, "
+         "SCAN\n"
          "the scan's 0-based index in it.\n"
          "\n"
          "Options:\n"
@@ -124,8 +128,8 @@ class StoreLog final : public Command {
     for (const store::LogEntry& e : store->log(map_))
       std::cout << e.seq << ' ' << e.source << ' ' << e.scan << '\n';
     if (!flushStdout())
-      throw Error(ErrorCode::kIo, std::string("cannot write the log to standard output: ") +
-                                      std::strerror(errno));
+      throw Error(ErrorCode::kIo,
+                  std::string("cannot write the log to standard output: ") + std::strerror(errno));
     return kExitOk;
   }
 
@@ -152,11 +156,10 @@ class StoreInfo final : public Command {
     const auto store = store::Store::open(in.input(), /*create=*/false);
     const std::vector<store::MapInfo> maps = store->maps();
     Report report(10);
-    report.line("store", store->location() + format(" (%s), %zu map(s)",
-                                                   store::isPostgresLocation(in.input())
-                                                       ? "PostgreSQL"
-                                                       : "SQLite",
-                                                   maps.size()));
+    report.line("store", store->location() +
+                             format(" (%s), %zu map(s)",
+                                    store::isPostgresLocation(in.input()) ? "PostgreSQL" : "SQLite",
+                                    maps.size()));
     for (const store::MapInfo& m : maps) {
       const MapParams& p = m.params;
       report.line("map", m.name)
@@ -164,9 +167,9 @@ class StoreInfo final : public Command {
                                    "occupancy threshold %g",
                                    p.resolution, p.prob_hit, p.prob_miss, p.clamping_min,
                                    p.clamping_max, p.occupancy_threshold))
-          .line("  scans", format("%llu committed (last seq %llu)",
-                                  static_cast<unsigned long long>(m.scans),
-                                  static_cast<unsigned long long>(m.last_seq)))
+          .line("  scans",
+                format("%llu committed (last seq %llu)", static_cast<unsigned long long>(m.scans),
+                       static_cast<unsigned long long>(m.last_seq)))
           .line("  tiles", format("%llu, %s of node records, depth %u",
                                   static_cast<unsigned long long>(m.tiles),
                                   mib(m.tile_bytes).c_str(), m.tile_depth));
@@ -227,8 +230,9 @@ void printStoreHelp(std::ostream& out) {
 
 int runStoreActions(const std::vector<std::string>& args) {
   if (args.empty())
-    throw UsageError("no action given; usage: octovk store export|log|info STORE (see 'octovk "
-                     "store --help')");
+    throw UsageError(
+        "no action given; usage: octovk store export|log|info STORE (see 'octovk "
+        "store --help')");
   const std::string& action = args.front();
   if (action == "-h" || action == "--help" || action == "help") {
     printStoreHelp(std::cout);
@@ -262,8 +266,8 @@ bool IntegrateStore::option(const ParsedOption& opt) {
     map_name_ = opt.value;
     return true;
   }
-  for (const char* name : {"-r", "--resolution", "--prob-hit", "--prob-miss", "--clamping-min",
-                           "--clamping-max"})
+  for (const char* name :
+       {"-r", "--resolution", "--prob-hit", "--prob-miss", "--clamping-min", "--clamping-max"})
     if (opt.name == name) sensor_options_.push_back(opt.name);
   return false;
 }
@@ -271,8 +275,9 @@ bool IntegrateStore::option(const ParsedOption& opt) {
 void IntegrateStore::open(MapParams& params) {
   if (!enabled()) return;
   if (params.payload != Payload::kNone)
-    throw UsageError("--store keeps plain occupancy maps only; leave out the colour or stamp "
-                     "options");
+    throw UsageError(
+        "--store keeps plain occupancy maps only; leave out the colour or stamp "
+        "options");
   store_ = store::Store::open(path_, /*create=*/true);
   writer_ = std::make_unique<store::MapWriter>(*store_, map_name_, params);
   existed_ = writer_->existed();
@@ -282,10 +287,11 @@ void IntegrateStore::open(MapParams& params) {
     if (given == kept) return;
     for (const std::string& name : sensor_options_)
       if (name == option || (std::string(option) == "--resolution" && name == "-r"))
-        throw UsageError(format("%s %g: map '%s' of store '%s' has %s %g; give that or leave "
-                                "%s out (a map keeps its parameters)",
-                                option, given, map_name_.c_str(), store_->location().c_str(), option + 2, kept,
-                                option));
+        throw UsageError(
+            format("%s %g: map '%s' of store '%s' has %s %g; give that or leave "
+                   "%s out (a map keeps its parameters)",
+                   option, given, map_name_.c_str(), store_->location().c_str(), option + 2, kept,
+                   option));
   };
   refuse("--resolution", params.resolution, stored.resolution);
   refuse("--prob-hit", params.prob_hit, stored.prob_hit);
@@ -321,8 +327,9 @@ void IntegrateStore::commit(OccupancyMap& map, const std::string& source, std::s
 void IntegrateStore::report(Report& report) const {
   if (!writer_) return;
   const double per_scan = scans_ == 0 ? 0.0 : 1.0 / static_cast<double>(scans_);
-  report.line("store", format("%s, map '%s' (%s): %zu scans committed", store_->location().c_str(),
-                              map_name_.c_str(), existed_ ? "continued" : "created", scans_))
+  report
+      .line("store", format("%s, map '%s' (%s): %zu scans committed", store_->location().c_str(),
+                            map_name_.c_str(), existed_ ? "continued" : "created", scans_))
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
                    "%zu bytes), %.3f s committing",

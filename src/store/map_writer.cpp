@@ -16,9 +16,9 @@ std::uint64_t bodyHash(const std::string& body) {
 HostTree loadTree(Store& store, const std::string& name) {
   const std::optional<MapInfo> info = store.map(name);
   if (!info)
-    throw Error(ErrorCode::kInvalidArgument,
-                "store '" + store.location() + "' holds no map '" + name +
-                    "'; 'octovk store info " + store.location() + "' lists its maps");
+    throw Error(ErrorCode::kInvalidArgument, "store '" + store.location() + "' holds no map '" +
+                                                 name + "'; 'octovk store info " +
+                                                 store.location() + "' lists its maps");
   const std::vector<Tile> tiles = store.tiles(name, nullptr);
   try {
     return treeFromTiles(tiles, info->tile_depth);

@@ -60,7 +60,8 @@ class Result {
   Result& operator=(const Result&) = delete;
   int rows() const { return PQntuples(r_); }
   std::string text(int row, int col) const {
-    return std::string(PQgetvalue(r_, row, col), static_cast<std::size_t>(PQgetlength(r_, row, col)));
+    return std::string(PQgetvalue(r_, row, col),
+                       static_cast<std::size_t>(PQgetlength(r_, row, col)));
   }
   std::int64_t integer(int row, int col) const { return std::stoll(text(row, col)); }
   double real(int row, int col) const { return std::stod(text(row, col)); }
@@ -88,9 +89,9 @@ class PostgresStore final : public Store {
       if (v.rows() == 0) {
         exec("INSERT INTO octovk_schema VALUES (" + std::to_string(kSchemaVersion) + ")");
       } else if (v.integer(0, 0) != kSchemaVersion) {
-        throw Error(ErrorCode::kInvalidArgument,
-                    "store '" + name_ + "' has schema version " + v.text(0, 0) +
-                        ", this octovk reads version " + std::to_string(kSchemaVersion));
+        throw Error(ErrorCode::kInvalidArgument, "store '" + name_ + "' has schema version " +
+                                                     v.text(0, 0) + ", this octovk reads version " +
+                                                     std::to_string(kSchemaVersion));
       }
       exec("COMMIT");
     } catch (...) {
@@ -111,14 +112,15 @@ class PostgresStore final : public Store {
   }
 
   std::optional<MapInfo> map(const std::string& name) override {
-    Result r(query("SELECT resolution, prob_hit, prob_miss, clamping_min, clamping_max, "
-                   "occupancy_threshold, tile_depth, tile_format, "
-                   "(SELECT count(*) FROM tiles t WHERE t.map = m.id), "
-                   "(SELECT coalesce(sum(length(body)), 0) FROM tiles t WHERE t.map = m.id), "
-                   "(SELECT count(*) FROM log l WHERE l.map = m.id), "
-                   "(SELECT coalesce(max(seq), 0) FROM log l WHERE l.map = m.id) "
-                   "FROM maps m WHERE name = $1",
-                   {name}));
+    Result r(
+        query("SELECT resolution, prob_hit, prob_miss, clamping_min, clamping_max, "
+              "occupancy_threshold, tile_depth, tile_format, "
+              "(SELECT count(*) FROM tiles t WHERE t.map = m.id), "
+              "(SELECT coalesce(sum(length(body)), 0) FROM tiles t WHERE t.map = m.id), "
+              "(SELECT count(*) FROM log l WHERE l.map = m.id), "
+              "(SELECT coalesce(max(seq), 0) FROM log l WHERE l.map = m.id) "
+              "FROM maps m WHERE name = $1",
+              {name}));
     if (r.rows() == 0) return std::nullopt;
     MapInfo info;
     info.name = name;
@@ -146,13 +148,14 @@ class PostgresStore final : public Store {
       std::snprintf(text, sizeof(text), "%.17g", v);
       return std::string(text);
     };
-    Result r(query("INSERT INTO maps (name, resolution, prob_hit, prob_miss, clamping_min, "
-                   "clamping_max, occupancy_threshold, tile_depth, tile_format) "
-                   "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) ON CONFLICT (name) DO NOTHING "
-                   "RETURNING id",
-                   {name, num(p.resolution), num(p.prob_hit), num(p.prob_miss),
-                    num(p.clamping_min), num(p.clamping_max), num(p.occupancy_threshold),
-                    std::to_string(kTileDepth), std::to_string(kTileFormat)}));
+    Result r(
+        query("INSERT INTO maps (name, resolution, prob_hit, prob_miss, clamping_min, "
+              "clamping_max, occupancy_threshold, tile_depth, tile_format) "
+              "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) ON CONFLICT (name) DO NOTHING "
+              "RETURNING id",
+              {name, num(p.resolution), num(p.prob_hit), num(p.prob_miss), num(p.clamping_min),
+               num(p.clamping_max), num(p.occupancy_threshold), std::to_string(kTileDepth),
+               std::to_string(kTileFormat)}));
     if (r.rows() == 0)
       throw Error(ErrorCode::kInvalidArgument,
                   "store '" + name_ + "' already holds a map '" + name + "'");
@@ -166,10 +169,10 @@ class PostgresStore final : public Store {
       std::vector<Tile> out;
       {
         const char* values[] = {id.c_str()};
-        Result r(check(PQexecParams(conn_,
-                                    "SELECT key, body FROM tiles WHERE map = $1 ORDER BY key", 1,
-                                    nullptr, values, nullptr, nullptr, /*binary results=*/1),
-                       "reading the tiles of map '" + name + "'"));
+        Result r(
+            check(PQexecParams(conn_, "SELECT key, body FROM tiles WHERE map = $1 ORDER BY key", 1,
+                               nullptr, values, nullptr, nullptr, /*binary results=*/1),
+                  "reading the tiles of map '" + name + "'"));
         out.reserve(static_cast<std::size_t>(r.rows()));
         for (int i = 0; i < r.rows(); ++i) {
           const std::string key = r.text(i, 0);  // int8, network order
@@ -222,18 +225,18 @@ class PostgresStore final : public Store {
         const int lengths[] = {0, 0, 0, static_cast<int>(t.body.size())};
         const int formats[] = {0, 0, 0, 1};
         PQclear(check(PQexecParams(conn_,
-                                  "INSERT INTO tiles (map, key, version, body) VALUES "
-                                  "($1, $2, $3, $4) ON CONFLICT (map, key) DO UPDATE SET "
-                                  "version = EXCLUDED.version, body = EXCLUDED.body",
-                                  4, nullptr, values, lengths, formats, 0),
-                     "writing scan " + seq + " of map '" + name + "'"));
+                                   "INSERT INTO tiles (map, key, version, body) VALUES "
+                                   "($1, $2, $3, $4) ON CONFLICT (map, key) DO UPDATE SET "
+                                   "version = EXCLUDED.version, body = EXCLUDED.body",
+                                   4, nullptr, values, lengths, formats, 0),
+                      "writing scan " + seq + " of map '" + name + "'"));
       }
       for (const std::uint64_t key : removed)
         PQclear(query("DELETE FROM tiles WHERE map = $1 AND key = $2",
-                     {id, std::to_string(static_cast<std::int64_t>(key))}));
-      PQclear(query("INSERT INTO log (map, seq, source, scan, time_us) VALUES ($1,$2,$3,$4,$5)",
-                   {id, seq, entry.source, std::to_string(entry.scan),
-                    std::to_string(entry.time_us)}));
+                      {id, std::to_string(static_cast<std::int64_t>(key))}));
+      PQclear(query(
+          "INSERT INTO log (map, seq, source, scan, time_us) VALUES ($1,$2,$3,$4,$5)",
+          {id, seq, entry.source, std::to_string(entry.scan), std::to_string(entry.time_us)}));
       exec("COMMIT");
     } catch (...) {
       PQclear(PQexec(conn_, "ROLLBACK"));
@@ -258,7 +261,10 @@ class PostgresStore final : public Store {
   }
 
   void exec(const std::string& sql) {
-    PQclear(check(PQexec(conn_, sql.c_str()), "'" + sql.substr(0, 40) + "'"));
+    std::string what = "'";  // built in steps: GCC 12 warns (-Wrestrict) on "'" + substr + "'"
+    what += sql.substr(0, 40);
+    what += '\'';
+    PQclear(check(PQexec(conn_, sql.c_str()), what));
   }
 
   PGresult* query(const char* sql, const std::vector<std::string>& params) {
@@ -272,9 +278,9 @@ class PostgresStore final : public Store {
   std::string mapId(const std::string& name) {
     Result r(query("SELECT id FROM maps WHERE name = $1", {name}));
     if (r.rows() == 0)
-      throw Error(ErrorCode::kInvalidArgument,
-                  "store '" + name_ + "' holds no map '" + name + "'; 'octovk store info " +
-                      name_ + "' lists its maps");
+      throw Error(ErrorCode::kInvalidArgument, "store '" + name_ + "' holds no map '" + name +
+                                                   "'; 'octovk store info " + name_ +
+                                                   "' lists its maps");
     return r.text(0, 0);
   }
 

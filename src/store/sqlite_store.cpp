@@ -116,8 +116,8 @@ class SqliteStore final : public Store {
       throw Error(ErrorCode::kInvalidArgument,
                   "store '" + path + "' does not exist; 'octovk integrate INPUT --store " + path +
                       "' creates it");
-    const int flags = SQLITE_OPEN_READWRITE | (create ? SQLITE_OPEN_CREATE : 0) |
-                      SQLITE_OPEN_NOMUTEX;
+    const int flags =
+        SQLITE_OPEN_READWRITE | (create ? SQLITE_OPEN_CREATE : 0) | SQLITE_OPEN_NOMUTEX;
     if (sqlite3_open_v2(path.c_str(), &db_, flags, nullptr) != SQLITE_OK) {
       const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
       sqlite3_close(db_);
@@ -276,8 +276,8 @@ class SqliteStore final : public Store {
                         std::to_string(entry.seq - 1) +
                         "); octovk does not merge concurrent writers yet: run them one after "
                         "the other");
-      const std::string at = where("writing scan " + std::to_string(entry.seq) + " of map '" +
-                                   name + "'");
+      const std::string at =
+          where("writing scan " + std::to_string(entry.seq) + " of map '" + name + "'");
       Statement put(db_, "INSERT OR REPLACE INTO tiles (map, key, version, body) VALUES (?,?,?,?)",
                     at);
       for (const Tile& t : changed) {
@@ -303,9 +303,7 @@ class SqliteStore final : public Store {
   }
 
  private:
-  std::string where(const std::string& what) const {
-    return "store '" + path_ + "': " + what;
-  }
+  std::string where(const std::string& what) const { return "store '" + path_ + "': " + what; }
 
   void exec(const std::string& sql) {
     char* message = nullptr;
@@ -320,9 +318,9 @@ class SqliteStore final : public Store {
     Statement s(db_, "SELECT id FROM maps WHERE name = ?", where("finding map '" + name + "'"));
     s.bind(1, name);
     if (!s.step())
-      throw Error(ErrorCode::kInvalidArgument,
-                  "store '" + path_ + "' holds no map '" + name + "'; 'octovk store info " +
-                      path_ + "' lists its maps");
+      throw Error(ErrorCode::kInvalidArgument, "store '" + path_ + "' holds no map '" + name +
+                                                   "'; 'octovk store info " + path_ +
+                                                   "' lists its maps");
     return s.integer(0);
   }
 

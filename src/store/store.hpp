@@ -35,9 +35,9 @@ struct MapInfo {
 
 /// One committed scan.
 struct LogEntry {
-  std::uint64_t seq = 0;  ///< 1, 2, ... per map, in commit order
-  std::string source;     ///< the input as it was given (a scan graph, a folder)
-  std::uint64_t scan = 0;  ///< the scan's 0-based index in `source`
+  std::uint64_t seq = 0;     ///< 1, 2, ... per map, in commit order
+  std::string source;        ///< the input as it was given (a scan graph, a folder)
+  std::uint64_t scan = 0;    ///< the scan's 0-based index in `source`
   std::int64_t time_us = 0;  ///< commit time, microseconds since the Unix epoch (UTC)
 };
 

@@ -51,8 +51,7 @@ void appendRecords(const HostTree& tree, std::size_t index, unsigned depth, std:
   record[sizeof(float)] = static_cast<char>(mask);
   out.append(record, kRecordBytes);
   for (unsigned i = 0; i < 8; ++i)
-    if (mask & (1u << i))
-      appendRecords(tree, std::size_t{n.children} * 8 + i, depth + 1, out);
+    if (mask & (1u << i)) appendRecords(tree, std::size_t{n.children} * 8 + i, depth + 1, out);
 }
 
 void cut(const HostTree& tree, std::size_t index, unsigned depth, std::uint64_t path,
@@ -224,8 +223,9 @@ class Rebuild {
     float v;
     std::memcpy(&v, body.data() + at, sizeof(float));
     if (!std::isfinite(v))
-      throw bad(t, "the record at byte " + std::to_string(at) + " has a log-odds that is not a "
-                   "finite number");
+      throw bad(t, "the record at byte " + std::to_string(at) +
+                       " has a log-odds that is not a "
+                       "finite number");
     const auto mask = static_cast<unsigned char>(body[at + sizeof(float)]);
     if (mask != 0 && depth >= kTreeDepth)
       throw bad(t, "the record at byte " + std::to_string(at) +
@@ -243,8 +243,8 @@ class Rebuild {
 
   void finishBody(std::size_t t, std::size_t at) const {
     if (at != tiles_[t].body.size())
-      throw bad(t, std::to_string(tiles_[t].body.size() - at) +
-                       " bytes follow its last node record");
+      throw bad(t,
+                std::to_string(tiles_[t].body.size() - at) + " bytes follow its last node record");
   }
 
   static std::uint64_t pathOf(std::uint64_t key) {
@@ -277,7 +277,8 @@ Key tileKeyCorner(std::uint64_t key) {
   for (unsigned level = 0; level < kTreeDepth; ++level) {
     const unsigned slot = static_cast<unsigned>(morton >> (3 * (kTreeDepth - 1 - level))) & 7u;
     for (unsigned a = 0; a < 3; ++a)  // OctoMap's child index: x bit 0, y bit 1, z bit 2
-      if (slot & (1u << a)) k[a] = static_cast<std::uint16_t>(k[a] | (1u << (kTreeDepth - 1 - level)));
+      if (slot & (1u << a))
+        k[a] = static_cast<std::uint16_t>(k[a] | (1u << (kTreeDepth - 1 - level)));
   }
   return k;
 }
