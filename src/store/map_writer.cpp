@@ -50,6 +50,11 @@ HostTree MapWriter::load() {
 
 CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std::uint64_t scan) {
   map.flush();
+  using Clock = std::chrono::steady_clock;
+  const auto seconds = [](Clock::time_point from) {
+    return std::chrono::duration<double>(Clock::now() - from).count();
+  };
+  const auto start = Clock::now();
   const std::vector<Tile> tiles = tilesOf(map.download(), info_.tile_depth);
   CommitStats stats;
   std::vector<Tile> changed;
@@ -74,7 +79,10 @@ CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std:
   entry.time_us = std::chrono::duration_cast<std::chrono::microseconds>(
                       std::chrono::system_clock::now().time_since_epoch())
                       .count();
+  stats.find_s = seconds(start);
+  const auto write_start = Clock::now();
   store_.commit(name_, changed, removed, entry);
+  stats.write_s = seconds(write_start);
   // Only once committed: a failed commit leaves the writer as before, to be tried again.
   hashes_ = std::move(hashes);
   last_seq_ = entry.seq;

@@ -47,6 +47,8 @@ struct CommitStats {
   std::size_t tiles_written = 0;  ///< new or changed tiles
   std::size_t tiles_removed = 0;  ///< tiles that pruning merged into a larger one
   std::size_t body_bytes = 0;     ///< the written tiles' body bytes
+  double find_s = 0.0;   ///< seconds finding them: download, cut, hash
+  double write_s = 0.0;  ///< seconds of the store's transaction
 };
 
 /// A store's back end. Every call is one transaction; errors are Error(kIo) naming the store
