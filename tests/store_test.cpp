@@ -31,6 +31,7 @@ using test::runOctovk;
 using test::RunResult;
 using test::runShell;
 using test::Scratch;
+namespace fs = std::filesystem;
 
 // OctoMap's tree as a host tree (breadth first, as fromOcTree lays it out), on the host.
 HostTree hostTreeOf(const octomap::OcTree& tree) {
@@ -339,6 +340,59 @@ TEST(StoreCli, SecondRunContinuesTheMapAndKeepsItsResolution) {
   EXPECT_EQ(log.out, lines);
 }
 
+// Two writers integrate into one map at once, their scans overlapping: the store takes their
+// scans one at a time (each writer reloads the map when the other committed meanwhile), and the
+// map is OctoMap's (graph2tree's) on every committed scan in the log's order.
+void expectTwoWritersGiveTheLogsMap(const std::string& store_location, const Scratch& scratch) {
+  const std::vector<GraphScan> a = roomScans(25, 0.0f), b = roomScans(25, 0.35f);
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  const fs::path dir_a = scratch.dir() / "wa", dir_b = scratch.dir() / "wb";
+  fs::create_directories(dir_a);
+  fs::create_directories(dir_b);
+  RunResult ra, rb;
+  {
+    OctovkProcess wa(
+        {"integrate", graph_a, "--store", store_location, "--map", "shared", "-r", "0.1", "-q"},
+        dir_a);
+    OctovkProcess wb(
+        {"integrate", graph_b, "--store", store_location, "--map", "shared", "-r", "0.1", "-q"},
+        dir_b);
+    ASSERT_TRUE(wa.started() && wb.started());
+    ra = wa.wait();
+    rb = wb.wait();
+  }
+  ASSERT_EQ(ra.exit_code, 0) << ra.out << ra.err;
+  ASSERT_EQ(rb.exit_code, 0) << rb.out << rb.err;
+  auto store = store::Store::open(store_location, false);
+  const std::vector<store::LogEntry> log = store->log("shared");
+  ASSERT_EQ(log.size(), a.size() + b.size());
+  std::vector<GraphScan> in_order;
+  std::size_t switches = 0;
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    ASSERT_TRUE(log[i].source == graph_a || log[i].source == graph_b) << log[i].source;
+    const std::vector<GraphScan>& from = log[i].source == graph_a ? a : b;
+    ASSERT_LT(log[i].scan, from.size());
+    in_order.push_back(from[log[i].scan]);
+    if (i > 0 && log[i].source != log[i - 1].source) ++switches;
+  }
+  std::cout << "[ writers  ] the log switches writer " << switches << " times\n";
+  const std::string graph_log = scratch / "log.graph";
+  writeGraph(graph_log, in_order);
+  const std::string out = scratch / "shared.ot";
+  const RunResult e =
+      runOctovk({"store", "export", store_location, "--map", "shared", "-o", out}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_EQ(readFile(out), graph2treeOt(graph_log, scratch));
+}
+
+TEST(StoreCli, TwoWritersAtOnceGiveTheMapOfTheLog) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  expectTwoWritersGiveTheLogsMap(scratch / "shared.sqlite", scratch);
+}
+
 // A writer killed mid-run: the store holds exactly the scans its log lists, as OctoMap builds
 // them (graph2tree on a graph of those scans), and a later run goes on from there.
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
@@ -475,6 +529,13 @@ TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
   EXPECT_THROW(store->commit(map, tile, {}, {3, "x", 0, 0}), Error);
   EXPECT_EQ(store->log(map).size(), 7u);
   EXPECT_EQ(store->map(map)->last_seq, 7u);
+}
+
+TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {
+  REQUIRE_GRAPH2TREE();
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  expectTwoWritersGiveTheLogsMap(postgresUri(), scratch);
 }
 
 }  // namespace

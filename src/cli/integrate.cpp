@@ -396,6 +396,7 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, const Sources& sources,
   ScanTicket first_ticket = 0;
   try {
     for (; at < scan_count; ++at) {
+      store_->begin(map);  // --store: the map's write lock, other writers' scans
       ScanTicket ticket = 0;
       if (tum) {
         // As graph2tree on convert's graph: the camera-frame points, cast from the pose's

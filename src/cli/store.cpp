@@ -312,6 +312,10 @@ void IntegrateStore::load(OccupancyMap& map) {
   if (tree.root_exists) map.upload(tree);
 }
 
+void IntegrateStore::begin(OccupancyMap& map) {
+  if (writer_ && writer_->begin(map)) ++reloads_;
+}
+
 void IntegrateStore::commit(OccupancyMap& map, const std::string& source, std::size_t scan) {
   if (!writer_) return;
   map.flush();  // the scan's own work, not the commit's
@@ -328,8 +332,13 @@ void IntegrateStore::report(Report& report) const {
   if (!writer_) return;
   const double per_scan = scans_ == 0 ? 0.0 : 1.0 / static_cast<double>(scans_);
   report
-      .line("store", format("%s, map '%s' (%s): %zu scans committed", store_->location().c_str(),
-                            map_name_.c_str(), existed_ ? "continued" : "created", scans_))
+      .line("store", format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
+                            map_name_.c_str(), existed_ ? "continued" : "created", scans_,
+                            reloads_ == 0 ? ""
+                                          : format(", the map reloaded %zu times after other "
+                                                   "writers' scans",
+                                                   reloads_)
+                                                .c_str()))
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
                    "%zu bytes)",

@@ -37,6 +37,9 @@ class IntegrateStore {
   void open(MapParams& params);
   /// Uploads the committed map into `map` (nothing for a new one).
   void load(OccupancyMap& map);
+  /// Before each scan: the map's write lock, and the scans other writers committed meanwhile
+  /// (the map is reloaded from the store), so that the map is the log's.
+  void begin(OccupancyMap& map);
   /// Commits `map` after scan `scan` of `source`.
   void commit(OccupancyMap& map, const std::string& source, std::size_t scan);
   /// The store's lines of integrate's summary.
@@ -51,6 +54,7 @@ class IntegrateStore {
   std::unique_ptr<store::Store> store_;
   std::unique_ptr<store::MapWriter> writer_;
   bool existed_ = false;
+  std::size_t reloads_ = 0;
   std::size_t scans_ = 0, tiles_ = 0, bytes_ = 0, max_bytes_ = 0;
   double find_s_ = 0.0, write_s_ = 0.0;
 };

@@ -29,12 +29,8 @@ HostTree loadTree(Store& store, const std::string& name) {
 
 MapWriter::MapWriter(Store& store, std::string name, const MapParams& params)
     : store_(store), name_(std::move(name)) {
-  if (std::optional<MapInfo> found = store_.map(name_)) {
-    info_ = *found;
-    existed_ = true;
-  } else {
-    info_ = store_.createMap(name_, params);
-  }
+  existed_ = !store_.createMap(name_, params);
+  info_ = *store_.map(name_);
 }
 
 HostTree MapWriter::load() {
@@ -46,6 +42,22 @@ HostTree MapWriter::load() {
   } catch (const Error& e) {
     throw Error(e.code(), "store '" + store_.location() + "', map '" + name_ + "': " + e.what());
   }
+}
+
+bool MapWriter::begin(OccupancyMap& map) {
+  map.flush();
+  const std::uint64_t last = store_.lock(name_);
+  if (last == last_seq_) return false;
+  try {
+    const HostTree tree = load();  // in the locked transaction: sets last_seq_
+    map.upload(tree);
+  } catch (...) {
+    store_.unlock();
+    hashes_.clear();
+    last_seq_ = ~std::uint64_t{0};  // the map is unknown: the next begin() loads it again
+    throw;
+  }
+  return true;
 }
 
 CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std::uint64_t scan) {

@@ -142,7 +142,7 @@ class PostgresStore final : public Store {
     return info;
   }
 
-  MapInfo createMap(const std::string& name, const MapParams& p) override {
+  bool createMap(const std::string& name, const MapParams& p) override {
     const auto num = [](double v) {
       char text[64];
       std::snprintf(text, sizeof(text), "%.17g", v);
@@ -156,14 +156,30 @@ class PostgresStore final : public Store {
               {name, num(p.resolution), num(p.prob_hit), num(p.prob_miss), num(p.clamping_min),
                num(p.clamping_max), num(p.occupancy_threshold), std::to_string(kTileDepth),
                std::to_string(kTileFormat)}));
-    if (r.rows() == 0)
-      throw Error(ErrorCode::kInvalidArgument,
-                  "store '" + name_ + "' already holds a map '" + name + "'");
-    return *map(name);
+    return r.rows() == 1;
+  }
+
+  std::uint64_t lock(const std::string& name) override {
+    unlock();
+    exec("BEGIN");
+    locked_ = true;
+    try {
+      return lastSeq(lockedMapId(name));
+    } catch (...) {
+      unlock();
+      throw;
+    }
+  }
+
+  void unlock() override {
+    if (!locked_) return;
+    locked_ = false;
+    PQclear(PQexec(conn_, "ROLLBACK"));
   }
 
   std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) override {
-    exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
+    const bool own = !locked_;  // inside lock()'s transaction, the map's row is locked
+    if (own) exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
     try {
       const std::string id = mapId(name);
       std::vector<Tile> out;
@@ -182,10 +198,10 @@ class PostgresStore final : public Store {
         }
       }
       if (last_seq) *last_seq = lastSeq(id);
-      exec("COMMIT");
+      if (own) exec("COMMIT");
       return out;
     } catch (...) {
-      PQclear(PQexec(conn_, "ROLLBACK"));
+      if (own) PQclear(PQexec(conn_, "ROLLBACK"));
       throw;
     }
   }
@@ -202,14 +218,10 @@ class PostgresStore final : public Store {
 
   void commit(const std::string& name, std::span<const Tile> changed,
               std::span<const std::uint64_t> removed, const LogEntry& entry) override {
-    exec("BEGIN");
+    if (!locked_) exec("BEGIN");
+    locked_ = false;  // the transaction ends here, committed or rolled back
     try {
-      // The map's row locked: writers of one map commit one after the other.
-      Result locked(query("SELECT id FROM maps WHERE name = $1 FOR UPDATE", {name}));
-      if (locked.rows() == 0)
-        throw Error(ErrorCode::kInvalidArgument,
-                    "store '" + name_ + "' holds no map '" + name + "'");
-      const std::string id = locked.text(0, 0);
+      const std::string id = lockedMapId(name);  // writers of one map take turns
       const std::uint64_t last = lastSeq(id);
       if (last + 1 != entry.seq)
         throw Error(ErrorCode::kInvalidArgument,
@@ -275,6 +287,14 @@ class PostgresStore final : public Store {
                  std::string("'") + std::string(sql).substr(0, 40) + "'");
   }
 
+  // The map's id, its row locked until the transaction ends (SELECT ... FOR UPDATE).
+  std::string lockedMapId(const std::string& name) {
+    Result r(query("SELECT id FROM maps WHERE name = $1 FOR UPDATE", {name}));
+    if (r.rows() == 0)
+      throw Error(ErrorCode::kInvalidArgument, "store '" + name_ + "' holds no map '" + name + "'");
+    return r.text(0, 0);
+  }
+
   std::string mapId(const std::string& name) {
     Result r(query("SELECT id FROM maps WHERE name = $1", {name}));
     if (r.rows() == 0)
@@ -292,6 +312,7 @@ class PostgresStore final : public Store {
   std::string uri_;
   std::string name_;
   PGconn* conn_ = nullptr;
+  bool locked_ = false;  // lock()'s transaction is open
 };
 
 }  // namespace

@@ -209,12 +209,9 @@ class SqliteStore final : public Store {
     return info;
   }
 
-  MapInfo createMap(const std::string& name, const MapParams& p) override {
-    if (map(name))
-      throw Error(ErrorCode::kInvalidArgument,
-                  "store '" + path_ + "' already holds a map '" + name + "'");
+  bool createMap(const std::string& name, const MapParams& p) override {
     Statement s(db_,
-                "INSERT INTO maps (name, resolution, prob_hit, prob_miss, clamping_min, "
+                "INSERT OR IGNORE INTO maps (name, resolution, prob_hit, prob_miss, clamping_min, "
                 "clamping_max, occupancy_threshold, tile_depth, tile_format) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 where("creating map '" + name + "'"));
@@ -228,12 +225,31 @@ class SqliteStore final : public Store {
         .bind(8, std::int64_t{kTileDepth})
         .bind(9, std::int64_t{kTileFormat});
     s.run();
-    return *map(name);
+    return sqlite3_changes(db_) == 1;
+  }
+
+  std::uint64_t lock(const std::string& name) override {
+    unlock();
+    exec("BEGIN IMMEDIATE");  // the write lock: another writer waits (busy timeout)
+    locked_ = true;
+    try {
+      return lastSeq(mapId(name));
+    } catch (...) {
+      unlock();
+      throw;
+    }
+  }
+
+  void unlock() override {
+    if (!locked_) return;
+    locked_ = false;
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
   }
 
   std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) override {
     // One read transaction: the tiles and the sequence number of one commit.
-    exec("BEGIN");
+    const bool own = !locked_;
+    if (own) exec("BEGIN");
     try {
       std::vector<Tile> out;
       const std::int64_t id = mapId(name);
@@ -244,10 +260,10 @@ class SqliteStore final : public Store {
         while (s.step()) out.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1)});
       }
       if (last_seq) *last_seq = lastSeq(id);
-      exec("COMMIT");
+      if (own) exec("COMMIT");
       return out;
     } catch (...) {
-      sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      if (own) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
       throw;
     }
   }
@@ -265,7 +281,8 @@ class SqliteStore final : public Store {
 
   void commit(const std::string& name, std::span<const Tile> changed,
               std::span<const std::uint64_t> removed, const LogEntry& entry) override {
-    exec("BEGIN IMMEDIATE");  // the write lock now: another writer waits (busy timeout)
+    if (!locked_) exec("BEGIN IMMEDIATE");  // the write lock: another writer waits
+    locked_ = false;                        // the transaction ends here, committed or rolled back
     try {
       const std::int64_t id = mapId(name);
       const std::uint64_t last = lastSeq(id);
@@ -333,6 +350,7 @@ class SqliteStore final : public Store {
 
   std::string path_;
   sqlite3* db_ = nullptr;
+  bool locked_ = false;  // lock()'s transaction is open
 };
 
 }  // namespace

@@ -47,8 +47,8 @@ struct CommitStats {
   std::size_t tiles_written = 0;  ///< new or changed tiles
   std::size_t tiles_removed = 0;  ///< tiles that pruning merged into a larger one
   std::size_t body_bytes = 0;     ///< the written tiles' body bytes
-  double find_s = 0.0;   ///< seconds finding them: download, cut, hash
-  double write_s = 0.0;  ///< seconds of the store's transaction
+  double find_s = 0.0;            ///< seconds finding them: download, cut, hash
+  double write_s = 0.0;           ///< seconds of the store's transaction
 };
 
 /// A store's back end. Every call is one transaction; errors are Error(kIo) naming the store
@@ -64,14 +64,22 @@ class Store {
   virtual const std::string& location() const = 0;
   virtual std::vector<MapInfo> maps() = 0;
   virtual std::optional<MapInfo> map(const std::string& name) = 0;
-  /// Creates map `name` (kInvalidArgument if it exists).
-  virtual MapInfo createMap(const std::string& name, const MapParams& params) = 0;
-  /// Every tile of the map and the sequence number they are current at, read in one snapshot.
+  /// Creates map `name` unless it exists (another writer may have created it meanwhile): true
+  /// when this call created it.
+  virtual bool createMap(const std::string& name, const MapParams& params) = 0;
+  /// Every tile of the map and the sequence number they are current at, read in one snapshot
+  /// (inside lock()'s transaction when one is open).
   virtual std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) = 0;
   virtual std::vector<LogEntry> log(const std::string& name) = 0;
+  /// Opens a scan's transaction: takes the map's write lock (other writers wait for it until
+  /// this one commits) and returns the map's last sequence number.
+  virtual std::uint64_t lock(const std::string& name) = 0;
+  /// Abandons lock()'s transaction (nothing of it is written); nothing when none is open.
+  virtual void unlock() = 0;
   /// One scan, all or nothing: writes `changed` (version entry.seq), removes `removed` and adds
-  /// the log row `entry`. Refused (kInvalidArgument, nothing written) unless the map's last
-  /// sequence number is entry.seq - 1: another writer committed in between.
+  /// the log row `entry`, in lock()'s transaction when one is open (else in its own). Refused
+  /// (kInvalidArgument, nothing written) unless the map's last sequence number is
+  /// entry.seq - 1: another writer committed in between.
   virtual void commit(const std::string& name, std::span<const Tile> changed,
                       std::span<const std::uint64_t> removed, const LogEntry& entry) = 0;
 };
@@ -92,6 +100,10 @@ class MapWriter {
   const MapInfo& info() const { return info_; }
   /// The committed map (empty when new), for OccupancyMap::upload.
   HostTree load();
+  /// Before a scan: takes the map's write lock, and when other writers committed scans since
+  /// this one's last, loads the map as they left it into `map`. The scan then applies to the map
+  /// the log's order says, and commit() releases the lock. True when the map was reloaded.
+  bool begin(OccupancyMap& map);
   /// Commits `map` as it is after scan `scan` of `source`: its tiles that differ from the last
   /// committed ones, and the log row. Waits for the map's submitted scans first.
   CommitStats commit(OccupancyMap& map, const std::string& source, std::uint64_t scan);
