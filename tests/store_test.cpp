@@ -395,22 +395,21 @@ TEST(StoreCli, TwoWritersAtOnceGiveTheMapOfTheLog) {
 
 // A writer killed mid-run: the store holds exactly the scans its log lists, as OctoMap builds
 // them (graph2tree on a graph of those scans), and a later run goes on from there.
-TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
-  REQUIRE_GRAPH2TREE();
-  Scratch scratch("store");
+void expectKilledWriterLeavesItsLog(const std::string& location, const Scratch& scratch) {
   const std::vector<GraphScan> scans = roomScans(120, 0.0f);
   const std::string graph = scratch / "long.graph";
   writeGraph(graph, scans);
-  const std::string path = scratch / "map.sqlite";
+  const std::string map = "killed";
   std::size_t committed = 0;
   {
-    OctovkProcess writer({"integrate", graph, "--store", path, "-r", "0.1", "-q"}, scratch.dir());
+    OctovkProcess writer({"integrate", graph, "--store", location, "--map", map, "-r", "0.1", "-q"},
+                         scratch.dir());
     ASSERT_TRUE(writer.started());
     const bool some = pollUntil(
         [&] {
           try {
-            auto store = store::Store::open(path, false);
-            committed = store->map("default") ? store->log("default").size() : 0;
+            auto store = store::Store::open(location, false);
+            committed = store->map(map) ? store->log(map).size() : 0;
           } catch (const Error&) {
             committed = 0;  // not created yet
           }
@@ -422,8 +421,8 @@ TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
     ASSERT_TRUE(some) << r.out << r.err;
     EXPECT_EQ(r.exit_code, 128 + SIGKILL) << "the writer ended before it was killed: " << r.out;
   }
-  auto store = store::Store::open(path, false);
-  const std::vector<store::LogEntry> log = store->log("default");
+  auto store = store::Store::open(location, false);
+  const std::vector<store::LogEntry> log = store->log(map);
   ASSERT_GE(log.size(), committed);
   ASSERT_LT(log.size(), scans.size());
   std::cout << "[ killed   ] after " << log.size() << " of " << scans.size()
@@ -436,7 +435,17 @@ TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
   const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(log.size()));
   const std::string graph_kept = scratch / "kept.graph";
   writeGraph(graph_kept, kept);
-  EXPECT_EQ(exportOt(path, scratch), graph2treeOt(graph_kept, scratch));
+  const std::string out = scratch / "kept.ot";
+  const RunResult e =
+      runOctovk({"store", "export", location, "--map", map, "-o", out}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_EQ(readFile(out), graph2treeOt(graph_kept, scratch));
+}
+
+TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  expectKilledWriterLeavesItsLog(scratch / "map.sqlite", scratch);
 }
 
 }  // namespace
@@ -529,6 +538,13 @@ TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
   EXPECT_THROW(store->commit(map, tile, {}, {3, "x", 0, 0}), Error);
   EXPECT_EQ(store->log(map).size(), 7u);
   EXPECT_EQ(store->map(map)->last_seq, 7u);
+}
+
+TEST(StorePostgres, KilledWriterLeavesTheCommittedScans) {
+  REQUIRE_GRAPH2TREE();
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  expectKilledWriterLeavesItsLog(postgresUri(), scratch);
 }
 
 TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {
