@@ -259,7 +259,7 @@ class PostgresStore final : public Store {
  private:
   static std::string oneLine(std::string text) {
     for (char& c : text)
-      if (c == '\n') c = ' ';
+      if (c == '\n' || c == '\t') c = ' ';
     while (!text.empty() && text.back() == ' ') text.pop_back();
     return text;
   }

@@ -122,13 +122,16 @@ class SqliteStore final : public Store {
       const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
       sqlite3_close(db_);
       db_ = nullptr;
-      throw Error(ErrorCode::kIo, "cannot open store '" + path + "': " + why);
+      throw Error(ErrorCode::kIo, "cannot open store '" + path + "': " + why +
+                                      "; check that its folder exists and can be written");
     }
     sqlite3_busy_timeout(db_, 10000);  // another process's commit: wait, do not fail
     exec("PRAGMA foreign_keys = ON");
     int version = 0;
     {
-      Statement s(db_, "PRAGMA user_version", where("reading its schema version"));
+      Statement s(db_, "PRAGMA user_version",
+                  where("reading its schema version (is it the SQLite file 'octovk integrate "
+                        "--store' wrote?)"));
       if (s.step()) version = static_cast<int>(s.integer(0));
     }
     if (version == 0) {
