@@ -19,6 +19,16 @@ namespace {
 using test::randomScan;
 
 namespace fs = std::filesystem;
+
+// A plain OcTree file's bytes read by parseTreeFile, which reads each tree type as its own.
+std::unique_ptr<octomap::OcTree> parsePlain(std::string_view bytes, bool binary,
+                                            const std::string& name) {
+  io::AnyTree tree = io::parseTreeFile(bytes, binary, name);
+  EXPECT_EQ(tree.index(), 0u) << name << " read as another tree type than OcTree";
+  auto* plain = std::get_if<std::unique_ptr<octomap::OcTree>>(&tree);
+  return plain ? std::move(*plain) : std::make_unique<octomap::OcTree>(0.1);
+}
+
 using test::fileBytes;
 using test::makeOracle;
 using test::sameTree;
@@ -396,7 +406,7 @@ TEST(IoHostile, ValidFilesReadAsOctoMapReadsThem) {
   const TreeFiles& f = sphericalFiles();
   for (const bool binary : {true, false}) {
     const std::string& bytes = binary ? f.bt : f.ot;
-    const std::unique_ptr<octomap::OcTree> ours = io::parseTreeFile(bytes, binary, "valid");
+    const std::unique_ptr<octomap::OcTree> ours = parsePlain(bytes, binary, "valid");
     std::stringstream in(bytes);
     std::unique_ptr<octomap::OcTree> theirs;
     if (binary) {
@@ -412,7 +422,7 @@ TEST(IoHostile, ValidFilesReadAsOctoMapReadsThem) {
     // More comment and blank lines, CR LF line ends and spaces are a header OctoMap reads alike.
     std::string edited = withHeaderLine(bytes, "res", "\n# a comment\r\n  res   0.1 \r");
     edited = withHeaderLine(edited, "id", "id OcTree\r");
-    EXPECT_TRUE(sameTree(*theirs, *io::parseTreeFile(edited, binary, "edited")));
+    EXPECT_TRUE(sameTree(*theirs, *parsePlain(edited, binary, "edited")));
   }
 }
 
@@ -498,7 +508,7 @@ TEST(IoHostile, HeaderSizeMustMatchTheData) {
     expectRefused(withHeaderLine(bytes, "size", "size 0"), binary, "announces 0 nodes", "size 0");
     // No size line: OctoMap took size 0 and ignored the data.
     expectRefused(withHeaderLine(bytes, "size", ""), binary, "no 'size' line", "no size");
-    const std::unique_ptr<octomap::OcTree> tree = io::parseTreeFile(bytes, binary, "valid");
+    const std::unique_ptr<octomap::OcTree> tree = parsePlain(bytes, binary, "valid");
     const std::string more = "size " + std::to_string(tree->size() + 1);
     expectRefused(withHeaderLine(bytes, "size", more), binary, "the data holds", "size + 1");
     for (const char* bad : {"size -1", "size 1e3", "size 18446744073709551616", "size 5 5"})
@@ -508,15 +518,16 @@ TEST(IoHostile, HeaderSizeMustMatchTheData) {
   }
 }
 
-TEST(IoHostile, TreeTypeMustBeExactlyOcTree) {
+TEST(IoHostile, TreeTypeMustBeOneOctovkReads) {
   const TreeFiles& f = sphericalFiles();
   for (const bool binary : {true, false}) {
     const std::string& bytes = binary ? f.bt : f.ot;
     SCOPED_TRACE(binary ? ".bt" : ".ot");
-    // OctoMap's readBinary ignores the id, so a ColorOcTree .bt read as an OcTree.
-    for (const char* id : {"ColorOcTree", "Foo", "OcTreeStamped", "octree"})
+    // OctoMap's readBinary ignores the id; octovk reads the three types it has, by name only.
+    for (const char* id : {"Foo", "octree", "ColorOcTree2", "CountingOcTree", "ocTreeStamped"})
       expectRefused(withHeaderLine(bytes, "id", std::string("id ") + id), binary,
-                    std::string("'") + id + "', not a plain OcTree", id);
+                    std::string("'") + id + "'; octovk reads OcTree, ColorOcTree and OcTreeStamped",
+                    id);
     expectRefused(withHeaderLine(bytes, "id", "id"), binary, "one value", "empty id");
     expectRefused(withHeaderLine(bytes, "id", ""), binary, "no 'id' line", "no id line");
     expectRefused(withHeaderLine(bytes, "id", "id OcTree extra"), binary, "one value", "two ids");
@@ -697,7 +708,7 @@ TEST(IoHostile, TreeFilesAreCheckedAsTheyAreRead) {
     const std::string path = tmpPath(binary ? "streamed.bt" : "streamed.ot");
     test::writeBytes(path, bytes);
     OccupancyMap map = readMapFile(ctx, path);
-    EXPECT_TRUE(sameTree(*toOcTree(map), *io::parseTreeFile(bytes, binary, "valid")));
+    EXPECT_TRUE(sameTree(*toOcTree(map), *parsePlain(bytes, binary, "valid")));
     test::writeBytes(path, bytes + '\0');
     expectError([&] { (void)readMapFile(ctx, path); }, ErrorCode::kFormat, "a byte more");
     std::string long_comment = bytes;

@@ -118,7 +118,8 @@ class OccupancyMap {
   // ---- queries: each waits for the submitted scans first (flush()) and may throw their error ----
   /// OctoMap's search() for each point, on the device.
   std::vector<Lookup> search(std::span<const Eigen::Vector3f> points);
-  /// OctoMap's castRay for each ray, on the device.
+  /// OctoMap's castRay for each ray, on the device. On a map with a payload each hit also
+  /// carries the hit cell's payload (RayHit::payload: a second lookup batch at the ends).
   std::vector<RayHit> castRays(std::span<const Ray> rays);
   /// The leaves OctoMap's leaf_bbx_iterator(min, max) visits (all, or only the occupied ones),
   /// compacted on the device and downloaded. Empty if a corner lies outside the map.
@@ -261,7 +262,8 @@ class ColorMap : public OccupancyMap {
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                              const Eigen::Vector3f& origin_world, std::span<const Rgb> colors,
                              ScanOptions options = {});
-  /// The colour of the node search() finds for each point; white where it finds none.
+  /// The colour of the node search() finds for each point; white where it finds none. The
+  /// colours of leaves (leavesInBox, downloadLeafBoxes): colors() of their centres.
   std::vector<Rgb> colors(std::span<const Eigen::Vector3f> points);
 };
 

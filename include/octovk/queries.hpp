@@ -75,6 +75,9 @@ struct Ray {
 struct RayHit {
   bool hit = false;
   Eigen::Vector3f end = Eigen::Vector3f::Zero();
+  /// On a map with a payload (MapParams::payload), the hit cell's payload word (packRgb colour
+  /// or stamp); 0 for a miss or a map without one.
+  std::uint32_t payload = 0;
 };
 
 /// Queries to run right after a scan, in the same command stream.

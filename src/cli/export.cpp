@@ -20,10 +20,11 @@ namespace {
 
 constexpr const char* kExportUsage =
     "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only] "
-    "[--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy] "
+    "[--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color map|height|occupancy] "
     "[--max-device-memory BYTES]";
 
-enum class Coloring { kHeight, kOccupancy };
+// kMap: a ColorOcTree's own leaf colours (the default for one; other maps have none).
+enum class Coloring { kMap, kHeight, kOccupancy };
 
 const Rgb kFreeGrey{190, 190, 190};
 const Rgb kOccupiedRed{210, 50, 40};
@@ -51,7 +52,7 @@ void writePly(const std::string& path, const std::vector<OccupancyMap::LeafBoxHo
 
 void printExportHelp(std::ostream& out) {
   out << "octovk export MAP.bt|MAP.ot -o CELLS.ply [--occupied-only]\n"
-         "              [--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color height|occupancy]\n"
+         "              [--box XMIN YMIN ZMIN XMAX YMAX ZMAX] [--color map|height|occupancy]\n"
          "\n"
          "Writes the leaf cells of an OctoMap .bt or .ot map as an ASCII PLY point cloud (for\n"
          "MeshLab, CloudCompare, ...), one vertex per leaf: x y z (centre), size (edge),\n"
@@ -64,8 +65,10 @@ void printExportHelp(std::ostream& out) {
          "                         only the leaves OctoMap's leaf_bbx_iterator visits for this "
          "box\n"
          "                         in metres (default: the whole map)\n"
-         "      --color MODE       height: occupied cells blue (low) to red (high), free grey;\n"
-         "                         occupancy: occupied red, free green (default: height)\n";
+         "      --color MODE       map: each leaf's own colour (a ColorOcTree's; white where none\n"
+         "                         is set); height: occupied cells blue (low) to red (high), free\n"
+         "                         grey; occupancy: occupied red, free green (default: map for a\n"
+         "                         ColorOcTree, else height)\n";
   printMaxDeviceMemoryHelp(out, "A map or selection");
   out << "  -h, --help             show this help\n"
          "Values: '--name VALUE' or '--name=VALUE' ('--box=XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX').\n";
@@ -81,12 +84,14 @@ class Export final : public Command {
     } else if (opt.name == "--box") {
       box_ = parseBox(opt, "-5 -5 0 5 5 2");
     } else if (opt.name == "--color") {
-      if (opt.value == "height")
+      if (opt.value == "map")
+        coloring_ = Coloring::kMap;
+      else if (opt.value == "height")
         coloring_ = Coloring::kHeight;
       else if (opt.value == "occupancy")
         coloring_ = Coloring::kOccupancy;
       else
-        throw UsageError("--color expects 'height' or 'occupancy', got '" + opt.value + "'");
+        throw UsageError("--color expects 'map', 'height' or 'occupancy', got '" + opt.value + "'");
     } else {
       return false;
     }
@@ -106,7 +111,7 @@ class Export final : public Command {
 
   bool occupied_only_ = false;
   std::optional<std::array<double, 6>> box_;
-  Coloring coloring_ = Coloring::kHeight;
+  std::optional<Coloring> coloring_;  // unset: the map's colours for a ColorOcTree, else height
 };
 
 int Export::run(Invocation& in) {
@@ -146,8 +151,39 @@ std::vector<OccupancyMap::LeafBoxHost> Export::select(OccupancyMap& map) const {
   }
 }
 
+// The colour each cell's leaf holds (search() at its centre finds the leaf itself).
+std::vector<Rgb> leafColours(OccupancyMap& map,
+                             const std::vector<OccupancyMap::LeafBoxHost>& cells) {
+  std::vector<Eigen::Vector3f> centres;
+  centres.reserve(cells.size());
+  for (const OccupancyMap::LeafBoxHost& c : cells)
+    centres.emplace_back(c.center[0], c.center[1], c.center[2]);
+  std::vector<Lookup> found;
+  try {
+    found = map.search(centres);
+  } catch (const Error& e) {
+    throw withOptionNames(e);
+  }
+  std::vector<Rgb> colours(cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i)
+    if (found[i].state != CellState::kUnknown) {
+      const octovk::Rgb c = unpackRgb(found[i].payload);
+      colours[i] = {c.r, c.g, c.b};
+    } else {
+      colours[i] = {255, 255, 255};  // no node: OctoMap's "no colour"
+    }
+  return colours;
+}
+
 std::size_t Export::write(Invocation& in, OccupancyMap& map,
                           const std::vector<OccupancyMap::LeafBoxHost>& cells) const {
+  const bool has_colours = map.params().payload == Payload::kColor;
+  const Coloring coloring = coloring_.value_or(has_colours ? Coloring::kMap : Coloring::kHeight);
+  if (coloring == Coloring::kMap && !has_colours)
+    throw UsageError("--color map: '" + in.input() + "' holds " +
+                     (map.params().payload == Payload::kStamp ? "an OcTreeStamped" : "an OcTree") +
+                     ", which has no colours (a ColorOcTree does); use --color height or "
+                     "--color occupancy");
   const float occupied_log_odds = occupancyLogOdds(map.params());
   std::size_t occupied = 0;
   float z_min = std::numeric_limits<float>::max(), z_max = std::numeric_limits<float>::lowest();
@@ -157,10 +193,11 @@ std::size_t Export::write(Invocation& in, OccupancyMap& map,
     z_min = std::min(z_min, c.center[2]);
     z_max = std::max(z_max, c.center[2]);
   }
-  std::vector<Rgb> colours(cells.size());
-  for (std::size_t i = 0; i < cells.size(); ++i) {
+  std::vector<Rgb> colours =
+      coloring == Coloring::kMap ? leafColours(map, cells) : std::vector<Rgb>(cells.size());
+  for (std::size_t i = 0; i < cells.size() && coloring != Coloring::kMap; ++i) {
     const bool is_occupied = cells[i].log_odds >= occupied_log_odds;
-    if (coloring_ == Coloring::kOccupancy)
+    if (coloring == Coloring::kOccupancy)
       colours[i] = is_occupied ? kOccupiedRed : kFreeGreen;
     else if (!is_occupied)
       colours[i] = kFreeGrey;
@@ -170,8 +207,11 @@ std::size_t Export::write(Invocation& in, OccupancyMap& map,
   }
   std::ostringstream comment;
   comment << "octovk export of " << in.input() << " (resolution " << map.params().resolution
-          << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, colour by "
-          << (coloring_ == Coloring::kHeight ? "height" : "occupancy");
+          << " m): leaf cells, centre x y z and edge size in metres, occupancy log-odds, ";
+  if (coloring == Coloring::kMap)
+    comment << "colour: the map's (ColorOcTree)";
+  else
+    comment << "colour by " << (coloring == Coloring::kHeight ? "height" : "occupancy");
   in.files().write(
       0, [&](const std::string& temporary) { writePly(temporary, cells, colours, comment.str()); });
   in.files().commit();

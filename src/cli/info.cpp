@@ -1,6 +1,7 @@
-// octovk info: what a map file holds (resolution, nodes, leaves by state, bounds, device memory),
-// counted on the device from the map's leaf boxes.
+// octovk info: what a map file holds (tree type, resolution, nodes, leaves by state, bounds,
+// colours or stamps, device memory), counted on the device from the map's leaf boxes.
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <limits>
 #include <vector>
@@ -46,10 +47,13 @@ void printInfoHelp(std::ostream& out) {
   out << kInfoUsage
       << "\n"
          "\n"
-         "Reads an OctoMap .bt or .ot file onto the Vulkan device and prints its resolution,\n"
-         "nodes (inner ones included), leaves, occupied and free leaves (OctoMap's\n"
-         "isNodeOccupied) with their volume, the bounds of all and of the occupied leaves, and\n"
-         "the device memory it holds, with the device used and the time taken.\n"
+         "Reads an OctoMap .bt or .ot file onto the Vulkan device and prints its tree type\n"
+         "(OcTree, ColorOcTree or OcTreeStamped), resolution, nodes (inner ones included),\n"
+         "leaves, occupied and free leaves (OctoMap's isNodeOccupied) with their volume, the\n"
+         "bounds of all and of the occupied leaves, and the device memory it holds, with the\n"
+         "device used and the time taken. A ColorOcTree: how many leaves have a colour (white is\n"
+         "none); an OcTreeStamped .ot: its leaves' oldest and newest stamps, where MAP.ot.stamps\n"
+         "(written by octovk beside it) holds them.\n"
          "\n"
          "Options:\n";
   printMaxDeviceMemoryHelp(out, "A map");
@@ -96,24 +100,72 @@ LeafCounts countLeaves(OccupancyMap& map) {
   return counts;
 }
 
+// What the leaves' payload says (colour or stamp), from the downloaded tree: "" for none.
+std::string payloadText(OccupancyMap& map, const std::string& path) {
+  const Payload payload = map.params().payload;
+  if (payload == Payload::kNone) return {};
+  // readMapFile takes a stamped .ot's stamps from beside it; a .bt never has any.
+  const bool is_ot = std::filesystem::path(path).extension() == ".ot";
+  if (payload == Payload::kStamp && !is_ot) return "none stored (a .bt holds none: every stamp 0)";
+  if (payload == Payload::kStamp && !std::filesystem::exists(path + ".stamps"))
+    return "none stored (no " + path + ".stamps beside the map: every stamp 0)";
+  HostTree tree;
+  try {
+    tree = map.download();
+  } catch (const Error& e) {
+    throw withOptionNames(e);
+  }
+  std::size_t leaves = 0, coloured = 0;
+  std::uint32_t oldest = std::numeric_limits<std::uint32_t>::max(), newest = 0;
+  // The leaves hanging from the root: nodes without children.
+  std::vector<std::uint32_t> stack;
+  if (tree.root_exists && !tree.nodes.empty()) stack.push_back(0);
+  while (!stack.empty()) {
+    const HostTree::Node& n = tree.nodes.at(stack.back());
+    stack.pop_back();
+    if (n.mask == 0) {
+      ++leaves;
+      coloured += n.payload != packRgb(octovk::Rgb{});
+      oldest = std::min(oldest, n.payload);
+      newest = std::max(newest, n.payload);
+      continue;
+    }
+    for (std::uint32_t c = 0; c < 8; ++c)
+      if (n.mask & (1u << c)) stack.push_back(n.children * 8 + c);
+  }
+  if (payload == Payload::kColor)
+    return format("%zu of %zu leaves with a colour (the rest white: none)", coloured, leaves);
+  if (leaves == 0) return "none (an empty map)";
+  return format("leaves' oldest %u, newest %u (seconds, from %s.stamps)", oldest, newest,
+                path.c_str());
+}
+
 int Info::run(Invocation& in) {
   Steps steps;
   OccupancyMap map = steps.run(
       "reading and upload", [&] { return loadMap(in.context(), in.input(), in.maxDeviceBytes()); });
   const LeafCounts c = steps.run("counting", [&] { return countLeaves(map); });
+  const std::string payload =
+      map.params().payload == Payload::kNone
+          ? std::string()
+          : steps.run("payload", [&] { return payloadText(map, in.input()); });
 
   const OccupancyMap::DeviceBytes bytes = map.deviceBytesByUse();
   const auto mib = [](std::size_t n) { return static_cast<double>(n) / (1024.0 * 1024.0); };
-  return Report(17)
-      .device(in.context())
+  Report report(17);
+  report.device(in.context())
       .line("map", in.input())
+      .line("tree type", treeTypeName(map.params().payload))
       .line("resolution", format("%g m", map.params().resolution))
       .line("nodes", std::to_string(c.nodes))
       .line("leaves", std::to_string(c.leaves))
       .line("occupied", format("%zu leaves, %.3f m^3", c.occupied, c.occupied_m3))
       .line("free", format("%zu leaves, %.3f m^3", c.leaves - c.occupied, c.free_m3))
       .line("bounds", describe(c.all))
-      .line("occupied bounds", describe(c.occupied_bounds))
+      .line("occupied bounds", describe(c.occupied_bounds));
+  if (!payload.empty())
+    report.line(map.params().payload == Payload::kColor ? "colours" : "stamps", payload);
+  return report
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB, leaf boxes %.1f MiB, scan scratch %.1f MiB, "
                    "query buffers %.1f MiB)",

@@ -11,7 +11,9 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <optional>
 #include <sstream>
+#include <variant>
 #include <vector>
 
 #include "io/parse.hpp"
@@ -23,34 +25,70 @@ namespace octovk {
 
 namespace {
 
-// OcTree with access to the protected root, to build a tree node by node.
-class TreeBuilder : public octomap::OcTree {
+// An OctoMap tree with access to the protected root, to build a tree node by node.
+template <class Tree>
+class TreeBuilder : public Tree {
  public:
-  explicit TreeBuilder(double resolution) : octomap::OcTree(resolution) {}
-  octomap::OcTreeNode* makeRoot() {
-    root = new octomap::OcTreeNode();
-    tree_size = 1;
-    size_changed = true;
-    return root;
+  using Node = typename Tree::NodeType;
+  explicit TreeBuilder(double resolution) : Tree(resolution) {}
+  Node* makeRoot() {
+    this->root = new Node();
+    this->tree_size = 1;
+    this->size_changed = true;
+    return this->root;
   }
 };
 
-// A node's data between the host tree and OctoMap's node: the twins of host_tree.hpp's
-// accessors, where a payload joins too.
+// A node's data between the host tree and OctoMap's node, per tree type: the twins of
+// host_tree.hpp's accessors. An OcTree node has no payload; a map with one gives it a new node's.
 void copyNodeData(const HostTree::Node& from, octomap::OcTreeNode& to) {
   to.setLogOdds(from.log_odds);
 }
-HostTree::Node hostNodeOf(const octomap::OcTreeNode& from) {
+void copyNodeData(const HostTree::Node& from, octomap::ColorOcTreeNode& to) {
+  to.setLogOdds(from.log_odds);
+  const Rgb c = unpackRgb(from.payload);
+  to.setColor(c.r, c.g, c.b);
+}
+void copyNodeData(const HostTree::Node& from, octomap::OcTreeNodeStamped& to) {
+  to.setLogOdds(from.log_odds);
+  to.setTimestamp(from.payload);
+}
+HostTree::Node hostNodeOf(const octomap::OcTreeNode& from, Payload payload) {
   HostTree::Node n = emptyHostNode();
   n.log_odds = from.getLogOdds();
+  n.payload = newNodePayload(payload);
   return n;
+}
+HostTree::Node hostNodeOf(const octomap::ColorOcTreeNode& from, Payload) {
+  HostTree::Node n = emptyHostNode();
+  n.log_odds = from.getLogOdds();
+  const octomap::ColorOcTreeNode::Color c = from.getColor();
+  n.payload = packRgb(Rgb{c.r, c.g, c.b});
+  return n;
+}
+HostTree::Node hostNodeOf(const octomap::OcTreeNodeStamped& from, Payload) {
+  HostTree::Node n = emptyHostNode();
+  n.log_odds = from.getLogOdds();
+  n.payload = from.getTimestamp();
+  return n;
+}
+
+// The payload a tree type holds (kNone: an OcTree's nodes take the map's new-node payload).
+constexpr Payload payloadOf(const octomap::OcTree*) { return Payload::kNone; }
+constexpr Payload payloadOf(const octomap::ColorOcTree*) { return Payload::kColor; }
+constexpr Payload payloadOf(const octomap::OcTreeStamped*) { return Payload::kStamp; }
+
+// "an OcTree", "a ColorOcTree", "an OcTreeStamped".
+std::string typeWithArticle(Payload payload) {
+  const std::string name = treeTypeName(payload);
+  return (name.front() == 'O' ? "an " : "a ") + name;
 }
 
 std::string extensionOf(const std::string& path) {
   return std::filesystem::path(path).extension().string();
 }
 
-void applyParams(octomap::OcTree& tree, const MapParams& p) {
+void applyParams(octomap::AbstractOccupancyOcTree& tree, const MapParams& p) {
   tree.setProbHit(p.prob_hit);
   tree.setProbMiss(p.prob_miss);
   tree.setClampingThresMin(p.clamping_min);
@@ -58,54 +96,50 @@ void applyParams(octomap::OcTree& tree, const MapParams& p) {
   tree.setOccupancyThres(p.occupancy_threshold);
 }
 
-std::unique_ptr<octomap::OcTree> buildOcTree(OccupancyMap& map);
-HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree);
-
-}  // namespace
-
-std::unique_ptr<octomap::OcTree> toOcTree(OccupancyMap& map) {
-  return hostMemoryGuard("toOcTree", [&] { return buildOcTree(map); });
-}
-
-void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
-  hostMemoryGuard("fromOcTree", [&] { map.upload(hostTreeOf(map, tree)); });
-}
-
-namespace {
-
-std::unique_ptr<octomap::OcTree> buildOcTree(OccupancyMap& map) {
-  const HostTree host = map.download();
-  auto tree = std::make_unique<TreeBuilder>(map.params().resolution);
-  applyParams(*tree, map.params());
+// `host` as an OctoMap tree of type Tree, with `params`' sensor model.
+template <class Tree>
+std::unique_ptr<Tree> buildTree(const HostTree& host, const MapParams& params) {
+  auto tree = std::make_unique<TreeBuilder<Tree>>(params.resolution);
+  applyParams(*tree, params);
   if (!host.root_exists) return tree;
-  std::function<void(std::uint32_t, octomap::OcTreeNode*, unsigned)> build =
-      [&](std::uint32_t index, octomap::OcTreeNode* node, unsigned depth) {
-        const HostTree::Node& n = host.nodes.at(index);
-        copyNodeData(n, *node);
-        if (depth >= 16) return;
-        for (unsigned i = 0; i < 8; ++i) {
-          if (!(n.mask & (1u << i))) continue;
-          build(n.children * 8 + i, tree->createNodeChild(node, i), depth + 1);
-        }
-      };
+  using Node = typename Tree::NodeType;
+  std::function<void(std::uint32_t, Node*, unsigned)> build = [&](std::uint32_t index, Node* node,
+                                                                  unsigned depth) {
+    const HostTree::Node& n = host.nodes.at(index);
+    copyNodeData(n, *node);
+    if (depth >= 16) return;
+    for (unsigned i = 0; i < 8; ++i) {
+      if (!(n.mask & (1u << i))) continue;
+      build(n.children * 8 + i, tree->createNodeChild(node, i), depth + 1);
+    }
+  };
   build(0, tree->makeRoot(), 0);
   return tree;
 }
 
-// The tree in the pool's layout, for OccupancyMap::upload.
-HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree) {
-  if (tree.getResolution() != map.params().resolution)
-    throw Error(ErrorCode::kInvalidArgument,
-                "fromOcTree: the tree's resolution " + std::to_string(tree.getResolution()) +
-                    " differs from the map's " + std::to_string(map.params().resolution));
+// The map's tree as OctoMap's tree of type Tree; a map of another payload is kInvalidArgument.
+template <class Tree>
+std::unique_ptr<Tree> mapAs(OccupancyMap& map, const char* call) {
+  const Payload want = payloadOf(static_cast<const Tree*>(nullptr));
+  if (map.params().payload != want)
+    throw Error(ErrorCode::kInvalidArgument, std::string(call) + ": the map is " +
+                                                 typeWithArticle(map.params().payload) + ", not " +
+                                                 typeWithArticle(want));
+  return buildTree<Tree>(map.download(), map.params());
+}
+
+// `tree` in the pool's layout for a map with `payload`, for OccupancyMap::upload.
+template <class Tree>
+HostTree hostTreeOf(const Tree& tree, Payload payload) {
   HostTree host;
-  const octomap::OcTreeNode* root = tree.getRoot();
+  host.payload = payload;
+  const auto* root = tree.getRoot();
   host.root_exists = root != nullptr;
   if (root) {
     host.nodes.resize(8);
-    host.nodes[0] = hostNodeOf(*root);
+    host.nodes[0] = hostNodeOf(*root, payload);
     // Breadth first: each node with children gets the next block of 8 slots.
-    std::vector<std::pair<const octomap::OcTreeNode*, std::uint32_t>> queue{{root, 0}};
+    std::vector<std::pair<decltype(root), std::uint32_t>> queue{{root, 0}};
     for (std::size_t head = 0; head < queue.size(); ++head) {
       const auto [node, index] = queue[head];
       if (!tree.nodeHasChildren(node)) continue;
@@ -114,8 +148,8 @@ HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree) {
       std::uint32_t mask = 0;
       for (unsigned i = 0; i < 8; ++i) {
         if (!tree.nodeChildExists(node, i)) continue;
-        const octomap::OcTreeNode* child = tree.getNodeChild(node, i);
-        host.nodes[block * 8 + i] = hostNodeOf(*child);
+        const auto* child = tree.getNodeChild(node, i);
+        host.nodes[block * 8 + i] = hostNodeOf(*child, payload);
         queue.emplace_back(child, block * 8 + i);
         mask |= 1u << i;
       }
@@ -126,7 +160,73 @@ HostTree hostTreeOf(const OccupancyMap& map, const octomap::OcTree& tree) {
   return host;
 }
 
+void checkResolution(const OccupancyMap& map, double resolution, const char* call) {
+  if (resolution != map.params().resolution)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string(call) + ": the tree's resolution " + std::to_string(resolution) +
+                    " differs from the map's " + std::to_string(map.params().resolution));
+}
+
+// Uploads `tree` into `map` (resolution checked; nodes take the map's payload kind).
+template <class Tree>
+void uploadTree(OccupancyMap& map, const Tree& tree, const char* call) {
+  checkResolution(map, tree.getResolution(), call);
+  map.upload(hostTreeOf(tree, map.params().payload));
+}
+
+double resolutionOf(const io::AnyTree& any) {
+  return std::visit([](const auto& tree) { return tree->getResolution(); }, any);
+}
+
 }  // namespace
+
+HostTree io::hostTreeOf(const AnyTree& any) {
+  return std::visit(
+      [](const auto& tree) {
+        return octovk::hostTreeOf(*tree, payloadOf(static_cast<decltype(tree.get())>(nullptr)));
+      },
+      any);
+}
+
+std::unique_ptr<octomap::AbstractOccupancyOcTree> io::octomapTreeOf(const HostTree& host,
+                                                                    const MapParams& params) {
+  switch (host.payload) {
+    case Payload::kColor:
+      return buildTree<octomap::ColorOcTree>(host, params);
+    case Payload::kStamp:
+      return buildTree<octomap::OcTreeStamped>(host, params);
+    case Payload::kNone:
+      break;
+  }
+  return buildTree<octomap::OcTree>(host, params);
+}
+
+std::unique_ptr<octomap::OcTree> toOcTree(OccupancyMap& map) {
+  return hostMemoryGuard("toOcTree",
+                         [&] { return buildTree<octomap::OcTree>(map.download(), map.params()); });
+}
+
+void fromOcTree(OccupancyMap& map, const octomap::OcTree& tree) {
+  hostMemoryGuard("fromOcTree", [&] { uploadTree(map, tree, "fromOcTree"); });
+}
+
+std::unique_ptr<octomap::ColorOcTree> toColorOcTree(ColorMap& map) {
+  return hostMemoryGuard("toColorOcTree",
+                         [&] { return mapAs<octomap::ColorOcTree>(map, "toColorOcTree"); });
+}
+
+void fromColorOcTree(ColorMap& map, const octomap::ColorOcTree& tree) {
+  hostMemoryGuard("fromColorOcTree", [&] { uploadTree(map, tree, "fromColorOcTree"); });
+}
+
+std::unique_ptr<octomap::OcTreeStamped> toOcTreeStamped(StampedMap& map) {
+  return hostMemoryGuard("toOcTreeStamped",
+                         [&] { return mapAs<octomap::OcTreeStamped>(map, "toOcTreeStamped"); });
+}
+
+void fromOcTreeStamped(StampedMap& map, const octomap::OcTreeStamped& tree) {
+  hostMemoryGuard("fromOcTreeStamped", [&] { uploadTree(map, tree, "fromOcTreeStamped"); });
+}
 
 namespace {
 
@@ -147,6 +247,28 @@ class TemporaryFile {
   bool kept_ = false;
 };
 
+// Writes `bytes` into `file` (a temporary); false when the stream failed.
+bool writeBytes(const std::string& file, const std::string& target, const std::string& bytes) {
+  std::ofstream out(file, std::ios_base::binary);
+  if (!out.is_open())
+    throw Error(ErrorCode::kIo, "cannot write '" + target + "': " + std::strerror(errno));
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.close();
+  return out.good();
+}
+
+// The map as OctoMap's tree of its type, downloaded; a stamped map's sidecar into `stamps`.
+std::unique_ptr<octomap::AbstractOccupancyOcTree> treeToWrite(OccupancyMap& map,
+                                                              std::string* stamps) {
+  const HostTree host = map.download();
+  if (stamps) *stamps = host.payload == Payload::kStamp ? io::stampsFile(host) : std::string();
+  return io::octomapTreeOf(host, map.params());
+}
+
+std::string temporaryName(const std::string& path) {
+  return path + ".tmp-" + std::to_string(::getpid());
+}
+
 void writeTreeFile(OccupancyMap& map, const std::string& path) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
@@ -159,10 +281,15 @@ void writeTreeFile(OccupancyMap& map, const std::string& path) {
   if (!std::filesystem::is_directory(dir))
     throw Error(ErrorCode::kIo,
                 "cannot write '" + path + "': directory '" + dir.string() + "' does not exist");
-  std::unique_ptr<octomap::OcTree> tree = buildOcTree(map);
+  // A stamped map's .ot: its stamps beside it, since OctoMap's .ot holds none.
+  const bool with_stamps = map.params().payload == Payload::kStamp && ext == ".ot";
+  const std::string stamps_path = path + ".stamps";
+  std::string stamps;
+  const std::unique_ptr<octomap::AbstractOccupancyOcTree> tree =
+      treeToWrite(map, with_stamps ? &stamps : nullptr);
   // Removed on any way out but the rename, from before it is created: opening the stream can
   // create the file, then fail allocating its buffer.
-  TemporaryFile tmp(path + ".tmp-" + std::to_string(::getpid()));
+  TemporaryFile tmp(temporaryName(path));
   bool ok = false;
   {
     std::ofstream out(tmp.path(), std::ios_base::binary);
@@ -176,9 +303,41 @@ void writeTreeFile(OccupancyMap& map, const std::string& path) {
     ok = ok && out.good();
   }
   if (!ok) throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+  std::optional<TemporaryFile> stamps_tmp;
+  if (with_stamps) {
+    stamps_tmp.emplace(temporaryName(stamps_path));
+    if (!writeBytes(stamps_tmp->path(), stamps_path, stamps))
+      throw Error(ErrorCode::kIo, "failed writing '" + stamps_path + "' (disk full or I/O error)");
+  }
   if (std::rename(tmp.path().c_str(), path.c_str()) != 0)
     throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
   tmp.keep();
+  // After the map: a sidecar left from before then names another tree, which the reader refuses.
+  if (stamps_tmp) {
+    if (std::rename(stamps_tmp->path().c_str(), stamps_path.c_str()) != 0)
+      throw Error(ErrorCode::kIo, "wrote '" + path + "' but not its stamps '" + stamps_path +
+                                      "': " + std::strerror(errno) + "; write the map again");
+    stamps_tmp->keep();
+  }
+}
+
+// Gives a stamped tree read from `path` the stamps of `path`.stamps where that file exists.
+void readStampsBeside(const std::string& path, HostTree& host) {
+  const std::string stamps_path = path + ".stamps";
+  std::error_code ec;
+  const auto st = std::filesystem::status(stamps_path, ec);
+  if (!std::filesystem::exists(st)) return;  // written by OctoMap: no stamps, all 0
+  if (!std::filesystem::is_regular_file(st))
+    throw Error(ErrorCode::kIo, "cannot read '" + stamps_path +
+                                    "': it is not a regular file; remove it, or give a stamps "
+                                    "file written by octovk");
+  std::ifstream in(stamps_path, std::ios_base::binary);
+  if (!in.is_open())
+    throw Error(ErrorCode::kIo, "cannot read '" + stamps_path + "': " + std::strerror(errno));
+  const std::uintmax_t size = std::filesystem::file_size(stamps_path, ec);
+  if (ec) throw Error(ErrorCode::kIo, "cannot read '" + stamps_path + "': " + ec.message());
+  io::ByteSource source(in, size, stamps_path);
+  io::applyStampsFile(source, host, stamps_path);
 }
 
 OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
@@ -199,20 +358,36 @@ OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t
   if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + ec.message());
   // Read as the checks go (see tree_file.cpp): memory follows the bytes that pass them, and a
   // damaged or sparse file fails at its first fault, whatever size it claims.
-  std::unique_ptr<octomap::OcTree> tree;
+  MapParams params;
+  HostTree host;
   {
     io::ByteSource source(in, size, path);
-    tree = io::parseTreeFile(source, ext == ".bt", path);
+    const io::AnyTree tree = io::parseTreeFile(source, ext == ".bt", path);
+    params.resolution = resolutionOf(tree);
+    host = io::hostTreeOf(tree);
   }
-  MapParams params;
-  params.resolution = tree->getResolution();
+  if (host.payload == Payload::kStamp && ext == ".ot") readStampsBeside(path, host);
+  params.payload = host.payload;
   params.max_device_bytes = max_device_bytes;
   OccupancyMap map(context, params);
-  map.upload(hostTreeOf(map, *tree));
+  map.upload(host);
   return map;
 }
 
 }  // namespace
+
+std::size_t writeMapStream(OccupancyMap& map, std::ostream& out, bool binary, std::string* stamps) {
+  return hostMemoryGuard("writeMapStream", [&] {
+    const std::unique_ptr<octomap::AbstractOccupancyOcTree> tree =
+        treeToWrite(map, binary ? nullptr : stamps);
+    if (binary && stamps) stamps->clear();
+    if (binary)
+      tree->writeBinary(out);  // prunes to max-likelihood first
+    else
+      tree->write(out);
+    return tree->size();
+  });
+}
 
 void writeMapFile(OccupancyMap& map, const std::string& path) {
   hostMemoryGuard("writeMapFile", [&] { writeTreeFile(map, path); });
@@ -227,7 +402,8 @@ namespace {
 
 MapMessage messageOf(OccupancyMap& map, bool binary) {
   return hostMemoryGuard(binary ? "binaryMapToMessage" : "fullMapToMessage", [&] {
-    const std::unique_ptr<octomap::OcTree> tree = buildOcTree(map);
+    const std::unique_ptr<octomap::AbstractOccupancyOcTree> tree =
+        io::octomapTreeOf(map.download(), map.params());
     std::ostringstream out(std::ios_base::binary);
     if (binary)
       tree->writeBinaryData(out);
@@ -245,11 +421,15 @@ MapMessage messageOf(OccupancyMap& map, bool binary) {
   });
 }
 
-std::unique_ptr<octomap::OcTree> treeOf(const MapMessage& message, const std::string& name) {
+// A message body as a host tree of its type (checked), and its resolution.
+HostTree treeOf(const MapMessage& message, const std::string& name, double& resolution) {
   return hostMemoryGuard("messageToMap", [&] {
     const std::string_view body(reinterpret_cast<const char*>(message.data.data()),
                                 message.data.size());
-    return io::parseTreeBody(body, message.binary, message.id, message.resolution, name);
+    const io::AnyTree tree =
+        io::parseTreeBody(body, message.binary, message.id, message.resolution, name);
+    resolution = resolutionOf(tree);
+    return io::hostTreeOf(tree);
   });
 }
 
@@ -259,26 +439,31 @@ MapMessage binaryMapToMessage(OccupancyMap& map) { return messageOf(map, true); 
 
 MapMessage fullMapToMessage(OccupancyMap& map) { return messageOf(map, false); }
 
-OccupancyMap messageToMap(Context& context, const MapMessage& message,
-                          std::size_t max_device_bytes, const std::string& name) {
-  const std::unique_ptr<octomap::OcTree> tree = treeOf(message, name);
+OccupancyMap messageToMap(Context& context, const MapMessage& message, std::size_t max_device_bytes,
+                          const std::string& name) {
   MapParams params;
-  params.resolution = tree->getResolution();
+  const HostTree host = treeOf(message, name, params.resolution);
+  params.payload = host.payload;
   params.max_device_bytes = max_device_bytes;
   OccupancyMap map(context, params);
-  fromOcTree(map, *tree);
+  hostMemoryGuard("messageToMap", [&] { map.upload(host); });
   return map;
 }
 
 void messageToMap(OccupancyMap& map, const MapMessage& message, const std::string& name) {
-  const std::unique_ptr<octomap::OcTree> tree = treeOf(message, name);
-  if (tree->getResolution() != map.params().resolution)
+  double resolution = 0.0;
+  const HostTree host = treeOf(message, name, resolution);
+  if (resolution != map.params().resolution)
     throw Error(ErrorCode::kInvalidArgument,
-                "messageToMap: '" + name + "' has resolution " +
-                    std::to_string(tree->getResolution()) + " m, the map " +
-                    std::to_string(map.params().resolution) +
+                "messageToMap: '" + name + "' has resolution " + std::to_string(resolution) +
+                    " m, the map " + std::to_string(map.params().resolution) +
                     " m; read it into a new map (messageToMap(context, message)) instead");
-  fromOcTree(map, *tree);
+  if (host.payload != map.params().payload)
+    throw Error(ErrorCode::kInvalidArgument,
+                "messageToMap: '" + name + "' holds " + typeWithArticle(host.payload) +
+                    ", the map is " + typeWithArticle(map.params().payload) +
+                    "; read it into a new map (messageToMap(context, message)) instead");
+  hostMemoryGuard("messageToMap", [&] { map.upload(host); });
 }
 
 }  // namespace octovk

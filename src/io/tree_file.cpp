@@ -28,16 +28,23 @@ constexpr unsigned kTreeDepth = 16;  // OctoMap's keys: leaves lie 16 levels bel
 constexpr std::string_view kFullHeader = "# Octomap OcTree file";
 constexpr std::string_view kBinaryHeader = "# Octomap OcTree binary file";
 
-// A .ot node record holds the node's data (OcTreeNode::writeData: its float log-odds; a payload
-// such as a ColorOcTree's colour would follow it), then a byte with a bit per child whose record
-// follows. The data's size, and what is wrong with it ("" when nothing: a finite log-odds).
-constexpr std::size_t kRecordDataBytes = sizeof(float);
+// A .ot node record holds the node's data (the node's writeData: its float log-odds, then for a
+// ColorOcTree the colour's r, g, b bytes; an OcTreeStamped writes no stamp), then a byte with a
+// bit per child whose record follows. The data's size by payload, and what is wrong with it (""
+// when nothing: a finite log-odds; every colour is one).
+constexpr std::size_t kRecordDataBytes[] = {sizeof(float), sizeof(float) + 3, sizeof(float)};
+std::size_t recordDataBytes(Payload payload) {
+  return kRecordDataBytes[static_cast<std::size_t>(payload)];
+}
 std::string recordDataFault(std::string_view data) {
   float log_odds;
   std::memcpy(&log_odds, data.data(), sizeof(float));
   if (std::isfinite(log_odds)) return {};
   return " has log-odds " + std::to_string(log_odds) + ", not a finite number";
 }
+
+// What a refusal of a tree type says: the types octovk reads.
+std::string unknownTreeType(std::string_view id);
 
 // A file's text for a message: at most 40 characters, anything unprintable as '?'.
 std::string shown(std::string_view text) {
@@ -99,7 +106,21 @@ class ViewBuffer : public std::streambuf {
   std::size_t consumed() const { return static_cast<std::size_t>(gptr() - eback()); }
 };
 
+std::string unknownTreeType(std::string_view id) {
+  return "it holds a tree of type '" + shown(id) +
+         "'; octovk reads OcTree, ColorOcTree and OcTreeStamped maps";
+}
+
 }  // namespace
+
+bool payloadOfTreeType(std::string_view id, Payload& payload) {
+  for (const Payload p : {Payload::kNone, Payload::kColor, Payload::kStamp}) {
+    if (id != treeTypeName(p)) continue;
+    payload = p;
+    return true;
+  }
+  return false;
+}
 
 namespace {
 
@@ -178,9 +199,7 @@ TreeHeader readHeader(ByteSource& source, bool binary, const Fault& bad) {
   }
   if (!has_data) throw bad("its header has no 'data' line (truncated?)");
   if (!has_id) throw bad("its header has no 'id' line");
-  if (h.id != "OcTree")
-    throw bad("it holds a tree of type '" + shown(h.id) +
-              "', not a plain OcTree; octovk reads OcTree maps only");
+  if (Payload payload; !payloadOfTreeType(h.id, payload)) throw bad(unknownTreeType(h.id));
   if (!has_size) throw bad("its header has no 'size' line, so its node data cannot be checked");
   if (!has_res) throw bad("its header has no 'res' line");
   h.data_at = static_cast<std::size_t>(at);
@@ -196,93 +215,12 @@ TreeHeader parseTreeHeader(std::string_view bytes, bool binary, const std::strin
 
 namespace {
 
-// The node records of a tree (a file's data section, or a message body) walked without
-// recursion as `source` gives them, then read by OctoMap. `offset`: where the records start in
-// `source` (offsets in messages count from the start of what the caller names); `announced`:
-// the node count a file's header gives (a message has none).
-std::unique_ptr<octomap::OcTree> readTreeData(ByteSource& source, std::uint64_t offset, bool binary,
-                                              double resolution,
-                                              std::optional<std::uint64_t> announced,
-                                              const Fault& bad) {
-  auto tree = std::make_unique<octomap::OcTree>(resolution);
-  const std::uint64_t apparent = source.size() > offset ? source.size() - offset : 0;
-  if (!source.has(offset + 1)) {
-    // What OctoMap writes for an empty tree: no record (its header says size 0).
-    if (announced && *announced != 0)
-      throw bad("its header announces " + std::to_string(*announced) +
-                " nodes, but the data section is empty (truncated?)");
-    return tree;
-  }
-  if (announced && *announced == 0)
-    throw bad("its header announces 0 nodes, but " + std::to_string(apparent) +
-              " bytes of node data follow");
-
-  // The walk: a stack of the nodes whose child records are still to come (at most 17).
-  struct Open {
-    unsigned depth;
-    unsigned children;  // a bit per child whose record is still to come
-  };
-  std::array<Open, kTreeDepth + 1> open{};
-  std::size_t top = 0;
-  std::uint64_t at = offset;
-  std::uint64_t nodes = binary ? 1 : 0;  // .bt: records list children; the root has none
-  const auto where = [&](unsigned depth) {
-    return "the node record at byte " + std::to_string(at) + " (depth " + std::to_string(depth) +
-           ")";
-  };
-  const auto record = [&](unsigned depth) {
-    if (binary) {  // 2 bits per child: 00 none, 01 occupied leaf, 10 free leaf, 11 inner node
-      if (!source.has(at + 2)) throw bad(where(depth) + " runs past the end of the file");
-      unsigned inner = 0, children = 0;
-      for (unsigned i = 0; i < 8; ++i) {
-        const unsigned pair = (source.at(at + i / 4) >> (2 * (i % 4))) & 3u;
-        if (pair != 0) ++children;
-        if (pair == 3) inner |= 1u << i;
-      }
-      if (depth > 0 && children == 0)
-        throw bad(where(depth) + " is an inner node without children");
-      if (inner != 0 && depth + 1 >= kTreeDepth)
-        throw bad(where(depth) + " has inner children, deeper than a tree's 16 levels");
-      nodes += children;
-      open[top++] = {depth, inner};
-      at += 2;
-    } else {  // the node's data, then a byte with a bit per child whose record follows
-      if (!source.has(at + kRecordDataBytes + 1))
-        throw bad(where(depth) + " runs past the end of the file");
-      const std::string fault = recordDataFault(source.view(at, at + kRecordDataBytes));
-      if (!fault.empty()) throw bad(where(depth) + fault);
-      const unsigned mask = source.at(at + kRecordDataBytes);
-      if (mask != 0 && depth >= kTreeDepth)
-        throw bad(where(depth) + " has children, deeper than a tree's 16 levels");
-      ++nodes;
-      open[top++] = {depth, mask};
-      at += kRecordDataBytes + 1;
-    }
-    // More nodes than announced: refused now rather than after the rest of the file.
-    if (announced && nodes > *announced)
-      throw bad("its header announces " + std::to_string(*announced) +
-                " nodes, the data holds more (" + std::to_string(nodes) + " by byte " +
-                std::to_string(at) + ")");
-  };
-  record(0);
-  while (top > 0) {
-    Open& last = open[top - 1];
-    if (last.children == 0) {
-      --top;
-      continue;
-    }
-    last.children &= last.children - 1;  // the lowest child's record is next
-    record(last.depth + 1);
-  }
-  if (source.has(at + 1))
-    throw bad(std::to_string(source.size() > at ? source.size() - at : 1) +
-              " bytes follow the tree's last node record (at byte " + std::to_string(at) + ")");
-  if (announced && nodes != *announced)
-    throw bad("its header announces " + std::to_string(*announced) + " nodes, the data holds " +
-              std::to_string(nodes));
-
-  // A whole tree OctoMap can read: now OctoMap reads it.
-  const std::string_view data = source.view(offset, at);
+// OctoMap's reader of a tree type on a data section the walk found whole (`nodes` nodes).
+template <class Tree>
+std::unique_ptr<Tree> readWithOctoMap(std::string_view data, bool binary, double resolution,
+                                      std::uint64_t nodes, const Fault& bad) {
+  auto tree = std::make_unique<Tree>(resolution);
+  if (data.empty()) return tree;
   ViewBuffer buffer(data);
   std::istream in(&buffer);
   if (binary)
@@ -296,29 +234,124 @@ std::unique_ptr<octomap::OcTree> readTreeData(ByteSource& source, std::uint64_t 
   return tree;
 }
 
+// The node records of a tree (a file's data section, or a message body) of type `payload` walked
+// without recursion as `source` gives them, then read by OctoMap. `offset`: where the records
+// start in `source` (offsets in messages count from the start of what the caller names);
+// `announced`: the node count a file's header gives (a message has none).
+AnyTree readTreeData(ByteSource& source, std::uint64_t offset, bool binary, Payload payload,
+                     double resolution, std::optional<std::uint64_t> announced, const Fault& bad) {
+  const std::size_t data_bytes = recordDataBytes(payload);
+  const std::uint64_t apparent = source.size() > offset ? source.size() - offset : 0;
+  std::uint64_t at = offset;
+  std::uint64_t nodes = 0;
+  if (!source.has(offset + 1)) {
+    // What OctoMap writes for an empty tree: no record (its header says size 0).
+    if (announced && *announced != 0)
+      throw bad("its header announces " + std::to_string(*announced) +
+                " nodes, but the data section is empty (truncated?)");
+  } else {
+    if (announced && *announced == 0)
+      throw bad("its header announces 0 nodes, but " + std::to_string(apparent) +
+                " bytes of node data follow");
+
+    // The walk: a stack of the nodes whose child records are still to come (at most 17).
+    struct Open {
+      unsigned depth;
+      unsigned children;  // a bit per child whose record is still to come
+    };
+    std::array<Open, kTreeDepth + 1> open{};
+    std::size_t top = 0;
+    nodes = binary ? 1 : 0;  // .bt: records list children; the root has none
+    const auto where = [&](unsigned depth) {
+      return "the node record at byte " + std::to_string(at) + " (depth " + std::to_string(depth) +
+             ")";
+    };
+    const auto record = [&](unsigned depth) {
+      if (binary) {  // 2 bits per child: 00 none, 01 occupied leaf, 10 free leaf, 11 inner node
+        if (!source.has(at + 2)) throw bad(where(depth) + " runs past the end of the file");
+        unsigned inner = 0, children = 0;
+        for (unsigned i = 0; i < 8; ++i) {
+          const unsigned pair = (source.at(at + i / 4) >> (2 * (i % 4))) & 3u;
+          if (pair != 0) ++children;
+          if (pair == 3) inner |= 1u << i;
+        }
+        if (depth > 0 && children == 0)
+          throw bad(where(depth) + " is an inner node without children");
+        if (inner != 0 && depth + 1 >= kTreeDepth)
+          throw bad(where(depth) + " has inner children, deeper than a tree's 16 levels");
+        nodes += children;
+        open[top++] = {depth, inner};
+        at += 2;
+      } else {  // the node's data, then a byte with a bit per child whose record follows
+        if (!source.has(at + data_bytes + 1))
+          throw bad(where(depth) + " runs past the end of the file");
+        const std::string fault = recordDataFault(source.view(at, at + data_bytes));
+        if (!fault.empty()) throw bad(where(depth) + fault);
+        const unsigned mask = source.at(at + data_bytes);
+        if (mask != 0 && depth >= kTreeDepth)
+          throw bad(where(depth) + " has children, deeper than a tree's 16 levels");
+        ++nodes;
+        open[top++] = {depth, mask};
+        at += data_bytes + 1;
+      }
+      // More nodes than announced: refused now rather than after the rest of the file.
+      if (announced && nodes > *announced)
+        throw bad("its header announces " + std::to_string(*announced) +
+                  " nodes, the data holds more (" + std::to_string(nodes) + " by byte " +
+                  std::to_string(at) + ")");
+    };
+    record(0);
+    while (top > 0) {
+      Open& last = open[top - 1];
+      if (last.children == 0) {
+        --top;
+        continue;
+      }
+      last.children &= last.children - 1;  // the lowest child's record is next
+      record(last.depth + 1);
+    }
+    if (source.has(at + 1))
+      throw bad(std::to_string(source.size() > at ? source.size() - at : 1) +
+                " bytes follow the tree's last node record (at byte " + std::to_string(at) + ")");
+    if (announced && nodes != *announced)
+      throw bad("its header announces " + std::to_string(*announced) + " nodes, the data holds " +
+                std::to_string(nodes));
+  }
+
+  // A whole tree OctoMap can read (or none): now OctoMap reads it, as the type it is.
+  const std::string_view data = at > offset ? source.view(offset, at) : std::string_view();
+  switch (payload) {
+    case Payload::kColor:
+      return readWithOctoMap<octomap::ColorOcTree>(data, binary, resolution, nodes, bad);
+    case Payload::kStamp:
+      return readWithOctoMap<octomap::OcTreeStamped>(data, binary, resolution, nodes, bad);
+    case Payload::kNone:
+      break;
+  }
+  return readWithOctoMap<octomap::OcTree>(data, binary, resolution, nodes, bad);
+}
+
 }  // namespace
 
-std::unique_ptr<octomap::OcTree> parseTreeFile(std::string_view bytes, bool binary,
-                                               const std::string& name) {
+AnyTree parseTreeFile(std::string_view bytes, bool binary, const std::string& name) {
   ByteSource source(bytes);
   return parseTreeFile(source, binary, name);
 }
 
-std::unique_ptr<octomap::OcTree> parseTreeFile(ByteSource& source, bool binary,
-                                               const std::string& name) {
+AnyTree parseTreeFile(ByteSource& source, bool binary, const std::string& name) {
   const Fault bad(name, binary);
   const TreeHeader h = readHeader(source, binary, bad);
+  Payload payload = Payload::kNone;
+  payloadOfTreeType(h.id, payload);  // readHeader refused any other
   source.release(h.data_at);  // the header's bytes: OctoMap's reader sees the data section only
-  return readTreeData(source, h.data_at, binary, h.resolution, h.size, bad);
+  return readTreeData(source, h.data_at, binary, payload, h.resolution, h.size, bad);
 }
 
-std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binary,
-                                               const std::string& id, double resolution,
-                                               const std::string& name) {
+AnyTree parseTreeBody(std::string_view body, bool binary, const std::string& id, double resolution,
+                      const std::string& name) {
   const Fault bad(name, binary, /*message=*/true);
-  if (id != "OcTree")
-    throw bad("it holds a tree of type '" + shown(id) +
-              "', not a plain OcTree; octovk reads OcTree maps only");
+  Payload payload = Payload::kNone;
+  if (!payloadOfTreeType(id, payload)) throw bad(unknownTreeType(id));
   MapParams params;
   params.resolution = resolution;
   if (!std::isfinite(resolution) || resolution <= 0.0)
@@ -326,7 +359,123 @@ std::unique_ptr<octomap::OcTree> parseTreeBody(std::string_view body, bool binar
               " is not a positive number of metres");
   if (const std::string why = params.validate(); !why.empty()) throw bad("its " + why);
   ByteSource source(body);
-  return readTreeData(source, 0, binary, resolution, std::nullopt, bad);
+  return readTreeData(source, 0, binary, payload, resolution, std::nullopt, bad);
+}
+
+// ---- a stamped map's sidecar ----
+
+namespace {
+
+constexpr std::string_view kStampsMagic = "OVKSTAMP";
+constexpr std::uint32_t kStampsVersion = 1;
+
+// Calls visit(index) for every node of `tree` in the .ot's order: depth first, children 0 to 7.
+template <class Visit>
+void forEachInFileOrder(const HostTree& tree, Visit&& visit) {
+  if (!tree.root_exists || tree.nodes.empty()) return;
+  std::vector<std::uint64_t> stack{0};
+  while (!stack.empty()) {
+    const std::uint64_t i = stack.back();
+    stack.pop_back();
+    if (i >= tree.nodes.size())
+      throw Error(ErrorCode::kInternal, "a host tree's child link leaves its nodes");
+    visit(static_cast<std::size_t>(i));
+    const HostTree::Node& n = tree.nodes[i];
+    for (int c = 7; c >= 0; --c)
+      if (n.mask & (1u << c)) stack.push_back(std::uint64_t{n.children} * 8 + c);
+  }
+}
+
+void putLittle(std::string& out, std::uint64_t value, unsigned bytes) {
+  for (unsigned i = 0; i < bytes; ++i) out += static_cast<char>((value >> (8 * i)) & 0xFFu);
+}
+
+std::uint64_t getLittle(std::string_view in, std::size_t at, unsigned bytes) {
+  std::uint64_t value = 0;
+  for (unsigned i = 0; i < bytes; ++i)
+    value |= std::uint64_t{static_cast<unsigned char>(in[at + i])} << (8 * i);
+  return value;
+}
+
+}  // namespace
+
+std::uint64_t treeDigest(const HostTree& tree) {
+  std::uint64_t hash = 14695981039346656037ull;  // FNV-1a's offset basis
+  const auto add = [&](std::uint64_t byte) {
+    hash ^= byte;
+    hash *= 1099511628211ull;  // FNV's 64-bit prime
+  };
+  forEachInFileOrder(tree, [&](std::size_t i) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &tree.nodes[i].log_odds, sizeof(bits));
+    for (unsigned b = 0; b < 4; ++b) add((bits >> (8 * b)) & 0xFFu);
+    add(tree.nodes[i].mask & 0xFFu);
+  });
+  return hash;
+}
+
+std::string stampsFile(const HostTree& tree) {
+  std::vector<std::uint32_t> stamps;
+  forEachInFileOrder(tree, [&](std::size_t i) { stamps.push_back(tree.nodes[i].payload); });
+  std::string out(kStampsMagic);
+  out.reserve(stampsFileSize(stamps.size()));
+  putLittle(out, kStampsVersion, 4);
+  putLittle(out, 0, 4);
+  putLittle(out, stamps.size(), 8);
+  putLittle(out, treeDigest(tree), 8);
+  for (const std::uint32_t stamp : stamps) putLittle(out, stamp, 4);
+  return out;
+}
+
+void applyStampsFile(std::string_view bytes, HostTree& tree, const std::string& name) {
+  ByteSource source(bytes);
+  applyStampsFile(source, tree, name);
+}
+
+void applyStampsFile(ByteSource& source, HostTree& tree, const std::string& name) {
+  const auto bad = [&](const std::string& why) {
+    return Error(ErrorCode::kFormat,
+                 "'" + name + "' does not hold this map's time stamps: " + why +
+                     "; it is damaged, or the map beside it was written again without it "
+                     "(delete it to read the map with every stamp 0)");
+  };
+  std::vector<std::size_t> order;
+  forEachInFileOrder(tree, [&](std::size_t i) { order.push_back(i); });
+  if (!source.has(kStampsHeaderBytes))
+    throw bad("it is " + std::to_string(source.size()) + " bytes, shorter than the " +
+              std::to_string(kStampsHeaderBytes) + "-byte header of an octovk stamps file");
+  const std::string_view header = source.view(0, kStampsHeaderBytes);
+  if (header.substr(0, kStampsMagic.size()) != kStampsMagic)
+    throw bad("it does not start with '" + std::string(kStampsMagic) + "' but '" +
+              shown(header.substr(0, kStampsMagic.size())) + "'");
+  if (const std::uint64_t version = getLittle(header, 8, 4); version != kStampsVersion)
+    throw bad("it is of version " + std::to_string(version) + "; this octovk reads version " +
+              std::to_string(kStampsVersion));
+  if (getLittle(header, 12, 4) != 0) throw bad("its reserved bytes 12-15 are not zero");
+  const std::uint64_t count = getLittle(header, 16, 8);
+  const std::uint64_t digest = getLittle(header, 24, 8);
+  if (count != order.size())
+    throw bad("it holds stamps for " + std::to_string(count) + " nodes, the map has " +
+              std::to_string(order.size()));
+  const std::uint64_t expected = stampsFileSize(count);
+  const auto wrong_size = [&](std::uint64_t size) {
+    return bad("it is " + std::to_string(size) + " bytes, not the " + std::to_string(expected) +
+               " that " + std::to_string(count) + " stamps take");
+  };
+  if (source.size() != expected) throw wrong_size(source.size());
+  if (digest != treeDigest(tree))
+    throw bad(
+        "its digest of the map's nodes differs from the map's (the same node count, "
+        "other values or shape)");
+  std::vector<std::uint32_t> stamps(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const std::uint64_t at = kStampsHeaderBytes + 4 * std::uint64_t{k};
+    if (!source.has(at + 4)) throw wrong_size(at);  // shrunk while read
+    stamps[k] = static_cast<std::uint32_t>(getLittle(source.view(at, at + 4), 0, 4));
+    source.release(at);
+  }
+  if (source.has(expected + 1)) throw wrong_size(expected + 1);  // grown while read
+  for (std::size_t k = 0; k < order.size(); ++k) tree.nodes[order[k]].payload = stamps[k];
 }
 
 }  // namespace octovk::io

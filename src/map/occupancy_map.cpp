@@ -211,7 +211,22 @@ std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points
 }
 
 std::vector<RayHit> OccupancyMap::castRays(std::span<const Ray> rays) {
-  return hostMemoryGuard("castRays", [&] { return self().runQueries({{}, rays}).rays; });
+  return hostMemoryGuard("castRays", [&] {
+    std::vector<RayHit> hits = self().runQueries({{}, rays}).rays;
+    if (self().params().payload == Payload::kNone) return hits;
+    // A hit's end is the centre of the cell it hit: search() there finds that cell's node.
+    std::vector<Eigen::Vector3f> ends;
+    std::vector<std::size_t> which;
+    for (std::size_t i = 0; i < hits.size(); ++i)
+      if (hits[i].hit) {
+        ends.push_back(hits[i].end);
+        which.push_back(i);
+      }
+    if (ends.empty()) return hits;
+    const std::vector<Lookup> found = self().runQueries({ends, {}}).lookups;
+    for (std::size_t j = 0; j < which.size(); ++j) hits[which[j]].payload = found[j].payload;
+    return hits;
+  });
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::leavesInBox(const Eigen::Vector3f& min,

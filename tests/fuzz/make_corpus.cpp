@@ -1,8 +1,10 @@
 // Writes the fuzz targets' seed corpus into DIR/{bt,ot,message,graph,tum_lists,depth_png}/: tiny
-// maps, map message bodies and graphs with OctoMap's own writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt)
-// and tiny 16-bit PNGs with libpng. Usage: octovk_fuzz_corpus DIR (tests/fuzz/corpus holds its
-// output).
+// maps (OcTree, ColorOcTree, OcTreeStamped), map message bodies and graphs with OctoMap's own
+// writers, tiny TUM RGB-D lists (groundtruth.txt, a NUL byte, depth.txt) and tiny 16-bit PNGs with
+// libpng. Usage: octovk_fuzz_corpus DIR (tests/fuzz/corpus holds its output).
+#include <octomap/ColorOcTree.h>
 #include <octomap/OcTree.h>
+#include <octomap/OcTreeStamped.h>
 #include <octomap/ScanGraph.h>
 #include <png.h>
 #include <zlib.h>
@@ -31,6 +33,20 @@ octomap::OcTree tinyTree(double resolution, int cells) {
     tree.updateNode(octomap::point3d(x, y, 0.0f), false);
   }
   tree.updateNode(octomap::point3d(-1.0f, 2.0f, -0.5f), true);
+  return tree;
+}
+
+// tinyTree's cells as a ColorOcTree, some coloured, inner colours as updateInnerOccupancy gives.
+octomap::ColorOcTree tinyColorTree() {
+  octomap::ColorOcTree tree(0.1);
+  for (int i = 0; i < 6; ++i) {
+    const octomap::point3d p(0.1f * static_cast<float>(i % 3), 0.1f * static_cast<float>(i / 3),
+                             0.5f);
+    tree.updateNode(p, true);
+    if (i % 2 == 0)
+      tree.setNodeColor(p.x(), p.y(), p.z(), static_cast<std::uint8_t>(40 * i), 7, 200);
+  }
+  tree.updateInnerOccupancy();
   return tree;
 }
 
@@ -78,7 +94,21 @@ int main(int argc, char** argv) {
   ok &= write(dir + "/bt/small.bt", [&](std::ostream& s) { small.writeBinary(s); });
   ok &= write(dir + "/bt/empty.bt", [&](std::ostream& s) { empty.writeBinary(s); });
   ok &= write(dir + "/bt/coarse.bt", [&](std::ostream& s) { coarse.writeBinary(s); });
-  // Message bodies: a flag byte (1 binary, 0 full; see fuzz_message.cpp), then the body.
+  // The other tree types: a ColorOcTree (.ot records of 7 data bytes) and an OcTreeStamped.
+  octomap::ColorOcTree color = tinyColorTree();
+  octomap::OcTreeStamped stamped(0.1);
+  stamped.updateNode(octomap::point3d(0.1f, 0.2f, 0.3f), true);
+  stamped.updateNode(octomap::point3d(0.5f, 0.2f, 0.3f), false);
+  ok &= write(dir + "/ot/color.ot", [&](std::ostream& s) { color.write(s); });
+  ok &= write(dir + "/ot/stamped.ot", [&](std::ostream& s) { stamped.write(s); });
+  ok &= write(dir + "/bt/color.bt", [&](std::ostream& s) { color.writeBinary(s); });
+  ok &= write(dir + "/bt/stamped.bt", [&](std::ostream& s) { stamped.writeBinary(s); });
+  // Message bodies: a flag byte (bit 0: 1 binary, 0 full; bits 1-2: the tree type, 0 OcTree,
+  // 1 ColorOcTree, 2 OcTreeStamped; see fuzz_message.cpp), then the body.
+  ok &= write(dir + "/message/full_color.msg", [&](std::ostream& s) {
+    s.put(2);
+    color.writeData(s);
+  });
   for (const bool binary : {true, false}) {
     const std::string kind = binary ? "binary" : "full";
     for (const auto& [name, tree] : {std::pair<const char*, octomap::OcTree*>{"small", &small},
