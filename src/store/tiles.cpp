@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <variant>
 
 #include "io/parse.hpp"
 #include "map/host_tree.hpp"
@@ -306,8 +307,8 @@ std::string nodeStream(const HostTree& tree) {
 }
 
 std::unique_ptr<octomap::OcTree> ocTreeOf(const HostTree& tree, const MapParams& params) {
-  std::unique_ptr<octomap::OcTree> out =
-      io::parseTreeBody(nodeStream(tree), /*binary=*/false, "OcTree", params.resolution, "store");
+  std::unique_ptr<octomap::OcTree> out = std::get<std::unique_ptr<octomap::OcTree>>(
+      io::parseTreeBody(nodeStream(tree), /*binary=*/false, "OcTree", params.resolution, "store"));
   out->setProbHit(params.prob_hit);
   out->setProbMiss(params.prob_miss);
   out->setClampingThresMin(params.clamping_min);
