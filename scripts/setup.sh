@@ -12,6 +12,8 @@ packages=(
   libdynamicedt3d-dev                    # the distance field's oracle in tests and bench (not the library)
   googletest libgtest-dev                # tests
   libpng-dev                             # TUM RGB-D depth images
+  libsqlite3-dev libpq-dev               # the map store (octovk integrate --store, octovk store)
+  postgresql                             # its tests start a private PostgreSQL server
   libcairo2-dev libfontconfig-dev fonts-dejavu-core  # octovk render / distance: pictures, text
   python3 bzip2                          # test data preparation (FR-079 log, scan.dat.bz2)
   gnuplot-nox                            # bench/plot_results.py draws the benchmark plot

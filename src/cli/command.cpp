@@ -180,6 +180,7 @@ void printEnvironmentPointer(std::ostream& out) {
 }
 
 int runSubcommand(const Subcommand& command, const std::vector<std::string>& args) {
+  if (command.run_actions) return command.run_actions(args);
   if (wantsHelp(args)) {
     printSubcommandHelp(command, std::cout);
     return kExitOk;

@@ -119,6 +119,9 @@ struct Subcommand {
   std::unique_ptr<Command> (*make)();
   /// Two or three command lines a user can start from, one per line, printed by the help.
   const char* examples = "";
+  /// A command of actions (store export|log|info) runs the words after its name itself, each
+  /// action through runSubcommand; nullptr for the others.
+  int (*run_actions)(const std::vector<std::string>& args) = nullptr;
 };
 
 /// Runs `command` on `args` (the words after its name): help, parsing, checks, outputs, work.

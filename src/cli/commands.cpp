@@ -1,6 +1,7 @@
 // The program's commands in one table: what dispatch finds, the driver parses and checks, and
 // the program's help lists, one line each. Each command's help and work are in its own file.
 #include "command.hpp"
+#include "store.hpp"  // printStoreHelp, runStoreActions
 
 namespace octovk::cli {
 
@@ -118,6 +119,13 @@ const Subcommand kSubcommands[] = {
          "  octovk distance map.bt --box -5 -5 0 5 5 2 --z 0.5 -o slice.png\n"
          "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown free\n"
          "                  -o optimistic.png\n"},
+    {.name = "store",
+     .summary = "a map store: export a map, its log of committed scans, what it holds",
+     .print_help = printStoreHelp,
+     .make = nullptr,
+     .examples = "  octovk store export map.sqlite -o map.bt\n"
+                 "  octovk store log map.sqlite --map lab\n",
+     .run_actions = runStoreActions},
     {.name = "devices",
      .summary = "the Vulkan devices and the one octovk picks",
      .print_help = printDevicesHelp,

@@ -25,6 +25,7 @@
 #include "ply.hpp"
 #include "png.hpp"
 #include "report.hpp"
+#include "store.hpp"
 
 namespace octovk::cli {
 
@@ -306,6 +307,7 @@ void printIntegrateHelp(std::ostream& out) {
          "      --degrade-after S  before each stamped scan, occupied cells older than S s fade\n";
   printMaxDeviceMemoryHelp(out, "A scan");
   out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
+  IntegrateStore::printHelp(out);
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
          "Values: '--name VALUE' or '--name=VALUE' ('--intrinsics=FX,FY,CX,CY').\n";
@@ -316,6 +318,7 @@ namespace {
 class Integrate final : public Command {
  public:
   bool option(const ParsedOption& opt) override {
+    if (store_->option(opt)) return true;  // --store, --map
     if (opt.name == "-r" || opt.name == "--resolution")
       params_.resolution = parseNumber(opt, "0.05");
     else if (opt.name == "-m" || opt.name == "--max-range")
@@ -391,6 +394,7 @@ class Integrate final : public Command {
   std::string stamps_path_;                     ///< --stamps: a graph's scans' stamps
   bool stamped_ = false;                        ///< --stamped: a folder's images' own stamps
   std::optional<std::uint32_t> degrade_after_;  ///< --degrade-after
+  std::unique_ptr<IntegrateStore> store_ = std::make_unique<IntegrateStore>();  ///< --store
 };
 
 void Integrate::check(Invocation& in) {
@@ -407,7 +411,7 @@ void Integrate::check(Invocation& in) {
                        graph_path + "' holds 3D points already: leave " + camera_option_ + " out");
   }
   checkPayload(in);
-  in.checkOutputs();
+  if (!store_->enabled() || !in.outputs().empty()) in.checkOutputs();  // -o optional with --store
   // A stamped map's .ot holds no stamps (OctoMap writes none): they go beside it, written and
   // renamed with it, so that readMapFile finds the map's own.
   if (params_.payload == Payload::kStamp)
@@ -558,6 +562,7 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped, cons
   ScanTicket first_ticket = 0;
   try {
     for (; at < scan_count; ++at) {
+      store_->begin(map);  // --store: the map's write lock, other writers' scans
       ScanTicket ticket = 0;
       ScanOptions options = scan_;
       if (!sources.stamps.empty()) {
@@ -587,6 +592,7 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped, cons
                                  scan.T_world_sensor, options);
       }
       if (at == 0) first_ticket = ticket;
+      store_->commit(map, input, at);  // --store: waits for the scan, commits it
       if (at % 256 == 255) totals.add(map.takeScanStats(), tum);
       progress.update(at + 1);
     }
@@ -617,11 +623,13 @@ int Integrate::run(Invocation& in) {
   std::cout << "device: " << context.device().name << " (" << context.device().type << ")"
             << std::endl;
 
+  store_->open(params_);  // --store: an existing map's parameters
   // params_.payload says what the nodes hold; a stamped map is taken over for degradeOutdated.
   OccupancyMap plain(context, params_);
   std::optional<StampedMap> stamped;
   if (params_.payload == Payload::kStamp) stamped.emplace(std::move(plain));
   OccupancyMap& map = stamped ? *stamped : plain;
+  store_->load(map);
   if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   const auto insert_start = Clock::now();
   const Totals totals = insert(map, stamped ? &*stamped : nullptr, sources, in.input());
@@ -631,8 +639,10 @@ int Integrate::run(Invocation& in) {
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
   if (changes_output_) changes = map.changedKeys();
+  const bool writes = !in.outputs().empty() || changes_output_;  // none with --store alone
   const std::vector<std::size_t> file_nodes =
-      writeOutputs(map, in, stamps_outputs_, changes_output_, changes);
+      writes ? writeOutputs(map, in, stamps_outputs_, changes_output_, changes)
+             : std::vector<std::size_t>{};
   const double total_s = secondsSince(run_start);
 
   const std::size_t scans = sources.count();
@@ -649,7 +659,7 @@ int Integrate::run(Invocation& in) {
             format("%.3f s, %.3f ms/scan (run total %.3f s, with reading and writing)", insert_s,
                    scans == 0 ? 0.0 : insert_s * 1e3 / static_cast<double>(scans), total_s))
       .line("nodes", std::to_string(nodes) + " in memory (graph2tree's 'Tree size')")
-      .line("file nodes", fileNodesText(in.outputs(), file_nodes))
+      .line("file nodes", writes ? fileNodesText(in.outputs(), file_nodes) : "no file (-o)")
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));
@@ -675,6 +685,7 @@ int Integrate::run(Invocation& in) {
     report.line("changes", format("%zu keys (%zu created, %zu flipped)", changes.size(), created,
                                   changes.size() - created));
   }
+  store_->report(report);
   report.wrote(in.outputs());
   for (const std::string& output : in.outputs())
     if (!stamps_outputs_.empty()) report.wrote(output + ".stamps");
@@ -698,7 +709,9 @@ std::vector<std::string> integrateValueOptions() {
                                     "--rays",
                                     "--changes",
                                     "--stamps",
-                                    "--degrade-after"};
+                                    "--degrade-after",
+                                    "--store",
+                                    "--map"};
   for (const std::string& name : cameraValueOptions()) names.push_back(name);
   return names;
 }

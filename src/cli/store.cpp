@@ -1,0 +1,356 @@
+// octovk store export|log|info, and integrate's --store / --map: a map kept as tiles in a store
+// (src/store, docs/store.md), committed scan by scan. Reading a store needs no Vulkan device.
+#include "store.hpp"
+
+#include <octomap/OcTree.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "command.hpp"
+#include "store/store.hpp"
+
+namespace octovk::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kDefaultMap = "default";
+
+void checkStoreInput(const std::string& path, const std::string& usage) {
+  if (path.empty()) throw UsageError("no store given; usage: " + usage);
+  if (store::isPostgresLocation(path)) return;  // a server's, not a file
+  checkRegularInput(path, "store", "give the SQLite file 'octovk integrate ... --store' wrote");
+}
+
+std::string mib(std::uint64_t bytes) {
+  return format("%.2f MiB", static_cast<double>(bytes) / (1024.0 * 1024.0));
+}
+
+// ---- store export ----
+
+void printStoreExportHelp(std::ostream& out) {
+  out << "octovk store export STORE [--map NAME] -o OUT.bt|OUT.ot\n"
+         "\n"
+         "Writes a map of a store as OctoMap writes the same tree: .bt max-likelihood and\n"
+         "pruned, .ot full log-odds (byte-identical to graph2tree on the committed scans).\n"
+         "Reads the last committed scan; a writer may go on meanwhile. No Vulkan device needed.\n"
+         "\n"
+         "Options:\n"
+         "  -o, --output FILE      the map file, .bt or .ot. Required.\n"
+         "      --map NAME         which map of the store (default: default)\n"
+         "  -h, --help             show this help\n";
+}
+
+class StoreExport final : public Command {
+ public:
+  bool option(const ParsedOption& opt) override {
+    if (opt.name != "--map") return false;
+    map_ = opt.value;
+    return true;
+  }
+  void check(Invocation& in) override {
+    checkStoreInput(in.input(), "octovk store export STORE -o OUT.bt");
+    in.checkOutputs();
+  }
+  int run(Invocation& in) override {
+    const auto store = store::Store::open(in.input(), /*create=*/false);
+    const std::optional<store::MapInfo> info = store->map(map_);
+    if (!info)
+      throw Error(ErrorCode::kInvalidArgument, "store '" + in.input() + "' holds no map '" + map_ +
+                                                   "'; 'octovk store info " + in.input() +
+                                                   "' lists its maps");
+    const HostTree tree = store::loadTree(*store, map_);
+    std::size_t nodes = 0;
+    {
+      StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
+      in.files().write(0, [&](const std::string& temporary) {
+        std::unique_ptr<octomap::OcTree> ot = store::ocTreeOf(tree, info->params);
+        std::ofstream out(temporary, std::ios_base::binary | std::ios_base::trunc);
+        if (!out.is_open())
+          throw Error(ErrorCode::kIo,
+                      "cannot write '" + in.output() + "': " + std::strerror(errno));
+        bool ok =
+            fs::path(in.output()).extension() == ".bt" ? ot->writeBinary(out) : ot->write(out);
+        out.close();
+        if (!ok || !out.good())
+          throw Error(ErrorCode::kIo,
+                      "failed writing '" + in.output() + "' (disk full or I/O error)");
+        nodes = ot->size();
+      });
+    }
+    in.files().commit();
+    Report report(10);
+    report
+        .line("map", map_ + format(" (resolution %g m), %llu scans", info->params.resolution,
+                                   static_cast<unsigned long long>(info->scans)))
+        .line("nodes", std::to_string(nodes) + " in the file")
+        .wrote(in.output());
+    return report.print();
+  }
+
+ private:
+  std::string map_ = kDefaultMap;
+};
+
+// ---- store log ----
+
+void printStoreLogHelp(std::ostream& out) {
+  out << "octovk store log STORE [--map NAME]\n"
+         "\n"
+         "Prints the committed scans of a map, one line each, in commit order:\n"
+         "  SEQ SOURCE SCAN\n"
+         "SEQ counts the map's commits from 1, SOURCE is the input as integrate was given it, "
+         "SCAN\n"
+         "the scan's 0-based index in it.\n"
+         "\n"
+         "Options:\n"
+         "      --map NAME         which map of the store (default: default)\n"
+         "  -h, --help             show this help\n";
+}
+
+class StoreLog final : public Command {
+ public:
+  bool option(const ParsedOption& opt) override {
+    if (opt.name != "--map") return false;
+    map_ = opt.value;
+    return true;
+  }
+  void check(Invocation& in) override {
+    checkStoreInput(in.input(), "octovk store log STORE [--map NAME]");
+  }
+  int run(Invocation& in) override {
+    const auto store = store::Store::open(in.input(), /*create=*/false);
+    for (const store::LogEntry& e : store->log(map_))
+      std::cout << e.seq << ' ' << e.source << ' ' << e.scan << '\n';
+    if (!flushStdout())
+      throw Error(ErrorCode::kIo,
+                  std::string("cannot write the log to standard output: ") + std::strerror(errno));
+    return kExitOk;
+  }
+
+ private:
+  std::string map_ = kDefaultMap;
+};
+
+// ---- store info ----
+
+void printStoreInfoHelp(std::ostream& out) {
+  out << "octovk store info STORE\n"
+         "\n"
+         "Prints each map of a store: its resolution and sensor model, the scans committed, and\n"
+         "its tiles (count, bytes, depth).\n"
+         "\n"
+         "Options:\n"
+         "  -h, --help             show this help\n";
+}
+
+class StoreInfo final : public Command {
+ public:
+  void check(Invocation& in) override { checkStoreInput(in.input(), "octovk store info STORE"); }
+  int run(Invocation& in) override {
+    const auto store = store::Store::open(in.input(), /*create=*/false);
+    const std::vector<store::MapInfo> maps = store->maps();
+    Report report(10);
+    report.line("store", store->location() +
+                             format(" (%s), %zu map(s)",
+                                    store::isPostgresLocation(in.input()) ? "PostgreSQL" : "SQLite",
+                                    maps.size()));
+    for (const store::MapInfo& m : maps) {
+      const MapParams& p = m.params;
+      report.line("map", m.name)
+          .line("  params", format("resolution %g m, prob hit %g miss %g, clamping %g..%g, "
+                                   "occupancy threshold %g",
+                                   p.resolution, p.prob_hit, p.prob_miss, p.clamping_min,
+                                   p.clamping_max, p.occupancy_threshold))
+          .line("  scans",
+                format("%llu committed (last seq %llu)", static_cast<unsigned long long>(m.scans),
+                       static_cast<unsigned long long>(m.last_seq)))
+          .line("  tiles", format("%llu, %s of node records, depth %u",
+                                  static_cast<unsigned long long>(m.tiles),
+                                  mib(m.tile_bytes).c_str(), m.tile_depth));
+    }
+    return report.print();
+  }
+};
+
+// The actions, each run by the common driver as a command of its own.
+const Subcommand kActions[] = {
+    {.name = "store export",
+     .summary = "a map of a store as a .bt / .ot file",
+     .print_help = printStoreExportHelp,
+     .input = "store",
+     .second_input_hint = "; the map file goes after -o",
+     .outputs = Subcommand::Outputs::kOne,
+     .writes = "one map",
+     .no_output = "no output file; add -o OUT.bt or -o OUT.ot",
+     .output_extensions = {".bt", ".ot"},
+     .output_formats = ".bt or .ot (OctoMap map)",
+     .value_options = {"--map"},
+     .make = [] { return std::unique_ptr<Command>(new StoreExport); },
+     .examples = "  octovk store export map.sqlite -o map.bt\n"
+                 "  octovk store export map.sqlite --map lab -o lab.ot\n"},
+    {.name = "store log",
+     .summary = "the committed scans of a map: SEQ SOURCE SCAN",
+     .print_help = printStoreLogHelp,
+     .input = "store",
+     .value_options = {"--map"},
+     .make = [] { return std::unique_ptr<Command>(new StoreLog); },
+     .examples = "  octovk store log map.sqlite\n"
+                 "  octovk store log map.sqlite --map lab | tail -1\n"},
+    {.name = "store info",
+     .summary = "the maps of a store: parameters, scans, tiles",
+     .print_help = printStoreInfoHelp,
+     .input = "store",
+     .make = [] { return std::unique_ptr<Command>(new StoreInfo); },
+     .examples = "  octovk store info map.sqlite\n"},
+};
+
+}  // namespace
+
+void printStoreHelp(std::ostream& out) {
+  out << "octovk store export|log|info STORE [options]\n"
+         "\n"
+         "A store keeps maps as tiles in an SQLite file, written scan by scan by\n"
+         "'octovk integrate INPUT --store STORE'; each scan commits its changed tiles and its log\n"
+         "row together, so a killed run loses no committed scan. See docs/store.md.\n"
+         "\n"
+         "Actions:\n";
+  for (const Subcommand& action : kActions) {
+    std::string name = std::string(action.name).substr(6);
+    name.resize(9, ' ');
+    out << "  " << name << action.summary << "\n";
+  }
+  out << "\n'octovk store ACTION --help' gives an action's options.\n";
+}
+
+int runStoreActions(const std::vector<std::string>& args) {
+  if (args.empty())
+    throw UsageError(
+        "no action given; usage: octovk store export|log|info STORE (see 'octovk "
+        "store --help')");
+  const std::string& action = args.front();
+  if (action == "-h" || action == "--help" || action == "help") {
+    printStoreHelp(std::cout);
+    std::cout << "\nExamples:\n";
+    for (const Subcommand& s : kActions) std::cout << s.examples;
+    std::cout << "\n";
+    printEnvironmentPointer(std::cout);
+    std::cout << "Details: docs/store.md.\n";
+    return kExitOk;
+  }
+  for (const Subcommand& s : kActions)
+    if (action == std::string(s.name).substr(6))
+      return runSubcommand(s, std::vector<std::string>(args.begin() + 1, args.end()));
+  throw UsageError("unknown store action '" + action +
+                   "'; actions: export, log, info (see 'octovk store --help')");
+}
+
+// ---- integrate --store ----
+
+IntegrateStore::IntegrateStore() = default;
+IntegrateStore::~IntegrateStore() = default;
+
+bool IntegrateStore::option(const ParsedOption& opt) {
+  if (opt.name == "--store") {
+    if (opt.value.empty()) throw UsageError("--store needs a file: --store map.sqlite");
+    path_ = opt.value;
+    return true;
+  }
+  if (opt.name == "--map") {
+    if (opt.value.empty()) throw UsageError("--map needs a name: --map lab");
+    map_name_ = opt.value;
+    return true;
+  }
+  for (const char* name :
+       {"-r", "--resolution", "--prob-hit", "--prob-miss", "--clamping-min", "--clamping-max"})
+    if (opt.name == name) sensor_options_.push_back(opt.name);
+  return false;
+}
+
+void IntegrateStore::open(MapParams& params) {
+  if (!enabled()) return;
+  if (params.payload != Payload::kNone)
+    throw UsageError(
+        "--store keeps plain occupancy maps only; leave out the colour or stamp "
+        "options");
+  store_ = store::Store::open(path_, /*create=*/true);
+  writer_ = std::make_unique<store::MapWriter>(*store_, map_name_, params);
+  existed_ = writer_->existed();
+  if (!existed_) return;
+  const MapParams& stored = writer_->info().params;
+  const auto refuse = [&](const char* option, double given, double kept) {
+    if (given == kept) return;
+    for (const std::string& name : sensor_options_)
+      if (name == option || (std::string(option) == "--resolution" && name == "-r"))
+        throw UsageError(
+            format("%s %g: map '%s' of store '%s' has %s %g; give that or leave "
+                   "%s out (a map keeps its parameters)",
+                   option, given, map_name_.c_str(), store_->location().c_str(), option + 2, kept,
+                   option));
+  };
+  refuse("--resolution", params.resolution, stored.resolution);
+  refuse("--prob-hit", params.prob_hit, stored.prob_hit);
+  refuse("--prob-miss", params.prob_miss, stored.prob_miss);
+  refuse("--clamping-min", params.clamping_min, stored.clamping_min);
+  refuse("--clamping-max", params.clamping_max, stored.clamping_max);
+  params.resolution = stored.resolution;
+  params.prob_hit = stored.prob_hit;
+  params.prob_miss = stored.prob_miss;
+  params.clamping_min = stored.clamping_min;
+  params.clamping_max = stored.clamping_max;
+  params.occupancy_threshold = stored.occupancy_threshold;
+}
+
+void IntegrateStore::load(OccupancyMap& map) {
+  if (!writer_) return;
+  const HostTree tree = writer_->load();
+  if (tree.root_exists) map.upload(tree);
+}
+
+void IntegrateStore::begin(OccupancyMap& map) {
+  if (writer_ && writer_->begin(map)) ++reloads_;
+}
+
+void IntegrateStore::commit(OccupancyMap& map, const std::string& source, std::size_t scan) {
+  if (!writer_) return;
+  map.flush();  // the scan's own work, not the commit's
+  const store::CommitStats stats = writer_->commit(map, source, scan);
+  find_s_ += stats.find_s;
+  write_s_ += stats.write_s;
+  ++scans_;
+  tiles_ += stats.tiles_written;
+  bytes_ += stats.body_bytes;
+  max_bytes_ = std::max(max_bytes_, stats.body_bytes);
+}
+
+void IntegrateStore::report(Report& report) const {
+  if (!writer_) return;
+  const double per_scan = scans_ == 0 ? 0.0 : 1.0 / static_cast<double>(scans_);
+  report
+      .line("store", format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
+                            map_name_.c_str(), existed_ ? "continued" : "created", scans_,
+                            reloads_ == 0 ? ""
+                                          : format(", the map reloaded %zu times after other "
+                                                   "writers' scans",
+                                                   reloads_)
+                                                .c_str()))
+      .line("store writes",
+            format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
+                   "%zu bytes)",
+                   tiles_, bytes_, static_cast<double>(bytes_) * per_scan,
+                   static_cast<double>(tiles_) * per_scan, max_bytes_))
+      .line("store time", format("%.3f ms/scan finding the changed tiles (download, cut, hash), "
+                                 "%.3f ms/scan committing them",
+                                 find_s_ * 1e3 * per_scan, write_s_ * 1e3 * per_scan));
+}
+
+void IntegrateStore::printHelp(std::ostream& out) {
+  out << "      --store FILE       keep the map in a store too, scan by scan (--map NAME: which)\n";
+}
+
+}  // namespace octovk::cli

@@ -1,0 +1,62 @@
+// The program's side of the map store (store.cpp): `octovk store export|log|info`, and what
+// `octovk integrate --store STORE [--map NAME]` adds to integrate, in a few calls from there.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "report.hpp"
+
+namespace octovk::store {
+class Store;
+class MapWriter;
+}  // namespace octovk::store
+
+namespace octovk::cli {
+
+/// `octovk store ACTION ...`: runs the action on the words after it (help included).
+int runStoreActions(const std::vector<std::string>& args);
+void printStoreHelp(std::ostream& out);
+
+/// integrate's --store and --map: the map is read from the store first (or created there), and
+/// each scan is committed to it, its changed tiles and its log row in one transaction.
+class IntegrateStore {
+ public:
+  IntegrateStore();
+  ~IntegrateStore();
+  /// The options integrate hands over first: true for --store / --map; the sensor-model options
+  /// are noted (a map that exists refuses other values) and left to integrate (false).
+  bool option(const ParsedOption& option);
+  /// Whether --store was given: then -o is optional.
+  bool enabled() const { return !path_.empty(); }
+  /// Opens the store and the map before the map is made: a new map takes `params`; an existing
+  /// one gives its resolution and sensor model to `params`, and refuses different ones given.
+  void open(MapParams& params);
+  /// Uploads the committed map into `map` (nothing for a new one).
+  void load(OccupancyMap& map);
+  /// Before each scan: the map's write lock, and the scans other writers committed meanwhile
+  /// (the map is reloaded from the store), so that the map is the log's.
+  void begin(OccupancyMap& map);
+  /// Commits `map` after scan `scan` of `source`.
+  void commit(OccupancyMap& map, const std::string& source, std::size_t scan);
+  /// The store's lines of integrate's summary.
+  void report(Report& report) const;
+  /// integrate's help lines for --store and --map.
+  static void printHelp(std::ostream& out);
+
+ private:
+  std::string path_;
+  std::string map_name_ = "default";
+  std::vector<std::string> sensor_options_;  // given: --resolution, --prob-hit, ...
+  std::unique_ptr<store::Store> store_;
+  std::unique_ptr<store::MapWriter> writer_;
+  bool existed_ = false;
+  std::size_t reloads_ = 0;
+  std::size_t scans_ = 0, tiles_ = 0, bytes_ = 0, max_bytes_ = 0;
+  double find_s_ = 0.0, write_s_ = 0.0;
+};
+
+}  // namespace octovk::cli

@@ -1,0 +1,366 @@
+// The SQLite back end: one file, WAL journal (readers see the last committed scan while a writer
+// works), synchronous=NORMAL (a killed process loses no commit; a power loss may lose the last
+// ones, never the file's consistency).
+#include <sqlite3.h>
+
+#include <chrono>
+#include <filesystem>
+#include <utility>
+
+#include "store/store.hpp"
+
+namespace octovk::store {
+
+namespace {
+
+// The schema; user_version says which (kSchemaVersion).
+constexpr int kSchemaVersion = 1;
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS maps (
+  id INTEGER PRIMARY KEY,
+  name TEXT NOT NULL UNIQUE,
+  resolution REAL NOT NULL,
+  prob_hit REAL NOT NULL,
+  prob_miss REAL NOT NULL,
+  clamping_min REAL NOT NULL,
+  clamping_max REAL NOT NULL,
+  occupancy_threshold REAL NOT NULL,
+  tile_depth INTEGER NOT NULL,
+  tile_format INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS tiles (
+  map INTEGER NOT NULL REFERENCES maps(id),
+  key INTEGER NOT NULL,
+  version INTEGER NOT NULL,
+  body BLOB NOT NULL,
+  PRIMARY KEY (map, key)) WITHOUT ROWID;
+CREATE TABLE IF NOT EXISTS log (
+  map INTEGER NOT NULL REFERENCES maps(id),
+  seq INTEGER NOT NULL,
+  source TEXT NOT NULL,
+  scan INTEGER NOT NULL,
+  time_us INTEGER NOT NULL,
+  PRIMARY KEY (map, seq)) WITHOUT ROWID;
+)sql";
+
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql, const std::string& where) : where_(where) {
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK)
+      throw Error(ErrorCode::kIo, where_ + ": " + sqlite3_errmsg(db));
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  Statement& bind(int i, std::int64_t v) {
+    check(sqlite3_bind_int64(stmt_, i, v));
+    return *this;
+  }
+  Statement& bind(int i, double v) {
+    check(sqlite3_bind_double(stmt_, i, v));
+    return *this;
+  }
+  Statement& bind(int i, const std::string& v) {
+    check(sqlite3_bind_text(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  Statement& blob(int i, const std::string& v) {
+    check(sqlite3_bind_blob(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  /// True while a row is there.
+  bool step() {
+    const int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw Error(ErrorCode::kIo, where_ + ": " + sqlite3_errmsg(sqlite3_db_handle(stmt_)));
+  }
+  void run() {
+    step();
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  std::int64_t integer(int c) const { return sqlite3_column_int64(stmt_, c); }
+  double real(int c) const { return sqlite3_column_double(stmt_, c); }
+  std::string text(int c) const {
+    const auto* p = reinterpret_cast<const char*>(sqlite3_column_blob(stmt_, c));
+    return p ? std::string(p, static_cast<std::size_t>(sqlite3_column_bytes(stmt_, c)))
+             : std::string();
+  }
+
+ private:
+  void check(int rc) const {
+    if (rc != SQLITE_OK)
+      throw Error(ErrorCode::kIo, where_ + ": " + sqlite3_errmsg(sqlite3_db_handle(stmt_)));
+  }
+  sqlite3_stmt* stmt_ = nullptr;
+  std::string where_;
+};
+
+class SqliteStore final : public Store {
+ public:
+  SqliteStore(const std::string& path, bool create) : path_(path) {
+    try {
+      openAndCheck(create);
+    } catch (...) {
+      sqlite3_close(db_);
+      throw;
+    }
+  }
+
+  void openAndCheck(bool create) {
+    const std::string& path = path_;
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (!create && !fs::exists(path, ec))
+      throw Error(ErrorCode::kInvalidArgument,
+                  "store '" + path + "' does not exist; 'octovk integrate INPUT --store " + path +
+                      "' creates it");
+    const int flags =
+        SQLITE_OPEN_READWRITE | (create ? SQLITE_OPEN_CREATE : 0) | SQLITE_OPEN_NOMUTEX;
+    if (sqlite3_open_v2(path.c_str(), &db_, flags, nullptr) != SQLITE_OK) {
+      const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
+      sqlite3_close(db_);
+      db_ = nullptr;
+      throw Error(ErrorCode::kIo, "cannot open store '" + path + "': " + why +
+                                      "; check that its folder exists and can be written");
+    }
+    sqlite3_busy_timeout(db_, 10000);  // another process's commit: wait, do not fail
+    exec("PRAGMA foreign_keys = ON");
+    int version = 0;
+    {
+      Statement s(db_, "PRAGMA user_version",
+                  where("reading its schema version (is it the SQLite file 'octovk integrate "
+                        "--store' wrote?)"));
+      if (s.step()) version = static_cast<int>(s.integer(0));
+    }
+    if (version == 0) {
+      // Not an octovk store yet: refuse a database that holds tables of something else.
+      std::int64_t objects = 0;
+      {
+        Statement s(db_, "SELECT count(*) FROM sqlite_master", where("reading its tables"));
+        if (s.step()) objects = s.integer(0);
+      }
+      if (objects != 0 || !create)
+        throw Error(ErrorCode::kInvalidArgument,
+                    "'" + path + "' is no octovk store (" +
+                        (objects != 0 ? "an SQLite database of something else" : "empty") +
+                        "); give the file 'octovk integrate ... --store' wrote");
+      exec("PRAGMA journal_mode = WAL");
+      exec("BEGIN IMMEDIATE");
+      try {
+        exec(kSchema);
+        exec("PRAGMA user_version = " + std::to_string(kSchemaVersion));
+        exec("COMMIT");
+      } catch (...) {
+        sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+        throw;
+      }
+    } else if (version != kSchemaVersion) {
+      throw Error(ErrorCode::kInvalidArgument,
+                  "store '" + path + "' has schema version " + std::to_string(version) +
+                      ", this octovk reads version " + std::to_string(kSchemaVersion) +
+                      "; use the octovk that wrote it");
+    }
+    exec("PRAGMA synchronous = NORMAL");
+  }
+  ~SqliteStore() override { sqlite3_close(db_); }
+
+  const std::string& location() const override { return path_; }
+
+  std::vector<MapInfo> maps() override {
+    std::vector<MapInfo> out;
+    Statement s(db_, "SELECT name FROM maps ORDER BY name", where("listing its maps"));
+    std::vector<std::string> names;
+    while (s.step()) names.push_back(s.text(0));
+    for (const std::string& name : names)
+      if (auto info = map(name)) out.push_back(*info);
+    return out;
+  }
+
+  std::optional<MapInfo> map(const std::string& name) override {
+    Statement s(db_,
+                "SELECT resolution, prob_hit, prob_miss, clamping_min, clamping_max, "
+                "occupancy_threshold, tile_depth, tile_format, "
+                "(SELECT count(*) FROM tiles t WHERE t.map = m.id), "
+                "(SELECT coalesce(sum(length(body)), 0) FROM tiles t WHERE t.map = m.id), "
+                "(SELECT count(*) FROM log l WHERE l.map = m.id), "
+                "(SELECT coalesce(max(seq), 0) FROM log l WHERE l.map = m.id) "
+                "FROM maps m WHERE name = ?",
+                where("reading map '" + name + "'"));
+    s.bind(1, name);
+    if (!s.step()) return std::nullopt;
+    MapInfo info;
+    info.name = name;
+    info.params.resolution = s.real(0);
+    info.params.prob_hit = s.real(1);
+    info.params.prob_miss = s.real(2);
+    info.params.clamping_min = s.real(3);
+    info.params.clamping_max = s.real(4);
+    info.params.occupancy_threshold = s.real(5);
+    info.tile_depth = static_cast<unsigned>(s.integer(6));
+    if (s.integer(7) != kTileFormat || info.tile_depth < 1 || info.tile_depth > 16)
+      throw Error(ErrorCode::kInvalidArgument,
+                  "map '" + name + "' of store '" + path_ + "' holds tiles of format " +
+                      std::to_string(s.integer(7)) + " at depth " +
+                      std::to_string(info.tile_depth) + "; this octovk reads format " +
+                      std::to_string(kTileFormat) + ": use the octovk that wrote it");
+    info.tiles = static_cast<std::uint64_t>(s.integer(8));
+    info.tile_bytes = static_cast<std::uint64_t>(s.integer(9));
+    info.scans = static_cast<std::uint64_t>(s.integer(10));
+    info.last_seq = static_cast<std::uint64_t>(s.integer(11));
+    return info;
+  }
+
+  bool createMap(const std::string& name, const MapParams& p) override {
+    Statement s(db_,
+                "INSERT OR IGNORE INTO maps (name, resolution, prob_hit, prob_miss, clamping_min, "
+                "clamping_max, occupancy_threshold, tile_depth, tile_format) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                where("creating map '" + name + "'"));
+    s.bind(1, name)
+        .bind(2, p.resolution)
+        .bind(3, p.prob_hit)
+        .bind(4, p.prob_miss)
+        .bind(5, p.clamping_min)
+        .bind(6, p.clamping_max)
+        .bind(7, p.occupancy_threshold)
+        .bind(8, std::int64_t{kTileDepth})
+        .bind(9, std::int64_t{kTileFormat});
+    s.run();
+    return sqlite3_changes(db_) == 1;
+  }
+
+  std::uint64_t lock(const std::string& name) override {
+    unlock();
+    exec("BEGIN IMMEDIATE");  // the write lock: another writer waits (busy timeout)
+    locked_ = true;
+    try {
+      return lastSeq(mapId(name));
+    } catch (...) {
+      unlock();
+      throw;
+    }
+  }
+
+  void unlock() override {
+    if (!locked_) return;
+    locked_ = false;
+    sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+
+  std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) override {
+    // One read transaction: the tiles and the sequence number of one commit.
+    const bool own = !locked_;
+    if (own) exec("BEGIN");
+    try {
+      std::vector<Tile> out;
+      const std::int64_t id = mapId(name);
+      {
+        Statement s(db_, "SELECT key, body FROM tiles WHERE map = ? ORDER BY key",
+                    where("reading the tiles of map '" + name + "'"));
+        s.bind(1, id);
+        while (s.step()) out.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1)});
+      }
+      if (last_seq) *last_seq = lastSeq(id);
+      if (own) exec("COMMIT");
+      return out;
+    } catch (...) {
+      if (own) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      throw;
+    }
+  }
+
+  std::vector<LogEntry> log(const std::string& name) override {
+    std::vector<LogEntry> out;
+    Statement s(db_, "SELECT seq, source, scan, time_us FROM log WHERE map = ? ORDER BY seq",
+                where("reading the log of map '" + name + "'"));
+    s.bind(1, mapId(name));
+    while (s.step())
+      out.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1),
+                     static_cast<std::uint64_t>(s.integer(2)), s.integer(3)});
+    return out;
+  }
+
+  void commit(const std::string& name, std::span<const Tile> changed,
+              std::span<const std::uint64_t> removed, const LogEntry& entry) override {
+    if (!locked_) exec("BEGIN IMMEDIATE");  // the write lock: another writer waits
+    locked_ = false;                        // the transaction ends here, committed or rolled back
+    try {
+      const std::int64_t id = mapId(name);
+      const std::uint64_t last = lastSeq(id);
+      if (last + 1 != entry.seq)
+        throw Error(ErrorCode::kInvalidArgument,
+                    "map '" + name + "' of store '" + path_ + "' was changed by another writer (" +
+                        "its last scan is " + std::to_string(last) + ", this run expected " +
+                        std::to_string(entry.seq - 1) +
+                        "); octovk does not merge concurrent writers yet: run them one after "
+                        "the other");
+      const std::string at =
+          where("writing scan " + std::to_string(entry.seq) + " of map '" + name + "'");
+      Statement put(db_, "INSERT OR REPLACE INTO tiles (map, key, version, body) VALUES (?,?,?,?)",
+                    at);
+      for (const Tile& t : changed) {
+        put.bind(1, id).bind(2, static_cast<std::int64_t>(t.key));
+        put.bind(3, static_cast<std::int64_t>(entry.seq)).blob(4, t.body);
+        put.run();
+      }
+      Statement del(db_, "DELETE FROM tiles WHERE map = ? AND key = ?", at);
+      for (const std::uint64_t key : removed) {
+        del.bind(1, id).bind(2, static_cast<std::int64_t>(key));
+        del.run();
+      }
+      Statement row(db_, "INSERT INTO log (map, seq, source, scan, time_us) VALUES (?,?,?,?,?)",
+                    at);
+      row.bind(1, id).bind(2, static_cast<std::int64_t>(entry.seq)).bind(3, entry.source);
+      row.bind(4, static_cast<std::int64_t>(entry.scan)).bind(5, entry.time_us);
+      row.run();
+      exec("COMMIT");
+    } catch (...) {
+      sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      throw;
+    }
+  }
+
+ private:
+  std::string where(const std::string& what) const { return "store '" + path_ + "': " + what; }
+
+  void exec(const std::string& sql) {
+    char* message = nullptr;
+    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &message) != SQLITE_OK) {
+      const std::string why = message ? message : sqlite3_errmsg(db_);
+      sqlite3_free(message);
+      throw Error(ErrorCode::kIo, where("'" + sql.substr(0, 40) + "' failed: " + why));
+    }
+  }
+
+  std::int64_t mapId(const std::string& name) {
+    Statement s(db_, "SELECT id FROM maps WHERE name = ?", where("finding map '" + name + "'"));
+    s.bind(1, name);
+    if (!s.step())
+      throw Error(ErrorCode::kInvalidArgument, "store '" + path_ + "' holds no map '" + name +
+                                                   "'; 'octovk store info " + path_ +
+                                                   "' lists its maps");
+    return s.integer(0);
+  }
+
+  std::uint64_t lastSeq(std::int64_t id) {
+    Statement s(db_, "SELECT coalesce(max(seq), 0) FROM log WHERE map = ?",
+                where("reading the log"));
+    s.bind(1, id);
+    return s.step() ? static_cast<std::uint64_t>(s.integer(0)) : 0;
+  }
+
+  std::string path_;
+  sqlite3* db_ = nullptr;
+  bool locked_ = false;  // lock()'s transaction is open
+};
+
+}  // namespace
+
+std::unique_ptr<Store> Store::open(const std::string& location, bool create) {
+  if (isPostgresLocation(location)) return openPostgresStore(location);
+  return std::make_unique<SqliteStore>(location, create);
+}
+
+}  // namespace octovk::store

@@ -1,0 +1,126 @@
+// A store of maps as tiles (tiles.hpp): the interface every back end offers, and the writer that
+// commits a map after each scan. One schema for every back end (docs/store.md):
+//   maps  (name, resolution, sensor model, tile depth and format)
+//   tiles (map, key, version, body): version = the log sequence number of the scan that wrote it
+//   log   (map, seq, source, scan, time): one row per committed scan
+// A scan's changed tiles and its log row commit in one transaction: a killed writer leaves the
+// map as it was after its last committed scan.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "octovk/octovk.hpp"
+#include "store/tiles.hpp"
+
+namespace octovk::store {
+
+/// A map as the store describes it.
+struct MapInfo {
+  std::string name;
+  /// The resolution and sensor model (prob_hit, prob_miss, clamping, occupancy threshold); the
+  /// other fields keep their defaults.
+  MapParams params;
+  unsigned tile_depth = kTileDepth;
+  std::uint64_t tiles = 0;       ///< tiles stored
+  std::uint64_t tile_bytes = 0;  ///< their bodies' bytes
+  std::uint64_t scans = 0;       ///< log rows
+  std::uint64_t last_seq = 0;    ///< the last committed scan's sequence number (0: none)
+};
+
+/// One committed scan.
+struct LogEntry {
+  std::uint64_t seq = 0;     ///< 1, 2, ... per map, in commit order
+  std::string source;        ///< the input as it was given (a scan graph, a folder)
+  std::uint64_t scan = 0;    ///< the scan's 0-based index in `source`
+  std::int64_t time_us = 0;  ///< commit time, microseconds since the Unix epoch (UTC)
+};
+
+/// What one scan's commit wrote.
+struct CommitStats {
+  std::uint64_t seq = 0;
+  std::size_t tiles_written = 0;  ///< new or changed tiles
+  std::size_t tiles_removed = 0;  ///< tiles that pruning merged into a larger one
+  std::size_t body_bytes = 0;     ///< the written tiles' body bytes
+  double find_s = 0.0;            ///< seconds finding them: download, cut, hash
+  double write_s = 0.0;           ///< seconds of the store's transaction
+};
+
+/// A store's back end. Every call is one transaction; errors are Error(kIo) naming the store
+/// and what failed (kInvalidArgument for a request the store refuses).
+class Store {
+ public:
+  virtual ~Store() = default;
+  /// The store at `location`: a PostgreSQL connection URI (postgresql://...), or an SQLite file
+  /// (created when `create` and missing).
+  static std::unique_ptr<Store> open(const std::string& location, bool create);
+
+  /// How messages name the store ("map.sqlite").
+  virtual const std::string& location() const = 0;
+  virtual std::vector<MapInfo> maps() = 0;
+  virtual std::optional<MapInfo> map(const std::string& name) = 0;
+  /// Creates map `name` unless it exists (another writer may have created it meanwhile): true
+  /// when this call created it.
+  virtual bool createMap(const std::string& name, const MapParams& params) = 0;
+  /// Every tile of the map and the sequence number they are current at, read in one snapshot
+  /// (inside lock()'s transaction when one is open).
+  virtual std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) = 0;
+  virtual std::vector<LogEntry> log(const std::string& name) = 0;
+  /// Opens a scan's transaction: takes the map's write lock (other writers wait for it until
+  /// this one commits) and returns the map's last sequence number.
+  virtual std::uint64_t lock(const std::string& name) = 0;
+  /// Abandons lock()'s transaction (nothing of it is written); nothing when none is open.
+  virtual void unlock() = 0;
+  /// One scan, all or nothing: writes `changed` (version entry.seq), removes `removed` and adds
+  /// the log row `entry`, in lock()'s transaction when one is open (else in its own). Refused
+  /// (kInvalidArgument, nothing written) unless the map's last sequence number is
+  /// entry.seq - 1: another writer committed in between.
+  virtual void commit(const std::string& name, std::span<const Tile> changed,
+                      std::span<const std::uint64_t> removed, const LogEntry& entry) = 0;
+};
+
+/// Whether `location` names a PostgreSQL store (postgresql://... or postgres://...).
+bool isPostgresLocation(const std::string& location);
+/// The PostgreSQL store at `location`, a libpq connection URI (its schema created when missing).
+std::unique_ptr<Store> openPostgresStore(const std::string& location);
+
+/// A map in a store, written after each scan: keeps a hash of each committed tile to find the
+/// tiles a scan changed.
+class MapWriter {
+ public:
+  /// Opens map `name`, creating it with `params` when it is missing.
+  MapWriter(Store& store, std::string name, const MapParams& params);
+  /// Whether the map existed (and so holds its own parameters: info().params).
+  bool existed() const { return existed_; }
+  const MapInfo& info() const { return info_; }
+  /// The committed map (empty when new), for OccupancyMap::upload.
+  HostTree load();
+  /// Before a scan: takes the map's write lock, and when other writers committed scans since
+  /// this one's last, loads the map as they left it into `map`. The scan then applies to the map
+  /// the log's order says, and commit() releases the lock. True when the map was reloaded.
+  bool begin(OccupancyMap& map);
+  /// Commits `map` as it is after scan `scan` of `source`: its tiles that differ from the last
+  /// committed ones, and the log row. Waits for the map's submitted scans first.
+  CommitStats commit(OccupancyMap& map, const std::string& source, std::uint64_t scan);
+
+ private:
+  Store& store_;
+  std::string name_;
+  MapInfo info_;
+  bool existed_ = false;
+  std::uint64_t last_seq_ = 0;
+  std::unordered_map<std::uint64_t, std::uint64_t> hashes_;  // key -> hash of the body
+};
+
+/// The hash MapWriter keeps of a body.
+std::uint64_t bodyHash(const std::string& body);
+
+/// The map's tree as the store holds it.
+HostTree loadTree(Store& store, const std::string& name);
+
+}  // namespace octovk::store

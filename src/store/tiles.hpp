@@ -1,0 +1,70 @@
+// The map cut into tiles, the unit a store keeps: the subtrees that hang at one fixed depth, each
+// serialised as OctoMap's .ot node stream. The tree above the tile depth is not stored: it is
+// derived from the tiles (inner values, OctoMap's pruning across tiles), so that a tree rebuilt
+// from its tiles is the tree that was cut, node for node.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "octovk/octovk.hpp"
+
+namespace octomap {
+class OcTree;
+}
+
+namespace octovk::store {
+
+/// The depth (of OctoMap's 16) at which the map is cut: a tile is 16^3 finest cells (0.8 m at
+/// 0.05 m). Measured on FR-079's first 500 scans (docs/store.md, 'Tile depth'): a scan rewrites
+/// 85 KB at depth 12 against 214 KB at 10 and 390 KB at 8 (0.05 m), in 65 tiles; depth 13 halves
+/// the bytes again with 2.3x the tiles, too small a unit for a device's working set.
+inline constexpr unsigned kTileDepth = 12;
+/// The version of the tile key and body formats below; a store records it and refuses others.
+inline constexpr unsigned kTileFormat = 1;
+
+/// A tile: the node at the tile depth with its subtree, or a leaf above that depth (a pruned
+/// region that covers several tiles, as OctoMap's tree holds it).
+struct Tile {
+  /// tileKey(depth, path): where the tile's root hangs.
+  std::uint64_t key = 0;
+  /// The subtree's node records as OctoMap's .ot data section holds them (OcTree::writeData):
+  /// per node its float log-odds, then a byte with a bit per existing child, children following
+  /// depth first. A body is itself OctoMap's readData input for the subtree.
+  std::string body;
+  friend bool operator==(const Tile&, const Tile&) = default;
+};
+
+/// The key of the node at `depth` (0..16) reached by `path`: its child indices from the root,
+/// 3 bits each, the first in the highest bits. The path is aligned to 16 levels (the Morton
+/// order of OctoMap's keys' top bits), then the depth takes the 5 low bits: sorting keys sorts
+/// tiles depth first, in the order of OctoMap's node stream. Fits an SQL 64-bit integer.
+std::uint64_t tileKey(unsigned depth, std::uint64_t path);
+/// The depth of a tile key.
+unsigned tileKeyDepth(std::uint64_t key);
+/// The OctoMap key (k[0], k[1], k[2]) of the first finest cell of a tile: the tile's corner.
+Key tileKeyCorner(std::uint64_t key);
+
+/// The tiles of `tree` cut at `tile_depth` (1..16), sorted by key. Only plain occupancy trees
+/// (Payload::kNone); kInvalidArgument for others, kFormat for a tree whose links leave it.
+std::vector<Tile> tilesOf(const HostTree& tree, unsigned tile_depth = kTileDepth);
+
+/// The tree that `tiles` (any order) cut at `tile_depth` came from: each tile's subtree as its body
+/// holds it, and above the tile depth what OctoMap's tree holds there: an inner node's log-odds is
+/// the largest of its children's, and a node whose 8 children are leaves of equal log-odds is
+/// itself a leaf of that log-odds (OcTree::pruneNode). kFormat naming the tile when a key or a
+/// body is damaged (a record past the end or after the last, a non-finite log-odds, a node below
+/// depth 16 or a tile under another).
+HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth = kTileDepth);
+
+/// The .ot data section of `tree` (OcTree::writeData's bytes); empty for an empty tree.
+std::string nodeStream(const HostTree& tree);
+
+/// `tree` as an OctoMap tree with `params`' resolution and sensor model (what .bt's
+/// max-likelihood conversion reads), through OctoMap's own reader of the node stream.
+std::unique_ptr<octomap::OcTree> ocTreeOf(const HostTree& tree, const MapParams& params);
+
+}  // namespace octovk::store

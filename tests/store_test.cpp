@@ -1,0 +1,559 @@
+// The map store (issue 31): tiles and the tree rebuilt from them against OctoMap's own trees
+// (graph2tree's files, trees built with OctoMap), and the SQLite store through the program against
+// graph2tree: export after integrate --store, a second run continuing the map, a killed writer.
+#include "store/store.hpp"
+
+#include <gtest/gtest.h>
+#include <octomap/OcTree.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "cli_support.hpp"
+#include "octovk/octomap_io.hpp"
+#include "store/tiles.hpp"
+#include "test_support.hpp"
+
+namespace octovk {
+namespace {
+
+using test::quote;
+using test::readFile;
+using test::runOctovk;
+using test::RunResult;
+using test::runShell;
+using test::Scratch;
+namespace fs = std::filesystem;
+
+// OctoMap's tree as a host tree (breadth first, as fromOcTree lays it out), on the host.
+HostTree hostTreeOf(const octomap::OcTree& tree) {
+  HostTree host;
+  const octomap::OcTreeNode* root = tree.getRoot();
+  host.root_exists = root != nullptr;
+  if (!root) return host;
+  const HostTree::Node leaf{0.0f, 0xFFFFFFFFu, 0, 0};
+  host.nodes.assign(8, leaf);
+  host.nodes[0].log_odds = root->getLogOdds();
+  std::vector<std::pair<const octomap::OcTreeNode*, std::size_t>> queue{{root, 0}};
+  for (std::size_t head = 0; head < queue.size(); ++head) {
+    const auto [node, index] = queue[head];
+    if (!tree.nodeHasChildren(node)) continue;
+    const auto block = static_cast<std::uint32_t>(host.nodes.size() / 8);
+    host.nodes.resize(host.nodes.size() + 8, leaf);
+    std::uint32_t mask = 0;
+    for (unsigned i = 0; i < 8; ++i) {
+      if (!tree.nodeChildExists(node, i)) continue;
+      const octomap::OcTreeNode* child = tree.getNodeChild(node, i);
+      host.nodes[block * 8 + i].log_odds = child->getLogOdds();
+      queue.emplace_back(child, block * 8 + i);
+      mask |= 1u << i;
+    }
+    host.nodes[index].children = block;
+    host.nodes[index].mask = mask;
+  }
+  return host;
+}
+
+// OctoMap's .ot bytes of a tree (OcTree::write, as graph2tree writes X.bt.ot).
+std::string otBytes(const octomap::OcTree& tree) {
+  std::ostringstream out;
+  tree.write(out);
+  return out.str();
+}
+
+// The .ot bytes of `tree` after tiles at `depth` -> tree -> OctoMap's writer.
+std::string roundTrip(const octomap::OcTree& tree, unsigned depth, std::size_t* tile_count) {
+  const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(tree), depth);
+  if (tile_count) *tile_count = tiles.size();
+  MapParams params;
+  params.resolution = tree.getResolution();
+  return otBytes(*store::ocTreeOf(store::treeFromTiles(tiles, depth), params));
+}
+
+octomap::OcTreeKey keyOf(int x, int y, int z) {
+  return octomap::OcTreeKey(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y),
+                            static_cast<octomap::key_type>(z));
+}
+
+bool isExecutable(const std::string& path) {
+  return !path.empty() && ::access(path.c_str(), X_OK) == 0;
+}
+
+#define REQUIRE_GRAPH2TREE()                                             \
+  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                   \
+    if (test::runningInCi()) FAIL() << "graph2tree missing under CI";    \
+    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools"; \
+  }
+
+// graph2tree's .ot of OctoMap's sample scan, cut at every depth and rebuilt: byte-identical.
+TEST(StoreTiles, RoundTripOfGraph2treeMapIsByteIdentical) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::string graph =
+      std::string(OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR)) + "/spherical_scan.graph";
+  const std::string ref = scratch / "ref.bt";
+  const RunResult g2t = runShell(quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) +
+                                     " -o " + quote(ref) + " -res 0.05",
+                                 scratch.dir());
+  ASSERT_EQ(g2t.exit_code, 0) << g2t.out << g2t.err;
+  const std::string expected = readFile(ref + ".ot");
+  std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(ref + ".ot"));
+  auto* tree = dynamic_cast<octomap::OcTree*>(read.get());
+  ASSERT_NE(tree, nullptr);
+  ASSERT_EQ(otBytes(*tree), expected);
+  for (unsigned depth : {1u, 4u, 6u, 8u, store::kTileDepth, 13u, 16u}) {
+    std::size_t tiles = 0;
+    EXPECT_EQ(roundTrip(*tree, depth, &tiles), expected) << "tile depth " << depth;
+    EXPECT_GT(tiles, 0u);
+  }
+}
+
+// Pruning across tiles: uniform regions larger than a tile are single leaves above the tile
+// depth in OctoMap's tree (tiles of their own), and 8 equal tile roots merge into their parent.
+TEST(StoreTiles, PruningAcrossTilesAsOctoMap) {
+  octomap::OcTree tree(0.1);
+  // A 16^3 cube of free cells (pruned to one leaf at depth 12), a 4^3 cube of occupied cells
+  // beside it (one leaf at depth 14), and scattered cells of both kinds.
+  for (int x = 0; x < 16; ++x)
+    for (int y = 0; y < 16; ++y)
+      for (int z = 0; z < 16; ++z) tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), false);
+  for (int x = 16; x < 20; ++x)
+    for (int y = 0; y < 4; ++y)
+      for (int z = 0; z < 4; ++z) tree.updateNode(keyOf(32768 + x, 32768 + y, 32768 + z), true);
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> cell(32700, 32840);
+  for (int i = 0; i < 3000; ++i)
+    tree.updateNode(keyOf(cell(rng), cell(rng), cell(rng)), i % 3 == 0);
+  // A cell flipped back: its cube is uniform again and OctoMap prunes it again.
+  tree.updateNode(keyOf(32770, 32770, 32770), true);
+  tree.updateNode(keyOf(32770, 32770, 32770), false);
+  const std::string expected = otBytes(tree);
+  for (unsigned depth = 1; depth <= 16; ++depth)
+    EXPECT_EQ(roundTrip(tree, depth, nullptr), expected) << "tile depth " << depth;
+  // A uniform 16^3 cube alone: one leaf at depth 12, a tile of its own above tile depth 14.
+  octomap::OcTree uniform(0.1);
+  for (int x = 0; x < 16; ++x)
+    for (int y = 0; y < 16; ++y)
+      for (int z = 0; z < 16; ++z) uniform.updateNode(keyOf(x, y, z), true);
+  const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(uniform), 14);
+  ASSERT_EQ(tiles.size(), 1u);
+  EXPECT_EQ(store::tileKeyDepth(tiles[0].key), 12u);
+  EXPECT_EQ(tiles[0].body.size(), 5u);
+  EXPECT_EQ(roundTrip(uniform, 14, nullptr), otBytes(uniform));
+  EXPECT_EQ(roundTrip(octomap::OcTree(0.1), 8, nullptr), otBytes(octomap::OcTree(0.1)));
+}
+
+// Tiles of a tree OctoMap left unpruned (lazy updates): the rebuilt tree is OctoMap's after
+// updateInnerOccupancy() and prune(): 8 equal tile roots become one leaf above them.
+TEST(StoreTiles, EqualSiblingTilesArePrunedAsOctoMapPrunes) {
+  octomap::OcTree lazy(0.1);
+  for (int i = 0; i < 8; ++i)  // 8 siblings at depth 16, then 8 at depth 16 under another parent
+    for (int base : {0, 64})
+      lazy.updateNode(keyOf(base + (i & 1), (i >> 1) & 1, i >> 2), true, true);
+  lazy.updateNode(keyOf(200, 0, 0), false, true);
+  const std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(lazy), 16);
+  EXPECT_EQ(tiles.size(), 17u);
+  MapParams params;
+  params.resolution = 0.1;
+  const std::string rebuilt = otBytes(*store::ocTreeOf(store::treeFromTiles(tiles, 16), params));
+  lazy.updateInnerOccupancy();
+  lazy.prune();
+  EXPECT_EQ(rebuilt, otBytes(lazy));
+  EXPECT_EQ(store::tilesOf(hostTreeOf(lazy), 16).size(), 3u);  // two leaves at depth 15, one at 16
+}
+
+TEST(StoreTiles, KeysSortInNodeStreamOrderAndNameTheirCorner) {
+  const std::uint64_t a = store::tileKey(2, 0b000111);  // child 0, then 7
+  const std::uint64_t b = store::tileKey(1, 0b001);     // child 1
+  const std::uint64_t c = store::tileKey(2, 0b001000);  // child 1, then 0: after its parent
+  EXPECT_LT(a, b);
+  EXPECT_LT(b, c);
+  EXPECT_EQ(store::tileKeyDepth(c), 2u);
+  const Key corner = store::tileKeyCorner(store::tileKey(2, 0b111001));  // x y z, then x
+  EXPECT_EQ(corner, (Key{0x8000 | 0x4000, 0x8000, 0x8000}));
+}
+
+// A damaged body or key is an error naming the tile, never a wrong tree.
+TEST(StoreTiles, DamagedTilesAreRefusedWithTheirName) {
+  octomap::OcTree tree(0.1);
+  for (int i = 0; i < 50; ++i) tree.updateNode(keyOf(32768 + i, 32768, 32768), true);
+  std::vector<store::Tile> tiles = store::tilesOf(hostTreeOf(tree), 12);
+  ASSERT_GT(tiles.size(), 2u);
+  const auto refused = [&](std::vector<store::Tile> damaged, const std::string& why) {
+    try {
+      store::treeFromTiles(damaged, 12);
+      ADD_FAILURE() << "accepted: " << why;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kFormat);
+      EXPECT_NE(std::string(e.what()).find("tile "), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  auto cut = tiles;
+  cut[1].body.pop_back();
+  refused(cut, "runs past its end");
+  auto longer = tiles;
+  longer[1].body += "x";
+  refused(longer, "follow its last node record");
+  auto twice = tiles;
+  twice.push_back(tiles[0]);
+  refused(twice, "already covers");
+  auto nan = tiles;
+  const float bad = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(nan[0].body.data(), &bad, sizeof(float));
+  refused(nan, "not a finite number");
+  auto deep = tiles;
+  deep[0].key = store::tileKey(13, 0);
+  refused(deep, "no tile key");
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+using test::OctovkProcess;
+using test::pollUntil;
+
+// A small scan graph: `count` scans of a 4 x 3 x 2.5 m room's walls and floor (about 300 points
+// each) seen from poses along a line, `shift` moving the whole room.
+std::vector<GraphScan> roomScans(std::size_t count, float shift) {
+  std::vector<GraphScan> scans(count);
+  for (std::size_t s = 0; s < count; ++s) {
+    GraphScan& scan = scans[s];
+    const float t = 0.15f * static_cast<float>(s);
+    scan.T_world_sensor.translation = Eigen::Vector3f(t + shift, 0.2f * std::sin(t), 1.0f);
+    for (int i = 0; i < 300; ++i) {
+      const float u = static_cast<float>(i % 20) / 20.0f, v = static_cast<float>(i / 20) / 15.0f;
+      Eigen::Vector3f world;
+      switch (i % 3) {
+        case 0:
+          world = {4.0f + shift, -1.5f + 3.0f * u, 2.5f * v};
+          break;
+        case 1:
+          world = {4.0f * u + shift, 1.5f, 2.5f * v};
+          break;
+        default:
+          world = {4.0f * u + shift, -1.5f + 3.0f * v, 0.0f};
+          break;
+      }
+      scan.points_sensor.push_back(world - scan.T_world_sensor.translation);
+    }
+  }
+  return scans;
+}
+
+void writeGraph(const std::string& path, const std::vector<GraphScan>& scans) {
+  writeScanGraph(path, scans.size(), [&](std::size_t i) { return scans[i]; });
+}
+
+// graph2tree's .ot of `graph` at 0.1 m (its X.bt.ot).
+std::string graph2treeOt(const std::string& graph, const Scratch& scratch) {
+  const std::string out = scratch / "graph2tree.bt";
+  const RunResult r = runShell(quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) +
+                                   " -o " + quote(out) + " -res 0.1",
+                               scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  return readFile(out + ".ot");
+}
+
+std::string exportOt(const std::string& store, const Scratch& scratch) {
+  const std::string out = scratch / "export.ot";
+  const RunResult r = runOctovk({"store", "export", store, "-o", out}, scratch.dir());
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  return readFile(out);
+}
+
+// The summary's "store writes:" line: the bytes written per scan.
+void printStoreWrites(const std::string& summary) {
+  const std::size_t at = summary.find("store writes:");
+  ASSERT_NE(at, std::string::npos) << summary;
+  std::cout << "[ bytes    ] " << summary.substr(at, summary.find('\n', at) - at) << "\n";
+}
+
+TEST(StoreCli, ExportAfterIntegrateIsGraph2treesMap) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::string graph = scratch / "room.graph";
+  writeGraph(graph, roomScans(6, 0.0f));
+  const std::string store = scratch / "map.sqlite";
+  const RunResult r =
+      runOctovk({"integrate", graph, "--store", store, "-r", "0.1", "-q"}, scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  printStoreWrites(r.out);
+  const std::string expected = graph2treeOt(graph, scratch);
+  EXPECT_EQ(exportOt(store, scratch), expected);
+  // .bt too: OctoMap's writer, with the stored sensor model.
+  const RunResult bt = runOctovk({"store", "export", store, "-o", scratch / "e.bt"}, scratch.dir());
+  ASSERT_EQ(bt.exit_code, 0) << bt.err;
+  EXPECT_EQ(readFile(scratch / "e.bt"), readFile(scratch / "graph2tree.bt"));
+  const RunResult log = runOctovk({"store", "log", store}, scratch.dir());
+  ASSERT_EQ(log.exit_code, 0) << log.err;
+  std::string lines;
+  for (int i = 0; i < 6; ++i)
+    lines += std::to_string(i + 1) + " " + graph + " " + std::to_string(i) + "\n";
+  EXPECT_EQ(log.out, lines);
+}
+
+TEST(StoreCli, SecondRunContinuesTheMapAndKeepsItsResolution) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  const std::string store = scratch / "map.sqlite";
+  ASSERT_EQ(runOctovk({"integrate", graph_a, "--store", store, "-r", "0.1", "-q"}, scratch.dir())
+                .exit_code,
+            0);
+  // Another resolution is refused, and the store is left as it was.
+  const RunResult refused =
+      runOctovk({"integrate", graph_b, "--store", store, "-r", "0.05", "-q"}, scratch.dir());
+  test::expectOneErrorLine(refused, 2, {"--resolution 0.05", "resolution 0.1", store});
+  // No --resolution: the map's own; the run starts from the committed map.
+  const RunResult second = runOctovk(
+      {"integrate", graph_b, "--store", store, "-q", "-o", scratch / "direct.ot"}, scratch.dir());
+  ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
+  EXPECT_NE(second.out.find("(continued): 3 scans committed"), std::string::npos) << second.out;
+  printStoreWrites(second.out);
+  std::vector<GraphScan> both = a;
+  both.insert(both.end(), b.begin(), b.end());
+  const std::string graph_both = scratch / "both.graph";
+  writeGraph(graph_both, both);
+  const std::string expected = graph2treeOt(graph_both, scratch);
+  EXPECT_EQ(exportOt(store, scratch), expected);
+  EXPECT_EQ(readFile(scratch / "direct.ot"), expected);  // the run's own map, loaded from the store
+  const RunResult log = runOctovk({"store", "log", store}, scratch.dir());
+  std::string lines;
+  for (int i = 0; i < 7; ++i)
+    lines += std::to_string(i + 1) + " " + (i < 4 ? graph_a : graph_b) + " " +
+             std::to_string(i < 4 ? i : i - 4) + "\n";
+  EXPECT_EQ(log.out, lines);
+}
+
+// Two writers integrate into one map at once, their scans overlapping: the store takes their
+// scans one at a time (each writer reloads the map when the other committed meanwhile), and the
+// map is OctoMap's (graph2tree's) on every committed scan in the log's order.
+void expectTwoWritersGiveTheLogsMap(const std::string& store_location, const Scratch& scratch) {
+  const std::vector<GraphScan> a = roomScans(25, 0.0f), b = roomScans(25, 0.35f);
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  const fs::path dir_a = scratch.dir() / "wa", dir_b = scratch.dir() / "wb";
+  fs::create_directories(dir_a);
+  fs::create_directories(dir_b);
+  RunResult ra, rb;
+  {
+    OctovkProcess wa(
+        {"integrate", graph_a, "--store", store_location, "--map", "shared", "-r", "0.1", "-q"},
+        dir_a);
+    OctovkProcess wb(
+        {"integrate", graph_b, "--store", store_location, "--map", "shared", "-r", "0.1", "-q"},
+        dir_b);
+    ASSERT_TRUE(wa.started() && wb.started());
+    ra = wa.wait();
+    rb = wb.wait();
+  }
+  ASSERT_EQ(ra.exit_code, 0) << ra.out << ra.err;
+  ASSERT_EQ(rb.exit_code, 0) << rb.out << rb.err;
+  auto store = store::Store::open(store_location, false);
+  const std::vector<store::LogEntry> log = store->log("shared");
+  ASSERT_EQ(log.size(), a.size() + b.size());
+  std::vector<GraphScan> in_order;
+  std::size_t switches = 0;
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    ASSERT_TRUE(log[i].source == graph_a || log[i].source == graph_b) << log[i].source;
+    const std::vector<GraphScan>& from = log[i].source == graph_a ? a : b;
+    ASSERT_LT(log[i].scan, from.size());
+    in_order.push_back(from[log[i].scan]);
+    if (i > 0 && log[i].source != log[i - 1].source) ++switches;
+  }
+  std::cout << "[ writers  ] the log switches writer " << switches << " times\n";
+  const std::string graph_log = scratch / "log.graph";
+  writeGraph(graph_log, in_order);
+  const std::string out = scratch / "shared.ot";
+  const RunResult e =
+      runOctovk({"store", "export", store_location, "--map", "shared", "-o", out}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_EQ(readFile(out), graph2treeOt(graph_log, scratch));
+}
+
+TEST(StoreCli, TwoWritersAtOnceGiveTheMapOfTheLog) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  expectTwoWritersGiveTheLogsMap(scratch / "shared.sqlite", scratch);
+}
+
+// A writer killed mid-run: the store holds exactly the scans its log lists, as OctoMap builds
+// them (graph2tree on a graph of those scans), and a later run goes on from there.
+void expectKilledWriterLeavesItsLog(const std::string& location, const Scratch& scratch) {
+  const std::vector<GraphScan> scans = roomScans(120, 0.0f);
+  const std::string graph = scratch / "long.graph";
+  writeGraph(graph, scans);
+  const std::string map = "killed";
+  std::size_t committed = 0;
+  {
+    OctovkProcess writer({"integrate", graph, "--store", location, "--map", map, "-r", "0.1", "-q"},
+                         scratch.dir());
+    ASSERT_TRUE(writer.started());
+    const bool some = pollUntil(
+        [&] {
+          try {
+            auto store = store::Store::open(location, false);
+            committed = store->map(map) ? store->log(map).size() : 0;
+          } catch (const Error&) {
+            committed = 0;  // not created yet
+          }
+          return committed >= 3;
+        },
+        std::chrono::seconds(120));
+    writer.signal(SIGKILL);
+    const RunResult r = writer.wait();
+    ASSERT_TRUE(some) << r.out << r.err;
+    EXPECT_EQ(r.exit_code, 128 + SIGKILL) << "the writer ended before it was killed: " << r.out;
+  }
+  auto store = store::Store::open(location, false);
+  const std::vector<store::LogEntry> log = store->log(map);
+  ASSERT_GE(log.size(), committed);
+  ASSERT_LT(log.size(), scans.size());
+  std::cout << "[ killed   ] after " << log.size() << " of " << scans.size()
+            << " scans committed\n";
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    EXPECT_EQ(log[i].seq, i + 1);
+    EXPECT_EQ(log[i].source, graph);
+    EXPECT_EQ(log[i].scan, i);
+  }
+  const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(log.size()));
+  const std::string graph_kept = scratch / "kept.graph";
+  writeGraph(graph_kept, kept);
+  const std::string out = scratch / "kept.ot";
+  const RunResult e =
+      runOctovk({"store", "export", location, "--map", map, "-o", out}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_EQ(readFile(out), graph2treeOt(graph_kept, scratch));
+}
+
+TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  expectKilledWriterLeavesItsLog(scratch / "map.sqlite", scratch);
+}
+
+}  // namespace
+}  // namespace octovk
+
+namespace octovk {
+namespace {
+
+// The back end itself: a commit whose sequence number is not the next one (another writer came
+// first) is refused and writes nothing; a file that is no store is refused by name.
+TEST(StoreBackEnd, StaleCommitIsRefusedAndWritesNothing) {
+  Scratch scratch("store");
+  const std::string path = scratch / "s.sqlite";
+  auto store = store::Store::open(path, true);
+  MapParams params;
+  params.resolution = 0.2;
+  store->createMap("m", params);
+  const std::vector<store::Tile> one = {{store::tileKey(12, 5), std::string(5, '\0')}};
+  store->commit("m", one, {}, {1, "a.graph", 0, 1});
+  const std::vector<store::Tile> two = {{store::tileKey(12, 6), std::string(5, '\0')}};
+  try {
+    store->commit("m", two, {}, {1, "b.graph", 0, 2});  // seq 1 again: stale
+    ADD_FAILURE() << "a stale commit was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("another writer"), std::string::npos) << e.what();
+  }
+  std::uint64_t seq = 0;
+  EXPECT_EQ(store->tiles("m", &seq), one);
+  EXPECT_EQ(seq, 1u);
+  ASSERT_EQ(store->log("m").size(), 1u);
+  EXPECT_EQ(store->map("m")->params.resolution, 0.2);
+  store.reset();
+  { std::ofstream(scratch / "empty.sqlite"); }
+  EXPECT_THROW(store::Store::open(scratch / "empty.sqlite", false), Error);
+  EXPECT_THROW(store::Store::open(scratch / "missing.sqlite", false), Error);
+}
+
+}  // namespace
+}  // namespace octovk
+
+#ifdef OCTOVK_STORE_POSTGRES_TESTS
+// Against a real PostgreSQL server, which tests/store_postgres.sh starts (its own binary: these
+// tests are run only by that script, never skipped).
+namespace octovk {
+namespace {
+
+std::string postgresUri() {
+  const char* uri = std::getenv("OCTOVK_TEST_POSTGRES");
+  return uri ? uri : "";
+}
+
+TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
+  REQUIRE_GRAPH2TREE();
+  const std::string uri = postgresUri();
+  ASSERT_FALSE(uri.empty()) << "run through tests/store_postgres.sh, which starts the server";
+  Scratch scratch("store");
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  const std::string map = "room" + std::to_string(::getpid());
+  const RunResult first = runOctovk(
+      {"integrate", graph_a, "--store", uri, "--map", map, "-r", "0.1", "-q"}, scratch.dir());
+  ASSERT_EQ(first.exit_code, 0) << first.out << first.err;
+  printStoreWrites(first.out);
+  const std::string out_a = scratch / "a.ot";
+  ASSERT_EQ(runOctovk({"store", "export", uri, "--map", map, "-o", out_a}, scratch.dir()).exit_code,
+            0);
+  EXPECT_EQ(readFile(out_a), graph2treeOt(graph_a, scratch));
+  const RunResult second =
+      runOctovk({"integrate", graph_b, "--store", uri, "--map", map, "-q"}, scratch.dir());
+  ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
+  EXPECT_NE(second.out.find("(continued): 3 scans committed"), std::string::npos) << second.out;
+  printStoreWrites(second.out);
+  std::vector<GraphScan> both = a;
+  both.insert(both.end(), b.begin(), b.end());
+  writeGraph(scratch / "both.graph", both);
+  const std::string out = scratch / "both.ot";
+  ASSERT_EQ(runOctovk({"store", "export", uri, "--map", map, "-o", out}, scratch.dir()).exit_code,
+            0);
+  EXPECT_EQ(readFile(out), graph2treeOt(scratch / "both.graph", scratch));
+  const RunResult log = runOctovk({"store", "log", uri, "--map", map}, scratch.dir());
+  EXPECT_EQ(std::count(log.out.begin(), log.out.end(), '\n'), 7) << log.out;
+  const RunResult info = runOctovk({"store", "info", uri}, scratch.dir());
+  EXPECT_NE(info.out.find("(PostgreSQL)"), std::string::npos) << info.out;
+  // A stale commit is refused there too, and writes nothing.
+  auto store = store::Store::open(uri, false);
+  const std::vector<store::Tile> tile = {{store::tileKey(12, 9), std::string(5, '\0')}};
+  EXPECT_THROW(store->commit(map, tile, {}, {3, "x", 0, 0}), Error);
+  EXPECT_EQ(store->log(map).size(), 7u);
+  EXPECT_EQ(store->map(map)->last_seq, 7u);
+}
+
+TEST(StorePostgres, KilledWriterLeavesTheCommittedScans) {
+  REQUIRE_GRAPH2TREE();
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  expectKilledWriterLeavesItsLog(postgresUri(), scratch);
+}
+
+TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {
+  REQUIRE_GRAPH2TREE();
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  expectTwoWritersGiveTheLogsMap(postgresUri(), scratch);
+}
+
+}  // namespace
+}  // namespace octovk
+#endif
