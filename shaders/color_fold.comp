@@ -3,6 +3,8 @@
 // A colour scan's colours folded into the map after its tree passes: for every point i, in the
 // cloud's order, ColorOcTree::averageNodeColor(point_i, colour_i) on the node search() finds.
 // Points that fall in one node are folded in order by one invocation; nodes are independent.
+// The points come in chunks of consecutive indices (all at once where loops are not limited),
+// each chunk grouped and folded before the next: the order is kept across chunks.
 // kColorFoldGroup (per point): its node (a NaN point, one outside the map or in unknown space
 //   has none and is skipped, as OctoMap's coordToKeyChecked / search skip it), that node's entry
 //   in the table (open addressing, claimed by compare-and-swap), and the point pushed on the
@@ -15,10 +17,11 @@
 
 layout(push_constant) uniform PushBlock { ColorFoldConstants pc; };
 
-uint colorOf(uint i) { return COLOR_FOLD[i]; }
-uint linkAfter(uint i) { return COLOR_FOLD[pc.point_capacity + i]; }
-void setLinkAfter(uint i, uint next) { COLOR_FOLD[pc.point_capacity + i] = next; }
-uint tableWord(uint entry, uint w) { return 2u * pc.point_capacity + 2u * entry + w; }
+uint tableWord(uint entry, uint w) { return 2u * entry + w; }
+uint pointWord(uint p, uint w) { return (2u << pc.table_log2) + 2u * p + w; }
+uint colorOf(uint p) { return COLOR_FOLD[pointWord(p, 0u)]; }
+uint linkAfter(uint p) { return COLOR_FOLD[pointWord(p, 1u)]; }
+void setLinkAfter(uint p, uint next) { COLOR_FOLD[pointWord(p, 1u)] = next; }
 
 // Simon Tatham's bottom-up merge sort of a singly linked list, by point index.
 uint sortedList(uint head) {
@@ -74,22 +77,23 @@ void main() {
   uint i = invocationIndex();
   uint mask = (1u << pc.table_log2) - 1u;
   if (pc.mode == kColorFoldGroup) {
-    if (i >= params.point_count) return;
+    if (i >= pc.count) return;
+    uint p = pc.first + i;
     uvec3 k;
-    if (!coordToKeyChecked(POINTS[3u * i], k.x) || !coordToKeyChecked(POINTS[3u * i + 1u], k.y) ||
-        !coordToKeyChecked(POINTS[3u * i + 2u], k.z))
+    if (!coordToKeyChecked(POINTS[3u * p], k.x) || !coordToKeyChecked(POINTS[3u * p + 1u], k.y) ||
+        !coordToKeyChecked(POINTS[3u * p + 2u], k.z))
       return;
     uint node, depth;
     if (!searchNode(k, node, depth)) return;
-    // The load of the table is at most a half (2^table_log2 >= 2 * points): a free entry is
-    // always found.
+    // The load of the table is at most a half (2^table_log2 >= 2 * a chunk's points): a free
+    // entry is always found.
     uint e = (node * 2654435761u) & mask;
     for (;;) {
       uint was = atomicCompSwap(COLOR_FOLD[tableWord(e, 0u)], kFoldEmpty, node);
       if (was == kFoldEmpty || was == node) break;
       e = (e + 1u) & mask;
     }
-    setLinkAfter(i, atomicExchange(COLOR_FOLD[tableWord(e, 1u)], i));
+    setLinkAfter(p, atomicExchange(COLOR_FOLD[tableWord(e, 1u)], p));
     return;
   }
   // kColorFoldApply

@@ -194,13 +194,34 @@ TEST_P(ColorScans, WallPrunesExpandsAndFoldsEqualColorOcTree) {
   EXPECT_TRUE(sameColors(map, *oracle, cross));
 }
 
+// ColorFold::kIntegrate (integrateNodeColor) is not on the device yet: it needs OctoMap's double
+// exp() bit for bit (issue 29). When it lands, add {0.1, false, kIntegrate} and
+// {0.05, true, kIntegrate} here; until then IntegrateFoldIsRefusedWithTheMapKept holds.
 INSTANTIATE_TEST_SUITE_P(Cases, ColorScans,
                          ::testing::Values(ColorCase{0.1, false, ColorFold::kAverage},
                                            ColorCase{0.05, true, ColorFold::kAverage},
-                                           ColorCase{0.2, false, ColorFold::kAverage},
-                                           ColorCase{0.1, false, ColorFold::kIntegrate},
-                                           ColorCase{0.05, true, ColorFold::kIntegrate}),
+                                           ColorCase{0.2, false, ColorFold::kAverage}),
                          colorCaseName);
+
+TEST(ColorFolds, IntegrateFoldIsRefusedWithTheMapKept) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ColorMap map(ctx, withResolution(0.1));
+  const std::vector<Eigen::Vector3f> points{{1.0f, 0.0f, 0.0f}, {1.0f, 0.5f, 0.0f}};
+  const std::vector<Rgb> colors{{10, 20, 30}, {40, 50, 60}};
+  map.insertPointCloud(points, Eigen::Vector3f::Zero(), colors);
+  const std::size_t nodes = map.nodeCount();
+  const std::vector<Rgb> before = map.colors(points);
+  try {
+    map.insertPointCloud(points, Eigen::Vector3f(0.0f, 0.1f, 0.0f), colors,
+                         {.color_fold = ColorFold::kIntegrate});
+    FAIL() << "ColorFold::kIntegrate was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("use ColorFold::kAverage"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(map.nodeCount(), nodes);
+  EXPECT_EQ(map.colors(points), before);
+}
 
 // Random scans with repeated origins, every fifth point given twice more (several points in one
 // cell of one scan), max range and discretize by turns.

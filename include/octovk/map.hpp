@@ -110,7 +110,8 @@ class OccupancyMap {
     float log_odds;
   };
   /// The same scan, then `queries` on the updated map, recorded in the same command stream (no
-  /// host round trip between the update and the queries).
+  /// host round trip between the update and the queries). On a map with a payload the rays'
+  /// RayHit::payload takes a second lookup batch after the scan.
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                              const Eigen::Vector3f& origin_world, const ScanOptions& options,
                              const QueryRequest& queries, QueryResults& results);
@@ -236,6 +237,8 @@ class OccupancyMap {
  protected:
   /// impl_, or kInvalidArgument for a moved-from map.
   Impl& self() const;
+  /// On a map with a payload, each hit's payload (a lookup at the hit ends); else nothing.
+  void addHitPayloads(std::vector<RayHit>& hits);
 
  private:
   friend class InteropAccess;  // vulkan_interop.hpp

@@ -143,15 +143,17 @@ OCTOVK_CONST uint kPayloadStamp = 2u;  // whole seconds
 OCTOVK_CONST uint kColorUnset = 0x00FFFFFFu;
 OCTOVK_CONST uint kFoldEmpty = 0xFFFFFFFFu;  // an empty entry of the colour fold's table or list
 
-// color_fold (kBindColorFold: the scan's colours, one word per point, at 0; the list links at
-// point_capacity; the table of (node, first point) pairs at 2 * point_capacity). 16 B.
+// color_fold (kBindColorFold: a table of 2^table_log2 (node, first point) pairs, then per point
+// of the scan its colour and its link). Where a driver ends loops early the points are folded in
+// chunks of consecutive indices, one chunk after another, so that no node's list outgrows the
+// loop budget. 16 B.
 OCTOVK_CONST uint kColorFoldGroup = 0u;  // per point: its node found, the point pushed on its list
 OCTOVK_CONST uint kColorFoldApply = 1u;  // per table entry: the node's points in order, folded
 struct ColorFoldConstants {
-  uint mode;            // 4B (0)  kColorFold*
-  uint point_capacity;  // 4B (4)  where the links and the table start
-  uint table_log2;      // 4B (8)  the table's entries: 2^table_log2
-  uint pad0;            // 4B (12)
+  uint mode;        // 4B (0)  kColorFold*
+  uint table_log2;  // 4B (4)  the table's entries: 2^table_log2
+  uint first;       // 4B (8)  the chunk's first point
+  uint count;       // 4B (12) its points
 };
 
 // A node that gets a block of children in this scan: one per entry of the second set, at the

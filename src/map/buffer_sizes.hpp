@@ -40,13 +40,15 @@ constexpr std::size_t kPayloadBlockBytes = 8 * sizeof(std::uint32_t);
 inline std::size_t blockBytes(bool payload) {
   return kBlockBytes + (payload ? kPayloadBlockBytes : 0);
 }
-// A colour scan's fold buffer for `count` points (color_fold.comp): a colour and a link per
-// point, then a table of (node, head) pairs with 2^colorTableLog2(count) entries.
-inline std::uint32_t colorTableLog2(std::size_t count) {
-  return nextPow2Log2(std::max<std::size_t>(2 * count, 64));
+// A colour scan's fold buffer (color_fold.comp) for `count` points folded in chunks of at most
+// `chunk`: a table of (node, head) pairs with 2^colorTableLog2 entries, then a colour and a link
+// per point.
+inline std::uint32_t colorTableLog2(std::size_t count, std::size_t chunk) {
+  return nextPow2Log2(std::max<std::size_t>(2 * std::min(count, chunk), 64));
 }
-inline std::size_t colorFoldBytes(std::size_t count) {
-  return (2 * count + 2 * (std::size_t{1} << colorTableLog2(count))) * sizeof(std::uint32_t);
+inline std::size_t colorFoldBytes(std::size_t count, std::size_t chunk) {
+  return (2 * (std::size_t{1} << colorTableLog2(count, chunk)) + 2 * count) *
+         sizeof(std::uint32_t);
 }
 // The change set of 2^log2 slots (change detection on); log2 0: the one-slot set a map holds
 // while change detection was never on.

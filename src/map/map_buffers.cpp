@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "map/buffer_sizes.hpp"
+#include "map/walk_budget.hpp"
 
 namespace octovk {
 
@@ -296,8 +297,8 @@ void MapBuffers::ensurePoints(std::size_t count) {
   // A colour map's staging holds each point's colour after the points, and its fold buffer the
   // colours, links and table.
   const auto bytesFor = [&](std::size_t n) {
-    return pointBytes(n) + (colors ? n * sizeof(std::uint32_t) * kFramesInFlight +
-                                         colorFoldBytes(n)
+    return pointBytes(n) + (colors ? n * 2 * sizeof(std::uint32_t) * kFramesInFlight +
+                                         colorFoldBytes(n, colorChunk())
                                    : 0);
   };
   std::size_t cap = std::max(count, point_capacity_ * 2);
@@ -310,7 +311,7 @@ void MapBuffers::ensurePoints(std::size_t count) {
   std::vector<vk::Buffer> staging(kFramesInFlight);
   for (vk::Buffer& x : staging) x = vk::Buffer(device_, cap * stagingBytesPerPoint(), true);
   vk::Buffer walk_lists(device_, 2 * cap * sizeof(gpu::WalkState), false);
-  vk::Buffer fold(device_, colors ? colorFoldBytes(cap) : kSmallBuffer, false);
+  vk::Buffer fold(device_, colors ? colorFoldBytes(cap, colorChunk()) : kSmallBuffer, false);
   color_fold = std::move(fold);
   points = std::move(device_points);
   uploads = std::move(staging);
@@ -318,6 +319,8 @@ void MapBuffers::ensurePoints(std::size_t count) {
   point_capacity_ = cap;
   rebind();
 }
+
+std::size_t MapBuffers::colorChunk() const noexcept { return colorFoldChunk(device_); }
 
 void MapBuffers::ensureDepth(std::size_t bytes) {
   const bool grow_depth = depth.size() < bytes, grow_upload = uploads[0].size() < bytes;

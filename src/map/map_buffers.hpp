@@ -151,9 +151,12 @@ class MapBuffers {
     return nodes.size() + block_parents.size() + free_stack.size() + payload.size();
   }
   Payload payloadKind() const noexcept { return payload_kind_; }
-  /// Bytes per point of the upload staging: x, y, z floats, and a colour word in a colour map.
+  /// The most points color_fold folds in one chunk on this device (walk_budget.hpp).
+  std::size_t colorChunk() const noexcept;
+  /// Bytes per point of the upload staging: x, y, z floats, and in a colour map a colour and a
+  /// link word (color_fold's layout, copied as one range).
   std::size_t stagingBytesPerPoint() const noexcept {
-    return 3 * sizeof(float) + (payload_kind_ == Payload::kColor ? sizeof(std::uint32_t) : 0);
+    return 3 * sizeof(float) + (payload_kind_ == Payload::kColor ? 2 * sizeof(std::uint32_t) : 0);
   }
   BufferBytes bytesByUse() const;
   std::size_t maxBytes() const noexcept { return max_bytes_; }

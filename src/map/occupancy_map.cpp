@@ -153,8 +153,10 @@ ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points
                                          const ScanOptions& options, const QueryRequest& queries,
                                          QueryResults& results) {
   return hostMemoryGuard("insertPointCloud", [&] {
-    return self().insert({.points = points_world}, origin_world, nullptr, options, &queries,
-                         &results);
+    ScanStats stats = self().insert({.points = points_world}, origin_world, nullptr, options,
+                                    &queries, &results);
+    addHitPayloads(results.rays);
+    return stats;
   });
 }
 
@@ -210,21 +212,25 @@ std::vector<Lookup> OccupancyMap::search(std::span<const Eigen::Vector3f> points
   return hostMemoryGuard("search", [&] { return self().runQueries({points, {}}).lookups; });
 }
 
+void OccupancyMap::addHitPayloads(std::vector<RayHit>& hits) {
+  if (self().params().payload == Payload::kNone) return;
+  // A hit's end is the centre of the cell it hit: search() there finds that cell's node.
+  std::vector<Eigen::Vector3f> ends;
+  std::vector<std::size_t> which;
+  for (std::size_t i = 0; i < hits.size(); ++i)
+    if (hits[i].hit) {
+      ends.push_back(hits[i].end);
+      which.push_back(i);
+    }
+  if (ends.empty()) return;
+  const std::vector<Lookup> found = self().runQueries({ends, {}}).lookups;
+  for (std::size_t j = 0; j < which.size(); ++j) hits[which[j]].payload = found[j].payload;
+}
+
 std::vector<RayHit> OccupancyMap::castRays(std::span<const Ray> rays) {
   return hostMemoryGuard("castRays", [&] {
     std::vector<RayHit> hits = self().runQueries({{}, rays}).rays;
-    if (self().params().payload == Payload::kNone) return hits;
-    // A hit's end is the centre of the cell it hit: search() there finds that cell's node.
-    std::vector<Eigen::Vector3f> ends;
-    std::vector<std::size_t> which;
-    for (std::size_t i = 0; i < hits.size(); ++i)
-      if (hits[i].hit) {
-        ends.push_back(hits[i].end);
-        which.push_back(i);
-      }
-    if (ends.empty()) return hits;
-    const std::vector<Lookup> found = self().runQueries({ends, {}}).lookups;
-    for (std::size_t j = 0; j < which.size(); ++j) hits[which[j]].payload = found[j].payload;
+    addHitPayloads(hits);
     return hits;
   });
 }

@@ -71,7 +71,11 @@ VkDeviceSize stageColors(const ScanSource& source, const passes::RayKeysInput& i
       source.device != VK_NULL_HANDLE ? 0 : wholeWords(static_cast<std::size_t>(input.bytes));
   auto* words = reinterpret_cast<std::uint32_t*>(static_cast<unsigned char*>(upload.mapped()) +
                                                  offset);
-  for (std::size_t i = 0; i < colors.size(); ++i) words[i] = packRgb(colors[i]);
+  // color_fold's layout: a colour and a link word per point (the link is written on the device).
+  for (std::size_t i = 0; i < colors.size(); ++i) {
+    words[2 * i] = packRgb(colors[i]);
+    words[2 * i + 1] = 0;
+  }
   return offset;
 }
 

@@ -1,6 +1,7 @@
 #include "map/walk_budget.hpp"
 
 #include <algorithm>
+#include <limits>
 
 namespace octovk {
 
@@ -27,6 +28,18 @@ std::uint32_t walkRounds(const vk::Device& device, double steps) noexcept {
   if (!(iterations < 24.0 * 30000.0)) return full;  // also NaN
   return std::clamp<std::uint32_t>(
       walkContinuations(device, static_cast<std::uint64_t>(iterations)), 1u, full);
+}
+
+std::size_t colorFoldChunk(const vk::Device& device) noexcept {
+  if (device.loopLimit() == 0) return std::numeric_limits<std::uint32_t>::max();
+  const std::uint64_t budget = walkBudget(device);
+  std::size_t chunk = 64;
+  for (std::uint32_t log2 = 7; log2 < 31; ++log2) {
+    const std::uint64_t c = std::uint64_t{1} << log2;
+    if (c * (2 * log2 + 3) > budget) break;
+    chunk = static_cast<std::size_t>(c);
+  }
+  return chunk;
 }
 
 }  // namespace octovk

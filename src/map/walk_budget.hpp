@@ -22,6 +22,10 @@ std::uint32_t walkContinuations(const vk::Device& device, std::uint64_t worst_it
 /// fullWalkRounds(); 0 where loops are not limited. Counts 4 loop iterations per step (the step
 /// and the cell set's probes; a scan whose probes outrun that is run again with fullWalkRounds()).
 std::uint32_t walkRounds(const vk::Device& device, double steps) noexcept;
+/// The most points color_fold folds in one chunk: where loops are limited, the largest power of
+/// two C whose worst fold (a node holding all C points: the list's merge sort, about
+/// C * (2 log2 C + 3) iterations, then the fold) fits walkBudget(); elsewhere every point at once.
+std::size_t colorFoldChunk(const vk::Device& device) noexcept;
 /// Rounds that cover any ray (3 * 65536 steps with room for the probes).
 std::uint32_t fullWalkRounds(const vk::Device& device) noexcept;
 

@@ -3,24 +3,29 @@
 #include "map/buffer_sizes.hpp"
 #include "map/passes/passes.hpp"
 
+#include <algorithm>
+
 namespace octovk::passes {
 
 void recordColorFold(Recorder& r, std::size_t count, VkBuffer source, VkDeviceSize offset) {
   MapBuffers& b = r.buffers;
-  const std::size_t capacity = b.pointCapacity();
-  const std::uint32_t table_log2 = sizes::colorTableLog2(capacity);
-  const std::size_t word = sizeof(std::uint32_t);
-  r.stream.copyFrom(source, offset, b.color_fold, count * word);
-  r.stream.fill(b.color_fold, gpu::kFoldEmpty, 2 * capacity * word,
-                2 * (std::size_t{1} << table_log2) * word);
-  r.stream.barrier();
-  const gpu::ColorFoldConstants pc{.mode = gpu::kColorFoldGroup,
-                                   .point_capacity = static_cast<std::uint32_t>(capacity),
-                                   .table_log2 = table_log2};
-  r.dispatch<Shader::kColorFold>(count, pc);
-  gpu::ColorFoldConstants apply = pc;
-  apply.mode = gpu::kColorFoldApply;
-  r.dispatch<Shader::kColorFold>(std::size_t{1} << table_log2, apply);
+  const std::size_t chunk = b.colorChunk();
+  const std::uint32_t table_log2 = sizes::colorTableLog2(b.pointCapacity(), chunk);
+  const std::size_t table_bytes = 2 * (std::size_t{1} << table_log2) * sizeof(std::uint32_t);
+  r.stream.copyFrom(source, offset, b.color_fold, count * 2 * sizeof(std::uint32_t), table_bytes);
+  // One chunk after another, in the points' order (one chunk where loops are not limited).
+  for (std::size_t first = 0; first < count; first += chunk) {
+    const std::size_t n = std::min(chunk, count - first);
+    r.stream.fill(b.color_fold, gpu::kFoldEmpty, 0, table_bytes);
+    r.stream.barrier();
+    gpu::ColorFoldConstants pc{.mode = gpu::kColorFoldGroup,
+                               .table_log2 = table_log2,
+                               .first = static_cast<std::uint32_t>(first),
+                               .count = static_cast<std::uint32_t>(n)};
+    r.dispatch<Shader::kColorFold>(n, pc);
+    pc.mode = gpu::kColorFoldApply;
+    r.dispatch<Shader::kColorFold>(std::size_t{1} << table_log2, pc);
+  }
 }
 
 }  // namespace octovk::passes
