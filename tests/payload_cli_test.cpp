@@ -584,6 +584,31 @@ TEST(PayloadCli, IntegrateStampsEqualsOcTreeStamped) {
   }
 }
 
+// edit keeps a stamped map's stamps: the edited .ot gets its own PATH.stamps, renamed with it, and
+// no temporary is left behind.
+TEST(PayloadCli, EditKeepsAStampedMapsStamps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("payload");
+  const std::string graph = writeStampGraph(scratch);
+  const std::string stamps = scratch / "stamps.txt";
+  std::ofstream(stamps) << "100\n101\n102\n103\n120\n135\n";
+  const std::string ot = scratch / "map.ot", edited = scratch / "e.ot";
+  RunResult r = runOctovk({"integrate", graph, "--stamps", stamps, "-o", ot, "-r", "0.1", "-q"},
+                          scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  r = runOctovk({"edit", ot, "--clear-box", "-100", "-100", "-100", "-99", "-99", "-99", "-o",
+                 edited},
+                scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
+  ASSERT_TRUE(std::filesystem::exists(edited + ".stamps")) << r.out;
+  // A box outside the scans changes nothing: the same tree, the same stamps.
+  EXPECT_TRUE(readFile(edited) == readFile(ot));
+  EXPECT_TRUE(readFile(edited + ".stamps") == readFile(ot + ".stamps"));
+  StampedMap map(readMapFile(ctx, edited));
+  EXPECT_EQ(map.lastUpdateTime() != 0, true);
+}
+
 // The oracle comparison above can tell: stamps change the tree (pruning compares them), and so
 // does the degrade.
 TEST(PayloadCliOracle, StampsAndDegradeChangeTheFile) {

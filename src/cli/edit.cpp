@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
+#include <fstream>
+#include <optional>
 #include <iostream>
 #include <vector>
 
@@ -14,6 +16,22 @@
 #include "report.hpp"
 
 namespace octovk::cli {
+
+namespace {
+
+// Whether `path` is an OctoMap file of tree type OcTreeStamped (its header's `id` line), whose
+// stamps octovk keeps beside a .ot.
+bool isStampedTreeFile(const std::string& path) {
+  std::ifstream in(path, std::ios_base::binary);
+  std::string line;
+  for (int i = 0; i < 16 && std::getline(in, line); ++i) {
+    if (line.rfind("id ", 0) == 0) return line == "id OcTreeStamped";
+    if (line == "data") break;
+  }
+  return false;
+}
+
+}  // namespace
 
 namespace {
 
@@ -65,6 +83,10 @@ class Edit final : public Command {
           "edit: nothing to do; give --clear-box or --keep-box XMIN YMIN ZMIN XMAX YMAX ZMAX");
     in.checkDeviceMemoryCap();
     in.checkOutputs();
+    // A stamped map's .ot keeps its stamps beside it (PATH.stamps), renamed with it.
+    if (isStampedTreeFile(in.input()) &&
+        std::filesystem::path(in.output()).extension() == ".ot")
+      stamps_output_ = in.addOptionOutput(in.output() + ".stamps");
   }
 
   int run(Invocation& in) override {
@@ -77,9 +99,7 @@ class Edit final : public Command {
     const std::size_t nodes_after = map.nodeCount();
     const std::size_t nodes_written = steps.run("writing", [&] {
       StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-      std::size_t written = 0;
-      in.files().write(0,
-                       [&](const std::string& temporary) { written = writeMap(map, temporary); });
+      const std::size_t written = writeMapOutput(map, in.files(), 0, stamps_output_);
       in.files().commit();
       return written;
     });
@@ -109,6 +129,7 @@ class Edit final : public Command {
     std::size_t occupied = 0;  // of them, those that were occupied
   };
   std::vector<BoxEdit> edits_;
+  std::optional<std::size_t> stamps_output_;  ///< a stamped .ot's PATH.stamps, by output index
 
   // Applies the edits in order, each box clamped to the map's domain (noted in its BoxEdit).
   void applyEdits(OccupancyMap& map) {

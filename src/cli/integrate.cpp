@@ -744,9 +744,9 @@ std::size_t writeMapOutput(OccupancyMap& map, OutputFiles& outputs, std::size_t 
 // The map as OctoMap writes it, straight into `path` (the output's temporary): writeMapFile
 // would add a temporary of its own, which a killed run would leave behind.
 std::size_t writeMap(OccupancyMap& map, const std::string& path) {
-  // A ColorOcTree or OcTreeStamped .ot: OctoMap's tree of the map's payload, through the library
+  // A ColorOcTree or OcTreeStamped map: OctoMap's tree of the map's payload, through the library
   // (it writes a temporary of its own beside `path` and renames it).
-  if (map.params().payload != Payload::kNone && fs::path(path).extension() == ".ot") {
+  if (map.params().payload != Payload::kNone) {
     writeMapFile(map, path);
     return map.nodeCount();
   }
