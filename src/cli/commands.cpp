@@ -22,7 +22,6 @@ const Subcommand kSubcommands[] = {
      .multi_value_options = cameraMultiValueOptions(),
      .make = makeIntegrate,
      .examples = "  octovk integrate scans.graph -o map.bt -o map.ot -r 0.05\n"
-                 "  octovk integrate rgbd_dataset_freiburg1_xyz -o map.bt\n"
                  "  octovk integrate scans.graph -o map.bt --max-range 10 --changes changes.ply\n"
                  "  octovk integrate rgbd_dataset_freiburg1_xyz --color -o map.ot\n"},
     {.name = "convert",
