@@ -7,7 +7,7 @@
 # ASan and LSan write every report to build-asan/sanitizer-logs/, and any file there fails the
 # run and is printed; UBSan ends the process with exit status 86, which fails the test.
 # Usage: scripts/sanitize.sh [extra cmake args]
-# OCTOVK_SANITIZE_TESTS: the test executables to run (default: all nine listed below;
+# OCTOVK_SANITIZE_TESTS: the test executables to run (default: all ten listed below;
 # octovk_oracle_tests takes about 3 of the 4 minutes on 2 CPU cores, the change, cache and
 # distance tests about 30 s together, the program's distance and --changes tests a few seconds). Installs nothing: scripts/setup.sh does, and gcc's
 # sanitizer runtimes come with it.
@@ -16,6 +16,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 build="$root/build-asan"
 all_tests="octovk_tests octovk_cli_tests octovk_cli_query_tests octovk_oracle_tests octovk_tum_tests"
 all_tests+=" octovk_change_tests octovk_cache_tests octovk_distance_tests octovk_cli_field_tests"
+all_tests+=" octovk_payload_tests"
 executables="${OCTOVK_SANITIZE_TESTS:-$all_tests}"
 read -ra wanted <<<"$executables"
 jobs="$(nproc)"
