@@ -596,9 +596,9 @@ TEST(PayloadCli, EditKeepsAStampedMapsStamps) {
   RunResult r = runOctovk({"integrate", graph, "--stamps", stamps, "-o", ot, "-r", "0.1", "-q"},
                           scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-  r = runOctovk({"edit", ot, "--clear-box", "-100", "-100", "-100", "-99", "-99", "-99", "-o",
-                 edited},
-                scratch.dir());
+  r = runOctovk(
+      {"edit", ot, "--clear-box", "-100", "-100", "-100", "-99", "-99", "-99", "-o", edited},
+      scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_EQ(temporariesIn(scratch.dir()), std::vector<std::string>{});
   ASSERT_TRUE(std::filesystem::exists(edited + ".stamps")) << r.out;

@@ -7,8 +7,8 @@
 #include <array>
 #include <filesystem>
 #include <fstream>
-#include <optional>
 #include <iostream>
+#include <optional>
 #include <vector>
 
 #include "command.hpp"
@@ -84,8 +84,7 @@ class Edit final : public Command {
     in.checkDeviceMemoryCap();
     in.checkOutputs();
     // A stamped map's .ot keeps its stamps beside it (PATH.stamps), renamed with it.
-    if (isStampedTreeFile(in.input()) &&
-        std::filesystem::path(in.output()).extension() == ".ot")
+    if (isStampedTreeFile(in.input()) && std::filesystem::path(in.output()).extension() == ".ot")
       stamps_output_ = in.addOptionOutput(in.output() + ".stamps");
   }
 

@@ -46,13 +46,21 @@ void printStoreExportHelp(std::ostream& out) {
          "  -h, --help             show this help\n";
 }
 
-class StoreExport final : public Command {
+// A store command that reads one map of the store: --map NAME (default: default).
+class StoreMapCommand : public Command {
  public:
   bool option(const ParsedOption& opt) override {
     if (opt.name != "--map") return false;
     map_ = opt.value;
     return true;
   }
+
+ protected:
+  std::string map_ = kDefaultMap;
+};
+
+class StoreExport final : public StoreMapCommand {
+ public:
   void check(Invocation& in) override {
     checkStoreInput(in.input(), "octovk store export STORE -o OUT.bt");
     in.checkOutputs();
@@ -92,9 +100,6 @@ class StoreExport final : public Command {
         .wrote(in.output());
     return report.print();
   }
-
- private:
-  std::string map_ = kDefaultMap;
 };
 
 // ---- store log ----
@@ -113,13 +118,8 @@ void printStoreLogHelp(std::ostream& out) {
          "  -h, --help             show this help\n";
 }
 
-class StoreLog final : public Command {
+class StoreLog final : public StoreMapCommand {
  public:
-  bool option(const ParsedOption& opt) override {
-    if (opt.name != "--map") return false;
-    map_ = opt.value;
-    return true;
-  }
   void check(Invocation& in) override {
     checkStoreInput(in.input(), "octovk store log STORE [--map NAME]");
   }
@@ -132,9 +132,6 @@ class StoreLog final : public Command {
                   std::string("cannot write the log to standard output: ") + std::strerror(errno));
     return kExitOk;
   }
-
- private:
-  std::string map_ = kDefaultMap;
 };
 
 // ---- store info ----

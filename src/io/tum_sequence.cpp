@@ -251,12 +251,18 @@ bool pngReadRows(PngReader& r, png_bytepp rows) {
 
 const char* colorTypeName(int color_type) {
   switch (color_type) {
-    case PNG_COLOR_TYPE_GRAY: return "grayscale";
-    case PNG_COLOR_TYPE_GRAY_ALPHA: return "grayscale+alpha";
-    case PNG_COLOR_TYPE_RGB: return "RGB colour";
-    case PNG_COLOR_TYPE_RGB_ALPHA: return "RGBA colour";
-    case PNG_COLOR_TYPE_PALETTE: return "palette colour";
-    default: return "unknown colour type";
+    case PNG_COLOR_TYPE_GRAY:
+      return "grayscale";
+    case PNG_COLOR_TYPE_GRAY_ALPHA:
+      return "grayscale+alpha";
+    case PNG_COLOR_TYPE_RGB:
+      return "RGB colour";
+    case PNG_COLOR_TYPE_RGB_ALPHA:
+      return "RGBA colour";
+    case PNG_COLOR_TYPE_PALETTE:
+      return "palette colour";
+    default:
+      return "unknown colour type";
   }
 }
 
@@ -283,8 +289,8 @@ std::vector<GroundTruthPose> parseGroundTruth(ByteSource& source, const std::str
     static const char* const kNames[7] = {"tx", "ty", "tz", "qx", "qy", "qz", "qw"};
     for (std::size_t i = 0; i < 7; ++i) v[i] = parseField<float>(path, line, i + 1, kNames[i]);
     // A rotation far from unit length scales the points: a broken or misordered file.
-    const double norm = std::sqrt(double{v[3]} * v[3] + double{v[4]} * v[4] +
-                                  double{v[5]} * v[5] + double{v[6]} * v[6]);
+    const double norm = std::sqrt(double{v[3]} * v[3] + double{v[4]} * v[4] + double{v[5]} * v[5] +
+                                  double{v[6]} * v[6]);
     if (std::abs(norm - 1.0) > 0.01) {
       std::ostringstream why;
       why << "the rotation (qx qy qz qw) has norm " << norm
@@ -322,26 +328,25 @@ TumSequence associateDepthList(ByteSource& source, std::vector<GroundTruthPose> 
     throw Error(ErrorCode::kFormat, "'" + names.groundtruth +
                                         "' lists no poses (only comments or blank lines); it "
                                         "needs lines 'timestamp tx ty tz qx qy qz qw'");
-  std::stable_sort(poses.begin(), poses.end(), [](const auto& a, const auto& b) {
-    return a.timestamp < b.timestamp;
-  });
+  std::stable_sort(poses.begin(), poses.end(),
+                   [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
 
   double first = 0, last = 0;  // the images' times, for the message when none takes a pose
   DataLines lines(source, depth_path);
   for (Line line; lines.next(line);) {
     if (line.fields.size() != 2)
-      throw badLine(depth_path, line,
-                    "expected 2 fields 'timestamp filename', found " +
-                        std::to_string(line.fields.size()));
+      throw badLine(
+          depth_path, line,
+          "expected 2 fields 'timestamp filename', found " + std::to_string(line.fields.size()));
     const double t = parseField<double>(depth_path, line, 0, "the timestamp");
     first = sequence.images_listed == 0 ? t : std::min(first, t);
     last = sequence.images_listed == 0 ? t : std::max(last, t);
     checkImageName(depth_path, line, "depth.txt", "depth/1305031102.160407.png");
     ++sequence.images_listed;
     // The nearest pose: the first at or after t, or the one before it (the earlier on a tie).
-    const auto after = std::lower_bound(
-        poses.begin(), poses.end(), t,
-        [](const GroundTruthPose& p, double time) { return p.timestamp < time; });
+    const auto after =
+        std::lower_bound(poses.begin(), poses.end(), t,
+                         [](const GroundTruthPose& p, double time) { return p.timestamp < time; });
     auto nearest = after;
     if (after == poses.end() ||
         (after != poses.begin() && t - std::prev(after)->timestamp <= after->timestamp - t))
@@ -385,9 +390,9 @@ std::vector<ListedImage> parseImageList(ByteSource& source, const std::string& p
   DataLines lines(source, path);
   for (Line line; lines.next(line);) {
     if (line.fields.size() != 2)
-      throw badLine(path, line,
-                    "expected 2 fields 'timestamp filename', found " +
-                        std::to_string(line.fields.size()));
+      throw badLine(
+          path, line,
+          "expected 2 fields 'timestamp filename', found " + std::to_string(line.fields.size()));
     ListedImage image;
     image.timestamp = parseField<double>(path, line, 0, "the timestamp");
     checkImageName(path, line, "rgb.txt", "rgb/1305031102.175304.png");
@@ -409,9 +414,8 @@ void associateColorImages(TumSequence& sequence, std::vector<ListedImage> images
                                         "' lists no images (only comments or blank lines); it "
                                         "needs lines 'timestamp filename'");
   sequence.color_images = images.size();
-  std::stable_sort(images.begin(), images.end(), [](const auto& a, const auto& b) {
-    return a.timestamp < b.timestamp;
-  });
+  std::stable_sort(images.begin(), images.end(),
+                   [](const auto& a, const auto& b) { return a.timestamp < b.timestamp; });
   const fs::path root(names.dir);
   for (TumFrame& frame : sequence.frames) {
     const double t = frame.timestamp;
@@ -470,8 +474,9 @@ TumSequence readSequence(const std::string& dir, double max_time_difference_s, T
   const fs::path root(dir);
   std::error_code ec;
   if (!fs::is_directory(root, ec))
-    throw Error(ErrorCode::kIo, "'" + dir + "' is not a directory; give a TUM RGB-D folder "
-                                            "(with depth.txt and groundtruth.txt)");
+    throw Error(ErrorCode::kIo, "'" + dir +
+                                    "' is not a directory; give a TUM RGB-D folder "
+                                    "(with depth.txt and groundtruth.txt)");
   io::TumListNames names;
   names.dir = dir;
   names.groundtruth = (root / "groundtruth.txt").string();
@@ -548,10 +553,14 @@ const char* pngFormats(PngKind kind) {
 std::uint64_t pngPixelBytes(PngKind kind, int color_type) {
   if (kind == PngKind::kDepth) return 2;
   switch (color_type) {
-    case PNG_COLOR_TYPE_GRAY: return 1;
-    case PNG_COLOR_TYPE_GRAY_ALPHA: return 2;
-    case PNG_COLOR_TYPE_RGB: return 3;
-    default: return 4;
+    case PNG_COLOR_TYPE_GRAY:
+      return 1;
+    case PNG_COLOR_TYPE_GRAY_ALPHA:
+      return 2;
+    case PNG_COLOR_TYPE_RGB:
+      return 3;
+    default:
+      return 4;
   }
 }
 
@@ -580,21 +589,21 @@ void readPngHeader(PngReader& r, const std::string& path, PngKind kind, png_uint
 
   int bit_depth = 0;
   if (!pngReadHeader(r, width, height, &bit_depth, color_type))
-    throw Error(ErrorCode::kFormat, noun + " '" + path +
-                                        "' is a corrupt or truncated PNG (libpng: " +
-                                        std::string(r.message) + ")");
+    throw Error(ErrorCode::kFormat,
+                noun + " '" + path +
+                    "' is a corrupt or truncated PNG (libpng: " + std::string(r.message) + ")");
   if (!acceptedFormat(kind, bit_depth, *color_type))
     throw Error(ErrorCode::kFormat,
-                noun + " '" + path + "' is a " + colorTypeName(*color_type) +
-                    " PNG of bit depth " + std::to_string(bit_depth) + "; " + pngFormats(kind) +
+                noun + " '" + path + "' is a " + colorTypeName(*color_type) + " PNG of bit depth " +
+                    std::to_string(bit_depth) + "; " + pngFormats(kind) +
                     (kind == PngKind::kColor && bit_depth == 16
                          ? " (16-bit colour is not read: convert the images to 8 bits)"
                          : ""));
   // libpng's user limit refuses these first (a "corrupt" PNG whose message says so); kept for a
   // libpng built without user limits.
   if (*width > kMaxPngSide || *height > kMaxPngSide)
-    throw Error(ErrorCode::kFormat, noun + " '" + path + "' is " + std::to_string(*width) +
-                                        " x " + std::to_string(*height) + " pixels; at most " +
+    throw Error(ErrorCode::kFormat, noun + " '" + path + "' is " + std::to_string(*width) + " x " +
+                                        std::to_string(*height) + " pixels; at most " +
                                         std::to_string(kMaxPngSide) + " in each direction");
   // The pixels' bytes as deflate's input: a filter byte and the pixels' bytes per row (interlaced
   // images need more). Deflate shrinks data at most 1032-fold, so a file too small to hold them is
@@ -606,8 +615,7 @@ void readPngHeader(PngReader& r, const std::string& path, PngKind kind, png_uint
     throw Error(ErrorCode::kFormat,
                 noun + " '" + path + "' is a corrupt or truncated PNG: its header announces " +
                     std::to_string(*width) + " x " + std::to_string(*height) +
-                    " pixels, more than its " + std::to_string(r.source_size) +
-                    " bytes can hold");
+                    " pixels, more than its " + std::to_string(r.source_size) + " bytes can hold");
   // Refused from the header, before its pixels are decoded (a 530 kB PNG can hold 16000 x 16000).
   const std::uint64_t pixels = std::uint64_t{*width} * *height;
   if (max_pixels != 0 && pixels > max_pixels)
@@ -642,9 +650,9 @@ DepthPng readDepthPngPixels(PngReader& r, const std::string& path, png_uint_32 w
   for (png_uint_32 y = 0; y < height; ++y)
     rows[y] = reinterpret_cast<png_bytep>(out.depths.data() + std::size_t{y} * width);
   if (!pngReadRows(r, rows.data()))
-    throw Error(ErrorCode::kFormat, "depth image '" + path +
-                                        "' is a corrupt or truncated PNG (libpng: " +
-                                        std::string(r.message) + ")");
+    throw Error(ErrorCode::kFormat,
+                "depth image '" + path +
+                    "' is a corrupt or truncated PNG (libpng: " + std::string(r.message) + ")");
   return out;
 }
 
@@ -671,32 +679,44 @@ ColorPng readColorPngPixels(PngReader& r, const std::string& path, png_uint_32 w
   for (png_uint_32 y = 0; y < height; ++y)
     rows[y] = reinterpret_cast<png_bytep>(out.colors.data() + std::size_t{y} * width);
   if (!pngReadColorRows(r, rows.data(), color_type))
-    throw Error(ErrorCode::kFormat, "colour image '" + path +
-                                        "' is a corrupt or truncated PNG (libpng: " +
-                                        std::string(r.message) + ")");
+    throw Error(ErrorCode::kFormat,
+                "colour image '" + path +
+                    "' is a corrupt or truncated PNG (libpng: " + std::string(r.message) + ")");
   return out;
 }
 
 }  // namespace
 
-DepthPngSize checkDepthPng(const std::string& path, std::uint64_t max_pixels) {
-  return hostMemoryGuard("checkDepthPng", [&] {
+namespace {
+
+// `f(reader, width, height, colour type)` on the PNG file `path` once its header passed
+// openPng's checks for `kind`, under `call`'s host-memory guard.
+template <typename F>
+auto withPngFile(const char* call, const std::string& path, PngKind kind, std::uint64_t max_pixels,
+                 F&& f) {
+  return hostMemoryGuard(call, [&] {
     PngReader r;
     png_uint_32 width = 0, height = 0;
     int color_type = 0;
-    openPng(r, path, PngKind::kDepth, &width, &height, max_pixels, &color_type);
-    return DepthPngSize{width, height};
+    openPng(r, path, kind, &width, &height, max_pixels, &color_type);
+    return f(r, width, height, color_type);
   });
 }
 
+}  // namespace
+
+DepthPngSize checkDepthPng(const std::string& path, std::uint64_t max_pixels) {
+  return withPngFile("checkDepthPng", path, PngKind::kDepth, max_pixels,
+                     [](PngReader&, png_uint_32 w, png_uint_32 h, int) {
+                       return DepthPngSize{w, h};
+                     });
+}
+
 DepthPng readDepthPng(const std::string& path, std::uint64_t max_pixels) {
-  return hostMemoryGuard("readDepthPng", [&] {
-    PngReader r;
-    png_uint_32 width = 0, height = 0;
-    int color_type = 0;
-    openPng(r, path, PngKind::kDepth, &width, &height, max_pixels, &color_type);
-    return readDepthPngPixels(r, path, width, height);
-  });
+  return withPngFile("readDepthPng", path, PngKind::kDepth, max_pixels,
+                     [&](PngReader& r, png_uint_32 w, png_uint_32 h, int) {
+                       return readDepthPngPixels(r, path, w, h);
+                     });
 }
 
 DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
@@ -710,23 +730,17 @@ DepthPng io::decodeDepthPng(std::string_view bytes, const std::string& name) {
 }
 
 DepthPngSize checkColorPng(const std::string& path, std::uint64_t max_pixels) {
-  return hostMemoryGuard("checkColorPng", [&] {
-    PngReader r;
-    png_uint_32 width = 0, height = 0;
-    int color_type = 0;
-    openPng(r, path, PngKind::kColor, &width, &height, max_pixels, &color_type);
-    return DepthPngSize{width, height};
-  });
+  return withPngFile("checkColorPng", path, PngKind::kColor, max_pixels,
+                     [](PngReader&, png_uint_32 w, png_uint_32 h, int) {
+                       return DepthPngSize{w, h};
+                     });
 }
 
 ColorPng readColorPng(const std::string& path, std::uint64_t max_pixels) {
-  return hostMemoryGuard("readColorPng", [&] {
-    PngReader r;
-    png_uint_32 width = 0, height = 0;
-    int color_type = 0;
-    openPng(r, path, PngKind::kColor, &width, &height, max_pixels, &color_type);
-    return readColorPngPixels(r, path, width, height, color_type);
-  });
+  return withPngFile("readColorPng", path, PngKind::kColor, max_pixels,
+                     [&](PngReader& r, png_uint_32 w, png_uint_32 h, int color_type) {
+                       return readColorPngPixels(r, path, w, h, color_type);
+                     });
 }
 
 ColorPng io::decodeColorPng(std::string_view bytes, const std::string& name) {

@@ -90,7 +90,8 @@ PoolImage poolImageFromTree(const HostTree& tree) {
   image.blocks = static_cast<std::uint32_t>(blocks);
   image.parents.assign(blocks, gpu::kNoBlock);
   image.nodes.assign(blocks * 8, emptyPoolNode());
-  if (tree.payload != Payload::kNone) image.payload.assign(blocks * 8, newNodePayload(tree.payload));
+  if (tree.payload != Payload::kNone)
+    image.payload.assign(blocks * 8, newNodePayload(tree.payload));
   image.root_exists = tree.root_exists;
   if (tree.root_exists) {
     if (tree.nodes.empty()) throw Error(ErrorCode::kFormat, "upload: the tree has no root node");
@@ -156,9 +157,10 @@ void averageInnerColors(HostTree& tree) {
       b += col.b;
       ++c;
     }
-    n.payload = c > 0 ? packRgb(Rgb{static_cast<std::uint8_t>(r / c), static_cast<std::uint8_t>(g / c),
-                                    static_cast<std::uint8_t>(b / c)})
-                      : 0x00FFFFFFu;
+    n.payload =
+        c > 0 ? packRgb(Rgb{static_cast<std::uint8_t>(r / c), static_cast<std::uint8_t>(g / c),
+                            static_cast<std::uint8_t>(b / c)})
+              : 0x00FFFFFFu;
   }
 }
 

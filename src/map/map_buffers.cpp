@@ -388,7 +388,7 @@ void MapBuffers::rebind() {
       &params,     &counters,      &pool,       &points,    &cell_set_keys, &cell_set_flags,
       &nodes,      &block_parents, &free_stack, &cells,     &touched,       &prefix_blocks,
       &leaf_boxes, &endpoint_keys, &query_in,   &query_out, &walks,         &slots,
-      &cell_list,  &depth,         &changes,    &payload,  &color_fold};
+      &cell_list,  &depth,         &changes,    &payload,   &color_fold};
   bindings.update(buffers);
 }
 

@@ -153,8 +153,8 @@ ScanStats OccupancyMap::insertPointCloud(std::span<const Eigen::Vector3f> points
                                          const ScanOptions& options, const QueryRequest& queries,
                                          QueryResults& results) {
   return hostMemoryGuard("insertPointCloud", [&] {
-    ScanStats stats = self().insert({.points = points_world}, origin_world, nullptr, options,
-                                    &queries, &results);
+    ScanStats stats =
+        self().insert({.points = points_world}, origin_world, nullptr, options, &queries, &results);
     addHitPayloads(results.rays);
     return stats;
   });

@@ -54,8 +54,8 @@ void checkPayloadOptions(Payload payload, std::size_t count, const ScanOptions& 
                     "Payload::kColor) to keep colours");
   if (options.colors.size() != count)
     throw Error(ErrorCode::kInvalidArgument,
-                "insertPointCloud: " + std::to_string(options.colors.size()) +
-                    " colours for " + std::to_string(count) +
+                "insertPointCloud: " + std::to_string(options.colors.size()) + " colours for " +
+                    std::to_string(count) +
                     " points (or depth pixels); give exactly one colour per point");
   if (options.color_fold != ColorFold::kAverage)
     throw Error(ErrorCode::kInvalidArgument,
@@ -69,8 +69,8 @@ VkDeviceSize stageColors(const ScanSource& source, const passes::RayKeysInput& i
   // After the points or pixels the frame staged; at 0 where they come from a caller's buffer.
   const std::size_t offset =
       source.device != VK_NULL_HANDLE ? 0 : wholeWords(static_cast<std::size_t>(input.bytes));
-  auto* words = reinterpret_cast<std::uint32_t*>(static_cast<unsigned char*>(upload.mapped()) +
-                                                 offset);
+  auto* words =
+      reinterpret_cast<std::uint32_t*>(static_cast<unsigned char*>(upload.mapped()) + offset);
   // color_fold's layout: a colour and a link word per point (the link is written on the device).
   for (std::size_t i = 0; i < colors.size(); ++i) {
     words[2 * i] = packRgb(colors[i]);

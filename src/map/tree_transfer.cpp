@@ -17,7 +17,8 @@ HostTree TreeTransfer::download() {
   vk::Buffer staging(core_.device, node_bytes + payload_bytes, true);
   core_.stream.begin(core_.buffers.bindings);
   core_.stream.copy(core_.buffers.nodes, staging, node_bytes);
-  if (payload_bytes) core_.stream.copy(core_.buffers.payload, staging, payload_bytes, 0, node_bytes);
+  if (payload_bytes)
+    core_.stream.copy(core_.buffers.payload, staging, payload_bytes, 0, node_bytes);
   core_.stream.submitAndWait();
   const auto* bytes = static_cast<const unsigned char*>(staging.mapped());
   HostTree tree = hostTreeFromPool(

@@ -1,9 +1,9 @@
 // A colour scan's fold: color_fold.comp grouping the scan's points by the node search() finds,
 // then folding each node's colours in the cloud's order (ColorOcTree::averageNodeColor).
+#include <algorithm>
+
 #include "map/buffer_sizes.hpp"
 #include "map/passes/passes.hpp"
-
-#include <algorithm>
 
 namespace octovk::passes {
 
