@@ -396,6 +396,18 @@ py::object readMap(py::handle path, py::object context, std::size_t max_device_b
   return py::cast(std::make_unique<Map>(context, std::move(*made)));
 }
 
+// The static `read` of a map class: readMap with that class's tree type (none: any).
+template <typename Class>
+void defRead(Class& cls, std::optional<Payload> want, const char* doc) {
+  cls.def_static(
+      "read",
+      [want](py::handle path, py::object context, std::size_t max_device_bytes) {
+        return readMap(path, std::move(context), max_device_bytes, want);
+      },
+      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
+      py::arg("max_device_bytes") = 0, doc);
+}
+
 constexpr const char* kColorMapDoc =
     "OctoMap's ColorOcTree on a Vulkan device (octovk::ColorMap): a Map whose nodes also hold a "
     "colour, and everything a Map offers.\n\n"
@@ -423,15 +435,9 @@ constexpr const char* kColorsDoc =
 void bindColorMap(py::module_& m) {
   py::class_<PyColorMap, Map> cls(m, "ColorMap", kColorMapDoc);
   defInit<PyColorMap, ColorMap>(cls, "An empty colour map (ColorOcTree).");
-  cls.def_static(
-      "read",
-      [](py::handle path, py::object context, std::size_t max_device_bytes) {
-        return readMap(path, std::move(context), max_device_bytes, Payload::kColor);
-      },
-      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
-      py::arg("max_device_bytes") = 0,
-      "A new ColorMap from an OctoMap ColorOcTree .ot file; FormatError for another tree type "
-      "(Map.read reads every type). context and max_device_bytes as in Map.read.");
+  defRead(cls, Payload::kColor,
+          "A new ColorMap from an OctoMap ColorOcTree .ot file; FormatError for another tree type "
+          "(Map.read reads every type). context and max_device_bytes as in Map.read.");
 
   cls.def(
       "insert_point_cloud",
@@ -542,15 +548,9 @@ void bindColorMap(py::module_& m) {
 void bindStampedMap(py::module_& m) {
   py::class_<PyStampedMap, Map> cls(m, "StampedMap", kStampedMapDoc);
   defInit<PyStampedMap, StampedMap>(cls, "An empty stamped map (OcTreeStamped).");
-  cls.def_static(
-      "read",
-      [](py::handle path, py::object context, std::size_t max_device_bytes) {
-        return readMap(path, std::move(context), max_device_bytes, Payload::kStamp);
-      },
-      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
-      py::arg("max_device_bytes") = 0,
-      "A new StampedMap from an OctoMap OcTreeStamped .ot file; FormatError for another tree "
-      "type (Map.read reads every type). context and max_device_bytes as in Map.read.");
+  defRead(cls, Payload::kStamp,
+          "A new StampedMap from an OctoMap OcTreeStamped .ot file; FormatError for another tree "
+          "type (Map.read reads every type). context and max_device_bytes as in Map.read.");
 
   constexpr const char* kStampDoc =
       " stamp: the scan's time in whole seconds, an int from 0 to 2**32 - 1, which every leaf "
@@ -711,17 +711,11 @@ void bindMap(py::module_& m) {
 
   py::class_<Map> map(m, "Map", kMapDoc);
   defInit<Map, OccupancyMap>(map, "An empty map.");
-  map.def_static(
-      "read",
-      [](py::handle path, py::object context, std::size_t max_device_bytes) {
-        return readMap(path, std::move(context), max_device_bytes, std::nullopt);
-      },
-      py::arg("path"), py::kw_only(), py::arg("context") = py::none(),
-      py::arg("max_device_bytes") = 0,
-      "A new map from an OctoMap .bt or .ot file (the file's resolution and, for .ot, its "
-      "sensor model), of the class its tree type names: Map (OcTree), ColorMap (ColorOcTree) "
-      "or StampedMap (OcTreeStamped). Raises FormatError naming the file and the fault, "
-      "IoError, or OutOfDeviceMemoryError when it does not fit under max_device_bytes.");
+  defRead(map, std::nullopt,
+          "A new map from an OctoMap .bt or .ot file (the file's resolution and, for .ot, its "
+          "sensor model), of the class its tree type names: Map (OcTree), ColorMap (ColorOcTree) "
+          "or StampedMap (OcTreeStamped). Raises FormatError naming the file and the fault, "
+          "IoError, or OutOfDeviceMemoryError when it does not fit under max_device_bytes.");
 
   map.def(
       "write",
