@@ -244,6 +244,9 @@ void warmUp(octovk::Context& context) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A line at a time: a run stopped by a time limit (a lent GPU's 10 minutes) keeps every table
+  // it finished, which a full buffer would lose.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   const Args args = parseArgs(argc, argv);
   if (wants(args, "scandat")) checkFile(args.bench.scandat_path, "--scandat");
   if (wants(args, "fr079") || wants(args, "payloads")) checkFile(args.bench.fr079_path, "--fr079");

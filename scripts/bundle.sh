@@ -67,6 +67,9 @@ for tool in graph2tree log2graph bzip2 xz; do copy_stripped "$(command -v "$tool
 tests=()
 for exe in "$build"/tests/octovk_*; do
   [ -f "$exe" ] && [ -x "$exe" ] || continue
+  # The PostgreSQL store's tests need a PostgreSQL server, which a lent machine lacks; the
+  # store's SQLite tests stand for it there.
+  [ "$(basename "$exe")" != octovk_store_postgres_tests ] || continue
   copy_stripped "$exe" "$out/tests"
   tests+=("$(basename "$exe")")
 done
@@ -95,6 +98,18 @@ while read -r name path; do
 done < <(for f in "$out"/bin/* "$out"/tests/*; do ldd "$f"; done |
   awk '$2 == "=>" { print $1, $3 }' | sort -u)
 [ $missing -eq 0 ] || fail "unresolved libraries"
+
+# The Khronos validation layer, so that the suite can run under it there too (run.sh sets
+# VK_LAYER_PATH to lib/layers; OCTOVK_VALIDATION=1 turns it on, as here).
+layer_json=/usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json
+layer_lib="$(ldconfig -p | awk '$1 == "libVkLayer_khronos_validation.so" && /x86-64/ { print $NF; exit }')"
+[ -f "$layer_json" ] && [ -n "$layer_lib" ] ||
+  fail "the validation layer is missing (apt-get install vulkan-validationlayers)"
+mkdir -p "$out/lib/layers"
+cp -L "$layer_lib" "$out/lib/libVkLayer_khronos_validation.so"
+# The manifest names the library relative to itself.
+sed 's|"library_path": *"[^"]*"|"library_path": "../libVkLayer_khronos_validation.so"|' \
+  "$layer_json" > "$out/lib/layers/VkLayer_khronos_validation.json"
 
 # Data. OctoMap's examples (small: all of it), the repository's test data and the hostile PNG of
 # the fuzz corpus in the repository's own layout (a test reaches it as data/../fuzz/corpus/...).
@@ -149,3 +164,9 @@ if grep -rlF "$build" "$out/run.sh" "$out/BUILD-INFO.txt" >/dev/null 2>&1; then
 fi
 echo "bundle: $out ($(du -sh "$out" | cut -f1)): $(ls "$out/bin" | wc -l) programs," \
   "${#tests[@]} test executables, $(find "$out/lib" -type f | wc -l) libraries" >&2
+# The folder is larger than the device tool carries (64 MiB): it travels packed, as OUT.tar.xz
+# beside it (about a quarter of its size), unpacked there by
+#   mkdir -p /tmp/b && tar xJf .bundle.tar.xz -C /tmp/b && /tmp/b/.bundle/run.sh PART
+tar -cf - -C "$(dirname "$out")" "$(basename "$out")" | xz -T0 -6 > "$out.tar.xz.tmp"
+mv "$out.tar.xz.tmp" "$out.tar.xz"
+echo "bundle: $out.tar.xz ($(du -sh "$out.tar.xz" | cut -f1)), to carry" >&2

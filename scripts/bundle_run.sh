@@ -60,6 +60,8 @@ if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -f "$nvidia_icd" ]; t
     [ -d "$d" ] && case ":$LD_LIBRARY_PATH:" in *":$d:"*) ;; *) LD_LIBRARY_PATH="$LD_LIBRARY_PATH:$d" ;; esac
   done
 fi
+# The validation layer packed by bundle.sh (OCTOVK_VALIDATION=1 turns it on).
+export VK_LAYER_PATH="${VK_LAYER_PATH:-$here/lib/layers}"
 # The paths the tests were compiled with point into the build machine's checkout: these replace
 # them (tests/test_paths.hpp), and the bench's data folder likewise.
 export OCTOVK_CLI="$here/bin/octovk"

@@ -173,17 +173,14 @@ TEST(cliDeviceMemory, RenderCastsInTilesUnderTheCap) {
   // render held 56 bytes a pixel for the whole picture and cast a million rays at once whatever
   // the cap: 3.6 GB for 8192x8192 under --max-device-memory 256M. It now casts tiles of rows that
   // fit what the map and the picture leave of the cap.
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  (void)ctx;
+  OCTOVK_REQUIRE_CONTEXT(ctx);  // the program's device: whether its memory is the process's
   Scratch scratch, inputs("cli-inputs");
   const std::string map = inputs / "map.bt";
   ASSERT_EQ(runOctovk({"integrate", kSphericalGraph, "-o", map, "-q"}, scratch.dir()).exit_code, 0);
   const auto render = [&](const std::string& size, const std::string& cap) {
-    OctovkProcess run(
+    return octovk::test::runMeasured(
         {"render", map, "-o", scratch / "v.png", "--size", size, "--max-device-memory", cap},
         inputs.dir());
-    EXPECT_TRUE(run.started());
-    return run.wait();
   };
   const RunResult small = render("16x16", "0");
   ASSERT_EQ(small.exit_code, 0) << small.err;
@@ -191,9 +188,11 @@ TEST(cliDeviceMemory, RenderCastsInTilesUnderTheCap) {
   const RunResult big = render("512x512", "8M");
   ASSERT_EQ(big.exit_code, 0) << big.err;
   EXPECT_NE(big.out.find("image:   512x512 px"), std::string::npos) << big.out;
-  // What the larger picture added to the process stays under the cap (lavapipe's device memory
-  // is the process's too).
-  if (!octovk::test::kAddressSanitizer) {  // ASan's shadow and quarantine are not the program's
+  // What the larger picture added to the process stays under the cap, where the device's memory
+  // is the process's (lavapipe: a CPU device). A GPU's is not, and its driver's own host memory
+  // follows the work (NVIDIA's H200 driver: 264 MiB for 16x16, 34 MiB more for 512x512).
+  if (!octovk::test::kAddressSanitizer &&  // ASan's shadow and quarantine are not the program's
+      ctx.device().type == "CPU") {
     EXPECT_LT(big.max_rss_kb - small.max_rss_kb, kCapKb)
         << "peak " << big.max_rss_kb << " KiB against " << small.max_rss_kb << " KiB for 16x16";
   }

@@ -22,44 +22,7 @@ namespace octovk {
 namespace {
 
 namespace fs = std::filesystem;
-using test::quote;
-using test::readFile;
 using test::Scratch;
-
-struct Measured {
-  int exit_code = -1;
-  std::string err;
-  long max_rss_kb = 0;
-  double cpu_s = 0.0;
-};
-
-// `command` run by /bin/sh (which execs the program), with stdout and stderr in files under
-// `dir`; wait4() gives that child's own peak RSS and CPU time.
-Measured runMeasured(const std::string& command, const fs::path& dir) {
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string line = command + " >" + quote(out.string()) + " 2>" + quote(err.string());
-  Measured m;
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    ::execl("/bin/sh", "sh", "-c", line.c_str(), static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  if (pid < 0) {
-    ADD_FAILURE() << "fork failed";
-    return m;
-  }
-  int status = 0;
-  rusage usage{};
-  if (::wait4(pid, &status, 0, &usage) != pid) ADD_FAILURE() << "wait4 failed";
-  m.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  m.err = readFile(err);
-  m.max_rss_kb = usage.ru_maxrss;
-  m.cpu_s = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-            static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
-  fs::remove(out);
-  fs::remove(err);
-  return m;
-}
 
 void writeSparse(const std::string& path, const std::string& prefix, std::uintmax_t size) {
   std::ofstream(path, std::ios_base::binary | std::ios_base::trunc) << prefix;
@@ -93,13 +56,11 @@ TEST(CliInput, SparseFilesAreACheapCleanError) {
       SCOPED_TRACE(std::string(c.name) + (limited ? ", 10 GiB under ulimit -v 4G" : ", 3 GiB"));
       const std::string path = scratch / c.name;
       writeSparse(path, c.prefix, (limited ? std::uintmax_t{10} : 3) << 30);
-      std::string command = limited ? "ulimit -v 4194304; exec " : "exec ";
-      command += quote(OCTOVK_PATH(OCTOVK_CLI));
       std::vector<std::string> words = c.args;
       words.push_back(path);
       words.insert(words.end(), c.tail.begin(), c.tail.end());
-      for (const std::string& word : words) command.append(1, ' ').append(quote(word));
-      const Measured m = runMeasured(command, scratch.dir());
+      const test::RunResult m =
+          test::runMeasured(words, scratch.dir(), limited ? "ulimit -v 4194304;" : "");
       EXPECT_EQ(m.exit_code, 1) << m.err;
       EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
       EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;

@@ -41,7 +41,8 @@ struct RunResult {
   int exit_code = -1;
   std::string out;
   std::string err;
-  long max_rss_kb = -1;  ///< the run's peak resident memory (OctovkProcess::wait only)
+  long max_rss_kb = -1;  ///< the run's peak resident memory (runMeasured only)
+  double cpu_s = -1.0;   ///< the run's user and system CPU time (runMeasured only)
 };
 
 /// Runs `command` through the shell with stdout and stderr captured in files under `dir`.
@@ -64,6 +65,34 @@ inline RunResult runOctovk(const std::vector<std::string>& args, const fs::path&
   std::string command = quote(OCTOVK_PATH(OCTOVK_CLI));
   for (const std::string& a : args) command += ' ' + quote(a);
   return runShell(command, dir);
+}
+
+/// Runs octovk with `args` as runOctovk does, after `shell_prefix` (e.g. "ulimit -v 4194304;"),
+/// and measures that program alone: its peak RSS and CPU time. wait4() on a child of this test
+/// process cannot: Linux carries the larger of the parent's and the child's peak through fork and
+/// exec, so every child of a test process holding a GPU driver (NVIDIA's: over 100 MiB) "peaked"
+/// there. The program runs as the grandchild of a small python3 (whose own peak, about 10 MiB, is
+/// the floor), which writes RUSAGE_CHILDREN to a file and exits with the program's status.
+inline RunResult runMeasured(const std::vector<std::string>& args, const fs::path& dir,
+                             const std::string& shell_prefix = "") {
+  const fs::path usage = dir / "usage.txt";
+  std::string command = shell_prefix + " exec python3 -c " +
+                        quote(
+                            "import resource, subprocess, sys\n"
+                            "code = subprocess.run(sys.argv[2:]).returncode\n"
+                            "u = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+                            "open(sys.argv[1], 'w').write('%d %.6f' % (u.ru_maxrss, "
+                            "u.ru_utime + u.ru_stime))\n"
+                            "sys.exit(code if code >= 0 else 128 - code)\n") +
+                        ' ' + quote(usage.string()) + ' ' + quote(OCTOVK_PATH(OCTOVK_CLI));
+  for (const std::string& a : args) command += ' ' + quote(a);
+  RunResult r = runShell(command, dir);
+  std::ifstream in(usage);
+  if (!(in >> r.max_rss_kb >> r.cpu_s))
+    ADD_FAILURE() << "no usage written by the measuring python3 (exit " << r.exit_code
+                  << "): " << r.err;
+  fs::remove(usage);
+  return r;
 }
 
 /// The run ended with `exit_code` and one stderr line "octovk: error: ..." naming each of
@@ -138,13 +167,11 @@ class OctovkProcess {
   /// Waits for the end: the exit status as a shell reports it (128+N for death by signal N).
   RunResult wait() {
     int status = 0;
-    struct rusage usage {};
-    while (::wait4(pid_, &status, 0, &usage) < 0 && errno == EINTR) {
+    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
     }
     waited_ = true;
     RunResult r;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.max_rss_kb = usage.ru_maxrss;
     r.out = readFile(out_);
     r.err = readFile(err_);
     fs::remove(out_);

@@ -18,13 +18,30 @@
 
 namespace octovk::test {
 
+/// Holds the process-wide context and destroys it when the test program's run ends (a gtest
+/// environment's TearDown, inside RUN_ALL_TESTS), not in a static's destructor after main: a
+/// driver may register exit handlers of its own when it is loaded, after such a static was made,
+/// which then run first and leave the context's destructor a torn-down driver. NVIDIA's does: on
+/// an H200 every test program that used the context passed its tests and died of SIGSEGV at exit.
+class SharedContextEnvironment : public ::testing::Environment {
+ public:
+  void TearDown() override { context.reset(); }
+
+  std::unique_ptr<Context> context;
+  std::string error;
+  bool tried = false;
+};
+
+/// Registered before main, as gtest asks of global environments.
+inline SharedContextEnvironment* const kSharedContextEnvironment =
+    static_cast<SharedContextEnvironment*>(
+        ::testing::AddGlobalTestEnvironment(new SharedContextEnvironment));
+
 /// The process-wide context, or nullptr with `why` set.
 inline Context* sharedContext(std::string* why) {
-  static std::unique_ptr<Context> context;
-  static std::string error;
-  static bool tried = false;
-  if (!tried) {
-    tried = true;
+  SharedContextEnvironment& shared = *kSharedContextEnvironment;
+  if (!shared.tried) {
+    shared.tried = true;
     // Under OCTOVK_VALIDATION (the library turns the layer on), every validation message fails
     // the test in whose Vulkan call it arose.
     ContextOptions options;
@@ -33,12 +50,12 @@ inline Context* sharedContext(std::string* why) {
     };
     auto result = Context::create(options);
     if (result)
-      context = std::move(result.value());
+      shared.context = std::move(result.value());
     else
-      error = result.error().what();
+      shared.error = result.error().what();
   }
-  if (why) *why = error;
-  return context.get();
+  if (why) *why = shared.error;
+  return shared.context.get();
 }
 
 /// A context on the shared one's device with one descriptor binding's range forced down to
@@ -49,6 +66,24 @@ inline Result<std::unique_ptr<Context>> contextWithBindingLimit(const Context& c
   options.selector = std::to_string(ctx.device().index);
   options.max_binding_bytes = bytes;
   return Context::create(options);
+}
+
+/// Half the side, in whole metres, of a square box from z = -10 to 10 m whose distance field at
+/// 0.1 m ((20 h + 1)^2 x 201 cells, 20 bytes or more each) needs more than `ctx`'s device has in
+/// all, within a field's limits (fewer than 2^32 cells: h <= 230); 0 where the device holds even
+/// the largest such field (an H200's 140 GiB does: about 80 GiB).
+inline int fieldHalfSideBeyondDevice(const Context& ctx) {
+  for (int h = 100; h <= 230; ++h) {
+    const double side = 20.0 * h + 1.0;
+    if (side * side * 201.0 * 20.0 > static_cast<double>(ctx.device().memory_bytes)) return h;
+  }
+  return 0;
+}
+
+/// "N x N x 201 cells", the box of fieldHalfSideBeyondDevice's `h` as messages name it.
+inline std::string fieldBoxCells(int h) {
+  const std::string side = std::to_string(20 * h + 1);
+  return side + " x " + side + " x 201 cells";
 }
 
 /// Whether this executable is built with AddressSanitizer (scripts/sanitize.sh): the programs it

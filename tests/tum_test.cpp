@@ -439,48 +439,6 @@ TEST(TumReader, RefusesAHugeChunkWithoutAllocatingIt) {
             std::vector<std::uint16_t>(12, 5000));
 }
 
-// Runs the octovk program with `args` (output in files under `dir`) and measures it alone:
-// wait4() gives that child's peak RSS and CPU time, not the test's nor other children's.
-struct MeasuredRun {
-  octovk::test::RunResult result;
-  long max_rss_kb = 0;
-  double cpu_s = 0.0;
-};
-
-MeasuredRun runMeasured(const std::vector<std::string>& args, const fs::path& dir) {
-  const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-  std::vector<std::string> argv_strings = {OCTOVK_PATH(OCTOVK_CLI)};
-  argv_strings.insert(argv_strings.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : argv_strings) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  MeasuredRun m;
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int o = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (o < 0 || e < 0 || ::dup2(o, 1) < 0 || ::dup2(e, 2) < 0) ::_exit(127);
-    ::execv(argv[0], argv.data());
-    ::_exit(127);
-  }
-  if (pid < 0) {
-    ADD_FAILURE() << "fork failed";
-    return m;
-  }
-  int status = 0;
-  struct rusage usage {};
-  if (::wait4(pid, &status, 0, &usage) != pid) ADD_FAILURE() << "wait4 failed";
-  m.result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  m.result.out = readFile(out);
-  m.result.err = readFile(err);
-  m.max_rss_kb = usage.ru_maxrss;
-  m.cpu_s = static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-            static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-6;
-  fs::remove(out);
-  fs::remove(err);
-  return m;
-}
-
 TEST(TumCli, HugeChunkIsACheapCleanError) {
   // The hostile PNG in a folder: integrate refuses it while checking the images, before any
   // Vulkan work, in well under a second and 200 MB (it took 2.1 GB and 7-9 s).
@@ -488,13 +446,13 @@ TEST(TumCli, HugeChunkIsACheapCleanError) {
   const Sequence seq = makeSequence(scratch.dir() / "seq");
   std::ofstream(seq.dir / seq.image_files[1], std::ios_base::binary | std::ios_base::trunc)
       << octovk::test::hugeTextChunkPng();
-  const MeasuredRun m =
-      runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
-  EXPECT_EQ(m.result.exit_code, 1) << m.result.err;
-  EXPECT_EQ(m.result.err.rfind("octovk: error: ", 0), 0u) << m.result.err;
-  EXPECT_EQ(std::count(m.result.err.begin(), m.result.err.end(), '\n'), 1) << m.result.err;
-  EXPECT_NE(m.result.err.find(seq.image_files[1]), std::string::npos) << m.result.err;
-  EXPECT_NE(m.result.err.find("corrupt or truncated"), std::string::npos) << m.result.err;
+  const test::RunResult m =
+      test::runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
+  EXPECT_EQ(m.exit_code, 1) << m.err;
+  EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
+  EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;
+  EXPECT_NE(m.err.find(seq.image_files[1]), std::string::npos) << m.err;
+  EXPECT_NE(m.err.find("corrupt or truncated"), std::string::npos) << m.err;
   EXPECT_LT(m.max_rss_kb, 200 * 1024) << "peak RSS of the run";
   EXPECT_LT(m.cpu_s, 1.0) << "CPU time of the run";
   EXPECT_FALSE(fs::exists(scratch / "map.bt"));
@@ -560,14 +518,14 @@ TEST(TumCli, ImageLargerThanTheDeviceTakesIsACheapCleanError) {
   while (std::uint64_t{side} * side <= limit) ++side;
   std::ofstream(seq.dir / seq.image_files[1], std::ios_base::binary | std::ios_base::trunc)
       << paddedHugePng(scratch.dir(), side);
-  const MeasuredRun m =
-      runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
-  EXPECT_EQ(m.result.exit_code, 1) << m.result.err;
-  EXPECT_EQ(m.result.err.rfind("octovk: error: ", 0), 0u) << m.result.err;
-  EXPECT_EQ(std::count(m.result.err.begin(), m.result.err.end(), '\n'), 1) << m.result.err;
-  EXPECT_NE(m.result.err.find(seq.image_files[1]), std::string::npos) << m.result.err;
-  EXPECT_NE(m.result.err.find("at most " + std::to_string(limit)), std::string::npos)
-      << m.result.err;
+  const test::RunResult m =
+      test::runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
+  EXPECT_EQ(m.exit_code, 1) << m.err;
+  EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
+  EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;
+  EXPECT_NE(m.err.find(seq.image_files[1]), std::string::npos) << m.err;
+  EXPECT_NE(m.err.find("at most " + std::to_string(limit)), std::string::npos)
+      << m.err;
   if (!octovk::test::kAddressSanitizer) {
     EXPECT_LT(m.max_rss_kb, 400 * 1024) << "peak RSS of the run";
   }
@@ -596,14 +554,14 @@ TEST(TumCli, SparseListsAreACheapCleanError) {
     const Sequence seq = makeSequence(scratch.dir() / (std::string("seq_") + list));
     std::ofstream(seq.dir / list, std::ios_base::trunc).close();
     fs::resize_file(seq.dir / list, std::uintmax_t{1} << 30);
-    const MeasuredRun m =
-        runMeasured({"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, scratch.dir());
-    EXPECT_EQ(m.result.exit_code, 1) << m.result.err;
-    EXPECT_EQ(m.result.err.rfind("octovk: error: ", 0), 0u) << m.result.err;
-    EXPECT_EQ(std::count(m.result.err.begin(), m.result.err.end(), '\n'), 1) << m.result.err;
-    EXPECT_NE(m.result.err.find(std::string(list) + "' line 1 is longer than 65536 bytes"),
+    const test::RunResult m =
+        test::runMeasured({"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, scratch.dir());
+    EXPECT_EQ(m.exit_code, 1) << m.err;
+    EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
+    EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;
+    EXPECT_NE(m.err.find(std::string(list) + "' line 1 is longer than 65536 bytes"),
               std::string::npos)
-        << m.result.err;
+        << m.err;
     if (!octovk::test::kAddressSanitizer) {  // ASan's memory and time are not the program's
                                              // (test_support.hpp)
       EXPECT_LT(m.max_rss_kb, 100 * 1024) << "peak RSS of the run";

@@ -76,6 +76,17 @@ std::size_t writeMapStream(OccupancyMap& map, std::ostream& out, bool binary,
 OccupancyMap readMapFile(Context& context, const std::string& path,
                          std::size_t max_device_bytes = 0);
 
+/// A map file as readMapFile reads and checks it, in host memory only: the tree and the
+/// parameters of the map readMapFile would make of it (resolution, payload, the default sensor
+/// model; max_device_bytes 0). No device is touched, so a damaged file is reported before any
+/// driver starts. Errors as readMapFile's. `OccupancyMap map(context, file.params);
+/// map.upload(file.tree);` is readMapFile.
+struct MapFileContents {
+  MapParams params;
+  HostTree tree;
+};
+MapFileContents readMapFileContents(const std::string& path);
+
 /// The body of an octomap_msgs/Octomap message (everything but its ROS header), as OctoMap's
 /// octomap_msgs conversions fill it: `id` the tree type ("OcTree", "ColorOcTree", "OcTreeStamped"),
 /// `resolution` in metres, `binary` and `data`, the bytes of OctoMap's writeBinaryData() (binary:

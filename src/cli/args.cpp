@@ -243,15 +243,6 @@ std::unique_ptr<Context> createContext() {
   return std::move(context.value());
 }
 
-OccupancyMap loadMap(Context& context, const std::string& path, std::size_t max_device_bytes) {
-  StderrSilencer silenced;
-  try {
-    return readMapFile(context, path, max_device_bytes);
-  } catch (const Error& e) {
-    throw withOptionNames(e);
-  }
-}
-
 StderrSilencer::StderrSilencer() {
   std::fflush(stderr);
   saved_ = ::dup(STDERR_FILENO);

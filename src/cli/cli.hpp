@@ -162,10 +162,6 @@ void checkRegularInput(const std::string& path, const std::string& what, const s
 /// The Vulkan context, or octovk::Error with the reason there is none.
 std::unique_ptr<Context> createContext();
 
-/// readMapFile with OctoMap's reader chatter kept off stderr, capped at `max_device_bytes`
-/// (--max-device-memory; 0: no cap); a cap's errors name the option (withOptionNames).
-OccupancyMap loadMap(Context& context, const std::string& path, std::size_t max_device_bytes = 0);
-
 /// Points stderr at /dev/null while alive (OctoMap's readers and writers report there).
 class StderrSilencer {
  public:

@@ -2,6 +2,8 @@
 // the Vulkan context, then the command's own work (command.hpp).
 #include "command.hpp"
 
+#include "octovk/octomap_io.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
@@ -151,6 +153,30 @@ void Invocation::checkDeviceMemoryCap() const {
 Context& Invocation::context() {
   if (!context_) context_ = createContext();
   return *context_;
+}
+
+OccupancyMap loadMap(Invocation& in) {
+  // The file first, then the device: a damaged file is reported without starting a driver (which
+  // may itself fail, e.g. NVIDIA's under `ulimit -v 4G`, and take the file's error with it).
+  MapFileContents file;
+  {
+    StderrSilencer silenced;
+    try {
+      file = readMapFileContents(in.input());
+    } catch (const Error& e) {
+      throw withOptionNames(e);
+    }
+  }
+  file.params.max_device_bytes = in.maxDeviceBytes();
+  Context& context = in.context();
+  StderrSilencer silenced;
+  try {
+    OccupancyMap map(context, file.params);
+    map.upload(file.tree);
+    return map;
+  } catch (const Error& e) {
+    throw withOptionNames(e);
+  }
 }
 
 OutputFiles& Invocation::files() {

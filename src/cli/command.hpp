@@ -66,6 +66,11 @@ class Invocation {
   std::optional<OutputFiles> files_;
 };
 
+/// The map file of the invocation's input, read and checked on the host first (OctoMap's reader
+/// chatter kept off stderr), then put on the invocation's device under --max-device-memory; a
+/// cap's errors name the option (withOptionNames).
+OccupancyMap loadMap(Invocation& in);
+
 /// What a command does with its command line: the driver calls option() for every option it
 /// does not know itself, then check(), creates the outputs, and calls run().
 class Command {

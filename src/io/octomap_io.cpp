@@ -340,7 +340,7 @@ void readStampsBeside(const std::string& path, HostTree& host) {
   io::applyStampsFile(source, host, stamps_path);
 }
 
-OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
+MapFileContents readTreeFile(const std::string& path) {
   const std::string ext = extensionOf(path);
   if (ext != ".bt" && ext != ".ot")
     throw Error(ErrorCode::kInvalidArgument, "cannot read '" + path + "': unknown extension '" +
@@ -358,8 +358,9 @@ OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t
   if (ec) throw Error(ErrorCode::kIo, "cannot read '" + path + "': " + ec.message());
   // Read as the checks go (see tree_file.cpp): memory follows the bytes that pass them, and a
   // damaged or sparse file fails at its first fault, whatever size it claims.
-  MapParams params;
-  HostTree host;
+  MapFileContents file;
+  MapParams& params = file.params;
+  HostTree& host = file.tree;
   {
     io::ByteSource source(in, size, path);
     const io::AnyTree tree = io::parseTreeFile(source, ext == ".bt", path);
@@ -368,10 +369,7 @@ OccupancyMap readTreeFile(Context& context, const std::string& path, std::size_t
   }
   if (host.payload == Payload::kStamp && ext == ".ot") readStampsBeside(path, host);
   params.payload = host.payload;
-  params.max_device_bytes = max_device_bytes;
-  OccupancyMap map(context, params);
-  map.upload(host);
-  return map;
+  return file;
 }
 
 }  // namespace
@@ -393,9 +391,18 @@ void writeMapFile(OccupancyMap& map, const std::string& path) {
   hostMemoryGuard("writeMapFile", [&] { writeTreeFile(map, path); });
 }
 
+MapFileContents readMapFileContents(const std::string& path) {
+  return hostMemoryGuard("readMapFileContents", [&] { return readTreeFile(path); });
+}
+
 OccupancyMap readMapFile(Context& context, const std::string& path, std::size_t max_device_bytes) {
-  return hostMemoryGuard("readMapFile",
-                         [&] { return readTreeFile(context, path, max_device_bytes); });
+  return hostMemoryGuard("readMapFile", [&] {
+    MapFileContents file = readTreeFile(path);
+    file.params.max_device_bytes = max_device_bytes;
+    OccupancyMap map(context, file.params);
+    map.upload(file.tree);
+    return map;
+  });
 }
 
 namespace {

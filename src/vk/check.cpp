@@ -1,5 +1,8 @@
 #include "vk/check.hpp"
 
+#include <sys/resource.h>
+
+#include <cstdio>
 #include <sstream>
 
 #include "octovk/octovk.hpp"
@@ -41,16 +44,34 @@ const char* resultName(VkResult r) {
   }
 }
 
+namespace {
+
+// Where the process's address space is limited (`ulimit -v`): the limit and its remedy, since a
+// GPU driver reserves far more address space than it uses (NVIDIA's fails to start under 4 GiB);
+// empty where there is no limit.
+std::string addressSpaceNote() {
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return {};
+  char text[160];
+  std::snprintf(text, sizeof text,
+                " (this process's address space is limited to %.1f GiB by `ulimit -v`, and GPU "
+                "drivers reserve more: raise or remove the limit)",
+                static_cast<double>(limit.rlim_cur) / (1024.0 * 1024.0 * 1024.0));
+  return text;
+}
+
+}  // namespace
+
 std::string resultWords(VkResult r) {
   switch (r) {
     case VK_ERROR_OUT_OF_DEVICE_MEMORY:
       return "the Vulkan device is out of memory";
     case VK_ERROR_OUT_OF_HOST_MEMORY:
-      return "the Vulkan driver is out of host memory";
+      return "the Vulkan driver is out of host memory" + addressSpaceNote();
     case VK_ERROR_DEVICE_LOST:
       return "the Vulkan device was lost (a driver reset, a GPU fault or a time-out)";
     case VK_ERROR_INITIALIZATION_FAILED:
-      return "the Vulkan driver failed to initialise";
+      return "the Vulkan driver failed to initialise" + addressSpaceNote();
     case VK_ERROR_INCOMPATIBLE_DRIVER:
       return "the Vulkan driver is incompatible";
     case VK_ERROR_TOO_MANY_OBJECTS:
