@@ -217,5 +217,32 @@ TEST(ForkedChild, RefusesTheParentsMap) {
   EXPECT_GT(map->nodeCount(), 1u);  // the parent's map is untouched
 }
 
+// A map, a field and their Context held by statics made before the Context, so destroyed after
+// exit() ran the handlers a driver registered while starting (NVIDIA's tears itself down in its
+// own: such destructors then crashed): they leave the device to the end of the process, and the
+// process exits with its status. In a fresh process (gtest's threadsafe death test re-runs this
+// program), so the driver starts there.
+TEST(ProcessExit, StaticsOutliveTheDriversExitHandlers) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;  // the child makes its own
+  ::testing::FLAGS_gtest_death_test_style = "threadsafe";
+  const auto run = [] {
+    static std::unique_ptr<Context> context;  // destructors registered before the driver's
+    static std::unique_ptr<OccupancyMap> map;
+    static std::unique_ptr<DistanceField> field;
+    auto made = Context::create();
+    if (!made) std::_Exit(3);
+    context = std::move(made.value());
+    map = std::make_unique<OccupancyMap>(*context, test::withResolution(0.2));
+    std::mt19937 rng(4);
+    map->insertPointCloud(randomScan(rng, Eigen::Vector3f::Zero(), 300, 2.0f),
+                          Eigen::Vector3f::Zero());
+    field = std::make_unique<DistanceField>(*map, Eigen::Vector3f(-1, -1, -1),
+                                            Eigen::Vector3f(1, 1, 1));
+    std::exit(map->nodeCount() > 1 ? 0 : 4);
+  };
+  EXPECT_EXIT(run(), ::testing::ExitedWithCode(0), "");
+}
+
 }  // namespace
 }  // namespace octovk

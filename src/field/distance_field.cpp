@@ -521,13 +521,14 @@ DistanceField::DistanceField(OccupancyMap& map, const DistanceFieldOptions& opti
   });
 }
 
-// As a map (occupancy_map.cpp): a field made before fork() is left alone in the child.
+// As a map (occupancy_map.cpp): a field made before fork() is left alone in the child, and one
+// destroyed after exit() began.
 DistanceField::~DistanceField() {
-  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+  if (impl_ && impl_->device().abandoned()) vk::Device::keepUntilExit(impl_.release());
 }
 DistanceField::DistanceField(DistanceField&&) noexcept = default;
 DistanceField& DistanceField::operator=(DistanceField&& other) noexcept {
-  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+  if (impl_ && impl_->device().abandoned()) vk::Device::keepUntilExit(impl_.release());
   impl_ = std::move(other.impl_);
   return *this;
 }

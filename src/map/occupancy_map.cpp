@@ -97,13 +97,14 @@ OccupancyMap::OccupancyMap(Context& context, const MapParams& params)
         return std::make_unique<Impl>(context, params);
       })) {}
 // A map made before fork() is the parent's: a forked child leaves it alone rather than destroy
-// it (that would wait on the driver's threads, which the child does not have).
+// it (that would wait on the driver's threads, which the child does not have). So does a map
+// destroyed after exit() began (a static's): the driver may have torn itself down by then.
 OccupancyMap::~OccupancyMap() {
-  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+  if (impl_ && impl_->device().abandoned()) vk::Device::keepUntilExit(impl_.release());
 }
 OccupancyMap::OccupancyMap(OccupancyMap&&) noexcept = default;
 OccupancyMap& OccupancyMap::operator=(OccupancyMap&& other) noexcept {
-  if (impl_ && impl_->device().forkedAway()) (void)impl_.release();
+  if (impl_ && impl_->device().abandoned()) vk::Device::keepUntilExit(impl_.release());
   impl_ = std::move(other.impl_);
   return *this;
 }

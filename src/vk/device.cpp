@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <mutex>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -39,6 +40,17 @@ std::vector<DeviceInfo> Device::enumerate() {
 
 Device::Device() = default;
 
+namespace {
+
+// Set by an exit handler registered after the first device was made, so after those its driver
+// registered while starting: exit() runs handlers newest first, so this one runs before the
+// driver's and before the destructors of statics made before the device.
+std::atomic<bool> g_process_exiting{false};
+
+void markProcessExiting() { g_process_exiting.store(true, std::memory_order_relaxed); }
+
+}  // namespace
+
 // Each step throws Error for the ordinary failures (no driver, no such device, a missing
 // feature) and for a failed Vulkan call; create() returns it. What a step made is released by
 // ~Device, whichever step failed.
@@ -69,6 +81,7 @@ Result<std::unique_ptr<Device>> Device::create(const ContextOptions& options) {
   } catch (const Error& e) {
     return e;
   }
+  [[maybe_unused]] static const bool exit_handler = std::atexit(markProcessExiting) == 0;
   return dev;
 }
 
@@ -452,6 +465,21 @@ void Device::createLayouts() {
 
 bool Device::forkedAway() const noexcept { return static_cast<long>(::getpid()) != creator_pid_; }
 
+bool Device::abandoned() const noexcept {
+  return forkedAway() || g_process_exiting.load(std::memory_order_relaxed);
+}
+
+void Device::keepUntilExit(void* object) noexcept {
+  // Never freed (it is used while the process exits): a root for leak checkers.
+  static auto* mutex = new std::mutex();
+  static auto* kept = new std::vector<void*>();
+  try {
+    std::lock_guard<std::mutex> lock(*mutex);
+    kept->push_back(object);
+  } catch (...) {  // no memory for the note: the object stays alive all the same
+  }
+}
+
 void Device::checkNotForked(std::string_view what) const {
   if (forkedAway())
     throw Error(ErrorCode::kInvalidArgument,
@@ -464,9 +492,10 @@ void Device::checkNotForked(std::string_view what) const {
 
 Device::~Device() {
   // In a forked child the device is the parent's: any call could wait on the driver's threads,
-  // which the child does not have, and the pipeline cache is the parent's to save. Leave it (the
-  // ray-tracing pipelines and their tables too).
-  if (forkedAway()) {
+  // which the child does not have, and the pipeline cache is the parent's to save. Once exit()
+  // ran the handlers the driver may be gone. Leave it (the ray-tracing pipelines and their
+  // tables too).
+  if (abandoned()) {
     static_cast<void>(ray_pipelines_.release());
     return;
   }

@@ -44,6 +44,14 @@ class Device {
   /// Whether this process is a child forked after the device was made: a Vulkan device is not
   /// usable across fork() (the driver's threads are not in the child; waits never end).
   bool forkedAway() const noexcept;
+  /// Whether this process may no longer call the driver for this device: a child forked after it
+  /// was made, or a process whose exit() has begun running its exit handlers (a driver may tear
+  /// itself down in its own: NVIDIA's does, and an object destroyed after that, a static's, then
+  /// crashed). Destructors then leave the device's objects to the end of the process.
+  bool abandoned() const noexcept;
+  /// Keeps what an owner leaves behind on an abandoned device (its Impl, released) reachable
+  /// until the process ends, so that leak checkers see it held, not lost.
+  static void keepUntilExit(void* object) noexcept;
   /// Throws kInvalidArgument, naming `what`, in such a child.
   void checkNotForked(std::string_view what) const;
   /// Submits to the device's one queue under its lock: every map of a Context records on its
