@@ -14,6 +14,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -442,6 +443,89 @@ void expectKilledWriterLeavesItsLog(const std::string& location, const Scratch& 
   EXPECT_EQ(readFile(out), graph2treeOt(graph_kept, scratch));
 }
 
+// `store follow` while a writer commits: after its first look the local file is the map of the
+// scans committed then, at the end that of all of them (graph2tree's on the same scans), and its
+// later looks read only tiles written since the one before: together no more than the writer
+// wrote.
+void expectFollowerKeepsTheMap(const std::string& location, const std::string& map,
+                               const Scratch& scratch) {
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
+  std::vector<GraphScan> both = a;
+  both.insert(both.end(), b.begin(), b.end());
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph",
+                    graph_both = scratch / "both.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  writeGraph(graph_both, both);
+  const RunResult first = runOctovk(
+      {"integrate", graph_a, "--store", location, "--map", map, "-r", "0.1", "-q"}, scratch.dir());
+  ASSERT_EQ(first.exit_code, 0) << first.out << first.err;
+  const std::string live = scratch / "live.ot";
+  const fs::path dir = scratch.dir() / "follower";
+  fs::create_directories(dir);
+  OctovkProcess follower({"store", "follow", location, "--map", map, "-o", live, "--until-seq", "7",
+                          "--interval", "0.02"},
+                         dir);
+  ASSERT_TRUE(follower.started());
+  ASSERT_TRUE(pollUntil([&] { return fs::exists(live); }, std::chrono::seconds(60)));
+  EXPECT_EQ(readFile(live), graph2treeOt(graph_a, scratch));
+  const RunResult second =
+      runOctovk({"integrate", graph_b, "--store", location, "--map", map, "-q"}, scratch.dir());
+  ASSERT_EQ(second.exit_code, 0) << second.out << second.err;
+  const RunResult r = follower.wait();
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(r.err.empty()) << r.err;
+  EXPECT_EQ(readFile(live), graph2treeOt(graph_both, scratch));
+  EXPECT_TRUE(test::temporariesIn(scratch.dir()).empty());
+  // One line per look that found a commit: the first at seq 4, the last at seq 7.
+  const std::regex line(
+      R"(seq (\d+): (\d+) tiles read \((\d+) bytes\), (\d+) dropped; (\d+) nodes in )");
+  std::vector<std::pair<unsigned long, unsigned long>> looks;  // seq, tiles read
+  for (auto it = std::sregex_iterator(r.out.begin(), r.out.end(), line);
+       it != std::sregex_iterator(); ++it)
+    looks.emplace_back(std::stoul((*it)[1]), std::stoul((*it)[2]));
+  ASSERT_GE(looks.size(), 2u) << r.out;
+  EXPECT_EQ(looks.front().first, 4u) << r.out;
+  EXPECT_EQ(looks.back().first, 7u) << r.out;
+  std::smatch wrote;
+  ASSERT_TRUE(std::regex_search(second.out, wrote, std::regex(R"(store writes:\s+(\d+) tiles)")))
+      << second.out;
+  unsigned long later = 0;
+  for (std::size_t i = 1; i < looks.size(); ++i) later += looks[i].second;
+  EXPECT_LE(later, std::stoul(wrote[1])) << r.out << second.out;
+  EXPECT_GT(later, 0u) << r.out;
+  std::cout << "[ follow   ] " << looks.size() << " looks; the first read " << looks.front().second
+            << " tiles, the later ones " << later << " (the writer wrote " << wrote[1] << ")\n";
+}
+
+TEST(StoreCli, FollowerKeepsALocalCopyCurrent) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  expectFollowerKeepsTheMap(scratch / "map.sqlite", "default", scratch);
+}
+
+TEST(StoreCli, FollowRefusesAMissingMapAndABadSeq) {
+  Scratch scratch("store");
+  const std::string graph = scratch / "room.graph";
+  writeGraph(graph, roomScans(2, 0.0f));
+  const std::string store = scratch / "map.sqlite";
+  ASSERT_EQ(
+      runOctovk({"integrate", graph, "--store", store, "-r", "0.1", "-q"}, scratch.dir()).exit_code,
+      0);
+  test::expectOneErrorLine(
+      runOctovk({"store", "follow", store, "--map", "lab", "-o", scratch / "x.ot"}, scratch.dir()),
+      1, {"holds no map 'lab'", "octovk store info"});
+  test::expectOneErrorLine(
+      runOctovk({"store", "follow", store, "-o", scratch / "x.ot", "--until-seq", "0"},
+                scratch.dir()),
+      2, {"--until-seq 0", "whole number"});
+  test::expectOneErrorLine(
+      runOctovk({"store", "follow", store, "-o", scratch / "x.ot", "--interval", "-1"},
+                scratch.dir()),
+      2, {"--interval -1", "seconds"});
+  EXPECT_FALSE(fs::exists(scratch / "x.ot"));
+}
+
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
   REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
@@ -545,6 +629,13 @@ TEST(StorePostgres, KilledWriterLeavesTheCommittedScans) {
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
   expectKilledWriterLeavesItsLog(postgresUri(), scratch);
+}
+
+TEST(StorePostgres, FollowerKeepsALocalCopyCurrent) {
+  REQUIRE_GRAPH2TREE();
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  expectFollowerKeepsTheMap(postgresUri(), "follow" + std::to_string(::getpid()), scratch);
 }
 
 TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {

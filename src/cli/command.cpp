@@ -2,13 +2,13 @@
 // the Vulkan context, then the command's own work (command.hpp).
 #include "command.hpp"
 
-#include "octovk/octomap_io.hpp"
-
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
 #include <iostream>
 #include <string_view>
+
+#include "octovk/octomap_io.hpp"
 
 namespace octovk::cli {
 

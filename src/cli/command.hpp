@@ -92,7 +92,7 @@ struct Subcommand {
   /// How many -o / --output it takes.
   enum class Outputs { kNone, kOne, kMany };
 
-  const char* name;                       ///< "render"
+  const char* name;  ///< "render"
   /// What it does, in one line of the program's help ("a PNG picture of a map's occupied cells").
   const char* summary = "";
   void (*print_help)(std::ostream& out);  ///< its help, without the environment and exit codes
@@ -124,7 +124,7 @@ struct Subcommand {
   std::unique_ptr<Command> (*make)();
   /// Two or three command lines a user can start from, one per line, printed by the help.
   const char* examples = "";
-  /// A command of actions (store export|log|info) runs the words after its name itself, each
+  /// A command of actions (store export|follow|log|info) runs the words after its name itself, each
   /// action through runSubcommand; nullptr for the others.
   int (*run_actions)(const std::vector<std::string>& args) = nullptr;
 };

@@ -119,10 +119,11 @@ const Subcommand kSubcommands[] = {
          "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown free\n"
          "                  -o optimistic.png\n"},
     {.name = "store",
-     .summary = "a map store: export a map, its log of committed scans, what it holds",
+     .summary = "a map store: export or follow a map, its scan log, what it holds",
      .print_help = printStoreHelp,
      .make = nullptr,
      .examples = "  octovk store export map.sqlite -o map.bt\n"
+                 "  octovk store follow map.sqlite -o live.ot\n"
                  "  octovk store log map.sqlite --map lab\n",
      .run_actions = runStoreActions},
     {.name = "devices",

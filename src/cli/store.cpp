@@ -1,14 +1,19 @@
-// octovk store export|log|info, and integrate's --store / --map: a map kept as tiles in a store
-// (src/store, docs/store.md), committed scan by scan. Reading a store needs no Vulkan device.
+// octovk store export|follow|log|info, and integrate's --store / --map: a map kept as tiles in a
+// store (src/store, docs/store.md), committed scan by scan. Reading a store needs no Vulkan device.
 #include "store.hpp"
 
 #include <octomap/OcTree.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
+#include <thread>
 
 #include "command.hpp"
 #include "store/store.hpp"
@@ -46,6 +51,39 @@ void printStoreExportHelp(std::ostream& out) {
          "  -h, --help             show this help\n";
 }
 
+// Writes `tree` as OctoMap writes it (by output 0's extension: .bt or .ot) and renames it into
+// place; the node count written.
+std::size_t writeTree(OutputFiles& files, const HostTree& tree, const MapParams& params) {
+  const std::string& path = files.path(0);
+  std::size_t nodes = 0;
+  {
+    StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
+    files.write(0, [&](const std::string& temporary) {
+      std::unique_ptr<octomap::OcTree> ot = store::ocTreeOf(tree, params);
+      std::ofstream out(temporary, std::ios_base::binary | std::ios_base::trunc);
+      if (!out.is_open())
+        throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
+      bool ok = fs::path(path).extension() == ".bt" ? ot->writeBinary(out) : ot->write(out);
+      out.close();
+      if (!ok || !out.good())
+        throw Error(ErrorCode::kIo, "failed writing '" + path + "' (disk full or I/O error)");
+      nodes = ot->size();
+    });
+  }
+  files.commit();
+  return nodes;
+}
+
+std::optional<store::MapInfo> mapOrRefuse(store::Store& store, const std::string& location,
+                                          const std::string& name) {
+  std::optional<store::MapInfo> info = store.map(name);
+  if (!info)
+    throw Error(ErrorCode::kInvalidArgument, "store '" + location + "' holds no map '" + name +
+                                                 "'; 'octovk store info " + location +
+                                                 "' lists its maps");
+  return info;
+}
+
 // A store command that reads one map of the store: --map NAME (default: default).
 class StoreMapCommand : public Command {
  public:
@@ -67,31 +105,9 @@ class StoreExport final : public StoreMapCommand {
   }
   int run(Invocation& in) override {
     const auto store = store::Store::open(in.input(), /*create=*/false);
-    const std::optional<store::MapInfo> info = store->map(map_);
-    if (!info)
-      throw Error(ErrorCode::kInvalidArgument, "store '" + in.input() + "' holds no map '" + map_ +
-                                                   "'; 'octovk store info " + in.input() +
-                                                   "' lists its maps");
+    const std::optional<store::MapInfo> info = mapOrRefuse(*store, in.input(), map_);
     const HostTree tree = store::loadTree(*store, map_);
-    std::size_t nodes = 0;
-    {
-      StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
-      in.files().write(0, [&](const std::string& temporary) {
-        std::unique_ptr<octomap::OcTree> ot = store::ocTreeOf(tree, info->params);
-        std::ofstream out(temporary, std::ios_base::binary | std::ios_base::trunc);
-        if (!out.is_open())
-          throw Error(ErrorCode::kIo,
-                      "cannot write '" + in.output() + "': " + std::strerror(errno));
-        bool ok =
-            fs::path(in.output()).extension() == ".bt" ? ot->writeBinary(out) : ot->write(out);
-        out.close();
-        if (!ok || !out.good())
-          throw Error(ErrorCode::kIo,
-                      "failed writing '" + in.output() + "' (disk full or I/O error)");
-        nodes = ot->size();
-      });
-    }
-    in.files().commit();
+    const std::size_t nodes = writeTree(in.files(), tree, info->params);
     Report report(10);
     report
         .line("map", map_ + format(" (resolution %g m), %llu scans", info->params.resolution,
@@ -100,6 +116,106 @@ class StoreExport final : public StoreMapCommand {
         .wrote(in.output());
     return report.print();
   }
+};
+
+// ---- store follow ----
+
+void printStoreFollowHelp(std::ostream& out) {
+  out << "octovk store follow STORE [--map NAME] -o OUT.bt|OUT.ot [--until-seq N]\n"
+         "\n"
+         "Keeps a local copy of a map of a store current while writers commit scans to it. At\n"
+         "each look it reads the keys of the map's tiles and the bodies of only the tiles\n"
+         "written since its last look, rebuilds the tree and replaces OUT as 'store export'\n"
+         "writes it (a whole new file renamed into place: a reader never sees a partial one).\n"
+         "One line per update on standard output:\n"
+         "  seq SEQ: T tiles read (B bytes), D dropped; N nodes in OUT\n"
+         "It runs until interrupted (Ctrl-C or SIGTERM; OUT stays as last written) or, with\n"
+         "--until-seq, until scan N of the map is committed and written. No Vulkan device.\n"
+         "\n"
+         "Options:\n"
+         "  -o, --output FILE      the map file, .bt or .ot. Required.\n"
+         "      --map NAME         which map of the store (default: default)\n"
+         "      --until-seq N      end once the map's committed scans reach N (see 'store log')\n"
+         "      --interval S       seconds between looks at the store (default: 0.5)\n"
+         "  -h, --help             show this help\n";
+}
+
+class StoreFollow final : public StoreMapCommand {
+ public:
+  bool option(const ParsedOption& opt) override {
+    if (opt.name == "--until-seq") {
+      const double n = parseNumber(opt, "--until-seq 120");
+      if (n < 1 || n != std::floor(n) || n > 9e15)
+        throw UsageError("--until-seq " + opt.value +
+                         ": give a scan's sequence number, a whole number from 1 ('octovk store "
+                         "log' lists them)");
+      until_seq_ = static_cast<std::uint64_t>(n);
+      return true;
+    }
+    if (opt.name == "--interval") {
+      interval_s_ = parseNumber(opt, "--interval 0.5");
+      if (!(interval_s_ >= 0.001 && interval_s_ <= 3600))
+        throw UsageError("--interval " + opt.value + ": give seconds from 0.001 to 3600");
+      return true;
+    }
+    return StoreMapCommand::option(opt);
+  }
+  void check(Invocation& in) override {
+    checkStoreInput(in.input(), "octovk store follow STORE -o OUT.ot");
+    in.checkOutputs();
+  }
+  int run(Invocation& in) override {
+    const auto store = store::Store::open(in.input(), /*create=*/false);
+    const store::MapInfo info = *mapOrRefuse(*store, in.input(), map_);
+    std::map<std::uint64_t, store::Tile> tiles;  // the map's tiles as last read
+    std::uint64_t seq = 0;
+    bool written = false;
+    for (;;) {
+      store::TileChanges changes = store->changesSince(map_, seq);
+      if (!written || changes.last_seq != seq) {
+        std::size_t bytes = 0, dropped = 0;
+        for (auto it = tiles.begin(); it != tiles.end();) {
+          if (std::binary_search(changes.keys.begin(), changes.keys.end(), it->first)) {
+            ++it;
+          } else {
+            it = tiles.erase(it);
+            ++dropped;
+          }
+        }
+        for (store::Tile& t : changes.changed) {
+          bytes += t.body.size();
+          const std::uint64_t key = t.key;
+          tiles[key] = std::move(t);
+        }
+        std::vector<store::Tile> all;
+        all.reserve(tiles.size());
+        for (const auto& entry : tiles) all.push_back(entry.second);
+        const HostTree tree = store::treeFromTiles(all, info.tile_depth);
+        // The run's own output first; each later update through a fresh set of the same output.
+        std::size_t nodes = 0;
+        if (!written) {
+          nodes = writeTree(in.files(), tree, info.params);
+        } else {
+          OutputFiles again({in.output()}, {in.input()});
+          nodes = writeTree(again, tree, info.params);
+        }
+        written = true;
+        seq = changes.last_seq;
+        std::cout << "seq " << seq << ": " << changes.changed.size() << " tiles read (" << bytes
+                  << " bytes), " << dropped << " dropped; " << nodes << " nodes in " << in.output()
+                  << std::endl;
+        if (!std::cout)
+          throw Error(ErrorCode::kIo,
+                      std::string("cannot write to standard output: ") + std::strerror(errno));
+      }
+      if (until_seq_ != 0 && seq >= until_seq_) return kExitOk;
+      std::this_thread::sleep_for(std::chrono::duration<double>(interval_s_));
+    }
+  }
+
+ private:
+  std::uint64_t until_seq_ = 0;
+  double interval_s_ = 0.5;
 };
 
 // ---- store log ----
@@ -191,6 +307,20 @@ const Subcommand kActions[] = {
      .make = [] { return std::unique_ptr<Command>(new StoreExport); },
      .examples = "  octovk store export map.sqlite -o map.bt\n"
                  "  octovk store export map.sqlite --map lab -o lab.ot\n"},
+    {.name = "store follow",
+     .summary = "keep a local .bt / .ot copy of a map current, tile by tile",
+     .print_help = printStoreFollowHelp,
+     .input = "store",
+     .second_input_hint = "; the map file goes after -o",
+     .outputs = Subcommand::Outputs::kOne,
+     .writes = "one map",
+     .no_output = "no output file; add -o OUT.bt or -o OUT.ot",
+     .output_extensions = {".bt", ".ot"},
+     .output_formats = ".bt or .ot (OctoMap map)",
+     .value_options = {"--map", "--until-seq", "--interval"},
+     .make = [] { return std::unique_ptr<Command>(new StoreFollow); },
+     .examples = "  octovk store follow map.sqlite -o live.ot\n"
+                 "  octovk store follow postgresql:///fleet --map lab -o lab.bt --interval 2\n"},
     {.name = "store log",
      .summary = "the committed scans of a map: SEQ SOURCE SCAN",
      .print_help = printStoreLogHelp,
@@ -210,11 +340,11 @@ const Subcommand kActions[] = {
 }  // namespace
 
 void printStoreHelp(std::ostream& out) {
-  out << "octovk store export|log|info STORE [options]\n"
+  out << "octovk store export|follow|log|info STORE [options]\n"
          "\n"
-         "A store keeps maps as tiles in an SQLite file, written scan by scan by\n"
-         "'octovk integrate INPUT --store STORE'; each scan commits its changed tiles and its log\n"
-         "row together, so a killed run loses no committed scan. See docs/store.md.\n"
+         "A store keeps maps as tiles in an SQLite file or a PostgreSQL database, written scan\n"
+         "by scan by 'octovk integrate INPUT --store STORE'; each scan commits its changed tiles\n"
+         "and its log row together, so a killed run loses no committed scan. See docs/store.md.\n"
          "\n"
          "Actions:\n";
   for (const Subcommand& action : kActions) {
@@ -228,8 +358,8 @@ void printStoreHelp(std::ostream& out) {
 int runStoreActions(const std::vector<std::string>& args) {
   if (args.empty())
     throw UsageError(
-        "no action given; usage: octovk store export|log|info STORE (see 'octovk "
-        "store --help')");
+        "no action given; usage: octovk store export|follow|log|info STORE (see "
+        "'octovk store --help')");
   const std::string& action = args.front();
   if (action == "-h" || action == "--help" || action == "help") {
     printStoreHelp(std::cout);
@@ -244,7 +374,7 @@ int runStoreActions(const std::vector<std::string>& args) {
     if (action == std::string(s.name).substr(6))
       return runSubcommand(s, std::vector<std::string>(args.begin() + 1, args.end()));
   throw UsageError("unknown store action '" + action +
-                   "'; actions: export, log, info (see 'octovk store --help')");
+                   "'; actions: export, follow, log, info (see 'octovk store --help')");
 }
 
 // ---- integrate --store ----

@@ -1,4 +1,4 @@
-// The program's side of the map store (store.cpp): `octovk store export|log|info`, and what
+// The program's side of the map store (store.cpp): `octovk store export|follow|log|info`, and what
 // `octovk integrate --store STORE [--map NAME]` adds to integrate, in a few calls from there.
 #pragma once
 

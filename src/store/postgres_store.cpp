@@ -207,6 +207,42 @@ class PostgresStore final : public Store {
     }
   }
 
+  TileChanges changesSince(const std::string& name, std::uint64_t since) override {
+    const bool own = !locked_;
+    if (own) exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
+    try {
+      const std::string id = mapId(name);
+      TileChanges out;
+      {
+        Result r(query("SELECT key FROM tiles WHERE map = $1 ORDER BY key", {id}));
+        out.keys.reserve(static_cast<std::size_t>(r.rows()));
+        for (int i = 0; i < r.rows(); ++i)
+          out.keys.push_back(static_cast<std::uint64_t>(r.integer(i, 0)));
+      }
+      {
+        const std::string after = std::to_string(since);
+        const char* values[] = {id.c_str(), after.c_str()};
+        Result r(check(PQexecParams(conn_,
+                                    "SELECT key, body FROM tiles WHERE map = $1 AND version > $2 "
+                                    "ORDER BY key",
+                                    2, nullptr, values, nullptr, nullptr, /*binary results=*/1),
+                       "reading the changed tiles of map '" + name + "'"));
+        for (int i = 0; i < r.rows(); ++i) {
+          const std::string key = r.text(i, 0);  // int8, network order
+          std::uint64_t k = 0;
+          for (unsigned char c : key) k = (k << 8) | c;
+          out.changed.push_back({k, r.text(i, 1)});
+        }
+      }
+      out.last_seq = lastSeq(id);
+      if (own) exec("COMMIT");
+      return out;
+    } catch (...) {
+      if (own) PQclear(PQexec(conn_, "ROLLBACK"));
+      throw;
+    }
+  }
+
   std::vector<LogEntry> log(const std::string& name) override {
     Result r(query("SELECT seq, source, scan, time_us FROM log WHERE map = $1 ORDER BY seq",
                    {mapId(name)}));

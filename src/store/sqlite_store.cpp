@@ -271,6 +271,34 @@ class SqliteStore final : public Store {
     }
   }
 
+  TileChanges changesSince(const std::string& name, std::uint64_t since) override {
+    const bool own = !locked_;  // one read transaction: one commit's tiles
+    if (own) exec("BEGIN");
+    try {
+      TileChanges out;
+      const std::int64_t id = mapId(name);
+      {
+        Statement s(db_, "SELECT key FROM tiles WHERE map = ? ORDER BY key",
+                    where("reading the tile keys of map '" + name + "'"));
+        s.bind(1, id);
+        while (s.step()) out.keys.push_back(static_cast<std::uint64_t>(s.integer(0)));
+      }
+      {
+        Statement s(db_, "SELECT key, body FROM tiles WHERE map = ? AND version > ? ORDER BY key",
+                    where("reading the changed tiles of map '" + name + "'"));
+        s.bind(1, id).bind(2, static_cast<std::int64_t>(since));
+        while (s.step())
+          out.changed.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1)});
+      }
+      out.last_seq = lastSeq(id);
+      if (own) exec("COMMIT");
+      return out;
+    } catch (...) {
+      if (own) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      throw;
+    }
+  }
+
   std::vector<LogEntry> log(const std::string& name) override {
     std::vector<LogEntry> out;
     Statement s(db_, "SELECT seq, source, scan, time_us FROM log WHERE map = ? ORDER BY seq",

@@ -51,6 +51,13 @@ struct CommitStats {
   double write_s = 0.0;           ///< seconds of the store's transaction
 };
 
+/// What a map's tiles are at one commit, against an earlier one (Store::changesSince).
+struct TileChanges {
+  std::uint64_t last_seq = 0;       ///< the sequence number the snapshot is at
+  std::vector<std::uint64_t> keys;  ///< every tile the map holds, sorted
+  std::vector<Tile> changed;        ///< the tiles written after the earlier commit, sorted
+};
+
 /// A store's back end. Every call is one transaction; errors are Error(kIo) naming the store
 /// and what failed (kInvalidArgument for a request the store refuses).
 class Store {
@@ -70,6 +77,10 @@ class Store {
   /// Every tile of the map and the sequence number they are current at, read in one snapshot
   /// (inside lock()'s transaction when one is open).
   virtual std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) = 0;
+  /// What changed in map `name` after scan `since` (a sequence number; 0: every tile), in one
+  /// snapshot: the keys of all its tiles (a follower drops the ones no longer there: pruning
+  /// merged them) and the bodies of those written after `since` only.
+  virtual TileChanges changesSince(const std::string& name, std::uint64_t since) = 0;
   virtual std::vector<LogEntry> log(const std::string& name) = 0;
   /// Opens a scan's transaction: takes the map's write lock (other writers wait for it until
   /// this one commits) and returns the map's last sequence number.
