@@ -20,6 +20,7 @@
 
 #include "cli_support.hpp"
 #include "octovk/octomap_io.hpp"
+#include "octovk/store.hpp"
 #include "store/tiles.hpp"
 #include "test_support.hpp"
 
@@ -524,6 +525,65 @@ TEST(StoreCli, FollowRefusesAMissingMapAndABadSeq) {
                 scratch.dir()),
       2, {"--interval -1", "seconds"});
   EXPECT_FALSE(fs::exists(scratch / "x.ot"));
+}
+
+// The C++ API: StoredMap commits each scan as integrate --store does, two of them on one map
+// take turns (each loads the other's scans first), and readStoredMap reads the committed map.
+TEST(StoredMapApi, ScansCommitAsOctoMapReplaysTheLog) {
+  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("store");
+  const std::string location = scratch / "api.sqlite";
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(4, 0.35f);
+  MapParams params;
+  params.resolution = 0.1;
+  StoredMap one = StoredMap::open(ctx, location, "api", params);
+  StoredMap two = StoredMap::open(ctx, location, "api", params);  // exists now: its own params
+  const auto insert = [](StoredMap& into, const GraphScan& scan, const std::string& source,
+                         std::uint64_t index) {
+    std::vector<Eigen::Vector3f> world;
+    for (const Eigen::Vector3f& p : scan.points_sensor)
+      world.push_back(scan.T_world_sensor.transform(p));
+    into.insertPointCloud(world, scan.T_world_sensor.translation, source, index);
+  };
+  std::vector<GraphScan> in_order;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    insert(one, a[i], "a", i);
+    in_order.push_back(a[i]);
+    insert(two, b[i], "b", i);
+    in_order.push_back(b[i]);
+  }
+  EXPECT_EQ(one.lastSeq(), 7u);
+  EXPECT_EQ(two.lastSeq(), 8u);
+  const std::string graph = scratch / "log.graph";
+  writeGraph(graph, in_order);
+  const std::string expected = graph2treeOt(graph, scratch);
+  const RunResult exported = runOctovk(
+      {"store", "export", location, "--map", "api", "-o", scratch / "export.ot"}, scratch.dir());
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_TRUE(readFile(scratch / "export.ot") == expected) << "export differs from graph2tree's";
+  // The writer's own device map is the committed one; readStoredMap reads the same.
+  writeMapFile(two.map(), scratch / "two.ot");
+  EXPECT_TRUE(readFile(scratch / "two.ot") == expected) << "the writer's map differs";
+  OccupancyMap read = readStoredMap(ctx, location, "api");
+  EXPECT_EQ(read.params().resolution, 0.1);
+  writeMapFile(read, scratch / "read.ot");
+  EXPECT_TRUE(readFile(scratch / "read.ot") == expected) << "readStoredMap's map differs";
+  const RunResult log = runOctovk({"store", "log", location, "--map", "api"}, scratch.dir());
+  EXPECT_EQ(log.out.rfind("1 a 0\n2 b 0\n3 a 1\n", 0), 0u) << log.out;
+  // What is refused: a map the store lacks (without parameters to create it), a payload map.
+  try {
+    (void)StoredMap::open(ctx, location, "lab");
+    ADD_FAILURE() << "a missing map was opened";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
+    EXPECT_NE(std::string(e.what()).find("holds no map 'lab'"), std::string::npos) << e.what();
+  }
+  MapParams color = params;
+  color.payload = Payload::kColor;
+  EXPECT_THROW((void)StoredMap::open(ctx, location, "lab", color), Error);
+  EXPECT_THROW((void)readStoredMap(ctx, location, "lab"), Error);
+  EXPECT_FALSE(store::Store::open(location, false)->map("lab").has_value());
 }
 
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {

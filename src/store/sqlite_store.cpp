@@ -127,40 +127,46 @@ class SqliteStore final : public Store {
     }
     sqlite3_busy_timeout(db_, 10000);  // another process's commit: wait, do not fail
     exec("PRAGMA foreign_keys = ON");
-    int version = 0;
-    {
-      Statement s(db_, "PRAGMA user_version",
+    // The check and the creation in one transaction (the write lock when creating): two runs
+    // creating one store at once take turns, and neither sees the other's half-made schema.
+    const auto counts = [&](int* version, std::int64_t* objects) {
+      Statement v(db_, "PRAGMA user_version",
                   where("reading its schema version (is it the SQLite file 'octovk integrate "
                         "--store' wrote?)"));
-      if (s.step()) version = static_cast<int>(s.integer(0));
+      *version = v.step() ? static_cast<int>(v.integer(0)) : 0;
+      Statement o(db_, "SELECT count(*) FROM sqlite_master", where("reading its tables"));
+      *objects = o.step() ? o.integer(0) : 0;
+    };
+    int version = 0;
+    std::int64_t objects = 0;
+    if (create) {
+      counts(&version, &objects);
+      // A new, empty file: WAL (readers see the last commit while a writer works), set outside
+      // a transaction as SQLite requires, and never on a database of something else.
+      if (version == 0 && objects == 0) exec("PRAGMA journal_mode = WAL");
     }
-    if (version == 0) {
-      // Not an octovk store yet: refuse a database that holds tables of something else.
-      std::int64_t objects = 0;
-      {
-        Statement s(db_, "SELECT count(*) FROM sqlite_master", where("reading its tables"));
-        if (s.step()) objects = s.integer(0);
-      }
-      if (objects != 0 || !create)
-        throw Error(ErrorCode::kInvalidArgument,
-                    "'" + path + "' is no octovk store (" +
-                        (objects != 0 ? "an SQLite database of something else" : "empty") +
-                        "); give the file 'octovk integrate ... --store' wrote");
-      exec("PRAGMA journal_mode = WAL");
-      exec("BEGIN IMMEDIATE");
-      try {
+    exec(create ? "BEGIN IMMEDIATE" : "BEGIN");
+    try {
+      counts(&version, &objects);
+      if (version == 0) {
+        // Not an octovk store yet: refuse a database that holds tables of something else.
+        if (objects != 0 || !create)
+          throw Error(ErrorCode::kInvalidArgument,
+                      "'" + path + "' is no octovk store (" +
+                          (objects != 0 ? "an SQLite database of something else" : "empty") +
+                          "); give the file 'octovk integrate ... --store' wrote");
         exec(kSchema);
         exec("PRAGMA user_version = " + std::to_string(kSchemaVersion));
-        exec("COMMIT");
-      } catch (...) {
-        sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-        throw;
+      } else if (version != kSchemaVersion) {
+        throw Error(ErrorCode::kInvalidArgument,
+                    "store '" + path + "' has schema version " + std::to_string(version) +
+                        ", this octovk reads version " + std::to_string(kSchemaVersion) +
+                        "; use the octovk that wrote it");
       }
-    } else if (version != kSchemaVersion) {
-      throw Error(ErrorCode::kInvalidArgument,
-                  "store '" + path + "' has schema version " + std::to_string(version) +
-                      ", this octovk reads version " + std::to_string(kSchemaVersion) +
-                      "; use the octovk that wrote it");
+      exec("COMMIT");
+    } catch (...) {
+      sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      throw;
     }
     exec("PRAGMA synchronous = NORMAL");
   }

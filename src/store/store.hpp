@@ -118,6 +118,12 @@ class MapWriter {
   /// Commits `map` as it is after scan `scan` of `source`: its tiles that differ from the last
   /// committed ones, and the log row. Waits for the map's submitted scans first.
   CommitStats commit(OccupancyMap& map, const std::string& source, std::uint64_t scan);
+  /// Forgets what was committed: the next begin() loads the map from the store (after a failed
+  /// commit, when the device map holds a scan the store does not).
+  void forget() {
+    hashes_.clear();
+    last_seq_ = ~std::uint64_t{0};
+  }
 
  private:
   Store& store_;

@@ -1,0 +1,66 @@
+// A map kept in a store (an SQLite file or a PostgreSQL database; docs/store.md) as well as on
+// the device, as `octovk integrate --store` keeps it: opened as its last committed scan left it,
+// and each scan inserted through it committed (its changed tiles and a log row, one
+// transaction). Link octovk_store (the build tree's library; not installed yet).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+/// The map `name` of the store at `location` (a PostgreSQL URI postgresql://..., or an SQLite
+/// file) as its last committed scan left it, on `context`: a snapshot, which later scans into the
+/// store do not change. kInvalidArgument when the store holds no such map, kIo when the store
+/// cannot be read, kFormat for a damaged tile, kOutOfDeviceMemory over `max_device_bytes`.
+OccupancyMap readStoredMap(Context& context, const std::string& location,
+                           const std::string& name = "default", std::size_t max_device_bytes = 0);
+
+/// A map of a store that scans are inserted into, each one committed.
+///
+/// Several writers (processes, machines) may insert into one map at once: each scan takes the
+/// map's write lock, first loads what other writers committed since this one's last scan, then
+/// inserts and commits, so the map equals OctoMap inserting the log's scans in its order. Plain
+/// occupancy maps only (MapParams::payload kNone). One thread at a time, as an OccupancyMap.
+class StoredMap {
+ public:
+  /// Opens map `name` of the store at `location` on `context`. A map that is missing (and an
+  /// SQLite file that is missing) is created with `create`'s resolution and sensor model when
+  /// given, else kInvalidArgument; an existing map keeps its own parameters (`create` ignored
+  /// but for max_device_bytes, which caps the device map).
+  static StoredMap open(Context& context, const std::string& location,
+                        const std::string& name = "default",
+                        const std::optional<MapParams>& create = std::nullopt);
+  ~StoredMap();
+  StoredMap(StoredMap&&) noexcept;
+  StoredMap& operator=(StoredMap&&) noexcept;
+
+  /// The device map, as of the last scan committed through this object (or loaded since):
+  /// queries, exports and every other read. Scans inserted into it directly are not committed.
+  OccupancyMap& map();
+  /// The map's name, the store as messages name it, and the last sequence number this object
+  /// committed or loaded (0: none).
+  const std::string& name() const;
+  const std::string& location() const;
+  std::uint64_t lastSeq() const;
+
+  /// OccupancyMap::insertPointCloud, committed: the log row names `source` and `scan` (what
+  /// `octovk store log` prints; a replay of the log finds the scan by them). When the commit
+  /// fails (kIo) the device map holds the scan but the store does not: the next scan reloads
+  /// the map from the store first.
+  ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
+                             const Eigen::Vector3f& origin_world, const std::string& source,
+                             std::uint64_t scan, const ScanOptions& options = {});
+
+ private:
+  struct Impl;
+  explicit StoredMap(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace octovk
