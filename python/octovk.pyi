@@ -175,6 +175,10 @@ class Map:
     @staticmethod
     def read(path: PathLike, *, context: Optional[Context] = None,
              max_device_bytes: int = 0) -> Map: ...
+    # store: an SQLite file or a PostgreSQL URI; a snapshot of the map's last committed scan.
+    @staticmethod
+    def open(store: Union[str, PathLike], map: str = "default", *,
+             context: Optional[Context] = None, max_device_bytes: int = 0) -> Map: ...
     def write(self, path: PathLike) -> None: ...
     # points: float32 (N, 3), (H, W, 3), or (N, 4) with x, y, z first (copied with copy=True).
     # max_range: the deprecated name of max_range_m.

@@ -10,6 +10,7 @@
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "octovk/octomap_io.hpp"
+#include "octovk/store.hpp"
 
 namespace octovk::python {
 namespace {
@@ -716,6 +717,30 @@ void bindMap(py::module_& m) {
           "sensor model), of the class its tree type names: Map (OcTree), ColorMap (ColorOcTree) "
           "or StampedMap (OcTreeStamped). Raises FormatError naming the file and the fault, "
           "IoError, or OutOfDeviceMemoryError when it does not fit under max_device_bytes.");
+
+  map.def_static(
+      "open",
+      [](py::handle store, const std::string& name, py::object context,
+         std::size_t max_device_bytes) {
+        // A PostgreSQL URI is a str; an SQLite file may be a str or a path-like.
+        const std::string location = pathString(store, "store");
+        context = orDefault(std::move(context));
+        Context& ctx = contextOf(context);
+        std::optional<OccupancyMap> made;
+        {
+          py::gil_scoped_release release;
+          made.emplace(readStoredMap(ctx, location, name, max_device_bytes));
+        }
+        return std::make_unique<Map>(context, std::move(*made));
+      },
+      py::arg("store"), py::arg("map") = "default", py::kw_only(),
+      py::arg("context") = py::none(), py::arg("max_device_bytes") = 0,
+      "A new map from a store (an SQLite file or a PostgreSQL URI postgresql://..., as "
+      "'octovk integrate --store' writes it): map `map` as its last committed scan left it, with "
+      "the store's resolution and sensor model. A snapshot: scans inserted into it stay in this "
+      "Map, and later commits to the store do not reach it. Raises InvalidArgumentError when "
+      "the store holds no such map, IoError when it cannot be read, FormatError for a damaged "
+      "tile, OutOfDeviceMemoryError over max_device_bytes.");
 
   map.def(
       "write",

@@ -211,3 +211,22 @@ def test_depth_image_equals_its_points(context, tmp_path, dtype):
         m.write(tmp_path / f"{name}.ot")
     assert read_bytes(tmp_path / "a.ot") == read_bytes(tmp_path / "b.ot")
     assert read_bytes(tmp_path / "c.ot") == read_bytes(tmp_path / "b.ot")
+
+
+def test_map_open_reads_a_store_as_graph2tree_builds_it(context, tmp_path):
+    """Map.open: the map a store holds after `octovk integrate --store`, as its last committed
+    scan left it: byte-identical to graph2tree's map of the same scans, and a snapshot."""
+    graph = octomap_data("spherical_scan.graph")
+    store = tmp_path / "map.sqlite"
+    run([tool("OCTOVK_CLI"), "integrate", graph, "--store", str(store), "--map", "lab",
+         "-r", "0.1", "-q"], cwd=tmp_path)
+    m = octovk.Map.open(store, map="lab", context=context)
+    assert type(m) is octovk.Map
+    assert m.resolution == 0.1
+    m.write(tmp_path / "opened.ot")
+    graph2tree(graph, str(tmp_path / "g.bt"), 0.1)
+    assert read_bytes(tmp_path / "opened.ot") == read_bytes(tmp_path / "g.bt.ot")
+    with pytest.raises(octovk.InvalidArgumentError, match="holds no map 'default'"):
+        octovk.Map.open(str(store), context=context)
+    with pytest.raises(octovk.Error):
+        octovk.Map.open(tmp_path / "missing.sqlite", context=context)
