@@ -9,6 +9,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "octovk/octovk.hpp"
 
@@ -60,6 +61,49 @@ class StoredMap {
  private:
   struct Impl;
   explicit StoredMap(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Follows a map of a store while writers commit scans to it: each poll() reads what was
+/// committed since the last one, in one snapshot of the store: the keys of the map's tiles and the
+/// bodies of only the tiles written since (a tile: the subtree at depth `tileDepth()` of OctoMap's
+/// 16, 16^3 finest cells). No device is needed; tree() gives the map to upload or write.
+class StoreFollower {
+ public:
+  /// A tile as its finest cells' OctoMap keys span it: [min_key, min_key + 2^(16 - depth)).
+  struct TileBox {
+    Key min_key{};
+    unsigned depth = 0;  ///< the tile's depth: tileDepth(), or less for a pruned larger leaf
+  };
+  /// What one poll found: the sequence number it reached, the tiles written since the last poll
+  /// (new or changed), and the tiles that are gone (merged by pruning into a larger leaf).
+  struct Update {
+    std::uint64_t seq = 0;
+    std::vector<TileBox> changed;
+    std::vector<TileBox> dropped;
+    std::size_t bytes_read = 0;  ///< the changed tiles' bodies
+  };
+
+  /// Opens map `name` of the store at `location` (kInvalidArgument when it holds no such map,
+  /// kIo when it cannot be read). Nothing is read until the first poll().
+  StoreFollower(const std::string& location, const std::string& name = "default");
+  ~StoreFollower();
+  StoreFollower(StoreFollower&&) noexcept;
+  StoreFollower& operator=(StoreFollower&&) noexcept;
+
+  /// Reads what was committed since the last poll: nothing (std::nullopt) when no scan was; the
+  /// first poll reads every tile. kFormat for a damaged tile (the follower is then as before).
+  std::optional<Update> poll();
+  /// The map as of the last poll (empty before the first), as OccupancyMap::upload takes it.
+  const HostTree& tree() const;
+  /// The map's resolution and sensor model, as the store holds them.
+  const MapParams& params() const;
+  unsigned tileDepth() const;
+  /// The sequence number of the last poll (0: none yet, or no scan committed).
+  std::uint64_t seq() const;
+
+ private:
+  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 

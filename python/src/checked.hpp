@@ -7,6 +7,7 @@
 #include <pybind11/pybind11.h>
 
 #include "octovk/octovk.hpp"
+#include "octovk/store.hpp"
 
 namespace octovk::python {
 
@@ -35,6 +36,7 @@ class CheckedCaster : public pybind11::detail::type_caster_base<T> {
   }  // namespace pybind11::detail
 
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::Context)
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::StoreFollower)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::DeviceInfo)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::Pose)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::StageTimes)

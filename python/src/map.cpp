@@ -676,6 +676,132 @@ void bindStampedMap(py::module_& m) {
 
 }  // namespace
 
+// The boxes in metres of tiles: one row min x, y, z, max x, y, z per tile.
+py::array_t<double> tileBoxes(const std::vector<StoreFollower::TileBox>& tiles, double resolution) {
+  const auto n = static_cast<py::ssize_t>(tiles.size());
+  py::array_t<double> boxes({n, py::ssize_t{6}});
+  auto out = boxes.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const StoreFollower::TileBox& t = tiles[static_cast<std::size_t>(i)];
+    const double side = resolution * static_cast<double>(1u << (16 - t.depth));
+    for (int a = 0; a < 3; ++a) {
+      const double lo = (static_cast<double>(t.min_key[a]) - 32768.0) * resolution;
+      out(i, a) = lo;
+      out(i, a + 3) = lo + side;
+    }
+  }
+  return boxes;
+}
+
+py::dict updateDict(const StoreFollower::Update& u, double resolution) {
+  py::dict d;
+  d["seq"] = u.seq;
+  d["changed"] = tileBoxes(u.changed, resolution);
+  d["dropped"] = tileBoxes(u.dropped, resolution);
+  d["bytes_read"] = u.bytes_read;
+  return d;
+}
+
+void bindStoreFollower(py::module_& m) {
+  py::class_<StoreFollower> cls(
+      m, "StoreFollower",
+      "A map of a store (an SQLite file or a PostgreSQL URI, as 'octovk integrate --store' "
+      "writes it) followed while writers commit scans: each poll reads, in one snapshot, the "
+      "keys of the map's tiles and the bodies of only the tiles written since the last poll. "
+      "No device needed; map() gives the followed state as a Map.");
+  cls.def(py::init([](py::handle store, const std::string& name) {
+            const std::string location = pathString(store, "store");
+            py::gil_scoped_release release;
+            return std::make_unique<StoreFollower>(location, name);
+          }),
+          py::arg("store"), py::arg("map") = "default",
+          "Opens map `map` of the store; InvalidArgumentError when the store holds no such map.");
+  cls.def(
+      "poll",
+      [](StoreFollower& self) -> py::object {
+        std::optional<StoreFollower::Update> u;
+        {
+          py::gil_scoped_release release;
+          u = self.poll();
+        }
+        if (!u) return py::none();
+        return updateDict(*u, self.params().resolution);
+      },
+      "What was committed since the last poll, or None when nothing was (the first poll reads "
+      "every tile): a dict with 'seq' (the last committed scan's sequence number), 'changed' "
+      "and 'dropped' (float64 (N, 6): per tile min x, y, z, max x, y, z in metres; dropped "
+      "tiles were merged into larger leaves by pruning) and 'bytes_read'.");
+  cls.def(
+      "updates",
+      [](py::object self, double interval_s, std::optional<std::uint64_t> until_seq) {
+        (void)self.cast<StoreFollower&>();  // refuses a StoreFollower whose __init__ never ran
+        if (!(interval_s >= 0.001 && interval_s <= 3600))
+          throw Error(ErrorCode::kInvalidArgument,
+                      "updates: interval_s " + std::to_string(interval_s) +
+                          " is not a number of seconds from 0.001 to 3600");
+        return FollowIterator{std::move(self), interval_s, until_seq};
+      },
+      py::arg("interval_s") = 0.5, py::arg("until_seq") = py::none(),
+      "An iterator of poll()'s updates: it looks at the store every interval_s seconds and "
+      "yields each update, forever or until the map's committed scans reach until_seq. "
+      "Ctrl-C (KeyboardInterrupt) ends a wait.");
+  cls.def(
+      "map",
+      [](StoreFollower& self, py::object context, std::size_t max_device_bytes) {
+        context = orDefault(std::move(context));
+        Context& ctx = contextOf(context);
+        MapParams params = self.params();
+        params.max_device_bytes = max_device_bytes;
+        std::optional<OccupancyMap> made;
+        {
+          py::gil_scoped_release release;
+          made.emplace(ctx, params);
+          if (self.tree().root_exists) made->upload(self.tree());
+        }
+        return std::make_unique<Map>(context, std::move(*made));
+      },
+      py::kw_only(), py::arg("context") = py::none(), py::arg("max_device_bytes") = 0,
+      "The map as of the last poll, as a new Map with the store's resolution and sensor model, "
+      "on context (None: default_context()), capped at max_device_bytes (0: no cap).");
+  cls.def_property_readonly("seq", &StoreFollower::seq,
+                            "the sequence number of the last poll (0: none yet)");
+  cls.def_property_readonly("resolution",
+                            [](const StoreFollower& self) { return self.params().resolution; });
+  cls.def_property_readonly("tile_depth", &StoreFollower::tileDepth,
+                            "the depth of OctoMap's 16 at which the map is cut into tiles");
+
+  py::class_<FollowIterator>(m, "_StoreUpdates",
+                             "StoreFollower.updates()'s iterator of the store's updates.")
+      .def("__iter__",
+           [](py::object self) {
+             (void)self.cast<FollowIterator&>();  // refuses one whose __init__ never ran
+             return self;
+           })
+      .def("__next__", [](FollowIterator& it) -> py::object {
+        auto& follower = it.follower.cast<StoreFollower&>();
+        for (;;) {
+          if (it.until_seq && follower.seq() >= *it.until_seq) throw py::stop_iteration();
+          std::optional<StoreFollower::Update> u;
+          {
+            py::gil_scoped_release release;
+            u = follower.poll();
+          }
+          if (u) return updateDict(*u, follower.params().resolution);
+          // Sleep in short steps, so that Ctrl-C is seen during a long interval.
+          double left = it.interval_s;
+          while (left > 0) {
+            const double step = std::min(left, 0.05);
+            {
+              py::gil_scoped_release release;
+              std::this_thread::sleep_for(std::chrono::duration<double>(step));
+            }
+            if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+            left -= step;
+          }
+        }
+      });
+}
+
 void bindMap(py::module_& m) {
   py::class_<OccupancyMap::DeviceBytes>(m, "DeviceBytes", "Device bytes a map holds, by use.")
       .def_readonly("pool", &OccupancyMap::DeviceBytes::pool,
@@ -733,8 +859,8 @@ void bindMap(py::module_& m) {
         }
         return std::make_unique<Map>(context, std::move(*made));
       },
-      py::arg("store"), py::arg("map") = "default", py::kw_only(),
-      py::arg("context") = py::none(), py::arg("max_device_bytes") = 0,
+      py::arg("store"), py::arg("map") = "default", py::kw_only(), py::arg("context") = py::none(),
+      py::arg("max_device_bytes") = 0,
       "A new map from a store (an SQLite file or a PostgreSQL URI postgresql://..., as "
       "'octovk integrate --store' writes it): map `map` as its last committed scan left it, with "
       "the store's resolution and sensor model. A snapshot: scans inserted into it stay in this "
@@ -1103,6 +1229,7 @@ void bindMap(py::module_& m) {
 
   bindColorMap(m);
   bindStampedMap(m);
+  bindStoreFollower(m);
 }
 
 }  // namespace octovk::python

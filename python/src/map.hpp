@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <variant>
 
@@ -98,8 +99,16 @@ class PyStampedMap : public Map {
       : Map(std::move(context), Held(std::in_place_type<StampedMap>, std::move(map))) {}
 };
 
+/// octovk.StoreFollower.updates()'s iterator: the follower and how it looks at the store.
+struct FollowIterator {
+  py::object follower;  // the octovk.StoreFollower, kept alive
+  double interval_s = 0.5;
+  std::optional<std::uint64_t> until_seq;
+};
+
 }  // namespace octovk::python
 
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::FollowIterator)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Map)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyColorMap)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyStampedMap)

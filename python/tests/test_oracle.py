@@ -230,3 +230,29 @@ def test_map_open_reads_a_store_as_graph2tree_builds_it(context, tmp_path):
         octovk.Map.open(str(store), context=context)
     with pytest.raises(octovk.Error):
         octovk.Map.open(tmp_path / "missing.sqlite", context=context)
+
+
+def test_store_follower_reads_only_what_was_committed_since(context, tmp_path):
+    """StoreFollower: the first poll reads every tile, a poll with nothing committed returns
+    None, a later one the tiles the new scans wrote; its map is the store's (store export)."""
+    graph = octomap_data("spherical_scan.graph")
+    store = str(tmp_path / "map.sqlite")
+    cli = tool("OCTOVK_CLI")
+    run([cli, "integrate", graph, "--store", store, "-r", "0.1", "-q"], cwd=tmp_path)
+    follower = octovk.StoreFollower(store)
+    first = follower.poll()
+    assert first["seq"] >= 1 and follower.seq == first["seq"]
+    assert first["changed"].dtype == np.float64 and first["changed"].shape[1] == 6
+    assert len(first["changed"]) > 0 and len(first["dropped"]) == 0
+    assert np.all(first["changed"][:, 3:] > first["changed"][:, :3])
+    assert follower.poll() is None
+    run([cli, "integrate", graph, "--store", store, "-q"], cwd=tmp_path)  # the same scans again
+    second = follower.poll()
+    assert second["seq"] == 2 * first["seq"]
+    assert 0 < len(second["changed"]) <= len(first["changed"]) + len(second["dropped"])
+    assert list(follower.updates(interval_s=0.01, until_seq=second["seq"])) == []
+    follower.map(context=context).write(tmp_path / "followed.ot")
+    run([cli, "store", "export", store, "-o", str(tmp_path / "export.ot")], cwd=tmp_path)
+    assert read_bytes(tmp_path / "followed.ot") == read_bytes(tmp_path / "export.ot")
+    with pytest.raises(octovk.InvalidArgumentError, match="holds no map 'lab'"):
+        octovk.StoreFollower(store, map="lab")

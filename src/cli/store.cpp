@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "command.hpp"
+#include "octovk/store.hpp"
 #include "store/store.hpp"
 
 namespace octovk::cli {
@@ -165,49 +166,27 @@ class StoreFollow final : public StoreMapCommand {
     in.checkOutputs();
   }
   int run(Invocation& in) override {
-    const auto store = store::Store::open(in.input(), /*create=*/false);
-    const store::MapInfo info = *mapOrRefuse(*store, in.input(), map_);
-    std::map<std::uint64_t, store::Tile> tiles;  // the map's tiles as last read
-    std::uint64_t seq = 0;
+    StoreFollower follower(in.input(), map_);
     bool written = false;
     for (;;) {
-      store::TileChanges changes = store->changesSince(map_, seq);
-      if (!written || changes.last_seq != seq) {
-        std::size_t bytes = 0, dropped = 0;
-        for (auto it = tiles.begin(); it != tiles.end();) {
-          if (std::binary_search(changes.keys.begin(), changes.keys.end(), it->first)) {
-            ++it;
-          } else {
-            it = tiles.erase(it);
-            ++dropped;
-          }
-        }
-        for (store::Tile& t : changes.changed) {
-          bytes += t.body.size();
-          const std::uint64_t key = t.key;
-          tiles[key] = std::move(t);
-        }
-        std::vector<store::Tile> all;
-        all.reserve(tiles.size());
-        for (const auto& entry : tiles) all.push_back(entry.second);
-        const HostTree tree = store::treeFromTiles(all, info.tile_depth);
+      if (const std::optional<StoreFollower::Update> update = follower.poll()) {
         // The run's own output first; each later update through a fresh set of the same output.
         std::size_t nodes = 0;
         if (!written) {
-          nodes = writeTree(in.files(), tree, info.params);
+          nodes = writeTree(in.files(), follower.tree(), follower.params());
         } else {
           OutputFiles again({in.output()}, {in.input()});
-          nodes = writeTree(again, tree, info.params);
+          nodes = writeTree(again, follower.tree(), follower.params());
         }
         written = true;
-        seq = changes.last_seq;
-        std::cout << "seq " << seq << ": " << changes.changed.size() << " tiles read (" << bytes
-                  << " bytes), " << dropped << " dropped; " << nodes << " nodes in " << in.output()
-                  << std::endl;
+        std::cout << "seq " << update->seq << ": " << update->changed.size() << " tiles read ("
+                  << update->bytes_read << " bytes), " << update->dropped.size() << " dropped; "
+                  << nodes << " nodes in " << in.output() << std::endl;
         if (!std::cout)
           throw Error(ErrorCode::kIo,
                       std::string("cannot write to standard output: ") + std::strerror(errno));
       }
+      const std::uint64_t seq = follower.seq();
       if (until_seq_ != 0 && seq >= until_seq_) return kExitOk;
       std::this_thread::sleep_for(std::chrono::duration<double>(interval_s_));
     }

@@ -1,5 +1,7 @@
 // StoredMap and readStoredMap (include/octovk/store.hpp): an OccupancyMap loaded from a store's
 // tiles, and scans committed through MapWriter, as `octovk integrate --store` commits them.
+#include <algorithm>
+#include <map>
 #include <utility>
 
 #include "octovk/store.hpp"
@@ -98,5 +100,83 @@ ScanStats StoredMap::insertPointCloud(std::span<const Eigen::Vector3f> points_wo
   }
   return stats;
 }
+
+struct StoreFollower::Impl {
+  std::unique_ptr<store::Store> store;
+  std::string name;
+  store::MapInfo info;
+  std::map<std::uint64_t, store::Tile> tiles;  // the map's tiles as last read, by key
+  HostTree tree;                               // the tree they make
+  std::uint64_t seq = 0;
+  bool polled = false;
+};
+
+namespace {
+
+StoreFollower::TileBox boxOf(std::uint64_t key) {
+  return {store::tileKeyCorner(key), store::tileKeyDepth(key)};
+}
+
+}  // namespace
+
+StoreFollower::StoreFollower(const std::string& location, const std::string& name)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->store = store::Store::open(location, /*create=*/false);
+  impl_->name = name;
+  const std::optional<store::MapInfo> info = impl_->store->map(name);
+  if (!info)
+    throw Error(ErrorCode::kInvalidArgument,
+                "store '" + impl_->store->location() + "' holds no map '" + name +
+                    "'; 'octovk store info " + impl_->store->location() + "' lists its maps");
+  impl_->info = *info;
+}
+StoreFollower::~StoreFollower() = default;
+StoreFollower::StoreFollower(StoreFollower&&) noexcept = default;
+StoreFollower& StoreFollower::operator=(StoreFollower&&) noexcept = default;
+
+std::optional<StoreFollower::Update> StoreFollower::poll() {
+  Impl& f = *impl_;
+  store::TileChanges changes = f.store->changesSince(f.name, f.seq);
+  if (f.polled && changes.last_seq == f.seq) return std::nullopt;
+  // The new state, checked whole before it replaces the old one.
+  std::map<std::uint64_t, store::Tile> tiles;
+  Update update;
+  update.seq = changes.last_seq;
+  for (const auto& [key, tile] : f.tiles)
+    if (std::binary_search(changes.keys.begin(), changes.keys.end(), key))
+      tiles.emplace(key, tile);
+    else
+      update.dropped.push_back(boxOf(key));
+  for (store::Tile& t : changes.changed) {
+    update.bytes_read += t.body.size();
+    update.changed.push_back(boxOf(t.key));
+    const std::uint64_t key = t.key;
+    tiles[key] = std::move(t);
+  }
+  if (tiles.size() != changes.keys.size())
+    throw Error(ErrorCode::kFormat, "store '" + f.store->location() + "', map '" + f.name +
+                                        "': its tile list and its tiles disagree (" +
+                                        std::to_string(changes.keys.size()) + " keys, " +
+                                        std::to_string(tiles.size()) + " tiles)");
+  std::vector<store::Tile> all;
+  all.reserve(tiles.size());
+  for (const auto& entry : tiles) all.push_back(entry.second);
+  HostTree tree;
+  try {
+    tree = store::treeFromTiles(all, f.info.tile_depth);  // every body checked
+  } catch (const Error& e) {
+    throw Error(e.code(), "store '" + f.store->location() + "', map '" + f.name + "': " + e.what());
+  }
+  f.tiles = std::move(tiles);
+  f.tree = std::move(tree);
+  f.seq = changes.last_seq;
+  f.polled = true;
+  return update;
+}
+
+const HostTree& StoreFollower::tree() const { return impl_->tree; }
+const MapParams& StoreFollower::params() const { return impl_->info.params; }
+unsigned StoreFollower::tileDepth() const { return impl_->info.tile_depth; }
+std::uint64_t StoreFollower::seq() const { return impl_->seq; }
 
 }  // namespace octovk
