@@ -42,7 +42,9 @@ class StoredMap {
   StoredMap& operator=(StoredMap&&) noexcept;
 
   /// The device map, as of the last scan committed through this object (or loaded since):
-  /// queries, exports and every other read. Scans inserted into it directly are not committed.
+  /// queries, exports and every other read. Change it only through insertPointCloud: a change
+  /// made to it directly (a scan, an edit) would be committed with the next scan, under that
+  /// scan's log row, and the log would no longer replay to the map.
   OccupancyMap& map();
   /// The map's name, the store as messages name it, and the last sequence number this object
   /// committed or loaded (0: none).
