@@ -75,16 +75,6 @@ std::size_t writeTree(OutputFiles& files, const HostTree& tree, const MapParams&
   return nodes;
 }
 
-std::optional<store::MapInfo> mapOrRefuse(store::Store& store, const std::string& location,
-                                          const std::string& name) {
-  std::optional<store::MapInfo> info = store.map(name);
-  if (!info)
-    throw Error(ErrorCode::kInvalidArgument, "store '" + location + "' holds no map '" + name +
-                                                 "'; 'octovk store info " + location +
-                                                 "' lists its maps");
-  return info;
-}
-
 // A store command that reads one map of the store: --map NAME (default: default).
 class StoreMapCommand : public Command {
  public:
@@ -106,13 +96,13 @@ class StoreExport final : public StoreMapCommand {
   }
   int run(Invocation& in) override {
     const auto store = store::Store::open(in.input(), /*create=*/false);
-    const std::optional<store::MapInfo> info = mapOrRefuse(*store, in.input(), map_);
+    const store::MapInfo info = store::requireMap(*store, map_);
     const HostTree tree = store::loadTree(*store, map_);
-    const std::size_t nodes = writeTree(in.files(), tree, info->params);
+    const std::size_t nodes = writeTree(in.files(), tree, info.params);
     Report report(10);
     report
-        .line("map", map_ + format(" (resolution %g m), %llu scans", info->params.resolution,
-                                   static_cast<unsigned long long>(info->scans)))
+        .line("map", map_ + format(" (resolution %g m), %llu scans", info.params.resolution,
+                                   static_cast<unsigned long long>(info.scans)))
         .line("nodes", std::to_string(nodes) + " in the file")
         .wrote(in.output());
     return report.print();

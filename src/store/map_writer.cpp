@@ -13,15 +13,21 @@ std::uint64_t bodyHash(const std::string& body) {
   return h ^ (body.size() * 0x9E3779B97F4A7C15ull);
 }
 
-HostTree loadTree(Store& store, const std::string& name) {
-  const std::optional<MapInfo> info = store.map(name);
+MapInfo requireMap(Store& store, const std::string& name, const std::string& remedy) {
+  std::optional<MapInfo> info = store.map(name);
   if (!info)
-    throw Error(ErrorCode::kInvalidArgument, "store '" + store.location() + "' holds no map '" +
-                                                 name + "'; 'octovk store info " +
-                                                 store.location() + "' lists its maps");
+    throw Error(ErrorCode::kInvalidArgument,
+                "store '" + store.location() + "' holds no map '" + name + "'; " +
+                    (remedy.empty() ? std::string() : remedy + ", or ") + "'octovk store info " +
+                    store.location() + "' lists its maps");
+  return *info;
+}
+
+HostTree loadTree(Store& store, const std::string& name) {
+  const MapInfo info = requireMap(store, name);
   const std::vector<Tile> tiles = store.tiles(name, nullptr);
   try {
-    return treeFromTiles(tiles, info->tile_depth);
+    return treeFromTiles(tiles, info.tile_depth);
   } catch (const Error& e) {
     throw Error(e.code(), "store '" + store.location() + "', map '" + name + "': " + e.what());
   }

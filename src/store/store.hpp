@@ -137,6 +137,10 @@ class MapWriter {
 /// The hash MapWriter keeps of a body.
 std::uint64_t bodyHash(const std::string& body);
 
+/// Map `name` of `store`, or kInvalidArgument naming the store, the map and where its maps are
+/// listed (`remedy`, when given, comes first: "give MapParams to create it").
+MapInfo requireMap(Store& store, const std::string& name, const std::string& remedy = "");
+
 /// The map's tree as the store holds it.
 HostTree loadTree(Store& store, const std::string& name);
 

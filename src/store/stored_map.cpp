@@ -23,13 +23,9 @@ MapParams storedParams(const store::MapInfo& info, std::size_t max_device_bytes)
 OccupancyMap readStoredMap(Context& context, const std::string& location, const std::string& name,
                            std::size_t max_device_bytes) {
   const std::unique_ptr<store::Store> store = store::Store::open(location, /*create=*/false);
-  const std::optional<store::MapInfo> info = store->map(name);
-  if (!info)
-    throw Error(ErrorCode::kInvalidArgument, "store '" + store->location() + "' holds no map '" +
-                                                 name + "'; 'octovk store info " +
-                                                 store->location() + "' lists its maps");
+  const store::MapInfo info = store::requireMap(*store, name);
   const HostTree tree = store::loadTree(*store, name);
-  OccupancyMap map(context, storedParams(*info, max_device_bytes));
+  OccupancyMap map(context, storedParams(info, max_device_bytes));
   if (tree.root_exists) map.upload(tree);
   return map;
 }
@@ -56,11 +52,7 @@ StoredMap StoredMap::open(Context& context, const std::string& location, const s
   auto impl = std::make_unique<Impl>();
   impl->store = store::Store::open(location, /*create=*/create.has_value());
   impl->name = name;
-  if (!create && !impl->store->map(name))
-    throw Error(ErrorCode::kInvalidArgument,
-                "store '" + impl->store->location() + "' holds no map '" + name +
-                    "'; give MapParams to create it, or 'octovk store info " +
-                    impl->store->location() + "' lists its maps");
+  if (!create) (void)store::requireMap(*impl->store, name, "give MapParams to create it");
   impl->writer =
       std::make_unique<store::MapWriter>(*impl->store, name, create.value_or(MapParams{}));
   const std::size_t cap = create ? create->max_device_bytes : 0;
@@ -123,12 +115,7 @@ StoreFollower::StoreFollower(const std::string& location, const std::string& nam
     : impl_(std::make_unique<Impl>()) {
   impl_->store = store::Store::open(location, /*create=*/false);
   impl_->name = name;
-  const std::optional<store::MapInfo> info = impl_->store->map(name);
-  if (!info)
-    throw Error(ErrorCode::kInvalidArgument,
-                "store '" + impl_->store->location() + "' holds no map '" + name +
-                    "'; 'octovk store info " + impl_->store->location() + "' lists its maps");
-  impl_->info = *info;
+  impl_->info = store::requireMap(*impl_->store, name);
 }
 StoreFollower::~StoreFollower() = default;
 StoreFollower::StoreFollower(StoreFollower&&) noexcept = default;
