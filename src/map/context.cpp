@@ -1,6 +1,7 @@
 #include <stdlib.h>  // setenv
 
 #include <cstdlib>
+#include <memory>
 #include <string>
 
 #include "map/device_probe.hpp"
@@ -9,7 +10,12 @@
 namespace octovk {
 
 Context::Context(std::unique_ptr<vk::Device> device) : device_(std::move(device)) {}
-Context::~Context() = default;
+// After exit() began (or in a forked child) the device is left to the end of the process, held
+// where leak checkers see it (vk::Device::abandoned), as the maps and fields on it are.
+Context::~Context() {
+  if (device_ && device_->abandoned())
+    vk::Device::keepUntilExit(new std::shared_ptr<vk::Device>(std::move(device_)));
+}
 
 Result<std::unique_ptr<Context>> Context::create(const ContextOptions& options) {
   auto device = vk::Device::create(options);
