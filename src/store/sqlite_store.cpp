@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <thread>
 #include <utility>
 
 #include "store/store.hpp"
@@ -139,12 +140,6 @@ class SqliteStore final : public Store {
     };
     int version = 0;
     std::int64_t objects = 0;
-    if (create) {
-      counts(&version, &objects);
-      // A new, empty file: WAL (readers see the last commit while a writer works), set outside
-      // a transaction as SQLite requires, and never on a database of something else.
-      if (version == 0 && objects == 0) exec("PRAGMA journal_mode = WAL");
-    }
     exec(create ? "BEGIN IMMEDIATE" : "BEGIN");
     try {
       counts(&version, &objects);
@@ -168,6 +163,7 @@ class SqliteStore final : public Store {
       sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
       throw;
     }
+    useWal();
     exec("PRAGMA synchronous = NORMAL");
   }
   ~SqliteStore() override { sqlite3_close(db_); }
@@ -358,6 +354,22 @@ class SqliteStore final : public Store {
 
  private:
   std::string where(const std::string& what) const { return "store '" + path_ + "': " + what; }
+
+  // WAL (readers see the last commit while a writer works), once the file is known to be an
+  // octovk store. Changing the journal mode needs the file to itself, which the busy timeout does
+  // not wait for: a run that finds another at work tries for a while, and otherwise goes on in
+  // the rollback journal (as correct, with readers and writers taking turns) for a later run to
+  // change.
+  void useWal() {
+    for (int attempt = 0; attempt < 40; ++attempt) {
+      {
+        Statement mode(db_, "PRAGMA journal_mode", where("reading its journal mode"));
+        if (mode.step() && mode.text(0) == "wal") return;
+      }  // finished: no read lock held while the mode changes
+      if (attempt > 0) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+      sqlite3_exec(db_, "PRAGMA journal_mode = WAL", nullptr, nullptr, nullptr);
+    }
+  }
 
   void exec(const std::string& sql) {
     char* message = nullptr;
