@@ -27,8 +27,9 @@ struct ContextOptions {
   /// For tests: treat the device's maxStorageBufferRange as at most this many bytes (0: the
   /// device's own), to check that no binding depends on a large range.
   std::uint64_t max_binding_bytes = 0;
-  /// Enable ray queries (VK_KHR_acceleration_structure + VK_KHR_ray_query) where the device has
-  /// them, for castRay's ray-tracing backend. false: never (the compute walk only).
+  /// Enable ray tracing where the device has it (VK_KHR_acceleration_structure with
+  /// VK_KHR_ray_query and/or VK_KHR_ray_tracing_pipeline), for castRay's and the scans'
+  /// ray-tracing backends. false: never (the compute walk only).
   bool enable_ray_query = true;
 };
 
@@ -45,7 +46,9 @@ struct DeviceInfo {
   /// The device offers ray queries against acceleration structures (VK_KHR_acceleration_structure
   /// and VK_KHR_ray_query with their features): castRay can use its ray-tracing backend.
   bool ray_query = false;
-  /// It also offers ray-tracing pipelines (VK_KHR_ray_tracing_pipeline); octovk does not need them.
+  /// It offers ray-tracing pipelines (VK_KHR_ray_tracing_pipeline): castRay and traced scans
+  /// run through them where ray queries are missing (NVIDIA's GPUs), or when asked for
+  /// (CastRayBackend::kRayTracingPipeline).
   bool ray_tracing_pipeline = false;
   /// Ray queries are enabled on this Context's device (Context::device() only; false in
   /// listDevices()).
