@@ -355,6 +355,26 @@ class DistanceField:
     def map(self) -> Map: ...
 
 
+class StoredMap:
+    """A map of a store that scans are inserted into, each one committed."""
+    @staticmethod
+    def open(store: Union[str, PathLike], map: str = "default", *,
+             resolution: Optional[float] = None, prob_hit: float = 0.7, prob_miss: float = 0.4,
+             clamping_min: float = 0.1192, clamping_max: float = 0.971,
+             occupancy_threshold: float = 0.5, context: Optional[Context] = None,
+             max_device_bytes: int = 0) -> StoredMap: ...
+    def insert_point_cloud(self, points: ArrayLike, origin: Vector3, pose: PoseLike = None,
+                           max_range_m: float = -1.0, discretize: bool = False, *,
+                           source: str = "python", scan: Optional[int] = None,
+                           copy: bool = False) -> ScanStats: ...
+    def snapshot(self, *, max_device_bytes: int = 0) -> Map: ...
+    @property
+    def last_seq(self) -> int: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def resolution(self) -> float: ...
+
 class StoreFollower:
     """A map of a store followed while writers commit: poll() reads only what changed."""
     def __init__(self, store: Union[str, PathLike], map: str = "default") -> None: ...

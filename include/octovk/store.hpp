@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -59,6 +60,11 @@ class StoredMap {
   ScanStats insertPointCloud(std::span<const Eigen::Vector3f> points_world,
                              const Eigen::Vector3f& origin_world, const std::string& source,
                              std::uint64_t scan, const ScanOptions& options = {});
+  /// Any one blocking scan, committed: `insert` runs on the map between the lock (other
+  /// writers' scans loaded) and the commit, and must make exactly one blocking insert call
+  /// (insertPointCloud with a pose, insertDepthImage, ...); what it returns is returned.
+  ScanStats insert(const std::function<ScanStats(OccupancyMap&)>& insert, const std::string& source,
+                   std::uint64_t scan);
 
  private:
   struct Impl;

@@ -702,6 +702,97 @@ py::dict updateDict(const StoreFollower::Update& u, double resolution) {
   return d;
 }
 
+void bindStoredMap(py::module_& m) {
+  py::class_<PyStoredMap> cls(
+      m, "StoredMap",
+      "A map of a store (an SQLite file or a PostgreSQL URI) that scans are inserted into, each "
+      "committed with a log row naming its source and scan index, as 'octovk integrate --store' "
+      "commits: each scan first takes the map's write lock and loads what other writers "
+      "committed, so several processes may write one map. Plain occupancy maps only. "
+      "snapshot() gives the committed map as a Map for queries.");
+  cls.def_static(
+      "open",
+      [](py::handle store, const std::string& name, std::optional<double> resolution,
+         double prob_hit, double prob_miss, double clamping_min, double clamping_max,
+         double occupancy_threshold, py::object context, std::size_t max_device_bytes) {
+        const std::string location = pathString(store, "store");
+        context = orDefault(std::move(context));
+        Context& ctx = contextOf(context);
+        std::optional<MapParams> create;
+        if (resolution) {
+          MapParams p;
+          p.resolution = *resolution;
+          p.prob_hit = prob_hit;
+          p.prob_miss = prob_miss;
+          p.clamping_min = clamping_min;
+          p.clamping_max = clamping_max;
+          p.occupancy_threshold = occupancy_threshold;
+          p.max_device_bytes = max_device_bytes;
+          create = p;
+        }
+        std::optional<StoredMap> opened;
+        {
+          py::gil_scoped_release release;
+          opened.emplace(StoredMap::open(ctx, location, name, create));
+        }
+        return std::make_unique<PyStoredMap>(context, std::move(*opened));
+      },
+      py::arg("store"), py::arg("map") = "default", py::kw_only(),
+      py::arg("resolution") = py::none(), py::arg("prob_hit") = 0.7, py::arg("prob_miss") = 0.4,
+      py::arg("clamping_min") = 0.1192, py::arg("clamping_max") = 0.971,
+      py::arg("occupancy_threshold") = 0.5, py::arg("context") = py::none(),
+      py::arg("max_device_bytes") = 0,
+      "Opens map `map` of the store as its last committed scan left it. With resolution (and "
+      "prob_hit, prob_miss, clamping_min, clamping_max, occupancy_threshold) a missing map, and "
+      "a missing SQLite file, is created; a map that exists keeps its own parameters. Without "
+      "resolution a missing map raises InvalidArgumentError. context: a Context (None: "
+      "default_context()); max_device_bytes caps the device map.");
+  cls.def(
+      "insert_point_cloud",
+      [](PyStoredMap& self, py::handle points, py::handle origin, py::handle pose,
+         double max_range_m, bool discretize, const std::string& source,
+         std::optional<std::uint64_t> scan, bool copy) {
+        PointScan cloud(points, origin, pose, max_range_m, discretize, copy, py::none());
+        noteInput(cloud.data());
+        const std::uint64_t index = scan ? *scan : self.nextScan();
+        return self.run([&](StoredMap& stored) {
+          return stored.insert([&](OccupancyMap& map) { return cloud.insert(map); }, source, index);
+        });
+      },
+      py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
+      py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
+      py::arg("source") = "python", py::arg("scan") = py::none(), py::arg("copy") = false,
+      "Map.insert_point_cloud (points, origin, pose, max_range_m, discretize, copy as there), "
+      "then the scan committed: its changed tiles and a log row naming source and scan (None: "
+      "the scans this object committed so far), which 'octovk store log' prints. Returns "
+      "ScanStats.");
+  cls.def(
+      "snapshot",
+      [](PyStoredMap& self, std::size_t max_device_bytes) {
+        Context& ctx = contextOf(self.context());
+        auto made = self.run([&](StoredMap& stored) {
+          MapParams params = stored.map().params();
+          params.max_device_bytes = max_device_bytes;
+          OccupancyMap copy(ctx, params);
+          copy.upload(stored.map().download());
+          return copy;
+        });
+        return std::make_unique<Map>(self.context(), std::move(made));
+      },
+      py::kw_only(), py::arg("max_device_bytes") = 0,
+      "The committed map as a new Map on the same Context (a copy: later scans do not reach "
+      "it), capped at max_device_bytes (0: no cap).");
+  cls.def_property_readonly(
+      "last_seq",
+      [](PyStoredMap& self) { return self.run([](StoredMap& s) { return s.lastSeq(); }); },
+      "the sequence number of the last scan this object committed or loaded");
+  cls.def_property_readonly(
+      "name", [](PyStoredMap& self) { return self.run([](StoredMap& s) { return s.name(); }); });
+  cls.def_property_readonly("resolution", [](PyStoredMap& self) {
+    return self.run([](StoredMap& s) { return s.map().params().resolution; });
+  });
+}
+
 void bindStoreFollower(py::module_& m) {
   py::class_<StoreFollower> cls(
       m, "StoreFollower",
@@ -1230,6 +1321,7 @@ void bindMap(py::module_& m) {
   bindColorMap(m);
   bindStampedMap(m);
   bindStoreFollower(m);
+  bindStoredMap(m);
 }
 
 }  // namespace octovk::python

@@ -14,6 +14,7 @@
 
 #include "checked.hpp"
 #include "octovk/octovk.hpp"
+#include "octovk/store.hpp"
 
 namespace octovk::python {
 
@@ -99,6 +100,31 @@ class PyStampedMap : public Map {
       : Map(std::move(context), Held(std::in_place_type<StampedMap>, std::move(map))) {}
 };
 
+/// octovk.StoredMap: a map of a store with each scan committed (octovk::StoredMap), its
+/// Context kept alive and its calls ordered by one lock, as a Map's.
+class PyStoredMap {
+ public:
+  PyStoredMap(py::object context, StoredMap stored)
+      : context_(std::move(context)), stored_(std::move(stored)) {}
+
+  /// `work` on the StoredMap with the GIL released and the lock held.
+  template <class Work>
+  auto run(Work&& work) {
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    return work(stored_);
+  }
+  const py::object& context() const { return context_; }
+  /// The next scan index for a commit that names none: the scans this object committed.
+  std::uint64_t nextScan() { return scans_++; }
+
+ private:
+  py::object context_;
+  std::mutex mutex_;
+  StoredMap stored_;
+  std::uint64_t scans_ = 0;
+};
+
 /// octovk.StoreFollower.updates()'s iterator: the follower and how it looks at the store.
 struct FollowIterator {
   py::object follower;  // the octovk.StoreFollower, kept alive
@@ -109,6 +135,7 @@ struct FollowIterator {
 }  // namespace octovk::python
 
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::FollowIterator)
+OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyStoredMap)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::Map)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyColorMap)
 OCTOVK_PYTHON_CHECKED_CLASS(octovk::python::PyStampedMap)

@@ -256,3 +256,28 @@ def test_store_follower_reads_only_what_was_committed_since(context, tmp_path):
     assert read_bytes(tmp_path / "followed.ot") == read_bytes(tmp_path / "export.ot")
     with pytest.raises(octovk.InvalidArgumentError, match="holds no map 'lab'"):
         octovk.StoreFollower(store, map="lab")
+
+
+def test_stored_map_commits_each_scan_as_graph2tree_builds_them(context, tmp_path):
+    """StoredMap: every scan inserted is committed with its log row; the store's map (store
+    export), the snapshot and graph2tree's map of the same scans are byte-identical."""
+    graph = octomap_data("spherical_scan.graph")
+    store = tmp_path / "written.sqlite"
+    with pytest.raises(octovk.InvalidArgumentError, match="give MapParams to create it"):
+        octovk.StoredMap.open(store, map="lab", context=context)
+    stored = octovk.StoredMap.open(store, map="lab", resolution=0.1, context=context)
+    scans = octovk.read_scan_graph(graph)
+    for points, pose in scans:
+        stored.insert_point_cloud(points, octovk.graph2tree_sensor_origin(pose), pose=pose,
+                                  source="spherical")
+    assert stored.last_seq == len(scans) and stored.name == "lab" and stored.resolution == 0.1
+    cli = tool("OCTOVK_CLI")
+    run([cli, "store", "export", str(store), "--map", "lab", "-o", str(tmp_path / "e.ot")],
+        cwd=tmp_path)
+    graph2tree(graph, str(tmp_path / "g.bt"), 0.1)
+    expected = read_bytes(tmp_path / "g.bt.ot")
+    assert read_bytes(tmp_path / "e.ot") == expected
+    stored.snapshot().write(tmp_path / "s.ot")
+    assert read_bytes(tmp_path / "s.ot") == expected
+    log = run([cli, "store", "log", str(store), "--map", "lab"], cwd=tmp_path).splitlines()
+    assert log[0] == "1 spherical 0" and len(log) == len(scans)

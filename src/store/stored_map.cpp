@@ -1,6 +1,7 @@
 // StoredMap and readStoredMap (include/octovk/store.hpp): an OccupancyMap loaded from a store's
 // tiles, and scans committed through MapWriter, as `octovk integrate --store` commits them.
 #include <algorithm>
+#include <filesystem>
 #include <map>
 #include <utility>
 
@@ -49,10 +50,14 @@ StoredMap StoredMap::open(Context& context, const std::string& location, const s
     throw Error(ErrorCode::kInvalidArgument,
                 std::string("StoredMap: a store keeps plain occupancy maps only, not ") +
                     treeTypeName(create->payload) + " maps (MapParams::payload)");
+  const char* remedy = "give MapParams to create it (Python: resolution=)";
+  std::error_code ec;
+  if (!create && !store::isPostgresLocation(location) && !std::filesystem::exists(location, ec))
+    throw Error(ErrorCode::kInvalidArgument, "store '" + location + "' does not exist; " + remedy);
   auto impl = std::make_unique<Impl>();
   impl->store = store::Store::open(location, /*create=*/create.has_value());
   impl->name = name;
-  if (!create) (void)store::requireMap(*impl->store, name, "give MapParams to create it");
+  if (!create) (void)store::requireMap(*impl->store, name, remedy);
   impl->writer =
       std::make_unique<store::MapWriter>(*impl->store, name, create.value_or(MapParams{}));
   const std::size_t cap = create ? create->max_device_bytes : 0;
@@ -75,11 +80,18 @@ ScanStats StoredMap::insertPointCloud(std::span<const Eigen::Vector3f> points_wo
                                       const Eigen::Vector3f& origin_world,
                                       const std::string& source, std::uint64_t scan,
                                       const ScanOptions& options) {
+  return insert(
+      [&](OccupancyMap& m) { return m.insertPointCloud(points_world, origin_world, options); },
+      source, scan);
+}
+
+ScanStats StoredMap::insert(const std::function<ScanStats(OccupancyMap&)>& insert,
+                            const std::string& source, std::uint64_t scan) {
   OccupancyMap& m = map();
   impl_->writer->begin(m);  // the write lock; other writers' scans loaded first
   ScanStats stats;
   try {
-    stats = m.insertPointCloud(points_world, origin_world, options);
+    stats = insert(m);
   } catch (...) {
     impl_->store->unlock();  // the map is as before the scan: nothing to commit
     throw;
