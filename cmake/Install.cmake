@@ -22,8 +22,9 @@ endif()
 install(TARGETS octovk EXPORT octovkTargets)
 install(TARGETS octovk_octomap EXPORT octovkOctomapTargets)
 install(TARGETS octovk_cli)
+# store.hpp stays out: its library (octovk_store, SQLite and libpq) is not installed yet.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/octovk DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-  FILES_MATCHING PATTERN "*.h" PATTERN "*.hpp")
+  FILES_MATCHING PATTERN "*.h" PATTERN "*.hpp" PATTERN "store.hpp" EXCLUDE)
 
 # Two export sets, so that the core package never needs OctoMap: octovkConfig.cmake loads the
 # second only when OctoMap is wanted (or found).
