@@ -11,6 +11,9 @@
 #                                 paper_repeat5_lazy (the runs of bench/run_all.sh), full (all four),
 #                                 or one workload of all: paper, scandat, fr079, scaling, queries
 #   ./run.sh all                  info, tests, parity, bench quick
+#   ./run.sh lent                 a lent GPU's first command: info, parity, the paper bench, then
+#                                 every test executable at once, each step under a time limit,
+#                                 and everything packed into $OUT/results.tgz after each step
 #
 # Results go to $OUT when set (the device tool returns that folder), else to results/ beside this
 # script (scratch files and unpacked data to work/ beside it, or $OCTOVK_BUNDLE_WORK): per part a log, the tests' XML (gtest), the parity table, the bench's .md and .json, and
@@ -26,16 +29,24 @@
 # pipelines, so leave it unset there).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-usage() { sed -n '6,12p' "$0" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '6,15p' "$0" | sed 's/^# \{0,1\}//'; }
 # A bad or help request touches nothing (no results/ or work/ folders made).
 case "${1:-all}" in
-  info | tests | parity | bench | all) ;;
+  info | tests | parity | bench | all | lent) ;;
   -h | --help | help) usage; exit 0 ;;
   *) usage >&2; exit 2 ;;
 esac
 out="${OUT:-$here/results}"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
+# lent: the results in a scratch folder, packed into one file in $OUT (the device tool returns at
+# most 8 files, and run.sh writes dozens).
+packed=""
+if [ "${1:-}" = lent ]; then
+  packed="$out/results.tgz"
+  out="$(mktemp -d "${TMPDIR:-/tmp}/octovk-results.XXXXXX")/results"
+  mkdir -p "$out"
+fi
 summary="$out/summary.txt"
 # Scratch files of the tests and the unpacked bench data (50 MB) stay out of $OUT, which the
 # device tool copies back: in work/ beside this script, or under /tmp where the bundle is read-only.
@@ -285,11 +296,48 @@ run_bench() {
           --lazy-leaf-boxes
         ;;
       full) run_bench all fr079_lazy paper_repeat5 paper_repeat5_lazy ;;
+      # One run of Table I's views at 0.05 m with the ray-tracing paths (about 70 s on an H200).
+      paper_lent) bench_run paper_0.05 --workload paper --resolutions 0.05 ;;
       # One workload of `all` alone, for when `all` does not fit one 10-minute command.
       paper | scandat | fr079 | scaling | queries) bench_run "results_$r" --workload "$r" ;;
       *) echo "run.sh: unknown bench run '$r'" >&2; usage >&2; exit 2 ;;
     esac
   done
+}
+
+# --- lent: one command for a lent GPU's scarce minutes ----------------------------------------
+
+pack() { [ -z "$packed" ] || tar czf "$packed" -C "$(dirname "$out")" "$(basename "$out")"; }
+
+# Each step under its own limit (seconds, from OCTOVK_LENT_LIMITS "info parity bench tests",
+# default "30 150 90 200": about 8 minutes in all, inside the device tool's 10 per command), in
+# the order of what is worth most: correctness against graph2tree, Table I, then the suite with
+# its 18 executables started at once (OCTOVK_VALIDATION=1 runs it under the validation layer).
+run_lent() {
+  local limits
+  read -ra limits <<< "${OCTOVK_LENT_LIMITS:-30 150 90 200}"
+  export OUT="$out"  # each step below is a run.sh of its own, writing into the scratch folder
+  # A step that fails leaves its lines in summary.txt, one cut by its limit a line saying so;
+  # the next step goes on.
+  step() {  # step LIMIT PART ARGS...
+    local limit="$1" rc=0
+    shift
+    timeout "$limit" "$0" "$@" || rc=$?
+    [ "$rc" -ne 124 ] || note FAIL "lent: $*" "$limit" "cut by its time limit (OCTOVK_LENT_LIMITS)"
+    pack
+  }
+  step "${limits[0]}" info
+  step "${limits[1]}" parity
+  step "${limits[2]}" bench paper_lent
+  local name pids=()
+  for exe in "$here"/tests/*; do
+    name="$(basename "$exe")"
+    timeout "${limits[3]}" "$0" tests "$name" >/dev/null 2>&1 &
+    pids+=($!)
+  done
+  wait "${pids[@]}" || true
+  pack
+  grep -v '^==' "$out/summary.txt" >&2 || true
 }
 
 # --- main ---------------------------------------------------------------------------------------
@@ -303,6 +351,7 @@ case "$part" in
   parity) run_parity ;;
   bench) run_bench "$@" ;;
   all) run_info; run_tests; run_parity; run_bench quick ;;
+  lent) run_lent ;;
 esac
 echo "run.sh: results in $out (summary: $summary)" >&2
 exit $failed
