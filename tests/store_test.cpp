@@ -449,7 +449,7 @@ void expectKilledWriterLeavesItsLog(const std::string& location, const Scratch& 
 // later looks read only tiles written since the one before: together no more than the writer
 // wrote.
 void expectFollowerKeepsTheMap(const std::string& location, const std::string& map,
-                               const Scratch& scratch) {
+                               const Scratch& scratch, const std::string& interval = "0.02") {
   const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
   std::vector<GraphScan> both = a;
   both.insert(both.end(), b.begin(), b.end());
@@ -465,7 +465,7 @@ void expectFollowerKeepsTheMap(const std::string& location, const std::string& m
   const fs::path dir = scratch.dir() / "follower";
   fs::create_directories(dir);
   OctovkProcess follower({"store", "follow", location, "--map", map, "-o", live, "--until-seq", "7",
-                          "--interval", "0.02"},
+                          "--interval", interval},
                          dir);
   ASSERT_TRUE(follower.started());
   ASSERT_TRUE(pollUntil([&] { return fs::exists(live); }, std::chrono::seconds(60)));
@@ -696,6 +696,11 @@ TEST(StorePostgres, FollowerKeepsALocalCopyCurrent) {
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
   expectFollowerKeepsTheMap(postgresUri(), "follow" + std::to_string(::getpid()), scratch);
+  // Told of each commit (LISTEN/NOTIFY): with an hour between looks it still follows at once.
+  Scratch told("store-told");
+  const auto start = std::chrono::steady_clock::now();
+  expectFollowerKeepsTheMap(postgresUri(), "told" + std::to_string(::getpid()), told, "3600");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(120));
 }
 
 TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {

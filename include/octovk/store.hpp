@@ -102,6 +102,10 @@ class StoreFollower {
   /// Reads what was committed since the last poll: nothing (std::nullopt) when no scan was; the
   /// first poll reads every tile. kFormat for a damaged tile (the follower is then as before).
   std::optional<Update> poll();
+  /// Waits up to `seconds` for the next commit to the map: true as soon as one is made (a
+  /// PostgreSQL store tells its followers: LISTEN/NOTIFY), false when the time is up (an SQLite
+  /// store only sleeps). poll() then reads it.
+  bool wait(double seconds);
   /// The map as of the last poll (empty before the first), as OccupancyMap::upload takes it.
   const HostTree& tree() const;
   /// The map's resolution and sensor model, as the store holds them.

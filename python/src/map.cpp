@@ -878,15 +878,18 @@ void bindStoreFollower(py::module_& m) {
             u = follower.poll();
           }
           if (u) return updateDict(*u, follower.params().resolution);
-          // Sleep in short steps, so that Ctrl-C is seen during a long interval.
+          // Wait in short steps, so that Ctrl-C is seen during a long interval; a PostgreSQL
+          // store ends the wait at a commit.
           double left = it.interval_s;
           while (left > 0) {
             const double step = std::min(left, 0.05);
+            bool committed = false;
             {
               py::gil_scoped_release release;
-              std::this_thread::sleep_for(std::chrono::duration<double>(step));
+              committed = follower.wait(step);
             }
             if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+            if (committed) break;
             left -= step;
           }
         }

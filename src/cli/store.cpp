@@ -120,14 +120,17 @@ void printStoreFollowHelp(std::ostream& out) {
          "writes it (a whole new file renamed into place: a reader never sees a partial one).\n"
          "One line per update on standard output:\n"
          "  seq SEQ: T tiles read (B bytes), D dropped; N nodes in OUT\n"
-         "It runs until interrupted (Ctrl-C or SIGTERM; OUT stays as last written) or, with\n"
-         "--until-seq, until scan N of the map is committed and written. No Vulkan device.\n"
+         "A PostgreSQL store tells it of each commit at once (LISTEN/NOTIFY); an SQLite one is\n"
+         "looked at every --interval. It runs until interrupted (Ctrl-C or SIGTERM; OUT stays\n"
+         "as last written) or, with --until-seq, until scan N of the map is committed and\n"
+         "written. No Vulkan device.\n"
          "\n"
          "Options:\n"
          "  -o, --output FILE      the map file, .bt or .ot. Required.\n"
          "      --map NAME         which map of the store (default: default)\n"
          "      --until-seq N      end once the map's committed scans reach N (see 'store log')\n"
-         "      --interval S       seconds between looks at the store (default: 0.5)\n"
+         "      --interval S       seconds between looks at an SQLite store, and at most between\n"
+         "                         looks at a PostgreSQL one (default: 0.5)\n"
          "  -h, --help             show this help\n";
 }
 
@@ -178,7 +181,7 @@ class StoreFollow final : public StoreMapCommand {
       }
       const std::uint64_t seq = follower.seq();
       if (until_seq_ != 0 && seq >= until_seq_) return kExitOk;
-      std::this_thread::sleep_for(std::chrono::duration<double>(interval_s_));
+      (void)follower.wait(interval_s_);  // a PostgreSQL store wakes it at a commit
     }
   }
 

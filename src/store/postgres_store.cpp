@@ -2,8 +2,11 @@
 // machines. A scan's commit locks its map's row (SELECT ... FOR UPDATE), so writers of one map
 // take turns; a reader's snapshot is one REPEATABLE READ transaction.
 #include <libpq-fe.h>
+#include <poll.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <utility>
@@ -243,6 +246,35 @@ class PostgresStore final : public Store {
     }
   }
 
+  bool waitForCommit(const std::string& name, double seconds) override {
+    // LISTEN once; then a commit to any map wakes the wait, and one to this map ends it.
+    if (!listening_ || listen_name_ != name) {
+      listen_id_ = mapId(name);
+      listen_name_ = name;
+      if (!listening_) exec("LISTEN octovk_commit");
+      listening_ = true;
+    }
+    const std::string& id = listen_id_;
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    for (;;) {
+      bool ours = false;
+      while (PGnotify* n = PQnotifies(conn_)) {
+        ours = ours || id == n->extra;
+        PQfreemem(n);
+      }
+      if (ours) return true;
+      const double left =
+          std::chrono::duration<double>(end - std::chrono::steady_clock::now()).count();
+      if (left <= 0) return false;
+      pollfd fd{PQsocket(conn_), POLLIN, 0};
+      if (fd.fd < 0) return false;
+      const int ready = ::poll(&fd, 1, static_cast<int>(std::ceil(left * 1000.0)));
+      if (ready > 0 && PQconsumeInput(conn_) == 0)
+        throw Error(ErrorCode::kIo, "store '" + name_ + "': waiting for commits: " +
+                                        oneLine(PQerrorMessage(conn_)));
+    }
+  }
+
   std::vector<LogEntry> log(const std::string& name) override {
     Result r(query("SELECT seq, source, scan, time_us FROM log WHERE map = $1 ORDER BY seq",
                    {mapId(name)}));
@@ -298,6 +330,8 @@ class PostgresStore final : public Store {
       PQclear(query(
           "INSERT INTO log (map, seq, source, scan, time_us) VALUES ($1,$2,$3,$4,$5)",
           {id, seq, entry.source, std::to_string(entry.scan), std::to_string(entry.time_us)}));
+      // Followers listening are told at the commit (a notification is sent only if it commits).
+      PQclear(query("SELECT pg_notify('octovk_commit', $1)", {id}));
       exec("COMMIT");
     } catch (...) {
       PQclear(PQexec(conn_, "ROLLBACK"));
@@ -361,7 +395,9 @@ class PostgresStore final : public Store {
   std::string uri_;
   std::string name_;
   PGconn* conn_ = nullptr;
-  bool locked_ = false;  // lock()'s transaction is open
+  bool listening_ = false;               // LISTEN octovk_commit sent (waitForCommit)
+  std::string listen_name_, listen_id_;  // the map waited for, and its id
+  bool locked_ = false;                  // lock()'s transaction is open
 };
 
 }  // namespace

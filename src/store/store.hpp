@@ -82,6 +82,10 @@ class Store {
   /// merged them) and the bodies of those written after `since` only.
   virtual TileChanges changesSince(const std::string& name, std::uint64_t since) = 0;
   virtual std::vector<LogEntry> log(const std::string& name) = 0;
+  /// Waits up to `seconds` for a scan committed to map `name`: true as soon as one is (a
+  /// back end that can be told: PostgreSQL's LISTEN/NOTIFY), false when the time is up (the
+  /// default: it only sleeps; a follower then reads the store to find out).
+  virtual bool waitForCommit(const std::string& name, double seconds);
   /// Opens a scan's transaction: takes the map's write lock (other writers wait for it until
   /// this one commits) and returns the map's last sequence number.
   virtual std::uint64_t lock(const std::string& name) = 0;

@@ -173,6 +173,9 @@ std::optional<StoreFollower::Update> StoreFollower::poll() {
   return update;
 }
 
+bool StoreFollower::wait(double seconds) {
+  return impl_->store->waitForCommit(impl_->name, seconds);
+}
 const HostTree& StoreFollower::tree() const { return impl_->tree; }
 const MapParams& StoreFollower::params() const { return impl_->info.params; }
 unsigned StoreFollower::tileDepth() const { return impl_->info.tile_depth; }
