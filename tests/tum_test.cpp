@@ -448,11 +448,7 @@ TEST(TumCli, HugeChunkIsACheapCleanError) {
       << octovk::test::hugeTextChunkPng();
   const test::RunResult m =
       test::runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
-  EXPECT_EQ(m.exit_code, 1) << m.err;
-  EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
-  EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;
-  EXPECT_NE(m.err.find(seq.image_files[1]), std::string::npos) << m.err;
-  EXPECT_NE(m.err.find("corrupt or truncated"), std::string::npos) << m.err;
+  test::expectOneErrorLine(m, 1, {seq.image_files[1], "corrupt or truncated"});
   EXPECT_LT(m.max_rss_kb, 200 * 1024) << "peak RSS of the run";
   EXPECT_LT(m.cpu_s, 1.0) << "CPU time of the run";
   EXPECT_FALSE(fs::exists(scratch / "map.bt"));
@@ -520,12 +516,7 @@ TEST(TumCli, ImageLargerThanTheDeviceTakesIsACheapCleanError) {
       << paddedHugePng(scratch.dir(), side);
   const test::RunResult m =
       test::runMeasured({"integrate", seq.dir.string(), "-o", scratch / "map.bt"}, scratch.dir());
-  EXPECT_EQ(m.exit_code, 1) << m.err;
-  EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
-  EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;
-  EXPECT_NE(m.err.find(seq.image_files[1]), std::string::npos) << m.err;
-  EXPECT_NE(m.err.find("at most " + std::to_string(limit)), std::string::npos)
-      << m.err;
+  test::expectOneErrorLine(m, 1, {seq.image_files[1], "at most " + std::to_string(limit)});
   if (!octovk::test::kAddressSanitizer) {
     EXPECT_LT(m.max_rss_kb, 400 * 1024) << "peak RSS of the run";
   }
@@ -554,14 +545,9 @@ TEST(TumCli, SparseListsAreACheapCleanError) {
     const Sequence seq = makeSequence(scratch.dir() / (std::string("seq_") + list));
     std::ofstream(seq.dir / list, std::ios_base::trunc).close();
     fs::resize_file(seq.dir / list, std::uintmax_t{1} << 30);
-    const test::RunResult m =
-        test::runMeasured({"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, scratch.dir());
-    EXPECT_EQ(m.exit_code, 1) << m.err;
-    EXPECT_EQ(m.err.rfind("octovk: error: ", 0), 0u) << m.err;
-    EXPECT_EQ(std::count(m.err.begin(), m.err.end(), '\n'), 1) << m.err;
-    EXPECT_NE(m.err.find(std::string(list) + "' line 1 is longer than 65536 bytes"),
-              std::string::npos)
-        << m.err;
+    const test::RunResult m = test::runMeasured(
+        {"convert", seq.dir.string(), "-o", scratch / "scans.graph"}, scratch.dir());
+    test::expectOneErrorLine(m, 1, {std::string(list) + "' line 1 is longer than 65536 bytes"});
     if (!octovk::test::kAddressSanitizer) {  // ASan's memory and time are not the program's
                                              // (test_support.hpp)
       EXPECT_LT(m.max_rss_kb, 100 * 1024) << "peak RSS of the run";
