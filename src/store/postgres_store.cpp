@@ -182,68 +182,26 @@ class PostgresStore final : public Store {
   }
 
   std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) override {
-    const bool own = !locked_;  // inside lock()'s transaction, the map's row is locked
-    if (own) exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
-    try {
+    return inSnapshot([&] {
       const std::string id = mapId(name);
-      std::vector<Tile> out;
-      {
-        const char* values[] = {id.c_str()};
-        Result r(
-            check(PQexecParams(conn_, "SELECT key, body FROM tiles WHERE map = $1 ORDER BY key", 1,
-                               nullptr, values, nullptr, nullptr, /*binary results=*/1),
-                  "reading the tiles of map '" + name + "'"));
-        out.reserve(static_cast<std::size_t>(r.rows()));
-        for (int i = 0; i < r.rows(); ++i) {
-          const std::string key = r.text(i, 0);  // int8, network order
-          std::uint64_t k = 0;
-          for (unsigned char c : key) k = (k << 8) | c;
-          out.push_back({k, r.text(i, 1)});
-        }
-      }
+      std::vector<Tile> out = tilesAfter(id, 0, name);
       if (last_seq) *last_seq = lastSeq(id);
-      if (own) exec("COMMIT");
       return out;
-    } catch (...) {
-      if (own) PQclear(PQexec(conn_, "ROLLBACK"));
-      throw;
-    }
+    });
   }
 
   TileChanges changesSince(const std::string& name, std::uint64_t since) override {
-    const bool own = !locked_;
-    if (own) exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
-    try {
+    return inSnapshot([&] {
       const std::string id = mapId(name);
       TileChanges out;
-      {
-        Result r(query("SELECT key FROM tiles WHERE map = $1 ORDER BY key", {id}));
-        out.keys.reserve(static_cast<std::size_t>(r.rows()));
-        for (int i = 0; i < r.rows(); ++i)
-          out.keys.push_back(static_cast<std::uint64_t>(r.integer(i, 0)));
-      }
-      {
-        const std::string after = std::to_string(since);
-        const char* values[] = {id.c_str(), after.c_str()};
-        Result r(check(PQexecParams(conn_,
-                                    "SELECT key, body FROM tiles WHERE map = $1 AND version > $2 "
-                                    "ORDER BY key",
-                                    2, nullptr, values, nullptr, nullptr, /*binary results=*/1),
-                       "reading the changed tiles of map '" + name + "'"));
-        for (int i = 0; i < r.rows(); ++i) {
-          const std::string key = r.text(i, 0);  // int8, network order
-          std::uint64_t k = 0;
-          for (unsigned char c : key) k = (k << 8) | c;
-          out.changed.push_back({k, r.text(i, 1)});
-        }
-      }
+      Result r(query("SELECT key FROM tiles WHERE map = $1 ORDER BY key", {id}));
+      out.keys.reserve(static_cast<std::size_t>(r.rows()));
+      for (int i = 0; i < r.rows(); ++i)
+        out.keys.push_back(static_cast<std::uint64_t>(r.integer(i, 0)));
+      out.changed = tilesAfter(id, since, name);
       out.last_seq = lastSeq(id);
-      if (own) exec("COMMIT");
       return out;
-    } catch (...) {
-      if (own) PQclear(PQexec(conn_, "ROLLBACK"));
-      throw;
-    }
+    });
   }
 
   bool waitForCommit(const std::string& name, double seconds) override {
@@ -340,6 +298,43 @@ class PostgresStore final : public Store {
   }
 
  private:
+  // `read` in one REPEATABLE READ transaction, so that what it reads is one commit's (inside
+  // lock()'s transaction when one is open: the map's row is locked there).
+  template <class Read>
+  auto inSnapshot(Read&& read) -> decltype(read()) {
+    const bool own = !locked_;
+    if (own) exec("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY");
+    try {
+      auto out = read();
+      if (own) exec("COMMIT");
+      return out;
+    } catch (...) {
+      if (own) PQclear(PQexec(conn_, "ROLLBACK"));
+      throw;
+    }
+  }
+
+  // The tiles of map `id` written after scan `since` (0: every tile; versions start at 1), by key.
+  std::vector<Tile> tilesAfter(const std::string& id, std::uint64_t since,
+                               const std::string& name) {
+    const std::string after = std::to_string(since);
+    const char* values[] = {id.c_str(), after.c_str()};
+    Result r(check(PQexecParams(conn_,
+                                "SELECT key, body FROM tiles WHERE map = $1 AND version > $2 "
+                                "ORDER BY key",
+                                2, nullptr, values, nullptr, nullptr, /*binary results=*/1),
+                   "reading the tiles of map '" + name + "'"));
+    std::vector<Tile> out;
+    out.reserve(static_cast<std::size_t>(r.rows()));
+    for (int i = 0; i < r.rows(); ++i) {
+      const std::string key = r.text(i, 0);  // int8, network order
+      std::uint64_t k = 0;
+      for (unsigned char c : key) k = (k << 8) | c;
+      out.push_back({k, r.text(i, 1)});
+    }
+    return out;
+  }
+
   static std::string oneLine(std::string text) {
     for (char& c : text)
       if (c == '\n' || c == '\t') c = ' ';

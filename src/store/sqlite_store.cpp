@@ -252,53 +252,26 @@ class SqliteStore final : public Store {
   }
 
   std::vector<Tile> tiles(const std::string& name, std::uint64_t* last_seq) override {
-    // One read transaction: the tiles and the sequence number of one commit.
-    const bool own = !locked_;
-    if (own) exec("BEGIN");
-    try {
-      std::vector<Tile> out;
+    return inSnapshot([&] {
       const std::int64_t id = mapId(name);
-      {
-        Statement s(db_, "SELECT key, body FROM tiles WHERE map = ? ORDER BY key",
-                    where("reading the tiles of map '" + name + "'"));
-        s.bind(1, id);
-        while (s.step()) out.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1)});
-      }
+      std::vector<Tile> out = tilesAfter(id, 0, name);
       if (last_seq) *last_seq = lastSeq(id);
-      if (own) exec("COMMIT");
       return out;
-    } catch (...) {
-      if (own) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-      throw;
-    }
+    });
   }
 
   TileChanges changesSince(const std::string& name, std::uint64_t since) override {
-    const bool own = !locked_;  // one read transaction: one commit's tiles
-    if (own) exec("BEGIN");
-    try {
+    return inSnapshot([&] {
       TileChanges out;
       const std::int64_t id = mapId(name);
-      {
-        Statement s(db_, "SELECT key FROM tiles WHERE map = ? ORDER BY key",
-                    where("reading the tile keys of map '" + name + "'"));
-        s.bind(1, id);
-        while (s.step()) out.keys.push_back(static_cast<std::uint64_t>(s.integer(0)));
-      }
-      {
-        Statement s(db_, "SELECT key, body FROM tiles WHERE map = ? AND version > ? ORDER BY key",
-                    where("reading the changed tiles of map '" + name + "'"));
-        s.bind(1, id).bind(2, static_cast<std::int64_t>(since));
-        while (s.step())
-          out.changed.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1)});
-      }
+      Statement s(db_, "SELECT key FROM tiles WHERE map = ? ORDER BY key",
+                  where("reading the tile keys of map '" + name + "'"));
+      s.bind(1, id);
+      while (s.step()) out.keys.push_back(static_cast<std::uint64_t>(s.integer(0)));
+      out.changed = tilesAfter(id, since, name);
       out.last_seq = lastSeq(id);
-      if (own) exec("COMMIT");
       return out;
-    } catch (...) {
-      if (own) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-      throw;
-    }
+    });
   }
 
   std::vector<LogEntry> log(const std::string& name) override {
@@ -354,6 +327,32 @@ class SqliteStore final : public Store {
 
  private:
   std::string where(const std::string& what) const { return "store '" + path_ + "': " + what; }
+
+  // `read` in one read transaction, so that what it reads is one commit's (inside lock()'s
+  // transaction when one is open).
+  template <class Read>
+  auto inSnapshot(Read&& read) -> decltype(read()) {
+    const bool own = !locked_;
+    if (own) exec("BEGIN");
+    try {
+      auto out = read();
+      if (own) exec("COMMIT");
+      return out;
+    } catch (...) {
+      if (own) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      throw;
+    }
+  }
+
+  // The tiles of map `id` written after scan `since` (0: every tile; versions start at 1), by key.
+  std::vector<Tile> tilesAfter(std::int64_t id, std::uint64_t since, const std::string& name) {
+    std::vector<Tile> out;
+    Statement s(db_, "SELECT key, body FROM tiles WHERE map = ? AND version > ? ORDER BY key",
+                where("reading the tiles of map '" + name + "'"));
+    s.bind(1, id).bind(2, static_cast<std::int64_t>(since));
+    while (s.step()) out.push_back({static_cast<std::uint64_t>(s.integer(0)), s.text(1)});
+    return out;
+  }
 
   // WAL (readers see the last commit while a writer works), once the file is known to be an
   // octovk store. Changing the journal mode needs the file to itself, which the busy timeout does
