@@ -324,6 +324,19 @@ constexpr const char* kMapDoc =
     "ColorMap and StampedMap (OctoMap's ColorOcTree and OcTreeStamped) are Maps whose nodes "
     "also hold a colour or a time stamp.";
 
+// MapParams of `resolution` and OctoMap's sensor model as the keyword arguments give it.
+MapParams sensorParams(double resolution, double prob_hit, double prob_miss, double clamping_min,
+                       double clamping_max, double occupancy_threshold) {
+  MapParams params;
+  params.resolution = resolution;
+  params.prob_hit = prob_hit;
+  params.prob_miss = prob_miss;
+  params.clamping_min = clamping_min;
+  params.clamping_max = clamping_max;
+  params.occupancy_threshold = occupancy_threshold;
+  return params;
+}
+
 // Binds `cls`'s constructor: an empty Self holding a Kind (OccupancyMap, ColorMap, StampedMap)
 // made from the keywords every map takes; `doc` starts the docstring.
 template <class Self, class Kind, class Class>
@@ -332,13 +345,8 @@ void defInit(Class& cls, const char* doc) {
                       double clamping_max, double occupancy_threshold, std::size_t max_nodes,
                       std::size_t max_device_bytes, CastRayBackend cast_ray_backend,
                       ScanRays scan_rays, py::object context) {
-            MapParams params;
-            params.resolution = resolution;
-            params.prob_hit = prob_hit;
-            params.prob_miss = prob_miss;
-            params.clamping_min = clamping_min;
-            params.clamping_max = clamping_max;
-            params.occupancy_threshold = occupancy_threshold;
+            MapParams params = sensorParams(resolution, prob_hit, prob_miss, clamping_min,
+                                            clamping_max, occupancy_threshold);
             params.max_nodes = max_nodes;
             params.max_device_bytes = max_device_bytes;
             params.cast_ray_backend = cast_ray_backend;
@@ -720,15 +728,9 @@ void bindStoredMap(py::module_& m) {
         Context& ctx = contextOf(context);
         std::optional<MapParams> create;
         if (resolution) {
-          MapParams p;
-          p.resolution = *resolution;
-          p.prob_hit = prob_hit;
-          p.prob_miss = prob_miss;
-          p.clamping_min = clamping_min;
-          p.clamping_max = clamping_max;
-          p.occupancy_threshold = occupancy_threshold;
-          p.max_device_bytes = max_device_bytes;
-          create = p;
+          create = sensorParams(*resolution, prob_hit, prob_miss, clamping_min, clamping_max,
+                                occupancy_threshold);
+          create->max_device_bytes = max_device_bytes;
         }
         std::optional<StoredMap> opened;
         {
