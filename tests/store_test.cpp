@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -584,6 +585,62 @@ TEST(StoredMapApi, ScansCommitAsOctoMapReplaysTheLog) {
   EXPECT_THROW((void)StoredMap::open(ctx, location, "lab", color), Error);
   EXPECT_THROW((void)readStoredMap(ctx, location, "lab"), Error);
   EXPECT_FALSE(store::Store::open(location, false)->map("lab").has_value());
+}
+
+// A commit serialises only the tiles on the scan's updated paths (and new ones) when the device
+// map is the last commit's plus one scan; the store must still hold exactly the whole map's cut
+// after every scan: through free space merging into tiles above the tile depth, a merged region
+// expanded again by an obstacle, an edit made between commits and a tile pruning removes.
+TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("store");
+  std::unique_ptr<store::Store> st = store::Store::open(scratch / "w.sqlite", true);
+  MapParams params;
+  params.resolution = 0.2;  // a tile is 3.2 m: a 25.6 m room's free middle merges above it
+  store::MapWriter writer(*st, "w", params);
+  OccupancyMap map(ctx, params);
+  // The walls of a cube of edge 25.4 m around the sensor: rays through all of its middle.
+  std::vector<Eigen::Vector3f> walls;
+  for (int a = 0; a < 64; ++a)
+    for (int b = 0; b < 64; ++b) {
+      const float u = -12.7f + 0.4f * static_cast<float>(a);
+      const float v = -12.7f + 0.4f * static_cast<float>(b);
+      walls.insert(walls.end(), {{12.7f, u, v}, {-12.7f, u, v}, {u, 12.7f, v}, {u, -12.7f, v},
+                                 {u, v, 12.7f}, {u, v, -12.7f}});
+    }
+  std::size_t incremental = 0, above = 0, removed = 0;
+  const auto commitAndCheck = [&](std::uint64_t scan) {
+    const store::CommitStats stats = writer.commit(map, "test", scan);
+    const std::vector<store::Tile> expected = store::tilesOf(map.download());
+    std::vector<store::Tile> stored = st->tiles("w", nullptr);
+    std::sort(stored.begin(), stored.end(),
+              [](const store::Tile& x, const store::Tile& y) { return x.key < y.key; });
+    ASSERT_EQ(stored.size(), expected.size()) << "after scan " << scan;
+    for (std::size_t i = 0; i < expected.size(); ++i)
+      ASSERT_TRUE(stored[i] == expected[i]) << "tile " << expected[i].key << " after scan " << scan;
+    if (stats.tiles_compared < expected.size()) ++incremental;
+    for (const store::Tile& t : expected) above += store::tileKeyDepth(t.key) < store::kTileDepth;
+    removed += stats.tiles_removed;
+  };
+  std::uint64_t scan = 0;
+  const auto insert = [&](const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& at) {
+    writer.begin(map);
+    map.insertPointCloud(points, at);
+    commitAndCheck(scan++);
+  };
+  for (int i = 0; i < 6; ++i) insert(walls, Eigen::Vector3f(0.05f * i, 0.0f, 0.0f));
+  EXPECT_GT(above, 0u) << "no free region merged above the tile depth: the test misses its case";
+  std::vector<Eigen::Vector3f> with_box = walls;
+  for (int i = 0; i < 6; ++i) with_box.push_back({2.1f + 0.2f * i, -3.3f, 1.1f});  // an obstacle
+  insert(with_box, Eigen::Vector3f(0.1f, 0.0f, 0.0f));
+  writer.begin(map);
+  map.clearBox(Eigen::Vector3f(-1.0f, -1.0f, -1.0f), Eigen::Vector3f(1.0f, 1.0f, 1.0f));  // an edit
+  map.insertPointCloud(walls, Eigen::Vector3f(0.0f, 0.1f, 0.0f));
+  commitAndCheck(scan++);
+  // The obstacle gone: its cells fade to free and merge again (tiles removed).
+  for (int i = 0; i < 3; ++i) insert(walls, Eigen::Vector3f(0.0f, 0.05f * i, 0.0f));
+  EXPECT_GE(incremental, 4u) << "commits compared every tile: the scan's tiles were not used";
+  EXPECT_GT(removed, 0u) << "no tile was removed: the test misses merging";
 }
 
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {

@@ -243,6 +243,7 @@ class OccupancyMap {
  private:
   friend class InteropAccess;  // vulkan_interop.hpp
   friend class FieldAccess;    // distance.hpp (src/field/)
+  friend class StoreAccess;    // src/map/store_access.hpp (the map store, src/store/)
   std::unique_ptr<Impl> impl_;
 };
 

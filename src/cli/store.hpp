@@ -55,7 +55,7 @@ class IntegrateStore {
   std::unique_ptr<store::MapWriter> writer_;
   bool existed_ = false;
   std::size_t reloads_ = 0;
-  std::size_t scans_ = 0, tiles_ = 0, bytes_ = 0, max_bytes_ = 0;
+  std::size_t scans_ = 0, tiles_ = 0, compared_ = 0, bytes_ = 0, max_bytes_ = 0;
   double find_s_ = 0.0, write_s_ = 0.0;
 };
 

@@ -196,6 +196,7 @@ void MapBuffers::allocateLists(std::size_t active_capacity) {
   vk::Buffer t(device_, listBytes(active_capacity), false);
   touched = std::move(t);
   active_capacity_ = active_capacity;
+  ++lists_generation_;
   rebind();
 }
 

@@ -121,6 +121,9 @@ class MapBuffers {
   std::uint32_t hashLog2() const noexcept { return hash_log2_; }
   std::uint32_t endpointLog2() const noexcept { return endpoint_log2_; }
   std::size_t activeCapacity() const noexcept { return active_capacity_; }
+  /// Counts the touched lists' allocations: lists read after a scan are that scan's only while
+  /// this is what it was when the scan ran.
+  std::uint64_t listsGeneration() const noexcept { return lists_generation_; }
   std::uint32_t poolBlocks() const noexcept { return pool_blocks_; }
   std::size_t pointCapacity() const noexcept { return point_capacity_; }
   /// log2 of the change set's slots (0 while change detection was never on).
@@ -206,6 +209,7 @@ class MapBuffers {
   bool sets_need_fill_ = true;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t active_capacity_ = 0;
+  std::uint64_t lists_generation_ = 0;
   std::uint32_t pool_blocks_ = 0;
   std::size_t point_capacity_ = 0;
   std::uint32_t changes_log2_ = 0;

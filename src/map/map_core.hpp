@@ -5,6 +5,7 @@
 // it; OccupancyMap::Impl owns it.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "map/map_buffers.hpp"
@@ -50,6 +51,18 @@ struct MapCore {
   /// Counts the changes of the tree (treeChanged): castRay's scene is rebuilt when it was built
   /// from another version.
   std::uint64_t tree_version = 0;
+  /// What the touched lists (the prune pass's nodes per depth) hold: the nodes on the paths the
+  /// last recorded scan updated, when that scan changed the tree to `version` and nothing was
+  /// recorded after it (version 0: they describe no one change). A capture reads them to find
+  /// what changed (TreeTransfer::capture).
+  struct TouchedLists {
+    std::uint64_t version = 0;
+    std::array<std::uint32_t, gpu::kLevelCount> counts{};
+    std::uint64_t generation = 0;  ///< MapBuffers::listsGeneration() when the scan ran
+  };
+  TouchedLists touched;
+  /// Scans recorded (each recording, a scan run again included, overwrites the touched lists).
+  std::uint64_t scans_recorded = 0;
   LeafBoxes leaf_boxes = LeafBoxes::kCurrent;
 };
 

@@ -134,6 +134,16 @@ class OccupancyMap::Impl {
   // ---- the tree (TreeTransfer, MapCore), each after the scans submitted before it ----
   HostTree download();
   void upload(const HostTree& tree);
+  /// The pool and what changed near the root since version `since` (TreeTransfer::capture).
+  PoolCapture capture(std::uint64_t since, unsigned depth) {
+    flush();
+    return transfer_.capture(since, depth);
+  }
+  /// The tree's version once the scans in flight are in (MapCore::tree_version).
+  std::uint64_t treeVersion() {
+    flush();
+    return core_.tree_version;
+  }
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
   /// Rebuilds the leaf boxes if scans were inserted without rebuilding them.

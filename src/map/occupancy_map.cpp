@@ -6,6 +6,7 @@
 #include "map/context_access.hpp"
 #include "map/host_memory.hpp"
 #include "map/map_impl.hpp"
+#include "map/store_access.hpp"
 
 namespace octovk {
 
@@ -322,6 +323,14 @@ HostTree OccupancyMap::download() {
 
 void OccupancyMap::upload(const HostTree& tree) {
   return hostMemoryGuard("upload", [&] { self().upload(tree); });
+}
+
+PoolCapture StoreAccess::capture(OccupancyMap& map, std::uint64_t since, unsigned depth) {
+  return hostMemoryGuard("capture", [&] { return map.self().capture(since, depth); });
+}
+
+std::uint64_t StoreAccess::version(OccupancyMap& map) {
+  return hostMemoryGuard("version", [&] { return map.self().treeVersion(); });
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::downloadLeafBoxes() {

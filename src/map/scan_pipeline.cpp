@@ -39,6 +39,8 @@ void ScanPipeline::record(PendingScan& p) {
   RayScene* scene = input.trace ? &scenes_.scanScene() : nullptr;  // before recording: it may wait
   passes::Recorder& rec = core_.rec;
   core_.stream.begin(core_.buffers.bindings);
+  core_.touched.version = 0;  // the lists become this scan's
+  p.recording = ++core_.scans_recorded;
   passes::recordRayKeys(rec, sp, input);
   if (scene) {
     passes::recordScanScene(rec, scene->accel, scene->boxes, scenes_.scanHeader());
@@ -215,6 +217,12 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   if (counters.active_cells + counters.leaf_cells > 0) {
     core_.treeChanged();
     if (p.noted_changes) changes_.scanNoted();  // the change set holds what it changed
+    if (p.recording == core_.scans_recorded) {  // nothing recorded after it: the lists are its
+      core_.touched.version = core_.tree_version;
+      std::copy(std::begin(counters.touched_count), std::end(counters.touched_count),
+                core_.touched.counts.begin());
+      core_.touched.generation = core_.buffers.listsGeneration();
+    }
   }
   if (p.caller == ScanCaller::kInsert)
     blocking_stats_ = stats;  // the call's result, which must not need an allocation

@@ -93,6 +93,7 @@ class ScanPipeline {
     QueryResults* results = nullptr;
     ScanStats stats;
     bool noted_changes = false;  ///< recorded with change detection on (ChangeSet::scanNoted)
+    std::uint64_t recording = 0;  ///< MapCore::scans_recorded at its last recording
   };
   /// submit(); `caller` kInsert: the blocking call's scan, whose `queries` (staged here) run
   /// right after it in its submission.

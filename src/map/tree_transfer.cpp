@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <memory>
 #include <string>
 
 #include "gpu/gpu_types.h"
@@ -26,6 +27,45 @@ HostTree TreeTransfer::download() {
       {reinterpret_cast<const std::uint32_t*>(bytes + node_bytes), payload_bytes / 4}, kind, pool);
   averageInnerColors(tree);  // ColorOcTree::updateInnerOccupancy's colours
   return tree;
+}
+
+PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
+  const gpu::PoolState pool = core_.readPool();
+  PoolCapture out;
+  out.version = core_.tree_version;
+  out.root_exists = pool.root_exists != 0;
+  const MapCore::TouchedLists& lists = core_.touched;
+  const bool unchanged = out.version == since;
+  const bool one_scan = out.version == since + 1 && lists.version == out.version &&
+                        lists.generation == core_.buffers.listsGeneration();
+  out.incremental = depth < gpu::kTreeDepth && (unchanged || one_scan);
+  std::size_t listed = 0;
+  if (out.incremental && !unchanged)
+    for (unsigned level = 0; level <= depth; ++level) listed += lists.counts[level];
+  const std::size_t count = std::size_t{pool.bump} * 8;
+  const std::size_t node_bytes = count * sizeof(gpu::Node);
+  auto owner = std::make_shared<vk::Buffer>(core_.device,
+                                            std::max<std::size_t>(node_bytes + listed * 4, 4), true);
+  vk::Buffer& staging = *owner;
+  core_.stream.begin(core_.buffers.bindings);
+  if (node_bytes) core_.stream.copy(core_.buffers.nodes, staging, node_bytes);
+  std::size_t at = node_bytes;
+  if (listed)
+    for (unsigned level = 0; level <= depth; ++level) {
+      const std::size_t bytes = std::size_t{lists.counts[level]} * 4;
+      if (bytes == 0) continue;
+      core_.stream.copy(core_.buffers.touched, staging, bytes,
+                        std::size_t{level} * core_.buffers.activeCapacity() * 4, at);
+      at += bytes;
+    }
+  core_.stream.submitAndWait();
+  const auto* bytes = static_cast<const unsigned char*>(staging.mapped());
+  out.nodes = {reinterpret_cast<const gpu::Node*>(bytes), count};
+  out.memory = std::move(owner);
+  out.changed.resize(listed);
+  if (listed) std::memcpy(out.changed.data(), bytes + node_bytes, listed * 4);
+  std::sort(out.changed.begin(), out.changed.end());
+  return out;
 }
 
 // The pool a tree of `blocks` blocks is uploaded into: a quarter more for the next scans, at least

@@ -3,10 +3,12 @@
 // (OccupancyMap::Impl does).
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "map/host_tree.hpp"
 #include "map/map_core.hpp"
+#include "map/pool_capture.hpp"
 #include "map/ray_scene_cache.hpp"
 #include "octovk/octovk.hpp"
 
@@ -17,6 +19,9 @@ class TreeTransfer {
   TreeTransfer(MapCore& core, RaySceneCache& scenes) : core_(core), scenes_(scenes) {}
 
   HostTree download();
+  /// The pool and what changed at depths 0..`depth` (at most 15) since the tree's version
+  /// `since`, in one submission.
+  PoolCapture capture(std::uint64_t since, unsigned depth);
   /// Replaces the tree; throws with the map unchanged where it cannot (pool limit, memory).
   /// `shrink`: also into a smaller pool than the current one, sized for the tree (compact()).
   void upload(const HostTree& tree, bool shrink = false);

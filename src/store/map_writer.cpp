@@ -1,9 +1,11 @@
 // MapWriter: the map committed to a store after each scan, only the tiles that changed.
+#include <algorithm>
 #include <chrono>
 #include <string_view>
 #include <thread>
 #include <utility>
 
+#include "map/store_access.hpp"
 #include "store/store.hpp"
 
 namespace octovk::store {
@@ -63,10 +65,10 @@ bool MapWriter::begin(OccupancyMap& map) {
   try {
     const HostTree tree = load();  // in the locked transaction: sets last_seq_
     map.upload(tree);
+    version_ = StoreAccess::version(map);  // the tree the hashes describe
   } catch (...) {
     store_.unlock();
-    hashes_.clear();
-    last_seq_ = ~std::uint64_t{0};  // the map is unknown: the next begin() loads it again
+    forget();  // the map is unknown: the next begin() loads it again
     throw;
   }
   return true;
@@ -79,18 +81,34 @@ CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std:
     return std::chrono::duration<double>(Clock::now() - from).count();
   };
   const auto start = Clock::now();
-  const std::vector<Tile> tiles = tilesOf(map.download(), info_.tile_depth);
+  if (map.params().payload != Payload::kNone)
+    throw Error(ErrorCode::kInvalidArgument,
+                std::string("a store holds plain occupancy maps (OcTree), not ") +
+                    treeTypeName(map.params().payload) + " maps");
+  // The pool as the device holds it, and the nodes above the tile depth that the scan changed
+  // (when the map is the last commit's plus this one scan): only their tiles, and tiles new
+  // since, are serialised and compared; the others are as committed.
+  const PoolCapture pool = StoreAccess::capture(map, version_, info_.tile_depth);
+  const bool incremental = pool.incremental && version_ != kUnknownVersion;
+  const std::vector<PoolTile> tiles = poolTiles(pool, info_.tile_depth);
   CommitStats stats;
   std::vector<Tile> changed;
   std::unordered_map<std::uint64_t, std::uint64_t> hashes;
   hashes.reserve(tiles.size());
-  for (const Tile& t : tiles) {
-    const std::uint64_t h = bodyHash(t.body);
-    hashes.emplace(t.key, h);
+  for (const PoolTile& t : tiles) {
     const auto old = hashes_.find(t.key);
+    if (incremental && old != hashes_.end() &&
+        !std::binary_search(pool.changed.begin(), pool.changed.end(), t.node)) {
+      hashes.emplace(t.key, old->second);
+      continue;
+    }
+    std::string body = poolTileBody(pool, t);
+    const std::uint64_t h = bodyHash(body);
+    hashes.emplace(t.key, h);
+    ++stats.tiles_compared;
     if (old == hashes_.end() || old->second != h) {
-      changed.push_back(t);
-      stats.body_bytes += t.body.size();
+      stats.body_bytes += body.size();
+      changed.push_back({t.key, std::move(body)});
     }
   }
   std::vector<std::uint64_t> removed;
@@ -110,6 +128,7 @@ CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std:
   // Only once committed: a failed commit leaves the writer as before, to be tried again.
   hashes_ = std::move(hashes);
   last_seq_ = entry.seq;
+  version_ = pool.version;
   stats.seq = entry.seq;
   stats.tiles_written = changed.size();
   stats.tiles_removed = removed.size();

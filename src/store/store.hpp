@@ -47,7 +47,10 @@ struct CommitStats {
   std::size_t tiles_written = 0;  ///< new or changed tiles
   std::size_t tiles_removed = 0;  ///< tiles that pruning merged into a larger one
   std::size_t body_bytes = 0;     ///< the written tiles' body bytes
-  double find_s = 0.0;            ///< seconds finding them: download, cut, hash
+  /// Tiles serialised and hashed to find them: the scan's (those on its updated paths, and new
+  /// ones), or every tile when the map changed otherwise since the last commit.
+  std::size_t tiles_compared = 0;
+  double find_s = 0.0;            ///< seconds finding them: capture, cut, serialise, hash
   double write_s = 0.0;           ///< seconds of the store's transaction
 };
 
@@ -127,6 +130,7 @@ class MapWriter {
   void forget() {
     hashes_.clear();
     last_seq_ = ~std::uint64_t{0};
+    version_ = kUnknownVersion;
   }
 
  private:
@@ -134,8 +138,12 @@ class MapWriter {
   std::string name_;
   MapInfo info_;
   bool existed_ = false;
+  static constexpr std::uint64_t kUnknownVersion = ~std::uint64_t{0};
   std::uint64_t last_seq_ = 0;
   std::unordered_map<std::uint64_t, std::uint64_t> hashes_;  // key -> hash of the body
+  /// The device map's tree version (StoreAccess::version) that `hashes_` describe; unknown:
+  /// the next commit compares every tile.
+  std::uint64_t version_ = kUnknownVersion;
 };
 
 /// The hash MapWriter keeps of a body.

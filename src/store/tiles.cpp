@@ -12,7 +12,9 @@
 #include <variant>
 
 #include "io/parse.hpp"
+#include "gpu/gpu_types.h"
 #include "map/host_tree.hpp"
+#include "map/pool_capture.hpp"
 
 namespace octovk::store {
 
@@ -40,36 +42,71 @@ std::string tileName(std::uint64_t key) {
          std::to_string(corner[2]) + ")";
 }
 
-// Writes node `index` of `tree` at `depth` and its subtree as .ot records (depth <= 16).
-void appendRecords(const HostTree& tree, std::size_t index, unsigned depth, std::string& out) {
-  if (index >= tree.nodes.size())
-    throw Error(ErrorCode::kFormat, "host tree: a link leads to node " + std::to_string(index) +
-                                        " of " + std::to_string(tree.nodes.size()));
-  const HostTree::Node& n = tree.nodes[index];
-  const std::uint32_t mask = depth < kTreeDepth ? (n.mask & 0xFFu) : 0u;
+// A tree's nodes as the cut reads them: log-odds, child bits and children's block. Over a host
+// tree, or over a device pool as captured (child bits from the children's kFlagLive).
+struct NodeView {
+  float log_odds;
+  std::uint32_t mask;
+  std::size_t children;  // block
+};
+
+Error linkError(std::size_t index, std::size_t size) {
+  return Error(ErrorCode::kFormat, "host tree: a link leads to node " + std::to_string(index) +
+                                       " of " + std::to_string(size));
+}
+
+struct HostTreeNodes {
+  const HostTree& tree;
+  NodeView operator()(std::size_t index) const {
+    if (index >= tree.nodes.size()) throw linkError(index, tree.nodes.size());
+    const HostTree::Node& n = tree.nodes[index];
+    return {n.log_odds, n.mask & 0xFFu, n.children};
+  }
+};
+
+struct PoolNodes {
+  const PoolCapture& pool;
+  NodeView operator()(std::size_t index) const {
+    const std::size_t size = pool.nodes.size();
+    if (index >= size) throw linkError(index, size);
+    const gpu::Node& n = pool.nodes[index];
+    const std::size_t block = n.link & gpu::kBlockMask;
+    std::uint32_t mask = 0;
+    if (block != gpu::kNoChildren) {
+      if (block * 8 + 8 > size) throw linkError(block * 8, size);
+      for (unsigned s = 0; s < 8; ++s)
+        if (pool.nodes[block * 8 + s].link & gpu::kFlagLive) mask |= 1u << s;
+    }
+    return {n.log_odds, mask, block};
+  }
+};
+
+// Writes node `index` at `depth` and its subtree as .ot records (depth <= 16).
+template <class Nodes>
+void appendRecords(const Nodes& nodes, std::size_t index, unsigned depth, std::string& out) {
+  const NodeView n = nodes(index);
+  const std::uint32_t mask = depth < kTreeDepth ? n.mask : 0u;
   char record[kRecordBytes];
   std::memcpy(record, &n.log_odds, sizeof(float));
   record[sizeof(float)] = static_cast<char>(mask);
   out.append(record, kRecordBytes);
   for (unsigned i = 0; i < 8; ++i)
-    if (mask & (1u << i)) appendRecords(tree, std::size_t{n.children} * 8 + i, depth + 1, out);
+    if (mask & (1u << i)) appendRecords(nodes, n.children * 8 + i, depth + 1, out);
 }
 
-void cut(const HostTree& tree, std::size_t index, unsigned depth, std::uint64_t path,
-         unsigned tile_depth, std::vector<Tile>& out) {
-  if (index >= tree.nodes.size())
-    throw Error(ErrorCode::kFormat, "host tree: a link leads to node " + std::to_string(index) +
-                                        " of " + std::to_string(tree.nodes.size()));
-  const HostTree::Node& n = tree.nodes[index];
-  if (depth == tile_depth || (n.mask & 0xFFu) == 0) {
-    Tile& tile = out.emplace_back();
-    tile.key = tileKey(depth, path);
-    appendRecords(tree, index, depth, tile.body);
+// Visits the tiles under node `index` (at `depth`, reached by `path`) in key order:
+// visit(key, index, depth) for each node at the tile depth and each leaf above it.
+template <class Nodes, class Visit>
+void cut(const Nodes& nodes, std::size_t index, unsigned depth, std::uint64_t path,
+         unsigned tile_depth, Visit&& visit) {
+  const NodeView n = nodes(index);
+  if (depth == tile_depth || n.mask == 0) {
+    visit(tileKey(depth, path), index, depth);
     return;
   }
   for (unsigned i = 0; i < 8; ++i)
     if (n.mask & (1u << i))
-      cut(tree, std::size_t{n.children} * 8 + i, depth + 1, (path << 3) | i, tile_depth, out);
+      cut(nodes, n.children * 8 + i, depth + 1, (path << 3) | i, tile_depth, visit);
 }
 
 // The node above the tile depth, while the tree is rebuilt: a child is another such node
@@ -291,8 +328,31 @@ std::vector<Tile> tilesOf(const HostTree& tree, unsigned tile_depth) {
                 std::string("a store holds plain occupancy maps (OcTree), not ") +
                     treeTypeName(tree.payload) + " maps");
   std::vector<Tile> tiles;
-  if (tree.root_exists) cut(tree, 0, 0, 0, tile_depth, tiles);
+  const HostTreeNodes nodes{tree};
+  if (tree.root_exists)
+    cut(nodes, 0, 0, 0, tile_depth, [&](std::uint64_t key, std::size_t index, unsigned depth) {
+      Tile& tile = tiles.emplace_back();
+      tile.key = key;
+      appendRecords(nodes, index, depth, tile.body);
+    });
   return tiles;  // depth first: in key order
+}
+
+std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth) {
+  checkTileDepth(tile_depth);
+  std::vector<PoolTile> tiles;
+  if (pool.root_exists)
+    cut(PoolNodes{pool}, 0, 0, 0, tile_depth,
+        [&](std::uint64_t key, std::size_t index, unsigned depth) {
+          tiles.push_back({key, static_cast<std::uint32_t>(index), depth});
+        });
+  return tiles;
+}
+
+std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile) {
+  std::string body;
+  appendRecords(PoolNodes{pool}, tile.node, tile.depth, body);
+  return body;
 }
 
 HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth) {
@@ -302,7 +362,7 @@ HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth) {
 
 std::string nodeStream(const HostTree& tree) {
   std::string out;
-  if (tree.root_exists) appendRecords(tree, 0, 0, out);
+  if (tree.root_exists) appendRecords(HostTreeNodes{tree}, 0, 0, out);
   return out;
 }
 

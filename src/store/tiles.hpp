@@ -16,6 +16,10 @@ namespace octomap {
 class OcTree;
 }
 
+namespace octovk {
+struct PoolCapture;
+}
+
 namespace octovk::store {
 
 /// The depth (of OctoMap's 16) at which the map is cut: a tile is 16^3 finest cells (0.8 m at
@@ -51,6 +55,19 @@ Key tileKeyCorner(std::uint64_t key);
 /// The tiles of `tree` cut at `tile_depth` (1..16), sorted by key. Only plain occupancy trees
 /// (Payload::kNone); kInvalidArgument for others, kFormat for a tree whose links leave it.
 std::vector<Tile> tilesOf(const HostTree& tree, unsigned tile_depth = kTileDepth);
+
+/// A tile of a captured device pool (PoolCapture): its key, and its root node in the pool at
+/// its depth; its body is read only when asked for (poolTileBody).
+struct PoolTile {
+  std::uint64_t key = 0;
+  std::uint32_t node = 0;
+  unsigned depth = 0;
+};
+/// The tiles of the tree in `pool` cut at `tile_depth` (1..16), in key order, without their
+/// bodies: a walk of the tree above the tile depth. kFormat for links that leave the pool.
+std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth = kTileDepth);
+/// The body of a tile of `pool` (Tile::body): what tilesOf gives for the same tree.
+std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile);
 
 /// The tree that `tiles` (any order) cut at `tile_depth` came from: each tile's subtree as its body
 /// holds it, and above the tile depth what OctoMap's tree holds there: an inner node's log-odds is

@@ -1,0 +1,34 @@
+// A map's node pool copied to the host as the device holds it, with the nodes near the root that
+// changed since an earlier capture (TreeTransfer::capture, StoreAccess::capture).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "gpu/gpu_types.h"
+
+namespace octovk {
+
+/// The node pool as the device holds it (TreeTransfer::capture), and which of its nodes near the
+/// root changed since an earlier capture: what a store needs to find the tiles a scan changed
+/// without building a host tree of the whole map.
+struct PoolCapture {
+  /// The tree's version (MapCore::tree_version) captured: the `since` of the next capture.
+  std::uint64_t version = 0;
+  bool root_exists = false;
+  /// The pool's used blocks, raw: node index = block * 8 + slot, the root at 0; free blocks
+  /// hold stale nodes, only what hangs from the root is the tree. They lie in `memory`, the
+  /// host-visible staging they were copied into (read where they are: no second copy).
+  std::span<const gpu::Node> nodes;
+  std::shared_ptr<const void> memory;
+  /// Whether `changed` is complete: every node at depth <= the capture's `depth` whose subtree
+  /// changed since the version `since` is in it (the tree is `since`'s, or one scan after it,
+  /// whose touched lists hold the nodes on its updated paths). False: anything may have changed.
+  bool incremental = false;
+  /// Sorted indices of those nodes (some may since have been merged away: not in the tree).
+  std::vector<std::uint32_t> changed;
+};
+
+}  // namespace octovk

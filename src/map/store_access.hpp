@@ -1,0 +1,24 @@
+// The map store's way into a map (src/store/), which the public header does not hand out: the
+// node pool captured with the nodes near the root that changed since an earlier capture, so that
+// a commit serialises only the tiles a scan changed, and the tree's version to capture from.
+#pragma once
+
+#include <cstdint>
+
+#include "map/pool_capture.hpp"
+#include "octovk/map.hpp"
+
+namespace octovk {
+
+class StoreAccess {
+ public:
+  /// TreeTransfer::capture after the scans in flight: the pool, and which nodes at depths
+  /// 0..`depth` changed since the tree's version `since` (PoolCapture::incremental says whether
+  /// that is known).
+  static PoolCapture capture(OccupancyMap& map, std::uint64_t since, unsigned depth);
+  /// The tree's version after the scans in flight: changes with every scan that changed the
+  /// tree, edit and upload.
+  static std::uint64_t version(OccupancyMap& map);
+};
+
+}  // namespace octovk
