@@ -605,8 +605,12 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
     for (int b = 0; b < 64; ++b) {
       const float u = -12.7f + 0.4f * static_cast<float>(a);
       const float v = -12.7f + 0.4f * static_cast<float>(b);
-      walls.insert(walls.end(), {{12.7f, u, v}, {-12.7f, u, v}, {u, 12.7f, v}, {u, -12.7f, v},
-                                 {u, v, 12.7f}, {u, v, -12.7f}});
+      walls.insert(walls.end(), {{12.7f, u, v},
+                                 {-12.7f, u, v},
+                                 {u, 12.7f, v},
+                                 {u, -12.7f, v},
+                                 {u, v, 12.7f},
+                                 {u, v, -12.7f}});
     }
   std::size_t incremental = 0, above = 0, removed = 0;
   const auto commitAndCheck = [&](std::uint64_t scan) {
@@ -628,19 +632,63 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
     map.insertPointCloud(points, at);
     commitAndCheck(scan++);
   };
-  for (int i = 0; i < 6; ++i) insert(walls, Eigen::Vector3f(0.05f * i, 0.0f, 0.0f));
+  for (int i = 0; i < 6; ++i)
+    insert(walls, Eigen::Vector3f(0.05f * static_cast<float>(i), 0.0f, 0.0f));
   EXPECT_GT(above, 0u) << "no free region merged above the tile depth: the test misses its case";
   std::vector<Eigen::Vector3f> with_box = walls;
-  for (int i = 0; i < 6; ++i) with_box.push_back({2.1f + 0.2f * i, -3.3f, 1.1f});  // an obstacle
+  for (int i = 0; i < 6; ++i)
+    with_box.push_back({2.1f + 0.2f * static_cast<float>(i), -3.3f, 1.1f});  // an obstacle
   insert(with_box, Eigen::Vector3f(0.1f, 0.0f, 0.0f));
   writer.begin(map);
   map.clearBox(Eigen::Vector3f(-1.0f, -1.0f, -1.0f), Eigen::Vector3f(1.0f, 1.0f, 1.0f));  // an edit
   map.insertPointCloud(walls, Eigen::Vector3f(0.0f, 0.1f, 0.0f));
   commitAndCheck(scan++);
   // The obstacle gone: its cells fade to free and merge again (tiles removed).
-  for (int i = 0; i < 3; ++i) insert(walls, Eigen::Vector3f(0.0f, 0.05f * i, 0.0f));
+  for (int i = 0; i < 3; ++i)
+    insert(walls, Eigen::Vector3f(0.0f, 0.05f * static_cast<float>(i), 0.0f));
   EXPECT_GE(incremental, 4u) << "commits compared every tile: the scan's tiles were not used";
   EXPECT_GT(removed, 0u) << "no tile was removed: the test misses merging";
+}
+
+// A commit that fails (here the file-size limit: the store cannot grow) ends the run with the
+// scan it failed on named, no map file written, and the store as after the scans before it;
+// scans commit while the next one runs, so the failure may surface at the next scan.
+TEST(StoreCli, FailedCommitEndsTheRunAndKeepsTheScansBefore) {
+  REQUIRE_GRAPH2TREE();
+  Scratch scratch("store");
+  const std::vector<GraphScan> scans = roomScans(60, 0.0f);
+  const std::string graph = scratch / "full.graph";
+  writeGraph(graph, scans);
+  const std::string location = scratch / "full.sqlite";
+  // SIGXFSZ ignored (kept through exec): a write past the limit fails with EFBIG instead.
+  const RunResult r = runShell("trap '' XFSZ; ulimit -f 600; exec " +
+                                   quote(OCTOVK_PATH(OCTOVK_CLI)) + " integrate " + quote(graph) +
+                                   " --store " + quote(location) + " -r 0.1 -q -o " +
+                                   quote(scratch / "map.bt"),
+                               scratch.dir());
+  ASSERT_EQ(r.exit_code, 1) << "the store never outgrew the limit: " << r.out << r.err;
+  EXPECT_NE(r.err.find("did not commit scan "), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("src/"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(scratch / "map.bt"));
+  auto store = store::Store::open(location, false);
+  const std::vector<store::LogEntry> log = store->log("default");
+  ASSERT_GE(log.size(), 1u) << r.err;
+  ASSERT_LT(log.size(), scans.size());
+  std::cout << "[ failed   ] " << r.err;
+  // The first scan not in the store is named: placed as the program counts (from 1), and as
+  // the store's log counts (from 0).
+  const std::string place = "scan " + std::to_string(log.size() + 1) + " of 60: ";
+  const std::string failed = "did not commit scan " + std::to_string(log.size()) + " of";
+  EXPECT_NE(r.err.find(place), std::string::npos) << "expected '" << place << "': " << r.err;
+  EXPECT_NE(r.err.find(failed), std::string::npos) << "expected '" << failed << "': " << r.err;
+  const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(log.size()));
+  const std::string graph_kept = scratch / "kept.graph";
+  writeGraph(graph_kept, kept);
+  const RunResult e =
+      runOctovk({"store", "export", location, "-o", scratch / "kept.ot"}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_TRUE(readFile(scratch / "kept.ot") == graph2treeOt(graph_kept, scratch))
+      << "the store is not the map of the " << log.size() << " scans before the failed one";
 }
 
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {

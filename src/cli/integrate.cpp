@@ -562,41 +562,57 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped, cons
   ScanTicket first_ticket = 0;
   try {
     for (; at < scan_count; ++at) {
-      store_->begin(map);  // --store: the map's write lock, other writers' scans
-      ScanTicket ticket = 0;
-      ScanOptions options = scan_;
-      if (!sources.stamps.empty()) {
-        options.stamp = sources.stamps[at];
-        // What has not been seen for longer than the threshold fades before the scan, at its time.
-        if (stamped && degrade_after_) stamped->degradeOutdated(options.stamp, *degrade_after_);
-      }
-      if (tum) {
-        // As graph2tree on convert's graph: the camera-frame points, cast from the pose's
-        // position.
-        const TumFrame& frame = sources.tum->frames[at];
-        const DepthPng png = readDepthPng(frame.image_path, sources.max_pixels);
-        ColorPng colour;
-        if (color_) {
-          colour = readColorPng(frame.color_path, sources.max_pixels);
-          if (colour.width != png.width || colour.height != png.height)
-            throw Error(ErrorCode::kFormat, "its colour image '" + frame.color_path +
-                                                "' is no longer the depth image's size");
-          options.colors = colour.colors;  // one a pixel; copied by the submission
+      const auto submitScan = [&]() -> ScanTicket {
+        ScanOptions options = scan_;
+        if (!sources.stamps.empty()) {
+          options.stamp = sources.stamps[at];
+          // What has not been seen for longer than the threshold fades before the scan, at its
+          // time.
+          if (stamped && degrade_after_) stamped->degradeOutdated(options.stamp, *degrade_after_);
         }
-        ticket = map.submitDepthImage(png.image(camera_), frame.T_world_camera, options,
+        if (tum) {
+          // As graph2tree on convert's graph: the camera-frame points, cast from the pose's
+          // position.
+          const TumFrame& frame = sources.tum->frames[at];
+          const DepthPng png = readDepthPng(frame.image_path, sources.max_pixels);
+          ColorPng colour;
+          if (color_) {
+            colour = readColorPng(frame.color_path, sources.max_pixels);
+            if (colour.width != png.width || colour.height != png.height)
+              throw Error(ErrorCode::kFormat, "its colour image '" + frame.color_path +
+                                                  "' is no longer the depth image's size");
+            options.colors = colour.colors;  // one a pixel; copied by the submission
+          }
+          return map.submitDepthImage(png.image(camera_), frame.T_world_camera, options,
                                       graph2treeSensorOrigin(frame.T_world_camera));
-      } else {
+        }
         const GraphScan& scan = sources.scans[at];
-        ticket =
-            map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
-                                 scan.T_world_sensor, options);
-      }
+        return map.submitPointCloud(scan.points_sensor, graph2treeSensorOrigin(scan.T_world_sensor),
+                                    scan.T_world_sensor, options);
+      };
+      const ScanTicket ticket = submitScan();
       if (at == 0) first_ticket = ticket;
+      try {
+        store_->finish();  // --store: the last scan's commit, which ran while this one was read
+      } catch (const Error& e) {
+        throw Error(e.code(), e.what(), ticket - 1);  // placed at that scan
+      }
+      // --store: the map's write lock, taken while the scan runs (the last commit ends first);
+      // when other writers committed meanwhile the map is theirs, reloaded, and the scan goes in
+      // again (its first statistics dropped, its ticket not counted).
+      if (store_->begin(map)) {
+        std::vector<ScanStats> stats = map.takeScanStats();
+        if (!stats.empty()) stats.pop_back();
+        totals.add(std::move(stats), tum);
+        submitScan();
+        ++first_ticket;
+      }
       store_->commit(map, input, at);  // --store: waits for the scan, commits it
       if (at % 256 == 255) totals.add(map.takeScanStats(), tum);
       progress.update(at + 1);
     }
     map.flush();
+    store_->finish();  // --store: the last scan's commit
     totals.add(map.takeScanStats(), tum);
   } catch (const Error& e) {
     const std::size_t failed = e.scan() >= first_ticket && e.scan() != 0

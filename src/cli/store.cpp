@@ -408,29 +408,30 @@ void IntegrateStore::load(OccupancyMap& map) {
   if (tree.root_exists) map.upload(tree);
 }
 
-void IntegrateStore::begin(OccupancyMap& map) {
-  if (writer_ && writer_->begin(map)) ++reloads_;
+bool IntegrateStore::begin(OccupancyMap& map) {
+  if (!writer_ || !writer_->begin(map)) return false;
+  ++reloads_;
+  return true;
+}
+
+void IntegrateStore::finish() {
+  if (writer_) writer_->finish();
 }
 
 void IntegrateStore::commit(OccupancyMap& map, const std::string& source, std::size_t scan) {
   if (!writer_) return;
   map.flush();  // the scan's own work, not the commit's
-  const store::CommitStats stats = writer_->commit(map, source, scan);
-  find_s_ += stats.find_s;
-  write_s_ += stats.write_s;
-  ++scans_;
-  tiles_ += stats.tiles_written;
-  compared_ += stats.tiles_compared;
-  bytes_ += stats.body_bytes;
-  max_bytes_ = std::max(max_bytes_, stats.body_bytes);
+  writer_->commitInBackground(map, source, scan);
 }
 
 void IntegrateStore::report(Report& report) const {
   if (!writer_) return;
-  const double per_scan = scans_ == 0 ? 0.0 : 1.0 / static_cast<double>(scans_);
+  const store::CommitStats& t = writer_->totals();
+  const std::size_t scans = t.seq;
+  const double per_scan = scans == 0 ? 0.0 : 1.0 / static_cast<double>(scans);
   report
       .line("store", format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
-                            map_name_.c_str(), existed_ ? "continued" : "created", scans_,
+                            map_name_.c_str(), existed_ ? "continued" : "created", scans,
                             reloads_ == 0 ? ""
                                           : format(", the map reloaded %zu times after other "
                                                    "writers' scans",
@@ -439,13 +440,14 @@ void IntegrateStore::report(Report& report) const {
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
                    "%zu bytes)",
-                   tiles_, bytes_, static_cast<double>(bytes_) * per_scan,
-                   static_cast<double>(tiles_) * per_scan, max_bytes_))
+                   t.tiles_written, t.body_bytes, static_cast<double>(t.body_bytes) * per_scan,
+                   static_cast<double>(t.tiles_written) * per_scan, writer_->maxBodyBytes()))
       .line("store time",
             format("%.3f ms/scan finding the changed tiles (%.1f tiles a scan compared), %.3f "
-                   "ms/scan committing them",
-                   find_s_ * 1e3 * per_scan, static_cast<double>(compared_) * per_scan,
-                   write_s_ * 1e3 * per_scan));
+                   "ms/scan committing them (both while the next scan runs, but for the "
+                   "capture)",
+                   t.find_s * 1e3 * per_scan, static_cast<double>(t.tiles_compared) * per_scan,
+                   t.write_s * 1e3 * per_scan));
 }
 
 void IntegrateStore::printHelp(std::ostream& out) {

@@ -37,11 +37,16 @@ class IntegrateStore {
   void open(MapParams& params);
   /// Uploads the committed map into `map` (nothing for a new one).
   void load(OccupancyMap& map);
-  /// Before each scan: the map's write lock, and the scans other writers committed meanwhile
-  /// (the map is reloaded from the store), so that the map is the log's.
-  void begin(OccupancyMap& map);
-  /// Commits `map` after scan `scan` of `source`.
+  /// After each scan is submitted (it runs on the device meanwhile): waits for the last scan's
+  /// commit, takes the map's write lock, and loads the scans other writers committed since
+  /// (the map is reloaded from the store, the submitted scan dropped), so that the map is the
+  /// log's. True when reloaded: submit the scan again.
+  bool begin(OccupancyMap& map);
+  /// Commits `map` after scan `scan` of `source`: waits for the scan, finds its tiles and
+  /// leaves the store's transaction running while the next scan is submitted.
   void commit(OccupancyMap& map, const std::string& source, std::size_t scan);
+  /// Waits for the last commit (its error thrown).
+  void finish();
   /// The store's lines of integrate's summary.
   void report(Report& report) const;
   /// integrate's help lines for --store and --map.
@@ -55,8 +60,6 @@ class IntegrateStore {
   std::unique_ptr<store::MapWriter> writer_;
   bool existed_ = false;
   std::size_t reloads_ = 0;
-  std::size_t scans_ = 0, tiles_ = 0, compared_ = 0, bytes_ = 0, max_bytes_ = 0;
-  double find_s_ = 0.0, write_s_ = 0.0;
 };
 
 }  // namespace octovk::cli

@@ -59,6 +59,7 @@ struct MapCore {
     std::uint64_t version = 0;
     std::array<std::uint32_t, gpu::kLevelCount> counts{};
     std::uint64_t generation = 0;  ///< MapBuffers::listsGeneration() when the scan ran
+    gpu::PoolState pool{};         ///< the pool after it (the scan's own readback)
   };
   TouchedLists touched;
   /// Scans recorded (each recording, a scan run again included, overwrites the touched lists).

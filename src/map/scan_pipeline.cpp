@@ -129,8 +129,8 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
     p.input = stage(source, core_.buffers.uploads[p.staging_frame]);
     if (!options.colors.empty()) {
       p.input.colors = true;
-      p.input.colors_offset = stageColors(source, p.input, options.colors,
-                                          core_.buffers.uploads[p.staging_frame]);
+      p.input.colors_offset =
+          stageColors(source, p.input, options.colors, core_.buffers.uploads[p.staging_frame]);
     }
     p.input.transform = pose != nullptr;
     p.input.discretize = options.discretize;
@@ -222,6 +222,7 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
       std::copy(std::begin(counters.touched_count), std::end(counters.touched_count),
                 core_.touched.counts.begin());
       core_.touched.generation = core_.buffers.listsGeneration();
+      core_.touched.pool = pool;
     }
   }
   if (p.caller == ScanCaller::kInsert)

@@ -30,22 +30,23 @@ HostTree TreeTransfer::download() {
 }
 
 PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
-  const gpu::PoolState pool = core_.readPool();
   PoolCapture out;
   out.version = core_.tree_version;
-  out.root_exists = pool.root_exists != 0;
   const MapCore::TouchedLists& lists = core_.touched;
   const bool unchanged = out.version == since;
   const bool one_scan = out.version == since + 1 && lists.version == out.version &&
                         lists.generation == core_.buffers.listsGeneration();
+  // After one scan its own readback has the pool's state: no round trip for it.
+  const gpu::PoolState pool = one_scan ? lists.pool : core_.readPool();
+  out.root_exists = pool.root_exists != 0;
   out.incremental = depth < gpu::kTreeDepth && (unchanged || one_scan);
   std::size_t listed = 0;
   if (out.incremental && !unchanged)
     for (unsigned level = 0; level <= depth; ++level) listed += lists.counts[level];
   const std::size_t count = std::size_t{pool.bump} * 8;
   const std::size_t node_bytes = count * sizeof(gpu::Node);
-  auto owner = std::make_shared<vk::Buffer>(core_.device,
-                                            std::max<std::size_t>(node_bytes + listed * 4, 4), true);
+  auto owner = std::make_shared<vk::Buffer>(
+      core_.device, std::max<std::size_t>(node_bytes + listed * 4, 4), true);
   vk::Buffer& staging = *owner;
   core_.stream.begin(core_.buffers.bindings);
   if (node_bytes) core_.stream.copy(core_.buffers.nodes, staging, node_bytes);

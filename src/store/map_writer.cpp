@@ -1,6 +1,8 @@
 // MapWriter: the map committed to a store after each scan, only the tiles that changed.
 #include <algorithm>
 #include <chrono>
+#include <future>
+#include <memory>
 #include <string_view>
 #include <thread>
 #include <utility>
@@ -59,7 +61,7 @@ HostTree MapWriter::load() {
 }
 
 bool MapWriter::begin(OccupancyMap& map) {
-  map.flush();
+  finish();  // a background commit first: its error is this call's
   const std::uint64_t last = store_.lock(name_);
   if (last == last_seq_) return false;
   try {
@@ -74,65 +76,138 @@ bool MapWriter::begin(OccupancyMap& map) {
   return true;
 }
 
-CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std::uint64_t scan) {
-  map.flush();
-  using Clock = std::chrono::steady_clock;
-  const auto seconds = [](Clock::time_point from) {
-    return std::chrono::duration<double>(Clock::now() - from).count();
-  };
-  const auto start = Clock::now();
+MapWriter::~MapWriter() {
+  if (!background_.valid()) return;
+  try {
+    background_.get();
+  } catch (...) {
+    // a destroyed writer's last transaction failed: the store holds the scans before it
+  }
+}
+
+CommitStats MapWriter::finish() {
+  if (!background_.valid()) return {};
+  std::future<void> running = std::move(background_);
+  // The pending commit (and its captured pool, a device buffer) goes on this thread.
+  const std::unique_ptr<PendingCommit> pending = std::move(pending_commit_);
+  try {
+    running.get();
+  } catch (const Error& e) {
+    const std::uint64_t row = last_seq_ + 1;
+    forget();  // the device map is ahead of the store: the next begin() reloads it
+    throw Error(e.code(), "store '" + store_.location() + "' did not commit scan " +
+                              std::to_string(pending->scan) + " of '" + pending->source +
+                              "' (counted from 0, as 'octovk store log' prints it; log row " +
+                              std::to_string(row) + "): " + e.what());
+  } catch (...) {
+    forget();
+    throw;
+  }
+  apply(*pending);
+  return pending->stats;
+}
+
+void MapWriter::apply(PendingCommit& c) {
+  // Only once committed: a failed commit leaves the writer as before, to be tried again.
+  hashes_ = std::move(c.hashes);
+  last_seq_ = c.entry.seq;
+  version_ = c.pool.version;
+  CommitStats& t = totals_;
+  ++t.seq;
+  t.tiles_written += c.stats.tiles_written;
+  t.tiles_removed += c.stats.tiles_removed;
+  t.tiles_compared += c.stats.tiles_compared;
+  t.body_bytes += c.stats.body_bytes;
+  t.find_s += c.stats.find_s;
+  t.write_s += c.stats.write_s;
+  max_body_bytes_ = std::max(max_body_bytes_, c.stats.body_bytes);
+}
+
+std::unique_ptr<MapWriter::PendingCommit> MapWriter::capture(OccupancyMap& map,
+                                                             const std::string& source,
+                                                             std::uint64_t scan) {
+  const auto start = std::chrono::steady_clock::now();
   if (map.params().payload != Payload::kNone)
     throw Error(ErrorCode::kInvalidArgument,
                 std::string("a store holds plain occupancy maps (OcTree), not ") +
                     treeTypeName(map.params().payload) + " maps");
+  auto c = std::make_unique<PendingCommit>();
+  c->source = source;
+  c->scan = scan;
   // The pool as the device holds it, and the nodes above the tile depth that the scan changed
-  // (when the map is the last commit's plus this one scan): only their tiles, and tiles new
-  // since, are serialised and compared; the others are as committed.
-  const PoolCapture pool = StoreAccess::capture(map, version_, info_.tile_depth);
+  // (when the map is the last commit's plus this one scan).
+  c->pool = StoreAccess::capture(map, version_, info_.tile_depth);
+  c->stats.find_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return c;
+}
+
+void MapWriter::prepare(PendingCommit& c) const {
+  const auto start = std::chrono::steady_clock::now();
+  // Only the tiles under the scan's changed nodes, and tiles new since, are serialised and
+  // compared; the others are as committed.
+  const PoolCapture& pool = c.pool;
   const bool incremental = pool.incremental && version_ != kUnknownVersion;
   const std::vector<PoolTile> tiles = poolTiles(pool, info_.tile_depth);
-  CommitStats stats;
-  std::vector<Tile> changed;
-  std::unordered_map<std::uint64_t, std::uint64_t> hashes;
-  hashes.reserve(tiles.size());
+  CommitStats& stats = c.stats;
+  c.hashes.reserve(tiles.size());
   for (const PoolTile& t : tiles) {
     const auto old = hashes_.find(t.key);
     if (incremental && old != hashes_.end() &&
         !std::binary_search(pool.changed.begin(), pool.changed.end(), t.node)) {
-      hashes.emplace(t.key, old->second);
+      c.hashes.emplace(t.key, old->second);
       continue;
     }
     std::string body = poolTileBody(pool, t);
     const std::uint64_t h = bodyHash(body);
-    hashes.emplace(t.key, h);
+    c.hashes.emplace(t.key, h);
     ++stats.tiles_compared;
     if (old == hashes_.end() || old->second != h) {
       stats.body_bytes += body.size();
-      changed.push_back({t.key, std::move(body)});
+      c.changed.push_back({t.key, std::move(body)});
     }
   }
-  std::vector<std::uint64_t> removed;
   for (const auto& [key, h] : hashes_)
-    if (!hashes.contains(key)) removed.push_back(key);
-  LogEntry entry;
-  entry.seq = last_seq_ + 1;
-  entry.source = source;
-  entry.scan = scan;
-  entry.time_us = std::chrono::duration_cast<std::chrono::microseconds>(
-                      std::chrono::system_clock::now().time_since_epoch())
-                      .count();
-  stats.find_s = seconds(start);
-  const auto write_start = Clock::now();
-  store_.commit(name_, changed, removed, entry);
-  stats.write_s = seconds(write_start);
-  // Only once committed: a failed commit leaves the writer as before, to be tried again.
-  hashes_ = std::move(hashes);
-  last_seq_ = entry.seq;
-  version_ = pool.version;
-  stats.seq = entry.seq;
-  stats.tiles_written = changed.size();
-  stats.tiles_removed = removed.size();
-  return stats;
+    if (!c.hashes.contains(key)) c.removed.push_back(key);
+  c.entry.seq = last_seq_ + 1;
+  c.entry.source = c.source;
+  c.entry.scan = c.scan;
+  c.entry.time_us = std::chrono::duration_cast<std::chrono::microseconds>(
+                        std::chrono::system_clock::now().time_since_epoch())
+                        .count();
+  stats.find_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stats.seq = c.entry.seq;
+  stats.tiles_written = c.changed.size();
+  stats.tiles_removed = c.removed.size();
+}
+
+void MapWriter::write(PendingCommit& c) {
+  const auto start = std::chrono::steady_clock::now();
+  store_.commit(name_, c.changed, c.removed, c.entry);
+  c.stats.write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std::uint64_t scan) {
+  finish();
+  map.flush();
+  const std::unique_ptr<PendingCommit> c = capture(map, source, scan);
+  prepare(*c);
+  write(*c);
+  apply(*c);
+  return c->stats;
+}
+
+void MapWriter::commitInBackground(OccupancyMap& map, const std::string& source,
+                                   std::uint64_t scan) {
+  finish();
+  map.flush();
+  pending_commit_ = capture(map, source, scan);
+  // The tiles and the transaction on a thread of their own. Until finish() has waited for it,
+  // this thread touches neither the store nor the writer's state (begin(), commit() and the
+  // destructor call finish() first).
+  background_ = std::async(std::launch::async, [this, c = pending_commit_.get()] {
+    prepare(*c);
+    write(*c);
+  });
 }
 
 }  // namespace octovk::store

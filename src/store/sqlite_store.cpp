@@ -140,6 +140,11 @@ class SqliteStore final : public Store {
     };
     int version = 0;
     std::int64_t objects = 0;
+    // 16 KiB pages for a new file (before its first table; an existing file keeps its own): a
+    // tile body is about 1.3 KB, and the tiles table (WITHOUT ROWID) keeps rows in its leaves,
+    // of which SQLite's default 4 KiB pages held two or three (a scan's commit on FR-079 at
+    // 0.05 m: 1.5 ms instead of 2.2).
+    if (create) exec("PRAGMA page_size = 16384");
     exec(create ? "BEGIN IMMEDIATE" : "BEGIN");
     try {
       counts(&version, &objects);

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <optional>
 #include <span>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "octovk/octovk.hpp"
+#include "map/pool_capture.hpp"
 #include "store/tiles.hpp"
 
 namespace octovk::store {
@@ -50,8 +52,8 @@ struct CommitStats {
   /// Tiles serialised and hashed to find them: the scan's (those on its updated paths, and new
   /// ones), or every tile when the map changed otherwise since the last commit.
   std::size_t tiles_compared = 0;
-  double find_s = 0.0;            ///< seconds finding them: capture, cut, serialise, hash
-  double write_s = 0.0;           ///< seconds of the store's transaction
+  double find_s = 0.0;   ///< seconds finding them: capture, cut, serialise, hash
+  double write_s = 0.0;  ///< seconds of the store's transaction
 };
 
 /// What a map's tiles are at one commit, against an earlier one (Store::changesSince).
@@ -113,18 +115,39 @@ class MapWriter {
  public:
   /// Opens map `name`, creating it with `params` when it is missing.
   MapWriter(Store& store, std::string name, const MapParams& params);
+  /// Waits for a commit running in the background (its error is dropped: the store holds the
+  /// scans before it).
+  ~MapWriter();
+  MapWriter(const MapWriter&) = delete;
+  MapWriter& operator=(const MapWriter&) = delete;
   /// Whether the map existed (and so holds its own parameters: info().params).
   bool existed() const { return existed_; }
   const MapInfo& info() const { return info_; }
   /// The committed map (empty when new), for OccupancyMap::upload.
   HostTree load();
-  /// Before a scan: takes the map's write lock, and when other writers committed scans since
-  /// this one's last, loads the map as they left it into `map`. The scan then applies to the map
-  /// the log's order says, and commit() releases the lock. True when the map was reloaded.
+  /// Before a scan is committed: waits for a background commit (finish(), its error thrown),
+  /// takes the map's write lock, and when other writers committed scans since this one's last,
+  /// loads the map as they left it into `map` (after the scans submitted to it, which the load
+  /// replaces). The scan then applies to the map the log's order says, and commit() releases
+  /// the lock. True when the map was reloaded: a scan submitted before the call is gone and must
+  /// be inserted again. Called before the scan is submitted, or after it (to let the scan run
+  /// on the device while the last commit's transaction ends).
   bool begin(OccupancyMap& map);
   /// Commits `map` as it is after scan `scan` of `source`: its tiles that differ from the last
   /// committed ones, and the log row. Waits for the map's submitted scans first.
   CommitStats commit(OccupancyMap& map, const std::string& source, std::uint64_t scan);
+  /// commit(), with only the capture of the map (waiting for its scans) on the caller's thread:
+  /// finding the tiles and the store's transaction run on a thread of their own while the
+  /// caller goes on (with the next scan). The next begin(), commit() or finish() waits for
+  /// them; until then nothing else may use the store.
+  void commitInBackground(OccupancyMap& map, const std::string& source, std::uint64_t scan);
+  /// Waits for a background commit and returns its statistics (all zero: none). Its error is
+  /// thrown naming the scan (kIo from the store), and the writer forgets the map (the next
+  /// begin() reloads it).
+  CommitStats finish();
+  /// The sums of the commits so far (seq: how many), and the most body bytes one wrote.
+  const CommitStats& totals() const { return totals_; }
+  std::size_t maxBodyBytes() const { return max_body_bytes_; }
   /// Forgets what was committed: the next begin() loads the map from the store (after a failed
   /// commit, when the device map holds a scan the store does not).
   void forget() {
@@ -139,11 +162,36 @@ class MapWriter {
   MapInfo info_;
   bool existed_ = false;
   static constexpr std::uint64_t kUnknownVersion = ~std::uint64_t{0};
+  /// A scan's commit: the map captured, then its tiles found, then the store's transaction.
+  struct PendingCommit {
+    std::string source;
+    std::uint64_t scan = 0;
+    PoolCapture pool;
+    std::vector<Tile> changed;
+    std::vector<std::uint64_t> removed;
+    LogEntry entry;
+    std::unordered_map<std::uint64_t, std::uint64_t> hashes;  // every tile's, after it
+    CommitStats stats;
+  };
+  /// The map captured after its scans (on the caller's thread: the device).
+  std::unique_ptr<PendingCommit> capture(OccupancyMap& map, const std::string& source,
+                                         std::uint64_t scan);
+  /// The changed tiles of a capture, against the last commit (host work only).
+  void prepare(PendingCommit& c) const;
+  /// The store's transaction.
+  void write(PendingCommit& c);
+  /// The writer's state once `c` is committed.
+  void apply(PendingCommit& c);
+
   std::uint64_t last_seq_ = 0;
   std::unordered_map<std::uint64_t, std::uint64_t> hashes_;  // key -> hash of the body
   /// The device map's tree version (StoreAccess::version) that `hashes_` describe; unknown:
   /// the next commit compares every tile.
   std::uint64_t version_ = kUnknownVersion;
+  std::unique_ptr<PendingCommit> pending_commit_;  // what background_ commits
+  std::future<void> background_;
+  CommitStats totals_;
+  std::size_t max_body_bytes_ = 0;
 };
 
 /// The hash MapWriter keeps of a body.

@@ -11,8 +11,8 @@
 #include <optional>
 #include <variant>
 
-#include "io/parse.hpp"
 #include "gpu/gpu_types.h"
+#include "io/parse.hpp"
 #include "map/host_tree.hpp"
 #include "map/pool_capture.hpp"
 
