@@ -432,11 +432,15 @@ void IntegrateStore::report(Report& report) const {
   report
       .line("store", format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
                             map_name_.c_str(), existed_ ? "continued" : "created", scans,
-                            reloads_ == 0 ? ""
-                                          : format(", the map reloaded %zu times after other "
-                                                   "writers' scans",
-                                                   reloads_)
-                                                .c_str()))
+                            reloads_ == 0
+                                ? ""
+                                : format(", the map reloaded %zu times after other writers' "
+                                         "scans (%.1f ms each)",
+                                         reloads_,
+                                         writer_->reloadSeconds() * 1e3 /
+                                             static_cast<double>(std::max<std::size_t>(
+                                                 writer_->reloads(), 1)))
+                                      .c_str()))
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
                    "%zu bytes)",

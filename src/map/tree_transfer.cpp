@@ -136,10 +136,10 @@ void TreeTransfer::upload(const HostTree& tree, bool shrink) {
   if (payload_bytes)
     core_.stream.copy(staging, core_.buffers.payload, payload_bytes,
                       node_bytes + meta_bytes + free_bytes);
-  core_.stream.barrier();
-  passes::recordLeafBoxes(core_.rec);
   core_.stream.submitAndWait();
-  core_.leaf_boxes = LeafBoxes::kCurrent;
+  // The leaf boxes are rebuilt when next asked for (refreshLeafBoxes), as after an edit: a
+  // store's writer uploads a whole map whenever another writer committed, and reads none.
+  core_.leaf_boxes = LeafBoxes::kStale;
   core_.treeChanged();  // a new tree
 }
 

@@ -52,7 +52,47 @@ MapWriter::MapWriter(Store& store, std::string name, const MapParams& params)
 HostTree MapWriter::load() {
   const std::vector<Tile> tiles = store_.tiles(name_, &last_seq_);
   hashes_.clear();
+  bodies_.clear();
+  bodies_known_ = false;  // kept from the first reload on (reload())
   for (const Tile& t : tiles) hashes_[t.key] = bodyHash(t.body);
+  try {
+    return treeFromTiles(tiles, info_.tile_depth);
+  } catch (const Error& e) {
+    throw Error(e.code(), "store '" + store_.location() + "', map '" + name_ + "': " + e.what());
+  }
+}
+
+HostTree MapWriter::reload() {
+  std::vector<Tile> tiles;
+  if (!bodies_known_ || last_seq_ == ~std::uint64_t{0}) {
+    tiles = store_.tiles(name_, &last_seq_);
+    hashes_.clear();
+    bodies_.clear();
+    for (const Tile& t : tiles) {
+      hashes_[t.key] = bodyHash(t.body);
+      bodies_[t.key] = t.body;
+    }
+    bodies_known_ = true;
+  } else {
+    // Only what the other writers' scans wrote since this one's last: the keys that remain,
+    // and the tiles whose version is newer.
+    TileChanges changes = store_.changesSince(name_, last_seq_);
+    for (auto it = bodies_.begin(); it != bodies_.end();) {
+      if (std::binary_search(changes.keys.begin(), changes.keys.end(), it->first)) {
+        ++it;
+      } else {
+        hashes_.erase(it->first);
+        it = bodies_.erase(it);
+      }
+    }
+    for (Tile& t : changes.changed) {
+      hashes_[t.key] = bodyHash(t.body);
+      bodies_[t.key] = std::move(t.body);
+    }
+    last_seq_ = changes.last_seq;
+    tiles.reserve(bodies_.size());
+    for (const auto& [key, body] : bodies_) tiles.push_back({key, body});
+  }
   try {
     return treeFromTiles(tiles, info_.tile_depth);
   } catch (const Error& e) {
@@ -64,10 +104,13 @@ bool MapWriter::begin(OccupancyMap& map) {
   finish();  // a background commit first: its error is this call's
   const std::uint64_t last = store_.lock(name_);
   if (last == last_seq_) return false;
+  const auto start = std::chrono::steady_clock::now();
   try {
-    const HostTree tree = load();  // in the locked transaction: sets last_seq_
+    const HostTree tree = reload();  // in the locked transaction: sets last_seq_
     map.upload(tree);
     version_ = StoreAccess::version(map);  // the tree the hashes describe
+    ++reloads_;
+    reload_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   } catch (...) {
     store_.unlock();
     forget();  // the map is unknown: the next begin() loads it again
@@ -111,6 +154,10 @@ void MapWriter::apply(PendingCommit& c) {
   // Only once committed: a failed commit leaves the writer as before, to be tried again.
   hashes_ = std::move(c.hashes);
   last_seq_ = c.entry.seq;
+  if (bodies_known_) {
+    for (const std::uint64_t key : c.removed) bodies_.erase(key);
+    for (const Tile& t : c.changed) bodies_[t.key] = t.body;
+  }
   version_ = c.pool.version;
   CommitStats& t = totals_;
   ++t.seq;

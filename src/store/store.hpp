@@ -147,11 +147,16 @@ class MapWriter {
   CommitStats finish();
   /// The sums of the commits so far (seq: how many), and the most body bytes one wrote.
   const CommitStats& totals() const { return totals_; }
+  /// How often begin() loaded other writers' scans, and the seconds it took in all.
+  std::size_t reloads() const { return reloads_; }
+  double reloadSeconds() const { return reload_s_; }
   std::size_t maxBodyBytes() const { return max_body_bytes_; }
   /// Forgets what was committed: the next begin() loads the map from the store (after a failed
   /// commit, when the device map holds a scan the store does not).
   void forget() {
     hashes_.clear();
+    bodies_.clear();
+    bodies_known_ = false;
     last_seq_ = ~std::uint64_t{0};
     version_ = kUnknownVersion;
   }
@@ -192,6 +197,14 @@ class MapWriter {
   std::future<void> background_;
   CommitStats totals_;
   std::size_t max_body_bytes_ = 0;
+  /// Every tile's body as committed, kept once another writer's scans were first loaded: later
+  /// loads read only the tiles written since (Store::changesSince) instead of the whole map.
+  std::unordered_map<std::uint64_t, std::string> bodies_;
+  bool bodies_known_ = false;
+  std::size_t reloads_ = 0;
+  double reload_s_ = 0.0;
+  /// The map as the store holds it after other writers' scans (begin()).
+  HostTree reload();
 };
 
 /// The hash MapWriter keeps of a body.

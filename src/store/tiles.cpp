@@ -133,6 +133,13 @@ class Rebuild {
     upper_.push_back(emptyUpper());
     for (std::size_t t : order) place(t);
     tree.root_exists = true;
+    // A block of 8 per node with children: the upper nodes, and the records whose child byte
+    // is set (a damaged body only makes the guess wrong; readRecords checks it).
+    std::size_t blocks = 1 + upper_.size();
+    for (const Tile& tile : tiles_)
+      for (std::size_t at = sizeof(float); at < tile.body.size(); at += kRecordBytes)
+        blocks += tile.body[at] != 0;
+    tree.nodes.reserve(blocks * 8);
     tree.nodes.assign(8, leafNode(0.0f));
     if (root_tile_) {
       std::size_t at = 0;
