@@ -650,47 +650,6 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
   EXPECT_GT(removed, 0u) << "no tile was removed: the test misses merging";
 }
 
-// A commit that fails (here the file-size limit: the store cannot grow) ends the run with the
-// scan it failed on named, no map file written, and the store as after the scans before it;
-// scans commit while the next one runs, so the failure may surface at the next scan.
-TEST(StoreCli, FailedCommitEndsTheRunAndKeepsTheScansBefore) {
-  REQUIRE_GRAPH2TREE();
-  Scratch scratch("store");
-  const std::vector<GraphScan> scans = roomScans(60, 0.0f);
-  const std::string graph = scratch / "full.graph";
-  writeGraph(graph, scans);
-  const std::string location = scratch / "full.sqlite";
-  // SIGXFSZ ignored (kept through exec): a write past the limit fails with EFBIG instead.
-  const RunResult r = runShell("trap '' XFSZ; ulimit -f 600; exec " +
-                                   quote(OCTOVK_PATH(OCTOVK_CLI)) + " integrate " + quote(graph) +
-                                   " --store " + quote(location) + " -r 0.1 -q -o " +
-                                   quote(scratch / "map.bt"),
-                               scratch.dir());
-  ASSERT_EQ(r.exit_code, 1) << "the store never outgrew the limit: " << r.out << r.err;
-  EXPECT_NE(r.err.find("did not commit scan "), std::string::npos) << r.err;
-  EXPECT_EQ(r.err.find("src/"), std::string::npos) << r.err;
-  EXPECT_FALSE(fs::exists(scratch / "map.bt"));
-  auto store = store::Store::open(location, false);
-  const std::vector<store::LogEntry> log = store->log("default");
-  ASSERT_GE(log.size(), 1u) << r.err;
-  ASSERT_LT(log.size(), scans.size());
-  std::cout << "[ failed   ] " << r.err;
-  // The first scan not in the store is named: placed as the program counts (from 1), and as
-  // the store's log counts (from 0).
-  const std::string place = "scan " + std::to_string(log.size() + 1) + " of 60: ";
-  const std::string failed = "did not commit scan " + std::to_string(log.size()) + " of";
-  EXPECT_NE(r.err.find(place), std::string::npos) << "expected '" << place << "': " << r.err;
-  EXPECT_NE(r.err.find(failed), std::string::npos) << "expected '" << failed << "': " << r.err;
-  const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(log.size()));
-  const std::string graph_kept = scratch / "kept.graph";
-  writeGraph(graph_kept, kept);
-  const RunResult e =
-      runOctovk({"store", "export", location, "-o", scratch / "kept.ot"}, scratch.dir());
-  ASSERT_EQ(e.exit_code, 0) << e.err;
-  EXPECT_TRUE(readFile(scratch / "kept.ot") == graph2treeOt(graph_kept, scratch))
-      << "the store is not the map of the " << log.size() << " scans before the failed one";
-}
-
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
   REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
@@ -806,6 +765,116 @@ TEST(StorePostgres, FollowerKeepsALocalCopyCurrent) {
   const auto start = std::chrono::steady_clock::now();
   expectFollowerKeepsTheMap(postgresUri(), "told" + std::to_string(::getpid()), told, "3600");
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(120));
+}
+
+// A commit that fails in the background (the server ends the writer's session while it holds
+// the map's lock: another session calls pg_terminate_backend) is thrown by finish() naming the
+// scan, and the store stays as after the scans before it (graph2tree's map of those).
+TEST(StorePostgres, LostSessionFailsTheBackgroundCommitAndKeepsTheScansBefore) {
+  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  const std::vector<GraphScan> scans = roomScans(4, 0.0f);
+  MapParams params;
+  params.resolution = 0.1;
+  {
+    std::unique_ptr<store::Store> st = store::Store::open(postgresUri(), true);
+    store::MapWriter writer(*st, "lost", params);
+    OccupancyMap map(ctx, params);
+    const auto insert = [&](std::size_t i) {
+      writer.begin(map);
+      std::vector<Eigen::Vector3f> world;
+      for (const Eigen::Vector3f& p : scans[i].points_sensor)
+        world.push_back(scans[i].T_world_sensor.transform(p));
+      map.insertPointCloud(world, scans[i].T_world_sensor.translation);
+    };
+    for (std::size_t i = 0; i < 3; ++i) {
+      insert(i);
+      writer.commitInBackground(map, "lost", i);
+    }
+    insert(3);  // the lock is held now: the session is idle in its transaction
+    const RunResult cut = runShell(
+        "psql " + quote(postgresUri()) +
+            " -qAt -c \"SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity WHERE "
+            "datname = current_database() AND pid <> pg_backend_pid()\"",
+        scratch.dir());
+    ASSERT_EQ(cut.exit_code, 0) << cut.err;
+    EXPECT_EQ(cut.out, "1\n") << "expected to end the writer's session alone";
+    writer.commitInBackground(map, "lost", 3);
+    try {
+      writer.finish();
+      ADD_FAILURE() << "the commit of a session the server ended succeeded";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kIo) << e.what();
+      EXPECT_NE(std::string(e.what()).find("did not commit scan 3 of 'lost'"), std::string::npos)
+          << e.what();
+      std::cout << "[ lost     ] " << e.what() << "\n";
+    }
+  }
+  auto store = store::Store::open(postgresUri(), false);
+  ASSERT_EQ(store->log("lost").size(), 3u);
+  const std::vector<GraphScan> kept(scans.begin(), scans.begin() + 3);
+  const std::string graph = scratch / "kept.graph";
+  writeGraph(graph, kept);
+  const RunResult e = runOctovk(
+      {"store", "export", postgresUri(), "--map", "lost", "-o", scratch / "kept.ot"}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_TRUE(readFile(scratch / "kept.ot") == graph2treeOt(graph, scratch))
+      << "the store is not the map of the three scans before the lost commit";
+}
+
+// The program's side of a lost session: `integrate --store` whose session the server ends
+// mid-run (in a commit, or between two) stops with exit status 1 naming the first scan the
+// store does not hold, and the store is graph2tree's map of the scans before it.
+TEST(StorePostgres, LostSessionEndsTheRunNamingTheFirstScanNotCommitted) {
+  REQUIRE_GRAPH2TREE();
+  ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
+  Scratch scratch("store");
+  const std::vector<GraphScan> scans = roomScans(400, 0.0f);
+  const std::string graph = scratch / "long.graph";
+  writeGraph(graph, scans);
+  const std::string map = "cut";
+  OctovkProcess writer({"integrate", graph, "--store", postgresUri(), "--map", map, "-r", "0.1",
+                        "-q"},
+                       scratch.dir());
+  ASSERT_TRUE(writer.started());
+  const fs::path psql_dir = scratch.dir() / "psql";
+  fs::create_directories(psql_dir);
+  const bool some = pollUntil(
+      [&] {
+        try {
+          auto store = store::Store::open(postgresUri(), false);
+          return store->map(map) && store->log(map).size() >= 3;
+        } catch (const Error&) {
+          return false;  // not created yet
+        }
+      },
+      std::chrono::seconds(120));
+  const RunResult cut = runShell(
+      "psql " + quote(postgresUri()) +
+          " -qAt -c \"SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity WHERE "
+          "datname = current_database() AND pid <> pg_backend_pid()\"",
+      psql_dir);  // not the writer's folder: its output files are there
+  const RunResult r = writer.wait();
+  ASSERT_TRUE(some) << r.out << r.err;
+  ASSERT_EQ(cut.exit_code, 0) << cut.err;
+  ASSERT_EQ(r.exit_code, 1) << "the run was not cut: " << r.out << r.err;
+  auto store = store::Store::open(postgresUri(), false);
+  const std::size_t committed = store->log(map).size();
+  ASSERT_GE(committed, 3u);
+  ASSERT_LT(committed, scans.size());
+  std::cout << "[ cut      ] " << r.err;
+  const std::string place = "scan " + std::to_string(committed + 1) + " of 400: ";
+  EXPECT_NE(r.err.find(place), std::string::npos) << "expected '" << place << "': " << r.err;
+  const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(committed));
+  const std::string graph_kept = scratch / "kept.graph";
+  writeGraph(graph_kept, kept);
+  const RunResult e = runOctovk(
+      {"store", "export", postgresUri(), "--map", map, "-o", scratch / "kept.ot"}, scratch.dir());
+  ASSERT_EQ(e.exit_code, 0) << e.err;
+  EXPECT_TRUE(readFile(scratch / "kept.ot") == graph2treeOt(graph_kept, scratch))
+      << "the store is not the map of the " << committed << " scans before the run was cut";
 }
 
 TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {
