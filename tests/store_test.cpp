@@ -817,8 +817,9 @@ TEST(StorePostgres, LostSessionFailsTheBackgroundCommitAndKeepsTheScansBefore) {
   const std::vector<GraphScan> kept(scans.begin(), scans.begin() + 3);
   const std::string graph = scratch / "kept.graph";
   writeGraph(graph, kept);
-  const RunResult e = runOctovk(
-      {"store", "export", postgresUri(), "--map", "lost", "-o", scratch / "kept.ot"}, scratch.dir());
+  const RunResult e =
+      runOctovk({"store", "export", postgresUri(), "--map", "lost", "-o", scratch / "kept.ot"},
+                scratch.dir());
   ASSERT_EQ(e.exit_code, 0) << e.err;
   EXPECT_TRUE(readFile(scratch / "kept.ot") == graph2treeOt(graph, scratch))
       << "the store is not the map of the three scans before the lost commit";
@@ -835,9 +836,9 @@ TEST(StorePostgres, LostSessionEndsTheRunNamingTheFirstScanNotCommitted) {
   const std::string graph = scratch / "long.graph";
   writeGraph(graph, scans);
   const std::string map = "cut";
-  OctovkProcess writer({"integrate", graph, "--store", postgresUri(), "--map", map, "-r", "0.1",
-                        "-q"},
-                       scratch.dir());
+  OctovkProcess writer(
+      {"integrate", graph, "--store", postgresUri(), "--map", map, "-r", "0.1", "-q"},
+      scratch.dir());
   ASSERT_TRUE(writer.started());
   const fs::path psql_dir = scratch.dir() / "psql";
   fs::create_directories(psql_dir);
@@ -851,11 +852,11 @@ TEST(StorePostgres, LostSessionEndsTheRunNamingTheFirstScanNotCommitted) {
         }
       },
       std::chrono::seconds(120));
-  const RunResult cut = runShell(
-      "psql " + quote(postgresUri()) +
-          " -qAt -c \"SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity WHERE "
-          "datname = current_database() AND pid <> pg_backend_pid()\"",
-      psql_dir);  // not the writer's folder: its output files are there
+  const RunResult cut =
+      runShell("psql " + quote(postgresUri()) +
+                   " -qAt -c \"SELECT count(pg_terminate_backend(pid)) FROM pg_stat_activity WHERE "
+                   "datname = current_database() AND pid <> pg_backend_pid()\"",
+               psql_dir);  // not the writer's folder: its output files are there
   const RunResult r = writer.wait();
   ASSERT_TRUE(some) << r.out << r.err;
   ASSERT_EQ(cut.exit_code, 0) << cut.err;
@@ -867,6 +868,11 @@ TEST(StorePostgres, LostSessionEndsTheRunNamingTheFirstScanNotCommitted) {
   std::cout << "[ cut      ] " << r.err;
   const std::string place = "scan " + std::to_string(committed + 1) + " of 400: ";
   EXPECT_NE(r.err.find(place), std::string::npos) << "expected '" << place << "': " << r.err;
+  // In words, on one line (the session ended in a commit, or between two: then taking the
+  // lock fails): what failed and the remedy, no SQL, no notice of the server's.
+  test::expectOneErrorLine(r, 1, {"connection to the server is lost"});
+  for (const char* raw : {"SELECT", "INSERT", "FATAL"})
+    EXPECT_EQ(r.err.find(raw), std::string::npos) << raw << " in: " << r.err;
   const std::vector<GraphScan> kept(scans.begin(), scans.begin() + static_cast<long>(committed));
   const std::string graph_kept = scratch / "kept.graph";
   writeGraph(graph_kept, kept);

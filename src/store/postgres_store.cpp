@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <string>
+#include <string_view>
 #include <utility>
 
 #include "store/store.hpp"
@@ -84,6 +86,10 @@ class PostgresStore final : public Store {
       conn_ = nullptr;
       throw Error(ErrorCode::kIo, "cannot connect to store '" + name_ + "': " + oneLine(why));
     }
+    // The server's notices and warnings are not printed on stderr (libpq's default): what
+    // fails reaches the caller as an Error with the server's reason in it.
+    PQsetNoticeProcessor(
+        conn_, [](void*, const char*) {}, nullptr);
     try {
       exec("SET client_min_messages = warning");  // no NOTICE for tables that exist
       exec("BEGIN");
@@ -335,34 +341,61 @@ class PostgresStore final : public Store {
     return out;
   }
 
-  static std::string oneLine(std::string text) {
-    for (char& c : text)
-      if (c == '\n' || c == '\t') c = ' ';
-    while (!text.empty() && text.back() == ' ') text.pop_back();
-    return text;
+  // libpq's message on one line: its line breaks and indents as single spaces.
+  static std::string oneLine(const std::string& text) {
+    std::string out;
+    for (const char c : text) {
+      const bool space = c == '\n' || c == '\t' || c == ' ';
+      if (space && (out.empty() || out.back() == ' ')) continue;
+      out += space ? ' ' : c;
+    }
+    while (!out.empty() && out.back() == ' ') out.pop_back();
+    return out;
   }
 
+  // What a statement does, in words, for its error message (no SQL reaches the user).
+  static std::string doing(std::string_view sql) {
+    const auto has = [&](std::string_view part) { return sql.find(part) != sql.npos; };
+    if (sql.starts_with("BEGIN")) return "starting a transaction";
+    if (sql.starts_with("COMMIT")) return "committing";
+    if (sql.starts_with("LISTEN")) return "listening for commits";
+    if (has("pg_notify")) return "telling followers of the commit";
+    if (has("pg_advisory") || has("octovk_schema") || sql.starts_with("CREATE") ||
+        sql.starts_with("SET"))
+      return "checking its schema";
+    if (sql.starts_with("INSERT INTO tiles")) return "writing tiles";
+    if (sql.starts_with("DELETE FROM tiles")) return "deleting tiles";
+    if (sql.starts_with("INSERT INTO log")) return "writing the log row";
+    if (sql.starts_with("INSERT INTO maps")) return "creating the map";
+    if (has("FOR UPDATE")) return "taking the map's write lock";
+    if (has("FROM tiles")) return "reading tiles";
+    if (has("FROM log")) return "reading the log";
+    if (has("FROM maps")) return "reading its maps";
+    return "a query";
+  }
+
+  // `r`, or kIo saying what failed (`what`, in words) and why.
   PGresult* check(PGresult* r, const std::string& what) {
     const ExecStatusType status = PQresultStatus(r);
     if (status == PGRES_COMMAND_OK || status == PGRES_TUPLES_OK) return r;
     const std::string why = oneLine(r ? PQresultErrorMessage(r) : PQerrorMessage(conn_));
     PQclear(r);
-    throw Error(ErrorCode::kIo, "store '" + name_ + "': " + what + " failed: " + why);
+    const bool lost = PQstatus(conn_) == CONNECTION_BAD;
+    throw Error(ErrorCode::kIo,
+                "store '" + name_ + "': " + what + " failed: " + why +
+                    (lost ? " (the connection to the server is lost: check that the server runs "
+                            "and can be reached; the store keeps every scan committed before)"
+                          : ""));
   }
 
-  void exec(const std::string& sql) {
-    std::string what = "'";  // built in steps: GCC 12 warns (-Wrestrict) on "'" + substr + "'"
-    what += sql.substr(0, 40);
-    what += '\'';
-    PQclear(check(PQexec(conn_, sql.c_str()), what));
-  }
+  void exec(const std::string& sql) { PQclear(check(PQexec(conn_, sql.c_str()), doing(sql))); }
 
   PGresult* query(const char* sql, const std::vector<std::string>& params) {
     std::vector<const char*> values;
     for (const std::string& p : params) values.push_back(p.c_str());
     return check(PQexecParams(conn_, sql, static_cast<int>(values.size()), nullptr, values.data(),
                               nullptr, nullptr, 0),
-                 std::string("'") + std::string(sql).substr(0, 40) + "'");
+                 doing(sql));
   }
 
   // The map's id, its row locked until the transaction ends (SELECT ... FOR UPDATE).

@@ -380,7 +380,12 @@ class SqliteStore final : public Store {
     if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &message) != SQLITE_OK) {
       const std::string why = message ? message : sqlite3_errmsg(db_);
       sqlite3_free(message);
-      throw Error(ErrorCode::kIo, where("'" + sql.substr(0, 40) + "' failed: " + why));
+      // In words (no SQL reaches the user): the transaction's steps, else the file's set-up.
+      const char* doing = sql.starts_with("BEGIN IMMEDIATE") ? "taking the write lock"
+                          : sql.starts_with("BEGIN")         ? "starting a transaction"
+                          : sql.starts_with("COMMIT")        ? "committing"
+                                                             : "setting up the file";
+      throw Error(ErrorCode::kIo, where(std::string(doing) + " failed: " + why));
     }
   }
 
