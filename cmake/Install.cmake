@@ -2,9 +2,11 @@
 #   cmake --install build --prefix P
 # P/include/octovk/*                       headers (device_types.h is shared with the shaders)
 # P/lib*/liboctovk.a, liboctovk_octomap.a  the core (SPIR-V embedded) and OctoMap's formats
+# P/lib*/liboctovk_store.a                 the map store (SQLite and PostgreSQL; always static)
 # P/bin/octovk                             the program
-# P/lib*/cmake/octovk/                     find_package(octovk): octovk::octovk, octovk::octomap
-# P/lib*/pkgconfig/octovk.pc, octovk-octomap.pc
+# P/lib*/cmake/octovk/                     find_package(octovk): octovk::octovk, octovk::octomap,
+#                                          octovk::store
+# P/lib*/pkgconfig/octovk.pc, octovk-octomap.pc, octovk-store.pc
 # Everything is relocatable: the CMake files and the .pc files locate the prefix from their own
 # place, so --prefix may differ from CMAKE_INSTALL_PREFIX.
 include(CMakePackageConfigHelpers)
@@ -21,15 +23,17 @@ endif()
 
 install(TARGETS octovk EXPORT octovkTargets)
 install(TARGETS octovk_octomap EXPORT octovkOctomapTargets)
+install(TARGETS octovk_store EXPORT octovkStoreTargets)
 install(TARGETS octovk_cli)
-# store.hpp stays out: its library (octovk_store, SQLite and libpq) is not installed yet.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/octovk DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-  FILES_MATCHING PATTERN "*.h" PATTERN "*.hpp" PATTERN "store.hpp" EXCLUDE)
+  FILES_MATCHING PATTERN "*.h" PATTERN "*.hpp")
 
-# Two export sets, so that the core package never needs OctoMap: octovkConfig.cmake loads the
-# second only when OctoMap is wanted (or found).
+# Three export sets, so that the core package never needs OctoMap, nor the OctoMap component
+# SQLite or libpq: octovkConfig.cmake loads the second only when OctoMap is wanted (or found),
+# the third only when the store is asked for.
 install(EXPORT octovkTargets NAMESPACE octovk:: DESTINATION ${OCTOVK_CMAKE_DIR})
 install(EXPORT octovkOctomapTargets NAMESPACE octovk:: DESTINATION ${OCTOVK_CMAKE_DIR})
+install(EXPORT octovkStoreTargets NAMESPACE octovk:: DESTINATION ${OCTOVK_CMAKE_DIR})
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/octovkConfig.cmake.in
   ${PROJECT_BINARY_DIR}/octovkConfig.cmake INSTALL_DESTINATION ${OCTOVK_CMAKE_DIR})
 # 0.x: a new minor version may change the API.
@@ -55,7 +59,7 @@ foreach(dir LIBDIR INCLUDEDIR)
     set(OCTOVK_PC_${dir} "\${prefix}/${CMAKE_INSTALL_${dir}}")
   endif()
 endforeach()
-foreach(pc octovk octovk-octomap)
+foreach(pc octovk octovk-octomap octovk-store)
   configure_file(${PROJECT_SOURCE_DIR}/cmake/${pc}.pc.in ${PROJECT_BINARY_DIR}/${pc}.pc @ONLY)
   install(FILES ${PROJECT_BINARY_DIR}/${pc}.pc DESTINATION ${OCTOVK_PKGCONFIG_DIR})
 endforeach()

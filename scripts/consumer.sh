@@ -5,8 +5,10 @@
 #      builds core_consumer (octovk::octovk only) and runs it;
 #   2. configures it with find_package(octovk COMPONENTS octomap), builds and runs core_consumer
 #      and octomap_consumer (a .bt written and read back);
-#   3. builds both with plain g++ and `pkg-config --cflags --libs octovk` (octovk-octomap) and
-#      runs them;
+#   3. configures it with find_package(octovk COMPONENTS octomap store), builds and runs
+#      store_consumer (two scans committed to an SQLite store and read back);
+#   4. builds all three with plain g++ and `pkg-config --cflags --libs octovk` (octovk-octomap,
+#      octovk-store) and runs them;
 # and checks that the core (its exported targets, its pkg-config flags, the headers they reach, the
 # libraries a core-only program loads) is free of OctoMap. A consumer program exits 77 (skipped)
 # without a Vulkan device; with CI set it fails instead.
@@ -27,7 +29,7 @@ echo "consumer.sh: installing $build into $prefix"
 cmake --install "$build" --prefix "$prefix" >"$work/install.log" 2>&1 ||
   { cat "$work/install.log" >&2; die "cmake --install failed (is $build fully built? run scripts/build.sh)"; }
 for f in bin/octovk include/octovk/octovk.hpp include/octovk/vulkan_interop.hpp \
-  include/octovk/device_types.h include/octovk/octomap_io.hpp; do
+  include/octovk/device_types.h include/octovk/octomap_io.hpp include/octovk/store.hpp; do
   [ -f "$prefix/$f" ] || die "the install lacks $f"
 done
 "$prefix/bin/octovk" --help >/dev/null || die "the installed program $prefix/bin/octovk does not run"
@@ -75,10 +77,15 @@ configure_build "$work/both"
 run "$work/both/core_consumer"
 run "$work/both/octomap_consumer"
 
-echo "consumer.sh: pkg-config octovk / octovk-octomap with g++"
+echo "consumer.sh: find_package(octovk COMPONENTS octomap store): octovk::store too"
+configure_build "$work/store" -DCONSUMER_STORE=ON
+run "$work/store/store_consumer"
+
+echo "consumer.sh: pkg-config octovk / octovk-octomap / octovk-store with g++"
 export PKG_CONFIG_PATH="$pcdir${PKG_CONFIG_PATH:+:$PKG_CONFIG_PATH}"
 core_flags="$(pkg-config --cflags --libs octovk)" || die "pkg-config octovk failed"
 octomap_flags="$(pkg-config --cflags --libs octovk-octomap)" || die "pkg-config octovk-octomap failed"
+store_flags="$(pkg-config --cflags --libs octovk-store)" || die "pkg-config octovk-store failed"
 case "$core_flags" in *octom*) die "pkg-config octovk names OctoMap: $core_flags" ;; esac
 # The headers the core's flags reach: octovk's installed ones, none of OctoMap's.
 # shellcheck disable=SC2086
@@ -96,11 +103,14 @@ rpath="-Wl,-rpath,$(pkg-config --variable=libdir octovk)"
 g++ -std=c++20 -O1 -o "$work/core_pc" "$src/core_main.cpp" -Wl,--no-as-needed "$rpath" $core_flags
 # shellcheck disable=SC2086
 g++ -std=c++20 -O1 -o "$work/octomap_pc" "$src/octomap_main.cpp" "$rpath" $octomap_flags
+# shellcheck disable=SC2086
+g++ -std=c++20 -O1 -o "$work/store_pc" "$src/store_main.cpp" "$rpath" $store_flags
 run "$work/core_pc"
 run "$work/octomap_pc"
+run "$work/store_pc"
 
 if [ "$skipped" -gt 0 ]; then
   echo "consumer.sh: built everything; $skipped program run(s) SKIPPED: no Vulkan device"
 else
-  echo "consumer.sh: passed: CMake package and pkg-config, core without OctoMap, .bt round trip"
+  echo "consumer.sh: passed: CMake package and pkg-config, core without OctoMap, .bt round trip, a store"
 fi

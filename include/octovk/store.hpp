@@ -1,7 +1,8 @@
 // A map kept in a store (an SQLite file or a PostgreSQL database; docs/store.md) as well as on
 // the device, as `octovk integrate --store` keeps it: opened as its last committed scan left it,
 // and each scan inserted through it committed (its changed tiles and a log row, one
-// transaction). Link octovk_store (the build tree's library; not installed yet).
+// transaction). Link octovk::store (find_package(octovk COMPONENTS store); pkg-config
+// octovk-store), which brings SQLite and libpq.
 #pragma once
 
 #include <cstdint>
