@@ -23,7 +23,9 @@ jobs="$(nproc)"
 
 cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOCTOVK_SANITIZE=ON \
   -DOCTOVK_BUILD_BENCH=OFF "$@" >/dev/null
-cmake --build "$build" -j "$jobs"
+# Only what runs: the chosen test executables and the program they start (not the other test
+# executables, the Python module, the store's PostgreSQL binary), less for CI to build.
+cmake --build "$build" -j "$jobs" --target "${wanted[@]}" octovk_cli
 
 # Keeps every shared library mapped until exit (see the file for why).
 keep="$build/keep_libraries_loaded.so"
