@@ -615,6 +615,7 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped, cons
     store_->finish();  // --store: the last scan's commit
     totals.add(map.takeScanStats(), tum);
   } catch (const Error& e) {
+    store_->abandon();  // --store: a commit still running ends here, before the map does
     const std::size_t failed = e.scan() >= first_ticket && e.scan() != 0
                                    ? static_cast<std::size_t>(e.scan() - first_ticket)
                                    : at;

@@ -414,6 +414,10 @@ bool IntegrateStore::begin(OccupancyMap& map) {
   return true;
 }
 
+void IntegrateStore::abandon() noexcept {
+  if (writer_) writer_->abandon();
+}
+
 void IntegrateStore::finish() {
   if (writer_) writer_->finish();
 }

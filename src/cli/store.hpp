@@ -47,6 +47,8 @@ class IntegrateStore {
   void commit(OccupancyMap& map, const std::string& source, std::size_t scan);
   /// Waits for the last commit (its error thrown).
   void finish();
+  /// After an error: waits for the last commit, dropping it and its error (MapWriter::abandon).
+  void abandon() noexcept;
   /// The store's lines of integrate's summary.
   void report(Report& report) const;
   /// integrate's help lines for --store and --map.

@@ -150,6 +150,18 @@ CommitStats MapWriter::finish() {
   return pending->stats;
 }
 
+void MapWriter::abandon() noexcept {
+  if (background_.valid()) {
+    try {
+      background_.get();
+    } catch (...) {
+      // the run is failing already: its own error is the one to report
+    }
+  }
+  pending_commit_.reset();
+  forget();
+}
+
 void MapWriter::apply(PendingCommit& c) {
   // Only once committed: a failed commit leaves the writer as before, to be tried again.
   hashes_ = std::move(c.hashes);

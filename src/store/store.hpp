@@ -145,6 +145,9 @@ class MapWriter {
   /// thrown naming the scan (kIo from the store), and the writer forgets the map (the next
   /// begin() reloads it).
   CommitStats finish();
+  /// After an error elsewhere: waits for a background commit, drops its error and what it
+  /// captured (a device buffer: gone before the map is), and forgets the map.
+  void abandon() noexcept;
   /// The sums of the commits so far (seq: how many), and the most body bytes one wrote.
   const CommitStats& totals() const { return totals_; }
   /// How often begin() loaded other writers' scans, and the seconds it took in all.
