@@ -434,28 +434,30 @@ void IntegrateStore::report(Report& report) const {
   const std::size_t scans = t.seq;
   const double per_scan = scans == 0 ? 0.0 : 1.0 / static_cast<double>(scans);
   report
-      .line("store", format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
-                            map_name_.c_str(), existed_ ? "continued" : "created", scans,
-                            reloads_ == 0
-                                ? ""
-                                : format(", the map reloaded %zu times after other writers' "
-                                         "scans (%.1f ms each)",
-                                         reloads_,
-                                         writer_->reloadSeconds() * 1e3 /
-                                             static_cast<double>(std::max<std::size_t>(
-                                                 writer_->reloads(), 1)))
-                                      .c_str()))
+      .line(
+          "store",
+          format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
+                 map_name_.c_str(), existed_ ? "continued" : "created", scans,
+                 reloads_ == 0
+                     ? ""
+                     : format(", the map reloaded %zu times after other writers' "
+                              "scans (%.1f ms each)",
+                              reloads_,
+                              writer_->reloadSeconds() * 1e3 /
+                                  static_cast<double>(std::max<std::size_t>(writer_->reloads(), 1)))
+                           .c_str()))
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
                    "%zu bytes)",
                    t.tiles_written, t.body_bytes, static_cast<double>(t.body_bytes) * per_scan,
                    static_cast<double>(t.tiles_written) * per_scan, writer_->maxBodyBytes()))
       .line("store time",
-            format("%.3f ms/scan finding the changed tiles (%.1f tiles a scan compared), %.3f "
-                   "ms/scan committing them (both while the next scan runs, but for the "
-                   "capture)",
-                   t.find_s * 1e3 * per_scan, static_cast<double>(t.tiles_compared) * per_scan,
-                   t.write_s * 1e3 * per_scan));
+            format(
+                "%.3f ms/scan finding the changed tiles (%.1f tiles a scan compared), %.3f "
+                "ms/scan committing them (beside the next scan, on a thread of their own; only the "
+                "pool's capture waits for the device)",
+                t.find_s * 1e3 * per_scan, static_cast<double>(t.tiles_compared) * per_scan,
+                t.write_s * 1e3 * per_scan));
 }
 
 void IntegrateStore::printHelp(std::ostream& out) {
