@@ -2,7 +2,8 @@
 # Makes the benchmark's real-data inputs in DATA_DIR (default: build-bench/bench/data):
 #   scan.dat     OctoMap's 3D laser scan, from liboctomap-dev's examples (bzip2 -d)
 #   fr079.graph  the FR-079 sequence: tests/data/fr079-2d/clf2log.py, then log2graph
-#   fr079_500.graph  its first 500 scans, cut with OctoMap's ScanGraph (the store's bench)
+#   fr079_500.graph  its first 500 scans, cut with OctoMap's ScanGraph (the store's bench),
+#   fr079_500_a.graph, fr079_500_b.graph  scans 0-249 and 250-499 (two writers at once)
 # Skips files that exist. Needs python3, bzip2, liboctomap-dev and octomap-tools.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -35,9 +36,9 @@ if [ ! -s "$data_dir/fr079.graph" ]; then
   echo "prepare_data: wrote $data_dir/fr079.graph"
 fi
 
-if [ ! -s "$data_dir/fr079_500.graph" ]; then
-  # A few lines of C++ against liboctomap: ScanGraph reads the graph and writes its first 500
-  # nodes (it prints a line per scan: kept out of sight).
+if [ ! -s "$data_dir/fr079_500.graph" ] || [ ! -s "$data_dir/fr079_500_b.graph" ]; then
+  # A few lines of C++ against liboctomap: ScanGraph reads the graph and writes COUNT nodes from
+  # FIRST on (it prints a line per scan: kept out of sight).
   tool=$(mktemp -d /tmp/octovk-cut.XXXXXX)
   cat > "$tool/cut.cpp" <<'CPP'
 #include <octomap/octomap.h>
@@ -45,18 +46,23 @@ if [ ! -s "$data_dir/fr079_500.graph" ]; then
 int main(int argc, char** argv) {
   octomap::ScanGraph in, out;
   in.readBinary(argv[1]);
-  const int n = std::atoi(argv[3]);
+  const int first = std::atoi(argv[3]), count = std::atoi(argv[4]);
   int i = 0;
-  for (auto it = in.begin(); it != in.end() && i < n; ++it, ++i)
-    out.addNode(new octomap::Pointcloud(*(*it)->scan), (*it)->pose);
+  for (auto it = in.begin(); it != in.end(); ++it, ++i)
+    if (i >= first && i < first + count)
+      out.addNode(new octomap::Pointcloud(*(*it)->scan), (*it)->pose);
   return out.writeBinary(argv[2]) ? 0 : 1;
 }
 CPP
   # shellcheck disable=SC2046
   g++ -O2 -o "$tool/cut" "$tool/cut.cpp" $(pkg-config --cflags --libs octomap)
-  "$tool/cut" "$data_dir/fr079.graph" "$data_dir/fr079_500.graph.tmp" 500 > "$tool/log" 2>&1 ||
-    { tail -n 20 "$tool/log" >&2; rm -rf "$tool"; echo "prepare_data: cutting fr079_500 failed" >&2; exit 1; }
+  for part in "500 0 500" "500_a 0 250" "500_b 250 250"; do
+    read -r name first count <<<"$part"
+    "$tool/cut" "$data_dir/fr079.graph" "$data_dir/fr079_$name.graph.tmp" "$first" "$count" \
+      > "$tool/log" 2>&1 ||
+      { tail -n 20 "$tool/log" >&2; rm -rf "$tool"; echo "prepare_data: cutting fr079_$name failed" >&2; exit 1; }
+    mv "$data_dir/fr079_$name.graph.tmp" "$data_dir/fr079_$name.graph"
+    echo "prepare_data: wrote $data_dir/fr079_$name.graph"
+  done
   rm -rf "$tool"
-  mv "$data_dir/fr079_500.graph.tmp" "$data_dir/fr079_500.graph"
-  echo "prepare_data: wrote $data_dir/fr079_500.graph"
 fi
