@@ -12,22 +12,13 @@ octovk=$1 graph=$2 res=${3:-0.05} pairs=${4:-5} store=${5:-}
 work=$(mktemp -d /tmp/octovk-store-pairs.XXXXXX)
 trap 'rm -rf "$work"' EXIT
 [ -n "$store" ] || store="$work/p.sqlite"
-fresh() {
-  case "$store" in
-    postgresql://*)
-      db=${store#postgresql:///}
-      db=${db%%\?*}
-      "$PGBIN/dropdb" --if-exists "$db"
-      "$PGBIN/createdb" "$db"
-      ;;
-    *) rm -f "$store" "$store-wal" "$store-shm" ;;
-  esac
-}
+# shellcheck source=bench/store_common.sh
+source "$(dirname "$0")/store_common.sh"
 now() { date +%s.%N; }
 a_times=() b_times=()
 for ((i = 1; i <= pairs; ++i)); do
   s=$(now); "$octovk" integrate "$graph" -r "$res" -q -o "$work/in_core.bt" >/dev/null; e=$(now)
-  fresh
+  fresh_store "$store"
   s2=$(now); "$octovk" integrate "$graph" -r "$res" -q -o "$work/stored.bt" --store "$store" \
     >"$work/summary.txt"; e2=$(now)
   a=$(echo "$e - $s" | bc) b=$(echo "$e2 - $s2" | bc)

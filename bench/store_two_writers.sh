@@ -11,15 +11,9 @@ set -euo pipefail
 octovk=$1 graph_a=$2 graph_b=$3 store=$4 res=${5:-0.05}
 work=$(mktemp -d /tmp/octovk-two-writers.XXXXXX)
 trap 'rm -rf "$work"' EXIT
-case "$store" in
-  postgresql://*)
-    db=${store#postgresql:///}
-    db=${db%%\?*}
-    "$PGBIN/dropdb" --if-exists "$db"
-    "$PGBIN/createdb" "$db"
-    ;;
-  *) rm -f "$store" "$store-wal" "$store-shm" ;;
-esac
+# shellcheck source=bench/store_common.sh
+source "$(dirname "$0")/store_common.sh"
+fresh_store "$store"
 start=$(date +%s.%N)
 "$octovk" integrate "$graph_a" -r "$res" -q --store "$store" >"$work/a.txt" 2>&1 &
 a=$!

@@ -408,11 +408,7 @@ void IntegrateStore::load(OccupancyMap& map) {
   if (tree.root_exists) map.upload(tree);
 }
 
-bool IntegrateStore::begin(OccupancyMap& map) {
-  if (!writer_ || !writer_->begin(map)) return false;
-  ++reloads_;
-  return true;
-}
+bool IntegrateStore::begin(OccupancyMap& map) { return writer_ && writer_->begin(map); }
 
 void IntegrateStore::abandon() noexcept {
   if (writer_) writer_->abandon();
@@ -423,9 +419,7 @@ void IntegrateStore::finish() {
 }
 
 void IntegrateStore::commit(OccupancyMap& map, const std::string& source, std::size_t scan) {
-  if (!writer_) return;
-  map.flush();  // the scan's own work, not the commit's
-  writer_->commitInBackground(map, source, scan);
+  if (writer_) writer_->commitInBackground(map, source, scan);
 }
 
 void IntegrateStore::report(Report& report) const {
@@ -433,19 +427,18 @@ void IntegrateStore::report(Report& report) const {
   const store::CommitStats& t = writer_->totals();
   const std::size_t scans = t.seq;
   const double per_scan = scans == 0 ? 0.0 : 1.0 / static_cast<double>(scans);
+  const std::size_t reloads = writer_->reloads();
   report
-      .line(
-          "store",
-          format("%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
-                 map_name_.c_str(), existed_ ? "continued" : "created", scans,
-                 reloads_ == 0
-                     ? ""
-                     : format(", the map reloaded %zu times after other writers' "
-                              "scans (%.1f ms each)",
-                              reloads_,
-                              writer_->reloadSeconds() * 1e3 /
-                                  static_cast<double>(std::max<std::size_t>(writer_->reloads(), 1)))
-                           .c_str()))
+      .line("store",
+            format(
+                "%s, map '%s' (%s): %zu scans committed%s", store_->location().c_str(),
+                map_name_.c_str(), existed_ ? "continued" : "created", scans,
+                reloads == 0
+                    ? ""
+                    : format(", the map reloaded %zu times after other writers' "
+                             "scans (%.1f ms each)",
+                             reloads, writer_->reloadSeconds() * 1e3 / static_cast<double>(reloads))
+                          .c_str()))
       .line("store writes",
             format("%zu tiles, %zu bytes of tiles (%.0f bytes and %.1f tiles per scan, at most "
                    "%zu bytes)",

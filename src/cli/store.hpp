@@ -61,7 +61,6 @@ class IntegrateStore {
   std::unique_ptr<store::Store> store_;
   std::unique_ptr<store::MapWriter> writer_;
   bool existed_ = false;
-  std::size_t reloads_ = 0;
 };
 
 }  // namespace octovk::cli

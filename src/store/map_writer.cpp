@@ -33,14 +33,23 @@ MapInfo requireMap(Store& store, const std::string& name, const std::string& rem
   return *info;
 }
 
-HostTree loadTree(Store& store, const std::string& name) {
-  const MapInfo info = requireMap(store, name);
-  const std::vector<Tile> tiles = store.tiles(name, nullptr);
+namespace {
+
+// treeFromTiles, its errors naming the store and the map the tiles came from.
+HostTree storedTree(const Store& store, const std::string& name, std::span<const Tile> tiles,
+                    unsigned tile_depth) {
   try {
-    return treeFromTiles(tiles, info.tile_depth);
+    return treeFromTiles(tiles, tile_depth);
   } catch (const Error& e) {
     throw Error(e.code(), "store '" + store.location() + "', map '" + name + "': " + e.what());
   }
+}
+
+}  // namespace
+
+HostTree loadTree(Store& store, const std::string& name) {
+  const MapInfo info = requireMap(store, name);
+  return storedTree(store, name, store.tiles(name, nullptr), info.tile_depth);
 }
 
 MapWriter::MapWriter(Store& store, std::string name, const MapParams& params)
@@ -49,55 +58,45 @@ MapWriter::MapWriter(Store& store, std::string name, const MapParams& params)
   info_ = *store_.map(name_);
 }
 
-HostTree MapWriter::load() {
-  const std::vector<Tile> tiles = store_.tiles(name_, &last_seq_);
+std::vector<Tile> MapWriter::readAll(bool keep_bodies) {
+  std::vector<Tile> tiles = store_.tiles(name_, &last_seq_);
   hashes_.clear();
   bodies_.clear();
-  bodies_known_ = false;  // kept from the first reload on (reload())
-  for (const Tile& t : tiles) hashes_[t.key] = bodyHash(t.body);
-  try {
-    return treeFromTiles(tiles, info_.tile_depth);
-  } catch (const Error& e) {
-    throw Error(e.code(), "store '" + store_.location() + "', map '" + name_ + "': " + e.what());
+  for (const Tile& t : tiles) {
+    hashes_[t.key] = bodyHash(t.body);
+    if (keep_bodies) bodies_[t.key] = t.body;
   }
+  bodies_known_ = keep_bodies;
+  return tiles;
+}
+
+HostTree MapWriter::load() {
+  // The bodies are kept from the first reload on (reload()): a writer alone never needs them.
+  return storedTree(store_, name_, readAll(false), info_.tile_depth);
 }
 
 HostTree MapWriter::reload() {
+  if (!bodies_known_) return storedTree(store_, name_, readAll(true), info_.tile_depth);
+  // Only what the other writers' scans wrote since this one's last: the keys that remain,
+  // and the tiles whose version is newer.
+  TileChanges changes = store_.changesSince(name_, last_seq_);
+  for (auto it = bodies_.begin(); it != bodies_.end();) {
+    if (std::binary_search(changes.keys.begin(), changes.keys.end(), it->first)) {
+      ++it;
+    } else {
+      hashes_.erase(it->first);
+      it = bodies_.erase(it);
+    }
+  }
+  for (Tile& t : changes.changed) {
+    hashes_[t.key] = bodyHash(t.body);
+    bodies_[t.key] = std::move(t.body);
+  }
+  last_seq_ = changes.last_seq;
   std::vector<Tile> tiles;
-  if (!bodies_known_ || last_seq_ == ~std::uint64_t{0}) {
-    tiles = store_.tiles(name_, &last_seq_);
-    hashes_.clear();
-    bodies_.clear();
-    for (const Tile& t : tiles) {
-      hashes_[t.key] = bodyHash(t.body);
-      bodies_[t.key] = t.body;
-    }
-    bodies_known_ = true;
-  } else {
-    // Only what the other writers' scans wrote since this one's last: the keys that remain,
-    // and the tiles whose version is newer.
-    TileChanges changes = store_.changesSince(name_, last_seq_);
-    for (auto it = bodies_.begin(); it != bodies_.end();) {
-      if (std::binary_search(changes.keys.begin(), changes.keys.end(), it->first)) {
-        ++it;
-      } else {
-        hashes_.erase(it->first);
-        it = bodies_.erase(it);
-      }
-    }
-    for (Tile& t : changes.changed) {
-      hashes_[t.key] = bodyHash(t.body);
-      bodies_[t.key] = std::move(t.body);
-    }
-    last_seq_ = changes.last_seq;
-    tiles.reserve(bodies_.size());
-    for (const auto& [key, body] : bodies_) tiles.push_back({key, body});
-  }
-  try {
-    return treeFromTiles(tiles, info_.tile_depth);
-  } catch (const Error& e) {
-    throw Error(e.code(), "store '" + store_.location() + "', map '" + name_ + "': " + e.what());
-  }
+  tiles.reserve(bodies_.size());
+  for (const auto& [key, body] : bodies_) tiles.push_back({key, body});
+  return storedTree(store_, name_, tiles, info_.tile_depth);
 }
 
 bool MapWriter::begin(OccupancyMap& map) {
@@ -119,14 +118,7 @@ bool MapWriter::begin(OccupancyMap& map) {
   return true;
 }
 
-MapWriter::~MapWriter() {
-  if (!background_.valid()) return;
-  try {
-    background_.get();
-  } catch (...) {
-    // a destroyed writer's last transaction failed: the store holds the scans before it
-  }
-}
+MapWriter::~MapWriter() { abandon(); }
 
 CommitStats MapWriter::finish() {
   if (!background_.valid()) return {};

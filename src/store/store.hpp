@@ -16,8 +16,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "octovk/octovk.hpp"
 #include "map/pool_capture.hpp"
+#include "octovk/octovk.hpp"
 #include "store/tiles.hpp"
 
 namespace octovk::store {
@@ -206,6 +206,9 @@ class MapWriter {
   bool bodies_known_ = false;
   std::size_t reloads_ = 0;
   double reload_s_ = 0.0;
+  /// Every tile of the map, read in one snapshot (sets last_seq_): the hashes replaced, and the
+  /// bodies when `keep_bodies`.
+  std::vector<Tile> readAll(bool keep_bodies);
   /// The map as the store holds it after other writers' scans (begin()).
   HostTree reload();
 };
