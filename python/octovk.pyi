@@ -142,6 +142,7 @@ class ScanStats:
     aborted_cells: int
     nodes: int
     cell_set_attempts: int
+    tile_groups: int
     wall_ms: float
     device: StageTimes
 

@@ -64,10 +64,26 @@ uint insertBrick(uint64_t brick) {
 }
 
 // The brick the last markCell of this invocation found (a ray's next cells are mostly in it), and
-// the cells marked in it that are not yet stored in its flag words.
+// the cells marked in it that are not yet stored in its flag words. kOtherGroup: the brick's tile
+// is not in the scan's group (a scan applied in groups of tiles): its cells are not marked.
+const uint kOtherGroup = 0xFFFFFFFEu;
 uvec3 marked_brick = uvec3(0xFFFFFFFFu);
 uint marked_slot = 0u;
 uvec2 marked_bits = uvec2(0u);
+
+// Whether the tile of `brick` (the node at depth kTileDepth: 4x4x4 bricks) is in the scan's group
+// (params.tile_group: the group's index | (groups - 1) << 16). A tile's group is a hash of its
+// key, so every group has about its share of any scan's cells; each cell is in one group, and
+// every group walks every ray, so each cell is marked, free or occupied, in exactly one group.
+bool inTileGroup(uvec3 brick) {
+  uint mask = params.tile_group >> 16;
+  uvec3 t = brick >> (kTreeDepth - kTileDepth - 2u);
+  uint h = t.x * 0x9E3779B1u ^ t.y * 0x85EBCA77u ^ t.z * 0xC2B2AE3Du;
+  h ^= h >> 15;
+  h *= 0x2C1B3C6Du;
+  h ^= h >> 13;
+  return (h & mask) == (params.tile_group & 0xFFFFu);
+}
 
 // Index of cell k in its 4x4x4 brick: x | y << 2 | z << 4 of the low key bits.
 uint brickCellIndex(uvec3 k) { return (k.x & 3u) | ((k.y & 3u) << 2) | ((k.z & 3u) << 4); }
@@ -82,6 +98,10 @@ void noteMark(uvec3 k) {
 // Stores the pending marks of the current brick: one atomicOr per brick a ray crosses, not one
 // per cell (none when neighbouring rays stored them already).
 void flushMarks() {
+  if (marked_slot == kOtherGroup) {
+    marked_bits = uvec2(0u);
+    return;
+  }
   uint base = marked_slot * kBrickFlagWords;
   for (uint w = 0u; w < 2u; ++w) {
     uint bits = marked_bits[w];
@@ -98,11 +118,17 @@ bool markCell(uvec3 k, bool occupied) {
   uvec3 brick = k >> 2;
   if (brick != marked_brick) {
     flushMarks();
+    if (!inTileGroup(brick)) {
+      marked_brick = brick;
+      marked_slot = kOtherGroup;
+      return true;
+    }
     uint s = insertBrick(packKey(brick));
     if (s == 0xFFFFFFFFu) return false;
     marked_brick = brick;
     marked_slot = s;
   }
+  if (marked_slot == kOtherGroup) return true;
   if (occupied) {
     uint index = brickCellIndex(k);
     uint word = marked_slot * kBrickFlagWords + (index >> 5);

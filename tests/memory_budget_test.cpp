@@ -1,8 +1,10 @@
 // The device-memory budget (MapParams::max_device_bytes) and the release of per-scan scratch
 // (OccupancyMap::trim and the automatic release after an outsized scan). A growth the cap does
 // not allow — the cell sets, the node pool, the query buffers — throws kOutOfDeviceMemory, the map
-// keeps its nodes and takes the next scan that fits; trim and the automatic release change only
-// sizes, never results. Caps are derived from what an uncapped map measures, not written in.
+// keeps its nodes and takes the next scan that fits, except the scan's cell sets and lists: a scan
+// whose cells do not fit is applied in groups of tiles, each within the cap, with the same
+// result; trim and the automatic release change only sizes, never results. Caps are derived
+// from what an uncapped map measures, not written in.
 #include <octomap/octomap.h>
 
 #include <cstdio>
@@ -80,36 +82,67 @@ TEST(MemoryBudget, MinimumIsAnEmptyMapAndLessIsRefused) {
   EXPECT_LT(small.minDeviceBytes(), MapParams{}.minDeviceBytes());
 }
 
-// Long rays from few points: the cell set must grow in the ray pass (the first guess, from the
-// point count, is below its initial size), and the cap allows no growth.
-TEST(MemoryBudget, CellSetOverCapKeepsTheMap) {
+// Long rays from few points: the cell set must grow in the ray pass beyond what the cap allows.
+// The scan is applied in groups of tiles instead (ScanStats::tile_groups), each part within the
+// cap: the map equals OctoMap's and its counts an uncapped map's, blocking, submitted back to back
+// (the next scans start with as many groups) and with discretize.
+TEST(MemoryBudget, CellSetOverCapAppliesTheScanInGroupsOfTiles) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const double res = 0.05;
-  const auto small = sphere(0.5f, 200, Eigen::Vector3f::Zero());
-  std::size_t after_small = 0;
-  {
-    OccupancyMap probe(ctx, test::withResolution(res));
-    probe.insertPointCloud(small, Eigen::Vector3f::Zero());
-    after_small = probe.deviceBytes();
+  struct Scan {
+    std::vector<Eigen::Vector3f> points;
+    Eigen::Vector3f origin;
+    bool discretize = false;
+  };
+  std::vector<Scan> scans = {{sphere(0.5f, 200, Eigen::Vector3f::Zero()), {0, 0, 0}},
+                             {sphere(30.0f, 64, Eigen::Vector3f::Zero()), {0, 0, 0}}};
+  for (int i = 1; i <= 3; ++i) {  // submitted back to back
+    const Eigen::Vector3f o(0.07f * static_cast<float>(i), 0.03f, 0.0f);
+    scans.push_back({sphere(25.0f + static_cast<float>(i), 48, o), o});
   }
-  const std::size_t cap = after_small + (64 << 10);
+  const Eigen::Vector3f o(-0.11f, 0.02f, 0.01f);
+  scans.push_back({sphere(28.0f, 80, o), o, true});  // discretize: the distinct end cells' rays
+
+  OccupancyMap uncapped(ctx, test::withResolution(res));
+  std::vector<ScanStats> whole;
+  std::size_t pool = 0, total = 0;
+  for (const Scan& s : scans) {
+    whole.push_back(uncapped.insertPointCloud(s.points, s.origin, {.discretize = s.discretize}));
+    pool = std::max(pool, uncapped.poolBytes());
+    total = std::max(total, uncapped.deviceBytes());
+  }
+  // The pool as uncapped (the map fits), and a 16th of the rest (the scans' sets do not).
+  const std::size_t cap = pool + (total - pool) / 16;
   OccupancyMap map(ctx, capped(res, cap));
   octomap::OcTree oracle = test::makeOracle(map.params());
-  ASSERT_TRUE(test::insertBoth(map, oracle, small, Eigen::Vector3f::Zero(), -1.0, false));
+  const auto expectSameCounts = [&](const ScanStats& parts, std::size_t i) {
+    EXPECT_EQ(whole[i].tile_groups, 1u) << "scan " << i;
+    EXPECT_GT(parts.tile_groups, 1u) << "scan " << i;
+    EXPECT_EQ(parts.free_cells, whole[i].free_cells) << "scan " << i;
+    EXPECT_EQ(parts.occupied_cells, whole[i].occupied_cells) << "scan " << i;
+    EXPECT_EQ(parts.aborted_cells, whole[i].aborted_cells) << "scan " << i;
+    EXPECT_EQ(parts.nodes, whole[i].nodes) << "scan " << i;
+  };
+  ASSERT_TRUE(test::insertBoth(map, oracle, scans[0].points, scans[0].origin, -1.0, false));
+  ScanStats parts;
+  ASSERT_TRUE(test::insertBoth(map, oracle, scans[1].points, scans[1].origin, -1.0, false, &parts));
+  expectSameCounts(parts, 1);
   EXPECT_LE(map.deviceBytes(), cap);
-  const std::size_t nodes = map.nodeCount();
-  const std::size_t scratch = map.scratchBytes();
 
-  const auto far = sphere(30.0f, 64, Eigen::Vector3f::Zero());
-  expectCapRefusal([&] { map.insertPointCloud(far, Eigen::Vector3f::Zero()); }, "cell sets");
-  EXPECT_EQ(map.nodeCount(), nodes);
+  // Submitted back to back: each in parts from its start, one statistics entry per scan.
+  for (std::size_t i = 2; i < 5; ++i) {
+    map.submitPointCloud(scans[i].points, scans[i].origin);
+    oracle.insertPointCloud(test::toPointcloud(scans[i].points), test::toPoint(scans[i].origin));
+  }
+  map.flush();
+  const std::vector<ScanStats> stats = map.takeScanStats();
+  ASSERT_EQ(stats.size(), 3u);
+  for (std::size_t i = 0; i < stats.size(); ++i) expectSameCounts(stats[i], i + 2);
   EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
   EXPECT_LE(map.deviceBytes(), cap);
-  EXPECT_EQ(map.scratchBytes(), scratch);  // nothing was allocated
 
-  // The next scan that fits works, from sets the failed scan left in an unknown state.
-  const auto again = sphere(0.4f, 150, Eigen::Vector3f(0.05f, 0, 0));
-  ASSERT_TRUE(test::insertBoth(map, oracle, again, Eigen::Vector3f(0.05f, 0, 0), -1.0, false));
+  ASSERT_TRUE(test::insertBoth(map, oracle, scans[5].points, scans[5].origin, -1.0, true, &parts));
+  expectSameCounts(parts, 5);
   EXPECT_LE(map.deviceBytes(), cap);
 }
 
@@ -149,15 +182,16 @@ TEST(MemoryBudget, PointsOverCapKeepTheMap) {
   EXPECT_LE(map.deviceBytes(), cap);
 }
 
-// The same scan geometry again and again, 20 m apart (a whole number of bricks): each needs the
+// The same small scan again and again, 20 m apart (a whole number of bricks): each needs the
 // first one's scratch and as many new blocks again, so within a cap a little above what the first
-// scan left (room ahead included, where the map reserves it), the pool soon may not grow. That
-// scan is refused, the map keeps its nodes, and a smaller scan still fits.
+// scan left, the pool soon may not grow. That scan is refused, the map keeps its nodes (or, for a
+// scan applied in groups of tiles, the parts before, as the message says), and a smaller scan
+// still fits.
 TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const double res = 0.1;
   const Eigen::Vector3f a(0, 0, 0);
-  const auto first = sphere(3.0f, 3000, a);
+  const auto first = sphere(0.6f, 200, a);
   std::size_t after_first = 0, pool_after_first = 0;
   {
     OccupancyMap probe(ctx, test::withResolution(res));
@@ -173,9 +207,11 @@ TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
 
   bool refused = false;
   Eigen::Vector3f last = a;
-  for (int k = 1; k <= 4 && !refused; ++k) {
+  std::unique_ptr<octomap::OcTree> synced;  // the map after a scan that failed in parts
+  // (The scan sets and lists give way to the pool first, so it takes a few scans.)
+  for (int k = 1; k <= 64 && !refused; ++k) {
     const Eigen::Vector3f at(20.0f * static_cast<float>(k), 0, 0);
-    const auto scan = sphere(3.0f, 3000, at);
+    const auto scan = sphere(0.6f, 200, at);
     const std::size_t nodes = map.nodeCount();
     const std::size_t pool_bytes = map.poolBytes();
     try {
@@ -184,24 +220,34 @@ TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
       refused = true;
       EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
       const std::string msg = e.what();
-      for (const char* part : {"max_device_bytes", "node pool", "unchanged"})
+      for (const char* part : {"max_device_bytes", "node pool"})
         EXPECT_NE(msg.find(part), std::string::npos) << msg;
-      EXPECT_EQ(map.nodeCount(), nodes);
-      EXPECT_EQ(map.poolBytes(), pool_bytes);
-      EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
       EXPECT_LE(map.deviceBytes(), cap);
+      if (msg.find("applied in groups of tiles") == std::string::npos) {
+        EXPECT_NE(msg.find("unchanged"), std::string::npos) << msg;
+        EXPECT_EQ(map.nodeCount(), nodes);
+        EXPECT_EQ(map.poolBytes(), pool_bytes);
+        EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
+      } else {
+        // A scan applied in parts (its cells did not fit the sets the pool left) that outgrew
+        // the cap after its first parts: the message says the map holds them, and not that it
+        // is unchanged; the map goes on from there.
+        EXPECT_NE(msg.find("the map holds the first"), std::string::npos) << msg;
+        EXPECT_EQ(msg.find("unchanged"), std::string::npos) << msg;
+        EXPECT_GT(map.nodeCount(), nodes);
+        synced = toOcTree(map);
+      }
       break;
     }
     oracle.insertPointCloud(test::toPointcloud(scan), test::toPoint(at));
-    EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map))) << "scan " << k;
     EXPECT_LE(map.deviceBytes(), cap) << "scan " << k;
     last = at;
   }
   ASSERT_TRUE(refused) << "no scan outgrew the capped pool";
 
   // A smaller scan at the last place the map took fits the pool that is left.
-  const auto small = sphere(0.5f, 200, last);
-  ASSERT_TRUE(test::insertBoth(map, oracle, small, last, -1.0, false));
+  const auto small = sphere(0.3f, 50, last);
+  ASSERT_TRUE(test::insertBoth(map, synced ? *synced : oracle, small, last, -1.0, false));
   EXPECT_LE(map.deviceBytes(), cap);
 }
 

@@ -370,6 +370,72 @@ TEST(PayloadStreaming, SubmittedScansEqualOctoMap) {
   EXPECT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp));
 }
 
+// Under a memory cap that the scans' cell sets do not fit, colour and stamp scans are applied in
+// groups of tiles: the colours are folded once every part is in (after the whole scan's pruning,
+// as ColorOcTree does), every part stamps its nodes with the scan's stamp; blocking and submitted,
+// equal to OctoMap.
+TEST(PayloadStreaming, ScansInGroupsOfTilesEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = withResolution(0.05);
+  struct Scan {
+    std::vector<Eigen::Vector3f> points;
+    Eigen::Vector3f origin;
+    std::vector<Rgb> colors;
+  };
+  std::vector<Scan> scans;
+  std::mt19937 rng(35);
+  for (std::uint32_t scan = 0; scan < 4; ++scan) {
+    const Eigen::Vector3f origin(0.03f * static_cast<float>(scan), 0.01f, 0.0f);
+    // Many points to a node near the sensor (their colours' order counts) and long rays.
+    auto pts = randomScan(rng, origin, 600, 0.6f);
+    const auto far = sphere(20.0f + static_cast<float>(scan), 48, origin);
+    pts.insert(pts.end(), far.begin(), far.end());
+    scans.push_back({pts, origin, colorsOf(91 + scan, pts.size())});
+  }
+  // The pool as uncapped (the map fits), and a 16th of the rest (the scans' sets do not).
+  std::size_t pool = 0, total = 0;
+  {
+    ColorMap probe(ctx, params);
+    for (const Scan& s : scans) {
+      probe.insertPointCloud(s.points, s.origin, s.colors);
+      pool = std::max(pool, probe.poolBytes());
+      total = std::max(total, probe.deviceBytes());
+    }
+  }
+  params.max_device_bytes = pool + (total - pool) / 16;
+  ColorMap cmap(ctx, params);
+  auto coracle = makeColorOracle(params);
+  StampedMap smap(ctx, params);
+  StampedOracle soracle(params);
+  std::size_t in_parts = 0;
+  for (std::uint32_t scan = 0; scan < scans.size(); ++scan) {
+    const Scan& s = scans[scan];
+    coracle->insertPointCloud(toPointcloud(s.points), toPoint(s.origin));
+    for (std::size_t i = 0; i < s.points.size(); ++i)
+      coracle->averageNodeColor(s.points[i].x(), s.points[i].y(), s.points[i].z(), s.colors[i].r,
+                                s.colors[i].g, s.colors[i].b);
+    soracle.setScanTime(5000 + scan);
+    soracle.insertPointCloud(toPointcloud(s.points), toPoint(s.origin));
+    if (scan < 2) {
+      in_parts += cmap.insertPointCloud(s.points, s.origin, s.colors).tile_groups > 1;
+      in_parts += smap.insertPointCloud(s.points, s.origin, 5000 + scan).tile_groups > 1;
+    } else {
+      (void)cmap.submitPointCloud(s.points, s.origin, {.colors = s.colors});
+      (void)smap.submitPointCloud(s.points, s.origin, {.stamp = 5000 + scan});
+    }
+  }
+  cmap.flush();
+  smap.flush();
+  for (OccupancyMap* m : {static_cast<OccupancyMap*>(&cmap), static_cast<OccupancyMap*>(&smap)})
+    for (const ScanStats& st : m->takeScanStats()) in_parts += st.tile_groups > 1;
+  EXPECT_EQ(in_parts, 8u) << "every scan should have been applied in groups of tiles";
+  EXPECT_LE(cmap.deviceBytes(), params.max_device_bytes);
+  EXPECT_LE(smap.deviceBytes(), params.max_device_bytes);
+  coracle->updateInnerOccupancy();
+  EXPECT_TRUE(samePayloadTree(*coracle, cmap.download(), Payload::kColor));
+  EXPECT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp));
+}
+
 // Many points in few nodes, in shuffled order (the integer mean depends on the order), some
 // white; then a scan with no colours whose pruning still averages the children's colours.
 TEST(ColorInputs, ManyPointsPerNodeAndScansWithoutColours) {

@@ -55,6 +55,10 @@ struct ScanStats {
   /// Times the scan was run: more than 1 when the device refused it (a set, the pool or the
   /// lists too small, or an earlier scan in flight refused) and it ran again after growth.
   std::size_t cell_set_attempts = 0;
+  /// Parts the scan was applied in, each the cells of a group of tiles: more than 1 where its
+  /// cells did not fit the scan scratch at once (under MapParams::max_device_bytes, or what the
+  /// device gives). The map is the same either way; each part walks every ray again.
+  std::size_t tile_groups = 1;
   /// Host wall time of the call: the whole blocking call; for a submitted scan, the time
   /// submit*() took (staging its input and recording; waits for a busy frame or growth
   /// included).

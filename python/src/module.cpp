@@ -320,6 +320,9 @@ void bindTypes(py::module_& m) {
       .def_readonly("aborted_cells", &ScanStats::aborted_cells)
       .def_readonly("nodes", &ScanStats::nodes, "nodes in the tree after the scan")
       .def_readonly("cell_set_attempts", &ScanStats::cell_set_attempts)
+      .def_readonly("tile_groups", &ScanStats::tile_groups,
+                    "parts the scan was applied in (groups of tiles): more than 1 where its "
+                    "cells did not fit the device memory at once")
       .def_readonly("wall_ms", &ScanStats::wall_ms)
       .def_readonly("device", &ScanStats::device, "StageTimes")
       .def("__repr__", [](const ScanStats& s) {

@@ -158,6 +158,7 @@ def test_update_after_scans_equals_a_field_from_scratch(context):
 def test_bad_input_and_memory(context):
     m = octovk.Map(RES)
     base = m.device_bytes()
+    base_leaf_boxes = m.device_bytes_by_use().leaf_boxes
     with pytest.raises(octovk.InvalidArgumentError, match="inverted"):
         octovk.DistanceField(m, (1, 0, 0), (0, 1, 1))
     with pytest.raises(octovk.InvalidArgumentError, match="NaN"):
@@ -188,7 +189,10 @@ def test_bad_input_and_memory(context):
         octovk.DistanceField(m, (0, 0, 0))
     del field, free
     gc.collect()
-    assert m.device_bytes() == base
+    # The fields' memory is back; the map made its leaf boxes for them (they stay the map's).
+    assert m.device_bytes_by_use().distance_fields == 0
+    grown = m.device_bytes_by_use()
+    assert m.device_bytes() - grown.leaf_boxes == base - base_leaf_boxes
 
 
 def test_max_distance_m_and_its_old_name(context):

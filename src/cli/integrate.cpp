@@ -493,8 +493,13 @@ struct Integrate::Sources {
 // The points the scans held, as ScanStats count them over the run.
 struct Integrate::Totals {
   std::size_t points = 0, skipped_nonfinite = 0, skipped_outside = 0, pixels = 0, no_depth = 0;
+  std::size_t split_scans = 0, most_groups = 1;  // scans applied in groups of tiles
   void add(const std::vector<ScanStats>& finished, bool tum) {
     for (ScanStats stats : finished) {
+      if (stats.tile_groups > 1) {
+        ++split_scans;
+        most_groups = std::max(most_groups, stats.tile_groups);
+      }
       if (tum) {
         pixels += stats.points;
         no_depth += stats.skipped_no_depth;
@@ -622,7 +627,7 @@ Integrate::Totals Integrate::insert(OccupancyMap& map, StampedMap* stamped, cons
     std::string message = withOptionNames(e).what();
     // The library's note on which scans the map still holds, in its tickets: the place says
     // which scan, and a failed run writes no map.
-    if (const std::size_t note = message.rfind(" [scan " + std::to_string(e.scan()) + " was not");
+    if (const std::size_t note = message.rfind(" [scan " + std::to_string(e.scan()) + " ");
         e.scan() != 0 && note != std::string::npos)
       message.erase(note);
     if (failed >= scan_count) throw Error(e.code(), input + ": " + message, e.scan());
@@ -680,6 +685,11 @@ int Integrate::run(Invocation& in) {
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));
+  if (totals.split_scans > 0)
+    report.line("in parts",
+                format("%zu of the scans applied in groups of tiles (up to %zu parts), each part "
+                       "walking every ray: their cells did not fit the device memory at once",
+                       totals.split_scans, totals.most_groups));
   if (color_)
     report.line("colour",
                 format("ColorOcTree: each depth pixel coloured by rgb.txt's image nearest in time "

@@ -24,6 +24,9 @@ using uint64_t = std::uint64_t;
 
 // Tree geometry, as OctoMap's 16-level OcTree.
 OCTOVK_CONST uint kTreeDepth = 16u;
+// The depth of the map's tiles (the store's unit, src/store/tiles.hpp; the groups of a scan
+// applied in parts): the node at depth 12 and its subtree, 16^3 finest cells.
+OCTOVK_CONST uint kTileDepth = 12u;
 OCTOVK_CONST uint kTreeMaxVal = 32768u;
 
 // Node pool: node index = block * 8 + slot. Block 0 holds the root in slot 0 (slots 1..7 unused).
@@ -133,7 +136,8 @@ struct ScanParams {
   uint cell_capacity;        // 4B (112) entries of the cell list and the active-cell list
   uint payload;              // 4B (116) kPayload*: what PAYLOAD holds per node
   uint stamp;                // 4B (120) kPayloadStamp: the scan's time stamp
-  uint pad0;                 // 4B (124)
+  uint tile_group;           // 4B (124) a scan applied in groups of tiles: this group's index |
+                             // (groups - 1) << 16, groups a power of two; 0: every tile
 };
 
 // What a node holds besides its log-odds (MapParams::payload): PAYLOAD, one word per node.
@@ -308,9 +312,9 @@ struct BoxQuery {
 // keeps it until the set is reset or rehashed; its state says whether the key is in OctoMap's
 // KeyBoolMap now, and with which flag. Empty slots hold kEmptyChangeKey and kChangeNone (the
 // whole buffer filled with 0xFF bytes).
-OCTOVK_CONST uint kChangeFlipped = 0u;       // in the map as `false`: its occupancy flipped
-OCTOVK_CONST uint kChangeCreated = 1u;       // in the map as `true`: its leaf was created
-OCTOVK_CONST uint kChangeNone = 0xFFFFFFFFu; // not in the map (never was, or flipped back)
+OCTOVK_CONST uint kChangeFlipped = 0u;        // in the map as `false`: its occupancy flipped
+OCTOVK_CONST uint kChangeCreated = 1u;        // in the map as `true`: its leaf was created
+OCTOVK_CONST uint kChangeNone = 0xFFFFFFFFu;  // not in the map (never was, or flipped back)
 // The change set's header. 16 B.
 struct ChangeHeader {
   uint used;  // 4B (0)  slots claimed by a key (what limits the set's load)
@@ -517,15 +521,15 @@ OCTOVK_CONST uint kClearBoxDegrade = 3u;
 // kClearBoxInner gives a stamped node its newest child's stamp.
 OCTOVK_CONST uint kClearBoxInnerAt = 4u;
 struct ClearBoxConstants {
-  uint mode;   // 4B (0)  kClearBox*
+  uint mode;       // 4B (0)  kClearBox*
   uint level;      // 4B (4)  kClearBoxInner: depth of the nodes updated
   uint now;        // 4B (8)  kClearBoxDegrade, kClearBoxInnerAt: the query time
   uint threshold;  // 4B (12) kClearBoxDegrade: the age (seconds) beyond which a leaf degrades
 };
 
 // keep_box. 16 B. Marks use kFlagTouched (clear between scans; keep_box clears what it set).
-OCTOVK_CONST uint kKeepBoxMark = 0u;    // per block: the leaves in the BoxQuery and every node above
-OCTOVK_CONST uint kKeepBoxSweep = 1u;   // per block: unmarked nodes deleted, their blocks freed
+OCTOVK_CONST uint kKeepBoxMark = 0u;   // per block: the leaves in the BoxQuery and every node above
+OCTOVK_CONST uint kKeepBoxSweep = 1u;  // per block: unmarked nodes deleted, their blocks freed
 OCTOVK_CONST uint kKeepBoxUnmark = 2u;  // per block: the marks of its slots (and the root) cleared
 struct KeepBoxConstants {
   uint mode;  // 4B (0)  kKeepBox*
@@ -564,11 +568,11 @@ OCTOVK_CONST uint kBindQueryOut = 15u;
 OCTOVK_CONST uint kBindWalks = 16u;
 OCTOVK_CONST uint kBindSlots =
     17u;  // the slots filled in the cell set, then those of the second set
-OCTOVK_CONST uint kBindCellList = 18u;  // ids of the scan's distinct cells
-OCTOVK_CONST uint kBindDepth = 19u;     // a depth image: DepthCamera, then its pixels
-OCTOVK_CONST uint kBindChanges = 20u;   // the changed keys: ChangeHeader, then ChangeSlots
-OCTOVK_CONST uint kBindPayload = 21u;   // a word per node (ScanParams::payload), or one word
-OCTOVK_CONST uint kBindColorFold = 22u; // a colour scan's colours, links and table (color_fold)
+OCTOVK_CONST uint kBindCellList = 18u;   // ids of the scan's distinct cells
+OCTOVK_CONST uint kBindDepth = 19u;      // a depth image: DepthCamera, then its pixels
+OCTOVK_CONST uint kBindChanges = 20u;    // the changed keys: ChangeHeader, then ChangeSlots
+OCTOVK_CONST uint kBindPayload = 21u;    // a word per node (ScanParams::payload), or one word
+OCTOVK_CONST uint kBindColorFold = 22u;  // a colour scan's colours, links and table (color_fold)
 OCTOVK_CONST uint kBindingCount = 23u;
 // The map's arrays that can outgrow one descriptor's range (maxStorageBufferRange: 128 MiB on
 // lavapipe, while a 0.02 m map's node pool alone takes 454 MiB) are not bound by descriptor:
@@ -617,7 +621,8 @@ struct ScanRaysRtConstants {
 OCTOVK_CONST uint kFieldNone = 0xFFFFFFFFu;    // no obstacle (line_x, plane_xy, sites)
 OCTOVK_CONST uint kFieldNoSite = 0xFFFFFFFFu;  // sites: the box has no obstacle
 OCTOVK_CONST uint kFieldStatusCut = 1u;        // a line's loop ended early (driver loop limit)
-OCTOVK_CONST uint kFieldMaxAxisCells = 16384u;  // squared distances and the passes' integers fit 31 bits
+OCTOVK_CONST uint kFieldMaxAxisCells =
+    16384u;  // squared distances and the passes' integers fit 31 bits
 // The field's description on the device. 96 B.
 struct FieldHeader {
   uint64_t occupancy;     // 8B (0)  address of uint[words_per_row * size_y * size_z]

@@ -1,7 +1,7 @@
 // The Vulkan-free part of MapBuffers: the pool's block limit and an empty map's bytes.
-#include <algorithm>
-
 #include "map/buffer_sizes.hpp"
+
+#include <algorithm>
 
 namespace octovk {
 
@@ -15,10 +15,13 @@ std::uint32_t poolBlockLimit(std::size_t max_nodes) {
 
 std::size_t MapBuffers::initialBytes(std::uint32_t block_limit, Payload payload) {
   const bool with = payload != Payload::kNone;
-  return kFixedBytes + 4 * kSmallQuery + (4 + kFramesInFlight + (with ? 0 : 1)) * kSmallBuffer + hashBytes(kInitialHashLog2) +
-         endpointBytes(kInitialHashLog2) + slotBytes(kInitialHashLog2, kInitialHashLog2) +
-         listBytes(kInitialActive) +
-         std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} * blockBytes(with);
+  // Small buffers: points, walks, depth, colour fold, leaf boxes, the frames' staging, and the
+  // payload of a map without one.
+  return kFixedBytes + 4 * kSmallQuery + (5 + kFramesInFlight + (with ? 0 : 1)) * kSmallBuffer +
+         hashBytes(kInitialHashLog2) + endpointBytes(kInitialHashLog2) +
+         slotBytes(kInitialHashLog2, kInitialHashLog2) + listBytes(kInitialActive) +
+         std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} *
+             blockBytes(with, /*leaf_boxes=*/false);
 }
 
 }  // namespace octovk

@@ -7,8 +7,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "map/map_buffers.hpp"
 #include "gpu/gpu_types.h"
+#include "map/map_buffers.hpp"
 
 namespace octovk::sizes {
 
@@ -32,13 +32,14 @@ inline std::size_t slotBytes(std::uint32_t hash_log2, std::uint32_t endpoint_log
 inline std::size_t listBytes(std::size_t active) {
   return active * gpu::kTreeDepth * sizeof(std::uint32_t);
 }
-// Nodes, block parents, free stack and leaf boxes of one block.
-constexpr std::size_t kBlockBytes =
-    8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t) + 8 * sizeof(gpu::LeafBox);
+// Nodes, block parents and free stack of one block.
+constexpr std::size_t kBlockBytes = 8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t);
+// A block's leaf boxes, once the map has them (MapBuffers::ensureLeafBoxes).
+constexpr std::size_t kLeafBoxBlockBytes = 8 * sizeof(gpu::LeafBox);
 // A block's payload words (MapParams::payload other than kNone).
 constexpr std::size_t kPayloadBlockBytes = 8 * sizeof(std::uint32_t);
-inline std::size_t blockBytes(bool payload) {
-  return kBlockBytes + (payload ? kPayloadBlockBytes : 0);
+inline std::size_t blockBytes(bool payload, bool leaf_boxes) {
+  return kBlockBytes + (payload ? kPayloadBlockBytes : 0) + (leaf_boxes ? kLeafBoxBlockBytes : 0);
 }
 // A colour scan's fold buffer (color_fold.comp) for `count` points folded in chunks of at most
 // `chunk`: a table of (node, head) pairs with 2^colorTableLog2 entries, then a colour and a link
@@ -47,8 +48,7 @@ inline std::uint32_t colorTableLog2(std::size_t count, std::size_t chunk) {
   return nextPow2Log2(std::max<std::size_t>(2 * std::min(count, chunk), 64));
 }
 inline std::size_t colorFoldBytes(std::size_t count, std::size_t chunk) {
-  return (2 * (std::size_t{1} << colorTableLog2(count, chunk)) + 2 * count) *
-         sizeof(std::uint32_t);
+  return (2 * (std::size_t{1} << colorTableLog2(count, chunk)) + 2 * count) * sizeof(std::uint32_t);
 }
 // The change set of 2^log2 slots (change detection on); log2 0: the one-slot set a map holds
 // while change detection was never on.

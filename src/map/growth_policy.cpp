@@ -214,11 +214,35 @@ void GrowthPolicy::growForRetryOf(const gpu::ScanCounters& counters, const gpu::
     changes_.grow(std::uint64_t{changes_.header().used} + 2 * std::uint64_t{active});
 }
 
+bool GrowthPolicy::poolBeforeScratch(const gpu::ScanCounters& counters,
+                                     const gpu::PoolState& pool) {
+  if (!(counters.status & gpu::kStatusPoolShort)) return true;
+  if (core_.buffers.maxBytes() == 0) return false;
+  // No headroom: what is left stays for the parts' sets and lists. (The pool may have grown
+  // already, before the lists' growth failed.)
+  try {
+    reservePool(counters.new_blocks, pool, /*ahead=*/false, /*exact=*/true);
+    return true;
+  } catch (const BudgetError&) {
+  }
+  if (!core_.buffers.releaseSetsAndLists()) return false;
+  hash_guess_tried_ = 0;  // the next scan may guess the sets again, within the cap
+  try {
+    reservePool(counters.new_blocks, pool, /*ahead=*/false, /*exact=*/true);
+    return true;
+  } catch (const BudgetError&) {
+    return false;  // the scan's new blocks do not fit even so: the map outgrows the cap
+  }
+}
+
 // Makes room in the pool for `blocks` more blocks (exactly classify's count). Ahead of need (for
 // the next scans) a refusal is not an error: the scan that needs the room will report it.
-void GrowthPolicy::reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead) {
+void GrowthPolicy::reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead,
+                               bool exact) {
   MapBuffers& buffers = core_.buffers;
-  const std::uint64_t available = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
+  // The pool's size is the host's (a growth since `pool` was read back is in it).
+  const std::uint64_t available =
+      std::uint64_t{std::max(pool.capacity, buffers.poolBlocks())} - pool.bump + pool.free_count;
   if (blocks <= available) return;
   const std::uint64_t needed = std::uint64_t{pool.bump} + blocks - pool.free_count + 1;
   const std::uint64_t limit = buffers.blockLimit();
@@ -229,9 +253,16 @@ void GrowthPolicy::reservePool(std::uint64_t blocks, const gpu::PoolState& pool,
                     " nodes, over the limit of " + std::to_string(limit * 8) +
                     " (MapParams::max_nodes or 2^32); the map is unchanged");
   }
-  const std::uint64_t target = std::min<std::uint64_t>(
-      limit, std::max<std::uint64_t>(
-                 needed, std::uint64_t{buffers.poolBlocks()} + buffers.poolBlocks() / 2));
+  std::uint64_t target =
+      exact ? needed
+            : std::min<std::uint64_t>(
+                  limit, std::max<std::uint64_t>(needed, std::uint64_t{buffers.poolBlocks()} +
+                                                             buffers.poolBlocks() / 2));
+  // Under the cap the headroom takes at most half of what is left beyond the need: the rest stays
+  // for the scans' sets and lists (a scan split in groups of tiles needs some for each part).
+  const std::uint64_t within = buffers.poolBlocksWithinCap();
+  if (target > needed && within > needed)
+    target = std::min<std::uint64_t>(target, needed + (within - needed) / 2);
   try {
     buffers.allocatePoolAtLeast(static_cast<std::uint32_t>(target),
                                 static_cast<std::uint32_t>(needed), /*copy_old=*/true);

@@ -36,6 +36,11 @@ class GrowthPolicy {
   /// may not grow. A device's refusal of a growth (here and in growFor) says what the scan
   /// needed and what to change (split the scan, a max range, the cap).
   void growForRetry(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
+  /// Where a refused scan's growth failed: makes the pool's room for its new blocks (none if the
+  /// pool was not short), exactly, under the cap releasing the cell sets and lists first if
+  /// needed (the scan then runs in groups of tiles, each needing less). False when the room
+  /// cannot be made.
+  bool poolBeforeScratch(const gpu::ScanCounters& counters, const gpu::PoolState& pool);
   /// After a scan of `points` points is in the map (its counters, the pool after it): asks for
   /// room ahead for `scans_ahead` more scans like it. Allocates nothing, never throws.
   void noteApplied(const gpu::ScanCounters& counters, const gpu::PoolState& pool,
@@ -61,8 +66,10 @@ class GrowthPolicy {
   /// The touched lists and the pool grown toward a first guess for a scan of `count` points, as
   /// far as the memory cap allows.
   void guessListsAndPool(std::size_t count);
-  /// Room in the pool for `blocks` more blocks; `ahead`: for later scans, never an error.
-  void reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead);
+  /// Room in the pool for `blocks` more blocks; `ahead`: for later scans, never an error;
+  /// `exact`: no growth headroom.
+  void reservePool(std::uint64_t blocks, const gpu::PoolState& pool, bool ahead,
+                   bool exact = false);
 
   MapCore& core_;
   ChangeSet& changes_;

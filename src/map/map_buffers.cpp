@@ -4,6 +4,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -206,25 +207,31 @@ void MapBuffers::allocatePool(std::uint32_t blocks, bool copy_old) {
 
 void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks,
                                      bool copy_old) {
+  if (copy_old && blocks < pool_blocks_) blocks = pool_blocks_;  // never smaller than the tree
   const bool with_payload = payload_kind_ != Payload::kNone;
-  const std::size_t block_bytes = blockBytes(with_payload);
+  const std::size_t block_bytes = blockBytes(with_payload, leaf_boxes_on_);
   const std::size_t held =
       nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size() + payload.size();
-  if (min_blocks > 0 && min_blocks < blocks && !fits(held, std::size_t{blocks} * block_bytes)) {
+  // A map without leaf boxes or payload holds a small buffer in their place.
+  const std::size_t small = (leaf_boxes_on_ ? 0 : kSmallBuffer) + (with_payload ? 0 : kSmallBuffer);
+  if (min_blocks > 0 && min_blocks < blocks &&
+      !fits(held, std::size_t{blocks} * block_bytes + small)) {
     // The most blocks the cap leaves room for, if that is enough.
-    const std::size_t others = deviceBytes() - held;
+    const std::size_t others = deviceBytes() - held + small;
     const std::size_t room = max_bytes_ > others ? (max_bytes_ - others) / block_bytes : 0;
     if (room >= min_blocks)
       blocks = static_cast<std::uint32_t>(std::min<std::size_t>(room, blocks));
   }
-  checkBudget(held, std::size_t{blocks} * block_bytes,
-              "growing the node pool to " + std::to_string(std::size_t{blocks} * 8) +
-                  " nodes (with their leaf boxes, " + std::to_string(block_bytes) +
-                  " bytes per block of 8)");
+  checkBudget(held, std::size_t{blocks} * block_bytes + small,
+              "growing the node pool to " + std::to_string(std::size_t{blocks} * 8) + " nodes (" +
+                  std::to_string(block_bytes) + " bytes per block of 8" +
+                  (leaf_boxes_on_ ? ", with their leaf boxes" : "") + ")");
   vk::Buffer new_nodes(device_, std::size_t{blocks} * 8 * sizeof(gpu::Node), false);
   vk::Buffer parents(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
   vk::Buffer stack(device_, std::size_t{blocks} * sizeof(std::uint32_t), false);
-  vk::Buffer leaves(device_, std::size_t{blocks} * 8 * sizeof(gpu::LeafBox), false);
+  vk::Buffer leaves(device_,
+                    leaf_boxes_on_ ? std::size_t{blocks} * 8 * sizeof(gpu::LeafBox) : kSmallBuffer,
+                    false);
   vk::Buffer words(device_,
                    with_payload ? std::size_t{blocks} * 8 * sizeof(std::uint32_t) : kSmallBuffer,
                    false);
@@ -233,7 +240,8 @@ void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blo
     stream_.copy(nodes, new_nodes, nodes.size());
     stream_.copy(block_parents, parents, block_parents.size());
     stream_.copy(free_stack, stack, free_stack.size());
-    stream_.copy(leaf_boxes, leaves, leaf_boxes.size());  // as they were: a rebuild may not follow
+    if (leaf_boxes_on_)  // as they were: a rebuild may not follow
+      stream_.copy(leaf_boxes, leaves, leaf_boxes.size());
     if (with_payload && payload.valid()) stream_.copy(payload, words, payload.size());
     stream_.update(pool, &blocks, sizeof(blocks), offsetof(gpu::PoolState, capacity));
     stream_.submitAndWait();
@@ -245,6 +253,37 @@ void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blo
   payload = std::move(words);
   pool_blocks_ = blocks;
   rebind();
+}
+
+std::size_t MapBuffers::poolBlocksWithinCap() const {
+  if (max_bytes_ == 0) return std::numeric_limits<std::size_t>::max();
+  const bool with_payload = payload_kind_ != Payload::kNone;
+  const std::size_t held =
+      nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size() + payload.size();
+  const std::size_t small = (leaf_boxes_on_ ? 0 : kSmallBuffer) + (with_payload ? 0 : kSmallBuffer);
+  const std::size_t others = deviceBytes() - held + small;
+  return max_bytes_ > others ? (max_bytes_ - others) / blockBytes(with_payload, leaf_boxes_on_) : 0;
+}
+
+bool MapBuffers::ensureLeafBoxes() {
+  if (leaf_boxes_on_) return false;
+  const std::size_t bytes = std::size_t{pool_blocks_} * 8 * sizeof(gpu::LeafBox);
+  checkBudget(leaf_boxes.size(), bytes,
+              "making the map's leaf boxes (" + std::to_string(std::size_t{pool_blocks_} * 8) +
+                  " of 20 bytes, one per node slot: what leafCount, downloadLeafBoxes, castRay "
+                  "through ray tracing and the map edits use)");
+  vk::Buffer leaves(device_, bytes, false);
+  leaf_boxes = std::move(leaves);
+  leaf_boxes_on_ = true;
+  rebind();
+  return true;
+}
+
+bool MapBuffers::releaseSetsAndLists() {
+  const std::size_t before = deviceBytes();
+  allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
+  if (active_capacity_ != kInitialActive) allocateLists(kInitialActive);
+  return deviceBytes() < before;
 }
 
 void MapBuffers::releaseScratch() {

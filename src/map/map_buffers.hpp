@@ -108,6 +108,19 @@ class MapBuffers {
   /// Per-scan scratch (cell sets, lists, points, walks, depth image, upload staging) back to
   /// the constructor's sizes; the next scan grows it again. The sets are then cleared whole.
   void releaseScratch();
+  /// The most blocks the pool could have under the cap, the other buffers as they are (the
+  /// largest size_t without a cap).
+  std::size_t poolBlocksWithinCap() const;
+  /// The leaf boxes (a LeafBox per node slot), made at the pool's size the first time a pass
+  /// needs them (leaf boxes, castRay's scene, the edits' block lists) and grown with the pool
+  /// from then on; a map that never asks for them does not hold them. Under the cap
+  /// (BudgetError, nothing changed); nothing may be in flight. True when made now (their
+  /// contents are then to be rebuilt).
+  bool ensureLeafBoxes();
+  /// The cell sets and touched lists alone back to the constructor's sizes (the points, walks
+  /// and staging stay: scans waiting to run again read them): room for the pool under the cap.
+  /// True when anything was released.
+  bool releaseSetsAndLists();
   /// The query buffers (and their staging) back to the constructor's sizes.
   void releaseQueries();
 
@@ -182,10 +195,10 @@ class MapBuffers {
   vk::Buffer prefix_blocks;  // gpu::NewBlock per slot of the second set
   vk::Buffer nodes, block_parents, free_stack, leaf_boxes;
   vk::Buffer query_in, query_out, query_staging_in, query_staging_out;
-  vk::Buffer walks;    // ray walks saved between segments (two lists of pointCapacity())
-  vk::Buffer slots;    // filled slots of the cell set, then of the second set
-  vk::Buffer depth;    // a depth image: gpu::DepthCamera, then its pixels
-  vk::Buffer changes;  // the change set: gpu::ChangeHeader, then gpu::ChangeSlots
+  vk::Buffer walks;       // ray walks saved between segments (two lists of pointCapacity())
+  vk::Buffer slots;       // filled slots of the cell set, then of the second set
+  vk::Buffer depth;       // a depth image: gpu::DepthCamera, then its pixels
+  vk::Buffer changes;     // the change set: gpu::ChangeHeader, then gpu::ChangeSlots
   vk::Buffer payload;     // a word per pool node (MapParams::payload), else one small buffer
   vk::Buffer color_fold;  // a colour scan's colours, links and table (colorFoldBytes)
 
@@ -211,6 +224,7 @@ class MapBuffers {
   std::size_t active_capacity_ = 0;
   std::uint64_t lists_generation_ = 0;
   std::uint32_t pool_blocks_ = 0;
+  bool leaf_boxes_on_ = false;  // ensureLeafBoxes: the leaf boxes follow the pool
   std::size_t point_capacity_ = 0;
   std::uint32_t changes_log2_ = 0;
   Payload payload_kind_ = Payload::kNone;

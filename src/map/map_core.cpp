@@ -66,7 +66,21 @@ gpu::PoolState MapCore::readPool() {
   return pool;
 }
 
+void MapCore::ensureLeafBoxes() {
+  bool made = false;
+  try {
+    made = buffers.ensureLeafBoxes();
+  } catch (const BudgetError&) {
+    // Under the cap the scans' sets and lists (scratch, empty between scans) give way to them
+    // and grow again, within what is left, for the next scan.
+    if (!buffers.releaseSetsAndLists()) throw;
+    made = buffers.ensureLeafBoxes();
+  }
+  if (made) leaf_boxes = LeafBoxes::kStale;
+}
+
 void MapCore::refreshLeafBoxes() {
+  ensureLeafBoxes();
   if (leaf_boxes == LeafBoxes::kCurrent) return;
   stream.begin(buffers.bindings);
   passes::recordLeafBoxes(rec);

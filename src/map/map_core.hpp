@@ -38,6 +38,8 @@ struct MapCore {
   gpu::PoolState readPool();
   /// Rebuilds the leaf boxes (waited for) if they are stale; the caller flushes first.
   void refreshLeafBoxes();
+  /// The leaf-box buffer made if the map had none (then stale); nothing may be in flight.
+  void ensureLeafBoxes();
   /// The tree changed (a scan updated cells, an upload, an edit): what was derived from the
   /// version before (castRay's scene, a distance field not following the change set) is stale.
   void treeChanged() noexcept { ++tree_version; }

@@ -58,7 +58,13 @@ class OccupancyMap::Impl {
   OccupancyMap::SyncCounts syncCounts() const {
     return {core_.stream.submissions(), core_.stream.blockingWaits()};
   }
-  void setLeafBoxesEveryScan(bool every_scan) { scans_.setLeafBoxesEveryScan(every_scan); }
+  void setLeafBoxesEveryScan(bool every_scan) {
+    if (every_scan) {
+      scans_.flush();  // the buffer is made (and bound) with nothing in flight
+      core_.ensureLeafBoxes();
+    }
+    scans_.setLeafBoxesEveryScan(every_scan);
+  }
 
   // ---- queries (QueryRunner), each after the scans submitted before it ----
   QueryResults runQueries(const QueryRequest& queries);

@@ -183,6 +183,7 @@ passes::TraceScene RaySceneCache::castRayScene() {
   RayScene& scene = *ray_scene_;
   if (scene.version == core_.tree_version) return {scene.boxes.address(), pipeline};
 
+  core_.ensureLeafBoxes();  // the boxes are built from them
   // Room for every leaf slot (occupied ones), twice (sorted and unsorted); at least one box, for
   // the inactive box of an empty geometry.
   gpu::AccelHeader header{};

@@ -29,6 +29,7 @@ void ScanPipeline::record(PendingScan& p) {
                                         p.options.max_range_m, p.count);  // sizes may grow
   sp.changes_log2 = changes_.scanLog2();
   sp.stamp = p.options.stamp;
+  sp.tile_group = p.group | ((p.groups - 1) << 16);
   p.noted_changes = sp.changes_log2 != 0;
   passes::RayKeysInput input = p.input;
   if (p.input_at == ScanInput::kStaging)
@@ -50,7 +51,7 @@ void ScanPipeline::record(PendingScan& p) {
   passes::recordClassify(rec, input.discretize, sp.point_count);
   passes::recordTreeUpdate(rec);
   passes::recordPrune(rec);
-  if (input.colors)
+  if (input.colors && p.closes_scan)  // after every part: the nodes the points end in
     passes::recordColorFold(rec, p.count, core_.buffers.uploads[p.staging_frame].handle(),
                             input.colors_offset);
   if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec);
@@ -122,48 +123,73 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
       results->rays.resize(queries->rays.size());
       results->lookups.resize(queries->lookups.size());
     }
-    // The frame this scan records into must have no scan of ours in flight.
-    while (pending_.size() >= core_.stream.frames()) confirmOldest();
-    p.staging_frame = core_.stream.nextFrame();
     p.input_at = source.device == VK_NULL_HANDLE ? ScanInput::kStaging : ScanInput::kCaller;
-    p.input = stage(source, core_.buffers.uploads[p.staging_frame]);
-    if (!options.colors.empty()) {
-      p.input.colors = true;
-      p.input.colors_offset =
-          stageColors(source, p.input, options.colors, core_.buffers.uploads[p.staging_frame]);
-    }
-    p.input.transform = pose != nullptr;
-    p.input.discretize = options.discretize;
-    p.input.walk_rounds =
-        walkRounds(core_.device,
-                   worstSteps(source, origin, pose, options.max_range_m, core_.params.resolution));
     p.origin = origin;
     if (pose) p.pose = *pose;
     p.options = options;
     p.options.colors = {};  // staged: the caller's span may go once this returns
     p.count = count;
-    p.queries = queries;
-    p.results = results;
+    p.groups = groupsFor(count);
   }
-  // The scan takes its place in the queue before it is submitted: a submitted scan changes the
-  // map, so nothing that can fail (a queue that cannot grow) may come between the two.
-  pending_.push_back(std::move(p));
-  PendingScan& q = pending_.back();  // stays valid: the deque only grows at its end meanwhile
-  if (count > 0) {
-    try {
-      // A caller's semaphore guards its buffer: the first submission that reads it waits for it.
-      if (source.wait != VK_NULL_HANDLE)
-        core_.stream.waitBeforeNextSubmit(source.wait, source.wait_value);
-      record(q);
-    } catch (...) {
-      pending_.pop_back();
-      core_.stream.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);  // not for some later submission
-      throw;
+  const std::uint64_t ticket = next_ticket_;
+  p.ticket = p.stats.ticket = ticket;
+  // A scan applied in groups of tiles is one part per group, each staged in its own frame.
+  for (std::uint32_t group = 0; group < p.groups; ++group) {
+    PendingScan part = p;
+    part.group = group;
+    part.closes_scan = group + 1 == p.groups;
+    if (count > 0) {
+      // The frame this part records into must have no scan of ours in flight.
+      while (pending_.size() >= core_.stream.frames()) confirmOldest();
+      part.staging_frame = core_.stream.nextFrame();
+      part.input = stage(source, core_.buffers.uploads[part.staging_frame]);
+      if (!options.colors.empty() && part.closes_scan) {
+        part.input.colors = true;
+        part.input.colors_offset = stageColors(source, part.input, options.colors,
+                                               core_.buffers.uploads[part.staging_frame]);
+      }
+      part.input.transform = pose != nullptr;
+      part.input.discretize = options.discretize;
+      part.input.walk_rounds = walkRounds(
+          core_.device,
+          worstSteps(source, origin, pose, options.max_range_m, core_.params.resolution));
+      if (part.closes_scan) {
+        part.queries = queries;
+        part.results = results;
+      }
     }
+    // The part takes its place in the queue before it is submitted: a submitted scan changes the
+    // map, so nothing that can fail (a queue that cannot grow) may come between the two.
+    pending_.push_back(std::move(part));
+    PendingScan& q = pending_.back();  // stays valid: the deque only grows at its end meanwhile
+    if (count > 0) {
+      try {
+        // A caller's semaphore guards its buffer: the first submission that reads it waits.
+        if (source.wait != VK_NULL_HANDLE && group == 0)
+          core_.stream.waitBeforeNextSubmit(source.wait, source.wait_value);
+        record(q);
+      } catch (const Error& e) {
+        pending_.pop_back();
+        core_.stream.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);  // not for some later submission
+        if (group == 0) throw;
+        // Parts of the scan are submitted (a recording fails only on a device error): the
+        // last of them closes it, and the message says the map holds them.
+        pending_.back().closes_scan = true;
+        throw Error(e.code(),
+                    std::string(e.what()) + " [the scan was being applied in " +
+                        std::to_string(p.groups) + " groups of tiles; the map holds the first " +
+                        std::to_string(group) + "]",
+                    ticket);
+      } catch (...) {
+        pending_.pop_back();
+        core_.stream.waitBeforeNextSubmit(VK_NULL_HANDLE, 0);
+        if (group > 0) pending_.back().closes_scan = true;
+        throw;
+      }
+    }
+    q.stats.wall_ms = msSince(start);
   }
-  q.ticket = q.stats.ticket = next_ticket_++;  // only for a scan submitted (or empty)
-  q.stats.wall_ms = msSince(start);
-  const std::uint64_t ticket = q.ticket;
+  ++next_ticket_;  // only for a scan submitted (or empty)
   // Results already there are taken without waiting (statistics early, growth ahead asked for);
   // never this scan's own: a scan refused on the device is then always noticed after the scan
   // submitted next, which the device refused too (halted) and which runs again with it.
@@ -217,7 +243,8 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   if (counters.active_cells + counters.leaf_cells > 0) {
     core_.treeChanged();
     if (p.noted_changes) changes_.scanNoted();  // the change set holds what it changed
-    if (p.recording == core_.scans_recorded) {  // nothing recorded after it: the lists are its
+    // Nothing recorded after it, and all its cells in one part: the lists are its own.
+    if (p.recording == core_.scans_recorded && p.groups == 1) {
       core_.touched.version = core_.tree_version;
       std::copy(std::begin(counters.touched_count), std::end(counters.touched_count),
                 core_.touched.counts.begin());
@@ -225,10 +252,21 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
       core_.touched.pool = pool;
     }
   }
-  if (p.caller == ScanCaller::kInsert)
-    blocking_stats_ = stats;  // the call's result, which must not need an allocation
-  else
-    keepStats(stats);
+  if (parts_ticket_ != p.ticket) {
+    parts_before_ = PartTotals{};
+    parts_ticket_ = p.ticket;
+  }
+  if (!p.closes_scan) {
+    // A part of a scan applied in groups of tiles: the scan's last part reports them all.
+    parts_before_.add(stats);
+  } else {
+    parts_before_.addTo(stats);  // the parts before it, if any
+    parts_before_ = PartTotals{};
+    if (p.caller == ScanCaller::kInsert)
+      blocking_stats_ = stats;  // the call's result, which must not need an allocation
+    else
+      keepStats(stats);
+  }
   // Room ahead for more scans like this one, so that they are not run twice: after a blocking
   // call, for the next one; after a submitted scan, for as many as may be in flight when the
   // growth is next possible (the submits behind it were recorded before its result was seen).
@@ -267,14 +305,17 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
   // Every scan behind the refused one was refused too (halted): the map is as before it.
   core_.stream.waitIdle();
   gate_ = Gate::kHalted;
+  // The scratch a split scan's part needs: what splitting it halves.
+  constexpr std::uint32_t kScratchShort =
+      gpu::kStatusHashFull | gpu::kStatusEndpointHashFull | gpu::kStatusListsShort;
   try {
     while (!pending_.empty()) {
-      PendingScan& p = pending_.front();
-      if (p.state == ScanState::kEmpty) {
+      if (pending_.front().state == ScanState::kEmpty) {
         confirmOldest();
         continue;
       }
-      if (p.state == ScanState::kInFlight) {
+      if (pending_.front().state == ScanState::kInFlight) {
+        PendingScan& p = pending_.front();
         // Halted on the device behind the refused one, its result not read: run it again.
         // What the scans run again so far asked for (`pool`: the last one's state, the current
         // one); the scratch stays: it holds the inputs of the scans still to run.
@@ -283,15 +324,30 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
         core_.stream.wait(p.serial);
         passes::readBack(core_.buffers, p.frame, counters, pool);
       }
-      while (!takeResult(p, counters, pool)) {
+      while (!takeResult(pending_.front(), counters, pool)) {
         gate_ = Gate::kHalted;
         // A walk outran the rounds estimated for its length (the set's probes): every round.
         const std::uint32_t full = fullWalkRounds(core_.device);
-        if ((counters.status & gpu::kStatusRayCut) && p.input.walk_rounds < full) {
-          p.input.walk_rounds = full;
+        if ((counters.status & gpu::kStatusRayCut) && pending_.front().input.walk_rounds < full) {
+          pending_.front().input.walk_rounds = full;
           counters.status &= ~gpu::kStatusRayCut;
         }
-        growth_.growForRetry(counters, pool);
+        try {
+          growth_.growForRetry(counters, pool);
+        } catch (const Error& e) {
+          // The scratch cannot grow: the scan goes on in two parts, each the cells of half its
+          // tiles. A pool that cannot grow takes the room of the sets and lists first (they
+          // grow again for the parts, within what is left); where even that is not enough the
+          // map outgrows the cap, and the scan fails. The parts the device applied stay in the
+          // map; the error of a later part says so.
+          const bool pool_short = counters.status & gpu::kStatusPoolShort;
+          if (e.code() != ErrorCode::kOutOfDeviceMemory || (counters.status & gpu::kStatusRayCut) ||
+              !(pool_short || (counters.status & kScratchShort)))
+            throw;
+          if (!growth_.poolBeforeScratch(counters, pool)) throw;
+          if (!splitOldest()) throw;
+        }
+        PendingScan& p = pending_.front();
         record(p);
         core_.stream.wait(p.serial);
         passes::readBack(core_.buffers, p.frame, counters, pool);
@@ -301,10 +357,30 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
   } catch (const Error& e) {
     // The map holds every scan before the one that failed; it and the later ones are dropped.
     const std::uint64_t failed = pending_.empty() ? 0 : pending_.front().ticket;
-    const std::size_t dropped = pending_.size();
+    // A scan applied in groups of tiles keeps the parts the device applied before this one.
+    const std::size_t parts_in =
+        !pending_.empty() && parts_ticket_ == failed ? parts_before_.parts : 0;
+    std::size_t dropped = 0;
+    for (const PendingScan& p : pending_) dropped += p.ticket != failed && p.closes_scan;
+    ++dropped;
     const bool alone = dropped == 1 && pending_.front().caller == ScanCaller::kInsert;
     pending_.clear();
     gate_ = Gate::kHalted;
+    if (parts_in > 0) {
+      std::string message = e.message();
+      for (std::size_t at; (at = message.find("; the map is unchanged")) != std::string::npos;)
+        message.erase(at, std::string_view("; the map is unchanged").size());
+      throw Error(e.code(),
+                  message + " [scan " + std::to_string(failed) +
+                      " ran out of device memory while applied in groups of tiles: the map " +
+                      "holds the first " + std::to_string(parts_in) +
+                      (parts_in == 1 ? " part" : " parts") + " of it" +
+                      (dropped > 1 ? ", and not the " + std::to_string(dropped - 1) +
+                                         " scans submitted after it"
+                                   : std::string()) +
+                      "]",
+                  failed, e.detail());
+    }
     if (alone) throw;  // the blocking call's own scan: its message says the map is unchanged
     throw Error(e.code(),
                 std::string(e.what()) + " [scan " + std::to_string(failed) +
@@ -316,6 +392,82 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
     gate_ = Gate::kHalted;
     throw;
   }
+}
+
+// ---- scans applied in groups of tiles ----
+
+void ScanPipeline::PartTotals::add(const ScanStats& part) {
+  ++parts;
+  free_cells += part.free_cells;
+  occupied_cells += part.occupied_cells;
+  aborted_cells += part.aborted_cells;
+  attempts += part.cell_set_attempts;
+  wall_ms += part.wall_ms;
+  device.upload_ms += part.device.upload_ms;
+  device.ray_keys_ms += part.device.ray_keys_ms;
+  device.classify_ms += part.device.classify_ms;
+  device.tree_update_ms += part.device.tree_update_ms;
+  device.prune_ms += part.device.prune_ms;
+  device.leaf_boxes_ms += part.device.leaf_boxes_ms;
+}
+
+void ScanPipeline::PartTotals::addTo(ScanStats& last) const {
+  last.tile_groups += parts;
+  last.free_cells += free_cells;
+  last.occupied_cells += occupied_cells;
+  last.aborted_cells += aborted_cells;
+  last.cell_set_attempts += attempts;
+  last.wall_ms += wall_ms;
+  last.device.upload_ms += device.upload_ms;
+  last.device.ray_keys_ms += device.ray_keys_ms;
+  last.device.classify_ms += device.classify_ms;
+  last.device.tree_update_ms += device.tree_update_ms;
+  last.device.prune_ms += device.prune_ms;
+  last.device.leaf_boxes_ms += device.leaf_boxes_ms;
+}
+
+bool ScanPipeline::splitOldest() {
+  PendingScan& p = pending_.front();
+  if (p.groups >= kMaxTileGroups) return false;
+  // Tiles whose hash is `group` modulo `groups` are those that are `group` or `group + groups`
+  // modulo twice as many: the first half now, the second right behind it, from the same input
+  // (nothing is staged while recovering).
+  PendingScan second = p;
+  p.groups *= 2;
+  second.groups = p.groups;
+  second.group = p.group + p.groups / 2;
+  second.state = ScanState::kInFlight;  // to be recorded when its turn comes
+  second.stats = ScanStats{};
+  second.stats.ticket = p.ticket;
+  second.stats.points = p.count;
+  // The closing part (colours, queries, statistics) is the one that runs last.
+  p.closes_scan = false;
+  p.queries = nullptr;
+  p.results = nullptr;
+  // A deque keeps references to its other elements across push_front and pop_front.
+  PendingScan first = std::move(p);
+  pending_.pop_front();
+  pending_.push_front(std::move(second));
+  pending_.push_front(std::move(first));
+  // The next scans start with as many groups for as many points (the densest need so far).
+  const PendingScan& now = pending_.front();
+  if (now.groups > split_groups_ || (now.groups == split_groups_ && now.count < split_points_)) {
+    split_groups_ = now.groups;
+    split_points_ = now.count;
+  }
+  return true;
+}
+
+std::uint32_t ScanPipeline::groupsFor(std::size_t count) const {
+  if (split_groups_ <= 1 || split_points_ == 0) return 1;
+  // As many groups as the scan that needed them, for as many points; fewer for fewer points.
+  std::uint32_t groups = split_groups_;
+  std::size_t points = split_points_;
+  while (groups > 1 && count <= points / 2) {
+    groups /= 2;
+    points /= 2;
+  }
+  return groups;
 }
 
 // ---- synchronisation --------------------------------------------------------------------------

@@ -75,6 +75,17 @@ class ScanPipeline {
   void setLeafBoxesEveryScan(bool every_scan) noexcept { leaf_boxes_every_scan_ = every_scan; }
 
  private:
+  /// The statistics a scan's parts add up (ScanStats' counts and times), in the parts before.
+  struct PartTotals {
+    std::size_t parts = 0;
+    std::size_t free_cells = 0, occupied_cells = 0, aborted_cells = 0, attempts = 0;
+    double wall_ms = 0.0;
+    StageTimes device;
+    /// Adds a part's own statistics.
+    void add(const ScanStats& part);
+    /// The scan's statistics: `last`, the last part's, with the parts before added.
+    void addTo(ScanStats& last) const;
+  };
   /// A scan submitted and not yet known to be in the map: what it needs to run again.
   struct PendingScan {
     ScanState state = ScanState::kEmpty;
@@ -92,8 +103,15 @@ class ScanPipeline {
     const QueryRequest* queries = nullptr;  // the blocking call's
     QueryResults* results = nullptr;
     ScanStats stats;
-    bool noted_changes = false;  ///< recorded with change detection on (ChangeSet::scanNoted)
+    bool noted_changes = false;   ///< recorded with change detection on (ChangeSet::scanNoted)
     std::uint64_t recording = 0;  ///< MapCore::scans_recorded at its last recording
+    /// A scan applied in groups of tiles (its cells did not fit the scratch at once): this part
+    /// marks the cells of the tiles whose hash is `group` modulo `groups` (a power of two). The
+    /// parts of one scan follow each other in the queue with its ticket; the last one
+    /// (`closes_scan`) also folds the colours and runs the queries, and reports the statistics.
+    std::uint32_t group = 0;
+    std::uint32_t groups = 1;
+    bool closes_scan = true;
   };
   /// submit(); `caller` kInsert: the blocking call's scan, whose `queries` (staged here) run
   /// right after it in its submission.
@@ -115,6 +133,14 @@ class ScanPipeline {
   void keepStats(const ScanStats& stats) noexcept;
   /// The oldest scan was refused: waits for all, grows, runs them again in order, each waited.
   void recover(gpu::ScanCounters counters, gpu::PoolState pool);
+  /// In recover: the oldest scan (refused, its growth refused) becomes two parts, each half of
+  /// its tiles; false when it cannot be split further.
+  bool splitOldest();
+  /// How many groups of tiles a new scan of `count` points starts with: as many as the last
+  /// split scan needed, scaled to its points (1 without a memory cap).
+  std::uint32_t groupsFor(std::size_t count) const;
+  /// Most groups a scan is split into (a group then holds a few tiles of any scan).
+  static constexpr std::uint32_t kMaxTileGroups = 1u << 12;
 
   MapCore& core_;
   ChangeSet& changes_;
@@ -128,6 +154,12 @@ class ScanPipeline {
   std::uint64_t next_ticket_ = 1;
   std::size_t last_nodes_ = 0;  // nodes after the last scan taken
   Gate gate_ = Gate::kOpen;
+  // The statistics of the parts applied so far of the scan `parts_ticket_` (applied in groups of
+  // tiles; its parts are consecutive in the queue).
+  PartTotals parts_before_;
+  std::uint64_t parts_ticket_ = 0;
+  std::uint32_t split_groups_ = 1;      // groups the last split scan needed
+  std::size_t split_points_ = 0;        // and its points
   bool leaf_boxes_every_scan_ = false;  // a setting (setLeafBoxesEveryScan), not a state
 };
 

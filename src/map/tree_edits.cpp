@@ -47,6 +47,7 @@ void TreeEdits::degrade(std::uint32_t now, std::uint32_t threshold) {
   if (core_.params.payload != Payload::kStamp)
     throw Error(ErrorCode::kInvalidArgument,
                 "degradeOutdated: the map holds no time stamps; make a StampedMap");
+  core_.ensureLeafBoxes();  // clear_box lists the blocks by depth in their buffer
   core_.stream.begin(core_.buffers.bindings);
   passes::recordDegrade(core_.rec, core_.queryParams(), now, threshold);
   core_.stream.submitAndWait();
@@ -60,6 +61,7 @@ void TreeEdits::edit(const char* call, const Eigen::Vector3f& min, const Eigen::
   gpu::BoxQuery box{};
   const bool inside = boxKeys(core_.params.resolution, min, max, box);  // false: outside the map
   core_.buffers.ensureQueries(sizeof(box), sizes::kSmallQuery);
+  core_.ensureLeafBoxes();  // clear_box lists the blocks by depth in their buffer
   core_.stream.begin(core_.buffers.bindings);
   record(inside ? &box : nullptr);
   core_.stream.submitAndWait();

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "gpu/gpu_types.h"
 #include "octovk/octovk.hpp"
 
 namespace octomap {
@@ -26,7 +27,7 @@ namespace octovk::store {
 /// 0.05 m). Measured on FR-079's first 500 scans (docs/store.md, 'Tile depth'): a scan rewrites
 /// 85 KB at depth 12 against 214 KB at 10 and 390 KB at 8 (0.05 m), in 65 tiles; depth 13 halves
 /// the bytes again with 2.3x the tiles, too small a unit for a device's working set.
-inline constexpr unsigned kTileDepth = 12;
+inline constexpr unsigned kTileDepth = gpu::kTileDepth;
 /// The version of the tile key and body formats below; a store records it and refuses others.
 inline constexpr unsigned kTileFormat = 1;
 
