@@ -2,6 +2,8 @@
 // paper map at 0.05 m (the building's box): from scratch, the update after each further view,
 // and 100,000 point queries, every answer compared (squared distances in cells, capped as
 // dynamicEDT3D caps them).
+#include "octovk/distance.hpp"
+
 #include <dynamicEDT3D/dynamicEDTOctomap.h>
 #include <octomap/OcTree.h>
 
@@ -13,7 +15,6 @@
 
 #include "building.hpp"
 #include "measure.hpp"
-#include "octovk/distance.hpp"
 #include "workload_common.hpp"
 #include "workloads.hpp"
 
@@ -72,9 +73,9 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
     const double edt_ms = msSince(t0);
     t0 = Clock::now();
     if (!field)
-      field = std::make_unique<DistanceField>(map, lo, hi,
-                                              DistanceFieldOptions{.max_distance_m = kMaxDistance,
-                                                                   .treat_unknown_as_occupied = false});
+      field = std::make_unique<DistanceField>(
+          map, lo, hi,
+          DistanceFieldOptions{.max_distance_m = kMaxDistance, .treat_unknown_as_occupied = false});
     else
       field->update();
     const double vk_ms = msSince(t0);
@@ -82,9 +83,8 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
     if (field->lastUpdateKind() == DistanceField::UpdateKind::kFromTree) kind = "from the tree";
     if (field->lastUpdateKind() == DistanceField::UpdateKind::kFromChanges)
       kind = "from the change set";
-    std::printf("| %zu%s | %.1f | %.1f (%.1f) | %s | %.1fx |\n", i + 1,
-                i == 0 ? " (scratch)" : "", edt_ms, vk_ms, field->lastUpdateMs(), kind,
-                edt_ms / vk_ms);
+    std::printf("| %zu%s | %.1f | %.1f (%.1f) | %s | %.1fx |\n", i + 1, i == 0 ? " (scratch)" : "",
+                edt_ms, vk_ms, field->lastUpdateMs(), kind, edt_ms / vk_ms);
     json.beginObject();
     json.field("view", static_cast<double>(i + 1));
     json.field("dynamicedt_ms", edt_ms);
@@ -135,8 +135,7 @@ void runDistance(Context& context, const BenchOptions& o, JsonWriter& json) {
       "getDistanceAndClosestObstacle, median %.1f ms (min %.1f); octovk: one distances() call "
       "(staging, upload, dispatch, download), median %.1f ms (min %.1f): %.1fx on the medians. "
       "Squared distances in cells agree on %zu of %zu.\n",
-      points.size(), kRounds, edt_ms, edt_min, vk_ms, vk_min, edt_ms / vk_ms, agree,
-      points.size());
+      points.size(), kRounds, edt_ms, edt_min, vk_ms, vk_min, edt_ms / vk_ms, agree, points.size());
   json.field("query_points", points.size()).field("query_dynamicedt_ms", edt_ms);
   json.field("query_octovk_ms", vk_ms).field("query_agree", agree);
   json.endObject();

@@ -112,8 +112,8 @@ void runEdits(Context& context, const BenchOptions& o, JsonWriter& json) {
       {
         auto copy = std::make_unique<octomap::OcTree>(tree);
         auto t0 = Clock::now();
-        std::unique_ptr<octomap::OcTree> kept = test::octomapKeepBox(*copy, toPoint(b.lo),
-                                                                     toPoint(b.hi));
+        std::unique_ptr<octomap::OcTree> kept =
+            test::octomapKeepBox(*copy, toPoint(b.lo), toPoint(b.hi));
         copy.reset();
         om_keep.push_back(msSince(t0));
         fromOcTree(map, tree);
@@ -126,8 +126,8 @@ void runEdits(Context& context, const BenchOptions& o, JsonWriter& json) {
     }
     const double oc = median(om_clear), vc = median(vk_clear), ok = median(om_keep),
                  vkk = median(vk_keep);
-    std::printf("| %s | %zu | %.1f | %.1f | %.1fx | %.1f | %.1f | %.1fx | %zu |\n",
-                b.name.c_str(), leaves, oc, vc, oc / vc, ok, vkk, ok / vkk, kept_nodes);
+    std::printf("| %s | %zu | %.1f | %.1f | %.1fx | %.1f | %.1f | %.1fx | %zu |\n", b.name.c_str(),
+                leaves, oc, vc, oc / vc, ok, vkk, ok / vkk, kept_nodes);
     json.beginObject();
     json.field("box", b.name).field("leaves", leaves).field("kept_nodes", kept_nodes);
     json.field("octomap_clear_ms", oc).field("octovk_clear_ms", vc);

@@ -4,10 +4,14 @@
 #   fr079.graph  the FR-079 sequence: tests/data/fr079-2d/clf2log.py, then log2graph
 #   fr079_500.graph  its first 500 scans, cut with OctoMap's ScanGraph (the store's bench),
 #   fr079_500_a.graph, fr079_500_b.graph  scans 0-249 and 250-499 (two writers at once)
+#   paper.graph  the paper workload's six views of the synthetic building (bench/building.hpp),
+#                with BUILD_DIR/bench/octovk_paper_graph when BUILD_DIR is given (the capped bench)
 # Skips files that exist. Needs python3, bzip2, liboctomap-dev and octomap-tools.
+# Usage: bench/prepare_data.sh [DATA_DIR] [BUILD_DIR]
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 data_dir="${1:-$root/build-bench/bench/data}"
+build_dir="${2:-}"
 scan_src="${OCTOVK_SCANDAT_BZ2:-/usr/share/doc/liboctomap-dev/examples/data/scan.dat.bz2}"
 fr079_dir="${OCTOVK_FR079_DIR:-$root/tests/data/fr079-2d}"
 mkdir -p "$data_dir"
@@ -65,4 +69,12 @@ CPP
     echo "prepare_data: wrote $data_dir/fr079_$name.graph"
   done
   rm -rf "$tool"
+fi
+
+if [ -n "$build_dir" ] && [ ! -s "$data_dir/paper.graph" ]; then
+  tool="$build_dir/bench/octovk_paper_graph"
+  [ -x "$tool" ] || { echo "prepare_data: $tool is missing (build the bench)" >&2; exit 1; }
+  "$tool" "$data_dir/paper.graph.tmp" > /dev/null
+  mv "$data_dir/paper.graph.tmp" "$data_dir/paper.graph"
+  echo "prepare_data: wrote $data_dir/paper.graph"
 fi

@@ -73,16 +73,17 @@ uvec2 marked_bits = uvec2(0u);
 
 // Whether the tile of `brick` (the node at depth kTileDepth: 4x4x4 bricks) is in the scan's group
 // (params.tile_group: the group's index | (groups - 1) << 16). A tile's group is a hash of its
-// key, so every group has about its share of any scan's cells; each cell is in one group, and
-// every group walks every ray, so each cell is marked, free or occupied, in exactly one group.
+// key modulo the number of groups, so every group has about its share of any scan's cells; each
+// cell is in one group, and every group walks every ray, so each cell is marked, free or
+// occupied, in exactly one group.
 bool inTileGroup(uvec3 brick) {
-  uint mask = params.tile_group >> 16;
+  uint groups = (params.tile_group >> 16) + 1u;
   uvec3 t = brick >> (kTreeDepth - kTileDepth - 2u);
   uint h = t.x * 0x9E3779B1u ^ t.y * 0x85EBCA77u ^ t.z * 0xC2B2AE3Du;
   h ^= h >> 15;
   h *= 0x2C1B3C6Du;
   h ^= h >> 13;
-  return (h & mask) == (params.tile_group & 0xFFFFu);
+  return h % groups == (params.tile_group & 0xFFFFu);
 }
 
 // Index of cell k in its 4x4x4 brick: x | y << 2 | z << 4 of the low key bits.

@@ -13,7 +13,7 @@ void main() {
   uint r = invocationIndex();
   uint level = pc.level;
   if (r >= counters.touched_count[level]) return;
-  uint n = TOUCHED[level * params.active_capacity + r];
+  uint n = TOUCHED[touchedBase(level) + r];
   // n and its children are read plainly: this level's invocations write only their own node,
   // and listParent marks the level above.
   uint block = settledLinkOf(n) & kBlockMask;

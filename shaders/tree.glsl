@@ -29,10 +29,19 @@ bool earlyAbort(float update, float value) {
          (update <= 0.0 && value <= params.clamp_min_log);
 }
 
+// Where the list of `level` starts in TOUCHED: the levels lie one after another from the deepest
+// (15, descend's), each list complete before the next one up is written (prune runs a level at a
+// time, appending to the level above), so its start is the sum of the deeper levels' counts.
+uint touchedBase(uint level) {
+  uint base = 0u;
+  for (uint l = level + 1u; l < kTreeDepth; ++l) base += counters.touched_count[l];
+  return base;
+}
+
 // Appends item to a per-level list and keeps its indirect dispatch arguments in step.
 void appendTouched(uint level, uint node) {
   uint at = atomicAdd(counters.touched_count[level], 1u);
-  TOUCHED[level * params.active_capacity + at] = node;
+  TOUCHED[touchedBase(level) + at] = node;
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.touched_args[level], at + 1u);
 }
 

@@ -31,7 +31,13 @@ void main() {
   if (pool.halted != 0u) status |= kStatusHalted;
   if (counters.new_blocks > pool.capacity - pool.bump + pool.free_count)
     status |= kStatusPoolShort;
-  if (active_count > params.active_capacity) status |= kStatusListsShort;
+  // The touched lists: every node listed at depth 15 is the parent of an updated leaf in one of
+  // the scan's bricks (8 such nodes a brick); at a depth d of 14 or less, the ancestor of one of
+  // its bricks (a brick is the node at depth 14), at most 8^d. (GrowthPolicy's touchedBound.)
+  uint bricks = counters.brick_entries;
+  uint bound = min(active_count, 8u * bricks);
+  for (uint d = 0u; d < kTreeDepth - 1u; ++d) bound += d < 10u ? min(bricks, 1u << (3u * d)) : bricks;
+  if (uint64_t(bound) > uint64_t(params.touched_capacity)) status |= kStatusListsShort;
   // Change detection: room for every updated cell to claim a slot, the set at most 3/4 full.
   if (params.changes_log2 != 0u) {
     uint room = (1u << params.changes_log2) - (1u << params.changes_log2) / 4u;

@@ -5,13 +5,13 @@
 #include <octomap/octomap.h>
 
 #include <algorithm>
-#include <random>
 #include <cstring>
+#include <random>
 #include <tuple>
 
 #include "caller_buffer.hpp"
-#include "octovk/vulkan_interop.hpp"
 #include "changed_keys.hpp"
+#include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
 
 namespace octovk::test {
@@ -219,7 +219,8 @@ TEST(ChangeDetectionApi, RayTracedScansFollowOctoMap) {
   map.enableChangeDetection(true);
   std::mt19937 rng(17);
   std::size_t flipped_seen = 0;
-  for (int scan = 0; scan < 10; ++scan) {  // the scenario of SameKeysAndFlagsAsOctoMapAfterEveryScan
+  for (int scan = 0; scan < 10;
+       ++scan) {  // the scenario of SameKeysAndFlagsAsOctoMapAfterEveryScan
     const Eigen::Vector3f origin(0.2f * static_cast<float>(scan % 4),
                                  0.1f * static_cast<float>(scan % 3), 0.0f);
     const auto pts = test::randomScan(rng, origin, 1200, scan % 2 == 0 ? 1.2f : 2.4f);
@@ -315,9 +316,8 @@ TEST(ChangeDetectionApi, ConsumerWaitsOnTheSignalledValueOnTheDevice) {
   test::DeviceConsumer consumer(ctx, vk);
   const VkSemaphore timeline = consumer.timeline();
   const auto consume = [&](const test::CallerBuffer& from, const test::CallerBuffer& to,
-                           VkDeviceSize bytes, std::uint64_t value) {
-    consumer.copyAfter(from, to, bytes, value);
-  };
+                           VkDeviceSize bytes,
+                           std::uint64_t value) { consumer.copyAfter(from, to, bytes, value); };
 
   OccupancyMap map(ctx, test::withResolution(0.1));
   map.enableChangeDetection(true);

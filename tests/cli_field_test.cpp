@@ -428,8 +428,8 @@ TEST(cliDistance, OutOfMemorySaysWhatToChange) {
   const int beyond = octovk::test::fieldHalfSideBeyondDevice(ctx);
   const int h = beyond > 0 ? beyond : 100;
   const std::string lo = std::to_string(-h), hi = std::to_string(h);
-  const std::vector<std::string> huge = {"distance", m,  "--box", lo, lo, "-10", hi, hi, "10",
-                                         "-o",       scratch / "slice.png"};
+  const std::vector<std::string> huge = {
+      "distance", m, "--box", lo, lo, "-10", hi, hi, "10", "-o", scratch / "slice.png"};
   const std::string cells = octovk::test::fieldBoxCells(h);
   if (beyond > 0)
     expectRefusedText(huge, 1, {cells, "GiB", "Shrink --box", "--max-device-memory"}, scratch);
@@ -442,11 +442,10 @@ TEST(cliDistance, HelpSaysWhatThePictureShows) {
   Scratch scratch("clifield");
   const RunResult r = runOctovk({"distance", "--help"}, scratch.dir());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const char* words :
-       {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
-        "--unknown occupied|free", "--cell-pixels N", "--max-device-memory", "DynamicEDTOctomap",
-        "black", "light grey", "dark grey", "red", "blue", "the bar below", "in metres", "y up",
-        "Exit codes"})
+  for (const char* words : {"--box XMIN YMIN ZMIN XMAX YMAX ZMAX", "--z HEIGHT", "--max-distance M",
+                            "--unknown occupied|free", "--cell-pixels N", "--max-device-memory",
+                            "DynamicEDTOctomap", "black", "light grey", "dark grey", "red", "blue",
+                            "the bar below", "in metres", "y up", "Exit codes"})
     EXPECT_NE(r.out.find(words), std::string::npos) << words;
   const RunResult top = runOctovk({"--help"}, scratch.dir());
   EXPECT_NE(top.out.find("\n  distance   "), std::string::npos) << top.out;

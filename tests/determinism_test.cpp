@@ -301,7 +301,8 @@ TEST(DeterminismTwoMaps, SameScansGiveIdenticalDeviceState) {
     const Step& st = steps[i];
     auto pts = roomScan(rng, st.origin, st.points);
     // Points that are skipped (and counted): NaN, inf, outside the map. Not with discretize,
-    // where OctoMap's unchecked key conversion wraps them into bogus cells (docs/library.md, limits).
+    // where OctoMap's unchecked key conversion wraps them into bogus cells (docs/library.md,
+    // limits).
     if (!st.discretize) {
       pts.emplace_back(nan, 0.0f, 0.0f);
       pts.emplace_back(1.0f, inf, 0.0f);

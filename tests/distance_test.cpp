@@ -1,6 +1,8 @@
 // The distance field (octovk/distance.hpp) against the brute-force minimum over every occupied
 // cell, cell for cell, and against dynamicEDT3D's DynamicEDTOctomap (Debian's
 // libdynamicedt3d-dev) on the same maps; queries, updates after scans, bad input, the cap.
+#include "octovk/distance.hpp"
+
 #include <dynamicEDT3D/dynamicEDTOctomap.h>
 #include <octomap/octomap.h>
 
@@ -15,7 +17,6 @@
 #include <thread>
 
 #include "caller_buffer.hpp"
-#include "octovk/distance.hpp"
 #include "octovk/vulkan_interop.hpp"
 #include "test_support.hpp"
 #include "vk/fault_injection.hpp"
@@ -80,23 +81,24 @@ BruteField bruteForce(const octomap::OcTree& tree, const Box& box, bool unknown_
 /// that squared distance.
 ::testing::AssertionResult sameAsBruteForce(const DistanceField::Grid& g, const BruteField& b) {
   if (g.size != b.size || g.min_key != b.min_key)
-    return ::testing::AssertionFailure() << "box differs: " << g.size[0] << "x" << g.size[1]
-                                         << "x" << g.size[2] << " vs " << b.size[0] << "x"
-                                         << b.size[1] << "x" << b.size[2];
+    return ::testing::AssertionFailure()
+           << "box differs: " << g.size[0] << "x" << g.size[1] << "x" << g.size[2] << " vs "
+           << b.size[0] << "x" << b.size[1] << "x" << b.size[2];
   for (std::size_t i = 0; i < b.squared.size(); ++i) {
     if (g.squared_cells[i] != b.squared[i])
-      return ::testing::AssertionFailure() << "cell " << i << ": squared distance "
-                                           << g.squared_cells[i] << ", brute force "
-                                           << b.squared[i];
+      return ::testing::AssertionFailure()
+             << "cell " << i << ": squared distance " << g.squared_cells[i] << ", brute force "
+             << b.squared[i];
     if (b.squared[i] == kNone) {
       if (g.nearest[i] != kNone)
-        return ::testing::AssertionFailure() << "cell " << i << " names an obstacle in an empty box";
+        return ::testing::AssertionFailure()
+               << "cell " << i << " names an obstacle in an empty box";
       continue;
     }
     const std::uint32_t s = g.nearest[i];
     if (s >= b.squared.size() || !b.occupied[s])
-      return ::testing::AssertionFailure() << "cell " << i << ": nearest cell " << s
-                                           << " is not an obstacle";
+      return ::testing::AssertionFailure()
+             << "cell " << i << ": nearest cell " << s << " is not an obstacle";
     const auto coord = [&](std::size_t c) {
       return std::array<long, 3>{long(c % b.size[0]), long((c / b.size[0]) % b.size[1]),
                                  long(c / (std::size_t{b.size[0]} * b.size[1]))};
@@ -241,9 +243,10 @@ void compareWithDynamicEdt(Context& ctx, octomap::OcTree& tree, const Box& box,
     for (std::uint32_t y = 0; y < g.size[1]; ++y)
       for (std::uint32_t x = 0; x < g.size[0]; ++x) {
         const std::size_t i = x + g.size[0] * (y + std::size_t{g.size[1]} * z);
-        const octomap::point3d p = tree.keyToCoord(octomap::OcTreeKey(
-            static_cast<std::uint16_t>(g.min_key[0] + x), static_cast<std::uint16_t>(g.min_key[1] + y),
-            static_cast<std::uint16_t>(g.min_key[2] + z)));
+        const octomap::point3d p =
+            tree.keyToCoord(octomap::OcTreeKey(static_cast<std::uint16_t>(g.min_key[0] + x),
+                                               static_cast<std::uint16_t>(g.min_key[1] + y),
+                                               static_cast<std::uint16_t>(g.min_key[2] + z)));
         const auto theirs = static_cast<std::uint32_t>(edt.getSquaredDistanceInCells(p));
         const std::uint32_t ours = std::min(g.squared_cells[i], cap);
         if (theirs == ours) {
@@ -254,7 +257,8 @@ void compareWithDynamicEdt(Context& ctx, octomap::OcTree& tree, const Box& box,
         // octovk's is the exact minimum (checked above); dynamicEDT3D's propagation found a
         // farther obstacle (never a nearer one: there is none).
         ASSERT_EQ(std::min(b.squared[i], cap), ours);
-        ASSERT_GT(theirs, ours) << "dynamicEDT3D reports a nearer obstacle than exists at cell " << i;
+        ASSERT_GT(theirs, ours) << "dynamicEDT3D reports a nearer obstacle than exists at cell "
+                                << i;
         ++edt_too_far;
       }
   std::cout << "[dynamicEDT3D] " << name << ": " << agree << " of " << (agree + differ)
@@ -386,9 +390,12 @@ TEST(DistanceField, UpdateAfterScansEqualsFromScratch) {
 
 const char* kindName(DistanceField::UpdateKind kind) {
   switch (kind) {
-    case DistanceField::UpdateKind::kBuild: return "build";
-    case DistanceField::UpdateKind::kFromTree: return "from the tree";
-    case DistanceField::UpdateKind::kFromChanges: return "from the change set";
+    case DistanceField::UpdateKind::kBuild:
+      return "build";
+    case DistanceField::UpdateKind::kFromTree:
+      return "from the tree";
+    case DistanceField::UpdateKind::kFromChanges:
+      return "from the change set";
   }
   return "?";
 }
@@ -405,11 +412,12 @@ TEST(DistanceField, IncrementalUpdatesEqualFromScratch) {
     std::uniform_real_distribution<float> u(-0.4f, 0.4f);
     map.insertPointCloud(test::randomScan(rng, Eigen::Vector3f::Zero(), 400, 1.5f),
                          Eigen::Vector3f::Zero());
-    const DistanceFieldOptions options{.max_distance_m = 0.8f, .treat_unknown_as_occupied = unknown};
+    const DistanceFieldOptions options{.max_distance_m = 0.8f,
+                                       .treat_unknown_as_occupied = unknown};
     DistanceField field(map, kSmallBox.min, kSmallBox.max, options);
     EXPECT_EQ(field.lastUpdateKind(), Kind::kBuild);
     EXPECT_FALSE(map.isChangeDetectionEnabled());  // a field only built leaves the map alone
-    field.update();  // turns change detection on
+    field.update();                                // turns change detection on
     EXPECT_EQ(field.lastUpdateKind(), Kind::kFromTree);
     EXPECT_TRUE(map.isChangeDetectionEnabled());
     bool saw_changes = false, saw_tree = false;
@@ -418,8 +426,10 @@ TEST(DistanceField, IncrementalUpdatesEqualFromScratch) {
       // Small scans (a few short rays) and large ones, some submitted without waiting.
       const bool small = s % 3 != 2;
       const auto scan = test::randomScan(rng, origin, small ? 6 : 800, small ? 0.4f : 1.5f);
-      if (s % 2 == 1) map.submitPointCloud(scan, origin);
-      else map.insertPointCloud(scan, origin);
+      if (s % 2 == 1)
+        map.submitPointCloud(scan, origin);
+      else
+        map.insertPointCloud(scan, origin);
       field.update();
       SCOPED_TRACE(std::string("after scan ") + std::to_string(s) + ", an update " +
                    kindName(field.lastUpdateKind()));
@@ -564,7 +574,7 @@ TEST(DistanceField, QueriesAnswerFromTheField) {
                                  long(o / (std::size_t{g.size[0]} * g.size[1]))};
     for (int a = 0; a < 3; ++a)
       EXPECT_EQ(r.obstacle[a], static_cast<float>(tree.keyToCoord(
-                                static_cast<octomap::key_type>(g.min_key[a] + oc[a]))));
+                                   static_cast<octomap::key_type>(g.min_key[a] + oc[a]))));
     if (r.squared_cells == 0 || static_cast<float>(metres) >= max_d) {
       EXPECT_EQ(r.gradient, Eigen::Vector3f::Zero()) << i;
       ++(r.squared_cells == 0 ? on_obstacle : capped);
@@ -626,8 +636,7 @@ TEST(DistanceField, DistancesOnDeviceWaitAndSignalAndEqualTheHostApi) {
   std::memset(copy.data(), 0, out_bytes);
   producer.produceThenSignal(staged, in, in_bytes, 1);
   distancesOnDevice(field, in.range(), static_cast<std::uint32_t>(spheres.size()), out.range(),
-                    WaitSemaphore{producer.timeline(), 1},
-                    SignalSemaphore{consumer.timeline(), 2});
+                    WaitSemaphore{producer.timeline(), 1}, SignalSemaphore{consumer.timeline(), 2});
   producer.finishProducer();
   consumer.copyAfter(out, copy, out_bytes, 2);
   const auto* got = static_cast<const gpu::DistanceResult*>(copy.data());

@@ -1,8 +1,8 @@
 // The tree between its device form and HostTree (map/host_tree.cpp), on the host alone: no
 // device, so these run even where Vulkan does not.
-#include <gtest/gtest.h>
-
 #include "map/host_tree.hpp"
+
+#include <gtest/gtest.h>
 
 namespace octovk {
 namespace {

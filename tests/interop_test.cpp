@@ -2,13 +2,13 @@
 // buffers are made with plain Vulkan on the context's device, as an application would, and the
 // answers must equal the host API's (which the query tests compare with OctoMap).
 #include <octomap/octomap.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstring>
 #include <limits>
 #include <random>
 #include <thread>
-#include <unistd.h>
 
 #include "caller_buffer.hpp"
 #include "octovk/vulkan_interop.hpp"
@@ -123,7 +123,8 @@ TEST(Interop, ScansFromCallerBuffersWaitForTheSemaphoreAndEqualTheHostApi) {
   OccupancyMap on_device(ctx, params), on_host(ctx, params);
   std::mt19937 rng(21);
   Pose pose;
-  pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.4f, Eigen::Vector3f(1, 2, 3).normalized()));
+  pose.rotation =
+      Eigen::Quaternionf(Eigen::AngleAxisf(0.4f, Eigen::Vector3f(1, 2, 3).normalized()));
   pose.translation = Eigen::Vector3f(0.3f, -0.2f, 0.1f);
   const Eigen::Vector3f origin(0.02f, 0.0f, -0.01f);
   const auto points = test::randomScan(rng, origin, 2000, 3.0f);
@@ -236,8 +237,8 @@ TEST(Interop, ExportableMemoryHandsPointsOver) {
   VkDeviceMemory memory = VK_NULL_HANDLE;
   ASSERT_EQ(vkAllocateMemory(vk.device, &alloc, nullptr, &memory), VK_SUCCESS);
   ASSERT_EQ(vkBindBufferMemory(vk.device, buffer, memory, 0), VK_SUCCESS);
-  auto get_fd = reinterpret_cast<PFN_vkGetMemoryFdKHR>(
-      vkGetDeviceProcAddr(vk.device, "vkGetMemoryFdKHR"));
+  auto get_fd =
+      reinterpret_cast<PFN_vkGetMemoryFdKHR>(vkGetDeviceProcAddr(vk.device, "vkGetMemoryFdKHR"));
   ASSERT_NE(get_fd, nullptr) << "VK_KHR_external_memory_fd reported but not enabled";
   VkMemoryGetFdInfoKHR fd_info{VK_STRUCTURE_TYPE_MEMORY_GET_FD_INFO_KHR};
   fd_info.memory = memory;

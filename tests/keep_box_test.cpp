@@ -15,8 +15,8 @@
 #include <utility>
 #include <vector>
 
-#include "octomap_keep_box.hpp"
 #include "changed_keys.hpp"
+#include "octomap_keep_box.hpp"
 #include "test_support.hpp"
 
 namespace octovk::test {
@@ -26,7 +26,6 @@ std::unique_ptr<octomap::OcTree> keepOracle(const octomap::OcTree& tree, const E
                                             const Eigen::Vector3f& max) {
   return test::octomapKeepBox(tree, toPoint(min), toPoint(max));
 }
-
 
 struct Scene {
   OccupancyMap map;
@@ -61,7 +60,7 @@ TEST(KeepBox, EqualsTheLeafIteratorsTreeNodeForNodeAndLaterScansToo) {
     ASSERT_TRUE(sameTree(*s.oracle, *toOcTree(s.map)));
     const struct {
       Eigen::Vector3f min, max;
-    } boxes[] = {{{-1.5f, -2.0f, -1.0f}, {2.2f, 1.7f, 1.3f}},   // most of the map
+    } boxes[] = {{{-1.5f, -2.0f, -1.0f}, {2.2f, 1.7f, 1.3f}},    // most of the map
                  {{-3.0f, -3.0f, -0.25f}, {3.0f, 3.0f, 0.05f}},  // a thin slab of that
                  {{0.2f, -0.5f, -0.2f}, {1.1f, 0.7f, 0.0f}}};    // around the sensors
     std::size_t nodes = s.map.nodeCount();
@@ -92,10 +91,11 @@ TEST(KeepBox, EqualsTheLeafIteratorsTreeNodeForNodeAndLaterScansToo) {
     EXPECT_EQ(s.map.leafCount(), s.oracle->getNumLeafNodes());
     EXPECT_EQ(s.map.deviceBytesByUse().pool, pool_bytes)
         << "the scans after the cut fit in the blocks it freed";
-    EXPECT_EQ(s.map.leavesInBox({-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}).size(),
-              static_cast<std::size_t>(std::distance(
-                  s.oracle->begin_leafs_bbx(octomap::point3d(-1, -1, -1), octomap::point3d(1, 1, 1)),
-                  s.oracle->end_leafs_bbx())));
+    EXPECT_EQ(
+        s.map.leavesInBox({-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}).size(),
+        static_cast<std::size_t>(std::distance(
+            s.oracle->begin_leafs_bbx(octomap::point3d(-1, -1, -1), octomap::point3d(1, 1, 1)),
+            s.oracle->end_leafs_bbx())));
   }
 }
 
@@ -147,8 +147,8 @@ TEST(KeepBox, ABoxOutsideTheMapKeepsNothingAndTheFreedBlocksAreReused) {
   // OctoMap's iterator, meant to be at its end here, yields the root once (see
   // octomap_keep_box.hpp); that inner node is no leaf in the box.
   std::size_t visited = 0;
-  for (auto it = s.oracle->begin_leafs_bbx(octomap::point3d(-1, -1, -1),
-                                           octomap::point3d(1e5f, 1, 1));
+  for (auto it =
+           s.oracle->begin_leafs_bbx(octomap::point3d(-1, -1, -1), octomap::point3d(1e5f, 1, 1));
        it != s.oracle->end_leafs_bbx(); ++it)
     visited += s.oracle->nodeHasChildren(&*it) ? 0 : 1;
   EXPECT_EQ(visited, 0u);
@@ -219,10 +219,9 @@ TEST(KeepBox, BadBoxesAreRefusedAndTheMapKept) {
   const std::string before = test::otBytes(*toOcTree(s.map));
   const std::size_t nodes = s.map.nodeCount();
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  for (const auto& [min, max] :
-       {std::pair<Eigen::Vector3f, Eigen::Vector3f>{{1, 0, 0}, {0, 1, 1}},
-        {{0, 0, 0}, {nan, 1, 1}},
-        {{-std::numeric_limits<float>::infinity(), 0, 0}, {1, 1, 1}}}) {
+  for (const auto& [min, max] : {std::pair<Eigen::Vector3f, Eigen::Vector3f>{{1, 0, 0}, {0, 1, 1}},
+                                 {{0, 0, 0}, {nan, 1, 1}},
+                                 {{-std::numeric_limits<float>::infinity(), 0, 0}, {1, 1, 1}}}) {
     try {
       s.map.keepBox(min, max);
       ADD_FAILURE() << "accepted a bad box";
@@ -239,17 +238,24 @@ TEST(KeepBox, BadBoxesAreRefusedAndTheMapKept) {
 // within `reach` metres along it.
 std::vector<Eigen::Vector3f> corridorScan(std::mt19937& rng, const Eigen::Vector3f& origin,
                                           std::size_t n, float reach) {
-  std::uniform_real_distribution<float> along(-reach, reach), across(-2.0f, 2.0f),
-      up(-1.0f, 1.5f);
+  std::uniform_real_distribution<float> along(-reach, reach), across(-2.0f, 2.0f), up(-1.0f, 1.5f);
   std::uniform_int_distribution<int> face(0, 3);
   std::vector<Eigen::Vector3f> pts;
   while (pts.size() < n) {
     const float x = origin.x() + along(rng);
     switch (face(rng)) {
-      case 0: pts.emplace_back(x, across(rng), -1.0f); break;
-      case 1: pts.emplace_back(x, across(rng), 1.5f); break;
-      case 2: pts.emplace_back(x, -2.0f, up(rng)); break;
-      default: pts.emplace_back(x, 2.0f, up(rng)); break;
+      case 0:
+        pts.emplace_back(x, across(rng), -1.0f);
+        break;
+      case 1:
+        pts.emplace_back(x, across(rng), 1.5f);
+        break;
+      case 2:
+        pts.emplace_back(x, -2.0f, up(rng));
+        break;
+      default:
+        pts.emplace_back(x, 2.0f, up(rng));
+        break;
     }
   }
   return pts;
@@ -263,8 +269,7 @@ TEST(KeepBox, ARollingWindowStaysUnderACapTheWholeMapWouldExceed) {
   MapParams params = test::withResolution(0.1);
   params.max_device_bytes = std::size_t{6} << 20;
   OccupancyMap map(ctx, params);
-  std::unique_ptr<octomap::OcTree> oracle =
-      std::make_unique<octomap::OcTree>(makeOracle(params));
+  std::unique_ptr<octomap::OcTree> oracle = std::make_unique<octomap::OcTree>(makeOracle(params));
   octomap::OcTree uncut = makeOracle(params);
   std::mt19937 rng(23);
   const int scans = 300;
@@ -294,8 +299,8 @@ TEST(KeepBox, ARollingWindowStaysUnderACapTheWholeMapWouldExceed) {
   EXPECT_GT(inner * (72 + 160), params.max_device_bytes)
       << "the whole map would fit under the cap: the test shows nothing";
   std::cout << "rolling window: largest " << largest << " B under a cap of "
-            << params.max_device_bytes << " B; the whole map has " << uncut.size()
-            << " nodes (" << inner << " inner), the window " << oracle->size() << "\n";
+            << params.max_device_bytes << " B; the whole map has " << uncut.size() << " nodes ("
+            << inner << " inner), the window " << oracle->size() << "\n";
 }
 
 // `octovk edit --keep-box` writes the file OctoMap writes for the tree cut the same way.
@@ -323,8 +328,8 @@ TEST(KeepBoxCli, EditWritesTheFilesOctoMapWrites) {
     const std::string command = std::string(OCTOVK_PATH(OCTOVK_CLI)) + " edit " + in +
                                 " --keep-box -1.5 -2 -1 2.2 1.7 1.3"
                                 " --clear-box 0.2 -0.5 -0.4 1.1 0.7 0.6"
-                                " --keep-box=-1,-1,-0.5,1.5,1,0.5 -o " + out +
-                                " >/dev/null 2>&1";
+                                " --keep-box=-1,-1,-0.5,1.5,1,0.5 -o " +
+                                out + " >/dev/null 2>&1";
     ASSERT_EQ(test::shell(command), 0) << command;
     octomap::OcTree copy(*expected);  // writeBinary prunes what it writes
     std::stringstream bytes;

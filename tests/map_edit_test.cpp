@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
-#include <sstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <utility>
 
@@ -111,10 +111,9 @@ TEST(ClearBox, BadBoxesAreRefusedAndTheMapKept) {
   Scene s = scanned(ctx, 0.1, 9);
   const std::string before = test::otBytes(*toOcTree(s.map));
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  for (const auto& [min, max] :
-       {std::pair<Eigen::Vector3f, Eigen::Vector3f>{{1, 0, 0}, {0, 1, 1}},
-        {{0, 0, 0}, {nan, 1, 1}},
-        {{-std::numeric_limits<float>::infinity(), 0, 0}, {1, 1, 1}}}) {
+  for (const auto& [min, max] : {std::pair<Eigen::Vector3f, Eigen::Vector3f>{{1, 0, 0}, {0, 1, 1}},
+                                 {{0, 0, 0}, {nan, 1, 1}},
+                                 {{-std::numeric_limits<float>::infinity(), 0, 0}, {1, 1, 1}}}) {
     try {
       s.map.clearBox(min, max);
       ADD_FAILURE() << "accepted a bad box";
@@ -148,8 +147,8 @@ TEST(ClearBoxCli, EditWritesTheFilesOctoMapWrites) {
     std::filesystem::remove(out);
     const std::string command = std::string(OCTOVK_PATH(OCTOVK_CLI)) + " edit " + in +
                                 " --clear-box 0.2 -0.5 -0.4 1.1 0.7 0.6"
-                                " --clear-box=-3,-3,-0.05,3,3,0.05 -o " + out +
-                                " >/dev/null 2>&1";
+                                " --clear-box=-3,-3,-0.05,3,3,0.05 -o " +
+                                out + " >/dev/null 2>&1";
     ASSERT_EQ(test::shell(command), 0) << command;
     octomap::OcTree copy(*expected);  // writeBinary prunes what it writes
     std::stringstream bytes;

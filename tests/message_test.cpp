@@ -143,8 +143,8 @@ TEST(MapMessage, DamagedBodiesAreRefusedAndTheMapKept) {
     const MapMessage good = binary ? binaryMapToMessage(p.map) : fullMapToMessage(p.map);
     const auto refused = [&](MapMessage m, ErrorCode code, const std::string& why,
                              const std::string& what) {
-      expectRefused([&] { messageToMap(p.map, m, "msg-under-test"); }, code, "msg-under-test",
-                    why, what);
+      expectRefused([&] { messageToMap(p.map, m, "msg-under-test"); }, code, "msg-under-test", why,
+                    what);
       expectRefused([&] { (void)messageToMap(ctx, m, 0, "msg-under-test"); }, code,
                     "msg-under-test", why, what);
     };

@@ -567,8 +567,8 @@ TEST_P(PoseOverload, EqualsOctoMapFrameOriginInsert) {
     const auto pts = randomScan(rng, origin_sensor, 400, radius);
     oracle.insertPointCloud(toPointcloud(pts), toPoint(origin_sensor), test::toPose6D(pose),
                             c.max_range, false, c.discretize);
-    const ScanStats stats =
-        map.insertPointCloud(pts, origin_sensor, pose, {.max_range_m = c.max_range, .discretize = c.discretize});
+    const ScanStats stats = map.insertPointCloud(
+        pts, origin_sensor, pose, {.max_range_m = c.max_range, .discretize = c.discretize});
     EXPECT_EQ(stats.points, pts.size());
     EXPECT_EQ(stats.nodes, oracle.size());
     auto ours = toOcTree(map);

@@ -382,16 +382,16 @@ octomap::OcTree largeNodeMap(double resolution) {
   for (int x = lo; x < 32768 + 64; ++x)
     for (int y = lo; y < 32768; ++y)
       for (int z = lo; z < 32768; ++z)
-        tree.updateNode(octomap::OcTreeKey(static_cast<octomap::key_type>(x),
-                                           static_cast<octomap::key_type>(y),
-                                           static_cast<octomap::key_type>(z)),
-                        false);
+        tree.updateNode(
+            octomap::OcTreeKey(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y),
+                               static_cast<octomap::key_type>(z)),
+            false);
   for (const auto& [x, y, z] : {std::tuple{32770, 32740, 32750}, std::tuple{32800, 32710, 32766},
                                 std::tuple{32831, 32767, 32704}, std::tuple{32790, 32750, 32720}})
-    tree.updateNode(octomap::OcTreeKey(static_cast<octomap::key_type>(x),
-                                       static_cast<octomap::key_type>(y),
-                                       static_cast<octomap::key_type>(z)),
-                    true);
+    tree.updateNode(
+        octomap::OcTreeKey(static_cast<octomap::key_type>(x), static_cast<octomap::key_type>(y),
+                           static_cast<octomap::key_type>(z)),
+        true);
   for (int y = lo + 16; y < 32768 - 16; ++y)  // an occupied wall on the block's +x face
     for (int z = lo + 16; z < 32768 - 16; ++z)
       tree.updateNode(octomap::OcTreeKey(32768 + 63, static_cast<octomap::key_type>(y),
@@ -406,18 +406,31 @@ std::vector<Ray> largeNodeRays(double resolution, unsigned seed) {
   const float r = static_cast<float>(resolution);
   const float inside_x = 64 * r, inside_yz = 32 * r;  // half extents of the free block
   const Eigen::Vector3f centre(0.0f, -inside_yz, -inside_yz);
-  const std::vector<Eigen::Vector3f> dirs = {
-      {1, 0, 0},    {-1, 0, 0},     {0, 1, 0},   {0, -1, 0},     {0, 0, 1},    {0, 0, -1},
-      {1, 1, 0},    {-1, 1, 0},     {1, 1, 1},   {-1, -1, 1},    {1, -1, -1},  {1, 2, 3},
-      {1, 1e-6f, 0}, {-1e-7f, 1, 1e-7f}, {3, 1, 0}, {1e-30f, 1e-30f, 0}, {1e30f, -2e30f, 1e29f}};
+  const std::vector<Eigen::Vector3f> dirs = {{1, 0, 0},
+                                             {-1, 0, 0},
+                                             {0, 1, 0},
+                                             {0, -1, 0},
+                                             {0, 0, 1},
+                                             {0, 0, -1},
+                                             {1, 1, 0},
+                                             {-1, 1, 0},
+                                             {1, 1, 1},
+                                             {-1, -1, 1},
+                                             {1, -1, -1},
+                                             {1, 2, 3},
+                                             {1, 1e-6f, 0},
+                                             {-1e-7f, 1, 1e-7f},
+                                             {3, 1, 0},
+                                             {1e-30f, 1e-30f, 0},
+                                             {1e30f, -2e30f, 1e29f}};
   std::vector<Ray> rays;
   for (int i = 0; i < 1800; ++i) {
     Ray ray;
     ray.ignore_unknown = (i / 3) % 2 == 0;
     switch (i % 6) {
       case 0:  // inside the free block, any direction
-        ray.origin = centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng),
-                                              inside_yz * u(rng));
+        ray.origin =
+            centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng), inside_yz * u(rng));
         ray.direction = {u(rng), u(rng), u(rng)};
         break;
       case 1:  // from a cell corner, along axes, face and space diagonals (ties of tMax)
@@ -429,13 +442,16 @@ std::vector<Ray> largeNodeRays(double resolution, unsigned seed) {
       {
         const int k = 1 + static_cast<int>(std::abs(u(rng)) * 120);
         const int axis = (i / 6) % 3;
-        ray.origin = {r * (std::round(20 * u(rng)) + 0.5f), -r * (std::round(30 + 20 * u(rng)) + 0.5f),
+        ray.origin = {r * (std::round(20 * u(rng)) + 0.5f),
+                      -r * (std::round(30 + 20 * u(rng)) + 0.5f),
                       -r * (std::round(30 + 20 * u(rng)) + 0.5f)};
         ray.direction = Eigen::Vector3f::Unit(axis) * (u(rng) < 0 ? -1.0f : 1.0f);
         if (i % 12 == 2) ray.direction += Eigen::Vector3f(0.0f, 1e-3f * u(rng), 1e-3f * u(rng));
         const double d = static_cast<double>(static_cast<float>(k) * r);
         const int pick = (i / 18) % 3;
-        ray.max_range_m = pick == 0 ? d : pick == 1 ? std::nextafter(d, 0.0) : std::nextafter(d, 1e9);
+        ray.max_range_m = pick == 0   ? d
+                          : pick == 1 ? std::nextafter(d, 0.0)
+                                      : std::nextafter(d, 1e9);
         break;
       }
       case 3:  // far out in unknown space: to the map's border when unknown is ignored
@@ -448,18 +464,19 @@ std::vector<Ray> largeNodeRays(double resolution, unsigned seed) {
         break;
       }
       case 4:  // from the free block outward through unknown space, with a long max range
-        ray.origin = centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng),
-                                              inside_yz * u(rng));
+        ray.origin =
+            centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng), inside_yz * u(rng));
         ray.direction = {u(rng), u(rng), 0.2f * u(rng)};
         ray.max_range_m = 2000.0 * resolution * std::abs(u(rng));
         break;
       default:  // through the block from unknown space, aimed at it
       {
-        const Eigen::Vector3f from = centre + Eigen::Vector3f(300 * r * u(rng), 300 * r * u(rng),
-                                                              300 * r * u(rng));
+        const Eigen::Vector3f from =
+            centre + Eigen::Vector3f(300 * r * u(rng), 300 * r * u(rng), 300 * r * u(rng));
         ray.origin = from;
-        ray.direction = centre + Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng),
-                                                 inside_yz * u(rng)) - from;
+        ray.direction = centre +
+                        Eigen::Vector3f(inside_x * u(rng), inside_yz * u(rng), inside_yz * u(rng)) -
+                        from;
         if (i % 12 == 5) ray.max_range_m = 400.0 * r * std::abs(u(rng));
         break;
       }
@@ -497,7 +514,6 @@ TEST_P(RayCastingScenarios, AcrossLargeNodesEqualOctoMap) {
     EXPECT_GT(far, got.size() / 10);
   }
 }
-
 
 // Rays through cell corners and along cell edges (ties between the axes' tMax at every step),
 // from outside the mapped region, to the map's border and to the max range, on every side.

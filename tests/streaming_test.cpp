@@ -24,8 +24,8 @@ struct Scan {
 };
 
 void insertOracle(octomap::OcTree& oracle, const Scan& s) {
-  oracle.insertPointCloud(test::toPointcloud(s.points), test::toPoint(s.origin), s.max_range,
-                          false, s.discretize);
+  oracle.insertPointCloud(test::toPointcloud(s.points), test::toPoint(s.origin), s.max_range, false,
+                          s.discretize);
 }
 
 // A varied sequence: sizes from a handful of points to thousands, some with a max range, some
@@ -36,8 +36,9 @@ std::vector<Scan> sequence(std::mt19937& rng, int count) {
   std::uniform_real_distribution<float> radius(0.3f, 3.0f);
   for (int i = 0; i < count; ++i) {
     Scan s;
-    s.origin = Eigen::Vector3f(0.13f * static_cast<float>(i % 7), -0.07f * static_cast<float>(i % 5),
-                               0.02f * static_cast<float>(i % 3));
+    s.origin =
+        Eigen::Vector3f(0.13f * static_cast<float>(i % 7), -0.07f * static_cast<float>(i % 5),
+                        0.02f * static_cast<float>(i % 3));
     const std::size_t n = i % 9 == 4 ? 3 : static_cast<std::size_t>(size(rng));
     s.points = randomScan(rng, s.origin, n, radius(rng));
     s.max_range = i % 4 == 1 ? 1.5 : -1.0;
@@ -200,8 +201,9 @@ TEST(Streaming, QueriesSeeEverySubmittedScan) {
   ASSERT_EQ(found.size(), probes.size());
   for (std::size_t i = 0; i < probes.size(); ++i) {
     const octomap::OcTreeNode* n = oracle.search(test::toPoint(probes[i]));
-    const CellState want = !n ? CellState::kUnknown
-                              : (oracle.isNodeOccupied(n) ? CellState::kOccupied : CellState::kFree);
+    const CellState want =
+        !n ? CellState::kUnknown
+           : (oracle.isNodeOccupied(n) ? CellState::kOccupied : CellState::kFree);
     ASSERT_EQ(found[i].state, want) << i;
     if (n) {
       ASSERT_EQ(test::floatBits(found[i].log_odds), test::floatBits(n->getLogOdds())) << i;
@@ -230,8 +232,8 @@ TEST(Streaming, DepthImagesSubmittedEqualBlocking) {
     image.cy = 23.5f;
     Pose pose;
     pose.translation = Eigen::Vector3f(0.1f * static_cast<float>(i), 0.0f, 0.3f);
-    pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.2f * static_cast<float>(i),
-                                                         Eigen::Vector3f::UnitZ()));
+    pose.rotation = Eigen::Quaternionf(
+        Eigen::AngleAxisf(0.2f * static_cast<float>(i), Eigen::Vector3f::UnitZ()));
     blocking.insertDepthImage(image, pose, {.max_range_m = i % 2 ? 1.8 : -1.0});
     streamed.submitDepthImage(image, pose, {.max_range_m = i % 2 ? 1.8 : -1.0});
     // The pixels were copied: overwriting them now changes nothing submitted.
@@ -280,7 +282,8 @@ TEST(ScanOptionsApi, EqualsOctoMapWithTheSameArguments) {
   pose.translation = Eigen::Vector3f(0.2f, -0.1f, 0.05f);
   pose.rotation = Eigen::Quaternionf(Eigen::AngleAxisf(0.3f, Eigen::Vector3f::UnitZ()));
   std::vector<float> depth(32 * 24);
-  for (std::size_t i = 0; i < depth.size(); ++i) depth[i] = 0.5f + 0.01f * static_cast<float>(i % 37);
+  for (std::size_t i = 0; i < depth.size(); ++i)
+    depth[i] = 0.5f + 0.01f * static_cast<float>(i % 37);
   DepthImage image;
   image.width = 32;
   image.height = 24;
@@ -298,8 +301,8 @@ TEST(ScanOptionsApi, EqualsOctoMapWithTheSameArguments) {
   const auto insertOracleInSensorFrame = [&](const std::vector<Eigen::Vector3f>& points,
                                              const Eigen::Vector3f& origin, double max_range,
                                              bool discretize) {
-    oracle.insertPointCloud(test::toPointcloud(points), test::toPoint(origin),
-                            test::toPose6D(pose), max_range, false, discretize);
+    oracle.insertPointCloud(test::toPointcloud(points), test::toPoint(origin), test::toPose6D(pose),
+                            max_range, false, discretize);
   };
   for (std::size_t i = 0; i < scans.size(); ++i) {
     const Scan& s = scans[i];

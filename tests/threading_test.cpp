@@ -167,7 +167,8 @@ TEST(Threading, QueriesOnOneMapWhileAnotherInserts) {
   REQUIRE_FRESH_CONTEXT(ctx);
   const MapParams params = test::withResolution(0.1);
   OccupancyMap queried(*ctx, params);
-  for (const Scan& s : scansOf(0, 6)) queried.insertPointCloud(s.points, s.origin, {.max_range_m = s.max_range});
+  for (const Scan& s : scansOf(0, 6))
+    queried.insertPointCloud(s.points, s.origin, {.max_range_m = s.max_range});
   const std::vector<Eigen::Vector3f> points = probePoints(0);
   const std::vector<Ray> rays = probeRays(0);
   const std::vector<Lookup> lookups = queried.search(points);

@@ -47,7 +47,7 @@ constexpr std::array<bool, 10> kReadsTheTree = {
 , requires(M& m) { m.download(); }
 , requires(M& m) { m.downloadLeafBoxes(); }
 , requires(M& m) { toOcTree(m); }
-};  // namespace octovk
+};  // namespace octovk::test
 static_assert(kReadsTheTree<OccupancyMap> ==
               std::array<bool, 10>{true, true, true, true, true, true, true, true, true, true});
 static_assert(kReadsTheTree<const OccupancyMap> == std::array<bool, 10>{},

@@ -114,10 +114,9 @@ const Subcommand kSubcommands[] = {
      .value_options = {"--z", "--max-distance", "--cell-pixels", "--unknown"},
      .multi_value_options = {{"--box", "XMIN YMIN ZMIN XMAX YMAX ZMAX"}},
      .make = makeDistance,
-     .examples =
-         "  octovk distance map.bt --box -5 -5 0 5 5 2 --z 0.5 -o slice.png\n"
-         "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown free\n"
-         "                  -o optimistic.png\n"},
+     .examples = "  octovk distance map.bt --box -5 -5 0 5 5 2 --z 0.5 -o slice.png\n"
+                 "  octovk distance map.bt --box -5 -5 0 5 5 2 --max-distance 1 --unknown free\n"
+                 "                  -o optimistic.png\n"},
     {.name = "store",
      .summary = "a map store: export or follow a map, its scan log, what it holds",
      .print_help = printStoreHelp,

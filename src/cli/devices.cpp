@@ -76,10 +76,10 @@ class Devices final : public Command {
     if (selected.type == "CPU") {
       const CpuDriverThreads threads = cpuDriverThreads();
       if (threads.chosen_by_octovk)
-        std::printf("lavapipe threads: LP_NUM_THREADS=%s, octovk's choice for %s (%s keep "
-                    "lavapipe's default); set LP_NUM_THREADS to choose\n",
-                    threads.setting.c_str(), commandsWith(false).c_str(),
-                    commandsWith(true).c_str());
+        std::printf(
+            "lavapipe threads: LP_NUM_THREADS=%s, octovk's choice for %s (%s keep "
+            "lavapipe's default); set LP_NUM_THREADS to choose\n",
+            threads.setting.c_str(), commandsWith(false).c_str(), commandsWith(true).c_str());
       else if (!threads.setting.empty())
         std::printf("lavapipe threads: LP_NUM_THREADS=%s, from the environment\n",
                     threads.setting.c_str());

@@ -391,8 +391,7 @@ void Distance::drawLegend(Canvas& canvas, const Layout& at, const Slice& slice,
 
 int Distance::run(Invocation& in) {
   Steps steps;
-  OccupancyMap map = steps.run(
-      "reading and upload", [&] { return loadMap(in); });
+  OccupancyMap map = steps.run("reading and upload", [&] { return loadMap(in); });
   const double resolution = map.params().resolution;
   checkPictureSize(resolution);
   const DistanceField distances = steps.run("field", [&] { return field(map); });

@@ -90,9 +90,7 @@ class Edit final : public Command {
 
   int run(Invocation& in) override {
     Steps steps;
-    OccupancyMap map = steps.run("reading and upload", [&] {
-      return loadMap(in);
-    });
+    OccupancyMap map = steps.run("reading and upload", [&] { return loadMap(in); });
     const std::size_t nodes_before = map.nodeCount();
     steps.run("editing", [&] { applyEdits(map); });
     const std::size_t nodes_after = map.nodeCount();

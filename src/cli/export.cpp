@@ -116,8 +116,7 @@ class Export final : public Command {
 
 int Export::run(Invocation& in) {
   Steps steps;
-  OccupancyMap map = steps.run(
-      "reading and upload", [&] { return loadMap(in); });
+  OccupancyMap map = steps.run("reading and upload", [&] { return loadMap(in); });
   const std::vector<OccupancyMap::LeafBoxHost> cells =
       steps.run("selecting", [&] { return select(map); });
   const std::size_t occupied = steps.run("writing", [&] { return write(in, map, cells); });

@@ -142,8 +142,7 @@ std::string payloadText(OccupancyMap& map, const std::string& path) {
 
 int Info::run(Invocation& in) {
   Steps steps;
-  OccupancyMap map = steps.run(
-      "reading and upload", [&] { return loadMap(in); });
+  OccupancyMap map = steps.run("reading and upload", [&] { return loadMap(in); });
   const LeafCounts c = steps.run("counting", [&] { return countLeaves(map); });
   const std::string payload =
       map.params().payload == Payload::kNone

@@ -305,7 +305,7 @@ void printIntegrateHelp(std::ostream& out) {
          "with line i\n"
          "      --stamped          DIR: an OcTreeStamped (.ot only) with the images' seconds\n"
          "      --degrade-after S  before each stamped scan, occupied cells older than S s fade\n";
-  printMaxDeviceMemoryHelp(out, "A scan");
+  printMaxDeviceMemoryHelp(out, "Scans run in parts; a map");
   out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   IntegrateStore::printHelp(out);
   printCameraOptionsHelp(out);

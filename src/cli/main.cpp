@@ -89,8 +89,8 @@ int dispatch(const std::vector<std::string>& args) {
     return runSubcommand(*found, rest);
   }
   if (!command.empty() && command[0] == '-')
-    throw UsageError("unknown option '" + command + "' before a command; commands: " +
-                     commandNames() + " (see 'octovk --help')");
+    throw UsageError("unknown option '" + command +
+                     "' before a command; commands: " + commandNames() + " (see 'octovk --help')");
   throw UsageError("unknown command '" + command + "'; commands: " + commandNames() +
                    " (see 'octovk --help')");
 }

@@ -591,8 +591,7 @@ RayBudget Render::budget(const Invocation& in, OccupancyMap& map, const Scene& s
 
 int Render::run(Invocation& in) {
   Steps steps;
-  OccupancyMap map = steps.run(
-      "reading and upload", [&] { return loadMap(in); });
+  OccupancyMap map = steps.run("reading and upload", [&] { return loadMap(in); });
   const Scene shown = steps.run("reading and upload", [&] { return scene(map, in.input()); });
   const bool legend = hasLegend(width_, height_);
   const std::uint32_t view_width = legend ? width_ - kLegendWidth : width_;

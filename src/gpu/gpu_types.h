@@ -65,7 +65,7 @@ OCTOVK_CONST uint kStatusEndpointHashFull = 4u;  // the endpoint / prefix set of
 // above, or because the pool or the touched lists lack room (the two bits below).
 OCTOVK_CONST uint kStatusNotApplied = 16u;
 OCTOVK_CONST uint kStatusPoolShort = 32u;   // fewer free blocks than new_blocks
-OCTOVK_CONST uint kStatusListsShort = 64u;  // more active cells than params.active_capacity
+OCTOVK_CONST uint kStatusListsShort = 64u;  // the touched lists' bound over params.touched_capacity
 // Not applied because an earlier scan was not (PoolState::halted): scans queued behind a refused
 // one leave the map alone until the host has grown what was short and replays them in order.
 OCTOVK_CONST uint kStatusHalted = 128u;
@@ -127,7 +127,7 @@ struct ScanParams {
   float rot_x;               // 4B (76)
   float rot_y;               // 4B (80)
   float rot_z;               // 4B (84)
-  uint active_capacity;      // 4B (88)
+  uint touched_capacity;     // 4B (88) entries of the touched lists (all levels together)
   float trans_x;             // 4B (92) sensor translation
   float trans_y;             // 4B (96)
   float trans_z;             // 4B (100)
@@ -137,7 +137,7 @@ struct ScanParams {
   uint payload;              // 4B (116) kPayload*: what PAYLOAD holds per node
   uint stamp;                // 4B (120) kPayloadStamp: the scan's time stamp
   uint tile_group;           // 4B (124) a scan applied in groups of tiles: this group's index |
-                             // (groups - 1) << 16, groups a power of two; 0: every tile
+                             // (groups - 1) << 16; 0: every tile
 };
 
 // What a node holds besides its log-odds (MapParams::payload): PAYLOAD, one word per node.

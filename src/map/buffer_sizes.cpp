@@ -19,7 +19,7 @@ std::size_t MapBuffers::initialBytes(std::uint32_t block_limit, Payload payload)
   // payload of a map without one.
   return kFixedBytes + 4 * kSmallQuery + (5 + kFramesInFlight + (with ? 0 : 1)) * kSmallBuffer +
          hashBytes(kInitialHashLog2) + endpointBytes(kInitialHashLog2) +
-         slotBytes(kInitialHashLog2, kInitialHashLog2) + listBytes(kInitialActive) +
+         slotBytes(kInitialHashLog2, kInitialHashLog2) + listBytes(kInitialListEntries) +
          std::size_t{std::min<std::uint32_t>(kInitialBlocks, block_limit)} *
              blockBytes(with, /*leaf_boxes=*/false);
 }

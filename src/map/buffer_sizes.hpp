@@ -12,7 +12,7 @@
 
 namespace octovk::sizes {
 
-constexpr std::size_t kInitialActive = 1024;
+constexpr std::size_t kInitialListEntries = 16384;  // the touched lists, all levels together
 constexpr std::size_t kSmallBuffer = 16;  // points, walks, upload, depth before the first scan
 constexpr std::size_t kSmallQuery = 64;   // each query buffer and its staging
 
@@ -29,8 +29,15 @@ inline std::size_t slotBytes(std::uint32_t hash_log2, std::uint32_t endpoint_log
   return ((std::size_t{1} << hash_log2) + (std::size_t{1} << endpoint_log2)) *
          sizeof(std::uint32_t);
 }
-inline std::size_t listBytes(std::size_t active) {
-  return active * gpu::kTreeDepth * sizeof(std::uint32_t);
+inline std::size_t listBytes(std::size_t entries) { return entries * sizeof(std::uint32_t); }
+// What the touched lists of a scan can hold at most (tree_gate.comp checks the same bound): at
+// depth 15 the parents of its updated leaves, at most 8 in each of its bricks; at a depth d of 14
+// or less, ancestors of its bricks (a brick is the node at depth 14), at most 8^d.
+inline std::size_t touchedBound(std::size_t active, std::size_t bricks) {
+  std::size_t bound = std::min(active, 8 * bricks);
+  for (std::size_t d = 0; d + 1 < gpu::kTreeDepth; ++d)
+    bound += d < 10 ? std::min(bricks, std::size_t{1} << (3 * d)) : bricks;
+  return bound;
 }
 // Nodes, block parents and free stack of one block.
 constexpr std::size_t kBlockBytes = 8 * sizeof(gpu::Node) + 2 * sizeof(std::uint32_t);

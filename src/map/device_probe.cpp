@@ -3,13 +3,13 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <optional>
-#include <span>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -48,20 +48,20 @@ std::vector<ProbeCase> probeCases() {
   // Edges of the float rounding: ties to even, ties one bit further, subnormals, overflow, zeros.
   const double edges[] = {0.0,
                           -0.0,
-                          1.0 + std::ldexp(1.0, -24),                          // tie: down to even
-                          1.0 + 3 * std::ldexp(1.0, -24),                      // tie: up to even
-                          1.0 + std::ldexp(1.0, -24) + std::ldexp(1.0, -52),   // just above a tie
-                          -(2.0 - std::ldexp(1.0, -25)),                       // carries to 2
-                          std::ldexp(1.0, -149),                               // least subnormal
-                          std::ldexp(1.0, -150),                               // tie to 0
-                          std::ldexp(1.5, -150),                               // rounds up
-                          std::ldexp(1.0, -127) * 1.75,                        // subnormal
+                          1.0 + std::ldexp(1.0, -24),                         // tie: down to even
+                          1.0 + 3 * std::ldexp(1.0, -24),                     // tie: up to even
+                          1.0 + std::ldexp(1.0, -24) + std::ldexp(1.0, -52),  // just above a tie
+                          -(2.0 - std::ldexp(1.0, -25)),                      // carries to 2
+                          std::ldexp(1.0, -149),                              // least subnormal
+                          std::ldexp(1.0, -150),                              // tie to 0
+                          std::ldexp(1.5, -150),                              // rounds up
+                          std::ldexp(1.0, -127) * 1.75,                       // subnormal
                           std::ldexp(1.0, -126) * (1.0 - std::ldexp(1.0, -25)),  // to least normal
                           static_cast<double>(std::numeric_limits<float>::max()),
                           std::ldexp(1.0, 128) - std::ldexp(1.0, 103),         // tie: to inf
                           std::ldexp(1.0, 128) - std::ldexp(1.0, 104) * 0.75,  // down to max
                           std::ldexp(1.0, 200),
-                          std::ldexp(1.0, -1030),                              // double subnormal
+                          std::ldexp(1.0, -1030),  // double subnormal
                           -32768.5,
                           32767.999999999996,
                           0.1 * 0.5,
@@ -72,10 +72,17 @@ std::vector<ProbeCase> probeCases() {
     const float fa = unit(rng), fb = unit(rng), fc = unit(rng);
     const double resolution = static_cast<double>(1 + rng() % 40) * 0.005;
     switch (rng() % 4) {
-      case 0:  push(static_cast<double>(fa) / resolution, static_cast<double>(fb), fa, fb, fc); break;
-      case 1:  push(resolution, static_cast<double>(std::abs(fb)), fa, fb, fc); break;
-      case 2:  push(static_cast<double>(fa) * 20.0, static_cast<double>(fb), fa, fb, fc); break;
-      default: push(static_cast<double>(fa) * static_cast<double>(fb), 1.0 / resolution, fa, fb, fc);
+      case 0:
+        push(static_cast<double>(fa) / resolution, static_cast<double>(fb), fa, fb, fc);
+        break;
+      case 1:
+        push(resolution, static_cast<double>(std::abs(fb)), fa, fb, fc);
+        break;
+      case 2:
+        push(static_cast<double>(fa) * 20.0, static_cast<double>(fb), fa, fb, fc);
+        break;
+      default:
+        push(static_cast<double>(fa) * static_cast<double>(fb), 1.0 / resolution, fa, fb, fc);
     }
   }
   // Full-precision doubles over a wide range.
@@ -166,8 +173,8 @@ std::optional<std::string> firstProbeMismatch(std::span<const ProbeCase> cases,
 Result<DeviceProbe> probeDevice(vk::Device& device) {
   try {
     const std::vector<ProbeCase> cases = probeCases();
-    const std::size_t out_bytes =
-        sizeof(ProbeHeader) + kProbeCases * sizeof(std::int32_t) + kProbeCases * sizeof(ProbeResult);
+    const std::size_t out_bytes = sizeof(ProbeHeader) + kProbeCases * sizeof(std::int32_t) +
+                                  kProbeCases * sizeof(ProbeResult);
     vk::Buffer in(device, cases.size() * sizeof(ProbeCase), /*host_visible=*/true);
     vk::Buffer out(device, out_bytes, /*host_visible=*/true);
     std::memcpy(in.mapped(), cases.data(), in.size());

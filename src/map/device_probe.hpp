@@ -12,7 +12,6 @@
 #include <vector>
 
 #include "gpu/gpu_types.h"
-
 #include "octovk/octovk.hpp"
 
 namespace octovk {

@@ -5,6 +5,7 @@
 #include <string>
 #include <utility>
 
+#include "map/buffer_sizes.hpp"
 #include "map/change_set.hpp"
 
 namespace octovk {
@@ -19,12 +20,13 @@ std::uint32_t hashGuess(std::size_t count) {
   return std::min<std::uint32_t>(nextPow2Log2(count * 4), 20);
 }
 
-// First guess of the touched lists for a scan of `count` points: 16 cells per point (OctoMap's
-// spherical sample at 0.05 m updates 13.7 per point), at most 2^18 cells (16 MiB): a small scan
-// into a fresh map then runs once instead of being refused for its lists and run again. Larger
-// scans grow to what the device counted, as before.
+// First guess of the touched lists for a scan of `count` points: 32 entries per point (OctoMap's
+// spherical sample at 0.05 m updates 13.7 cells per point, and the lists hold one to two entries
+// per updated cell), at most 2^20 entries (4 MiB): a small scan into a fresh map then runs once
+// instead of being refused for its lists and run again. Larger scans grow to what the device
+// counted.
 std::size_t listGuess(std::size_t count) {
-  return std::size_t{1} << std::min<std::uint32_t>(nextPow2Log2(count * 16), 18);
+  return std::size_t{1} << std::min<std::uint32_t>(nextPow2Log2(count * 32), 20);
 }
 
 // First guess of the pool's blocks for a scan of `count` points into a map with little room: three
@@ -73,7 +75,7 @@ bool GrowthPolicy::mustGrow(std::size_t count, std::size_t depth_bytes) const {
   const MapBuffers& b = core_.buffers;
   return count > b.pointCapacity() || depth_bytes > b.depth.size() ||
          depth_bytes > b.uploads[0].size() || hashGuess(count) > hash_guess_tried_ ||
-         ahead_blocks_ > 0 || ahead_active_ > 0 || release_scratch_;
+         ahead_blocks_ > 0 || ahead_entries_ > 0 || release_scratch_;
 }
 
 void GrowthPolicy::growFor(std::size_t count, std::size_t depth_bytes) {
@@ -96,7 +98,7 @@ void GrowthPolicy::guessListsAndPool(std::size_t count) {
   MapBuffers& buffers = core_.buffers;
   try {
     const std::size_t lists = listGuess(count);
-    if (lists > buffers.activeCapacity()) buffers.allocateLists(lists);
+    if (lists > buffers.listEntries()) buffers.allocateLists(lists);
     const std::uint32_t blocks =
         std::min<std::uint32_t>(poolGuess(count), static_cast<std::uint32_t>(buffers.blockLimit()));
     if (blocks > buffers.poolBlocks())
@@ -110,11 +112,11 @@ void GrowthPolicy::growAhead(const gpu::PoolState* pool, bool release) {
     const std::uint64_t blocks = std::exchange(ahead_blocks_, 0);
     reservePool(blocks, pool ? *pool : core_.readPool(), /*ahead=*/true);
   }
-  if (ahead_active_ > 0) {
-    const std::size_t active = std::exchange(ahead_active_, 0);
-    if (active > core_.buffers.activeCapacity()) {
+  if (ahead_entries_ > 0) {
+    const std::size_t entries = std::exchange(ahead_entries_, 0);
+    if (entries > core_.buffers.listEntries()) {
       try {
-        core_.buffers.allocateLists(std::size_t{1} << nextPow2Log2(active));
+        core_.buffers.allocateLists(std::size_t{1} << nextPow2Log2(entries));
       } catch (const BudgetError&) {
         // ahead of need: the cap leaves no room, and the scan that needs it will say so
       }
@@ -128,12 +130,12 @@ void GrowthPolicy::growAhead(const gpu::PoolState* pool, bool release) {
 
 void GrowthPolicy::growAheadBestEffort() {
   const std::uint64_t ahead_blocks = ahead_blocks_;
-  const std::size_t ahead_active = ahead_active_;
+  const std::size_t ahead_entries = ahead_entries_;
   try {
     growAhead();
   } catch (const std::exception&) {  // octovk::Error or std::bad_alloc: asked for again
     ahead_blocks_ = std::max(ahead_blocks_, ahead_blocks);
-    ahead_active_ = std::max(ahead_active_, ahead_active);
+    ahead_entries_ = std::max(ahead_entries_, ahead_entries);
   }
 }
 
@@ -169,9 +171,10 @@ void GrowthPolicy::noteApplied(const gpu::ScanCounters& counters, const gpu::Poo
   const std::uint64_t room = std::uint64_t{pool.capacity} - pool.bump + pool.free_count;
   const std::uint64_t want = std::uint64_t{counters.new_blocks} * scans_ahead;
   if (want > room) ahead_blocks_ = std::max(ahead_blocks_, want);
-  const std::size_t active = std::size_t{counters.active_cells} + counters.leaf_cells;
-  if (active > core_.buffers.activeCapacity() / 2)
-    ahead_active_ = std::max(ahead_active_, active * 2);
+  const std::size_t entries = sizes::touchedBound(
+      std::size_t{counters.active_cells} + counters.leaf_cells, counters.brick_entries);
+  if (entries > core_.buffers.listEntries() / 2)
+    ahead_entries_ = std::max(ahead_entries_, entries * 2);
   if (outsizedScan(points)) release_scratch_ = true;  // released once none is in flight
 }
 
@@ -207,7 +210,8 @@ void GrowthPolicy::growForRetryOf(const gpu::ScanCounters& counters, const gpu::
   if (status & gpu::kStatusPoolShort) reservePool(counters.new_blocks, pool, /*ahead=*/false);
   const std::uint32_t active = counters.active_cells + counters.leaf_cells;
   if (status & gpu::kStatusListsShort)
-    buffers.allocateLists(std::size_t{1} << nextPow2Log2(active));
+    buffers.allocateLists(std::size_t{1}
+                          << nextPow2Log2(sizes::touchedBound(active, counters.brick_entries)));
   // Change detection: room for every cell the scan updates, and as many again for the next
   // scans, so that the set does not grow one refused scan at a time.
   if (status & gpu::kStatusChangesShort)

@@ -75,7 +75,7 @@ class GrowthPolicy {
   ChangeSet& changes_;
   // Growth asked for by the results of recent scans, done at the next submit (after waiting).
   std::uint64_t ahead_blocks_ = 0;
-  std::size_t ahead_active_ = 0;
+  std::size_t ahead_entries_ = 0;
   bool release_scratch_ = false;
   std::uint32_t hash_guess_tried_ = 0;  // the largest first guess of the cell set tried
   std::array<std::size_t, kScanHistory> scan_points_{};  // the last scans, oldest first

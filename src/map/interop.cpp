@@ -80,8 +80,8 @@ ScanStats insertDepthImageOnDevice(OccupancyMap& map, BufferRange pixels, const 
   return stats;
 }
 
-void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count,
-                    BufferRange results, SignalSemaphore signal) {
+void searchOnDevice(OccupancyMap& map, BufferRange points, std::uint32_t count, BufferRange results,
+                    SignalSemaphore signal) {
   OccupancyMap::Impl& impl = InteropAccess::impl(map);
   impl.queryOnDevice(false, points.buffer, points.offset, points.size, results.buffer,
                      results.offset, results.size, count);
@@ -93,8 +93,8 @@ std::size_t castRaysResultBytes(std::uint32_t count) {
   return passes::queryOutputBytes(count, 0);
 }
 
-void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count,
-                      BufferRange results, SignalSemaphore signal) {
+void castRaysOnDevice(OccupancyMap& map, BufferRange rays, std::uint32_t count, BufferRange results,
+                      SignalSemaphore signal) {
   if (results.size != VK_WHOLE_SIZE && results.size < castRaysResultBytes(count))
     throw Error(ErrorCode::kInvalidArgument,
                 "castRaysOnDevice: the results range holds " + std::to_string(results.size) +

@@ -66,7 +66,7 @@ MapBuffers::MapBuffers(vk::Device& device, vk::CommandStream& stream, std::uint3
   depth = vk::Buffer(device_, kSmallBuffer, false);
   color_fold = vk::Buffer(device_, kSmallBuffer, false);
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
-  allocateLists(kInitialActive);
+  allocateLists(kInitialListEntries);
   allocatePool(std::min<std::uint32_t>(kInitialBlocks, block_limit_), /*copy_old=*/false);
   (void)replaceChanges(0);  // the last buffer: binds them all
   resetPool();
@@ -191,12 +191,12 @@ void MapBuffers::allocateEndpoints(std::uint32_t log2) {
   allocateSets(hash_log2_, log2, /*exact_slots=*/false);
 }
 
-void MapBuffers::allocateLists(std::size_t active_capacity) {
-  checkBudget(touched.size(), listBytes(active_capacity),
-              "growing the scan's touched lists to " + std::to_string(active_capacity) + " cells");
-  vk::Buffer t(device_, listBytes(active_capacity), false);
+void MapBuffers::allocateLists(std::size_t entries) {
+  checkBudget(touched.size(), listBytes(entries),
+              "growing the scan's touched lists to " + std::to_string(entries) + " entries");
+  vk::Buffer t(device_, listBytes(entries), false);
   touched = std::move(t);
-  active_capacity_ = active_capacity;
+  list_entries_ = entries;
   ++lists_generation_;
   rebind();
 }
@@ -282,14 +282,14 @@ bool MapBuffers::ensureLeafBoxes() {
 bool MapBuffers::releaseSetsAndLists() {
   const std::size_t before = deviceBytes();
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
-  if (active_capacity_ != kInitialActive) allocateLists(kInitialActive);
+  if (list_entries_ != kInitialListEntries) allocateLists(kInitialListEntries);
   return deviceBytes() < before;
 }
 
 void MapBuffers::releaseScratch() {
   // Smaller buffers: these fit whatever the cap.
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
-  if (active_capacity_ != kInitialActive) allocateLists(kInitialActive);
+  if (list_entries_ != kInitialListEntries) allocateLists(kInitialListEntries);
   if (point_capacity_ > 0 || uploadBytes() != kFramesInFlight * kSmallBuffer ||
       depth.size() != kSmallBuffer) {
     vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);

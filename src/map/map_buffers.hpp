@@ -80,8 +80,8 @@ class MapBuffers {
   void growHashToward(std::uint32_t log2);
   /// The second set (end cells, then new-block prefixes): 2^log2 entries.
   void allocateEndpoints(std::uint32_t log2);
-  /// The touched lists for `active_capacity` cells.
-  void allocateLists(std::size_t active_capacity);
+  /// The touched lists, `entries` node indices for all levels together (touchedBound).
+  void allocateLists(std::size_t entries);
   /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
   /// and waits).
   void allocatePool(std::uint32_t blocks, bool copy_old);
@@ -133,7 +133,7 @@ class MapBuffers {
   std::uint32_t blockLimit() const noexcept { return block_limit_; }
   std::uint32_t hashLog2() const noexcept { return hash_log2_; }
   std::uint32_t endpointLog2() const noexcept { return endpoint_log2_; }
-  std::size_t activeCapacity() const noexcept { return active_capacity_; }
+  std::size_t listEntries() const noexcept { return list_entries_; }
   /// Counts the touched lists' allocations: lists read after a scan are that scan's only while
   /// this is what it was when the scan ran.
   std::uint64_t listsGeneration() const noexcept { return lists_generation_; }
@@ -221,7 +221,7 @@ class MapBuffers {
   std::size_t field_bytes_ = 0;
   bool sets_need_fill_ = true;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
-  std::size_t active_capacity_ = 0;
+  std::size_t list_entries_ = 0;
   std::uint64_t lists_generation_ = 0;
   std::uint32_t pool_blocks_ = 0;
   bool leaf_boxes_on_ = false;  // ensureLeafBoxes: the leaf boxes follow the pool

@@ -40,7 +40,8 @@ gpu::ScanParams MapCore::scanParams(const Eigen::Vector3f& origin, const Pose* p
   sp.hash_log2 = buffers.hashLog2();
   sp.endpoint_capacity = 1u << buffers.endpointLog2();
   sp.endpoint_log2 = buffers.endpointLog2();
-  sp.active_capacity = static_cast<std::uint32_t>(buffers.activeCapacity());
+  sp.touched_capacity =
+      static_cast<std::uint32_t>(std::min<std::size_t>(buffers.listEntries(), 0xFFFFFFFFu));
   sp.cell_capacity = (1u << buffers.hashLog2()) * kCellsPerBrickSlot;
   sp.occupancy_log = logs.occupancy;
   sp.payload = static_cast<std::uint32_t>(params.payload);

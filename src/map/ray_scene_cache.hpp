@@ -74,7 +74,7 @@ class RaySceneCache {
 
   MapCore& core_;
   CastRayBackend cast_ray_backend_ = CastRayBackend::kWalk;  ///< kWalk, kRayQuery or pipeline
-  std::unique_ptr<RayScene> ray_scene_;  ///< castRay's
+  std::unique_ptr<RayScene> ray_scene_;                      ///< castRay's
   /// castRays calls the walk answered because the structure did not fit under the cap (kAuto).
   std::size_t cap_fallbacks_ = 0;
   ScanRays scan_rays_ = ScanRays::kWalk;

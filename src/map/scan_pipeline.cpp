@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <iterator>
 #include <string>
 #include <string_view>
 #include <utility>
 
 #include "gpu/gpu_types.h"
+#include "map/buffer_sizes.hpp"
 #include "map/walk_budget.hpp"
 #include "shader_ids.hpp"
 
@@ -129,6 +131,9 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
     p.options = options;
     p.options.colors = {};  // staged: the caller's span may go once this returns
     p.count = count;
+    // A frame for its first part first: the scans it waits for (refused ones run again) say
+    // how many parts scans like it need.
+    while (pending_.size() >= core_.stream.frames()) confirmOldest();
     p.groups = groupsFor(count);
   }
   const std::uint64_t ticket = next_ticket_;
@@ -255,7 +260,10 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   if (parts_ticket_ != p.ticket) {
     parts_before_ = PartTotals{};
     parts_ticket_ = p.ticket;
+    parts_fill_ = 0.0;
+    parts_fewest_ = 0;
   }
+  if (p.groups > 1) notePart(p, counters);
   if (!p.closes_scan) {
     // A part of a scan applied in groups of tiles: the scan's last part reports them all.
     parts_before_.add(stats);
@@ -315,6 +323,10 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
         continue;
       }
       if (pending_.front().state == ScanState::kInFlight) {
+        // A whole scan halted behind the refused one starts in as many parts as scans like it
+        // were last seen to need.
+        if (pending_.front().groups == 1 && pending_.front().closes_scan)
+          splitOldest(groupsFor(pending_.front().count));
         PendingScan& p = pending_.front();
         // Halted on the device behind the refused one, its result not read: run it again.
         // What the scans run again so far asked for (`pool`: the last one's state, the current
@@ -345,7 +357,12 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
               !(pool_short || (counters.status & kScratchShort)))
             throw;
           if (!growth_.poolBeforeScratch(counters, pool)) throw;
-          if (!splitOldest()) throw;
+          const std::uint32_t parts = partsNeeded(counters);
+          if (!splitOldest(parts)) throw;
+          // Scans submitted from now on start with as many parts for as many points.
+          const PendingScan& first = pending_.front();
+          split_groups_ = std::max(split_groups_, std::min(first.groups, kMaxTileGroups));
+          split_points_ = first.count;
         }
         PendingScan& p = pending_.front();
         record(p);
@@ -426,48 +443,80 @@ void ScanPipeline::PartTotals::addTo(ScanStats& last) const {
   last.device.leaf_boxes_ms += device.leaf_boxes_ms;
 }
 
-bool ScanPipeline::splitOldest() {
-  PendingScan& p = pending_.front();
-  if (p.groups >= kMaxTileGroups) return false;
-  // Tiles whose hash is `group` modulo `groups` are those that are `group` or `group + groups`
-  // modulo twice as many: the first half now, the second right behind it, from the same input
-  // (nothing is staged while recovering).
-  PendingScan second = p;
-  p.groups *= 2;
-  second.groups = p.groups;
-  second.group = p.group + p.groups / 2;
-  second.state = ScanState::kInFlight;  // to be recorded when its turn comes
-  second.stats = ScanStats{};
-  second.stats.ticket = p.ticket;
-  second.stats.points = p.count;
-  // The closing part (colours, queries, statistics) is the one that runs last.
-  p.closes_scan = false;
-  p.queries = nullptr;
-  p.results = nullptr;
-  // A deque keeps references to its other elements across push_front and pop_front.
-  PendingScan first = std::move(p);
-  pending_.pop_front();
-  pending_.push_front(std::move(second));
-  pending_.push_front(std::move(first));
-  // The next scans start with as many groups for as many points (the densest need so far).
-  const PendingScan& now = pending_.front();
-  if (now.groups > split_groups_ || (now.groups == split_groups_ && now.count < split_points_)) {
-    split_groups_ = now.groups;
-    split_points_ = now.count;
+bool ScanPipeline::splitOldest(std::uint32_t parts) {
+  const PendingScan& p = pending_.front();
+  parts = std::min(parts, kMaxTileGroups / p.groups);
+  if (parts < 2) return false;
+  // Tiles whose hash is `group` modulo `groups` are those that are `group + i * groups` modulo
+  // `parts` times as many, for i below `parts`: the first part now, the others right behind it,
+  // from the same input (nothing is staged while recovering).
+  std::vector<PendingScan> split(parts, p);
+  for (std::uint32_t i = 0; i < parts; ++i) {
+    PendingScan& part = split[i];
+    part.groups = p.groups * parts;
+    part.group = p.group + i * p.groups;
+    // The closing part (colours, queries, statistics) is the one that runs last.
+    part.closes_scan = p.closes_scan && i + 1 == parts;
+    if (!part.closes_scan) {
+      part.queries = nullptr;
+      part.results = nullptr;
+    }
+    if (i > 0) {
+      part.state = ScanState::kInFlight;  // to be recorded when its turn comes
+      part.stats = ScanStats{};
+      part.stats.ticket = p.ticket;
+      part.stats.points = p.count;
+    }
   }
+  // A deque keeps references to its other elements across push_front and pop_front.
+  pending_.pop_front();
+  for (std::uint32_t i = parts; i-- > 0;) pending_.push_front(std::move(split[i]));
   return true;
+}
+
+std::uint32_t ScanPipeline::partsNeeded(const gpu::ScanCounters& counters) const {
+  // Classify stops at a full cell set or second set: the other counts are then partial.
+  if (counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) return 2;
+  const MapBuffers& b = core_.buffers;
+  const double blocks = static_cast<double>(counters.new_blocks) /
+                        (0.75 * static_cast<double>(std::size_t{1} << b.endpointLog2()));
+  const double cells =
+      static_cast<double>(sizes::touchedBound(
+          std::size_t{counters.active_cells} + counters.leaf_cells, counters.brick_entries)) /
+      static_cast<double>(std::max<std::size_t>(b.listEntries(), 1));
+  return static_cast<std::uint32_t>(
+      std::clamp(std::ceil(1.15 * std::max(blocks, cells)), 2.0, 64.0));
 }
 
 std::uint32_t ScanPipeline::groupsFor(std::size_t count) const {
   if (split_groups_ <= 1 || split_points_ == 0) return 1;
-  // As many groups as the scan that needed them, for as many points; fewer for fewer points.
-  std::uint32_t groups = split_groups_;
-  std::size_t points = split_points_;
-  while (groups > 1 && count <= points / 2) {
-    groups /= 2;
-    points /= 2;
-  }
-  return groups;
+  // As many parts for as many points (the cells a scan touches grow with its points).
+  const double groups = std::ceil(static_cast<double>(split_groups_) * static_cast<double>(count) /
+                                  static_cast<double>(split_points_));
+  return static_cast<std::uint32_t>(std::clamp(groups, 1.0, double{kMaxTileGroups}));
+}
+
+void ScanPipeline::notePart(const PendingScan& p, const gpu::ScanCounters& counters) noexcept {
+  const MapBuffers& b = core_.buffers;
+  // What the part used of what the device's checks allow: 3/4 of each set's slots, the lists.
+  const double bricks = static_cast<double>(counters.brick_entries) /
+                        (0.75 * static_cast<double>(std::size_t{1} << b.hashLog2()));
+  const double blocks = static_cast<double>(counters.new_blocks) /
+                        (0.75 * static_cast<double>(std::size_t{1} << b.endpointLog2()));
+  const double cells =
+      static_cast<double>(sizes::touchedBound(
+          std::size_t{counters.active_cells} + counters.leaf_cells, counters.brick_entries)) /
+      static_cast<double>(std::max<std::size_t>(b.listEntries(), 1));
+  parts_fill_ = std::max({parts_fill_, bricks, blocks, cells});
+  parts_fewest_ = parts_fewest_ == 0 ? p.groups : std::min(parts_fewest_, p.groups);
+  if (!p.closes_scan) return;
+  // A part of 1/fewest of the tiles filled `parts_fill_`: the scan needed about fewest * fill
+  // parts of this size; half as many again for the next scans, which may touch more cells (a
+  // part refused costs a walk of every ray, a part more a little less).
+  split_groups_ = static_cast<std::uint32_t>(
+      std::clamp(std::ceil(1.5 * parts_fill_ * static_cast<double>(parts_fewest_)), 1.0,
+                 double{kMaxTileGroups}));
+  split_points_ = p.count;
 }
 
 // ---- synchronisation --------------------------------------------------------------------------

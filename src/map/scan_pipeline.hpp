@@ -106,7 +106,7 @@ class ScanPipeline {
     bool noted_changes = false;   ///< recorded with change detection on (ChangeSet::scanNoted)
     std::uint64_t recording = 0;  ///< MapCore::scans_recorded at its last recording
     /// A scan applied in groups of tiles (its cells did not fit the scratch at once): this part
-    /// marks the cells of the tiles whose hash is `group` modulo `groups` (a power of two). The
+    /// marks the cells of the tiles whose hash is `group` modulo `groups`. The
     /// parts of one scan follow each other in the queue with its ticket; the last one
     /// (`closes_scan`) also folds the colours and runs the queries, and reports the statistics.
     std::uint32_t group = 0;
@@ -133,12 +133,18 @@ class ScanPipeline {
   void keepStats(const ScanStats& stats) noexcept;
   /// The oldest scan was refused: waits for all, grows, runs them again in order, each waited.
   void recover(gpu::ScanCounters counters, gpu::PoolState pool);
-  /// In recover: the oldest scan (refused, its growth refused) becomes two parts, each half of
-  /// its tiles; false when it cannot be split further.
-  bool splitOldest();
-  /// How many groups of tiles a new scan of `count` points starts with: as many as the last
-  /// split scan needed, scaled to its points (1 without a memory cap).
+  /// In recover: the oldest scan becomes `parts` parts, each a share of its tiles (refused, its
+  /// growth refused; or halted, to start in parts); false when it cannot be split further.
+  bool splitOldest(std::uint32_t parts);
+  /// Into how many parts a refused scan whose scratch could not grow is split: from what its
+  /// counts say it needed of the sets and lists (2 where classify stopped early).
+  std::uint32_t partsNeeded(const gpu::ScanCounters& counters) const;
+  /// How many groups of tiles a new scan of `count` points starts with: what the last scan
+  /// applied in parts showed its points need, scaled to `count` (1 before any split).
   std::uint32_t groupsFor(std::size_t count) const;
+  /// After a part of a scan applied in groups: how full it left the sets and lists; the scan's
+  /// last part then estimates how many parts scans like it need.
+  void notePart(const PendingScan& p, const gpu::ScanCounters& counters) noexcept;
   /// Most groups a scan is split into (a group then holds a few tiles of any scan).
   static constexpr std::uint32_t kMaxTileGroups = 1u << 12;
 
@@ -158,8 +164,11 @@ class ScanPipeline {
   // tiles; its parts are consecutive in the queue).
   PartTotals parts_before_;
   std::uint64_t parts_ticket_ = 0;
-  std::uint32_t split_groups_ = 1;      // groups the last split scan needed
-  std::size_t split_points_ = 0;        // and its points
+  double parts_fill_ = 0.0;         // the fullest part's fill of the sets or lists, of 1
+  std::uint32_t parts_fewest_ = 0;  // the fewest groups among its parts
+  // Parts the last scan applied in groups needed (estimated from its fill), and its points.
+  std::uint32_t split_groups_ = 1;
+  std::size_t split_points_ = 0;
   bool leaf_boxes_every_scan_ = false;  // a setting (setLeafBoxesEveryScan), not a state
 };
 

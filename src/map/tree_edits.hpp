@@ -1,5 +1,5 @@
-// Map surgery: edits of the tree that are not scans (octomap_server's clear_bbx, keeping a box). The caller
-// takes the results of the scans in flight first (OccupancyMap::Impl does).
+// Map surgery: edits of the tree that are not scans (octomap_server's clear_bbx, keeping a box).
+// The caller takes the results of the scans in flight first (OccupancyMap::Impl does).
 #pragma once
 
 #include <Eigen/Core>

@@ -55,8 +55,11 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
     for (unsigned level = 0; level <= depth; ++level) {
       const std::size_t bytes = std::size_t{lists.counts[level]} * 4;
       if (bytes == 0) continue;
-      core_.stream.copy(core_.buffers.touched, staging, bytes,
-                        std::size_t{level} * core_.buffers.activeCapacity() * 4, at);
+      // The levels lie one after another from the deepest (tree.glsl's touchedBase).
+      std::size_t base = 0;
+      for (unsigned deeper = level + 1; deeper < gpu::kTreeDepth; ++deeper)
+        base += lists.counts[deeper];
+      core_.stream.copy(core_.buffers.touched, staging, bytes, base * 4, at);
       at += bytes;
     }
   core_.stream.submitAndWait();
