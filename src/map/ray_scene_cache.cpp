@@ -183,7 +183,17 @@ passes::TraceScene RaySceneCache::castRayScene() {
   RayScene& scene = *ray_scene_;
   if (scene.version == core_.tree_version) return {scene.boxes.address(), pipeline};
 
-  core_.ensureLeafBoxes();  // the boxes are built from them
+  // The boxes are built from the leaf boxes: where the cap has no room for them, kAuto answers
+  // with the walk (the same answers), kRayTracing throws.
+  try {
+    core_.ensureLeafBoxes();
+  } catch (const BudgetError&) {
+    if (core_.params.cast_ray_backend != CastRayBackend::kAuto) throw;
+    ray_scene_.reset();
+    noteSceneBytes();
+    ++cap_fallbacks_;
+    return {};
+  }
   // Room for every leaf slot (occupied ones), twice (sorted and unsorted); at least one box, for
   // the inactive box of an empty geometry.
   gpu::AccelHeader header{};
