@@ -20,7 +20,7 @@ if [ -z "$cap" ]; then
   cap=$(echo "$mib * 1048576 / 4" | bc | cut -d. -f1)
   echo "in core: $mib MiB of device memory; the cap: a quarter, $cap bytes"
 fi
-graph2tree -i "$graph" -o "$work/graph2tree.bt" -res "$res" >/dev/null
+graph2tree -i "$graph" -o "$work/graph2tree.bt" -res "$res" >/dev/null 2>&1
 a_times=() b_times=()
 for ((i = 1; i <= pairs; ++i)); do
   s=$(now); "$octovk" integrate "$graph" -r "$res" -q -o "$work/in_core.bt" >/dev/null; e=$(now)

@@ -67,8 +67,11 @@ constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + sizeof(gpu::ScanCo
                                     sizeof(gpu::PoolState) + kFramesInFlight * kReadbackBytes +
                                     sizeof(gpu::ChangeHeader) + sizeof(gpu::ChangeSlot);
 // Points on the device, their staging in each frame, the walks.
-inline std::size_t pointBytes(std::size_t count) {
-  return count * 3 * sizeof(float) * (1 + kFramesInFlight) + 2 * count * sizeof(gpu::WalkState);
+// Points and their staging, and (`walks`: on a device that ends loops early) the two lists of
+// walks saved between rounds.
+inline std::size_t pointBytes(std::size_t count, bool walks) {
+  return count * 3 * sizeof(float) * (1 + kFramesInFlight) +
+         (walks ? 2 * count * sizeof(gpu::WalkState) : kSmallBuffer);
 }
 
 }  // namespace octovk::sizes

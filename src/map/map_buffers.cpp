@@ -333,24 +333,28 @@ void MapBuffers::resetPool() {
 void MapBuffers::ensurePoints(std::size_t count) {
   if (count <= point_capacity_) return;
   const bool colors = payload_kind_ == Payload::kColor;
+  // Walks are saved between rounds only where the device ends loops early (walk_budget.hpp):
+  // elsewhere every ray is walked in one go and the lists stay unused.
+  const bool walks_saved = device_.loopLimit() != 0;
   const std::size_t held = points.size() + uploadBytes() + walks.size() + color_fold.size();
   // A colour map's staging holds each point's colour after the points, and its fold buffer the
   // colours, links and table.
   const auto bytesFor = [&](std::size_t n) {
-    return pointBytes(n) + (colors ? n * 2 * sizeof(std::uint32_t) * kFramesInFlight +
-                                         colorFoldBytes(n, colorChunk())
-                                   : 0);
+    return pointBytes(n, walks_saved) + (colors ? n * 2 * sizeof(std::uint32_t) * kFramesInFlight +
+                                                      colorFoldBytes(n, colorChunk())
+                                                : 0);
   };
   std::size_t cap = std::max(count, point_capacity_ * 2);
   if (!fits(held, bytesFor(cap))) cap = count;  // no headroom where the cap allows none
   checkBudget(held, bytesFor(cap),
               "taking a scan of " + std::to_string(count) + " points (" +
-                  std::to_string(bytesFor(1)) + " bytes per point: points, staging, walks" +
-                  (colors ? ", colours" : "") + ")");
+                  std::to_string(bytesFor(1)) + " bytes per point: points, staging" +
+                  (walks_saved ? ", walks" : "") + (colors ? ", colours" : "") + ")");
   vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
   std::vector<vk::Buffer> staging(kFramesInFlight);
   for (vk::Buffer& x : staging) x = vk::Buffer(device_, cap * stagingBytesPerPoint(), true);
-  vk::Buffer walk_lists(device_, 2 * cap * sizeof(gpu::WalkState), false);
+  vk::Buffer walk_lists(device_, walks_saved ? 2 * cap * sizeof(gpu::WalkState) : kSmallBuffer,
+                        false);
   vk::Buffer fold(device_, colors ? colorFoldBytes(cap, colorChunk()) : kSmallBuffer, false);
   color_fold = std::move(fold);
   points = std::move(device_points);
