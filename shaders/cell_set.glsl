@@ -77,6 +77,7 @@ uvec2 marked_bits = uvec2(0u);
 // cell is in one group, and every group walks every ray, so each cell is marked, free or
 // occupied, in exactly one group.
 bool inTileGroup(uvec3 brick) {
+  if (params.tile_group == 0u) return true;  // the whole scan at once
   uint groups = (params.tile_group >> 16) + 1u;
   uvec3 t = brick >> (kTreeDepth - kTileDepth - 2u);
   uint h = t.x * 0x9E3779B1u ^ t.y * 0x85EBCA77u ^ t.z * 0xC2B2AE3Du;

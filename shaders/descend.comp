@@ -50,5 +50,5 @@ void main() {
   noteChange(k, created,
              (old_value >= params.occupancy_log) != (value >= params.occupancy_log));
   setLink(n, kNoChildren | kFlagLive);
-  listNode(kTreeDepth - 1u, parent);
+  listNode(kTreeDepth - 1u, 0u, parent);  // the deepest level's list starts at 0
 }

@@ -13,7 +13,8 @@ void main() {
   uint r = invocationIndex();
   uint level = pc.level;
   if (r >= counters.touched_count[level]) return;
-  uint n = TOUCHED[touchedBase(level) + r];
+  uint base = touchedBase(level);
+  uint n = TOUCHED[base + r];
   // n and its children are read plainly: this level's invocations write only their own node,
   // and listParent marks the level above.
   uint block = settledLinkOf(n) & kBlockMask;
@@ -30,5 +31,6 @@ void main() {
     setNodeData(n, inner);
     setLink(n, block | kFlagLive);
   }
-  if (level > 0u) listParent(level - 1u, n);
+  // The level above starts right after this one, which is complete.
+  if (level > 0u) listParent(level - 1u, base + counters.touched_count[level], n);
 }

@@ -38,21 +38,24 @@ uint touchedBase(uint level) {
   return base;
 }
 
-// Appends item to a per-level list and keeps its indirect dispatch arguments in step.
-void appendTouched(uint level, uint node) {
+// Appends item to the list of `level`, which starts at `base` (touchedBase), and keeps its
+// indirect dispatch arguments in step.
+void appendTouched(uint level, uint base, uint node) {
   uint at = atomicAdd(counters.touched_count[level], 1u);
-  TOUCHED[touchedBase(level) + at] = node;
+  TOUCHED[base + at] = node;
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.touched_args[level], at + 1u);
 }
 
-// Lists `parent` (at depth `level`) once for the prune pass at that level.
-void listNode(uint level, uint parent) {
+// Lists `parent` (at depth `level`, whose list starts at `base`) once for the prune pass there.
+void listNode(uint level, uint base, uint parent) {
   if ((linkOf(parent) & kFlagTouched) != 0u) return;
   uint old = atomicOrLink(parent, kFlagTouched);
-  if ((old & kFlagTouched) == 0u) appendTouched(level, parent);
+  if ((old & kFlagTouched) == 0u) appendTouched(level, base, parent);
 }
 
 // Lists the parent of `node` (at depth level + 1) once for the prune pass at `level`.
-void listParent(uint level, uint node) { listNode(level, BLOCK_PARENT[node / 8u]); }
+void listParent(uint level, uint base, uint node) {
+  listNode(level, base, BLOCK_PARENT[node / 8u]);
+}
 
 #endif  // OCTOVK_TREE_GLSL
