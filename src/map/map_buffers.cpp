@@ -209,16 +209,11 @@ void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blo
                                      bool copy_old) {
   if (copy_old && blocks < pool_blocks_) blocks = pool_blocks_;  // never smaller than the tree
   const bool with_payload = payload_kind_ != Payload::kNone;
-  const std::size_t block_bytes = blockBytes(with_payload, leaf_boxes_on_);
-  const std::size_t held =
-      nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size() + payload.size();
-  // A map without leaf boxes or payload holds a small buffer in their place.
-  const std::size_t small = (leaf_boxes_on_ ? 0 : kSmallBuffer) + (with_payload ? 0 : kSmallBuffer);
+  const auto [block_bytes, held, small] = poolBytesNow();
   if (min_blocks > 0 && min_blocks < blocks &&
       !fits(held, std::size_t{blocks} * block_bytes + small)) {
     // The most blocks the cap leaves room for, if that is enough.
-    const std::size_t others = deviceBytes() - held + small;
-    const std::size_t room = max_bytes_ > others ? (max_bytes_ - others) / block_bytes : 0;
+    const std::size_t room = poolBlocksWithinCap();
     if (room >= min_blocks)
       blocks = static_cast<std::uint32_t>(std::min<std::size_t>(room, blocks));
   }
@@ -255,14 +250,20 @@ void MapBuffers::allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blo
   rebind();
 }
 
+MapBuffers::PoolBytes MapBuffers::poolBytesNow() const {
+  const bool with_payload = payload_kind_ != Payload::kNone;
+  return {.block = blockBytes(with_payload, leaf_boxes_on_),
+          .held = nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size() +
+                  payload.size(),
+          // A map without leaf boxes or payload holds a small buffer in their place.
+          .small = (leaf_boxes_on_ ? 0 : kSmallBuffer) + (with_payload ? 0 : kSmallBuffer)};
+}
+
 std::size_t MapBuffers::poolBlocksWithinCap() const {
   if (max_bytes_ == 0) return std::numeric_limits<std::size_t>::max();
-  const bool with_payload = payload_kind_ != Payload::kNone;
-  const std::size_t held =
-      nodes.size() + block_parents.size() + free_stack.size() + leaf_boxes.size() + payload.size();
-  const std::size_t small = (leaf_boxes_on_ ? 0 : kSmallBuffer) + (with_payload ? 0 : kSmallBuffer);
-  const std::size_t others = deviceBytes() - held + small;
-  return max_bytes_ > others ? (max_bytes_ - others) / blockBytes(with_payload, leaf_boxes_on_) : 0;
+  const PoolBytes pool_bytes = poolBytesNow();
+  const std::size_t others = deviceBytes() - pool_bytes.held + pool_bytes.small;
+  return max_bytes_ > others ? (max_bytes_ - others) / pool_bytes.block : 0;
 }
 
 bool MapBuffers::ensureLeafBoxes() {
@@ -288,8 +289,7 @@ bool MapBuffers::releaseSetsAndLists() {
 
 void MapBuffers::releaseScratch() {
   // Smaller buffers: these fit whatever the cap.
-  allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
-  if (list_entries_ != kInitialListEntries) allocateLists(kInitialListEntries);
+  releaseSetsAndLists();
   if (point_capacity_ > 0 || uploadBytes() != kFramesInFlight * kSmallBuffer ||
       depth.size() != kSmallBuffer) {
     vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);

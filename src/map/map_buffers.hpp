@@ -205,6 +205,12 @@ class MapBuffers {
  private:
   /// (Re)makes the sets whose size differs from 2^hash_log2 / 2^endpoint_log2 and the slot
   /// lists (grown when short; resized exactly when `exact_slots`).
+  /// The pool's buffers as they are: bytes per block (leaf boxes and payload as held), the bytes
+  /// they hold, and the small buffers that stand in for leaf boxes or payload not held.
+  struct PoolBytes {
+    std::size_t block, held, small;
+  };
+  PoolBytes poolBytesNow() const;
   void allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots);
   /// Bytes freed and added by allocateSets with these arguments.
   /// Records the fills that make the change set empty: every slot 0xFF bytes (kEmptyChangeKey,

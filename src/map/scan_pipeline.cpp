@@ -135,6 +135,12 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
     // how many parts scans like it need.
     while (pending_.size() >= core_.stream.frames()) confirmOldest();
     p.groups = groupsFor(count);
+    // The same for every part: the walk's rounds (from every point's ray length) and its kind.
+    p.input.transform = pose != nullptr;
+    p.input.discretize = options.discretize;
+    p.input.walk_rounds =
+        walkRounds(core_.device,
+                   worstSteps(source, origin, pose, options.max_range_m, core_.params.resolution));
   }
   const std::uint64_t ticket = next_ticket_;
   p.ticket = p.stats.ticket = ticket;
@@ -148,16 +154,14 @@ std::uint64_t ScanPipeline::enqueue(const ScanSource& source, const Eigen::Vecto
       while (pending_.size() >= core_.stream.frames()) confirmOldest();
       part.staging_frame = core_.stream.nextFrame();
       part.input = stage(source, core_.buffers.uploads[part.staging_frame]);
+      part.input.transform = p.input.transform;
+      part.input.discretize = p.input.discretize;
+      part.input.walk_rounds = p.input.walk_rounds;
       if (!options.colors.empty() && part.closes_scan) {
         part.input.colors = true;
         part.input.colors_offset = stageColors(source, part.input, options.colors,
                                                core_.buffers.uploads[part.staging_frame]);
       }
-      part.input.transform = pose != nullptr;
-      part.input.discretize = options.discretize;
-      part.input.walk_rounds = walkRounds(
-          core_.device,
-          worstSteps(source, origin, pose, options.max_range_m, core_.params.resolution));
       if (part.closes_scan) {
         part.queries = queries;
         part.results = results;
@@ -257,19 +261,16 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
       core_.touched.pool = pool;
     }
   }
-  if (parts_ticket_ != p.ticket) {
-    parts_before_ = PartTotals{};
-    parts_ticket_ = p.ticket;
-    parts_fill_ = 0.0;
-    parts_fewest_ = 0;
-  }
+  if (parts_.ticket != p.ticket) parts_ = PartTotals{.ticket = p.ticket};
   if (p.groups > 1) notePart(p, counters);
   if (!p.closes_scan) {
     // A part of a scan applied in groups of tiles: the scan's last part reports them all.
-    parts_before_.add(stats);
+    ++parts_.parts;
+    addCounts(parts_.sum, stats);
   } else {
-    parts_before_.addTo(stats);  // the parts before it, if any
-    parts_before_ = PartTotals{};
+    // The parts before it, if any.
+    stats.tile_groups += parts_.parts;
+    addCounts(stats, parts_.sum);
     if (p.caller == ScanCaller::kInsert)
       blocking_stats_ = stats;  // the call's result, which must not need an allocation
     else
@@ -375,8 +376,7 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
     // The map holds every scan before the one that failed; it and the later ones are dropped.
     const std::uint64_t failed = pending_.empty() ? 0 : pending_.front().ticket;
     // A scan applied in groups of tiles keeps the parts the device applied before this one.
-    const std::size_t parts_in =
-        !pending_.empty() && parts_ticket_ == failed ? parts_before_.parts : 0;
+    const std::size_t parts_in = !pending_.empty() && parts_.ticket == failed ? parts_.parts : 0;
     std::size_t dropped = 0;
     for (const PendingScan& p : pending_) dropped += p.ticket != failed && p.closes_scan;
     ++dropped;
@@ -413,34 +413,32 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
 
 // ---- scans applied in groups of tiles ----
 
-void ScanPipeline::PartTotals::add(const ScanStats& part) {
-  ++parts;
-  free_cells += part.free_cells;
-  occupied_cells += part.occupied_cells;
-  aborted_cells += part.aborted_cells;
-  attempts += part.cell_set_attempts;
-  wall_ms += part.wall_ms;
-  device.upload_ms += part.device.upload_ms;
-  device.ray_keys_ms += part.device.ray_keys_ms;
-  device.classify_ms += part.device.classify_ms;
-  device.tree_update_ms += part.device.tree_update_ms;
-  device.prune_ms += part.device.prune_ms;
-  device.leaf_boxes_ms += part.device.leaf_boxes_ms;
+void ScanPipeline::addCounts(ScanStats& into, const ScanStats& part) noexcept {
+  into.free_cells += part.free_cells;
+  into.occupied_cells += part.occupied_cells;
+  into.aborted_cells += part.aborted_cells;
+  into.cell_set_attempts += part.cell_set_attempts;
+  into.wall_ms += part.wall_ms;
+  into.device.upload_ms += part.device.upload_ms;
+  into.device.ray_keys_ms += part.device.ray_keys_ms;
+  into.device.classify_ms += part.device.classify_ms;
+  into.device.tree_update_ms += part.device.tree_update_ms;
+  into.device.prune_ms += part.device.prune_ms;
+  into.device.leaf_boxes_ms += part.device.leaf_boxes_ms;
 }
 
-void ScanPipeline::PartTotals::addTo(ScanStats& last) const {
-  last.tile_groups += parts;
-  last.free_cells += free_cells;
-  last.occupied_cells += occupied_cells;
-  last.aborted_cells += aborted_cells;
-  last.cell_set_attempts += attempts;
-  last.wall_ms += wall_ms;
-  last.device.upload_ms += device.upload_ms;
-  last.device.ray_keys_ms += device.ray_keys_ms;
-  last.device.classify_ms += device.classify_ms;
-  last.device.tree_update_ms += device.tree_update_ms;
-  last.device.prune_ms += device.prune_ms;
-  last.device.leaf_boxes_ms += device.leaf_boxes_ms;
+ScanPipeline::ScratchFill ScanPipeline::scratchFill(
+    const gpu::ScanCounters& counters) const noexcept {
+  const MapBuffers& b = core_.buffers;
+  const auto slots = [](std::uint32_t log2) {
+    return 0.75 * static_cast<double>(std::size_t{1} << log2);
+  };
+  const std::size_t bound = sizes::touchedBound(
+      std::size_t{counters.active_cells} + counters.leaf_cells, counters.brick_entries);
+  return {.bricks = static_cast<double>(counters.brick_entries) / slots(b.hashLog2()),
+          .blocks = static_cast<double>(counters.new_blocks) / slots(b.endpointLog2()),
+          .cells = static_cast<double>(bound) /
+                   static_cast<double>(std::max<std::size_t>(b.listEntries(), 1))};
 }
 
 bool ScanPipeline::splitOldest(std::uint32_t parts) {
@@ -477,15 +475,9 @@ bool ScanPipeline::splitOldest(std::uint32_t parts) {
 std::uint32_t ScanPipeline::partsNeeded(const gpu::ScanCounters& counters) const {
   // Classify stops at a full cell set or second set: the other counts are then partial.
   if (counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) return 2;
-  const MapBuffers& b = core_.buffers;
-  const double blocks = static_cast<double>(counters.new_blocks) /
-                        (0.75 * static_cast<double>(std::size_t{1} << b.endpointLog2()));
-  const double cells =
-      static_cast<double>(sizes::touchedBound(
-          std::size_t{counters.active_cells} + counters.leaf_cells, counters.brick_entries)) /
-      static_cast<double>(std::max<std::size_t>(b.listEntries(), 1));
+  const ScratchFill fill = scratchFill(counters);
   return static_cast<std::uint32_t>(
-      std::clamp(std::ceil(1.15 * std::max(blocks, cells)), 2.0, 64.0));
+      std::clamp(std::ceil(1.15 * std::max(fill.blocks, fill.cells)), 2.0, 64.0));
 }
 
 std::uint32_t ScanPipeline::groupsFor(std::size_t count) const {
@@ -497,24 +489,15 @@ std::uint32_t ScanPipeline::groupsFor(std::size_t count) const {
 }
 
 void ScanPipeline::notePart(const PendingScan& p, const gpu::ScanCounters& counters) noexcept {
-  const MapBuffers& b = core_.buffers;
-  // What the part used of what the device's checks allow: 3/4 of each set's slots, the lists.
-  const double bricks = static_cast<double>(counters.brick_entries) /
-                        (0.75 * static_cast<double>(std::size_t{1} << b.hashLog2()));
-  const double blocks = static_cast<double>(counters.new_blocks) /
-                        (0.75 * static_cast<double>(std::size_t{1} << b.endpointLog2()));
-  const double cells =
-      static_cast<double>(sizes::touchedBound(
-          std::size_t{counters.active_cells} + counters.leaf_cells, counters.brick_entries)) /
-      static_cast<double>(std::max<std::size_t>(b.listEntries(), 1));
-  parts_fill_ = std::max({parts_fill_, bricks, blocks, cells});
-  parts_fewest_ = parts_fewest_ == 0 ? p.groups : std::min(parts_fewest_, p.groups);
+  const ScratchFill fill = scratchFill(counters);
+  parts_.fill = std::max({parts_.fill, fill.bricks, fill.blocks, fill.cells});
+  parts_.fewest = parts_.fewest == 0 ? p.groups : std::min(parts_.fewest, p.groups);
   if (!p.closes_scan) return;
-  // A part of 1/fewest of the tiles filled `parts_fill_`: the scan needed about fewest * fill
+  // A part of 1/fewest of the tiles filled `parts_.fill`: the scan needed about fewest * fill
   // parts of this size; half as many again for the next scans, which may touch more cells (a
   // part refused costs a walk of every ray, a part more a little less).
   split_groups_ = static_cast<std::uint32_t>(
-      std::clamp(std::ceil(1.5 * parts_fill_ * static_cast<double>(parts_fewest_)), 1.0,
+      std::clamp(std::ceil(1.5 * parts_.fill * static_cast<double>(parts_.fewest)), 1.0,
                  double{kMaxTileGroups}));
   split_points_ = p.count;
 }

@@ -75,17 +75,23 @@ class ScanPipeline {
   void setLeafBoxesEveryScan(bool every_scan) noexcept { leaf_boxes_every_scan_ = every_scan; }
 
  private:
-  /// The statistics a scan's parts add up (ScanStats' counts and times), in the parts before.
+  /// A scan applied in groups of tiles (scan `ticket`; its parts are consecutive in the
+  /// queue): what its parts applied before the current one did.
   struct PartTotals {
+    std::uint64_t ticket = 0;
     std::size_t parts = 0;
-    std::size_t free_cells = 0, occupied_cells = 0, aborted_cells = 0, attempts = 0;
-    double wall_ms = 0.0;
-    StageTimes device;
-    /// Adds a part's own statistics.
-    void add(const ScanStats& part);
-    /// The scan's statistics: `last`, the last part's, with the parts before added.
-    void addTo(ScanStats& last) const;
+    ScanStats sum;             ///< their counts and times, added up (addCounts)
+    double fill = 0.0;         ///< the fullest part's fill of the sets or lists, of 1 (notePart)
+    std::uint32_t fewest = 0;  ///< the fewest groups among the parts noted
   };
+  /// Adds a part's counts and times (what ScanStats adds up over a scan's parts) to `into`.
+  static void addCounts(ScanStats& into, const ScanStats& part) noexcept;
+  /// How full a scan (or part) left what the device's checks allow: 3/4 of the cell set's and
+  /// the second set's slots, the touched lists' entries (each of 1 when full).
+  struct ScratchFill {
+    double bricks, blocks, cells;
+  };
+  ScratchFill scratchFill(const gpu::ScanCounters& counters) const noexcept;
   /// A scan submitted and not yet known to be in the map: what it needs to run again.
   struct PendingScan {
     ScanState state = ScanState::kEmpty;
@@ -160,12 +166,7 @@ class ScanPipeline {
   std::uint64_t next_ticket_ = 1;
   std::size_t last_nodes_ = 0;  // nodes after the last scan taken
   Gate gate_ = Gate::kOpen;
-  // The statistics of the parts applied so far of the scan `parts_ticket_` (applied in groups of
-  // tiles; its parts are consecutive in the queue).
-  PartTotals parts_before_;
-  std::uint64_t parts_ticket_ = 0;
-  double parts_fill_ = 0.0;         // the fullest part's fill of the sets or lists, of 1
-  std::uint32_t parts_fewest_ = 0;  // the fewest groups among its parts
+  PartTotals parts_;  // of the scan applied in groups of tiles whose parts are being taken
   // Parts the last scan applied in groups needed (estimated from its fill), and its points.
   std::uint32_t split_groups_ = 1;
   std::size_t split_points_ = 0;
