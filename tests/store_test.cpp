@@ -22,6 +22,7 @@
 #include "cli_support.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/store.hpp"
+#include "payload_oracle.hpp"
 #include "store/tiles.hpp"
 #include "test_support.hpp"
 
@@ -572,7 +573,7 @@ TEST(StoredMapApi, ScansCommitAsOctoMapReplaysTheLog) {
   EXPECT_TRUE(readFile(scratch / "read.ot") == expected) << "readStoredMap's map differs";
   const RunResult log = runOctovk({"store", "log", location, "--map", "api"}, scratch.dir());
   EXPECT_EQ(log.out.rfind("1 a 0\n2 b 0\n3 a 1\n", 0), 0u) << log.out;
-  // What is refused: a map the store lacks (without parameters to create it), a payload map.
+  // What is refused: a map the store lacks (without parameters to create it), another payload.
   try {
     (void)StoredMap::open(ctx, location, "lab");
     ADD_FAILURE() << "a missing map was opened";
@@ -580,11 +581,11 @@ TEST(StoredMapApi, ScansCommitAsOctoMapReplaysTheLog) {
     EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
     EXPECT_NE(std::string(e.what()).find("holds no map 'lab'"), std::string::npos) << e.what();
   }
-  MapParams color = params;
-  color.payload = Payload::kColor;
-  EXPECT_THROW((void)StoredMap::open(ctx, location, "lab", color), Error);
   EXPECT_THROW((void)readStoredMap(ctx, location, "lab"), Error);
   EXPECT_FALSE(store::Store::open(location, false)->map("lab").has_value());
+  MapParams color = params;
+  color.payload = Payload::kColor;
+  EXPECT_THROW((void)StoredMap::open(ctx, location, "api", color), Error);  // a plain map
 }
 
 // A commit serialises only the tiles on the scan's updated paths (and new ones) when the device
@@ -648,6 +649,236 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
     insert(walls, Eigen::Vector3f(0.0f, 0.05f * static_cast<float>(i), 0.0f));
   EXPECT_GE(incremental, 4u) << "commits compared every tile: the scan's tiles were not used";
   EXPECT_GT(removed, 0u) << "no tile was removed: the test misses merging";
+}
+
+// A colour or stamped map committed scan by scan: the store holds exactly the cut of the device
+// map after each commit (the incremental capture, colours averaged inside tiles, the stamps above
+// the tile depth in their record), and the tree rebuilt from its tiles is OctoMap's ColorOcTree
+// or OcTreeStamped doing the same steps (a degrade before the later stamped scans). Leaves above
+// the tile depth: StoreTiles.PayloadTilesMergeAsOctoMapPrunes.
+TEST(StoreWriter, ColourAndStampedMapsHoldTheirCutAndOctoMapsTree) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("store");
+  // The walls of a cube of edge 12.7 m around the sensor.
+  std::vector<Eigen::Vector3f> walls;
+  for (int a = 0; a < 24; ++a)
+    for (int b = 0; b < 24; ++b) {
+      const float u = -6.35f + 0.55f * static_cast<float>(a);
+      const float v = -6.35f + 0.55f * static_cast<float>(b);
+      walls.insert(walls.end(), {{6.35f, u, v},
+                                 {-6.35f, u, v},
+                                 {u, 6.35f, v},
+                                 {u, -6.35f, v},
+                                 {u, v, 6.35f},
+                                 {u, v, -6.35f}});
+    }
+  for (const Payload kind : {Payload::kColor, Payload::kStamp}) {
+    SCOPED_TRACE(treeTypeName(kind));
+    std::unique_ptr<store::Store> st =
+        store::Store::open(scratch / (std::string(treeTypeName(kind)) + ".sqlite"), true);
+    MapParams params;
+    params.resolution = 0.2;
+    params.payload = kind;
+    store::MapWriter writer(*st, "w", params);
+    EXPECT_EQ(st->map("w")->params.payload, kind);
+    ColorMap color_map(ctx, params.payload == Payload::kColor ? params : MapParams{});
+    std::optional<StampedMap> stamped;
+    if (kind == Payload::kStamp) stamped.emplace(ctx, params);
+    OccupancyMap& map = kind == Payload::kColor ? static_cast<OccupancyMap&>(color_map) : *stamped;
+    std::unique_ptr<octomap::ColorOcTree> color_oracle = test::makeColorOracle(params);
+    test::StampedOracle stamp_oracle(params);
+    std::size_t incremental = 0;
+    for (std::uint64_t scan = 0; scan < 5; ++scan) {
+      // The room, then a small patch 3 m away (a commit of few tiles) with an obstacle in front
+      // that later fades (stamped: degraded), the room again.
+      std::vector<Eigen::Vector3f> points = walls;
+      if (scan % 2 == 1) {
+        points.clear();
+        for (int i = 0; i < 100; ++i)
+          points.push_back(
+              {3.0f, 0.1f * static_cast<float>(i % 10), 0.1f * static_cast<float>(i / 10)});
+        if (scan == 1)
+          for (int i = 0; i < 6; ++i) points.push_back({2.0f, 0.1f * static_cast<float>(i), 0.3f});
+      }
+      const Eigen::Vector3f origin(0.05f * static_cast<float>(scan), 0.0f, 0.0f);
+      const auto stamp = static_cast<std::uint32_t>(100 + 10 * scan);
+      const std::vector<Rgb> colors = test::colorsOf(scan, points.size());
+      writer.begin(map);
+      if (kind == Payload::kColor) {
+        color_map.insertPointCloud(points, origin, colors);
+        color_oracle->insertPointCloud(test::toPointcloud(points), test::toPoint(origin));
+        for (std::size_t i = 0; i < points.size(); ++i)
+          color_oracle->averageNodeColor(points[i].x(), points[i].y(), points[i].z(), colors[i].r,
+                                         colors[i].g, colors[i].b);
+        color_oracle->updateInnerOccupancy();
+      } else {
+        if (scan >= 3) {
+          stamped->degradeOutdated(stamp, 15);
+          stamp_oracle.degradeOutdated(stamp, 15);
+        }
+        stamped->insertPointCloud(points, origin, stamp);
+        stamp_oracle.setScanTime(stamp);
+        stamp_oracle.insertPointCloud(test::toPointcloud(points), test::toPoint(origin));
+      }
+      const store::CommitStats stats = writer.commit(map, "test", scan);
+      const std::vector<store::Tile> expected = store::tilesOf(map.download());
+      std::vector<store::Tile> stored = st->tiles("w", nullptr);
+      std::sort(stored.begin(), stored.end(),
+                [](const store::Tile& x, const store::Tile& y) { return x.key < y.key; });
+      ASSERT_EQ(stored.size(), expected.size()) << "after scan " << scan;
+      for (std::size_t i = 0; i < expected.size(); ++i)
+        ASSERT_TRUE(stored[i] == expected[i])
+            << "tile " << expected[i].key << " after scan " << scan;
+      if (stats.tiles_compared < expected.size()) ++incremental;
+      const HostTree rebuilt = store::treeFromTiles(stored, store::kTileDepth, kind);
+      if (kind == Payload::kColor)
+        ASSERT_TRUE(test::samePayloadTree(*color_oracle, rebuilt, kind)) << "after scan " << scan;
+      else
+        ASSERT_TRUE(test::samePayloadTree(stamp_oracle, rebuilt, kind)) << "after scan " << scan;
+      // The tiles of the rebuilt tree are the stored ones: inner stamps above the tile depth
+      // included.
+      EXPECT_TRUE(store::tilesOf(rebuilt) == expected) << "after scan " << scan;
+    }
+    EXPECT_GE(incremental, 2u) << "commits compared every tile: the scan's tiles were not used";
+    // A map of another payload is refused by name, and the map can be read back whole.
+    MapParams plain = params;
+    plain.payload = Payload::kNone;
+    try {
+      (void)StoredMap::open(ctx, scratch / (std::string(treeTypeName(kind)) + ".sqlite"), "w",
+                            plain);
+      ADD_FAILURE() << "a plain map was opened on a " << treeTypeName(kind) << " map";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(treeTypeName(kind)), std::string::npos) << e.what();
+    }
+    OccupancyMap read =
+        readStoredMap(ctx, scratch / (std::string(treeTypeName(kind)) + ".sqlite"), "w");
+    EXPECT_EQ(read.params().payload, kind);
+    EXPECT_TRUE(store::tilesOf(read.download()) == store::tilesOf(map.download()));
+  }
+}
+
+// Sibling tiles written on their own (as two writers may leave them) merge above the tile depth as
+// OctoMap's pruning merges them: ColorOcTree's pruneNode colour, OcTreeStamped's equal stamps.
+TEST(StoreTiles, PayloadTilesMergeAsOctoMapPrunes) {
+  const unsigned depth = 12;
+  const auto record = [](float log_odds, std::uint32_t payload, Payload kind) {
+    std::string body(store::recordBytes(kind), '\0');
+    std::memcpy(body.data(), &log_odds, sizeof(float));
+    for (std::size_t i = 0; i + 5 < body.size(); ++i)
+      body[4 + i] = static_cast<char>((payload >> (8 * i)) & 0xFFu);
+    return body;
+  };
+  for (const Payload kind : {Payload::kColor, Payload::kStamp}) {
+    SCOPED_TRACE(treeTypeName(kind));
+    // Two groups of 8 sibling leaf tiles, equal log-odds: the first merges; the second merges for
+    // colour (which compares log-odds only) but not for stamps (one differs); a lone tile too.
+    std::vector<store::Tile> tiles;
+    const std::uint64_t parent_a = 0123, parent_b = 0456;
+    for (std::uint64_t i = 0; i < 8; ++i) {
+      const std::uint32_t a =
+          kind == Payload::kColor
+              ? (i == 3 ? 0x00FFFFFFu : packRgb(Rgb{std::uint8_t(30 * i), 7, 200}))
+              : 500u;
+      const std::uint32_t b = kind == Payload::kColor ? packRgb(Rgb{9, std::uint8_t(20 * i), 1})
+                                                      : (i == 5 ? 501u : 500u);
+      tiles.push_back({store::tileKey(depth, (parent_a << 3) | i), record(1.5f, a, kind)});
+      tiles.push_back({store::tileKey(depth, (parent_b << 3) | i), record(-0.4f, b, kind)});
+    }
+    tiles.push_back({store::tileKey(depth, 07777),
+                     record(0.85f, kind == Payload::kColor ? 0x00FFFFFFu : 3u, kind)});
+    // A leaf above the tile depth (a region pruned whole): a tile of one record.
+    tiles.push_back({store::tileKey(depth - 2, 0654),
+                     record(-1.2f, kind == Payload::kColor ? packRgb(Rgb{1, 2, 3}) : 77u, kind)});
+    const HostTree rebuilt = store::treeFromTiles(tiles, depth, kind);
+    // OctoMap: the same leaves set at depth 12, prune(), updateInnerOccupancy().
+    const auto keyOfPath = [](std::uint64_t path) {
+      octomap::OcTreeKey key(0, 0, 0);
+      for (unsigned level = 0; level < depth; ++level) {
+        const unsigned slot = static_cast<unsigned>(path >> (3 * (depth - 1 - level))) & 7u;
+        for (unsigned a = 0; a < 3; ++a)
+          if (slot & (1u << a))
+            key[a] = static_cast<octomap::key_type>(key[a] | (1u << (15 - level)));
+      }
+      return key;
+    };
+    const auto build = [&](auto& oracle, auto node) {
+      for (const store::Tile& t : tiles) {
+        float v;
+        std::memcpy(&v, t.body.data(), sizeof(float));
+        node.setLogOdds(v);
+        std::uint32_t payload = 0;
+        for (std::size_t i = 0; i + 5 < t.body.size(); ++i)
+          payload |= std::uint32_t{static_cast<unsigned char>(t.body[4 + i])} << (8 * i);
+        if constexpr (std::is_same_v<decltype(node), octomap::ColorOcTreeNode>) {
+          const Rgb c = unpackRgb(payload);
+          node.setColor(c.r, c.g, c.b);
+        } else {
+          node.setTimestamp(payload);
+        }
+        const unsigned d = store::tileKeyDepth(t.key);
+        oracle.setLeaf(keyOfPath(((t.key >> 5) >> (3 * (16 - d))) << (3 * (depth - d))), d, node);
+      }
+      // OctoMap's prune() stops at the first level without a merge (depth 15 here): its pruneNode
+      // on the parents instead, as updateNode's way back up calls it.
+      for (const std::uint64_t parent : {parent_a, parent_b})
+        oracle.pruneNode(oracle.search(keyOfPath(parent << 3), depth - 1));
+      oracle.updateInnerOccupancy();
+    };
+    MapParams params;
+    params.resolution = 0.1;
+    if (kind == Payload::kColor) {
+      octomap::ColorOcTree like(0.1);
+      test::LeafBuilt<octomap::ColorOcTree> oracle(like);
+      build(oracle, octomap::ColorOcTreeNode());
+      EXPECT_TRUE(test::samePayloadTree(oracle, rebuilt, kind));
+    } else {
+      octomap::OcTreeStamped like(0.1);
+      test::LeafBuilt<octomap::OcTreeStamped> oracle(like);
+      build(oracle, octomap::OcTreeNodeStamped());
+      EXPECT_TRUE(test::samePayloadTree(oracle, rebuilt, kind));
+    }
+  }
+}
+
+// integrate --stamps --degrade-after into a store, in two runs (the second continues the map):
+// the export's .ot and its stamps (every node's, the inner ones above the tile depth included)
+// are the in-core run's over both graphs, which tests/payload_cli_test.cpp checks against
+// OctoMap's OcTreeStamped. A plain run into the stamped map is refused by name.
+TEST(StoreCli, StampedMapWithDegradeContinuesAsTheInCoreRun) {
+  Scratch scratch("store");
+  const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.4f);
+  std::vector<GraphScan> both = a;
+  both.insert(both.end(), b.begin(), b.end());
+  const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph",
+                    graph_both = scratch / "both.graph";
+  writeGraph(graph_a, a);
+  writeGraph(graph_b, b);
+  writeGraph(graph_both, both);
+  std::ofstream(scratch / "a.stamps") << "100\n104\n109\n130\n";
+  std::ofstream(scratch / "b.stamps") << "131\n150\n171\n";
+  std::ofstream(scratch / "both.stamps") << "100\n104\n109\n130\n131\n150\n171\n";
+  const std::string store = scratch / "s.sqlite";
+  for (const char* part : {"a", "b"}) {
+    const RunResult r = runOctovk({"integrate", scratch / (std::string(part) + ".graph"),
+                                   "--stamps", scratch / (std::string(part) + ".stamps"),
+                                   "--degrade-after", "12", "--store", store, "-r", "0.1", "-q"},
+                                  scratch.dir());
+    ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  }
+  const RunResult direct =
+      runOctovk({"integrate", graph_both, "--stamps", scratch / "both.stamps", "--degrade-after",
+                 "12", "-r", "0.1", "-q", "-o", scratch / "direct.ot"},
+                scratch.dir());
+  ASSERT_EQ(direct.exit_code, 0) << direct.out << direct.err;
+  const RunResult exported =
+      runOctovk({"store", "export", store, "-o", scratch / "export.ot"}, scratch.dir());
+  ASSERT_EQ(exported.exit_code, 0) << exported.out << exported.err;
+  EXPECT_TRUE(readFile(scratch / "export.ot") == readFile(scratch / "direct.ot"));
+  EXPECT_TRUE(readFile(scratch / "export.ot.stamps") == readFile(scratch / "direct.ot.stamps"));
+  const RunResult info = runOctovk({"store", "info", store}, scratch.dir());
+  EXPECT_NE(info.out.find("OcTreeStamped"), std::string::npos) << info.out;
+  const RunResult plain = runOctovk({"integrate", graph_a, "--store", store, "-q"}, scratch.dir());
+  test::expectOneErrorLine(plain, 2, {"OcTreeStamped", "--stamps"});
 }
 
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {

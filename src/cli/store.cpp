@@ -13,6 +13,7 @@
 #include <iostream>
 
 #include "command.hpp"
+#include "io/parse.hpp"
 #include "octovk/store.hpp"
 #include "store/store.hpp"
 
@@ -40,7 +41,8 @@ void printStoreExportHelp(std::ostream& out) {
   out << "octovk store export STORE [--map NAME] -o OUT.bt|OUT.ot\n"
          "\n"
          "Writes a map of a store as OctoMap writes the same tree: .bt max-likelihood and\n"
-         "pruned, .ot full log-odds (byte-identical to graph2tree on the committed scans).\n"
+         "pruned, .ot full log-odds (byte-identical to graph2tree on the committed scans); a\n"
+         "ColorOcTree or OcTreeStamped map as that type, a stamped map's stamps in OUT.ot.stamps.\n"
          "Reads the last committed scan; a writer may go on meanwhile. No Vulkan device needed.\n"
          "\n"
          "Options:\n"
@@ -49,15 +51,26 @@ void printStoreExportHelp(std::ostream& out) {
          "  -h, --help             show this help\n";
 }
 
-// Writes `tree` as OctoMap writes it (by output 0's extension: .bt or .ot) and renames it into
-// place; the node count written.
+// The files a store command writes `tree` (of `payload`) into: `out`, and beside a stamped map's
+// .ot its stamps (OUT.stamps, as writeMapFile writes them: OctoMap's .ot holds none).
+std::unique_ptr<OutputFiles> outputsFor(const std::string& out, const std::string& input,
+                                        Payload payload) {
+  std::vector<std::string> paths{out};
+  if (payload == Payload::kStamp && fs::path(out).extension() == ".ot")
+    paths.push_back(out + ".stamps");
+  return std::make_unique<OutputFiles>(paths, std::vector<std::string>{input});
+}
+
+// Writes `tree` as OctoMap writes a tree of its type (by output 0's extension: .bt or .ot), a
+// stamped tree's stamps into output 1 when there is one, and renames them into place; the node
+// count written.
 std::size_t writeTree(OutputFiles& files, const HostTree& tree, const MapParams& params) {
   const std::string& path = files.path(0);
   std::size_t nodes = 0;
   {
     StderrSilencer silenced;  // OctoMap's .bt writer reports on stderr
     files.write(0, [&](const std::string& temporary) {
-      std::unique_ptr<octomap::OcTree> ot = store::ocTreeOf(tree, params);
+      const std::unique_ptr<octomap::AbstractOccupancyOcTree> ot = io::octomapTreeOf(tree, params);
       std::ofstream out(temporary, std::ios_base::binary | std::ios_base::trunc);
       if (!out.is_open())
         throw Error(ErrorCode::kIo, "cannot write '" + path + "': " + std::strerror(errno));
@@ -68,6 +81,16 @@ std::size_t writeTree(OutputFiles& files, const HostTree& tree, const MapParams&
       nodes = ot->size();
     });
   }
+  if (files.size() > 1)
+    files.write(1, [&](const std::string& temporary) {
+      const std::string bytes = io::stampsFile(tree);
+      std::ofstream out(temporary, std::ios_base::binary | std::ios_base::trunc);
+      out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+      out.close();
+      if (!out.good())
+        throw Error(ErrorCode::kIo,
+                    "failed writing '" + files.path(1) + "' (disk full or I/O error)");
+    });
   files.commit();
   return nodes;
 }
@@ -95,7 +118,9 @@ class StoreExport final : public StoreMapCommand {
     const auto store = store::Store::open(in.input(), /*create=*/false);
     const store::MapInfo info = store::requireMap(*store, map_);
     const HostTree tree = store::loadTree(*store, map_);
-    const std::size_t nodes = writeTree(in.files(), tree, info.params);
+    const std::unique_ptr<OutputFiles> files =
+        outputsFor(in.output(), in.input(), info.params.payload);
+    const std::size_t nodes = writeTree(*files, tree, info.params);
     Report report(10);
     report
         .line("map", map_ + format(" (resolution %g m), %llu scans", info.params.resolution,
@@ -157,18 +182,12 @@ class StoreFollow final : public StoreMapCommand {
   }
   int run(Invocation& in) override {
     StoreFollower follower(in.input(), map_);
-    bool written = false;
     for (;;) {
       if (const std::optional<StoreFollower::Update> update = follower.poll()) {
-        // The run's own output first; each later update through a fresh set of the same output.
-        std::size_t nodes = 0;
-        if (!written) {
-          nodes = writeTree(in.files(), follower.tree(), follower.params());
-        } else {
-          OutputFiles again({in.output()}, {in.input()});
-          nodes = writeTree(again, follower.tree(), follower.params());
-        }
-        written = true;
+        // Each update through a fresh set of the outputs (a stamped .ot's stamps beside it).
+        const std::size_t nodes =
+            writeTree(*outputsFor(in.output(), in.input(), follower.params().payload),
+                      follower.tree(), follower.params());
         std::cout << "seq " << update->seq << ": " << update->changed.size() << " tiles read ("
                   << update->bytes_read << " bytes), " << update->dropped.size() << " dropped; "
                   << nodes << " nodes in " << in.output() << std::endl;
@@ -224,8 +243,8 @@ class StoreLog final : public StoreMapCommand {
 void printStoreInfoHelp(std::ostream& out) {
   out << "octovk store info STORE\n"
          "\n"
-         "Prints each map of a store: its resolution and sensor model, the scans committed, and\n"
-         "its tiles (count, bytes, depth).\n"
+         "Prints each map of a store: its tree type (OcTree, ColorOcTree, OcTreeStamped), its\n"
+         "resolution and sensor model, the scans committed, and its tiles (count, bytes, depth).\n"
          "\n"
          "Options:\n"
          "  -h, --help             show this help\n";
@@ -245,6 +264,7 @@ class StoreInfo final : public Command {
     for (const store::MapInfo& m : maps) {
       const MapParams& p = m.params;
       report.line("map", m.name)
+          .line("  tree type", treeTypeName(p.payload))
           .line("  params", format("resolution %g m, prob hit %g miss %g, clamping %g..%g, "
                                    "occupancy threshold %g",
                                    p.resolution, p.prob_hit, p.prob_miss, p.clamping_min,
@@ -370,15 +390,19 @@ bool IntegrateStore::option(const ParsedOption& opt) {
 
 void IntegrateStore::open(MapParams& params) {
   if (!enabled()) return;
-  if (params.payload != Payload::kNone)
-    throw UsageError(
-        "--store keeps plain occupancy maps only; leave out the colour or stamp "
-        "options");
   store_ = store::Store::open(path_, /*create=*/true);
   writer_ = std::make_unique<store::MapWriter>(*store_, map_name_, params);
   existed_ = writer_->existed();
   if (!existed_) return;
   const MapParams& stored = writer_->info().params;
+  if (stored.payload != params.payload)
+    throw UsageError(format(
+        "map '%s' of store '%s' is %s, and this run makes %s; %s, or name another map (--map)",
+        map_name_.c_str(), store_->location().c_str(), treeTypeName(stored.payload),
+        treeTypeName(params.payload),
+        stored.payload == Payload::kColor   ? "give --color as when it was made"
+        : stored.payload == Payload::kStamp ? "give --stamps (or --stamped) as when it was made"
+                                            : "leave out --color and --stamps"));
   const auto refuse = [&](const char* option, double given, double kept) {
     if (given == kept) return;
     for (const std::string& name : sensor_options_)

@@ -116,7 +116,10 @@ void GrowthPolicy::growAhead(const gpu::PoolState* pool, bool release) {
     const std::size_t entries = std::exchange(ahead_entries_, 0);
     if (entries > core_.buffers.listEntries()) {
       try {
-        core_.buffers.allocateLists(std::size_t{1} << nextPow2Log2(entries));
+        // No scan is in flight: the last one's lists are copied (a store's next capture reads
+        // them).
+        core_.buffers.allocateLists(std::size_t{1} << nextPow2Log2(entries),
+                                    core_.buffers.listEntries());
       } catch (const BudgetError&) {
         // ahead of need: the cap leaves no room, and the scan that needs it will say so
       }
@@ -140,7 +143,13 @@ void GrowthPolicy::growAheadBestEffort() {
 }
 
 void GrowthPolicy::releaseScratch() {
-  core_.buffers.releaseScratch();
+  // The last scan's touched lists are kept where they fit the smaller buffer: a store's next
+  // capture reads them.
+  const MapCore::TouchedLists& lists = core_.touched;
+  std::size_t used = 0;
+  if (lists.generation == core_.buffers.listsGeneration())
+    for (const std::uint32_t n : lists.counts) used += n;
+  core_.buffers.releaseScratch(used);
   hash_guess_tried_ = 0;
   scratch_peak_points_ = 0;
 }

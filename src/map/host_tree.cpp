@@ -145,22 +145,10 @@ void averageInnerColors(HostTree& tree) {
   for (auto it = order.rbegin(); it != order.rend(); ++it) {
     HostTree::Node& n = tree.nodes[*it];
     if ((n.mask & gpu::kChildMask) == 0) continue;
-    // ColorOcTreeNode::getAverageChildColor: int sums over the children whose colour is set.
-    int r = 0, g = 0, b = 0, c = 0;
-    for (std::uint32_t s = 0; s < 8; ++s) {
-      if (!(n.mask & (1u << s))) continue;
-      const std::uint32_t v = tree.nodes[n.children * 8 + s].payload;
-      if ((v & 0xFFFFFFu) == 0xFFFFFFu) continue;
-      const Rgb col = unpackRgb(v);
-      r += col.r;
-      g += col.g;
-      b += col.b;
-      ++c;
-    }
-    n.payload =
-        c > 0 ? packRgb(Rgb{static_cast<std::uint8_t>(r / c), static_cast<std::uint8_t>(g / c),
-                            static_cast<std::uint8_t>(b / c)})
-              : 0x00FFFFFFu;
+    ChildColorMean mean;
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (n.mask & (1u << s)) mean.add(tree.nodes[n.children * 8 + s].payload);
+    n.payload = mean.value();
   }
 }
 

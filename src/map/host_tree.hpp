@@ -42,6 +42,28 @@ HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, std::span<const std:
 /// nothing unless tree.payload is kColor.
 void averageInnerColors(HostTree& tree);
 
+/// ColorOcTreeNode::getAverageChildColor over the children's packed colours given to add():
+/// the integer mean per channel of those whose colour is set (not white), white when none is.
+class ChildColorMean {
+ public:
+  void add(std::uint32_t color) {
+    if ((color & 0xFFFFFFu) == 0xFFFFFFu) return;
+    r_ += static_cast<int>(color & 0xFFu);
+    g_ += static_cast<int>((color >> 8) & 0xFFu);
+    b_ += static_cast<int>((color >> 16) & 0xFFu);
+    ++count_;
+  }
+  std::uint32_t value() const {
+    if (count_ == 0) return 0x00FFFFFFu;
+    return static_cast<std::uint32_t>(r_ / count_) |
+           (static_cast<std::uint32_t>(g_ / count_) << 8) |
+           (static_cast<std::uint32_t>(b_ / count_) << 16);
+  }
+
+ private:
+  int r_ = 0, g_ = 0, b_ = 0, count_ = 0;
+};
+
 /// The same tree with its blocks renumbered in breadth-first order from the root, with no block
 /// that nothing points at: what compact() uploads. Throws kInternal on a tree whose links leave
 /// its nodes or come back to a block (the device's tree never does).

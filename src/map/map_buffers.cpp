@@ -191,13 +191,20 @@ void MapBuffers::allocateEndpoints(std::uint32_t log2) {
   allocateSets(hash_log2_, log2, /*exact_slots=*/false);
 }
 
-void MapBuffers::allocateLists(std::size_t entries) {
+void MapBuffers::allocateLists(std::size_t entries, std::size_t keep_entries) {
   checkBudget(touched.size(), listBytes(entries),
               "growing the scan's touched lists to " + std::to_string(entries) + " entries");
   vk::Buffer t(device_, listBytes(entries), false);
+  if (keep_entries > 0 && keep_entries <= std::min(entries, list_entries_) && touched.valid()) {
+    // The last scan's lists stay its own (the store's capture reads them): the same offsets.
+    stream_.begin(bindings);
+    stream_.copy(touched, t, keep_entries * sizeof(std::uint32_t));
+    stream_.submitAndWait();
+  } else {
+    ++lists_generation_;
+  }
   touched = std::move(t);
   list_entries_ = entries;
-  ++lists_generation_;
   rebind();
 }
 
@@ -280,16 +287,16 @@ bool MapBuffers::ensureLeafBoxes() {
   return true;
 }
 
-bool MapBuffers::releaseSetsAndLists() {
+bool MapBuffers::releaseSetsAndLists(std::size_t keep_list_entries) {
   const std::size_t before = deviceBytes();
   allocateSets(kInitialHashLog2, kInitialHashLog2, /*exact_slots=*/true);
-  if (list_entries_ != kInitialListEntries) allocateLists(kInitialListEntries);
+  if (list_entries_ != kInitialListEntries) allocateLists(kInitialListEntries, keep_list_entries);
   return deviceBytes() < before;
 }
 
-void MapBuffers::releaseScratch() {
+void MapBuffers::releaseScratch(std::size_t keep_list_entries) {
   // Smaller buffers: these fit whatever the cap.
-  releaseSetsAndLists();
+  releaseSetsAndLists(keep_list_entries);
   if (point_capacity_ > 0 || uploadBytes() != kFramesInFlight * kSmallBuffer ||
       depth.size() != kSmallBuffer) {
     vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);

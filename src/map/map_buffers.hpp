@@ -80,8 +80,11 @@ class MapBuffers {
   void growHashToward(std::uint32_t log2);
   /// The second set (end cells, then new-block prefixes): 2^log2 entries.
   void allocateEndpoints(std::uint32_t log2);
-  /// The touched lists, `entries` node indices for all levels together (touchedBound).
-  void allocateLists(std::size_t entries);
+  /// The touched lists, `entries` node indices for all levels together (touchedBound). With
+  /// `keep_entries` (no scan in flight; at most `entries` and the old size) the old buffer's
+  /// first entries are copied into the new one, which then holds the last scan's lists still
+  /// (listsGeneration unchanged; records and waits); else the lists are new.
+  void allocateLists(std::size_t entries, std::size_t keep_entries = 0);
   /// The pool with `blocks` blocks, keeping the tree and the leaf boxes when `copy_old` (records
   /// and waits).
   void allocatePool(std::uint32_t blocks, bool copy_old);
@@ -107,7 +110,8 @@ class MapBuffers {
   void allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks, bool copy_old);
   /// Per-scan scratch (cell sets, lists, points, walks, depth image, upload staging) back to
   /// the constructor's sizes; the next scan grows it again. The sets are then cleared whole.
-  void releaseScratch();
+  /// The first `keep_list_entries` entries of the touched lists are kept (allocateLists).
+  void releaseScratch(std::size_t keep_list_entries = 0);
   /// The most blocks the pool could have under the cap, the other buffers as they are (the
   /// largest size_t without a cap).
   std::size_t poolBlocksWithinCap() const;
@@ -120,7 +124,7 @@ class MapBuffers {
   /// The cell sets and touched lists alone back to the constructor's sizes (the points, walks
   /// and staging stay: scans waiting to run again read them): room for the pool under the cap.
   /// True when anything was released.
-  bool releaseSetsAndLists();
+  bool releaseSetsAndLists(std::size_t keep_list_entries = 0);
   /// The query buffers (and their staging) back to the constructor's sizes.
   void releaseQueries();
 

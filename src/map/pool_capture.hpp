@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "gpu/gpu_types.h"
+#include "octovk/params.hpp"
 
 namespace octovk {
 
@@ -22,6 +23,10 @@ struct PoolCapture {
   /// hold stale nodes, only what hangs from the root is the tree. They lie in `memory`, the
   /// host-visible staging they were copied into (read where they are: no second copy).
   std::span<const gpu::Node> nodes;
+  /// Their payload words (MapParams::payload: a colour or a stamp per node, in the same
+  /// staging), empty for a plain map.
+  std::span<const std::uint32_t> payload;
+  Payload kind = Payload::kNone;
   std::shared_ptr<const void> memory;
   /// Whether `changed` is complete: every node at depth <= the capture's `depth` whose subtree
   /// changed since the version `since` is in it (the tree is `since`'s, or one scan after it,

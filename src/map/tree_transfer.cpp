@@ -45,12 +45,16 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
     for (unsigned level = 0; level <= depth; ++level) listed += lists.counts[level];
   const std::size_t count = std::size_t{pool.bump} * 8;
   const std::size_t node_bytes = count * sizeof(gpu::Node);
+  const std::size_t payload_bytes =
+      core_.params.payload != Payload::kNone ? count * sizeof(std::uint32_t) : 0;
   auto owner = std::make_shared<vk::Buffer>(
-      core_.device, std::max<std::size_t>(node_bytes + listed * 4, 4), true);
+      core_.device, std::max<std::size_t>(node_bytes + payload_bytes + listed * 4, 4), true);
   vk::Buffer& staging = *owner;
   core_.stream.begin(core_.buffers.bindings);
   if (node_bytes) core_.stream.copy(core_.buffers.nodes, staging, node_bytes);
-  std::size_t at = node_bytes;
+  if (payload_bytes)
+    core_.stream.copy(core_.buffers.payload, staging, payload_bytes, 0, node_bytes);
+  std::size_t at = node_bytes + payload_bytes;
   if (listed)
     for (unsigned level = 0; level <= depth; ++level) {
       const std::size_t bytes = std::size_t{lists.counts[level]} * 4;
@@ -65,9 +69,12 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
   core_.stream.submitAndWait();
   const auto* bytes = static_cast<const unsigned char*>(staging.mapped());
   out.nodes = {reinterpret_cast<const gpu::Node*>(bytes), count};
+  out.kind = core_.params.payload;
+  if (payload_bytes)
+    out.payload = {reinterpret_cast<const std::uint32_t*>(bytes + node_bytes), count};
   out.memory = std::move(owner);
   out.changed.resize(listed);
-  if (listed) std::memcpy(out.changed.data(), bytes + node_bytes, listed * 4);
+  if (listed) std::memcpy(out.changed.data(), bytes + node_bytes + payload_bytes, listed * 4);
   std::sort(out.changed.begin(), out.changed.end());
   return out;
 }

@@ -23,6 +23,16 @@ bool Store::waitForCommit(const std::string&, double seconds) {
   return false;
 }
 
+void readTileFormat(MapInfo& info, std::int64_t format, const std::string& what) {
+  const std::optional<Payload> payload = payloadOfTileFormat(format);
+  if (!payload || info.tile_depth < 1 || info.tile_depth > 16)
+    throw Error(ErrorCode::kInvalidArgument,
+                what + " holds tiles of format " + std::to_string(format) + " at depth " +
+                    std::to_string(info.tile_depth) +
+                    "; this octovk reads formats 1-3 at depths 1-16: use the octovk that wrote it");
+  info.params.payload = *payload;
+}
+
 MapInfo requireMap(Store& store, const std::string& name, const std::string& remedy) {
   std::optional<MapInfo> info = store.map(name);
   if (!info)
@@ -37,9 +47,9 @@ namespace {
 
 // treeFromTiles, its errors naming the store and the map the tiles came from.
 HostTree storedTree(const Store& store, const std::string& name, std::span<const Tile> tiles,
-                    unsigned tile_depth) {
+                    unsigned tile_depth, Payload payload) {
   try {
-    return treeFromTiles(tiles, tile_depth);
+    return treeFromTiles(tiles, tile_depth, payload);
   } catch (const Error& e) {
     throw Error(e.code(), "store '" + store.location() + "', map '" + name + "': " + e.what());
   }
@@ -49,7 +59,7 @@ HostTree storedTree(const Store& store, const std::string& name, std::span<const
 
 HostTree loadTree(Store& store, const std::string& name) {
   const MapInfo info = requireMap(store, name);
-  return storedTree(store, name, store.tiles(name, nullptr), info.tile_depth);
+  return storedTree(store, name, store.tiles(name, nullptr), info.tile_depth, info.params.payload);
 }
 
 MapWriter::MapWriter(Store& store, std::string name, const MapParams& params)
@@ -72,11 +82,12 @@ std::vector<Tile> MapWriter::readAll(bool keep_bodies) {
 
 HostTree MapWriter::load() {
   // The bodies are kept from the first reload on (reload()): a writer alone never needs them.
-  return storedTree(store_, name_, readAll(false), info_.tile_depth);
+  return storedTree(store_, name_, readAll(false), info_.tile_depth, info_.params.payload);
 }
 
 HostTree MapWriter::reload() {
-  if (!bodies_known_) return storedTree(store_, name_, readAll(true), info_.tile_depth);
+  if (!bodies_known_)
+    return storedTree(store_, name_, readAll(true), info_.tile_depth, info_.params.payload);
   // Only what the other writers' scans wrote since this one's last: the keys that remain,
   // and the tiles whose version is newer.
   TileChanges changes = store_.changesSince(name_, last_seq_);
@@ -96,7 +107,7 @@ HostTree MapWriter::reload() {
   std::vector<Tile> tiles;
   tiles.reserve(bodies_.size());
   for (const auto& [key, body] : bodies_) tiles.push_back({key, body});
-  return storedTree(store_, name_, tiles, info_.tile_depth);
+  return storedTree(store_, name_, tiles, info_.tile_depth, info_.params.payload);
 }
 
 bool MapWriter::begin(OccupancyMap& map) {
@@ -178,10 +189,11 @@ std::unique_ptr<MapWriter::PendingCommit> MapWriter::capture(OccupancyMap& map,
                                                              const std::string& source,
                                                              std::uint64_t scan) {
   const auto start = std::chrono::steady_clock::now();
-  if (map.params().payload != Payload::kNone)
+  if (map.params().payload != info_.params.payload)
     throw Error(ErrorCode::kInvalidArgument,
-                std::string("a store holds plain occupancy maps (OcTree), not ") +
-                    treeTypeName(map.params().payload) + " maps");
+                "map '" + name_ + "' of store '" + store_.location() + "' is " +
+                    std::string(treeTypeName(info_.params.payload)) + "; the map to commit is " +
+                    treeTypeName(map.params().payload));
   auto c = std::make_unique<PendingCommit>();
   c->source = source;
   c->scan = scan;
@@ -215,6 +227,16 @@ void MapWriter::prepare(PendingCommit& c) const {
     if (old == hashes_.end() || old->second != h) {
       stats.body_bytes += body.size();
       c.changed.push_back({t.key, std::move(body)});
+    }
+  }
+  // A stamped map's stamps above the tile depth (kUpperStampsKey), compared like a tile.
+  if (std::string upper = poolUpperStamps(pool, info_.tile_depth); !upper.empty()) {
+    const std::uint64_t h = bodyHash(upper);
+    c.hashes.emplace(kUpperStampsKey, h);
+    const auto old = hashes_.find(kUpperStampsKey);
+    if (old == hashes_.end() || old->second != h) {
+      stats.body_bytes += upper.size();
+      c.changed.push_back({kUpperStampsKey, std::move(upper)});
     }
   }
   for (const auto& [key, h] : hashes_)

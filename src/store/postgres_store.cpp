@@ -141,10 +141,7 @@ class PostgresStore final : public Store {
     info.params.clamping_max = r.real(0, 4);
     info.params.occupancy_threshold = r.real(0, 5);
     info.tile_depth = static_cast<unsigned>(r.integer(0, 6));
-    if (r.integer(0, 7) != kTileFormat || info.tile_depth < 1 || info.tile_depth > 16)
-      throw Error(ErrorCode::kInvalidArgument,
-                  "map '" + name + "' of store '" + name_ + "' holds tiles of format " +
-                      r.text(0, 7) + "; this octovk reads format " + std::to_string(kTileFormat));
+    readTileFormat(info, r.integer(0, 7), "map '" + name + "' of store '" + name_ + "'");
     info.tiles = static_cast<std::uint64_t>(r.integer(0, 8));
     info.tile_bytes = static_cast<std::uint64_t>(r.integer(0, 9));
     info.scans = static_cast<std::uint64_t>(r.integer(0, 10));
@@ -165,7 +162,7 @@ class PostgresStore final : public Store {
               "RETURNING id",
               {name, num(p.resolution), num(p.prob_hit), num(p.prob_miss), num(p.clamping_min),
                num(p.clamping_max), num(p.occupancy_threshold), std::to_string(kTileDepth),
-               std::to_string(kTileFormat)}));
+               std::to_string(tileFormatOf(p.payload))}));
     return r.rows() == 1;
   }
 

@@ -206,12 +206,7 @@ class SqliteStore final : public Store {
     info.params.clamping_max = s.real(4);
     info.params.occupancy_threshold = s.real(5);
     info.tile_depth = static_cast<unsigned>(s.integer(6));
-    if (s.integer(7) != kTileFormat || info.tile_depth < 1 || info.tile_depth > 16)
-      throw Error(ErrorCode::kInvalidArgument,
-                  "map '" + name + "' of store '" + path_ + "' holds tiles of format " +
-                      std::to_string(s.integer(7)) + " at depth " +
-                      std::to_string(info.tile_depth) + "; this octovk reads format " +
-                      std::to_string(kTileFormat) + ": use the octovk that wrote it");
+    readTileFormat(info, s.integer(7), "map '" + name + "' of store '" + path_ + "'");
     info.tiles = static_cast<std::uint64_t>(s.integer(8));
     info.tile_bytes = static_cast<std::uint64_t>(s.integer(9));
     info.scans = static_cast<std::uint64_t>(s.integer(10));
@@ -233,7 +228,7 @@ class SqliteStore final : public Store {
         .bind(6, p.clamping_max)
         .bind(7, p.occupancy_threshold)
         .bind(8, std::int64_t{kTileDepth})
-        .bind(9, std::int64_t{kTileFormat});
+        .bind(9, std::int64_t{tileFormatOf(p.payload)});
     s.run();
     return sqlite3_changes(db_) == 1;
   }

@@ -104,6 +104,11 @@ class Store {
                       std::span<const std::uint64_t> removed, const LogEntry& entry) = 0;
 };
 
+/// info.params.payload from the map's stored tile format (tileFormatOf); kInvalidArgument naming
+/// `what` (the map and its store) for a format or a tile depth (info.tile_depth) this octovk does
+/// not read.
+void readTileFormat(MapInfo& info, std::int64_t format, const std::string& what);
+
 /// Whether `location` names a PostgreSQL store (postgresql://... or postgres://...).
 bool isPostgresLocation(const std::string& location);
 /// The PostgreSQL store at `location`, a libpq connection URI (its schema created when missing).

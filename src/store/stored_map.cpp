@@ -46,10 +46,6 @@ StoredMap& StoredMap::operator=(StoredMap&&) noexcept = default;
 
 StoredMap StoredMap::open(Context& context, const std::string& location, const std::string& name,
                           const std::optional<MapParams>& create) {
-  if (create && create->payload != Payload::kNone)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("StoredMap: a store keeps plain occupancy maps only, not ") +
-                    treeTypeName(create->payload) + " maps (MapParams::payload)");
   const char* remedy = "give MapParams to create it (Python: resolution=)";
   std::error_code ec;
   if (!create && !store::isPostgresLocation(location) && !std::filesystem::exists(location, ec))
@@ -60,6 +56,12 @@ StoredMap StoredMap::open(Context& context, const std::string& location, const s
   if (!create) (void)store::requireMap(*impl->store, name, remedy);
   impl->writer =
       std::make_unique<store::MapWriter>(*impl->store, name, create.value_or(MapParams{}));
+  if (create && impl->writer->existed() && impl->writer->info().params.payload != create->payload)
+    throw Error(ErrorCode::kInvalidArgument,
+                "StoredMap: map '" + name + "' of store '" + location + "' is " +
+                    treeTypeName(impl->writer->info().params.payload) + ", not " +
+                    treeTypeName(create->payload) +
+                    " (MapParams::payload); open it with its own payload, or name another map");
   const std::size_t cap = create ? create->max_device_bytes : 0;
   impl->map.emplace(context, storedParams(impl->writer->info(), cap));
   const HostTree tree = impl->writer->load();
@@ -141,14 +143,15 @@ std::optional<StoreFollower::Update> StoreFollower::poll() {
   std::map<std::uint64_t, store::Tile> tiles;
   Update update;
   update.seq = changes.last_seq;
+  // The upper stamps record (kUpperStampsKey) is read like a tile but is none: no box.
   for (const auto& [key, tile] : f.tiles)
     if (std::binary_search(changes.keys.begin(), changes.keys.end(), key))
       tiles.emplace(key, tile);
-    else
+    else if (key != store::kUpperStampsKey)
       update.dropped.push_back(boxOf(key));
   for (store::Tile& t : changes.changed) {
     update.bytes_read += t.body.size();
-    update.changed.push_back(boxOf(t.key));
+    if (t.key != store::kUpperStampsKey) update.changed.push_back(boxOf(t.key));
     const std::uint64_t key = t.key;
     tiles[key] = std::move(t);
   }
@@ -162,7 +165,7 @@ std::optional<StoreFollower::Update> StoreFollower::poll() {
   for (const auto& entry : tiles) all.push_back(entry.second);
   HostTree tree;
   try {
-    tree = store::treeFromTiles(all, f.info.tile_depth);  // every body checked
+    tree = store::treeFromTiles(all, f.info.tile_depth, f.info.params.payload);  // all checked
   } catch (const Error& e) {
     throw Error(e.code(), "store '" + f.store->location() + "', map '" + f.name + "': " + e.what());
   }

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <optional>
+#include <unordered_map>
 #include <variant>
 
 #include "gpu/gpu_types.h"
@@ -21,7 +22,26 @@ namespace octovk::store {
 namespace {
 
 constexpr unsigned kTreeDepth = 16;
-constexpr std::size_t kRecordBytes = sizeof(float) + 1;
+constexpr std::size_t kPlainRecordBytes = sizeof(float) + 1;
+
+// A record's payload bytes (after the log-odds): r, g, b; or the stamp, little-endian.
+void putPayload(char* at, Payload kind, std::uint32_t v) {
+  const unsigned bytes = kind == Payload::kColor ? 3 : kind == Payload::kStamp ? 4 : 0;
+  for (unsigned i = 0; i < bytes; ++i) at[i] = static_cast<char>((v >> (8 * i)) & 0xFFu);
+}
+std::uint32_t getPayload(const char* at, Payload kind) {
+  const unsigned bytes = kind == Payload::kColor ? 3 : kind == Payload::kStamp ? 4 : 0;
+  std::uint32_t v = 0;
+  for (unsigned i = 0; i < bytes; ++i)
+    v |= std::uint32_t{static_cast<unsigned char>(at[i])} << (8 * i);
+  return v;
+}
+std::uint64_t getLittle64(const char* at) {
+  std::uint64_t v = 0;
+  for (unsigned i = 0; i < 8; ++i) v |= std::uint64_t{static_cast<unsigned char>(at[i])} << (8 * i);
+  return v;
+}
+constexpr std::size_t kUpperEntryBytes = 12;  // a key, a stamp
 
 HostTree::Node leafNode(float log_odds) {
   HostTree::Node n = emptyHostNode();
@@ -48,6 +68,7 @@ struct NodeView {
   float log_odds;
   std::uint32_t mask;
   std::size_t children;  // block
+  std::uint32_t payload;
 };
 
 Error linkError(std::size_t index, std::size_t size) {
@@ -60,7 +81,7 @@ struct HostTreeNodes {
   NodeView operator()(std::size_t index) const {
     if (index >= tree.nodes.size()) throw linkError(index, tree.nodes.size());
     const HostTree::Node& n = tree.nodes[index];
-    return {n.log_odds, n.mask & 0xFFu, n.children};
+    return {n.log_odds, n.mask & 0xFFu, n.children, n.payload};
   }
 };
 
@@ -77,36 +98,64 @@ struct PoolNodes {
       for (unsigned s = 0; s < 8; ++s)
         if (pool.nodes[block * 8 + s].link & gpu::kFlagLive) mask |= 1u << s;
     }
-    return {n.log_odds, mask, block};
+    return {n.log_odds, mask, block, index < pool.payload.size() ? pool.payload[index] : 0u};
   }
 };
 
-// Writes node `index` at `depth` and its subtree as .ot records (depth <= 16).
+// Writes node `index` at `depth` and its subtree as records of `kind` (depth <= 16); returns the
+// payload written: a colour map's inner nodes take their children's mean colour
+// (ColorOcTree::updateInnerOccupancy), whatever the device left there.
 template <class Nodes>
-void appendRecords(const Nodes& nodes, std::size_t index, unsigned depth, std::string& out) {
+std::uint32_t appendRecords(const Nodes& nodes, std::size_t index, unsigned depth, Payload kind,
+                            std::string& out) {
   const NodeView n = nodes(index);
   const std::uint32_t mask = depth < kTreeDepth ? n.mask : 0u;
-  char record[kRecordBytes];
-  std::memcpy(record, &n.log_odds, sizeof(float));
-  record[sizeof(float)] = static_cast<char>(mask);
-  out.append(record, kRecordBytes);
+  const std::size_t record = recordBytes(kind);
+  const std::size_t at = out.size();
+  out.append(record, '\0');
+  std::memcpy(out.data() + at, &n.log_odds, sizeof(float));
+  out[at + record - 1] = static_cast<char>(mask);
+  std::uint32_t payload = n.payload;
+  ChildColorMean mean;
   for (unsigned i = 0; i < 8; ++i)
-    if (mask & (1u << i)) appendRecords(nodes, n.children * 8 + i, depth + 1, out);
+    if (mask & (1u << i)) mean.add(appendRecords(nodes, n.children * 8 + i, depth + 1, kind, out));
+  if (kind == Payload::kColor && mask != 0) payload = mean.value();
+  putPayload(out.data() + at + sizeof(float), kind, payload);
+  return payload;
 }
 
 // Visits the tiles under node `index` (at `depth`, reached by `path`) in key order:
-// visit(key, index, depth) for each node at the tile depth and each leaf above it.
-template <class Nodes, class Visit>
+// visit(key, index, depth) for each node at the tile depth and each leaf above it, and
+// upper(key, view) for each node above the tile depth that has children, before its tiles.
+template <class Nodes, class Visit, class Upper>
 void cut(const Nodes& nodes, std::size_t index, unsigned depth, std::uint64_t path,
-         unsigned tile_depth, Visit&& visit) {
+         unsigned tile_depth, Visit&& visit, Upper&& upper) {
   const NodeView n = nodes(index);
   if (depth == tile_depth || n.mask == 0) {
     visit(tileKey(depth, path), index, depth);
     return;
   }
+  upper(tileKey(depth, path), n);
   for (unsigned i = 0; i < 8; ++i)
     if (n.mask & (1u << i))
-      cut(nodes, n.children * 8 + i, depth + 1, (path << 3) | i, tile_depth, visit);
+      cut(nodes, n.children * 8 + i, depth + 1, (path << 3) | i, tile_depth, visit, upper);
+}
+
+constexpr auto kNoUpper = [](std::uint64_t, const NodeView&) {};
+
+// The upper stamps record's body: the stamps of the nodes above the tile depth with children.
+template <class Nodes>
+std::string upperStamps(const Nodes& nodes, unsigned tile_depth) {
+  std::string body;
+  cut(
+      nodes, 0, 0, 0, tile_depth, [](std::uint64_t, std::size_t, unsigned) {},
+      [&](std::uint64_t key, const NodeView& n) {
+        char entry[kUpperEntryBytes];
+        for (unsigned i = 0; i < 8; ++i) entry[i] = static_cast<char>((key >> (8 * i)) & 0xFFu);
+        putPayload(entry + 8, Payload::kStamp, n.payload);
+        body.append(entry, kUpperEntryBytes);
+      });
+  return body;  // keys ascending: a node's key is below its subtree's
 }
 
 // The node above the tile depth, while the tree is rebuilt: a child is another such node
@@ -115,30 +164,41 @@ struct Upper {
   std::array<std::int64_t, 8> child;
   bool leaf = false;  // pruned, or a tile's leaf
   float log_odds = 0.0f;
+  std::uint32_t payload = 0;
 };
 
 class Rebuild {
  public:
-  Rebuild(std::span<const Tile> tiles, unsigned tile_depth)
-      : tiles_(tiles), tile_depth_(tile_depth) {}
+  Rebuild(std::span<const Tile> tiles, unsigned tile_depth, Payload kind)
+      : tiles_(tiles), tile_depth_(tile_depth), kind_(kind), record_(recordBytes(kind)) {}
 
   HostTree run() {
     HostTree tree;
-    if (tiles_.empty()) return tree;
+    tree.payload = kind_;
+    std::vector<std::size_t> order;
+    order.reserve(tiles_.size());
+    for (std::size_t i = 0; i < tiles_.size(); ++i) {
+      if (tiles_[i].key != kUpperStampsKey) {
+        order.push_back(i);
+        continue;
+      }
+      readUpperStamps(i);
+    }
+    if (order.empty()) return tree;
     // A tile at depth 0 is the whole tree: a root leaf.
-    std::vector<std::size_t> order(tiles_.size());
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::sort(order.begin(), order.end(),
               [&](std::size_t a, std::size_t b) { return tiles_[a].key < tiles_[b].key; });
+    tile_count_ = order.size();
     upper_.push_back(emptyUpper());
     for (std::size_t t : order) place(t);
     tree.root_exists = true;
     // A block of 8 per node with children: the upper nodes, and the records whose child byte
     // is set (a damaged body only makes the guess wrong; readRecords checks it).
     std::size_t blocks = 1 + upper_.size();
-    for (const Tile& tile : tiles_)
-      for (std::size_t at = sizeof(float); at < tile.body.size(); at += kRecordBytes)
-        blocks += tile.body[at] != 0;
+    for (const std::size_t t : order) {
+      const std::string& body = tiles_[t].body;
+      for (std::size_t at = record_ - 1; at < body.size(); at += record_) blocks += body[at] != 0;
+    }
     tree.nodes.reserve(blocks * 8);
     tree.nodes.assign(8, leafNode(0.0f));
     if (root_tile_) {
@@ -147,7 +207,7 @@ class Rebuild {
       finishBody(*root_tile_, at);
       return tree;
     }
-    resolve(0);
+    resolve(0, 0, 0);
     emit(0, 0, tree);
     return tree;
   }
@@ -167,11 +227,11 @@ class Rebuild {
       throw bad(t, "its key is no tile key of depth at most " + std::to_string(tile_depth_));
     if (depth < tile_depth_) {
       // A leaf above the tile depth: one record without children.
-      if (tiles_[t].body.size() != kRecordBytes || tiles_[t].body[sizeof(float)] != 0)
+      if (tiles_[t].body.size() != record_ || tiles_[t].body[record_ - 1] != 0)
         throw bad(t, "it lies above the tile depth but is not one leaf record");
     }
     if (depth == 0) {
-      if (tiles_.size() != 1) throw bad(t, "it is the root leaf, yet other tiles exist");
+      if (tile_count_ != 1) throw bad(t, "it is the root leaf, yet other tiles exist");
       root_tile_ = t;
       return;
     }
@@ -196,11 +256,15 @@ class Rebuild {
     }
   }
 
-  // The upper node's log-odds and whether OctoMap's pruning makes it a leaf, bottom up.
-  void resolve(std::size_t node) {
+  // The upper node's log-odds and payload, and whether OctoMap's pruning makes it a leaf,
+  // bottom up; `depth` and `path` make its key.
+  void resolve(std::size_t node, unsigned depth, std::uint64_t path) {
     bool all_leaves = true;
     float first = 0.0f;
+    std::uint32_t first_payload = 0;
     float max = -std::numeric_limits<float>::max();  // OcTreeNode::getMaxChildLogOdds
+    std::uint32_t newest = 0;
+    ChildColorMean mean;
     for (unsigned i = 0; i < 8; ++i) {
       const std::int64_t c = upper_[node].child[i];
       if (c == -1) {
@@ -209,28 +273,71 @@ class Rebuild {
       }
       bool leaf;
       float v;
+      std::uint32_t payload;
       if (c >= 0) {
-        resolve(static_cast<std::size_t>(c));
-        leaf = upper_[static_cast<std::size_t>(c)].leaf;
-        v = upper_[static_cast<std::size_t>(c)].log_odds;
+        resolve(static_cast<std::size_t>(c), depth + 1, (path << 3) | i);
+        const Upper& u = upper_[static_cast<std::size_t>(c)];
+        leaf = u.leaf;
+        v = u.log_odds;
+        payload = u.payload;
       } else {
         const std::string& body = tiles_[static_cast<std::size_t>(-2 - c)].body;
-        if (body.size() < kRecordBytes) throw bad(static_cast<std::size_t>(-2 - c), "it is empty");
+        if (body.size() < record_) throw bad(static_cast<std::size_t>(-2 - c), "it is empty");
         std::memcpy(&v, body.data(), sizeof(float));
-        leaf = body[sizeof(float)] == 0;
+        payload = getPayload(body.data() + sizeof(float), kind_);
+        leaf = body[record_ - 1] == 0;
       }
-      if (i == 0) first = v;
-      if (!leaf || v != first) all_leaves = false;
+      if (i == 0) {
+        first = v;
+        first_payload = payload;
+      }
+      // OcTree compares log-odds only, ColorOcTree too; OcTreeStamped's operator== the stamps.
+      if (!leaf || v != first || (kind_ == Payload::kStamp && payload != first_payload))
+        all_leaves = false;
       if (v > max) max = v;
+      newest = std::max(newest, payload);
+      mean.add(payload);
     }
-    upper_[node].leaf = all_leaves;  // OcTree::isNodeCollapsible: 8 equal leaves
-    upper_[node].log_odds = all_leaves ? first : max;
+    Upper& u = upper_[node];
+    u.leaf = all_leaves;  // isNodeCollapsible: 8 equal leaves
+    u.log_odds = all_leaves ? first : max;
+    switch (kind_) {
+      case Payload::kNone:
+        break;
+      case Payload::kColor:
+        // pruneNode: the first child's data, then, when that colour is set, the children's mean;
+        // updateInnerOccupancy: the children's mean.
+        u.payload =
+            all_leaves && (first_payload & 0xFFFFFFu) == 0xFFFFFFu ? first_payload : mean.value();
+        break;
+      case Payload::kStamp:
+        if (all_leaves) {
+          u.payload = first_payload;  // pruneNode's copyData
+        } else {
+          const auto found = upper_stamps_.find(tileKey(depth, path));
+          u.payload = found != upper_stamps_.end() ? found->second : newest;
+        }
+        break;
+    }
+  }
+
+  // The upper stamps record (kUpperStampsKey) of tile `t`.
+  void readUpperStamps(std::size_t t) {
+    if (kind_ != Payload::kStamp) throw bad(t, "it holds stamps, but the map holds none");
+    const std::string& body = tiles_[t].body;
+    if (body.size() % kUpperEntryBytes != 0)
+      throw bad(t, "its " + std::to_string(body.size()) + " bytes are no whole number of " +
+                       std::to_string(kUpperEntryBytes) + "-byte entries");
+    for (std::size_t at = 0; at < body.size(); at += kUpperEntryBytes)
+      upper_stamps_[getLittle64(body.data() + at)] =
+          getPayload(body.data() + at + 8, Payload::kStamp);
   }
 
   // Writes upper node `node` into host node `index`.
   void emit(std::size_t node, std::size_t index, HostTree& tree) {
     const Upper& u = upper_[node];
     tree.nodes[index] = leafNode(u.log_odds);
+    tree.nodes[index].payload = u.payload;
     if (u.leaf) return;
     const auto block = static_cast<std::uint32_t>(tree.nodes.size() / 8);
     tree.nodes.resize(tree.nodes.size() + 8, leafNode(0.0f));
@@ -263,7 +370,7 @@ class Rebuild {
   void readRecords(std::size_t t, std::size_t& at, unsigned depth, std::size_t index,
                    HostTree& tree) {
     const std::string& body = tiles_[t].body;
-    if (at + kRecordBytes > body.size())
+    if (at + record_ > body.size())
       throw bad(t, "the record at byte " + std::to_string(at) + " runs past its end");
     float v;
     std::memcpy(&v, body.data() + at, sizeof(float));
@@ -271,12 +378,14 @@ class Rebuild {
       throw bad(t, "the record at byte " + std::to_string(at) +
                        " has a log-odds that is not a "
                        "finite number");
-    const auto mask = static_cast<unsigned char>(body[at + sizeof(float)]);
+    const auto mask = static_cast<unsigned char>(body[at + record_ - 1]);
     if (mask != 0 && depth >= kTreeDepth)
       throw bad(t, "the record at byte " + std::to_string(at) +
                        " has children below the tree's 16 levels");
-    at += kRecordBytes;
+    const std::uint32_t payload = getPayload(body.data() + at + sizeof(float), kind_);
+    at += record_;
     tree.nodes[index] = leafNode(v);
+    tree.nodes[index].payload = payload;
     if (mask == 0) return;
     const auto block = static_cast<std::uint32_t>(tree.nodes.size() / 8);
     tree.nodes.resize(tree.nodes.size() + 8, leafNode(0.0f));
@@ -303,12 +412,46 @@ class Rebuild {
 
   std::span<const Tile> tiles_;
   unsigned tile_depth_;
+  Payload kind_;
+  std::size_t record_;
+  std::size_t tile_count_ = 0;  // without the upper stamps record
+  std::unordered_map<std::uint64_t, std::uint32_t> upper_stamps_;
   std::vector<Upper> upper_;
   std::vector<unsigned> depth_;
   std::optional<std::size_t> root_tile_;
 };
 
 }  // namespace
+
+unsigned tileFormatOf(Payload payload) {
+  switch (payload) {
+    case Payload::kColor:
+      return 2;
+    case Payload::kStamp:
+      return 3;
+    case Payload::kNone:
+      break;
+  }
+  return 1;
+}
+
+std::optional<Payload> payloadOfTileFormat(std::int64_t format) {
+  for (const Payload p : {Payload::kNone, Payload::kColor, Payload::kStamp})
+    if (format == tileFormatOf(p)) return p;
+  return std::nullopt;
+}
+
+std::size_t recordBytes(Payload payload) {
+  switch (payload) {
+    case Payload::kColor:
+      return kPlainRecordBytes + 3;
+    case Payload::kStamp:
+      return kPlainRecordBytes + 4;
+    case Payload::kNone:
+      break;
+  }
+  return kPlainRecordBytes;
+}
 
 std::uint64_t tileKey(unsigned depth, std::uint64_t path) {
   return ((path << (3 * (kTreeDepth - depth))) << 5) | depth;
@@ -330,46 +473,61 @@ Key tileKeyCorner(std::uint64_t key) {
 
 std::vector<Tile> tilesOf(const HostTree& tree, unsigned tile_depth) {
   checkTileDepth(tile_depth);
-  if (tree.payload != Payload::kNone)
-    throw Error(ErrorCode::kInvalidArgument,
-                std::string("a store holds plain occupancy maps (OcTree), not ") +
-                    treeTypeName(tree.payload) + " maps");
   std::vector<Tile> tiles;
+  if (!tree.root_exists) return tiles;
   const HostTreeNodes nodes{tree};
-  if (tree.root_exists)
-    cut(nodes, 0, 0, 0, tile_depth, [&](std::uint64_t key, std::size_t index, unsigned depth) {
-      Tile& tile = tiles.emplace_back();
-      tile.key = key;
-      appendRecords(nodes, index, depth, tile.body);
-    });
-  return tiles;  // depth first: in key order
+  if (tree.payload == Payload::kStamp)
+    if (std::string upper = upperStamps(nodes, tile_depth); !upper.empty())
+      tiles.push_back({kUpperStampsKey, std::move(upper)});
+  std::vector<Tile> cut_tiles;
+  cut(
+      nodes, 0, 0, 0, tile_depth,
+      [&](std::uint64_t key, std::size_t index, unsigned depth) {
+        Tile& tile = cut_tiles.emplace_back();
+        tile.key = key;
+        appendRecords(nodes, index, depth, tree.payload, tile.body);
+      },
+      kNoUpper);
+  // Depth first: in key order. The record's key (31) sorts among them.
+  tiles.insert(tiles.end(), std::make_move_iterator(cut_tiles.begin()),
+               std::make_move_iterator(cut_tiles.end()));
+  std::sort(tiles.begin(), tiles.end(), [](const Tile& a, const Tile& b) { return a.key < b.key; });
+  return tiles;
 }
 
 std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth) {
   checkTileDepth(tile_depth);
   std::vector<PoolTile> tiles;
   if (pool.root_exists)
-    cut(PoolNodes{pool}, 0, 0, 0, tile_depth,
+    cut(
+        PoolNodes{pool}, 0, 0, 0, tile_depth,
         [&](std::uint64_t key, std::size_t index, unsigned depth) {
           tiles.push_back({key, static_cast<std::uint32_t>(index), depth});
-        });
+        },
+        kNoUpper);
   return tiles;
 }
 
 std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile) {
   std::string body;
-  appendRecords(PoolNodes{pool}, tile.node, tile.depth, body);
+  appendRecords(PoolNodes{pool}, tile.node, tile.depth, pool.kind, body);
   return body;
 }
 
-HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth) {
+std::string poolUpperStamps(const PoolCapture& pool, unsigned tile_depth) {
   checkTileDepth(tile_depth);
-  return Rebuild(tiles, tile_depth).run();
+  if (!pool.root_exists || pool.kind != Payload::kStamp) return {};
+  return upperStamps(PoolNodes{pool}, tile_depth);
+}
+
+HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth, Payload payload) {
+  checkTileDepth(tile_depth);
+  return Rebuild(tiles, tile_depth, payload).run();
 }
 
 std::string nodeStream(const HostTree& tree) {
   std::string out;
-  if (tree.root_exists) appendRecords(HostTreeNodes{tree}, 0, 0, out);
+  if (tree.root_exists) appendRecords(HostTreeNodes{tree}, 0, 0, tree.payload, out);
   return out;
 }
 

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -28,8 +29,21 @@ namespace octovk::store {
 /// 85 KB at depth 12 against 214 KB at 10 and 390 KB at 8 (0.05 m), in 65 tiles; depth 13 halves
 /// the bytes again with 2.3x the tiles, too small a unit for a device's working set.
 inline constexpr unsigned kTileDepth = gpu::kTileDepth;
-/// The version of the tile key and body formats below; a store records it and refuses others.
-inline constexpr unsigned kTileFormat = 1;
+/// The tile key and body formats below, by the map's payload: a store records the map's format
+/// and refuses others. 1: OcTree (a record is the log-odds and the child byte, 5 bytes), 2:
+/// ColorOcTree (the log-odds, r, g, b and the child byte: ColorOcTreeNode::writeData's record,
+/// 8 bytes), 3: OcTreeStamped (the log-odds, the stamp as 4 little-endian bytes and the child
+/// byte, 9 bytes: octovk's own, since OctoMap writes no stamps).
+unsigned tileFormatOf(Payload payload);
+/// The payload of tile format `format`; nullopt for one this octovk does not read.
+std::optional<Payload> payloadOfTileFormat(std::int64_t format);
+/// The bytes of one node record in a tile body of a map with `payload`.
+std::size_t recordBytes(Payload payload);
+/// Not a tile: a stamped map's stamps of the nodes above the tile depth that have children (its
+/// inner nodes there, whose stamps the tiles do not derive: OctoMap gives an inner node the time
+/// of the last update under it, and a degrade's time). Its body: per such node, in key order, its
+/// tileKey (8 bytes) and its stamp (4 bytes), little-endian. Depth field 31: no tile has it.
+inline constexpr std::uint64_t kUpperStampsKey = 31;
 
 /// A tile: the node at the tile depth with its subtree, or a leaf above that depth (a pruned
 /// region that covers several tiles, as OctoMap's tree holds it).
@@ -37,8 +51,10 @@ struct Tile {
   /// tileKey(depth, path): where the tile's root hangs.
   std::uint64_t key = 0;
   /// The subtree's node records as OctoMap's .ot data section holds them (OcTree::writeData):
-  /// per node its float log-odds, then a byte with a bit per existing child, children following
-  /// depth first. A body is itself OctoMap's readData input for the subtree.
+  /// per node its float log-odds (and payload: recordBytes), then a byte with a bit per existing
+  /// child, children following depth first. A plain or colour map's body is itself OctoMap's
+  /// readData input for the subtree; a colour tile's inner nodes hold the colours
+  /// ColorOcTree::updateInnerOccupancy gives them.
   std::string body;
   friend bool operator==(const Tile&, const Tile&) = default;
 };
@@ -53,8 +69,9 @@ unsigned tileKeyDepth(std::uint64_t key);
 /// The OctoMap key (k[0], k[1], k[2]) of the first finest cell of a tile: the tile's corner.
 Key tileKeyCorner(std::uint64_t key);
 
-/// The tiles of `tree` cut at `tile_depth` (1..16), sorted by key. Only plain occupancy trees
-/// (Payload::kNone); kInvalidArgument for others, kFormat for a tree whose links leave it.
+/// The tiles of `tree` cut at `tile_depth` (1..16), sorted by key, in the format of its payload
+/// (with the upper stamps record, kUpperStampsKey, first for a stamped tree). kFormat for a
+/// tree whose links leave it.
 std::vector<Tile> tilesOf(const HostTree& tree, unsigned tile_depth = kTileDepth);
 
 /// A tile of a captured device pool (PoolCapture): its key, and its root node in the pool at
@@ -69,16 +86,24 @@ struct PoolTile {
 std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth = kTileDepth);
 /// The body of a tile of `pool` (Tile::body): what tilesOf gives for the same tree.
 std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile);
+/// The body of the upper stamps record (kUpperStampsKey) of a stamped `pool`; empty when the
+/// tree has no node with children above the tile depth.
+std::string poolUpperStamps(const PoolCapture& pool, unsigned tile_depth = kTileDepth);
 
-/// The tree that `tiles` (any order) cut at `tile_depth` came from: each tile's subtree as its body
-/// holds it, and above the tile depth what OctoMap's tree holds there: an inner node's log-odds is
-/// the largest of its children's, and a node whose 8 children are leaves of equal log-odds is
-/// itself a leaf of that log-odds (OcTree::pruneNode). kFormat naming the tile when a key or a
+/// The tree (of `payload`) that `tiles` (any order) cut at `tile_depth` came from: each tile's
+/// subtree as its body holds it, and above the tile depth what OctoMap's tree holds there: an
+/// inner node's log-odds is the largest of its children's, and a node whose 8 children are
+/// leaves of equal log-odds (and stamps, OcTreeNodeStamped::operator==) is itself a leaf of that
+/// log-odds (pruneNode). Colours there are ColorOcTree's (a pruned node's as its pruneNode
+/// gives it, an inner node's the mean of its children's); stamps those of the upper stamps
+/// record (the largest child stamp for a node it lacks). kFormat naming the tile when a key or a
 /// body is damaged (a record past the end or after the last, a non-finite log-odds, a node below
 /// depth 16 or a tile under another).
-HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth = kTileDepth);
+HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth = kTileDepth,
+                       Payload payload = Payload::kNone);
 
-/// The .ot data section of `tree` (OcTree::writeData's bytes); empty for an empty tree.
+/// The .ot data section of `tree` in its tile format (OcTree::writeData's bytes for a plain
+/// tree); empty for an empty tree.
 std::string nodeStream(const HostTree& tree);
 
 /// `tree` as an OctoMap tree with `params`' resolution and sensor model (what .bt's
