@@ -47,8 +47,17 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
   const std::size_t node_bytes = count * sizeof(gpu::Node);
   const std::size_t payload_bytes =
       core_.params.payload != Payload::kNone ? count * sizeof(std::uint32_t) : 0;
-  auto owner = std::make_shared<vk::Buffer>(
-      core_.device, std::max<std::size_t>(node_bytes + payload_bytes + listed * 4, 4), true);
+  const std::size_t staging_bytes =
+      std::max<std::size_t>(node_bytes + payload_bytes + listed * 4, 4);
+  // The last capture's staging again when it is large enough and no PoolCapture holds it;
+  // else a new one with a quarter more room for the map's growth.
+  if (!capture_staging_ || capture_staging_.use_count() > 1 ||
+      capture_staging_->size() < staging_bytes) {
+    capture_staging_.reset();
+    capture_staging_ =
+        std::make_shared<vk::Buffer>(core_.device, staging_bytes + staging_bytes / 4, true);
+  }
+  std::shared_ptr<vk::Buffer> owner = capture_staging_;
   vk::Buffer& staging = *owner;
   core_.stream.begin(core_.buffers.bindings);
   if (node_bytes) core_.stream.copy(core_.buffers.nodes, staging, node_bytes);

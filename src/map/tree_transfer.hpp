@@ -36,6 +36,9 @@ class TreeTransfer {
 
   MapCore& core_;
   RaySceneCache& scenes_;
+  /// capture()'s host-visible staging, kept for the next capture once nobody holds the last
+  /// one (a store captures after every scan: a fresh buffer each time cost its page faults).
+  std::shared_ptr<vk::Buffer> capture_staging_;
 };
 
 }  // namespace octovk
