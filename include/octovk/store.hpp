@@ -28,14 +28,16 @@ OccupancyMap readStoredMap(Context& context, const std::string& location,
 ///
 /// Several writers (processes, machines) may insert into one map at once: each scan takes the
 /// map's write lock, first loads what other writers committed since this one's last scan, then
-/// inserts and commits, so the map equals OctoMap inserting the log's scans in its order. Plain
-/// occupancy maps only (MapParams::payload kNone). One thread at a time, as an OccupancyMap.
+/// inserts and commits, so the map equals OctoMap inserting the log's scans in its order. A
+/// plain, colour or stamped map (MapParams::payload; scans then carry ScanOptions::colors or
+/// ScanOptions::stamp as a ColorMap's or StampedMap's do). One thread at a time, as an
+/// OccupancyMap.
 class StoredMap {
  public:
   /// Opens map `name` of the store at `location` on `context`. A map that is missing (and an
-  /// SQLite file that is missing) is created with `create`'s resolution and sensor model when
-  /// given, else kInvalidArgument; an existing map keeps its own parameters (`create` ignored
-  /// but for max_device_bytes, which caps the device map).
+  /// SQLite file that is missing) is created with `create`'s resolution, sensor model and
+  /// payload when given, else kInvalidArgument; an existing map keeps its own parameters and
+  /// payload (`create` ignored but for max_device_bytes, which caps the device map).
   static StoredMap open(Context& context, const std::string& location,
                         const std::string& name = "default",
                         const std::optional<MapParams>& create = std::nullopt);

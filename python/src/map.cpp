@@ -376,6 +376,19 @@ void defInit(Class& cls, const char* doc) {
               .c_str());
 }
 
+// A map as the Python class of its tree type: Map, ColorMap or StampedMap.
+py::object asMapClass(py::object context, OccupancyMap&& made) {
+  switch (made.params().payload) {
+    case Payload::kColor:
+      return py::cast(std::make_unique<PyColorMap>(context, ColorMap(std::move(made))));
+    case Payload::kStamp:
+      return py::cast(std::make_unique<PyStampedMap>(context, StampedMap(std::move(made))));
+    case Payload::kNone:
+      break;
+  }
+  return py::cast(std::make_unique<Map>(context, std::move(made)));
+}
+
 // The map in `path` as the class of its tree type (params().payload): Map, ColorMap or
 // StampedMap; with `want`, a FormatError where the file holds another tree type.
 py::object readMap(py::handle path, py::object context, std::size_t max_device_bytes,
@@ -394,15 +407,7 @@ py::object readMap(py::handle path, py::object context, std::size_t max_device_b
                                         ", not " + treeTypeName(*want) +
                                         "; octovk.Map.read(path) reads every tree type, as the "
                                         "class it names");
-  switch (payload) {
-    case Payload::kColor:
-      return py::cast(std::make_unique<PyColorMap>(context, ColorMap(std::move(*made))));
-    case Payload::kStamp:
-      return py::cast(std::make_unique<PyStampedMap>(context, StampedMap(std::move(*made))));
-    case Payload::kNone:
-      break;
-  }
-  return py::cast(std::make_unique<Map>(context, std::move(*made)));
+  return asMapClass(std::move(context), std::move(*made));
 }
 
 // The static `read` of a map class: readMap with that class's tree type (none: any).
@@ -716,21 +721,31 @@ void bindStoredMap(py::module_& m) {
       "A map of a store (an SQLite file or a PostgreSQL URI) that scans are inserted into, each "
       "committed with a log row naming its source and scan index, as 'octovk integrate --store' "
       "commits: each scan first takes the map's write lock and loads what other writers "
-      "committed, so several processes may write one map. Plain occupancy maps only. "
-      "snapshot() gives the committed map as a Map for queries.");
+      "committed, so several processes may write one map. A map is an OcTree, a ColorOcTree "
+      "(scans with colors) or an OcTreeStamped (scans with a stamp), as made. snapshot() gives "
+      "the committed map as a Map, ColorMap or StampedMap for queries.");
   cls.def_static(
       "open",
       [](py::handle store, const std::string& name, std::optional<double> resolution,
          double prob_hit, double prob_miss, double clamping_min, double clamping_max,
-         double occupancy_threshold, py::object context, std::size_t max_device_bytes) {
+         double occupancy_threshold, const std::string& tree_type, py::object context,
+         std::size_t max_device_bytes) {
         const std::string location = pathString(store, "store");
         context = orDefault(std::move(context));
         Context& ctx = contextOf(context);
+        std::optional<Payload> payload;
+        for (const Payload p : {Payload::kNone, Payload::kColor, Payload::kStamp})
+          if (tree_type == treeTypeName(p)) payload = p;
+        if (!payload)
+          throw Error(ErrorCode::kInvalidArgument,
+                      "StoredMap.open: tree_type '" + tree_type +
+                          "' is none of 'OcTree', 'ColorOcTree', 'OcTreeStamped'");
         std::optional<MapParams> create;
         if (resolution) {
           create = sensorParams(*resolution, prob_hit, prob_miss, clamping_min, clamping_max,
                                 occupancy_threshold);
           create->max_device_bytes = max_device_bytes;
+          create->payload = *payload;
         }
         std::optional<StoredMap> opened;
         {
@@ -742,19 +757,23 @@ void bindStoredMap(py::module_& m) {
       py::arg("store"), py::arg("map") = "default", py::kw_only(),
       py::arg("resolution") = py::none(), py::arg("prob_hit") = 0.7, py::arg("prob_miss") = 0.4,
       py::arg("clamping_min") = 0.1192, py::arg("clamping_max") = 0.971,
-      py::arg("occupancy_threshold") = 0.5, py::arg("context") = py::none(),
-      py::arg("max_device_bytes") = 0,
+      py::arg("occupancy_threshold") = 0.5, py::arg("tree_type") = "OcTree",
+      py::arg("context") = py::none(), py::arg("max_device_bytes") = 0,
       "Opens map `map` of the store as its last committed scan left it. With resolution (and "
-      "prob_hit, prob_miss, clamping_min, clamping_max, occupancy_threshold) a missing map, and "
-      "a missing SQLite file, is created; a map that exists keeps its own parameters. Without "
+      "prob_hit, prob_miss, clamping_min, clamping_max, occupancy_threshold, tree_type: "
+      "'OcTree', 'ColorOcTree' or 'OcTreeStamped') a missing map, and a missing SQLite file, is "
+      "created; a map that exists keeps its own parameters and tree type. Without "
       "resolution a missing map raises InvalidArgumentError. context: a Context (None: "
       "default_context()); max_device_bytes caps the device map.");
   cls.def(
       "insert_point_cloud",
       [](PyStoredMap& self, py::handle points, py::handle origin, py::handle pose,
-         double max_range_m, bool discretize, const std::string& source,
-         std::optional<std::uint64_t> scan, bool copy) {
+         double max_range_m, bool discretize, py::handle colors, const std::string& color_fold,
+         py::handle stamp, const std::string& source, std::optional<std::uint64_t> scan,
+         bool copy) {
         PointScan cloud(points, origin, pose, max_range_m, discretize, copy, py::none());
+        if (!colors.is_none()) cloud.colors(colors, color_fold);
+        if (!stamp.is_none()) cloud.stamp(stamp);
         noteInput(cloud.data());
         const std::uint64_t index = scan ? *scan : self.nextScan();
         return self.run([&](StoredMap& stored) {
@@ -763,10 +782,14 @@ void bindStoredMap(py::module_& m) {
       },
       py::arg("points"), py::arg("origin"), py::arg("pose") = py::none(),
       py::arg("max_range_m") = -1.0, py::arg("discretize") = false, py::kw_only(),
-      py::arg("source") = "python", py::arg("scan") = py::none(), py::arg("copy") = false,
-      "Map.insert_point_cloud (points, origin, pose, max_range_m, discretize, copy as there), "
-      "then the scan committed: its changed tiles and a log row naming source and scan (None: "
-      "the scans this object committed so far), which 'octovk store log' prints. Returns "
+      py::arg("colors") = py::none(), py::arg("color_fold") = "average",
+      py::arg("stamp") = py::none(), py::arg("source") = "python", py::arg("scan") = py::none(),
+      py::arg("copy") = false,
+      "Map.insert_point_cloud (points, origin, pose, max_range_m, discretize, copy as there; "
+      "colors and color_fold for a ColorOcTree map and stamp for an OcTreeStamped one, as "
+      "ColorMap's and StampedMap's), then the scan committed: its changed tiles and a log row "
+      "naming source and scan (None: the scans this object committed so far), which 'octovk store "
+      "log' prints. Returns "
       "ScanStats.");
   cls.def(
       "snapshot",
@@ -779,10 +802,11 @@ void bindStoredMap(py::module_& m) {
           copy.upload(stored.map().download());
           return copy;
         });
-        return std::make_unique<Map>(self.context(), std::move(made));
+        return asMapClass(self.context(), std::move(made));
       },
       py::kw_only(), py::arg("max_device_bytes") = 0,
-      "The committed map as a new Map on the same Context (a copy: later scans do not reach "
+      "The committed map as a new Map (ColorMap, StampedMap: its tree type) on the same Context (a "
+      "copy: later scans do not reach "
       "it), capped at max_device_bytes (0: no cap).");
   cls.def_property_readonly(
       "last_seq",
@@ -793,6 +817,13 @@ void bindStoredMap(py::module_& m) {
   cls.def_property_readonly("resolution", [](PyStoredMap& self) {
     return self.run([](StoredMap& s) { return s.map().params().resolution; });
   });
+  cls.def_property_readonly(
+      "tree_type",
+      [](PyStoredMap& self) {
+        return self.run(
+            [](StoredMap& s) { return std::string(treeTypeName(s.map().params().payload)); });
+      },
+      "'OcTree', 'ColorOcTree' or 'OcTreeStamped': what the map's nodes hold");
 }
 
 void bindStoreFollower(py::module_& m) {
@@ -953,13 +984,14 @@ void bindMap(py::module_& m) {
           py::gil_scoped_release release;
           made.emplace(readStoredMap(ctx, location, name, max_device_bytes));
         }
-        return std::make_unique<Map>(context, std::move(*made));
+        return asMapClass(std::move(context), std::move(*made));
       },
       py::arg("store"), py::arg("map") = "default", py::kw_only(), py::arg("context") = py::none(),
       py::arg("max_device_bytes") = 0,
       "A new map from a store (an SQLite file or a PostgreSQL URI postgresql://..., as "
       "'octovk integrate --store' writes it): map `map` as its last committed scan left it, with "
-      "the store's resolution and sensor model. A snapshot: scans inserted into it stay in this "
+      "the store's resolution and sensor model, as the class of its tree type (Map, ColorMap or "
+      "StampedMap). A snapshot: scans inserted into it stay in this "
       "Map, and later commits to the store do not reach it. Raises InvalidArgumentError when "
       "the store holds no such map, IoError when it cannot be read, FormatError for a damaged "
       "tile, OutOfDeviceMemoryError over max_device_bytes.");

@@ -281,3 +281,37 @@ def test_stored_map_commits_each_scan_as_graph2tree_builds_them(context, tmp_pat
     assert read_bytes(tmp_path / "s.ot") == expected
     log = run([cli, "store", "log", str(store), "--map", "lab"], cwd=tmp_path).splitlines()
     assert log[0] == "1 spherical 0" and len(log) == len(scans)
+
+
+@pytest.mark.parametrize("tree_type", ["ColorOcTree", "OcTreeStamped"])
+def test_stored_colour_and_stamped_maps_equal_the_same_scans_in_memory(context, tmp_path,
+                                                                     tree_type):
+    """A colour or stamped StoredMap (two writers taking turns): the committed map, read back
+    as the class of its tree type, is the map those scans make in memory, file for file (a
+    stamped map's stamps too); the in-memory maps are OctoMap's (test_payload.py)."""
+    store = tmp_path / "payload.sqlite"
+    one = octovk.StoredMap.open(store, resolution=0.1, tree_type=tree_type, context=context)
+    two = octovk.StoredMap.open(store, context=context)  # exists: its own tree type
+    assert one.tree_type == two.tree_type == tree_type
+    memory = (octovk.ColorMap if tree_type == "ColorOcTree" else octovk.StampedMap)(
+        0.1, context=context)
+    rng = np.random.default_rng(5)
+    for i, (points, origin) in enumerate(room_scans(seed=11, scans=4, points=400)):
+        extra = {}
+        if tree_type == "ColorOcTree":
+            extra["colors"] = rng.integers(0, 256, (len(points), 3), dtype=np.uint8)
+        else:
+            extra["stamp"] = 1000 + 7 * i
+        (one if i % 2 == 0 else two).insert_point_cloud(points, origin, **extra)
+        memory.insert_point_cloud(points, origin, **extra)
+    assert two.last_seq == 4
+    read = octovk.Map.open(store, context=context)
+    assert type(read) is type(memory) and type(two.snapshot()) is type(memory)
+    read.write(tmp_path / "read.ot")
+    memory.write(tmp_path / "memory.ot")
+    assert read_bytes(tmp_path / "read.ot") == read_bytes(tmp_path / "memory.ot")
+    if tree_type == "OcTreeStamped":
+        assert read_bytes(tmp_path / "read.ot.stamps") == read_bytes(tmp_path / "memory.ot.stamps")
+    if tree_type == "OcTreeStamped":  # colours for a map that holds none: refused by name
+        with pytest.raises(octovk.InvalidArgumentError, match="colours were given"):
+            one.insert_point_cloud(points, origin, colors=np.zeros((len(points), 3), np.uint8))

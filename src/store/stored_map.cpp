@@ -56,12 +56,6 @@ StoredMap StoredMap::open(Context& context, const std::string& location, const s
   if (!create) (void)store::requireMap(*impl->store, name, remedy);
   impl->writer =
       std::make_unique<store::MapWriter>(*impl->store, name, create.value_or(MapParams{}));
-  if (create && impl->writer->existed() && impl->writer->info().params.payload != create->payload)
-    throw Error(ErrorCode::kInvalidArgument,
-                "StoredMap: map '" + name + "' of store '" + location + "' is " +
-                    treeTypeName(impl->writer->info().params.payload) + ", not " +
-                    treeTypeName(create->payload) +
-                    " (MapParams::payload); open it with its own payload, or name another map");
   const std::size_t cap = create ? create->max_device_bytes : 0;
   impl->map.emplace(context, storedParams(impl->writer->info(), cap));
   const HostTree tree = impl->writer->load();
