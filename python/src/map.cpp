@@ -882,15 +882,20 @@ void bindStoreFollower(py::module_& m) {
           made.emplace(ctx, params);
           if (self.tree().root_exists) made->upload(self.tree());
         }
-        return std::make_unique<Map>(context, std::move(*made));
+        return asMapClass(std::move(context), std::move(*made));
       },
       py::kw_only(), py::arg("context") = py::none(), py::arg("max_device_bytes") = 0,
-      "The map as of the last poll, as a new Map with the store's resolution and sensor model, "
-      "on context (None: default_context()), capped at max_device_bytes (0: no cap).");
+      "The map as of the last poll, as a new Map (ColorMap, StampedMap: its tree type) with the "
+      "store's resolution and sensor model, on context (None: default_context()), capped at "
+      "max_device_bytes (0: no cap).");
   cls.def_property_readonly("seq", &StoreFollower::seq,
                             "the sequence number of the last poll (0: none yet)");
   cls.def_property_readonly("resolution",
                             [](const StoreFollower& self) { return self.params().resolution; });
+  cls.def_property_readonly(
+      "tree_type",
+      [](const StoreFollower& self) { return std::string(treeTypeName(self.params().payload)); },
+      "'OcTree', 'ColorOcTree' or 'OcTreeStamped': what the map's nodes hold");
   cls.def_property_readonly("tile_depth", &StoreFollower::tileDepth,
                             "the depth of OctoMap's 16 at which the map is cut into tiles");
 

@@ -310,6 +310,9 @@ def test_stored_colour_and_stamped_maps_equal_the_same_scans_in_memory(context, 
     read.write(tmp_path / "read.ot")
     memory.write(tmp_path / "memory.ot")
     assert read_bytes(tmp_path / "read.ot") == read_bytes(tmp_path / "memory.ot")
+    follower = octovk.StoreFollower(store)
+    follower.poll()
+    assert follower.tree_type == tree_type and type(follower.map(context=context)) is type(memory)
     if tree_type == "OcTreeStamped":
         assert read_bytes(tmp_path / "read.ot.stamps") == read_bytes(tmp_path / "memory.ot.stamps")
     if tree_type == "OcTreeStamped":  # colours for a map that holds none: refused by name
