@@ -1,7 +1,8 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // A colour scan's colours folded into the map after its tree passes: for every point i, in the
-// cloud's order, ColorOcTree::averageNodeColor(point_i, colour_i) on the node search() finds.
+// cloud's order, ColorOcTree::averageNodeColor(point_i, colour_i) (or integrateNodeColor) on the
+// node search() finds.
 // Points that fall in one node are folded in order by one invocation; nodes are independent.
 // The points come in chunks of consecutive indices (all at once where loops are not limited),
 // each chunk grouped and folded before the next: the order is kept across chunks.
@@ -9,11 +10,14 @@
 //   has none and is skipped, as OctoMap's coordToKeyChecked / search skip it), that node's entry
 //   in the table (open addressing, claimed by compare-and-swap), and the point pushed on the
 //   entry's list (atomic exchange of the head; the links say nothing of the order).
-// kColorFoldApply (per table entry): the entry's list sorted by point index (a merge sort of the
-//   linked list, n log n, in place), then the fold in that order on the node's colour.
+// kColorFoldAverage, kColorFoldIntegrate (per table entry): the entry's list sorted by point
+//   index (a merge sort of the linked list, n log n, in place), then the fold in that order on the
+//   node's colour. The node's log-odds (integrateNodeColor's weight) is final by then: the fold
+//   changes colours only.
 // Nothing is done for a scan the device refused (kStatusNotApplied): it runs again whole.
 #define OCTOVK_NODES_READ_ONLY
 #include "tree_search.glsl"
+#include "probability.glsl"
 
 layout(push_constant) uniform PushBlock { ColorFoldConstants pc; };
 
@@ -72,6 +76,25 @@ uint averaged(uint old, uint c) {
   return m.x | (m.y << 8) | (m.z << 16);
 }
 
+// integrateNodeColor's step: an unset colour takes the new one; a set one
+// old * p + new * (0.99 - p) per channel in double, p the node's occupancy (probability.glsl),
+// `weight_new` = 0.99 - p.
+uint integratedChannel(uint old, uint c, double p, double weight_new) {
+  precise double v = double(old) * p + double(c) * weight_new;
+  // OctoMap's (uint8_t) of that double, as x86-64 GCC compiles it (liboctomap's cvttsd2si): to a
+  // 32-bit int toward zero, the low 8 bits kept. v is in (-3, 256); it is negative only where p >
+  // 0.99 (a clamping_max above 0.99): -1.3 gives -1, so 255. (C++ leaves it undefined.)
+  precise double toward_zero = v >= 0.0lf ? floor(v) : -floor(-v);
+  return uint(int(toward_zero)) & 0xFFu;
+}
+
+uint integrated(uint old, uint c, double p, double weight_new) {
+  if (!colorSet(old)) return c;
+  return integratedChannel(old & 0xFFu, c & 0xFFu, p, weight_new) |
+         (integratedChannel((old >> 8) & 0xFFu, (c >> 8) & 0xFFu, p, weight_new) << 8) |
+         (integratedChannel((old >> 16) & 0xFFu, (c >> 16) & 0xFFu, p, weight_new) << 16);
+}
+
 void main() {
   if ((counters.status & kStatusNotApplied) != 0u) return;
   uint i = invocationIndex();
@@ -96,12 +119,18 @@ void main() {
     setLinkAfter(p, atomicExchange(COLOR_FOLD[tableWord(e, 1u)], p));
     return;
   }
-  // kColorFoldApply
+  // kColorFoldAverage, kColorFoldIntegrate
   if (i > mask) return;
   uint node = COLOR_FOLD[tableWord(i, 0u)];
   if (node == kFoldEmpty) return;
   uint c = nodePayload(node);
-  for (uint p = sortedList(COLOR_FOLD[tableWord(i, 1u)]); p != kFoldEmpty; p = linkAfter(p))
-    c = averaged(c, colorOf(p));
+  uint p = sortedList(COLOR_FOLD[tableWord(i, 1u)]);
+  if (pc.mode == kColorFoldAverage) {
+    for (; p != kFoldEmpty; p = linkAfter(p)) c = averaged(c, colorOf(p));
+  } else {
+    precise double occupancy = occupancyProbability(nodeLogOdds(node));
+    precise double weight_new = doubleOfBits(0x3FEFAE14u, 0x7AE147AEu) - occupancy;  // 0.99 - p
+    for (; p != kFoldEmpty; p = linkAfter(p)) c = integrated(c, colorOf(p), occupancy, weight_new);
+  }
   setNodePayload(node, c);
 }

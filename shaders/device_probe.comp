@@ -7,10 +7,14 @@
 //           integer float rounding of exact.glsl, written out to be compared bit for bit with the
 //           host;
 //   kProbeModeLoop: how many iterations a loop of pc.loop_iterations iterations really gets to
-//           run (llvmpipe ends an invocation's loops early, silently), in invocation 0.
-// Uses only the two query bindings, with its own view of them.
+//           run (llvmpipe ends an invocation's loops early, silently), in invocation 0;
+//   kProbeModeProbability (tests only, not part of the probe): occupancyProbability
+//           (probability.glsl) of floats, for the tests to compare with the host's
+//           octomap::probability bit for bit.
+// Uses only the two query bindings, with its own views of them.
 #include "gpu/gpu_types.h"
 #include "exact.glsl"
+#include "probability.glsl"
 
 layout(local_size_x = 64) in;
 layout(push_constant) uniform PushBlock { DeviceProbeConstants pc; };
@@ -20,6 +24,8 @@ layout(std430, binding = kBindQueryOut) buffer ProbeOut {
   int floors[kProbeCases];
   ProbeResult results[];
 };
+layout(std430, binding = kBindQueryIn) readonly buffer LogOddsIn { float log_odds_in[]; };
+layout(std430, binding = kBindQueryOut) buffer ProbabilityOut { double probability_out[]; };
 
 void main() {
   uint i = gl_GlobalInvocationID.x;
@@ -34,6 +40,11 @@ void main() {
       ++n;
     }
     atomicMin(header.loop_iterations, n);
+    return;
+  }
+  if (pc.mode == kProbeModeProbability) {
+    if (i >= pc.case_count) return;
+    probability_out[pc.first + i] = occupancyProbability(log_odds_in[pc.first + i]);
     return;
   }
   if (i >= pc.case_count) return;

@@ -7,17 +7,24 @@
 
 #include <octomap/ScanGraph.h>
 #include <octomap/octomap.h>
+#include <quadmath.h>
 #include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <bit>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <mutex>
 #include <random>
+#include <set>
 #include <tuple>
 
 #include "changed_keys.hpp"
+#include "map/context_access.hpp"
+#include "map/device_probe.hpp"
 #include "rt_paths.hpp"
 
 namespace octovk::test {
@@ -25,21 +32,39 @@ namespace {
 
 // ---- one scan into both ------------------------------------------------------------------------
 
+/// Channels of integrateNodeColor's steps whose double is negative (old * p + new * (0.99 - p)
+/// with p > 0.99, converted to uint8_t as x86-64 GCC does) if `point`'s colour `c` were folded now.
+std::size_t negativeChannels(const octomap::ColorOcTree& oracle, const Eigen::Vector3f& point,
+                             const Rgb& c) {
+  const octomap::ColorOcTreeNode* n = oracle.search(toPoint(point));
+  if (!n || !n->isColorSet()) return 0;
+  const double p = n->getOccupancy();
+  const auto old = n->getColor();
+  std::size_t count = 0;
+  for (auto [o, v] : {std::pair{old.r, c.r}, {old.g, c.g}, {old.b, c.b}})
+    count += static_cast<double>(o) * p + static_cast<double>(v) * (0.99 - p) < 0.0;
+  return count;
+}
+
 /// ColorOcTree::insertPointCloud, then averageNodeColor (integrateNodeColor) for every point in
-/// order, then updateInnerOccupancy(); the map's scan; the trees compared.
+/// order, then updateInnerOccupancy(); the map's scan; the trees compared. `negative` (if given)
+/// adds up negativeChannels of the integrated points.
 ::testing::AssertionResult insertColorBoth(ColorMap& map, octomap::ColorOcTree& oracle,
                                            const std::vector<Eigen::Vector3f>& points,
                                            const Eigen::Vector3f& origin,
                                            const std::vector<Rgb>& colors, double max_range,
-                                           bool discretize, ColorFold fold = ColorFold::kAverage) {
+                                           bool discretize, ColorFold fold = ColorFold::kAverage,
+                                           std::size_t* negative = nullptr) {
   oracle.insertPointCloud(toPointcloud(points), toPoint(origin), max_range, false, discretize);
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3f& p = points[i];
     const Rgb& c = colors[i];
-    if (fold == ColorFold::kAverage)
+    if (fold == ColorFold::kAverage) {
       oracle.averageNodeColor(p.x(), p.y(), p.z(), c.r, c.g, c.b);
-    else
+    } else {
+      if (negative) *negative += negativeChannels(oracle, p, c);
       oracle.integrateNodeColor(p.x(), p.y(), p.z(), c.r, c.g, c.b);
+    }
   }
   oracle.updateInnerOccupancy();
   const ScanStats s = map.insertPointCloud(
@@ -194,33 +219,197 @@ TEST_P(ColorScans, WallPrunesExpandsAndFoldsEqualColorOcTree) {
   EXPECT_TRUE(sameColors(map, *oracle, cross));
 }
 
-// ColorFold::kIntegrate (integrateNodeColor) is not on the device yet: it needs OctoMap's double
-// exp() bit for bit (issue 29). When it lands, add {0.1, false, kIntegrate} and
-// {0.05, true, kIntegrate} here; until then IntegrateFoldIsRefusedWithTheMapKept holds.
 INSTANTIATE_TEST_SUITE_P(Cases, ColorScans,
                          ::testing::Values(ColorCase{0.1, false, ColorFold::kAverage},
                                            ColorCase{0.05, true, ColorFold::kAverage},
-                                           ColorCase{0.2, false, ColorFold::kAverage}),
+                                           ColorCase{0.2, false, ColorFold::kAverage},
+                                           ColorCase{0.1, false, ColorFold::kIntegrate},
+                                           ColorCase{0.05, true, ColorFold::kIntegrate}),
                          colorCaseName);
 
-TEST(ColorFolds, IntegrateFoldIsRefusedWithTheMapKept) {
-  OCTOVK_REQUIRE_CONTEXT(ctx);
-  ColorMap map(ctx, withResolution(0.1));
-  const std::vector<Eigen::Vector3f> points{{1.0f, 0.0f, 0.0f}, {1.0f, 0.5f, 0.0f}};
-  const std::vector<Rgb> colors{{10, 20, 30}, {40, 50, 60}};
-  map.insertPointCloud(points, Eigen::Vector3f::Zero(), colors);
-  const std::size_t nodes = map.nodeCount();
-  const std::vector<Rgb> before = map.colors(points);
-  try {
-    map.insertPointCloud(points, Eigen::Vector3f(0.0f, 0.1f, 0.0f), colors,
-                         {.color_fold = ColorFold::kIntegrate});
-    FAIL() << "ColorFold::kIntegrate was accepted";
-  } catch (const Error& e) {
-    EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument);
-    EXPECT_NE(std::string(e.what()).find("use ColorFold::kAverage"), std::string::npos) << e.what();
+// ---- integrateNodeColor's weight: octomap::probability on the device ----------------------------
+
+// Floats in the order of their values: ordinal 0 is +-0, n > 0 the n-th float above 0, -n below.
+float floatOfOrdinal(std::int64_t o) {
+  const auto magnitude = std::bit_cast<float>(static_cast<std::uint32_t>(o < 0 ? -o : o));
+  return o < 0 ? -magnitude : magnitude;
+}
+std::int64_t ordinalOf(float f) {
+  const auto bits = std::bit_cast<std::uint32_t>(f);
+  const auto magnitude = static_cast<std::int64_t>(bits & 0x7FFFFFFFu);
+  return (bits & 0x80000000u) ? -magnitude : magnitude;
+}
+
+// Every float from `lo` to `hi` whose ordinal is a multiple of `stride` away from lo's.
+void addFloats(std::vector<float>& out, float lo, float hi, std::int64_t stride) {
+  for (std::int64_t o = ordinalOf(lo), end = ordinalOf(hi); o <= end; o += stride)
+    out.push_back(floatOfOrdinal(o));
+}
+
+// The log-odds a leaf reaches from 0 by OctoMap's updates (+ hit or + miss in float, clamped:
+// OccupancyOcTreeBase::updateNodeLogOdds) in at most `updates` of them.
+std::vector<float> reachableLogOdds(const octomap::ColorOcTree& tree, int updates) {
+  std::set<float> seen{0.0f};
+  std::vector<float> frontier{0.0f};
+  for (int step = 0; step < updates && !frontier.empty(); ++step) {
+    std::vector<float> next;
+    for (float v : frontier)
+      for (float update : {tree.getProbHitLog(), tree.getProbMissLog()}) {
+        const float w =
+            std::clamp(v + update, tree.getClampingThresMinLog(), tree.getClampingThresMaxLog());
+        if (seen.insert(w).second) next.push_back(w);
+      }
+    frontier = std::move(next);
   }
-  EXPECT_EQ(map.nodeCount(), nodes);
-  EXPECT_EQ(map.colors(points), before);
+  return {seen.begin(), seen.end()};
+}
+
+// What integrateNodeColor makes of one channel (old, new) at occupancy p: the double, converted to
+// uint8_t as liboctomap on x86-64 does (cvttsd2si: toward zero to int32, the low 8 bits).
+std::uint8_t integratedChannel(int old, int c, double p) {
+  const double v = static_cast<double>(old) * p + static_cast<double>(c) * (0.99 - p);
+  return static_cast<std::uint8_t>(static_cast<std::int32_t>(v) & 0xFF);
+}
+
+// occupancyProbability (shaders/probability.glsl: exp built from the probed double arithmetic,
+// correctly rounded) against the host, bit for bit: a stride through every float of the default
+// clamping range, the log-odds that 200 updates reach under the default and a 0.999 clamping,
+// strides through [-40, 40] and all floats, and the edges (exp's overflow and underflow,
+// subnormals, zeros, infinities).
+// - against 1 - 1 / (1 + exp(l)) with exp correctly rounded (libquadmath's expq rounded to
+//   double): no difference at all;
+// - against OctoMap's getOccupancy() (glibc's exp, about 0.51 ULP): a difference only where glibc's
+//   exp is not correctly rounded (4 in 100,000 of these log-odds), and none of those here changes
+//   the colour integrateNodeColor gives for any pair of channel values (old, new). Over the whole
+//   clamping range 21 log-odds do, for old = new = 100 or 200 (docs/benchmarks.md).
+// The exhaustive run over the clamping range is bench/probability_exhaustive.cpp
+// (docs/benchmarks.md).
+TEST(ColorFolds, DeviceOccupancyEqualsOctoMapsGetOccupancy) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const MapParams params = withResolution(0.1);
+  auto tree = makeColorOracle(params);
+  std::vector<float> values;
+  addFloats(values, tree->getClampingThresMinLog(), tree->getClampingThresMaxLog(), 1789);
+  addFloats(values, -40.0f, 40.0f, 20011);
+  addFloats(values, std::numeric_limits<float>::lowest(), std::numeric_limits<float>::max(),
+            100003);
+  for (float v : reachableLogOdds(*tree, 200)) values.push_back(v);
+  tree->setClampingThresMax(0.999);
+  for (float v : reachableLogOdds(*tree, 120)) values.push_back(v);
+  const float inf = std::numeric_limits<float>::infinity();
+  for (float v : {0.0f,
+                  std::numeric_limits<float>::denorm_min(),
+                  std::numeric_limits<float>::min(),
+                  1e-30f,
+                  1e-8f,
+                  0.5f,
+                  1.0f,
+                  4.59511985f,
+                  20.0f,
+                  36.0f,
+                  37.0f,
+                  38.0f,
+                  100.0f,
+                  700.0f,
+                  708.39f,
+                  709.0f,
+                  709.78f,
+                  709.79f,
+                  710.0f,
+                  744.0f,
+                  745.0f,
+                  745.13f,
+                  745.14f,
+                  746.0f,
+                  1e10f,
+                  std::numeric_limits<float>::max(),
+                  inf}) {
+    values.push_back(v);
+    values.push_back(-v);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<double> got = deviceOccupancies(ContextAccess::device(ctx), values);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(got.size(), values.size());
+  auto bits = [](double d) { return std::bit_cast<std::uint64_t>(d); };
+  std::size_t wrong = 0, glibc_differs = 0, colour_pairs_differ = 0;
+  octomap::ColorOcTreeNode node;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const double x = static_cast<double>(values[i]);
+    const double exact_exp = static_cast<double>(expq(static_cast<__float128>(x)));
+    const double want = 1. - (1. / (1. + exact_exp));
+    node.setLogOdds(values[i]);
+    const double octomap_p = node.getOccupancy();
+    char text[200];
+    if (bits(want) != bits(got[i])) {
+      if (++wrong <= 10) {
+        std::snprintf(text, sizeof text, "log-odds %a (%.9g): correctly rounded p %a, device %a", x,
+                      x, want, got[i]);
+        ADD_FAILURE() << text;
+      }
+      continue;
+    }
+    if (bits(octomap_p) == bits(got[i])) continue;
+    ++glibc_differs;
+    if (bits(std::exp(x)) == bits(exact_exp)) {
+      std::snprintf(text, sizeof text,
+                    "log-odds %a: OctoMap's p %a differs from the device's %a though glibc's exp "
+                    "is correctly rounded there",
+                    x, octomap_p, got[i]);
+      ADD_FAILURE() << text;
+    }
+    for (int old = 0; old < 256; ++old)
+      for (int c = 0; c < 256; ++c)
+        colour_pairs_differ +=
+            integratedChannel(old, c, octomap_p) != integratedChannel(old, c, got[i]);
+  }
+  EXPECT_EQ(wrong, 0u) << "of " << values.size() << " log-odds";
+  EXPECT_EQ(colour_pairs_differ, 0u);
+  EXPECT_LT(glibc_differs, values.size() / 10000);
+  std::printf(
+      "%zu log-odds (device %.2f s): OctoMap's p differs by glibc's exp's rounding at %zu; "
+      "colours differing for any (old, new): %zu\n",
+      values.size(), seconds, glibc_differs, colour_pairs_differ);
+}
+
+// A clamping_max above 0.99: once a node's occupancy passes 0.99, integrateNodeColor's weight of
+// the new colour (0.99 - p) is negative, and a dark colour folded with a bright one gives a
+// negative double, which OctoMap's conversion to uint8_t wraps (-1.3 -> -1 -> 255 on x86-64).
+// Wall scans that clamp and prune at 0.999, dark and bright colours by turns.
+TEST(ColorFolds, IntegrateAboveOccupancy099WrapsLikeOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = withResolution(0.1);
+  params.clamping_max = 0.999;
+  ColorMap map(ctx, params);
+  auto oracle = makeColorOracle(params);
+  const float res = static_cast<float>(params.resolution);
+  const Eigen::Vector3f origin(0.5f * res, 0.5f * res, 0.5f * res);
+  const auto wall = thickWall(res, -4, 4);
+  std::size_t negative = 0;
+  for (std::size_t scan = 0; scan < 14; ++scan) {
+    std::vector<Rgb> colors = colorsOf(scan, wall.size());
+    for (std::size_t i = 0; i < colors.size(); ++i) {
+      const auto k = static_cast<std::uint8_t>((i + scan) % 7);
+      if (scan % 2 == 0)
+        colors[i] = Rgb{k, static_cast<std::uint8_t>(2 * k), 0};
+      else if (i % 3 != 0)
+        colors[i] = Rgb{250, static_cast<std::uint8_t>(200 + k), 30};
+    }
+    ASSERT_TRUE(insertColorBoth(map, *oracle, wall, origin, colors, -1.0, false,
+                                ColorFold::kIntegrate, &negative))
+        << "scan " << scan;
+  }
+  EXPECT_GT(negative, 100u) << "the negative path was not taken";
+  EXPECT_GT(prunedOccupiedLeaves(*oracle), 0u);
+  EXPECT_TRUE(sameColors(map, *oracle, wall));
+  // The .ot written equals OctoMap's bytes.
+  std::stringstream want;
+  oracle->write(want);
+  const std::string path = tmpPath("payload_oracle_wrap." + std::to_string(::getpid()) + ".ot");
+  writeMapFile(map, path);
+  EXPECT_EQ(want.str(), fileBytes(path));
+  std::remove(path.c_str());
 }
 
 // Random scans with repeated origins, every fifth point given twice more (several points in one
@@ -880,7 +1069,8 @@ struct StampedScene {
   std::unique_ptr<StampedOracle> oracle;
 };
 
-ColorScene colorScene(Context& ctx, double resolution, unsigned seed) {
+ColorScene colorScene(Context& ctx, double resolution, unsigned seed,
+                      ColorFold fold = ColorFold::kAverage) {
   const MapParams params = withResolution(resolution);
   ColorScene s{ColorMap(ctx, params), makeColorOracle(params)};
   std::mt19937 rng(seed);
@@ -888,7 +1078,7 @@ ColorScene colorScene(Context& ctx, double resolution, unsigned seed) {
     const Eigen::Vector3f origin(0.3f * static_cast<float>(i), 0.0f, 0.1f);
     const auto pts = randomScan(rng, origin, 1200, 2.0f);
     EXPECT_TRUE(
-        insertColorBoth(s.map, *s.oracle, pts, origin, colorsOf(i, pts.size()), -1.0, false));
+        insertColorBoth(s.map, *s.oracle, pts, origin, colorsOf(i, pts.size()), -1.0, false, fold));
   }
   return s;
 }
@@ -1370,13 +1560,14 @@ TEST(PayloadFeatures, DistanceFieldOnPayloadMaps) {
 
 TEST(PayloadFiles, OtBytesEqualOctoMapWrite) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  {
-    ColorScene c = colorScene(ctx, 0.1, 16);
+  for (ColorFold fold : {ColorFold::kAverage, ColorFold::kIntegrate}) {
+    ColorScene c = colorScene(ctx, 0.1, 16, fold);
     std::stringstream want;
     c.oracle->write(want);
     const std::string path = tmpPath("payload_oracle_color." + std::to_string(::getpid()) + ".ot");
     writeMapFile(c.map, path);
-    EXPECT_TRUE(sameBytes(want.str(), fileBytes(path))) << "ColorOcTree .ot";
+    EXPECT_TRUE(sameBytes(want.str(), fileBytes(path)))
+        << "ColorOcTree .ot, " << (fold == ColorFold::kAverage ? "averaged" : "integrated");
     std::remove(path.c_str());
   }
   {

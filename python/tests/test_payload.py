@@ -3,6 +3,8 @@
 tiny scans, and whole scans against OctoMap's own trees (octovk_py_oracle colorscan/stampscan,
 python/tests/octomap_oracle.cpp), bit for bit. The values need the device side of the payloads."""
 
+import math
+
 import numpy as np
 import pytest
 import torch
@@ -139,14 +141,6 @@ def test_colors_average_in_the_clouds_order_and_set_new_cells(context):
     np.testing.assert_array_equal(r.colors(SAME_CELL[:1]), [[20, 40, 60]])
 
 
-# The device folds colours with averageNodeColor only, so far: the library refuses
-# ColorFold::kIntegrate (InvalidArgumentError). Strict: once it folds them, these must pass.
-INTEGRATE_PENDING = pytest.mark.xfail(
-    strict=True, raises=octovk.InvalidArgumentError,
-    reason="integrateNodeColor is not on the device yet (src/map/scan_source.cpp refuses it)")
-
-
-@INTEGRATE_PENDING
 def test_colors_integrate_weighted_by_the_cells_occupancy(context):
     m = octovk.ColorMap(0.1)
     colors = np.array([[10, 20, 30], [20, 40, 60]], np.uint8)
@@ -154,6 +148,46 @@ def test_colors_integrate_weighted_by_the_cells_occupancy(context):
     # integrateNodeColor: unset takes (10, 20, 30); then old * p + new * (0.99 - p) truncated,
     # with p = 0.7 the occupancy after one hit: (12.8, 25.6, 38.4).
     np.testing.assert_array_equal(m.colors(SAME_CELL), [[12, 25, 38]] * 2)
+
+
+def integrated_by_hand(old, new, log_odds):
+    """ColorOcTree::integrateNodeColor's step in pure Python: p = octomap::probability of the
+    node's float log-odds (math.exp is the C library's exp, as OctoMap's), the channels in double
+    truncated toward zero and wrapped to 8 bits as liboctomap's conversion to uint8_t does on
+    x86-64 (a negative channel needs p > 0.99)."""
+    if tuple(old) == (255, 255, 255):
+        return list(new)
+    p = 1.0 - (1.0 / (1.0 + math.exp(float(log_odds))))
+    return [int(float(o) * p + float(c) * (0.99 - p)) & 0xFF for o, c in zip(old, new)]
+
+
+@pytest.mark.parametrize("clamping_max", [0.971, 0.999])
+def test_colors_integrate_as_a_python_replica_of_octomaps_formula(context, clamping_max):
+    # No OctoMap Python binding here: the cells' colours scan after scan against the formula
+    # (test_color_scans_equal_octomaps_color_octree holds whole scans to OctoMap's C++ tree).
+    # At clamping_max 0.999 the occupancy passes 0.99 and dark after bright goes negative.
+    m = octovk.ColorMap(0.1, clamping_max=clamping_max)
+    points = np.concatenate([SAME_CELL, SAME_CELL[:1], OTHER_CELL])
+    cells = {0: WHITE, 3: WHITE}  # SAME_CELL's colour (points 0 to 2), OTHER_CELL's (point 3)
+    wrapped = 0
+    for scan in range(14):
+        rng = np.random.default_rng(scan)
+        colors = rng.integers(0, 256, (4, 3)).astype(np.uint8)
+        if scan < 8:
+            colors[:, :] = [1, 2, 0]  # dark while the occupancy climbs past 0.99
+        elif scan % 2:
+            colors[:, :] = [250, 240, 230]
+        m.insert_point_cloud(points, (0, 0, 0), colors=colors, color_fold="integrate")
+        _, log_odds, _ = m.search(points)
+        for i, cell in ((0, 0), (1, 0), (2, 0), (3, 3)):
+            before = cells[cell]
+            cells[cell] = integrated_by_hand(before, colors[i].tolist(), log_odds[i])
+            p = 1.0 - (1.0 / (1.0 + math.exp(float(log_odds[i]))))
+            wrapped += tuple(before) != (255, 255, 255) and any(
+                float(o) * p + float(c) * (0.99 - p) < 0 for o, c in zip(before, colors[i]))
+        np.testing.assert_array_equal(m.colors(points),
+                                      [cells[0], cells[0], cells[0], cells[3]], f"scan {scan}")
+    assert (wrapped > 0) == (clamping_max > 0.99)
 
 
 def test_colors_come_as_the_points_come(context):
@@ -299,7 +333,7 @@ def payload_queries(scans, seed=3):
     return np.ascontiguousarray(np.concatenate([q] + [s[0] for s in scans]), np.float32)
 
 
-@pytest.mark.parametrize("fold", ["average", pytest.param("integrate", marks=INTEGRATE_PENDING)])
+@pytest.mark.parametrize("fold", ["average", "integrate"])
 def test_color_scans_equal_octomaps_color_octree(context, tmp_path, fold):
     scans = payload_scans(21)
     m = octovk.ColorMap(0.05)

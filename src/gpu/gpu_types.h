@@ -152,7 +152,9 @@ OCTOVK_CONST uint kFoldEmpty = 0xFFFFFFFFu;  // an empty entry of the colour fol
 // chunks of consecutive indices, one chunk after another, so that no node's list outgrows the
 // loop budget. 16 B.
 OCTOVK_CONST uint kColorFoldGroup = 0u;  // per point: its node found, the point pushed on its list
-OCTOVK_CONST uint kColorFoldApply = 1u;  // per table entry: the node's points in order, folded
+// Per table entry: the node's points in order, folded by averageNodeColor or integrateNodeColor.
+OCTOVK_CONST uint kColorFoldAverage = 1u;
+OCTOVK_CONST uint kColorFoldIntegrate = 2u;
 struct ColorFoldConstants {
   uint mode;        // 4B (0)  kColorFold*
   uint table_log2;  // 4B (4)  the table's entries: 2^table_log2
@@ -541,11 +543,14 @@ struct KeepBoxConstants {
 // device_probe. 16 B.
 OCTOVK_CONST uint kProbeModeArithmetic = 0u;  // per case, the operations, into ProbeResults
 OCTOVK_CONST uint kProbeModeLoop = 1u;        // the iterations a loop really runs
+// Tests only (deviceOccupancies): occupancyProbability (probability.glsl) of floats
+// first ... first + case_count - 1 of the input (a float array), into a double array.
+OCTOVK_CONST uint kProbeModeProbability = 2u;
 struct DeviceProbeConstants {
   uint mode;             // 4B (0)  kProbeMode*
-  uint case_count;       // 4B (4)  kProbeModeArithmetic: cases
+  uint case_count;       // 4B (4)  kProbeModeArithmetic: cases; kProbeModeProbability: values
   uint loop_iterations;  // 4B (8)  kProbeModeLoop: iterations the loop asks for
-  uint pad0;             // 4B (12)
+  uint first;            // 4B (12) kProbeModeProbability: the dispatch's first value
 };
 
 // Descriptor bindings: every pass sees the same set layout.

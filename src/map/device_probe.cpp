@@ -1,5 +1,6 @@
 #include "map/device_probe.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <chrono>
 #include <cmath>
@@ -219,6 +220,35 @@ Result<DeviceProbe> probeDevice(vk::Device& device) {
   } catch (const Error& e) {
     return e;
   }
+}
+
+std::vector<double> deviceOccupancies(vk::Device& device, std::span<const float> log_odds) {
+  std::vector<double> out(log_odds.size());
+  if (log_odds.empty()) return out;
+  vk::Buffer in(device, log_odds.size_bytes(), /*host_visible=*/true);
+  vk::Buffer results(device, out.size() * sizeof(double), /*host_visible=*/true);
+  std::memcpy(in.mapped(), log_odds.data(), log_odds.size_bytes());
+  vk::BindingSet bindings(device);
+  bindings.updateRange(gpu::kBindQueryIn, in.handle(), 0, in.size());
+  bindings.updateRange(gpu::kBindQueryOut, results.handle(), 0, results.size());
+  const vk::Pass& pass = device.pass("device_probe");
+  vk::CommandStream stream(device);
+  stream.begin(bindings);
+  // Dispatches of at most 65,535 groups (the least maxComputeWorkGroupCount Vulkan allows).
+  constexpr std::size_t kMostPerDispatch = std::size_t{65535} * gpu::kWorkgroupSize;
+  for (std::size_t first = 0; first < log_odds.size(); first += kMostPerDispatch) {
+    const std::size_t n = std::min(kMostPerDispatch, log_odds.size() - first);
+    const gpu::DeviceProbeConstants pc{.mode = gpu::kProbeModeProbability,
+                                       .case_count = static_cast<std::uint32_t>(n),
+                                       .first = static_cast<std::uint32_t>(first)};
+    stream.dispatch(pass,
+                    static_cast<std::uint32_t>((n + gpu::kWorkgroupSize - 1) / gpu::kWorkgroupSize),
+                    &pc, sizeof pc);
+  }
+  stream.barrier();
+  stream.submitAndWait();
+  std::memcpy(out.data(), results.mapped(), out.size() * sizeof(double));
+  return out;
 }
 
 namespace {

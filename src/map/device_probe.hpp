@@ -44,6 +44,11 @@ std::optional<std::string> firstProbeMismatch(std::span<const gpu::ProbeCase> ca
                                               std::span<const gpu::ProbeResult> results,
                                               std::span<const std::int32_t> floors);
 
+/// Tests only: the device's occupancyProbability (shaders/probability.glsl: octomap::probability,
+/// 1 - 1 / (1 + exp(l)) in double) of each log-odds, through the probe shader's
+/// kProbeModeProbability, for a bit-for-bit comparison with the host.
+std::vector<double> deviceOccupancies(vk::Device& device, std::span<const float> log_odds);
+
 /// Runs the probe. Fails with kMissingFeature naming the first operation whose result differs
 /// from the host's (IEEE 754 double, round to nearest even), with its operands.
 Result<DeviceProbe> probeDevice(vk::Device& device);

@@ -54,8 +54,8 @@ void ScanPipeline::record(PendingScan& p) {
   passes::recordTreeUpdate(rec);
   passes::recordPrune(rec);
   if (input.colors && p.closes_scan)  // after every part: the nodes the points end in
-    passes::recordColorFold(rec, p.count, core_.buffers.uploads[p.staging_frame].handle(),
-                            input.colors_offset);
+    passes::recordColorFold(rec, p.count, p.options.color_fold,
+                            core_.buffers.uploads[p.staging_frame].handle(), input.colors_offset);
   if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec);
   if (p.queries) passes::recordQueries(rec, core_.queryParams(), *p.queries);
   passes::recordClearSets(rec);

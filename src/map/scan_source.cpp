@@ -57,11 +57,11 @@ void checkPayloadOptions(Payload payload, std::size_t count, const ScanOptions& 
                 "insertPointCloud: " + std::to_string(options.colors.size()) + " colours for " +
                     std::to_string(count) +
                     " points (or depth pixels); give exactly one colour per point");
-  if (options.color_fold != ColorFold::kAverage)
+  if (options.color_fold != ColorFold::kAverage && options.color_fold != ColorFold::kIntegrate)
     throw Error(ErrorCode::kInvalidArgument,
-                "insertPointCloud: ColorFold::kIntegrate (integrateNodeColor, OctoMap's "
-                "occupancy-weighted double arithmetic) is not available on the device yet; use "
-                "ColorFold::kAverage (averageNodeColor)");
+                "insertPointCloud: ScanOptions::color_fold is " +
+                    std::to_string(static_cast<std::uint32_t>(options.color_fold)) +
+                    ", neither ColorFold::kAverage nor ColorFold::kIntegrate");
 }
 
 VkDeviceSize stageColors(const ScanSource& source, const passes::RayKeysInput& input,

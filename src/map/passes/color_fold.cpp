@@ -1,5 +1,6 @@
 // A colour scan's fold: color_fold.comp grouping the scan's points by the node search() finds,
-// then folding each node's colours in the cloud's order (ColorOcTree::averageNodeColor).
+// then folding each node's colours in the cloud's order (ColorOcTree::averageNodeColor or
+// integrateNodeColor).
 #include <algorithm>
 
 #include "map/buffer_sizes.hpp"
@@ -7,7 +8,8 @@
 
 namespace octovk::passes {
 
-void recordColorFold(Recorder& r, std::size_t count, VkBuffer source, VkDeviceSize offset) {
+void recordColorFold(Recorder& r, std::size_t count, ColorFold fold, VkBuffer source,
+                     VkDeviceSize offset) {
   MapBuffers& b = r.buffers;
   const std::size_t chunk = b.colorChunk();
   const std::uint32_t table_log2 = sizes::colorTableLog2(b.pointCapacity(), chunk);
@@ -23,7 +25,7 @@ void recordColorFold(Recorder& r, std::size_t count, VkBuffer source, VkDeviceSi
                                .first = static_cast<std::uint32_t>(first),
                                .count = static_cast<std::uint32_t>(n)};
     r.dispatch<Shader::kColorFold>(n, pc);
-    pc.mode = gpu::kColorFoldApply;
+    pc.mode = fold == ColorFold::kIntegrate ? gpu::kColorFoldIntegrate : gpu::kColorFoldAverage;
     r.dispatch<Shader::kColorFold>(std::size_t{1} << table_log2, pc);
   }
 }

@@ -79,10 +79,12 @@ void recordPrune(Recorder& r);
 
 // ---- color_fold.cpp ----
 
-/// A colour scan's fold (ColorOcTree::averageNodeColor per point, in order), after its tree
-/// passes: the scan's `count` colours copied from `source` at `offset` (packed words), the
-/// table emptied, then color_fold's two modes. Nothing happens on the device for a refused scan.
-void recordColorFold(Recorder& r, std::size_t count, VkBuffer source, VkDeviceSize offset);
+/// A colour scan's fold (ColorOcTree::averageNodeColor or, for ColorFold::kIntegrate,
+/// integrateNodeColor per point, in order), after its tree passes: the scan's `count` colours
+/// copied from `source` at `offset` (packed words), the table emptied, then color_fold's group
+/// and fold modes. Nothing happens on the device for a refused scan.
+void recordColorFold(Recorder& r, std::size_t count, ColorFold fold, VkBuffer source,
+                     VkDeviceSize offset);
 
 // ---- leaf_boxes.cpp ----
 
