@@ -99,7 +99,7 @@ enum class ColorFold : std::uint32_t {
   /// possible only with clamping_max above 0.99, wraps: -1 gives 255). glibc's exp, which OctoMap
   /// calls, is not always correctly rounded: p differs by an ULP at 2 in 100,000 log-odds, and
   /// a colour at 21 of the 2.15 billion of the default clamping range, for old = new = 100 or
-  /// 200 only, one less than OctoMap's (docs/benchmarks.md).
+  /// 200 only, one apart from OctoMap's (docs/benchmarks.md).
   kIntegrate = 1,
 };
 
