@@ -158,7 +158,8 @@ struct ScanOptions {
   std::span<const Rgb> colors{};
   ColorFold color_fold = ColorFold::kAverage;
   /// Stamped maps (Payload::kStamp): the scan's time in whole seconds, which every node the scan
-  /// updates takes (OcTreeStamped's time(NULL)). Ignored by other maps.
+  /// updates takes (OcTreeStamped's time(NULL)). 0 for other maps: a stamp given to a map that
+  /// holds none is kInvalidArgument (it would be lost).
   std::uint32_t stamp = 0;
 };
 

@@ -45,6 +45,12 @@ void checkScan(const vk::Device& device, std::size_t count, const Eigen::Vector3
 }
 
 void checkPayloadOptions(Payload payload, std::size_t count, const ScanOptions& options) {
+  if (options.stamp != 0 && payload != Payload::kStamp)
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud: a time stamp (" + std::to_string(options.stamp) +
+                    ") was given, but the map is a " + treeTypeName(payload) +
+                    ", which holds no stamps; make a StampedMap (MapParams::payload = "
+                    "Payload::kStamp) to keep them");
   if (options.colors.empty()) return;
   if (payload != Payload::kColor)
     throw Error(ErrorCode::kInvalidArgument,
