@@ -315,6 +315,10 @@ def test_stored_colour_and_stamped_maps_equal_the_same_scans_in_memory(context, 
     assert follower.tree_type == tree_type and type(follower.map(context=context)) is type(memory)
     if tree_type == "OcTreeStamped":
         assert read_bytes(tmp_path / "read.ot.stamps") == read_bytes(tmp_path / "memory.ot.stamps")
-    if tree_type == "OcTreeStamped":  # colours for a map that holds none: refused by name
-        with pytest.raises(octovk.InvalidArgumentError, match="colours were given"):
+    # Colours or a stamp for a map that holds none: refused by name, nothing committed.
+    with pytest.raises(octovk.InvalidArgumentError, match="colours were given|holds no stamps"):
+        if tree_type == "OcTreeStamped":
             one.insert_point_cloud(points, origin, colors=np.zeros((len(points), 3), np.uint8))
+        else:
+            one.insert_point_cloud(points, origin, stamp=5)
+    assert octovk.StoreFollower(store).poll()["seq"] == 4
