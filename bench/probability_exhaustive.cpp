@@ -20,26 +20,15 @@
 #include "map/context_access.hpp"
 #include "map/device_probe.hpp"
 #include "octovk/octovk.hpp"
+#include "probability_oracle.hpp"
 
 namespace {
 
-// Floats in the order of their values: ordinal 0 is +-0, n > 0 the n-th float above 0, -n below.
-float floatOfOrdinal(std::int64_t o) {
-  const auto magnitude = std::bit_cast<float>(static_cast<std::uint32_t>(o < 0 ? -o : o));
-  return o < 0 ? -magnitude : magnitude;
-}
-std::int64_t ordinalOf(float f) {
-  const auto bits = std::bit_cast<std::uint32_t>(f);
-  const auto magnitude = static_cast<std::int64_t>(bits & 0x7FFFFFFFu);
-  return (bits & 0x80000000u) ? -magnitude : magnitude;
-}
-std::uint64_t bitsOf(double d) { return std::bit_cast<std::uint64_t>(d); }
+using octovk::test::floatOfOrdinal;
+using octovk::test::integratedChannel;
+using octovk::test::ordinalOf;
 
-// integrateNodeColor's channel as liboctomap computes it on x86-64 (cvttsd2si, low 8 bits).
-std::uint8_t integratedChannel(int old, int c, double p) {
-  const double v = static_cast<double>(old) * p + static_cast<double>(c) * (0.99 - p);
-  return static_cast<std::uint8_t>(static_cast<std::int32_t>(v) & 0xFF);
-}
+std::uint64_t bitsOf(double d) { return std::bit_cast<std::uint64_t>(d); }
 
 }  // namespace
 

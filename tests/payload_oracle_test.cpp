@@ -25,6 +25,7 @@
 #include "changed_keys.hpp"
 #include "map/context_access.hpp"
 #include "map/device_probe.hpp"
+#include "probability_oracle.hpp"
 #include "rt_paths.hpp"
 
 namespace octovk::test {
@@ -229,17 +230,6 @@ INSTANTIATE_TEST_SUITE_P(Cases, ColorScans,
 
 // ---- integrateNodeColor's weight: octomap::probability on the device ----------------------------
 
-// Floats in the order of their values: ordinal 0 is +-0, n > 0 the n-th float above 0, -n below.
-float floatOfOrdinal(std::int64_t o) {
-  const auto magnitude = std::bit_cast<float>(static_cast<std::uint32_t>(o < 0 ? -o : o));
-  return o < 0 ? -magnitude : magnitude;
-}
-std::int64_t ordinalOf(float f) {
-  const auto bits = std::bit_cast<std::uint32_t>(f);
-  const auto magnitude = static_cast<std::int64_t>(bits & 0x7FFFFFFFu);
-  return (bits & 0x80000000u) ? -magnitude : magnitude;
-}
-
 // Every float from `lo` to `hi` whose ordinal is a multiple of `stride` away from lo's.
 void addFloats(std::vector<float>& out, float lo, float hi, std::int64_t stride) {
   for (std::int64_t o = ordinalOf(lo), end = ordinalOf(hi); o <= end; o += stride)
@@ -262,13 +252,6 @@ std::vector<float> reachableLogOdds(const octomap::ColorOcTree& tree, int update
     frontier = std::move(next);
   }
   return {seen.begin(), seen.end()};
-}
-
-// What integrateNodeColor makes of one channel (old, new) at occupancy p: the double, converted to
-// uint8_t as liboctomap on x86-64 does (cvttsd2si: toward zero to int32, the low 8 bits).
-std::uint8_t integratedChannel(int old, int c, double p) {
-  const double v = static_cast<double>(old) * p + static_cast<double>(c) * (0.99 - p);
-  return static_cast<std::uint8_t>(static_cast<std::int32_t>(v) & 0xFF);
 }
 
 // occupancyProbability (shaders/probability.glsl: exp built from the probed double arithmetic,

@@ -592,6 +592,38 @@ TEST(StoredMapApi, ScansCommitAsOctoMapReplaysTheLog) {
 // map is the last commit's plus one scan; the store must still hold exactly the whole map's cut
 // after every scan: through free space merging into tiles above the tile depth, a merged region
 // expanded again by an obstacle, an edit made between commits and a tile pruning removes.
+// The walls of a cube of edge 2 * half around the origin: `count` x `count` points a face,
+// `step` apart from the corner on.
+std::vector<Eigen::Vector3f> cubeWalls(float half, int count, float step) {
+  std::vector<Eigen::Vector3f> walls;
+  for (int a = 0; a < count; ++a)
+    for (int b = 0; b < count; ++b) {
+      const float u = -half + step * static_cast<float>(a);
+      const float v = -half + step * static_cast<float>(b);
+      walls.insert(
+          walls.end(),
+          {{half, u, v}, {-half, u, v}, {u, half, v}, {u, -half, v}, {u, v, half}, {u, v, -half}});
+    }
+  return walls;
+}
+
+// Whether map `name` of `st` holds exactly `expected` (tilesOf's cut, in key order), tile for
+// tile; the stored tiles, sorted, into `stored`.
+::testing::AssertionResult storeHolds(store::Store& st, const std::string& name,
+                                      const std::vector<store::Tile>& expected,
+                                      std::vector<store::Tile>& stored) {
+  stored = st.tiles(name, nullptr);
+  std::sort(stored.begin(), stored.end(),
+            [](const store::Tile& x, const store::Tile& y) { return x.key < y.key; });
+  if (stored.size() != expected.size())
+    return ::testing::AssertionFailure()
+           << stored.size() << " tiles stored, " << expected.size() << " in the map";
+  for (std::size_t i = 0; i < expected.size(); ++i)
+    if (!(stored[i] == expected[i]))
+      return ::testing::AssertionFailure() << "tile " << expected[i].key << " differs";
+  return ::testing::AssertionSuccess();
+}
+
 TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   Scratch scratch("store");
@@ -601,28 +633,13 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
   store::MapWriter writer(*st, "w", params);
   OccupancyMap map(ctx, params);
   // The walls of a cube of edge 25.4 m around the sensor: rays through all of its middle.
-  std::vector<Eigen::Vector3f> walls;
-  for (int a = 0; a < 64; ++a)
-    for (int b = 0; b < 64; ++b) {
-      const float u = -12.7f + 0.4f * static_cast<float>(a);
-      const float v = -12.7f + 0.4f * static_cast<float>(b);
-      walls.insert(walls.end(), {{12.7f, u, v},
-                                 {-12.7f, u, v},
-                                 {u, 12.7f, v},
-                                 {u, -12.7f, v},
-                                 {u, v, 12.7f},
-                                 {u, v, -12.7f}});
-    }
+  const std::vector<Eigen::Vector3f> walls = cubeWalls(12.7f, 64, 0.4f);
   std::size_t incremental = 0, above = 0, removed = 0;
   const auto commitAndCheck = [&](std::uint64_t scan) {
     const store::CommitStats stats = writer.commit(map, "test", scan);
     const std::vector<store::Tile> expected = store::tilesOf(map.download());
-    std::vector<store::Tile> stored = st->tiles("w", nullptr);
-    std::sort(stored.begin(), stored.end(),
-              [](const store::Tile& x, const store::Tile& y) { return x.key < y.key; });
-    ASSERT_EQ(stored.size(), expected.size()) << "after scan " << scan;
-    for (std::size_t i = 0; i < expected.size(); ++i)
-      ASSERT_TRUE(stored[i] == expected[i]) << "tile " << expected[i].key << " after scan " << scan;
+    std::vector<store::Tile> stored;
+    ASSERT_TRUE(storeHolds(*st, "w", expected, stored)) << "after scan " << scan;
     if (stats.tiles_compared < expected.size()) ++incremental;
     for (const store::Tile& t : expected) above += store::tileKeyDepth(t.key) < store::kTileDepth;
     removed += stats.tiles_removed;
@@ -660,22 +677,11 @@ TEST(StoreWriter, ColourAndStampedMapsHoldTheirCutAndOctoMapsTree) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   Scratch scratch("store");
   // The walls of a cube of edge 12.7 m around the sensor.
-  std::vector<Eigen::Vector3f> walls;
-  for (int a = 0; a < 24; ++a)
-    for (int b = 0; b < 24; ++b) {
-      const float u = -6.35f + 0.55f * static_cast<float>(a);
-      const float v = -6.35f + 0.55f * static_cast<float>(b);
-      walls.insert(walls.end(), {{6.35f, u, v},
-                                 {-6.35f, u, v},
-                                 {u, 6.35f, v},
-                                 {u, -6.35f, v},
-                                 {u, v, 6.35f},
-                                 {u, v, -6.35f}});
-    }
+  const std::vector<Eigen::Vector3f> walls = cubeWalls(6.35f, 24, 0.55f);
   for (const Payload kind : {Payload::kColor, Payload::kStamp}) {
     SCOPED_TRACE(treeTypeName(kind));
-    std::unique_ptr<store::Store> st =
-        store::Store::open(scratch / (std::string(treeTypeName(kind)) + ".sqlite"), true);
+    const std::string location = scratch / (std::string(treeTypeName(kind)) + ".sqlite");
+    std::unique_ptr<store::Store> st = store::Store::open(location, true);
     MapParams params;
     params.resolution = 0.2;
     params.payload = kind;
@@ -722,13 +728,8 @@ TEST(StoreWriter, ColourAndStampedMapsHoldTheirCutAndOctoMapsTree) {
       }
       const store::CommitStats stats = writer.commit(map, "test", scan);
       const std::vector<store::Tile> expected = store::tilesOf(map.download());
-      std::vector<store::Tile> stored = st->tiles("w", nullptr);
-      std::sort(stored.begin(), stored.end(),
-                [](const store::Tile& x, const store::Tile& y) { return x.key < y.key; });
-      ASSERT_EQ(stored.size(), expected.size()) << "after scan " << scan;
-      for (std::size_t i = 0; i < expected.size(); ++i)
-        ASSERT_TRUE(stored[i] == expected[i])
-            << "tile " << expected[i].key << " after scan " << scan;
+      std::vector<store::Tile> stored;
+      ASSERT_TRUE(storeHolds(*st, "w", expected, stored)) << "after scan " << scan;
       if (stats.tiles_compared < expected.size()) ++incremental;
       const HostTree rebuilt = store::treeFromTiles(stored, store::kTileDepth, kind);
       if (kind == Payload::kColor)
@@ -743,14 +744,8 @@ TEST(StoreWriter, ColourAndStampedMapsHoldTheirCutAndOctoMapsTree) {
     // Opened with other parameters, the map keeps its own tree type; it reads back whole.
     MapParams plain = params;
     plain.payload = Payload::kNone;
-    EXPECT_EQ(
-        StoredMap::open(ctx, scratch / (std::string(treeTypeName(kind)) + ".sqlite"), "w", plain)
-            .map()
-            .params()
-            .payload,
-        kind);
-    OccupancyMap read =
-        readStoredMap(ctx, scratch / (std::string(treeTypeName(kind)) + ".sqlite"), "w");
+    EXPECT_EQ(StoredMap::open(ctx, location, "w", plain).map().params().payload, kind);
+    OccupancyMap read = readStoredMap(ctx, location, "w");
     EXPECT_EQ(read.params().payload, kind);
     EXPECT_TRUE(store::tilesOf(read.download()) == store::tilesOf(map.download()));
   }
