@@ -12,7 +12,7 @@ cmake_minimum_required(VERSION 3.25)  # script mode
 # reach it by (bindings.glsl): struct or scalar type | GLSL expression of element @ | binding |
 # byte offset of element 0 in the binding's buffer (C++) | elements written.
 set(kRegionsAt 256)
-set(kRegionBytes 1024)
+set(kRegionBytes 2048)
 set(VIEWS
   "ScanParams|params|kBindParams|0|1"
   "ScanCounters|counters|kBindCounters|0|1"

@@ -34,6 +34,22 @@ void main() {
   bool found = ended != kSearchMissing;
   bool open = ended == kSearchOpen;
 
+  // A tile off the device (its node kFlagEvicted, a leaf here): the scan is refused until the
+  // host loaded it. Its node goes into the set of needed tiles (one slot per tile, found by
+  // atomicCompSwap; a full set leaves the rest to the next refusal), and the brick lists nothing.
+  if (found && !open && (linkOf(n) & kFlagEvicted) != 0u) {
+    atomicOr(counters.status, kStatusTilesNeeded);
+    uint start = (n * 2654435761u) >> 26;  // 64 slots (kNeededTileSlots)
+    for (uint probe = 0u; probe < kNeededTileSlots; ++probe) {
+      uint at = (start + probe) & (kNeededTileSlots - 1u);
+      uint prev = atomicCompSwap(counters.needed_tiles[at], 0u, n + 1u);
+      if (prev == 0u) atomicAdd(counters.tiles_needed, 1u);
+      if (prev == 0u || prev == n + 1u) break;
+    }
+    marked = uvec2(0u);
+    occupied_bits = uvec2(0u);
+  }
+
   // The early abort, for the cells whose search ends in a node that exists: classify gets only
   // the others (after a few scans most cells of a map end here, and llvmpipe runs classify's
   // whole code for every group of cells). A leaf at or above the brick's depth holds every cell

@@ -131,7 +131,9 @@ NodeData summariseChildren(uint n, uint block, out bool collapsible) {
       continue;
     }
     NodeData data = nodeData(child);
-    if (linkHasChildren(link) || !collapsibleData(first, data)) collapsible = false;
+    // A tile off the device (kFlagEvicted) has children there: never merged.
+    if (linkHasChildren(link) || (link & kFlagEvicted) != 0u || !collapsibleData(first, data))
+      collapsible = false;
     if (data.log_odds > max_log_odds) max_log_odds = data.log_odds;
   }
   uint payload = params.payload == kPayloadStamp ? params.stamp : nodePayload(n);

@@ -11,7 +11,8 @@
 // never has to look between the passes, nor between scans.
 // Also sets clear_args, over the slots this scan filled in the sets (cleared at its end), and
 // the count of early-aborted cells. With change detection on, the change set must have room for
-// every updated cell (kStatusChangesShort otherwise).
+// every updated cell (kStatusChangesShort otherwise). A scan that reaches a tile off the device
+// (kStatusTilesNeeded, set by list_cells) is refused too: the host loads the tile first.
 #include "bindings.glsl"
 
 void setArgs(uint items, inout DispatchArgs args) {
@@ -45,7 +46,8 @@ void main() {
       status |= kStatusChangesShort;
   }
   if ((status & (kStatusHashFull | kStatusEndpointHashFull | kStatusRayCut | kStatusPoolShort |
-                 kStatusListsShort | kStatusHalted | kStatusChangesShort)) != 0u) {
+                 kStatusListsShort | kStatusHalted | kStatusChangesShort |
+                 kStatusTilesNeeded)) != 0u) {
     status |= kStatusNotApplied;
     pool.halted = 1u;
     setArgs(0u, counters.block_args);

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -147,6 +148,56 @@ TEST(cliDeviceMemory, LongRaysRunInPartsUnderTheCap) {
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_TRUE(fileBytes(ref) == fileBytes(scratch / "m.bt")) << "not graph2tree's map";
   EXPECT_NE(r.out.find(" of the scans applied in groups of tiles"), std::string::npos) << r.out;
+}
+
+// A map whose node pool outgrows the cap: its coldest tiles go to a temporary file and come back
+// when later scans reach them (the sensor returns over every other place), and the map is
+// graph2tree's, byte for byte. The cap is what the uncapped run holds less half its pool.
+TEST(cliDeviceMemory, MapLargerThanTheCapSpillsTilesAndIsGraph2treesMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  (void)ctx;
+  if (::access(OCTOVK_PATH(OCTOVK_GRAPH2TREE).c_str(), X_OK) != 0) {
+    if (runningInCi()) FAIL() << "graph2tree missing under CI: apt-get install octomap-tools";
+    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";
+  }
+  Scratch scratch;
+  std::vector<TestScan> scans;
+  for (int i = 0; i < 12; ++i) scans.push_back({3000, 3.0f, {25.0f * static_cast<float>(i), 0, 0}});
+  for (int i = 10; i >= 0; i -= 2)
+    scans.push_back({3000, 3.5f, {25.0f * static_cast<float>(i), 0.3f, 0}});
+  const std::string graph = writeGraph(scratch, "places.graph", scans);
+  const std::string ref = scratch / "graph2tree.bt";
+  const std::string g2t = quote(OCTOVK_PATH(OCTOVK_GRAPH2TREE)) + " -i " + quote(graph) + " -o " +
+                          quote(ref) + " -res 0.1";
+  const RunResult reference = runShell(g2t, scratch.dir());
+  ASSERT_EQ(reference.exit_code, 0) << g2t << "\n" << reference.out << reference.err;
+
+  const RunResult uncapped =
+      runOctovk({"integrate", graph, "-o", scratch / "m.bt", "--resolution", "0.1"}, scratch.dir());
+  ASSERT_EQ(uncapped.exit_code, 0) << uncapped.err;
+  double total_mib = 0, pool_mib = 0;
+  const auto at = uncapped.out.find("device memory:");
+  ASSERT_NE(at, std::string::npos) << uncapped.out;
+  ASSERT_EQ(std::sscanf(uncapped.out.c_str() + at, "device memory: %lf MiB (node pool %lf MiB",
+                        &total_mib, &pool_mib),
+            2)
+      << uncapped.out;
+  const auto cap = static_cast<std::size_t>((total_mib - pool_mib / 2) * 1024 * 1024);
+  fs::remove(scratch / "m.bt");
+
+  const RunResult r = runOctovk({"integrate", graph, "-o", scratch / "m.bt", "--resolution", "0.1",
+                                 "--max-device-memory", std::to_string(cap)},
+                                scratch.dir());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_TRUE(fileBytes(ref) == fileBytes(scratch / "m.bt")) << "not graph2tree's map";
+  EXPECT_NE(r.out.find("spilled:"), std::string::npos) << r.out;
+  EXPECT_NE(uncapped.out.find("nodes:"), std::string::npos);
+  // The same node count as the uncapped run: the spilled tiles' nodes are counted.
+  const auto nodesLine = [](const std::string& out) {
+    const auto from = out.find("nodes:");
+    return out.substr(from, out.find('\n', from) - from);
+  };
+  EXPECT_EQ(nodesLine(r.out), nodesLine(uncapped.out));
 }
 
 TEST(cliDeviceMemory, MapCommandsTakeTheCap) {

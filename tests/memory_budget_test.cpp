@@ -9,6 +9,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "test_support.hpp"
@@ -254,6 +255,73 @@ TEST(MemoryBudget, NodePoolOverCapKeepsTheMap) {
   const auto small = sphere(0.3f, 50, last);
   ASSERT_TRUE(test::insertBoth(map, synced ? *synced : oracle, small, last, -1.0, false));
   EXPECT_LE(map.deviceBytes(), cap);
+}
+
+// A map that outgrows the cap with a spill (OccupancyMap::spillTilesTo): its coldest tiles leave
+// the device instead of the scan failing, and scans that come back to them load them first. The
+// map equals OctoMap's after every round, blocking and submitted back to back, node for node
+// (download() includes the spilled tiles), within the cap; what reads the whole tree on the
+// device is refused by name while tiles are off it, and an upload brings everything back.
+TEST(MemoryBudget, MapOverCapSpillsColdTilesAndStaysOctoMaps) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const double res = 0.1;
+  const auto at = [](int k) { return Eigen::Vector3f(20.0f * static_cast<float>(k), 0, 0); };
+  const auto scanAt = [&](int k, float radius) { return sphere(radius, 200, at(k)); };
+  std::size_t after_first = 0, pool_after_first = 0;
+  {
+    OccupancyMap probe(ctx, test::withResolution(res));
+    probe.insertPointCloud(scanAt(0, 0.6f), at(0));
+    after_first = probe.deviceBytes();
+    pool_after_first = probe.poolBytes();
+  }
+  // As NodePoolOverCapKeepsTheMap's cap, which a few places' scans outgrow.
+  const std::size_t cap = after_first + pool_after_first / 8;
+  OccupancyMap map(ctx, capped(res, cap));
+  map.spillTilesTo(makeHostTileSpill());
+  octomap::OcTree oracle = test::makeOracle(map.params());
+  std::size_t most_spilled = 0;
+  // Out to 12 places, blocking; then back over every other one, submitted back to back, with a
+  // larger sphere (new cells in the tiles left behind).
+  for (int k = 0; k < 12; ++k) {
+    ASSERT_TRUE(test::insertBoth(map, oracle, scanAt(k, 0.6f), at(k), -1.0, false)) << k;
+    EXPECT_LE(map.deviceBytes(), cap) << "scan " << k;
+    most_spilled = std::max(most_spilled, map.spilledTiles());
+  }
+  EXPECT_GT(most_spilled, 0u) << "the map never outgrew the cap";
+  for (int k = 10; k >= 0; k -= 2) {
+    map.submitPointCloud(scanAt(k, 0.8f), at(k));
+    oracle.insertPointCloud(test::toPointcloud(scanAt(k, 0.8f)), test::toPoint(at(k)));
+  }
+  map.flush();
+  EXPECT_LE(map.deviceBytes(), cap);
+  EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
+  EXPECT_EQ(map.nodeCount(), oracle.size());
+  EXPECT_EQ(map.leafCount(), oracle.getNumLeafNodes());
+  ASSERT_GT(map.spilledTiles(), 0u);
+
+  for (const auto& [call, run] : std::vector<std::pair<std::string, std::function<void()>>>{
+           {"queries", [&] { map.search(scanAt(0, 0.6f)); }},
+           {"leavesInBox", [&] { map.leavesInBox(at(0), at(1)); }},
+           {"clearBox", [&] { map.clearBox(at(0), at(1)); }},
+           {"compact", [&] { map.compact(); }}}) {
+    try {
+      run();
+      ADD_FAILURE() << call << " ran with tiles off the device";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kInvalidArgument) << e.what();
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(call), std::string::npos) << msg;
+      EXPECT_NE(msg.find("spilled"), std::string::npos) << msg;
+    }
+  }
+  EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));  // the refusals changed nothing
+
+  // An uncapped map given the whole tree holds every tile and answers queries again.
+  OccupancyMap whole(ctx, test::withResolution(res));
+  whole.upload(map.download());
+  EXPECT_EQ(whole.spilledTiles(), 0u);
+  EXPECT_TRUE(test::sameTree(oracle, *toOcTree(whole)));
+  EXPECT_EQ(whole.search(scanAt(0, 0.6f)).size(), 200u);
 }
 
 // Query batches beyond the cap: alone, and after a scan in the same call (the scan is then not

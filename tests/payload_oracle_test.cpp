@@ -608,6 +608,64 @@ TEST(PayloadStreaming, ScansInGroupsOfTilesEqualOctoMap) {
   EXPECT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp));
 }
 
+// Colour and stamped maps that outgrow the cap with a spill: the spilled tiles keep their colours
+// and stamps, the places revisited load them back (submitted back to back), and the maps equal
+// ColorOcTree's and OcTreeStamped's node for node, payloads included.
+TEST(PayloadStreaming, MapsOverCapSpillTilesAndEqualOctoMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  MapParams params = withResolution(0.1);
+  const auto at = [](int k) { return Eigen::Vector3f(20.0f * static_cast<float>(k), 0, 0); };
+  std::size_t after_first = 0, pool_after_first = 0;
+  {
+    ColorMap probe(ctx, params);
+    const auto pts = sphere(0.6f, 200, at(0));
+    probe.insertPointCloud(pts, at(0), colorsOf(3, pts.size()));
+    after_first = probe.deviceBytes();
+    pool_after_first = probe.poolBytes();
+  }
+  params.max_device_bytes = after_first + pool_after_first / 8;
+  ColorMap cmap(ctx, params);
+  StampedMap smap(ctx, params);
+  cmap.spillTilesTo(makeHostTileSpill());
+  smap.spillTilesTo(makeHostTileSpill());
+  auto coracle = makeColorOracle(params);
+  StampedOracle soracle(params);
+  std::vector<int> places;
+  for (int k = 0; k < 10; ++k) places.push_back(k);
+  for (int k = 8; k >= 0; k -= 2) places.push_back(k);
+  std::size_t most_spilled = 0;
+  for (std::size_t i = 0; i < places.size(); ++i) {
+    const Eigen::Vector3f o = at(places[i]);
+    const auto pts = sphere(i < 10 ? 0.6f : 0.8f, 200, o);
+    const auto colors = colorsOf(40 + static_cast<std::uint32_t>(i), pts.size());
+    const auto stamp = static_cast<std::uint32_t>(7000 + i);
+    coracle->insertPointCloud(toPointcloud(pts), toPoint(o));
+    for (std::size_t j = 0; j < pts.size(); ++j)
+      coracle->averageNodeColor(pts[j].x(), pts[j].y(), pts[j].z(), colors[j].r, colors[j].g,
+                                colors[j].b);
+    soracle.setScanTime(stamp);
+    soracle.insertPointCloud(toPointcloud(pts), toPoint(o));
+    if (i < 10) {
+      cmap.insertPointCloud(pts, o, colors);
+      smap.insertPointCloud(pts, o, stamp);
+    } else {
+      (void)cmap.submitPointCloud(pts, o, {.colors = colors});
+      (void)smap.submitPointCloud(pts, o, {.stamp = stamp});
+    }
+    most_spilled = std::max({most_spilled, cmap.spilledTiles(), smap.spilledTiles()});
+  }
+  cmap.flush();
+  smap.flush();
+  EXPECT_GT(most_spilled, 0u) << "the maps never outgrew the cap";
+  EXPECT_GT(cmap.spilledTiles(), 0u);
+  EXPECT_GT(smap.spilledTiles(), 0u);
+  EXPECT_LE(cmap.deviceBytes(), params.max_device_bytes);
+  EXPECT_LE(smap.deviceBytes(), params.max_device_bytes);
+  coracle->updateInnerOccupancy();
+  EXPECT_TRUE(samePayloadTree(*coracle, cmap.download(), Payload::kColor));
+  EXPECT_TRUE(samePayloadTree(soracle, smap.download(), Payload::kStamp));
+}
+
 // Many points in few nodes, in shuffled order (the integer mean depends on the order), some
 // white; then a scan with no colours whose pruning still averages the children's colours.
 TEST(ColorInputs, ManyPointsPerNodeAndScansWithoutColours) {

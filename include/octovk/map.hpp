@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "octovk/context.hpp"
@@ -15,6 +16,25 @@
 #include "octovk/scan.hpp"
 
 namespace octovk {
+
+/// Where a map keeps the tiles its device working set does not hold (OccupancyMap::spillTilesTo):
+/// the subtrees at depth 12 (16^3 finest cells) that a map outgrowing MapParams::max_device_bytes
+/// moves off the device. A key is a tile's path from the root (3 bits a level); a body is bytes
+/// only the map reads. The map calls it from the thread that uses the map. Errors: octovk::Error
+/// (kIo where the spill cannot read or write).
+class TileSpill {
+ public:
+  virtual ~TileSpill() = default;
+  /// Keeps `body` under `key`, replacing what was kept there.
+  virtual void put(std::uint64_t key, const std::string& body) = 0;
+  /// What put() kept under `key`; kInternal where nothing is.
+  virtual std::string get(std::uint64_t key) = 0;
+  /// Forgets `key` (nothing where nothing is kept).
+  virtual void erase(std::uint64_t key) = 0;
+};
+/// A TileSpill in host memory. (octovk::store::sqliteTileSpill keeps them in a temporary SQLite
+/// file instead, for maps larger than the host's memory too.)
+std::shared_ptr<TileSpill> makeHostTileSpill();
 
 /// The occupancy octree, held in device buffers. Not copyable; movable. A moved-from map throws
 /// kInvalidArgument from every call until a map is assigned to it. A call that throws leaves the
@@ -168,8 +188,22 @@ class OccupancyMap {
   /// little free room is left as it is. Throws with the map unchanged where it cannot.
   void compact();
 
-  /// Nodes in the tree (read from the device's counters, no map data moves).
+  /// Nodes in the tree (read from the device's counters, no map data moves; with tiles spilled,
+  /// the spilled ones' nodes added).
   std::size_t nodeCount();
+
+  /// Lets the map outgrow MapParams::max_device_bytes: where a scan needs more pool than the cap
+  /// allows, the tiles (depth-12 subtrees) farthest from the scan's sensor move to `spill`, and a
+  /// scan that reaches a spilled tile loads it back first (each a round trip of the node pool
+  /// through the host). The map stays OctoMap's, node for node; download() (and every file
+  /// written from it) includes the spilled tiles. While tiles are spilled, what reads the whole
+  /// tree on the device (queries, leaf boxes, castRays, edits, degradeOutdated, compact,
+  /// distance fields, a store's capture) is refused with kInvalidArgument; scans, download(),
+  /// nodeCount() and leafCount() work. Not with MapParams::scan_rays = kRayTracing. A spill
+  /// cannot be changed while it holds tiles (kInvalidArgument).
+  void spillTilesTo(std::shared_ptr<TileSpill> spill);
+  /// Tiles off the device now (0: the whole map is in the pool).
+  std::size_t spilledTiles();
   /// Device bytes held by this map's buffers (staging included): what
   /// MapParams::max_device_bytes caps.
   std::size_t deviceBytes() const;
@@ -197,12 +231,12 @@ class OccupancyMap {
   struct CastRayInfo {
     CastRayBackend backend = CastRayBackend::kWalk;  ///< kWalk or kRayTracing, as castRays runs
     std::size_t builds = 0;  ///< acceleration-structure builds (lazily, by castRays) since trim()
-    double last_build_ms = 0.0;      ///< device time of the last: the boxes, then the structures
-    double last_boxes_ms = 0.0;      ///< of which the boxes (leaf boxes if stale, accel_boxes)
+    double last_build_ms = 0.0;  ///< device time of the last: the boxes, then the structures
+    double last_boxes_ms = 0.0;  ///< of which the boxes (leaf boxes if stale, accel_boxes)
     /// Boxes of the last build: its occupied leaves (castRay traces only the rays that ignore
     /// unknown space, so the structure holds no unknown regions).
     std::size_t occupied_boxes = 0;
-    std::size_t device_bytes = 0;    ///< boxes, structures, scratch (in deviceBytesByUse().queries)
+    std::size_t device_bytes = 0;  ///< boxes, structures, scratch (in deviceBytesByUse().queries)
     /// castRays calls answered by the walk because, under MapParams::max_device_bytes, the
     /// structure would not have fitted (kAuto only; kRayTracing throws kOutOfDeviceMemory).
     std::size_t cap_fallbacks = 0;

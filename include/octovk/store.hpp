@@ -122,4 +122,10 @@ class StoreFollower {
   std::unique_ptr<Impl> impl_;
 };
 
+/// A TileSpill (OccupancyMap::spillTilesTo) in a private temporary SQLite file: SQLite makes it
+/// in its temporary directory (SQLITE_TMPDIR, else TMPDIR, else /var/tmp or /tmp) and removes it
+/// when the spill is destroyed or the process ends, however it ends. What `octovk integrate` uses
+/// for a map that outgrows --max-device-memory without --store. kIo where it cannot be made.
+std::shared_ptr<TileSpill> sqliteTileSpill();
+
 }  // namespace octovk

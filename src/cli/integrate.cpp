@@ -21,6 +21,7 @@
 #include "command.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/octovk.hpp"
+#include "octovk/store.hpp"
 #include "octovk/tum_sequence.hpp"
 #include "ply.hpp"
 #include "png.hpp"
@@ -305,8 +306,14 @@ void printIntegrateHelp(std::ostream& out) {
          "with line i\n"
          "      --stamped          DIR: an OcTreeStamped (.ot only) with the images' seconds\n"
          "      --degrade-after S  before each stamped scan, occupied cells older than S s fade\n";
-  printMaxDeviceMemoryHelp(out, "Scans run in parts; a map");
-  out << "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
+  out << "      --max-device-memory BYTES\n"
+         "                         the map's device memory cap, K/M/G/T suffixes (512M, 2G), 0 = "
+         "no cap\n"
+         "                         (default). Scans run in parts; a map larger than the cap keeps "
+         "cold\n"
+         "                         tiles in a temp file (--store, --degrade-after: fails, naming "
+         "the cap).\n"
+         "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   IntegrateStore::printHelp(out);
   printCameraOptionsHelp(out);
   out << "  -h, --help             show this help\n"
@@ -652,11 +659,16 @@ int Integrate::run(Invocation& in) {
   if (params_.payload == Payload::kStamp) stamped.emplace(std::move(plain));
   OccupancyMap& map = stamped ? *stamped : plain;
   store_->load(map);
+  // Under a cap, a map larger than the device keeps its coldest tiles in a temporary SQLite file
+  // (a store keeps its own tiles; a degrade reads the whole tree on the device).
+  if (params_.max_device_bytes != 0 && !store_->enabled() && !degrade_after_)
+    map.spillTilesTo(sqliteTileSpill());
   if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   const auto insert_start = Clock::now();
   const Totals totals = insert(map, stamped ? &*stamped : nullptr, sources, in.input());
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
+  const std::size_t spilled = map.spilledTiles();
   const std::size_t device_bytes = map.deviceBytes();
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
@@ -685,6 +697,10 @@ int Integrate::run(Invocation& in) {
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));
+  if (spilled > 0)
+    report.line("spilled", format("%zu tiles (16^3 cells each) in a temporary file on the host at "
+                                  "the end: the map outgrew the device memory cap",
+                                  spilled));
   if (totals.split_scans > 0)
     report.line("in parts",
                 format("%zu of the scans applied in groups of tiles (up to %zu parts), each part "

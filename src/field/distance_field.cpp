@@ -137,7 +137,7 @@ DistanceField::Impl::Impl(OccupancyMap::Impl& map, const FieldBox& box,
       box_(box),
       options_(options),
       stream_(device_, 1) {
-  liveMap().flush();
+  liveMap().requireResident("DistanceField");  // flushes
   MapBuffers& buffers = liveMap().fieldBuffers();
   const std::size_t bytes = fieldBytes(box_);
   // What was asked and what it needs, then why it cannot be had and what to change: the box,
@@ -259,7 +259,8 @@ bool DistanceField::Impl::fromChanges() {
 }
 
 void DistanceField::Impl::update(bool building) {
-  liveMap().flush();  // every scan submitted before is in the map
+  // Every scan submitted before is in the map (flushed), and the whole tree on the device.
+  liveMap().requireResident("DistanceField::update");
   MapBuffers& map = liveMap().fieldBuffers();
   rebind(map);
   // A build, or an update of the lines whose input changed, reading the obstacles from the

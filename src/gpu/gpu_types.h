@@ -36,7 +36,11 @@ OCTOVK_CONST uint kRootNode = 0u;
 // Bits of Node::link: the block of the node's 8 child slots, and per-node flags.
 OCTOVK_CONST uint kBlockMask = 0x1FFFFFFFu;   // bits 0-28: block index of the children
 OCTOVK_CONST uint kNoChildren = 0x1FFFFFFFu;  // block field of a node without children
-// bit 29 is unused
+// A node at the tile depth whose subtree is off the device (a map's working set of tiles,
+// src/map/tile_working_set.hpp): it keeps its own data (the max of its subtree, its payload) and
+// no children here; a scan that reaches it is refused until the host loaded the tile
+// (kStatusTilesNeeded), and pruning never merges it. Only the host sets or clears it (upload).
+OCTOVK_CONST uint kFlagEvicted = 0x20000000u;
 OCTOVK_CONST uint kFlagTouched = 0x40000000u;  // on an updated path, listed for the prune pass
 OCTOVK_CONST uint kFlagLive = 0x80000000u;     // the node exists (its parent has this child)
 // Child bits of a node as the host tree (HostTree::Node::mask) gives them.
@@ -72,6 +76,12 @@ OCTOVK_CONST uint kStatusHalted = 128u;
 // The change set (change detection on) might not have room for every cell the scan updates
 // (at most 3/4 of its slots may be used): the scan is not applied; the host grows the set.
 OCTOVK_CONST uint kStatusChangesShort = 256u;
+// The scan reaches tiles whose subtree is off the device (kFlagEvicted): not applied; their nodes
+// are in ScanCounters::needed_tiles, and the host loads them and runs the scan again.
+OCTOVK_CONST uint kStatusTilesNeeded = 512u;
+// Slots of ScanCounters::needed_tiles (a power of two): the evicted tiles one refusal names; a
+// scan that reaches more is refused again after the host loaded these.
+OCTOVK_CONST uint kNeededTileSlots = 64u;
 
 OCTOVK_CONST uint kWorkgroupSize = 64u;
 OCTOVK_CONST uint kLevelCount = 17u;  // depths 0..16
@@ -187,7 +197,7 @@ struct DispatchArgs {
 };
 
 // Counters of one scan, reset at its start. The host reads this struct back once per scan
-// (with the PoolState right after it, in the readback region of its frame). 420 B.
+// (with the PoolState right after it, in the readback region of its frame). 680 B.
 struct ScanCounters {
   uint status;             // 4B (0)   kStatus* bits
   uint brick_entries;      // 4B (4)   distinct bricks in the cell set
@@ -215,6 +225,9 @@ struct ScanCounters {
   DispatchArgs active_args;  // 12B (396) groups over the active cells (descend); set by tree_gate
   DispatchArgs clear_args;   // 12B (408) groups over max(brick_entries, new_blocks): the slots
                              //           clear_sets empties at the scan's end; set by tree_gate
+  uint tiles_needed;         // 4B (420) distinct evicted tiles in needed_tiles (list_cells)
+  uint needed_tiles[kNeededTileSlots];  // 256B (424) an open-addressed set of evicted tile
+                                        //  nodes the scan reaches: node + 1, 0 = empty slot
 };
 
 // A ray walk of the ray-key pass, saved between segments. 48 B.

@@ -8,6 +8,7 @@
 //   TreeTransfer   (tree_transfer.hpp)   download, upload, leaf boxes to the host
 //   ChangeSet      (change_set.hpp)      change detection: the changed keys on the device
 //   TreeEdits      (tree_edits.hpp)      map surgery: clearing a box
+//   TileWorkingSet (tile_working_set.hpp) tiles moved off the device and back, under the cap
 //   ScanPipeline   (scan_pipeline.hpp)   recording, submitting and confirming scans
 #pragma once
 
@@ -23,6 +24,7 @@
 #include "map/ray_scene_cache.hpp"
 #include "map/scan_pipeline.hpp"
 #include "map/scan_source.hpp"
+#include "map/tile_working_set.hpp"
 #include "map/tree_edits.hpp"
 #include "map/tree_transfer.hpp"
 #include "octovk/octovk.hpp"
@@ -61,6 +63,7 @@ class OccupancyMap::Impl {
   void setLeafBoxesEveryScan(bool every_scan) {
     if (every_scan) {
       scans_.flush();  // the buffer is made (and bound) with nothing in flight
+      tiles_.requireResident("setLeafBoxesEveryScan");
       core_.ensureLeafBoxes();
     }
     scans_.setLeafBoxesEveryScan(every_scan);
@@ -110,6 +113,7 @@ class OccupancyMap::Impl {
   // ---- map surgery (TreeEdits), after the scans submitted before it ----
   void clearBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
     flush();
+    tiles_.requireResident("clearBox");
     edits_.clearBox(min, max);
   }
   /// The root's payload word (0 without a root or a payload): OcTreeStamped's last update time.
@@ -126,14 +130,17 @@ class OccupancyMap::Impl {
   }
   void degradeOutdated(std::uint32_t now, std::uint32_t threshold) {
     flush();
+    tiles_.requireResident("degradeOutdated");
     edits_.degrade(now, threshold);
   }
   void keepBox(const Eigen::Vector3f& min, const Eigen::Vector3f& max) {
     flush();
+    tiles_.requireResident("keepBox");
     edits_.keepBox(min, max);
   }
   void compact() {
     flush();
+    tiles_.requireResident("compact");
     transfer_.compact();
   }
 
@@ -143,6 +150,7 @@ class OccupancyMap::Impl {
   /// The pool and what changed near the root since version `since` (TreeTransfer::capture).
   PoolCapture capture(std::uint64_t since, unsigned depth) {
     flush();
+    tiles_.requireResident("the store's capture");
     return transfer_.capture(since, depth);
   }
   /// The tree's version once the scans in flight are in (MapCore::tree_version).
@@ -152,6 +160,25 @@ class OccupancyMap::Impl {
   }
   std::vector<LeafBoxHost> downloadLeafBoxes();
   gpu::PoolState readPool();
+  /// Nodes in the tree: the pool's and the spilled tiles' (OccupancyMap::nodeCount).
+  std::size_t nodeCount();
+  /// Leaves in the tree (OccupancyMap::leafCount).
+  std::size_t leafCount();
+
+  // ---- the working set of tiles (TileWorkingSet) ----
+  void spillTilesTo(std::shared_ptr<TileSpill> spill) {
+    flush();
+    tiles_.setSpill(std::move(spill));
+  }
+  std::size_t spilledTiles() {
+    flush();
+    return tiles_.spilledTiles();
+  }
+  /// Throws kInvalidArgument naming `call` while tiles are off the device (after flush()).
+  void requireResident(const char* call) {
+    flush();
+    tiles_.requireResident(call);
+  }
   /// Rebuilds the leaf boxes if scans were inserted without rebuilding them.
   void refreshLeafBoxes();
 
@@ -195,6 +222,7 @@ class OccupancyMap::Impl {
   GrowthPolicy growth_;
   QueryRunner queries_;
   TreeTransfer transfer_;
+  TileWorkingSet tiles_;
   TreeEdits edits_;
   ScanPipeline scans_;
 };

@@ -18,8 +18,9 @@ OccupancyMap::Impl::Impl(Context& context, const MapParams& params)
       growth_(core_, changes_),
       queries_(core_, scenes_),
       transfer_(core_, scenes_),
+      tiles_(core_, transfer_),
       edits_(core_),
-      scans_(core_, changes_, growth_, scenes_, queries_) {}
+      scans_(core_, changes_, growth_, scenes_, queries_, tiles_) {}
 
 OccupancyMap::Impl::~Impl() {
   *link_ = nullptr;  // the fields on this map refuse from now on
@@ -31,6 +32,7 @@ OccupancyMap::Impl::~Impl() {
 }
 
 QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& queries) {
+  requireResident("queries (search, castRays, colors, stamps)");
   flush();  // sees every scan submitted before it
   return queries_.run(queries);
 }
@@ -38,29 +40,62 @@ QueryResults OccupancyMap::Impl::runQueries(const QueryRequest& queries) {
 void OccupancyMap::Impl::queryOnDevice(bool rays, VkBuffer in, VkDeviceSize in_offset,
                                        VkDeviceSize in_size, VkBuffer out, VkDeviceSize out_offset,
                                        VkDeviceSize out_size, std::uint32_t count) {
-  flush();
+  requireResident("queries on the device (interop)");
   queries_.onDevice(rays, in, in_offset, in_size, out, out_offset, out_size, count);
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::leavesInBox(const Eigen::Vector3f& min,
                                                                        const Eigen::Vector3f& max,
                                                                        bool occupied_only) {
-  flush();
+  requireResident("leavesInBox");
   return queries_.leavesInBox(min, max, occupied_only);
 }
 
 HostTree OccupancyMap::Impl::download() {
   flush();
-  return transfer_.download();
+  if (tiles_.spilledTiles() == 0) return transfer_.download();
+  HostTree tree = tiles_.wholeTree(transfer_.downloadRaw());
+  averageInnerColors(tree);  // ColorOcTree::updateInnerOccupancy's colours
+  return tree;
 }
 
 void OccupancyMap::Impl::upload(const HostTree& tree) {
   flush();
   transfer_.upload(tree);
+  tiles_.forget();  // the map is `tree` now, all of it in the pool
+}
+
+std::size_t OccupancyMap::Impl::nodeCount() {
+  const gpu::PoolState pool = readPool();
+  return pool.root_exists ? pool.live_nodes + tiles_.spilledNodes() : 0;
+}
+
+std::size_t OccupancyMap::Impl::leafCount() {
+  flush();
+  if (tiles_.spilledTiles() == 0) {
+    core_.refreshLeafBoxes();
+    return core_.readPool().leaf_count;
+  }
+  // The leaf boxes would take a spilled tile for a leaf: the whole tree's leaves instead.
+  const HostTree tree = download();
+  std::size_t leaves = 0;
+  if (!tree.root_exists || tree.nodes.empty()) return 0;
+  std::vector<std::uint32_t> stack{gpu::kRootNode};
+  while (!stack.empty()) {
+    const HostTree::Node& n = tree.nodes[stack.back()];
+    stack.pop_back();
+    if ((n.mask & gpu::kChildMask) == 0) {
+      ++leaves;
+      continue;
+    }
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (n.mask & (1u << s)) stack.push_back(n.children * 8 + s);
+  }
+  return leaves;
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {
-  flush();
+  requireResident("downloadLeafBoxes");
   return transfer_.downloadLeafBoxes();
 }
 
@@ -70,7 +105,7 @@ gpu::PoolState OccupancyMap::Impl::readPool() {
 }
 
 void OccupancyMap::Impl::refreshLeafBoxes() {
-  flush();
+  requireResident("the leaf boxes");
   core_.refreshLeafBoxes();
 }
 
@@ -275,17 +310,19 @@ void OccupancyMap::compact() {
 }
 
 std::size_t OccupancyMap::nodeCount() {
-  return hostMemoryGuard("nodeCount", [&] {
-    const gpu::PoolState pool = self().readPool();
-    return pool.root_exists ? pool.live_nodes : 0;
-  });
+  return hostMemoryGuard("nodeCount", [&] { return self().nodeCount(); });
 }
 
 std::size_t OccupancyMap::leafCount() {
-  return hostMemoryGuard("leafCount", [&] {
-    self().refreshLeafBoxes();
-    return self().readPool().leaf_count;
-  });
+  return hostMemoryGuard("leafCount", [&] { return self().leafCount(); });
+}
+
+void OccupancyMap::spillTilesTo(std::shared_ptr<TileSpill> spill) {
+  hostMemoryGuard("spillTilesTo", [&] { self().spillTilesTo(std::move(spill)); });
+}
+
+std::size_t OccupancyMap::spilledTiles() {
+  return hostMemoryGuard("spilledTiles", [&] { return self().spilledTiles(); });
 }
 
 void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {

@@ -247,7 +247,7 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   stats.free_cells = counters.free_cells;
   stats.occupied_cells = counters.occupied_cells;
   stats.aborted_cells = counters.aborted;
-  stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+  stats.nodes = pool.root_exists ? pool.live_nodes + tiles_.spilledNodes() : 0;
   last_nodes_ = stats.nodes;
   if (counters.active_cells + counters.leaf_cells > 0) {
     core_.treeChanged();
@@ -339,6 +339,23 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
       }
       while (!takeResult(pending_.front(), counters, pool)) {
         gate_ = Gate::kHalted;
+        // Tiles the scan reaches are off the device: loaded (others evicted for them) and the
+        // scan run again; where they do not fit with the pool's other tiles, the scan goes on
+        // in groups of tiles, each part loading its own.
+        if (counters.status & gpu::kStatusTilesNeeded) {
+          if (!rebalanceTiles(counters)) {
+            if (!splitOldest(2))
+              throw Error(ErrorCode::kOutOfDeviceMemory,
+                          "insertPointCloud: a single tile the scan reaches does not fit the node "
+                          "pool under max_device_bytes with the tree above the tiles; the map is "
+                          "unchanged. Raise max_device_bytes (--max-device-memory)");
+          }
+          PendingScan& p = pending_.front();
+          record(p);
+          core_.stream.wait(p.serial);
+          passes::readBack(core_.buffers, p.frame, counters, pool);
+          continue;
+        }
         // A walk outran the rounds estimated for its length (the set's probes): every round.
         const std::uint32_t full = fullWalkRounds(core_.device);
         if ((counters.status & gpu::kStatusRayCut) && pending_.front().input.walk_rounds < full) {
@@ -357,13 +374,16 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
           if (e.code() != ErrorCode::kOutOfDeviceMemory || (counters.status & gpu::kStatusRayCut) ||
               !(pool_short || (counters.status & kScratchShort)))
             throw;
-          if (!growth_.poolBeforeScratch(counters, pool)) throw;
-          const std::uint32_t parts = partsNeeded(counters);
-          if (!splitOldest(parts)) throw;
-          // Scans submitted from now on start with as many parts for as many points.
-          const PendingScan& first = pending_.front();
-          split_groups_ = std::max(split_groups_, std::min(first.groups, kMaxTileGroups));
-          split_points_ = first.count;
+          // A map that spills tiles (TileWorkingSet) evicts cold ones for the pool's room.
+          if (!(pool_short && rebalanceTiles(counters))) {
+            if (!growth_.poolBeforeScratch(counters, pool)) throw;
+            const std::uint32_t parts = partsNeeded(counters);
+            if (!splitOldest(parts)) throw;
+            // Scans submitted from now on start with as many parts for as many points.
+            const PendingScan& first = pending_.front();
+            split_groups_ = std::max(split_groups_, std::min(first.groups, kMaxTileGroups));
+            split_points_ = first.count;
+          }
         }
         PendingScan& p = pending_.front();
         record(p);
@@ -409,6 +429,17 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
     gate_ = Gate::kHalted;
     throw;
   }
+}
+
+bool ScanPipeline::rebalanceTiles(const gpu::ScanCounters& counters) {
+  if (!tiles_.enabled()) return false;
+  const PendingScan& p = pending_.front();
+  const Eigen::Vector3f sensor = p.pose ? p.pose->transform(p.origin) : p.origin;
+  // Pinned for the whole scan, all its parts: a colour scan's last part folds the colours of
+  // every part's end points, which must still be on the device.
+  const std::string scan = std::to_string(p.ticket);
+  if (counters.status & gpu::kStatusTilesNeeded) return tiles_.load(counters, sensor, scan);
+  return tiles_.makeRoom(counters.new_blocks, sensor, scan);
 }
 
 // ---- scans applied in groups of tiles ----
@@ -528,13 +559,19 @@ ScanStats ScanPipeline::insert(const ScanSource& source, const Eigen::Vector3f& 
                                const QueryRequest* queries, QueryResults* results) {
   const auto start = std::chrono::steady_clock::now();
   flush();
+  if (queries && tiles_.enabled())
+    throw Error(ErrorCode::kInvalidArgument,
+                "insertPointCloud with queries: this map spills tiles off the device "
+                "(spillTilesTo), and queries in the scan's submission would read the tree as "
+                "the scan left it on the device; insert the scan, then query (while no tile is "
+                "spilled)");
   if (source.count() == 0) {
     checkScan(core_.device, 0, origin, pose, options);
     ScanStats stats;
     stats.ticket = next_ticket_++;
     if (queries) *results = queries_.run(*queries);
     const gpu::PoolState pool = core_.readPool();
-    stats.nodes = pool.root_exists ? pool.live_nodes : 0;
+    stats.nodes = pool.root_exists ? pool.live_nodes + tiles_.spilledNodes() : 0;
     stats.wall_ms = msSince(start);
     return stats;
   }

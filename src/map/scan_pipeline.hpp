@@ -17,6 +17,7 @@
 #include "map/query_runner.hpp"
 #include "map/ray_scene_cache.hpp"
 #include "map/scan_source.hpp"
+#include "map/tile_working_set.hpp"
 #include "octovk/octovk.hpp"
 
 namespace octovk {
@@ -50,8 +51,13 @@ enum class Gate : std::uint8_t {
 class ScanPipeline {
  public:
   ScanPipeline(MapCore& core, ChangeSet& changes, GrowthPolicy& growth, RaySceneCache& scenes,
-               QueryRunner& queries)
-      : core_(core), changes_(changes), growth_(growth), scenes_(scenes), queries_(queries) {}
+               QueryRunner& queries, TileWorkingSet& tiles)
+      : core_(core),
+        changes_(changes),
+        growth_(growth),
+        scenes_(scenes),
+        queries_(queries),
+        tiles_(tiles) {}
 
   /// One scan, then the queries if any, waited for: submit() and flush(), then the growth
   /// ahead (best-effort); the scan's errors thrown with the map as before it.
@@ -151,6 +157,9 @@ class ScanPipeline {
   /// After a part of a scan applied in groups: how full it left the sets and lists; the scan's
   /// last part then estimates how many parts scans like it need.
   void notePart(const PendingScan& p, const gpu::ScanCounters& counters) noexcept;
+  /// The oldest scan was refused for tiles off the device, or for pool room the cap does not
+  /// allow: the working set loads or evicts tiles (TileWorkingSet). False where it cannot.
+  bool rebalanceTiles(const gpu::ScanCounters& counters);
   /// Most groups a scan is split into (a group then holds a few tiles of any scan).
   static constexpr std::uint32_t kMaxTileGroups = 1u << 12;
 
@@ -159,6 +168,7 @@ class ScanPipeline {
   GrowthPolicy& growth_;
   RaySceneCache& scenes_;
   QueryRunner& queries_;
+  TileWorkingSet& tiles_;
   std::deque<PendingScan> pending_;       // submitted, in order
   std::deque<ScanStats> finished_stats_;  // in the map, not taken yet (the newest kKeptStats)
   ScanStats blocking_stats_;              // the last blocking call's scan (its result)

@@ -10,6 +10,12 @@
 namespace octovk {
 
 HostTree TreeTransfer::download() {
+  HostTree tree = downloadRaw();
+  averageInnerColors(tree);  // ColorOcTree::updateInnerOccupancy's colours
+  return tree;
+}
+
+HostTree TreeTransfer::downloadRaw() {
   const gpu::PoolState pool = core_.readPool();
   const std::size_t count = std::size_t{pool.bump} * 8;
   const Payload kind = core_.params.payload;
@@ -25,7 +31,6 @@ HostTree TreeTransfer::download() {
   HostTree tree = hostTreeFromPool(
       {reinterpret_cast<const gpu::Node*>(bytes), count},
       {reinterpret_cast<const std::uint32_t*>(bytes + node_bytes), payload_bytes / 4}, kind, pool);
-  averageInnerColors(tree);  // ColorOcTree::updateInnerOccupancy's colours
   return tree;
 }
 
@@ -104,7 +109,8 @@ void TreeTransfer::compact() {
   upload(compactHostTree(download()), /*shrink=*/true);
 }
 
-void TreeTransfer::upload(const HostTree& tree, bool shrink) {
+void TreeTransfer::upload(const HostTree& tree, bool shrink, std::span<const std::uint32_t> evicted,
+                          std::uint64_t room) {
   if (tree.payload != core_.params.payload)
     throw Error(ErrorCode::kInvalidArgument,
                 std::string("upload: the tree is a ") + treeTypeName(tree.payload) +
@@ -118,7 +124,12 @@ void TreeTransfer::upload(const HostTree& tree, bool shrink) {
                     " pool nodes, over the limit of " +
                     std::to_string(core_.buffers.blockLimit() * 8ull) +
                     " (MapParams::max_nodes or 2^32); the map is unchanged");
-  const PoolImage image = poolImageFromTree(tree);
+  PoolImage image = poolImageFromTree(tree);
+  for (const std::uint32_t n : evicted) {
+    if (n >= image.nodes.size() || (image.nodes[n].link & gpu::kBlockMask) != gpu::kNoChildren)
+      throw Error(ErrorCode::kInternal, "internal error: an evicted tile's node has children");
+    image.nodes[n].link |= gpu::kFlagEvicted;
+  }
   // The staging first: once the pool is replaced (its old nodes not copied) nothing else may
   // fail, or the map would be neither the old tree nor the new one.
   const std::size_t node_bytes = image.nodes.size() * sizeof(gpu::Node);
@@ -134,10 +145,14 @@ void TreeTransfer::upload(const HostTree& tree, bool shrink) {
   if (payload_bytes)
     std::memcpy(bytes + node_bytes + meta_bytes + free_bytes, image.payload.data(), payload_bytes);
   scenes_.releaseUnderCap();
-  const std::uint32_t capacity = capacityFor(image.blocks);
+  const std::uint64_t needed = std::uint64_t{image.blocks} + room;
+  const std::uint32_t capacity = capacityFor(needed);
   if (capacity > core_.buffers.poolBlocks() || (shrink && capacity < core_.buffers.poolBlocks()))
-    core_.buffers.allocatePoolAtLeast(capacity, std::max<std::uint32_t>(image.blocks, 2),
-                                      /*copy_old=*/false);
+    core_.buffers.allocatePoolAtLeast(
+        capacity,
+        static_cast<std::uint32_t>(std::max<std::uint64_t>(
+            std::min<std::uint64_t>(needed, core_.buffers.blockLimit()), 2)),
+        /*copy_old=*/false);
   gpu::PoolState pool{};
   pool.bump = image.blocks;
   pool.capacity = core_.buffers.poolBlocks();

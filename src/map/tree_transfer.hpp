@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "map/host_tree.hpp"
@@ -19,12 +20,19 @@ class TreeTransfer {
   TreeTransfer(MapCore& core, RaySceneCache& scenes) : core_(core), scenes_(scenes) {}
 
   HostTree download();
+  /// The pool's tree as the device holds it: hostTreeFromPool's, node i the pool's node i, inner
+  /// colours as updates left them (download() averages them).
+  HostTree downloadRaw();
   /// The pool and what changed at depths 0..`depth` (at most 15) since the tree's version
   /// `since`, in one submission.
   PoolCapture capture(std::uint64_t since, unsigned depth);
   /// Replaces the tree; throws with the map unchanged where it cannot (pool limit, memory).
   /// `shrink`: also into a smaller pool than the current one, sized for the tree (compact()).
-  void upload(const HostTree& tree, bool shrink = false);
+  /// `evicted`: nodes of `tree` (at the tile depth, without children in it) whose subtrees are
+  /// off the device (kFlagEvicted, TileWorkingSet); `room`: blocks the pool keeps free for them
+  /// beyond the tree.
+  void upload(const HostTree& tree, bool shrink = false,
+              std::span<const std::uint32_t> evicted = {}, std::uint64_t room = 0);
   /// The tree moved into a pool sized for it, when that gives back at least a fifth of the
   /// pool's blocks (OccupancyMap::compact).
   void compact();
