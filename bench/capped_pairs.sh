@@ -5,7 +5,7 @@
 #   octovk integrate GRAPH -r RES -q -o capped.bt --max-device-memory CAP
 # CAP: a quarter of what the in-core run holds ("device memory:" of a first in-core run) unless
 # given (bytes, or with K/M/G). Prints per pair the two wall times, then the medians, the capped
-# run's "in parts:" line, and whether both maps are byte-identical to graph2tree's.
+# run's "in parts:" and "spilled:" lines, and whether both maps are byte-identical to graph2tree's.
 # The paper building (issue 31's capped target): bench/prepare_data.sh DIR BUILD writes
 # DIR/paper.graph with BUILD/bench/octovk_paper_graph.
 # Usage: bench/capped_pairs.sh OCTOVK GRAPH [RES] [PAIRS] [CAP]
@@ -33,7 +33,7 @@ done
 median() { printf '%s\n' "$@" | sort -g | awk '{v[NR]=$1} END {print (NR % 2) ? v[(NR+1)/2] : (v[NR/2]+v[NR/2+1])/2}'; }
 ma=$(median "${a_times[@]}") mb=$(median "${b_times[@]}")
 echo "medians: in-core $ma s, capped $mb s: $(echo "scale=2; $mb / $ma" | bc)x"
-grep -E '^(device memory|in parts):' "$work/summary.txt" || true
+grep -E '^(device memory|in parts|spilled):' "$work/summary.txt" || true
 for m in in_core capped; do
   cmp -s "$work/graph2tree.bt" "$work/$m.bt" && echo "$m: byte-identical to graph2tree" ||
     echo "$m: DIFFERS from graph2tree"

@@ -288,11 +288,13 @@ TEST(MemoryBudget, MapOverCapSpillsColdTilesAndStaysOctoMaps) {
     most_spilled = std::max(most_spilled, map.spilledTiles());
   }
   EXPECT_GT(most_spilled, 0u) << "the map never outgrew the cap";
+  EXPECT_GT(map.spillCounts().evicted, 0u);
   for (int k = 10; k >= 0; k -= 2) {
     map.submitPointCloud(scanAt(k, 0.8f), at(k));
     oracle.insertPointCloud(test::toPointcloud(scanAt(k, 0.8f)), test::toPoint(at(k)));
   }
   map.flush();
+  EXPECT_GT(map.spillCounts().loaded, 0u) << "no place revisited was loaded back";
   EXPECT_LE(map.deviceBytes(), cap);
   EXPECT_TRUE(test::sameTree(oracle, *toOcTree(map)));
   EXPECT_EQ(map.nodeCount(), oracle.size());

@@ -204,6 +204,14 @@ class OccupancyMap {
   void spillTilesTo(std::shared_ptr<TileSpill> spill);
   /// Tiles off the device now (0: the whole map is in the pool).
   std::size_t spilledTiles();
+  /// What the working set of tiles did since the map was made (spillTilesTo).
+  struct SpillCounts {
+    std::size_t round_trips =
+        0;                    ///< pool round trips through the host (each loads, evicts or both)
+    std::size_t loaded = 0;   ///< tiles loaded back for scans that reached them
+    std::size_t evicted = 0;  ///< tiles moved to the spill
+  };
+  SpillCounts spillCounts();
   /// Device bytes held by this map's buffers (staging included): what
   /// MapParams::max_device_bytes caps.
   std::size_t deviceBytes() const;

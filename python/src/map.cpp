@@ -1334,6 +1334,25 @@ void bindMap(py::module_& m) {
       [](Map& self) { return self.run([](OccupancyMap& map) { return map.castRayInfo(); }); },
       "castRay's backend on this map and its acceleration structure (CastRayInfo).");
   map.def(
+      "spill_tiles",
+      [](Map& self, bool to_file) {
+        self.run([&](OccupancyMap& map) {
+          map.spillTilesTo(to_file ? sqliteTileSpill() : makeHostTileSpill());
+        });
+      },
+      py::arg("to_file") = true,
+      "Lets the map outgrow max_device_bytes (C++'s spillTilesTo): where a scan needs more node "
+      "pool than the cap allows, the tiles (16^3 cells) farthest from the sensor leave the "
+      "device, into a temporary SQLite file (to_file=True, removed when the map goes) or host "
+      "memory, and come back when a scan reaches them; the map stays OctoMap's, and write()/"
+      "download include them. While tiles are off the device, queries, edits and distance "
+      "fields raise ValueError.");
+  map.def(
+      "spilled_tiles",
+      [](Map& self) { return self.run([](OccupancyMap& map) { return map.spilledTiles(); }); },
+      "Tiles off the device now (spill_tiles), once the scans in flight are in; 0 when the whole "
+      "map is on it.");
+  map.def(
       "trim", [](Map& self) { self.run([](OccupancyMap& map) { map.trim(); }); },
       "Releases the per-scan scratch and the query buffers to an empty map's sizes (results "
       "do not change).");

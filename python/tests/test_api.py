@@ -457,3 +457,34 @@ def test_lavapipe_threads_are_chosen_unless_the_user_sets_them():
                            capture_output=True, text=True)
     assert given.returncode == 0, given.stderr
     assert given.stdout.strip() == "('3', False)"
+
+
+def test_a_map_larger_than_its_cap_spills_tiles_and_writes_the_whole_map(context, tmp_path):
+    def sphere(centre, n=400, radius=0.6):
+        d = np.random.default_rng(7).normal(size=(n, 3))
+        d = d / np.linalg.norm(d, axis=1, keepdims=True) * radius
+        return np.ascontiguousarray((d + centre).astype(np.float32))
+
+    places = [np.float32([20.0 * k, 0, 0]) for k in range(10)] + \
+        [np.float32([20.0 * k, 0, 0]) for k in (8, 4, 0)]
+    whole = octovk.Map(0.1)
+    probe = octovk.Map(0.1)
+    probe.insert_point_cloud(sphere(places[0]), places[0])
+    cap = probe.device_bytes() + probe.device_bytes_by_use().pool // 8
+    capped = octovk.Map(0.1, max_device_bytes=cap)
+    capped.spill_tiles()
+    most = 0
+    for p in places:
+        whole.insert_point_cloud(sphere(p), p)
+        capped.insert_point_cloud(sphere(p), p)
+        most = max(most, capped.spilled_tiles())
+        assert capped.device_bytes() <= cap
+    assert most > 0
+    assert capped.node_count() == whole.node_count()
+    whole.write(tmp_path / "whole.bt")
+    capped.write(tmp_path / "capped.bt")
+    assert (tmp_path / "whole.bt").read_bytes() == (tmp_path / "capped.bt").read_bytes()
+    if capped.spilled_tiles() > 0:
+        with pytest.raises(ValueError) as e:
+            capped.search(sphere(places[0]))
+        assert "spilled" in str(e.value)

@@ -669,6 +669,7 @@ int Integrate::run(Invocation& in) {
   const double insert_s = secondsSince(insert_start);
   const std::size_t nodes = map.nodeCount();
   const std::size_t spilled = map.spilledTiles();
+  const OccupancyMap::SpillCounts spill = map.spillCounts();
   const std::size_t device_bytes = map.deviceBytes();
   const std::size_t pool_bytes = map.poolBytes();
   std::vector<ChangedKey> changes;
@@ -697,10 +698,12 @@ int Integrate::run(Invocation& in) {
       .line("device memory",
             format("%.1f MiB (node pool %.1f MiB; the rest is scan scratch and leaf boxes)",
                    mib(device_bytes), mib(pool_bytes)));
-  if (spilled > 0)
-    report.line("spilled", format("%zu tiles (16^3 cells each) in a temporary file on the host at "
-                                  "the end: the map outgrew the device memory cap",
-                                  spilled));
+  if (spill.round_trips > 0)
+    report.line("spilled",
+                format("%zu tiles (16^3 cells) in a temporary file on the host at the end: the map "
+                       "outgrew the device memory cap (%zu round trips of the node pool loaded %zu "
+                       "tiles and evicted %zu)",
+                       spilled, spill.round_trips, spill.loaded, spill.evicted));
   if (totals.split_scans > 0)
     report.line("in parts",
                 format("%zu of the scans applied in groups of tiles (up to %zu parts), each part "

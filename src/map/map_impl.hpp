@@ -174,6 +174,10 @@ class OccupancyMap::Impl {
     flush();
     return tiles_.spilledTiles();
   }
+  OccupancyMap::SpillCounts spillCounts() {
+    flush();
+    return tiles_.counts();
+  }
   /// Throws kInvalidArgument naming `call` while tiles are off the device (after flush()).
   void requireResident(const char* call) {
     flush();

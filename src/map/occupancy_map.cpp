@@ -325,6 +325,10 @@ std::size_t OccupancyMap::spilledTiles() {
   return hostMemoryGuard("spilledTiles", [&] { return self().spilledTiles(); });
 }
 
+OccupancyMap::SpillCounts OccupancyMap::spillCounts() {
+  return hostMemoryGuard("spillCounts", [&] { return self().spillCounts(); });
+}
+
 void OccupancyMap::setLeafBoxesEveryScan(bool every_scan) {
   return hostMemoryGuard("setLeafBoxesEveryScan",
                          [&] { self().setLeafBoxesEveryScan(every_scan); });

@@ -267,7 +267,12 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
     }
     if (held + room + 1 > limit) return false;  // nothing changed
   }
-  if (loads.empty() && evict.empty()) return room + held + 1 <= limit;
+  if (loads.empty() && evict.empty()) {
+    // Nothing to move, and the tree and the room fit: one round trip sizes the pool for them,
+    // once a scan (a second would change nothing, and the scan is split instead).
+    if (held + room + 1 > limit || idle_scan_ == scan) return false;
+    idle_scan_ = scan;
+  }
 
   // The spill's side first (a failure leaves the device as it was): bodies in, loads read.
   for (const Candidate& c : evict) {
@@ -303,6 +308,9 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
     spilled_[c.tile.path] = Spilled{c.size.nodes - 1, c.size.blocks};
     spilled_nodes_ += c.size.nodes - 1;
   }
+  ++counts_.round_trips;
+  counts_.loaded += loads.size();
+  counts_.evicted += evict.size();
   return true;
 }
 

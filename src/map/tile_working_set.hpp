@@ -38,6 +38,8 @@ class TileWorkingSet {
   std::size_t spilledTiles() const noexcept { return spilled_.size(); }
   /// Nodes of the spilled tiles below their roots (the roots stay in the pool).
   std::uint64_t spilledNodes() const noexcept { return spilled_nodes_; }
+  /// Round trips, loads and evictions so far.
+  OccupancyMap::SpillCounts counts() const noexcept { return counts_; }
 
   /// A scan (`scan`: its ticket, which pins the tiles it loads until it is in) was refused
   /// for the evicted tiles `counters` names: loads them, evicting unpinned tiles farthest from
@@ -74,10 +76,12 @@ class TileWorkingSet {
   std::shared_ptr<TileSpill> spill_;
   std::unordered_map<std::uint64_t, Spilled> spilled_;  // by tile path (3 bits a level)
   std::uint64_t spilled_nodes_ = 0;
+  OccupancyMap::SpillCounts counts_;
   // The tiles loaded for the scan (or part) being applied: never evicted while it runs again,
   // so that its loads only grow and the retries end.
   std::string pinned_scan_;
   std::unordered_set<std::uint64_t> pinned_;
+  std::string idle_scan_;  // the scan whose round trip moved no tile (one such trip a scan)
 };
 
 }  // namespace octovk
