@@ -346,9 +346,9 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
           if (!rebalanceTiles(counters)) {
             if (!splitOldest(2))
               throw Error(ErrorCode::kOutOfDeviceMemory,
-                          "insertPointCloud: a single tile the scan reaches does not fit the node "
-                          "pool under max_device_bytes with the tree above the tiles; the map is "
-                          "unchanged. Raise max_device_bytes (--max-device-memory)");
+                          "insertPointCloud: the tiles that the smallest part of the scan reaches "
+                          "do not fit the node pool beside the tree above them under "
+                          "max_device_bytes; the map is unchanged. Raise max_device_bytes");
           }
           PendingScan& p = pending_.front();
           record(p);
@@ -435,9 +435,13 @@ bool ScanPipeline::rebalanceTiles(const gpu::ScanCounters& counters) {
   if (!tiles_.enabled()) return false;
   const PendingScan& p = pending_.front();
   const Eigen::Vector3f sensor = p.pose ? p.pose->transform(p.origin) : p.origin;
-  // Pinned for the whole scan, all its parts: a colour scan's last part folds the colours of
-  // every part's end points, which must still be on the device.
-  const std::string scan = std::to_string(p.ticket);
+  // A part's loads are pinned while it runs; a colour scan's for the whole scan, all its parts:
+  // its last part folds the colours of every part's end points, which must still be on the
+  // device.
+  const std::string scan = core_.params.payload == Payload::kColor
+                               ? std::to_string(p.ticket)
+                               : std::to_string(p.ticket) + "/" + std::to_string(p.group) + "/" +
+                                     std::to_string(p.groups);
   if (counters.status & gpu::kStatusTilesNeeded) return tiles_.load(counters, sensor, scan);
   return tiles_.makeRoom(counters.new_blocks, sensor, scan);
 }
