@@ -326,6 +326,38 @@ TEST(MemoryBudget, MapOverCapSpillsColdTilesAndStaysOctoMaps) {
   EXPECT_EQ(whole.search(scanAt(0, 0.6f)).size(), 200u);
 }
 
+// A scan whose spilled tiles do not all fit the pool at once (a long-range scan over a map the
+// cap holds a part of): it is applied in groups of tiles, each part loading its own, and the map
+// is still OctoMap's.
+TEST(MemoryBudget, ScanWhoseTilesDoNotFitAtOnceLoadsThemInGroups) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const double res = 0.1;
+  const Eigen::Vector3f a(0, 0, 0), b(0.35f, -0.25f, 0.15f);
+  const auto first = sphere(8.0f, 3000, a);
+  const auto again = sphere(8.5f, 3000, b);
+  std::size_t pool = 0, total = 0;
+  {
+    OccupancyMap probe(ctx, test::withResolution(res));
+    probe.insertPointCloud(first, a);
+    probe.insertPointCloud(again, b);
+    pool = probe.poolBytes();
+    total = probe.deviceBytes();
+  }
+  // A third of the pool: neither scan's tiles fit at once.
+  const std::size_t cap = total - pool + pool / 3;
+  OccupancyMap map(ctx, capped(res, cap));
+  map.spillTilesTo(makeHostTileSpill());
+  octomap::OcTree oracle = test::makeOracle(map.params());
+  ScanStats stats;
+  ASSERT_TRUE(test::insertBoth(map, oracle, first, a, -1.0, false, &stats));
+  ASSERT_TRUE(test::insertBoth(map, oracle, again, b, -1.0, false, &stats));
+  EXPECT_GT(stats.tile_groups, 1u) << "the second scan should have run in groups of tiles";
+  EXPECT_GT(map.spillCounts().loaded, 0u);
+  EXPECT_GT(map.spilledTiles(), 0u);
+  EXPECT_LE(map.deviceBytes(), cap);
+  EXPECT_EQ(map.nodeCount(), oracle.size());
+}
+
 // Query batches beyond the cap: alone, and after a scan in the same call (the scan is then not
 // applied either).
 TEST(MemoryBudget, QueryBuffersOverCapKeepTheMap) {
