@@ -198,6 +198,19 @@ TEST(cliDeviceMemory, MapLargerThanTheCapSpillsTilesAndIsGraph2treesMap) {
     return out.substr(from, out.find('\n', from) - from);
   };
   EXPECT_EQ(nodesLine(r.out), nodesLine(uncapped.out));
+
+  // Into a store: an evicted tile is as its last commit holds it, so every scan's commit, and
+  // the store's export, is graph2tree's map.
+  const std::string store = scratch / "places.sqlite";
+  const RunResult stored = runOctovk({"integrate", graph, "--store", store, "--resolution", "0.1",
+                                      "--max-device-memory", std::to_string(cap), "-q"},
+                                     scratch.dir());
+  ASSERT_EQ(stored.exit_code, 0) << stored.out << stored.err;
+  EXPECT_NE(stored.out.find("spilled:"), std::string::npos) << stored.out;
+  const RunResult exported =
+      runOctovk({"store", "export", store, "-o", scratch / "e.bt"}, scratch.dir());
+  ASSERT_EQ(exported.exit_code, 0) << exported.err;
+  EXPECT_TRUE(fileBytes(ref) == fileBytes(scratch / "e.bt")) << "the store is not graph2tree's";
 }
 
 TEST(cliDeviceMemory, MapCommandsTakeTheCap) {

@@ -198,7 +198,7 @@ class OccupancyMap {
   /// through the host). The map stays OctoMap's, node for node; download() (and every file
   /// written from it) includes the spilled tiles. While tiles are spilled, what reads the whole
   /// tree on the device (queries, leaf boxes, castRays, edits, degradeOutdated, compact,
-  /// distance fields, a store's capture) is refused with kInvalidArgument; scans, download(),
+  /// distance fields) is refused with kInvalidArgument; scans, a store's commits, download(),
   /// nodeCount() and leafCount() work. Not with MapParams::scan_rays = kRayTracing. A spill
   /// cannot be changed while it holds tiles (kInvalidArgument).
   void spillTilesTo(std::shared_ptr<TileSpill> spill);

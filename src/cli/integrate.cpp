@@ -311,8 +311,8 @@ void printIntegrateHelp(std::ostream& out) {
          "no cap\n"
          "                         (default). Scans run in parts; a map larger than the cap keeps "
          "cold\n"
-         "                         tiles in a temp file (--store, --degrade-after: fails, naming "
-         "the cap).\n"
+         "                         tiles in a temp file (with --degrade-after it fails, naming the "
+         "cap).\n"
          "                         Not with --rays rt (nor rt-query, rt-pipeline).\n";
   IntegrateStore::printHelp(out);
   printCameraOptionsHelp(out);
@@ -660,9 +660,9 @@ int Integrate::run(Invocation& in) {
   OccupancyMap& map = stamped ? *stamped : plain;
   store_->load(map);
   // Under a cap, a map larger than the device keeps its coldest tiles in a temporary SQLite file
-  // (a store keeps its own tiles; a degrade reads the whole tree on the device).
-  if (params_.max_device_bytes != 0 && !store_->enabled() && !degrade_after_)
-    map.spillTilesTo(sqliteTileSpill());
+  // (a degrade reads the whole tree on the device). A store's commit takes an evicted tile as
+  // committed: tiles leave only between scans there (TileWorkingSet::mayMoveTiles).
+  if (params_.max_device_bytes != 0 && !degrade_after_) map.spillTilesTo(sqliteTileSpill());
   if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   const auto insert_start = Clock::now();
   const Totals totals = insert(map, stamped ? &*stamped : nullptr, sources, in.input());

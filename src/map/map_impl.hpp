@@ -150,7 +150,7 @@ class OccupancyMap::Impl {
   /// The pool and what changed near the root since version `since` (TreeTransfer::capture).
   PoolCapture capture(std::uint64_t since, unsigned depth) {
     flush();
-    tiles_.requireResident("the store's capture");
+    tiles_.noteCommittedPerScan();  // a store captures after every scan from now on
     return transfer_.capture(since, depth);
   }
   /// The tree's version once the scans in flight are in (MapCore::tree_version).
@@ -178,6 +178,8 @@ class OccupancyMap::Impl {
     flush();
     return tiles_.counts();
   }
+  /// A store commits the map after every scan (StoreAccess::attach).
+  void noteCommittedPerScan() noexcept { tiles_.noteCommittedPerScan(); }
   /// Throws kInvalidArgument naming `call` while tiles are off the device (after flush()).
   void requireResident(const char* call) {
     flush();

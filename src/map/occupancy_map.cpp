@@ -370,6 +370,10 @@ PoolCapture StoreAccess::capture(OccupancyMap& map, std::uint64_t since, unsigne
   return hostMemoryGuard("capture", [&] { return map.self().capture(since, depth); });
 }
 
+void StoreAccess::attach(OccupancyMap& map) {
+  hostMemoryGuard("attach", [&] { map.self().noteCommittedPerScan(); });
+}
+
 std::uint64_t StoreAccess::version(OccupancyMap& map) {
   return hostMemoryGuard("version", [&] { return map.self().treeVersion(); });
 }

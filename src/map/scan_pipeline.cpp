@@ -434,6 +434,7 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
 bool ScanPipeline::rebalanceTiles(const gpu::ScanCounters& counters) {
   if (!tiles_.enabled()) return false;
   const PendingScan& p = pending_.front();
+  if (!tiles_.mayMoveTiles(parts_.ticket == p.ticket && parts_.parts > 0)) return false;
   const Eigen::Vector3f sensor = p.pose ? p.pose->transform(p.origin) : p.origin;
   // A part's loads are pinned while it runs; a colour scan's for the whole scan, all its parts:
   // its last part folds the colours of every part's end points, which must still be on the

@@ -19,6 +19,9 @@ class StoreAccess {
   /// The tree's version after the scans in flight: changes with every scan that changed the
   /// tree, edit and upload.
   static std::uint64_t version(OccupancyMap& map);
+  /// The map is committed to a store after every scan from now on: its working set of tiles
+  /// (spillTilesTo) then moves no tile while a scan is partly applied (TileWorkingSet).
+  static void attach(OccupancyMap& map);
 };
 
 }  // namespace octovk

@@ -55,10 +55,19 @@ class TileWorkingSet {
   /// back: the whole map.
   HostTree wholeTree(HostTree resident) const;
   /// Throws kInvalidArgument naming `call` while tiles are spilled: the passes that read the
-  /// whole tree (queries, leaf boxes, edits, fields, the store's capture) need it on the device.
+  /// whole tree (queries, leaf boxes, edits, fields) need it on the device.
   void requireResident(const char* call) const;
   /// The map was replaced (upload): nothing is spilled any more.
   void forget();
+  /// A store captures the map after every scan (MapWriter): an evicted tile is then as its last
+  /// commit holds it, so long as no tile leaves while a scan is partly applied (mayMoveTiles).
+  void noteCommittedPerScan() noexcept { committed_per_scan_ = true; }
+  /// Whether tiles may move now, `partly_applied`: some parts of the current scan are in the
+  /// map. Not then under a store: a tile those parts changed would leave the device with a
+  /// body the store has not committed, and the capture takes an evicted tile as committed.
+  bool mayMoveTiles(bool partly_applied) const noexcept {
+    return !(committed_per_scan_ && partly_applied);
+  }
 
  private:
   /// A tile off the device: its body in the spill, and what it holds below its root.
@@ -76,6 +85,7 @@ class TileWorkingSet {
   std::shared_ptr<TileSpill> spill_;
   std::unordered_map<std::uint64_t, Spilled> spilled_;  // by tile path (3 bits a level)
   std::uint64_t spilled_nodes_ = 0;
+  bool committed_per_scan_ = false;
   OccupancyMap::SpillCounts counts_;
   // The tiles loaded for the scan (or part) being applied: never evicted while it runs again,
   // so that its loads only grow and the retries end.

@@ -111,7 +111,8 @@ HostTree MapWriter::reload() {
 }
 
 bool MapWriter::begin(OccupancyMap& map) {
-  finish();  // a background commit first: its error is this call's
+  StoreAccess::attach(map);  // before the scan's recovery, which may move tiles
+  finish();                  // a background commit first: its error is this call's
   const std::uint64_t last = store_.lock(name_);
   if (last == last_seq_) return false;
   const auto start = std::chrono::steady_clock::now();
@@ -215,6 +216,16 @@ void MapWriter::prepare(PendingCommit& c) const {
   c.hashes.reserve(tiles.size());
   for (const PoolTile& t : tiles) {
     const auto old = hashes_.find(t.key);
+    // A tile off the device (OccupancyMap::spillTilesTo) is as the store holds it: it left
+    // between scans, after its last change was captured (TileWorkingSet::mayMoveTiles).
+    if (pool.nodes[t.node].link & gpu::kFlagEvicted) {
+      if (old == hashes_.end())
+        throw Error(ErrorCode::kInternal,
+                    "internal error: a tile off the device was never committed; please report "
+                    "this with the input");
+      c.hashes.emplace(t.key, old->second);
+      continue;
+    }
     if (incremental && old != hashes_.end() &&
         !std::binary_search(pool.changed.begin(), pool.changed.end(), t.node)) {
       c.hashes.emplace(t.key, old->second);
