@@ -214,7 +214,8 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
     pinned_.clear();
     pinned_scan_ = scan;
   }
-  HostTree tree = transfer_.downloadRaw();
+  gpu::PoolState pool{};
+  HostTree tree = transfer_.downloadRaw(&pool);
   const Cut cut = cutAtTileDepth(tree);
 
   // The tiles to load: the needed nodes that are spilled tiles.
@@ -235,7 +236,10 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
                 "internal error: a scan was refused for tiles that are not spilled; please "
                 "report this with the input");
 
-  // The resident tiles, and which may go: not pinned, not loaded now, with children.
+  // The blocks the pool holds (every block in use belongs to a node with children that hangs in
+  // the tree), and the resident tiles that may go: not pinned, not loaded now, with children;
+  // their sizes are walked only if tiles must go.
+  held = held - cut.upper_blocks + (std::uint64_t{pool.bump} - pool.free_count);
   struct Candidate {
     TileNode tile;
     SubtreeSize size;
@@ -243,11 +247,9 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
   };
   std::vector<Candidate> candidates;
   for (const TileNode& t : cut.tiles) {
-    const SubtreeSize size = subtreeSize(tree, t.node);
-    held += size.blocks;
-    if (size.blocks == 0 || pinned_.count(t.path)) continue;
+    if ((tree.nodes[t.node].mask & gpu::kChildMask) == 0 || pinned_.count(t.path)) continue;
     candidates.push_back(
-        {t, size, (tileCentre(t.path, core_.params.resolution) - sensor).squaredNorm()});
+        {t, {}, (tileCentre(t.path, core_.params.resolution) - sensor).squaredNorm()});
   }
 
   // The pool may take what the cap leaves beside the other buffers (and the pool's limit).
@@ -260,8 +262,9 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
   if (held + room + 1 > limit) {
     std::sort(candidates.begin(), candidates.end(),
               [](const Candidate& a, const Candidate& b) { return a.distance > b.distance; });
-    for (const Candidate& c : candidates) {
+    for (Candidate& c : candidates) {
       if (held + room + 1 <= limit / 2) break;
+      c.size = subtreeSize(tree, c.tile.node);
       evict.push_back(c);
       held -= c.size.blocks;
     }

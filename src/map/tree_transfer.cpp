@@ -15,8 +15,9 @@ HostTree TreeTransfer::download() {
   return tree;
 }
 
-HostTree TreeTransfer::downloadRaw() {
+HostTree TreeTransfer::downloadRaw(gpu::PoolState* state) {
   const gpu::PoolState pool = core_.readPool();
+  if (state) *state = pool;
   const std::size_t count = std::size_t{pool.bump} * 8;
   const Payload kind = core_.params.payload;
   const std::size_t node_bytes = count * sizeof(gpu::Node);

@@ -22,7 +22,8 @@ class TreeTransfer {
   HostTree download();
   /// The pool's tree as the device holds it: hostTreeFromPool's, node i the pool's node i, inner
   /// colours as updates left them (download() averages them).
-  HostTree downloadRaw();
+  /// `state`: where to put the pool's state it read.
+  HostTree downloadRaw(gpu::PoolState* state = nullptr);
   /// The pool and what changed at depths 0..`depth` (at most 15) since the tree's version
   /// `since`, in one submission.
   PoolCapture capture(std::uint64_t since, unsigned depth);
