@@ -668,6 +668,57 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
   EXPECT_GT(removed, 0u) << "no tile was removed: the test misses merging";
 }
 
+// A map larger than its cap, committed scan by scan while its working set spills tiles: long
+// scans over a map the pool holds a third of run in groups of tiles and move tiles between their
+// parts, so that some leave the device with changes no commit has seen (they come to the commit
+// as dirty subtrees). After every commit the store holds the cut of the whole map (spilled tiles
+// included), plain and colour.
+TEST(StoreWriter, SpilledMapHoldsTheCutOfTheWholeMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("store");
+  for (const Payload kind : {Payload::kNone, Payload::kColor}) {
+    SCOPED_TRACE(treeTypeName(kind));
+    MapParams params;
+    params.resolution = 0.1;
+    params.payload = kind;
+    const std::vector<Eigen::Vector3f> origins = {
+        {0, 0, 0}, {0.35f, -0.25f, 0.15f}, {-0.3f, 0.2f, 0.1f}};
+    std::size_t pool = 0, total = 0;
+    {
+      OccupancyMap probe(ctx, params);
+      for (std::size_t i = 0; i < origins.size(); ++i)
+        probe.insertPointCloud(test::sphere(6.0f + 0.5f * static_cast<float>(i), 2000, origins[i]),
+                               origins[i]);
+      pool = probe.poolBytes();
+      total = probe.deviceBytes();
+    }
+    params.max_device_bytes = total - pool + pool / 3;
+    const std::string path = scratch / (std::string(treeTypeName(kind)) + ".sqlite");
+    std::unique_ptr<store::Store> st = store::Store::open(path, true);
+    store::MapWriter writer(*st, "w", params);
+    OccupancyMap map(ctx, params);
+    map.spillTilesTo(makeHostTileSpill());
+    std::size_t in_parts = 0;
+    for (std::size_t i = 0; i < origins.size(); ++i) {
+      const auto points = test::sphere(6.0f + 0.5f * static_cast<float>(i), 2000, origins[i]);
+      writer.begin(map);
+      const ScanStats stats =
+          kind == Payload::kColor
+              ? map.insertPointCloud(
+                    points, origins[i],
+                    {.colors = test::colorsOf(7 + static_cast<std::uint32_t>(i), points.size())})
+              : map.insertPointCloud(points, origins[i]);
+      in_parts += stats.tile_groups > 1;
+      writer.commit(map, "test", i);
+      std::vector<store::Tile> stored;
+      ASSERT_TRUE(storeHolds(*st, "w", store::tilesOf(map.download()), stored)) << "scan " << i;
+    }
+    EXPECT_GT(in_parts, 0u) << "no scan ran in groups of tiles: the test misses its case";
+    EXPECT_GT(map.spillCounts().evicted, 0u);
+    EXPECT_LE(map.deviceBytes(), params.max_device_bytes);
+  }
+}
+
 // A colour or stamped map committed scan by scan: the store holds exactly the cut of the device
 // map after each commit (the incremental capture, colours averaged inside tiles, the stamps above
 // the tile depth in their record), and the tree rebuilt from its tiles is OctoMap's ColorOcTree

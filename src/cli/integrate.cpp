@@ -661,7 +661,7 @@ int Integrate::run(Invocation& in) {
   store_->load(map);
   // Under a cap, a map larger than the device keeps its coldest tiles in a temporary SQLite file
   // (a degrade reads the whole tree on the device). A store's commit takes an evicted tile as
-  // committed: tiles leave only between scans there (TileWorkingSet::mayMoveTiles).
+  // committed, or brings the subtree of one that left mid-scan (TileWorkingSet::takeDirty).
   if (params_.max_device_bytes != 0 && !degrade_after_) map.spillTilesTo(sqliteTileSpill());
   if (changes_output_) map.enableChangeDetection(true);  // from the first scan, never reset
   const auto insert_start = Clock::now();

@@ -180,6 +180,10 @@ class OccupancyMap::Impl {
   }
   /// A store commits the map after every scan (StoreAccess::attach).
   void noteCommittedPerScan() noexcept { tiles_.noteCommittedPerScan(); }
+  std::vector<std::pair<std::uint64_t, HostTree>> takeDirtyTiles() {
+    flush();
+    return tiles_.takeDirty();
+  }
   /// Throws kInvalidArgument naming `call` while tiles are off the device (after flush()).
   void requireResident(const char* call) {
     flush();

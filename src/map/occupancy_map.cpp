@@ -370,6 +370,10 @@ PoolCapture StoreAccess::capture(OccupancyMap& map, std::uint64_t since, unsigne
   return hostMemoryGuard("capture", [&] { return map.self().capture(since, depth); });
 }
 
+std::vector<std::pair<std::uint64_t, HostTree>> StoreAccess::takeDirtyTiles(OccupancyMap& map) {
+  return hostMemoryGuard("takeDirtyTiles", [&] { return map.self().takeDirtyTiles(); });
+}
+
 void StoreAccess::attach(OccupancyMap& map) {
   hostMemoryGuard("attach", [&] { map.self().noteCommittedPerScan(); });
 }

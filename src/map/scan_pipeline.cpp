@@ -434,7 +434,6 @@ void ScanPipeline::recover(gpu::ScanCounters counters, gpu::PoolState pool) {
 bool ScanPipeline::rebalanceTiles(const gpu::ScanCounters& counters) {
   if (!tiles_.enabled()) return false;
   const PendingScan& p = pending_.front();
-  if (!tiles_.mayMoveTiles(parts_.ticket == p.ticket && parts_.parts > 0)) return false;
   const Eigen::Vector3f sensor = p.pose ? p.pose->transform(p.origin) : p.origin;
   // A part's loads are pinned while it runs; a colour scan's for the whole scan, all its parts:
   // its last part folds the colours of every part's end points, which must still be on the
@@ -443,8 +442,10 @@ bool ScanPipeline::rebalanceTiles(const gpu::ScanCounters& counters) {
                                ? std::to_string(p.ticket)
                                : std::to_string(p.ticket) + "/" + std::to_string(p.group) + "/" +
                                      std::to_string(p.groups);
-  if (counters.status & gpu::kStatusTilesNeeded) return tiles_.load(counters, sensor, scan);
-  return tiles_.makeRoom(counters.new_blocks, sensor, scan);
+  const bool partly_applied = parts_.ticket == p.ticket && parts_.parts > 0;
+  if (counters.status & gpu::kStatusTilesNeeded)
+    return tiles_.load(counters, sensor, scan, partly_applied);
+  return tiles_.makeRoom(counters.new_blocks, sensor, scan, partly_applied);
 }
 
 // ---- scans applied in groups of tiles ----

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
+#include <vector>
 
 #include "map/pool_capture.hpp"
 #include "octovk/map.hpp"
@@ -22,6 +24,9 @@ class StoreAccess {
   /// The map is committed to a store after every scan from now on: its working set of tiles
   /// (spillTilesTo) then moves no tile while a scan is partly applied (TileWorkingSet).
   static void attach(OccupancyMap& map);
+  /// The tiles evicted while a scan was partly applied, still off the device, which no commit
+  /// has seen: each its path below the root (3 bits a level) and its subtree (root at node 0).
+  static std::vector<std::pair<std::uint64_t, HostTree>> takeDirtyTiles(OccupancyMap& map);
 };
 
 }  // namespace octovk

@@ -174,10 +174,25 @@ void TileWorkingSet::requireResident(const char* call) const {
                   "(download(), or a written .bt/.ot file)");
 }
 
+std::vector<std::pair<std::uint64_t, HostTree>> TileWorkingSet::takeDirty() {
+  std::vector<std::pair<std::uint64_t, HostTree>> out;
+  for (const std::uint64_t path : dirty_) {
+    HostTree subtree;
+    subtree.root_exists = true;
+    subtree.payload = core_.params.payload;
+    subtree.nodes.assign(8, emptyHostNode());
+    graft(subtree, gpu::kRootNode, spill_->get(path));
+    out.emplace_back(path, std::move(subtree));
+  }
+  dirty_.clear();
+  return out;
+}
+
 void TileWorkingSet::forget() {
   if (spill_)
     for (const auto& [path, spilled] : spilled_) spill_->erase(path);
   spilled_.clear();
+  dirty_.clear();
   spilled_nodes_ = 0;
   pinned_.clear();
   pinned_scan_.clear();
@@ -191,7 +206,7 @@ HostTree TileWorkingSet::wholeTree(HostTree resident) const {
 }
 
 bool TileWorkingSet::load(const gpu::ScanCounters& counters, const Eigen::Vector3f& sensor,
-                          const std::string& scan) {
+                          const std::string& scan, bool partly_applied) {
   std::vector<std::uint32_t> needed;
   for (const std::uint32_t slot : counters.needed_tiles)
     if (slot != 0) needed.push_back(slot - 1);
@@ -199,17 +214,18 @@ bool TileWorkingSet::load(const gpu::ScanCounters& counters, const Eigen::Vector
     throw Error(ErrorCode::kInternal,
                 "internal error: a scan was refused for tiles off the device but named none; "
                 "please report this with the input");
-  return rebalance(needed, counters.new_blocks, sensor, scan);
+  return rebalance(needed, counters.new_blocks, sensor, scan, partly_applied);
 }
 
 bool TileWorkingSet::makeRoom(std::uint64_t blocks, const Eigen::Vector3f& sensor,
-                              const std::string& scan) {
+                              const std::string& scan, bool partly_applied) {
   if (!enabled()) return false;
-  return rebalance({}, blocks, sensor, scan);
+  return rebalance({}, blocks, sensor, scan, partly_applied);
 }
 
 bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::uint64_t room,
-                               const Eigen::Vector3f& sensor, const std::string& scan) {
+                               const Eigen::Vector3f& sensor, const std::string& scan,
+                               bool partly_applied) {
   if (scan != pinned_scan_) {
     pinned_.clear();
     pinned_scan_ = scan;
@@ -306,10 +322,12 @@ bool TileWorkingSet::rebalance(const std::vector<std::uint32_t>& needed, std::ui
     spilled_.erase(l.path);
     spill_->erase(l.path);
     pinned_.insert(l.path);
+    dirty_.erase(l.path);  // on the device again: the capture reads it there
   }
   for (const Candidate& c : evict) {
     spilled_[c.tile.path] = Spilled{c.size.nodes - 1, c.size.blocks};
     spilled_nodes_ += c.size.nodes - 1;
+    if (committed_per_scan_ && partly_applied) dirty_.insert(c.tile.path);
   }
   ++counts_.round_trips;
   counts_.loaded += loads.size();

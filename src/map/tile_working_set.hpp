@@ -18,6 +18,7 @@
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include "map/map_core.hpp"
@@ -45,12 +46,14 @@ class TileWorkingSet {
   /// for the evicted tiles `counters` names: loads them, evicting unpinned tiles farthest from
   /// `sensor` if the pool needs room for them and `counters.new_blocks` more. False, with
   /// nothing changed, where they do not fit even so. Nothing may be in flight.
+  /// `partly_applied`: parts of the scan are in the map already.
   bool load(const gpu::ScanCounters& counters, const Eigen::Vector3f& sensor,
-            const std::string& scan);
+            const std::string& scan, bool partly_applied);
   /// A scan was refused for want of `blocks` free pool blocks and the pool cannot grow under the
   /// cap: evicts unpinned tiles, farthest from `sensor` first, until they fit. False, with
   /// nothing changed, where evicting every unpinned tile would not make the room.
-  bool makeRoom(std::uint64_t blocks, const Eigen::Vector3f& sensor, const std::string& scan);
+  bool makeRoom(std::uint64_t blocks, const Eigen::Vector3f& sensor, const std::string& scan,
+                bool partly_applied);
   /// `resident` (the pool's tree, as hostTreeFromPool gives it) with every spilled tile grafted
   /// back: the whole map.
   HostTree wholeTree(HostTree resident) const;
@@ -59,15 +62,13 @@ class TileWorkingSet {
   void requireResident(const char* call) const;
   /// The map was replaced (upload): nothing is spilled any more.
   void forget();
-  /// A store captures the map after every scan (MapWriter): an evicted tile is then as its last
-  /// commit holds it, so long as no tile leaves while a scan is partly applied (mayMoveTiles).
+  /// A store captures the map after every scan (MapWriter): a tile evicted between scans is as
+  /// the last commit holds it; one evicted while a scan is partly applied may hold changes of
+  /// the parts applied, which the store has not seen: it is noted dirty (takeDirty).
   void noteCommittedPerScan() noexcept { committed_per_scan_ = true; }
-  /// Whether tiles may move now, `partly_applied`: some parts of the current scan are in the
-  /// map. Not then under a store: a tile those parts changed would leave the device with a
-  /// body the store has not committed, and the capture takes an evicted tile as committed.
-  bool mayMoveTiles(bool partly_applied) const noexcept {
-    return !(committed_per_scan_ && partly_applied);
-  }
+  /// The dirty tiles still off the device, each its path and its subtree (the tile's root at
+  /// node 0), forgotten as dirty: the capture that takes them commits them.
+  std::vector<std::pair<std::uint64_t, HostTree>> takeDirty();
 
  private:
   /// A tile off the device: its body in the spill, and what it holds below its root.
@@ -78,7 +79,7 @@ class TileWorkingSet {
   /// The round trip: downloads the pool, loads `needed` (pool nodes of evicted tiles), evicts
   /// (unpinned, farthest from `sensor`) until the tree and `room` more blocks fit, uploads.
   bool rebalance(const std::vector<std::uint32_t>& needed, std::uint64_t room,
-                 const Eigen::Vector3f& sensor, const std::string& scan);
+                 const Eigen::Vector3f& sensor, const std::string& scan, bool partly_applied);
 
   MapCore& core_;
   TreeTransfer& transfer_;
@@ -86,6 +87,7 @@ class TileWorkingSet {
   std::unordered_map<std::uint64_t, Spilled> spilled_;  // by tile path (3 bits a level)
   std::uint64_t spilled_nodes_ = 0;
   bool committed_per_scan_ = false;
+  std::unordered_set<std::uint64_t> dirty_;  // evicted with changes no commit has seen
   OccupancyMap::SpillCounts counts_;
   // The tiles loaded for the scan (or part) being applied: never evicted while it runs again,
   // so that its loads only grow and the retries end.

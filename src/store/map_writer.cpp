@@ -201,6 +201,15 @@ std::unique_ptr<MapWriter::PendingCommit> MapWriter::capture(OccupancyMap& map,
   // The pool as the device holds it, and the nodes above the tile depth that the scan changed
   // (when the map is the last commit's plus this one scan).
   c->pool = StoreAccess::capture(map, version_, info_.tile_depth);
+  // Tiles off the device (spillTilesTo) are cut at the working set's depth.
+  if (info_.tile_depth != gpu::kTileDepth && map.spilledTiles() > 0)
+    throw Error(ErrorCode::kInvalidArgument,
+                "store: this store cuts its tiles at depth " + std::to_string(info_.tile_depth) +
+                    ", and a map that spills tiles off the device commits only to a store cut at " +
+                    std::to_string(gpu::kTileDepth) +
+                    "; raise --max-device-memory, or integrate into a new store");
+  for (auto& [path, subtree] : StoreAccess::takeDirtyTiles(map))
+    c->dirty.emplace(tileKey(gpu::kTileDepth, path), std::move(subtree));
   c->stats.find_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return c;
 }
@@ -216,9 +225,21 @@ void MapWriter::prepare(PendingCommit& c) const {
   c.hashes.reserve(tiles.size());
   for (const PoolTile& t : tiles) {
     const auto old = hashes_.find(t.key);
-    // A tile off the device (OccupancyMap::spillTilesTo) is as the store holds it: it left
-    // between scans, after its last change was captured (TileWorkingSet::mayMoveTiles).
+    // A tile off the device (OccupancyMap::spillTilesTo) is as the store holds it when it left
+    // between scans, after its last change was captured; one that left while a scan was
+    // partly applied comes with its subtree (c.dirty), compared as any tile.
     if (pool.nodes[t.node].link & gpu::kFlagEvicted) {
+      if (const auto dirty = c.dirty.find(t.key); dirty != c.dirty.end()) {
+        std::string body = nodeStream(dirty->second);
+        const std::uint64_t h = bodyHash(body);
+        c.hashes.emplace(t.key, h);
+        ++stats.tiles_compared;
+        if (old == hashes_.end() || old->second != h) {
+          stats.body_bytes += body.size();
+          c.changed.push_back({t.key, std::move(body)});
+        }
+        continue;
+      }
       if (old == hashes_.end())
         throw Error(ErrorCode::kInternal,
                     "internal error: a tile off the device was never committed; please report "

@@ -184,6 +184,9 @@ class MapWriter {
     std::vector<std::uint64_t> removed;
     LogEntry entry;
     std::unordered_map<std::uint64_t, std::uint64_t> hashes;  // every tile's, after it
+    /// Tiles off the device with changes no commit has seen (StoreAccess::takeDirtyTiles), by
+    /// tile key: their subtrees.
+    std::unordered_map<std::uint64_t, HostTree> dirty;
     CommitStats stats;
   };
   /// The map captured after its scans (on the caller's thread: the device).
