@@ -333,8 +333,8 @@ TEST(MemoryBudget, ScanWhoseTilesDoNotFitAtOnceLoadsThemInGroups) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   const double res = 0.1;
   const Eigen::Vector3f a(0, 0, 0), b(0.35f, -0.25f, 0.15f);
-  const auto first = sphere(8.0f, 3000, a);
-  const auto again = sphere(8.5f, 3000, b);
+  const auto first = sphere(6.0f, 2000, a);
+  const auto again = sphere(6.5f, 2000, b);
   std::size_t pool = 0, total = 0;
   {
     OccupancyMap probe(ctx, test::withResolution(res));
