@@ -131,10 +131,7 @@ TEST(cliDeviceMemory, LongRaysRunInPartsUnderTheCap) {
   // in groups of tiles, each part within the cap, and the map is graph2tree's, byte for byte.
   OCTOVK_REQUIRE_CONTEXT(ctx);
   (void)ctx;
-  if (::access(OCTOVK_PATH(OCTOVK_GRAPH2TREE).c_str(), X_OK) != 0) {
-    if (runningInCi()) FAIL() << "graph2tree missing under CI: apt-get install octomap-tools";
-    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";
-  }
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch;
   const std::string graph =
       writeGraph(scratch, "far.graph", {{200}, {100, 200.0f, {0.3f, 0.1f, 0.0f}}, {200}});
@@ -156,10 +153,7 @@ TEST(cliDeviceMemory, LongRaysRunInPartsUnderTheCap) {
 TEST(cliDeviceMemory, MapLargerThanTheCapSpillsTilesAndIsGraph2treesMap) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
   (void)ctx;
-  if (::access(OCTOVK_PATH(OCTOVK_GRAPH2TREE).c_str(), X_OK) != 0) {
-    if (runningInCi()) FAIL() << "graph2tree missing under CI: apt-get install octomap-tools";
-    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";
-  }
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch;
   std::vector<TestScan> scans;
   for (int i = 0; i < 12; ++i) scans.push_back({3000, 3.0f, {25.0f * static_cast<float>(i), 0, 0}});

@@ -35,8 +35,6 @@ namespace fs = std::filesystem;
 const std::string kSphericalGraph = OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR) + "/spherical_scan.graph";
 const std::string kFr079Dir = OCTOVK_PATH(OCTOVK_SHARED_DATA_DIR) + "/fr079-2d";
 
-bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK) == 0; }
-
 // Node count of an OctoMap file, for a readable failure message.
 std::string describeTree(const fs::path& path) {
   std::ifstream in(path, std::ios_base::binary);

@@ -87,19 +87,9 @@ octomap::OcTreeKey keyOf(int x, int y, int z) {
                             static_cast<octomap::key_type>(z));
 }
 
-bool isExecutable(const std::string& path) {
-  return !path.empty() && ::access(path.c_str(), X_OK) == 0;
-}
-
-#define REQUIRE_GRAPH2TREE()                                             \
-  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                   \
-    if (test::runningInCi()) FAIL() << "graph2tree missing under CI";    \
-    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools"; \
-  }
-
 // graph2tree's .ot of OctoMap's sample scan, cut at every depth and rebuilt: byte-identical.
 TEST(StoreTiles, RoundTripOfGraph2treeMapIsByteIdentical) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
   const std::string graph =
       std::string(OCTOVK_PATH(OCTOVK_OCTOMAP_DATA_DIR)) + "/spherical_scan.graph";
@@ -285,7 +275,7 @@ void printStoreWrites(const std::string& summary) {
 }
 
 TEST(StoreCli, ExportAfterIntegrateIsGraph2treesMap) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
   const std::string graph = scratch / "room.graph";
   writeGraph(graph, roomScans(6, 0.0f));
@@ -309,7 +299,7 @@ TEST(StoreCli, ExportAfterIntegrateIsGraph2treesMap) {
 }
 
 TEST(StoreCli, SecondRunContinuesTheMapAndKeepsItsResolution) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
   const std::vector<GraphScan> a = roomScans(4, 0.0f), b = roomScans(3, 0.7f);
   const std::string graph_a = scratch / "a.graph", graph_b = scratch / "b.graph";
@@ -392,7 +382,7 @@ void expectTwoWritersGiveTheLogsMap(const std::string& store_location, const Scr
 }
 
 TEST(StoreCli, TwoWritersAtOnceGiveTheMapOfTheLog) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
   expectTwoWritersGiveTheLogsMap(scratch / "shared.sqlite", scratch);
 }
@@ -502,7 +492,7 @@ void expectFollowerKeepsTheMap(const std::string& location, const std::string& m
 }
 
 TEST(StoreCli, FollowerKeepsALocalCopyCurrent) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
   expectFollowerKeepsTheMap(scratch / "map.sqlite", "default", scratch);
 }
@@ -532,7 +522,7 @@ TEST(StoreCli, FollowRefusesAMissingMapAndABadSeq) {
 // The C++ API: StoredMap commits each scan as integrate --store does, two of them on one map
 // take turns (each loads the other's scans first), and readStoredMap reads the committed map.
 TEST(StoredMapApi, ScansCommitAsOctoMapReplaysTheLog) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   OCTOVK_REQUIRE_CONTEXT(ctx);
   Scratch scratch("store");
   const std::string location = scratch / "api.sqlite";
@@ -927,7 +917,7 @@ TEST(StoreCli, StampedMapWithDegradeContinuesAsTheInCoreRun) {
 }
 
 TEST(StoreCli, KilledWriterLeavesTheCommittedScans) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   Scratch scratch("store");
   expectKilledWriterLeavesItsLog(scratch / "map.sqlite", scratch);
 }
@@ -983,7 +973,7 @@ std::string postgresUri() {
 }
 
 TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   const std::string uri = postgresUri();
   ASSERT_FALSE(uri.empty()) << "run through tests/store_postgres.sh, which starts the server";
   Scratch scratch("store");
@@ -1025,14 +1015,14 @@ TEST(StorePostgres, IntegrateContinueAndExportAsGraph2tree) {
 }
 
 TEST(StorePostgres, KilledWriterLeavesTheCommittedScans) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
   expectKilledWriterLeavesItsLog(postgresUri(), scratch);
 }
 
 TEST(StorePostgres, FollowerKeepsALocalCopyCurrent) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
   expectFollowerKeepsTheMap(postgresUri(), "follow" + std::to_string(::getpid()), scratch);
@@ -1047,7 +1037,7 @@ TEST(StorePostgres, FollowerKeepsALocalCopyCurrent) {
 // the map's lock: another session calls pg_terminate_backend) is thrown by finish() naming the
 // scan, and the store stays as after the scans before it (graph2tree's map of those).
 TEST(StorePostgres, LostSessionFailsTheBackgroundCommitAndKeepsTheScansBefore) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   OCTOVK_REQUIRE_CONTEXT(ctx);
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
@@ -1105,7 +1095,7 @@ TEST(StorePostgres, LostSessionFailsTheBackgroundCommitAndKeepsTheScansBefore) {
 // mid-run (in a commit, or between two) stops with exit status 1 naming the first scan the
 // store does not hold, and the store is graph2tree's map of the scans before it.
 TEST(StorePostgres, LostSessionEndsTheRunNamingTheFirstScanNotCommitted) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
   const std::vector<GraphScan> scans = roomScans(400, 0.0f);
@@ -1160,7 +1150,7 @@ TEST(StorePostgres, LostSessionEndsTheRunNamingTheFirstScanNotCommitted) {
 }
 
 TEST(StorePostgres, TwoWritersAtOnceGiveTheMapOfTheLog) {
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   ASSERT_FALSE(postgresUri().empty()) << "run through tests/store_postgres.sh";
   Scratch scratch("store");
   expectTwoWritersGiveTheLogsMap(postgresUri(), scratch);

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <memory>
@@ -101,7 +102,21 @@ inline bool runningInCi() {
   return ci && *ci && std::string(ci) != "0" && std::string(ci) != "false";
 }
 
+/// Whether `path` names a program this process may run.
+inline bool isExecutable(const std::string& path) {
+  return !path.empty() && ::access(path.c_str(), X_OK) == 0;
+}
+
 }  // namespace octovk::test
+
+/// Gives OctoMap's graph2tree to the test: with CI set a missing one fails the test, elsewhere it
+/// is skipped with the package to install.
+#define OCTOVK_REQUIRE_GRAPH2TREE()                                           \
+  if (!::octovk::test::isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {        \
+    if (::octovk::test::runningInCi())                                        \
+      FAIL() << "graph2tree missing under CI: apt-get install octomap-tools"; \
+    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";      \
+  }
 
 /// Gives `ctx` (octovk::Context&) to the test; with CI set a missing device fails the test,
 /// elsewhere it is skipped with the reason.

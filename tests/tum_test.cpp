@@ -40,15 +40,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-bool isExecutable(const std::string& path) { return ::access(path.c_str(), X_OK) == 0; }
-
-#define REQUIRE_GRAPH2TREE()                                                  \
-  if (!isExecutable(OCTOVK_PATH(OCTOVK_GRAPH2TREE))) {                        \
-    if (::octovk::test::runningInCi())                                        \
-      FAIL() << "graph2tree missing under CI: apt-get install octomap-tools"; \
-    GTEST_SKIP() << "graph2tree missing: apt-get install octomap-tools";      \
-  }
-
 // ---- PNG files, written with libpng's full API (big-endian samples built here, no swap) ----
 
 // `samples` per pixel (1 gray, 3 RGB), each `bit_depth` bits; 16-bit values stored big-endian.
@@ -722,7 +713,7 @@ class TumParity : public ::testing::TestWithParam<ParityCase> {};
 // convert -> graph2tree against integrate DIR: both files byte for byte.
 TEST_P(TumParity, IntegrateEqualsGraph2treeOnConvertedGraph) {
   OCTOVK_REQUIRE_CONTEXT(ctx);
-  REQUIRE_GRAPH2TREE();
+  OCTOVK_REQUIRE_GRAPH2TREE();
   const ParityCase& c = GetParam();
   Scratch scratch("tum");
   Camera camera;

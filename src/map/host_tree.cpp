@@ -132,6 +132,21 @@ PoolImage poolImageFromTree(const HostTree& tree) {
   return image;
 }
 
+SubtreeSize subtreeSize(const HostTree& tree, std::uint32_t node) {
+  SubtreeSize size;
+  std::vector<std::uint32_t> stack{node};
+  while (!stack.empty()) {
+    const HostTree::Node& n = tree.nodes[stack.back()];
+    stack.pop_back();
+    ++size.nodes;
+    if ((n.mask & gpu::kChildMask) == 0) continue;
+    ++size.blocks;
+    for (std::uint32_t s = 0; s < 8; ++s)
+      if (n.mask & (1u << s)) stack.push_back(n.children * 8 + s);
+  }
+  return size;
+}
+
 void averageInnerColors(HostTree& tree) {
   if (tree.payload != Payload::kColor || !tree.root_exists || tree.nodes.empty()) return;
   // Children before parents: a depth-first order reversed.

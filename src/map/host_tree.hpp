@@ -36,6 +36,13 @@ void checkNodeData(const HostTree::Node& node, std::size_t index, const char* ca
 HostTree hostTreeFromPool(std::span<const gpu::Node> nodes, std::span<const std::uint32_t> payload,
                           Payload kind, const gpu::PoolState& pool);
 
+/// Nodes and blocks (nodes with children, each one block of 8 slots in a pool) of the subtree
+/// under `node`, `node` included; its leaves are nodes - blocks.
+struct SubtreeSize {
+  std::uint64_t nodes = 0, blocks = 0;
+};
+SubtreeSize subtreeSize(const HostTree& tree, std::uint32_t node);
+
 /// ColorOcTree::updateInnerOccupancy's colours: every inner node that hangs from the root takes
 /// the integer mean of its children's set colours (white where none is set), bottom up. The
 /// device leaves inner colours as OctoMap's updates leave them; a download gives these. Does

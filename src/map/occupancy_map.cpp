@@ -78,20 +78,9 @@ std::size_t OccupancyMap::Impl::leafCount() {
   }
   // The leaf boxes would take a spilled tile for a leaf: the whole tree's leaves instead.
   const HostTree tree = download();
-  std::size_t leaves = 0;
   if (!tree.root_exists || tree.nodes.empty()) return 0;
-  std::vector<std::uint32_t> stack{gpu::kRootNode};
-  while (!stack.empty()) {
-    const HostTree::Node& n = tree.nodes[stack.back()];
-    stack.pop_back();
-    if ((n.mask & gpu::kChildMask) == 0) {
-      ++leaves;
-      continue;
-    }
-    for (std::uint32_t s = 0; s < 8; ++s)
-      if (n.mask & (1u << s)) stack.push_back(n.children * 8 + s);
-  }
-  return leaves;
+  const SubtreeSize size = subtreeSize(tree, gpu::kRootNode);
+  return size.nodes - size.blocks;
 }
 
 std::vector<OccupancyMap::LeafBoxHost> OccupancyMap::Impl::downloadLeafBoxes() {

@@ -61,25 +61,6 @@ void graft(HostTree& tree, std::uint32_t node, const std::string& body) {
                 "report this");
 }
 
-// Nodes and blocks (nodes with children) of the subtree under `node`, `node` included.
-struct SubtreeSize {
-  std::uint64_t nodes = 0, blocks = 0;
-};
-SubtreeSize subtreeSize(const HostTree& tree, std::uint32_t node) {
-  SubtreeSize size;
-  std::vector<std::uint32_t> stack{node};
-  while (!stack.empty()) {
-    const HostTree::Node& n = tree.nodes[stack.back()];
-    stack.pop_back();
-    ++size.nodes;
-    if ((n.mask & gpu::kChildMask) == 0) continue;
-    ++size.blocks;
-    for (std::uint32_t s = 0; s < 8; ++s)
-      if (n.mask & (1u << s)) stack.push_back(n.children * 8 + s);
-  }
-  return size;
-}
-
 // The nodes at the tile depth, with their paths (a child index, 3 bits, per level from the
 // root); and the blocks the tree above them takes (block 0, the root's, included).
 struct TileNode {
@@ -219,7 +200,6 @@ bool TileWorkingSet::load(const gpu::ScanCounters& counters, const Eigen::Vector
 
 bool TileWorkingSet::makeRoom(std::uint64_t blocks, const Eigen::Vector3f& sensor,
                               const std::string& scan, bool partly_applied) {
-  if (!enabled()) return false;
   return rebalance({}, blocks, sensor, scan, partly_applied);
 }
 

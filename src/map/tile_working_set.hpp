@@ -42,7 +42,7 @@ class TileWorkingSet {
   /// Round trips, loads and evictions so far.
   OccupancyMap::SpillCounts counts() const noexcept { return counts_; }
 
-  /// A scan (`scan`: its ticket, which pins the tiles it loads until it is in) was refused
+  /// A scan (`scan`: the key its loads are pinned under, ScanPipeline::rebalanceTiles) was refused
   /// for the evicted tiles `counters` names: loads them, evicting unpinned tiles farthest from
   /// `sensor` if the pool needs room for them and `counters.new_blocks` more. False, with
   /// nothing changed, where they do not fit even so. Nothing may be in flight.

@@ -223,6 +223,16 @@ void MapWriter::prepare(PendingCommit& c) const {
   const std::vector<PoolTile> tiles = poolTiles(pool, info_.tile_depth);
   CommitStats& stats = c.stats;
   c.hashes.reserve(tiles.size());
+  // A tile's body compared with the committed one: written where it differs or is new.
+  const auto compare = [&](std::uint64_t key, std::string body) {
+    const std::uint64_t h = bodyHash(body);
+    c.hashes.emplace(key, h);
+    const auto old = hashes_.find(key);
+    if (old == hashes_.end() || old->second != h) {
+      stats.body_bytes += body.size();
+      c.changed.push_back({key, std::move(body)});
+    }
+  };
   for (const PoolTile& t : tiles) {
     const auto old = hashes_.find(t.key);
     // A tile off the device (OccupancyMap::spillTilesTo) is as the store holds it when it left
@@ -230,14 +240,8 @@ void MapWriter::prepare(PendingCommit& c) const {
     // partly applied comes with its subtree (c.dirty), compared as any tile.
     if (pool.nodes[t.node].link & gpu::kFlagEvicted) {
       if (const auto dirty = c.dirty.find(t.key); dirty != c.dirty.end()) {
-        std::string body = nodeStream(dirty->second);
-        const std::uint64_t h = bodyHash(body);
-        c.hashes.emplace(t.key, h);
         ++stats.tiles_compared;
-        if (old == hashes_.end() || old->second != h) {
-          stats.body_bytes += body.size();
-          c.changed.push_back({t.key, std::move(body)});
-        }
+        compare(t.key, nodeStream(dirty->second));
         continue;
       }
       if (old == hashes_.end())
@@ -252,25 +256,12 @@ void MapWriter::prepare(PendingCommit& c) const {
       c.hashes.emplace(t.key, old->second);
       continue;
     }
-    std::string body = poolTileBody(pool, t);
-    const std::uint64_t h = bodyHash(body);
-    c.hashes.emplace(t.key, h);
     ++stats.tiles_compared;
-    if (old == hashes_.end() || old->second != h) {
-      stats.body_bytes += body.size();
-      c.changed.push_back({t.key, std::move(body)});
-    }
+    compare(t.key, poolTileBody(pool, t));
   }
   // A stamped map's stamps above the tile depth (kUpperStampsKey), compared like a tile.
-  if (std::string upper = poolUpperStamps(pool, info_.tile_depth); !upper.empty()) {
-    const std::uint64_t h = bodyHash(upper);
-    c.hashes.emplace(kUpperStampsKey, h);
-    const auto old = hashes_.find(kUpperStampsKey);
-    if (old == hashes_.end() || old->second != h) {
-      stats.body_bytes += upper.size();
-      c.changed.push_back({kUpperStampsKey, std::move(upper)});
-    }
-  }
+  if (std::string upper = poolUpperStamps(pool, info_.tile_depth); !upper.empty())
+    compare(kUpperStampsKey, std::move(upper));
   for (const auto& [key, h] : hashes_)
     if (!c.hashes.contains(key)) c.removed.push_back(key);
   c.entry.seq = last_seq_ + 1;
