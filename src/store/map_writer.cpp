@@ -168,7 +168,8 @@ void MapWriter::abandon() noexcept {
 
 void MapWriter::apply(PendingCommit& c) {
   // Only once committed: a failed commit leaves the writer as before, to be tried again.
-  hashes_ = std::move(c.hashes);
+  for (const std::uint64_t key : c.removed) hashes_.erase(key);
+  for (const auto& [key, h] : c.updated) hashes_[key] = h;
   last_seq_ = c.entry.seq;
   if (bodies_known_) {
     for (const std::uint64_t key : c.removed) bodies_.erase(key);
@@ -216,25 +217,32 @@ std::unique_ptr<MapWriter::PendingCommit> MapWriter::capture(OccupancyMap& map,
 
 void MapWriter::prepare(PendingCommit& c) const {
   const auto start = std::chrono::steady_clock::now();
-  // Only the tiles under the scan's changed nodes, and tiles new since, are serialised and
-  // compared; the others are as committed.
   const PoolCapture& pool = c.pool;
-  const bool incremental = pool.incremental && version_ != kUnknownVersion;
-  const std::vector<PoolTile> tiles = poolTiles(pool, info_.tile_depth);
   CommitStats& stats = c.stats;
-  c.hashes.reserve(tiles.size());
   // A tile's body compared with the committed one: written where it differs or is new.
   const auto compare = [&](std::uint64_t key, std::string body) {
     const std::uint64_t h = bodyHash(body);
-    c.hashes.emplace(key, h);
     const auto old = hashes_.find(key);
     if (old == hashes_.end() || old->second != h) {
       stats.body_bytes += body.size();
+      c.updated.emplace_back(key, h);
       c.changed.push_back({key, std::move(body)});
     }
   };
-  for (const PoolTile& t : tiles) {
-    const auto old = hashes_.find(t.key);
+  // The tiles to compare, and the key ranges in which a committed tile not among them is gone.
+  // When the map is the last commit's plus one scan, only the tiles under the scan's changed
+  // nodes: a walk of its updated paths, not of the map. Tiles that left the device while a scan
+  // was partly applied (c.dirty) are found by a walk of every tile.
+  const bool incremental = pool.incremental && version_ != kUnknownVersion && c.dirty.empty();
+  PoolTileChanges found;
+  if (incremental) {
+    found = changedPoolTiles(pool, info_.tile_depth,
+                             [&](std::uint64_t key) { return hashes_.contains(key); });
+  } else {
+    found.tiles = poolTiles(pool, info_.tile_depth);
+    found.cleared.push_back(tileKeyRange(0, 0));
+  }
+  for (const PoolTile& t : found.tiles) {
     // A tile off the device (OccupancyMap::spillTilesTo) is as the store holds it when it left
     // between scans, after its last change was captured; one that left while a scan was
     // partly applied comes with its subtree (c.dirty), compared as any tile.
@@ -244,26 +252,31 @@ void MapWriter::prepare(PendingCommit& c) const {
         compare(t.key, nodeStream(dirty->second));
         continue;
       }
-      if (old == hashes_.end())
+      if (!hashes_.contains(t.key))
         throw Error(ErrorCode::kInternal,
                     "internal error: a tile off the device was never committed; please report "
                     "this with the input");
-      c.hashes.emplace(t.key, old->second);
-      continue;
-    }
-    if (incremental && old != hashes_.end() &&
-        !std::binary_search(pool.changed.begin(), pool.changed.end(), t.node)) {
-      c.hashes.emplace(t.key, old->second);
       continue;
     }
     ++stats.tiles_compared;
     compare(t.key, poolTileBody(pool, t));
   }
   // A stamped map's stamps above the tile depth (kUpperStampsKey), compared like a tile.
+  const bool had_upper = hashes_.contains(kUpperStampsKey);
   if (std::string upper = poolUpperStamps(pool, info_.tile_depth); !upper.empty())
     compare(kUpperStampsKey, std::move(upper));
-  for (const auto& [key, h] : hashes_)
-    if (!c.hashes.contains(key)) c.removed.push_back(key);
+  else if (had_upper)
+    c.removed.push_back(kUpperStampsKey);
+  std::vector<std::uint64_t> listed;  // in key order, as found.tiles
+  listed.reserve(found.tiles.size());
+  for (const PoolTile& t : found.tiles) listed.push_back(t.key);
+  for (const auto& [first, last] : found.cleared)
+    for (auto it = hashes_.lower_bound(first); it != hashes_.end() && it->first < last; ++it)
+      if (it->first != kUpperStampsKey &&
+          !std::binary_search(listed.begin(), listed.end(), it->first))
+        c.removed.push_back(it->first);
+  std::sort(c.removed.begin(), c.removed.end());
+  c.removed.erase(std::unique(c.removed.begin(), c.removed.end()), c.removed.end());
   c.entry.seq = last_seq_ + 1;
   c.entry.source = c.source;
   c.entry.scan = c.scan;

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <future>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -183,7 +184,8 @@ class MapWriter {
     std::vector<Tile> changed;
     std::vector<std::uint64_t> removed;
     LogEntry entry;
-    std::unordered_map<std::uint64_t, std::uint64_t> hashes;  // every tile's, after it
+    /// The new hashes of the tiles in `changed` (and the upper stamps record), by key.
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> updated;
     /// Tiles off the device with changes no commit has seen (StoreAccess::takeDirtyTiles), by
     /// tile key: their subtrees.
     std::unordered_map<std::uint64_t, HostTree> dirty;
@@ -200,7 +202,8 @@ class MapWriter {
   void apply(PendingCommit& c);
 
   std::uint64_t last_seq_ = 0;
-  std::unordered_map<std::uint64_t, std::uint64_t> hashes_;  // key -> hash of the body
+  /// Key -> hash of the body, in key order: a scan's changed regions are key ranges.
+  std::map<std::uint64_t, std::uint64_t> hashes_;
   /// The device map's tree version (StoreAccess::version) that `hashes_` describe; unknown:
   /// the next commit compares every tile.
   std::uint64_t version_ = kUnknownVersion;

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <unordered_map>
@@ -506,6 +507,65 @@ std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth) {
         },
         kNoUpper);
   return tiles;
+}
+
+std::pair<std::uint64_t, std::uint64_t> tileKeyRange(unsigned depth, std::uint64_t path) {
+  const unsigned shift = 5 + 3 * (kTreeDepth - depth);
+  return {path << shift, (path + 1) << shift};
+}
+
+namespace {
+
+class ChangedTileWalk {
+ public:
+  ChangedTileWalk(const PoolCapture& pool, unsigned tile_depth,
+                  const std::function<bool(std::uint64_t)>& committed, PoolTileChanges& out)
+      : pool_(pool), nodes_{pool}, tile_depth_(tile_depth), committed_(committed), out_(out) {}
+
+  // Node `index` at `depth`, reached by `path`: nothing when it did not change (its tiles are
+  // as committed), else a tile to compare, or its children walked. `fresh`: the node is new
+  // (the scan expanded a leaf above it), and so is everything under it.
+  void walk(std::size_t index, unsigned depth, std::uint64_t path, bool fresh) {
+    if (!fresh && !std::binary_search(pool_.changed.begin(), pool_.changed.end(), index)) return;
+    const NodeView n = nodes_(index);
+    const std::uint64_t own = tileKey(depth, path);
+    if (depth == tile_depth_ || n.mask == 0) {
+      out_.tiles.push_back({own, static_cast<std::uint32_t>(index), depth});
+      out_.cleared.push_back(tileKeyRange(depth, path));
+      return;
+    }
+    out_.cleared.emplace_back(own, own + 1);
+    // A committed leaf that now has children was expanded by the scan: its children are all
+    // new, the ones beside the scan's paths too, which the changed list does not name.
+    fresh = fresh || committed_(own);
+    for (unsigned i = 0; i < 8; ++i) {
+      const std::uint64_t child = (path << 3) | i;
+      if (n.mask & (1u << i))
+        walk(n.children * 8 + i, depth + 1, child, fresh);
+      else
+        out_.cleared.push_back(tileKeyRange(depth + 1, child));
+    }
+  }
+
+ private:
+  const PoolCapture& pool_;
+  PoolNodes nodes_;
+  unsigned tile_depth_;
+  const std::function<bool(std::uint64_t)>& committed_;
+  PoolTileChanges& out_;
+};
+
+}  // namespace
+
+PoolTileChanges changedPoolTiles(const PoolCapture& pool, unsigned tile_depth,
+                                 const std::function<bool(std::uint64_t)>& committed) {
+  checkTileDepth(tile_depth);
+  PoolTileChanges out;
+  if (!pool.root_exists)
+    out.cleared.push_back(tileKeyRange(0, 0));
+  else
+    ChangedTileWalk(pool, tile_depth, committed, out).walk(0, 0, 0, false);
+  return out;
 }
 
 std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -84,6 +85,28 @@ struct PoolTile {
 /// The tiles of the tree in `pool` cut at `tile_depth` (1..16), in key order, without their
 /// bodies: a walk of the tree above the tile depth. kFormat for links that leave the pool.
 std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth = kTileDepth);
+/// What a scan may have changed among the tiles of a captured pool whose `changed` list is
+/// complete (PoolCapture::incremental): found by walking only into the changed nodes above the
+/// tile depth, so that the cost follows the scan and not the map.
+struct PoolTileChanges {
+  /// The tiles that hang from changed nodes and are changed themselves, in key order: to be
+  /// compared with the committed ones. Every other tile of the tree is as committed.
+  std::vector<PoolTile> tiles;
+  /// Key ranges [first, second) in which a committed tile is gone unless it is in `tiles`: the
+  /// ranges of those tiles (a subtree pruned into a leaf above the tile depth), the child slots
+  /// without a child of the walked nodes, and the walked nodes' own keys (a leaf that grew
+  /// children). They may overlap.
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> cleared;
+};
+/// The changed tiles of `pool` cut at `tile_depth` (1..16), against the commit that
+/// pool.changed is relative to, whose tile keys `committed` knows (a leaf it holds that now has
+/// children was expanded: all under it is new); everything cleared when the pool has no root.
+/// Meaningful only where pool.incremental holds.
+PoolTileChanges changedPoolTiles(const PoolCapture& pool, unsigned tile_depth,
+                                 const std::function<bool(std::uint64_t)>& committed);
+/// The keys of the tiles under the node at `depth` reached by `path` (itself included):
+/// [first, second), every depth below it.
+std::pair<std::uint64_t, std::uint64_t> tileKeyRange(unsigned depth, std::uint64_t path);
 /// The body of a tile of `pool` (Tile::body): what tilesOf gives for the same tree.
 std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile);
 /// The body of the upper stamps record (kUpperStampsKey) of a stamped `pool`; empty when the
