@@ -30,6 +30,7 @@ CommandStream::CommandStream(Device& device, std::uint32_t frames)
       OCTOVK_VK(vkCreateQueryPool(device.handle(), &qinfo, nullptr, &queries_));
     }
   } catch (...) {
+    if (queries_) vkDestroyQueryPool(device.handle(), queries_, nullptr);
     for (Frame& f : frames_)
       if (f.fence) vkDestroyFence(device.handle(), f.fence, nullptr);
     vkDestroyCommandPool(device.handle(), pool_, nullptr);
@@ -139,7 +140,18 @@ void CommandStream::update(const Buffer& dst, const void* data, std::size_t byte
 
 std::uint32_t CommandStream::timestamp() {
   Frame& f = frames_[current_];
-  if (!queries_ || f.query_count >= kMaxQueries) return f.query_count;
+  if (!queries_ || f.query_count >= kMaxQueries || timestamps_off_) return f.query_count;
+  if (!timestamps_.valid()) {
+    // Made at the first timestamp: a stream that records none holds no buffer for them. They
+    // are statistics: without memory for them, the stream records none.
+    try {
+      timestamps_ =
+          Buffer(device_, std::size_t{kMaxQueries} * frames() * sizeof(std::uint64_t), true);
+    } catch (const Error&) {
+      timestamps_off_ = true;
+      return f.query_count;
+    }
+  }
   vkCmdWriteTimestamp(f.cmd, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_,
                       current_ * kMaxQueries + f.query_count);
   return f.query_count++;
@@ -148,14 +160,10 @@ std::uint32_t CommandStream::timestamp() {
 std::vector<double> CommandStream::timestampsNs(std::uint32_t frame) {
   const Frame& f = frames_.at(frame);
   if (!queries_ || f.query_count == 0 || f.serial == 0 || !f.done) return {};
-  std::vector<std::uint64_t> ticks(f.query_count);
-  const VkResult r =
-      vkGetQueryPoolResults(device_.handle(), queries_, frame * kMaxQueries, f.query_count,
-                            ticks.size() * sizeof(std::uint64_t), ticks.data(),
-                            sizeof(std::uint64_t), VK_QUERY_RESULT_64_BIT);
-  if (r != VK_SUCCESS) return {};
-  std::vector<double> ns(ticks.size());
-  for (std::size_t i = 0; i < ticks.size(); ++i)
+  const auto* ticks =
+      static_cast<const std::uint64_t*>(timestamps_.mapped()) + std::size_t{frame} * kMaxQueries;
+  std::vector<double> ns(f.query_count);
+  for (std::size_t i = 0; i < ns.size(); ++i)
     ns[i] = static_cast<double>(ticks[i]) * device_.timestampPeriodNs();
   return ns;
 }
@@ -172,6 +180,12 @@ void CommandStream::signalAfterNextSubmit(VkSemaphore semaphore, std::uint64_t v
 
 std::uint64_t CommandStream::submit() {
   Frame& f = frames_[current_];
+  // The frame's timestamps to host memory, read once its fence is signalled (timestampsNs).
+  if (f.query_count > 0)
+    vkCmdCopyQueryPoolResults(
+        f.cmd, queries_, current_ * kMaxQueries, f.query_count, timestamps_.handle(),
+        std::size_t{current_} * kMaxQueries * sizeof(std::uint64_t), sizeof(std::uint64_t),
+        VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
   OCTOVK_VK(vkEndCommandBuffer(f.cmd));
   recording_ = false;
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};

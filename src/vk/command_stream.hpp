@@ -51,7 +51,7 @@ class CommandStream {
             std::size_t bytes = VK_WHOLE_SIZE);
   void update(const Buffer& dst, const void* data, std::size_t bytes, std::size_t offset = 0);
   /// Records a device timestamp once all earlier work is done; returns its index in this
-  /// recording. Without timestamp support it records nothing.
+  /// recording. Without timestamp support (or host memory for the results) it records nothing.
   std::uint32_t timestamp();
   /// The next submission waits for `semaphore` (a timeline semaphore: for `value`; a binary
   /// one: signalled, and unsignalled by the wait) before any of its commands run.
@@ -106,6 +106,11 @@ class CommandStream {
   std::uint64_t submitted_ = 0;  // serial of the last submission
   std::uint64_t blocking_waits_ = 0;
   VkQueryPool queries_ = VK_NULL_HANDLE;
+  /// Each frame's timestamps, copied there by its submission (vkCmdCopyQueryPoolResults): read
+  /// once the frame is done without vkGetQueryPoolResults, which some drivers (lavapipe) make
+  /// wait for the whole device, the scans submitted after the frame included.
+  Buffer timestamps_;
+  bool timestamps_off_ = false;  // no memory for timestamps_: none are recorded
   bool recording_ = false;
   VkSemaphore wait_semaphore_ = VK_NULL_HANDLE;
   std::uint64_t wait_value_ = 0;
