@@ -658,6 +658,63 @@ TEST(StoreWriter, CommitsOnlyTheScansTilesYetHoldsTheWholeCut) {
   EXPECT_GT(removed, 0u) << "no tile was removed: the test misses merging";
 }
 
+// Commits as integrate makes them: each scan's capture comes with its own submission, and its
+// commit (finish) runs while the next scan is on the device. Scans of growing size make the
+// device refuse some (the pool and sets grow, the scan runs again, its capture recorded again).
+// After each commit the store holds the map as that scan left it: a map without a store, given
+// the same scans one by one, says what that is.
+TEST(StoreWriter, CommitsWhileTheNextScanRunsAndHoldsEachScansMap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("store");
+  std::unique_ptr<store::Store> st = store::Store::open(scratch / "n.sqlite", true);
+  MapParams params;
+  params.resolution = 0.2;
+  store::MapWriter writer(*st, "n", params);
+  OccupancyMap map(ctx, params), reference(ctx, params);
+  std::vector<std::vector<Eigen::Vector3f>> scans;
+  std::vector<Eigen::Vector3f> origins;
+  for (int i = 0; i < 8; ++i) {
+    // A wall 2 m ahead of the sensor, which moves 4 m a scan: few tiles each; the fifth scan
+    // sees the walls of a room around everything, many times the points (the device refuses
+    // it at first).
+    const float x = 4.0f * static_cast<float>(i);
+    if (i == 4) {
+      scans.push_back(cubeWalls(12.0f, 30, 0.8f));
+    } else {
+      std::vector<Eigen::Vector3f> wall;
+      for (int a = 0; a < 20; ++a)
+        for (int b = 0; b < 20; ++b)
+          wall.emplace_back(x + 2.0f, -1.5f + 0.15f * static_cast<float>(a),
+                            -1.5f + 0.15f * static_cast<float>(b));
+      scans.push_back(std::move(wall));
+    }
+    origins.emplace_back(x, 0.05f * static_cast<float>(i), 0.0f);
+  }
+  std::vector<std::vector<store::Tile>> expected;
+  std::size_t reruns = 0, incremental = 0;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    map.submitPointCloud(scans[i], origins[i]);
+    reference.insertPointCloud(scans[i], origins[i]);
+    expected.push_back(store::tilesOf(reference.download()));
+    const store::CommitStats last = writer.finish();  // scan i - 1, while scan i runs
+    if (i > 0) {
+      std::vector<store::Tile> stored;
+      ASSERT_TRUE(storeHolds(*st, "n", expected[i - 1], stored)) << "after scan " << i - 1;
+      if (last.tiles_compared < expected[i - 1].size()) ++incremental;
+    }
+    ASSERT_FALSE(writer.begin(map));  // the only writer: nothing to load
+    writer.commitInBackground(map, "test", i);
+    for (const ScanStats& s : map.takeScanStats())
+      reruns += s.ticket > 1 && s.cell_set_attempts > 1;  // a scan after the first commit
+  }
+  writer.finish();
+  std::vector<store::Tile> stored;
+  ASSERT_TRUE(storeHolds(*st, "n", expected.back(), stored));
+  EXPECT_EQ(st->log("n").size(), scans.size());
+  EXPECT_GT(reruns, 0u) << "no scan ran again: the test misses its case";
+  EXPECT_GE(incremental, 3u) << "the commits compared every tile";
+}
+
 // A map larger than its cap, committed scan by scan while its working set spills tiles: long
 // scans over a map the pool holds a third of run in groups of tiles and move tiles between their
 // parts, so that some leave the device with changes no commit has seen (they come to the commit

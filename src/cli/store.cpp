@@ -469,12 +469,10 @@ void IntegrateStore::report(Report& report) const {
                    t.tiles_written, t.body_bytes, static_cast<double>(t.body_bytes) * per_scan,
                    static_cast<double>(t.tiles_written) * per_scan, writer_->maxBodyBytes()))
       .line("store time",
-            format(
-                "%.3f ms/scan finding the changed tiles (%.1f tiles a scan compared), %.3f "
-                "ms/scan committing them (beside the next scan, on a thread of their own; only the "
-                "pool's capture waits for the device)",
-                t.find_s * 1e3 * per_scan, static_cast<double>(t.tiles_compared) * per_scan,
-                t.write_s * 1e3 * per_scan));
+            format("%.3f ms/scan finding the changed tiles (%.1f tiles a scan compared), %.3f "
+                   "ms/scan committing them (each scan's while the next one runs on the device)",
+                   t.find_s * 1e3 * per_scan, static_cast<double>(t.tiles_compared) * per_scan,
+                   t.write_s * 1e3 * per_scan));
 }
 
 void IntegrateStore::printHelp(std::ostream& out) {

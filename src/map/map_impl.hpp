@@ -153,6 +153,16 @@ class OccupancyMap::Impl {
     tiles_.noteCommittedPerScan();  // a store captures after every scan from now on
     return transfer_.capture(since, depth);
   }
+  /// A store's capture after every scan from the next one recorded (ScanPipeline::captureScans).
+  void captureScans(unsigned depth) noexcept { scans_.captureScans(depth); }
+  /// The last scan submitted, when it brings a capture (ScanPipeline::capturing); else 0.
+  std::uint64_t capturingTicket() const noexcept {
+    const std::uint64_t last = scans_.lastTicket();
+    return last != 0 && scans_.capturing(last) ? last : 0;
+  }
+  std::optional<PoolCapture> takeCapture(std::uint64_t ticket, std::uint64_t since) {
+    return scans_.takeCapture(ticket, since);
+  }
   /// The tree's version once the scans in flight are in (MapCore::tree_version).
   std::uint64_t treeVersion() {
     flush();

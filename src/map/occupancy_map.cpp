@@ -359,6 +359,19 @@ PoolCapture StoreAccess::capture(OccupancyMap& map, std::uint64_t since, unsigne
   return hostMemoryGuard("capture", [&] { return map.self().capture(since, depth); });
 }
 
+void StoreAccess::captureScans(OccupancyMap& map, unsigned depth) {
+  map.self().captureScans(depth);
+}
+
+std::uint64_t StoreAccess::capturingTicket(OccupancyMap& map) {
+  return map.self().capturingTicket();
+}
+
+std::optional<PoolCapture> StoreAccess::takeCapture(OccupancyMap& map, std::uint64_t ticket,
+                                                    std::uint64_t since) {
+  return hostMemoryGuard("capture", [&] { return map.self().takeCapture(ticket, since); });
+}
+
 std::vector<std::pair<std::uint64_t, HostTree>> StoreAccess::takeDirtyTiles(OccupancyMap& map) {
   return hostMemoryGuard("takeDirtyTiles", [&] { return map.self().takeDirtyTiles(); });
 }

@@ -40,6 +40,13 @@ void ScanPipeline::record(PendingScan& p) {
   input.resume = gate_ == Gate::kHalted;
   input.trace = scenes_.traceScans();
   RayScene* scene = input.trace ? &scenes_.scanScene() : nullptr;  // before recording: it may wait
+  // A store's capture after the scan's last part, into staging sized for the pool now (taken
+  // before recording: it may allocate).
+  p.capture.reset();
+  if (capture_depth_ != 0 && p.closes_scan && !tiles_.enabled()) {
+    p.capture_layout = passes::captureLayout(core_.buffers, core_.params.payload);
+    p.capture = captureStaging(p.capture_layout.bytes());
+  }
   passes::Recorder& rec = core_.rec;
   core_.stream.begin(core_.buffers.bindings);
   core_.touched.version = 0;  // the lists become this scan's
@@ -59,6 +66,7 @@ void ScanPipeline::record(PendingScan& p) {
   if (leaf_boxes_every_scan_) passes::recordLeafBoxes(rec);
   if (p.queries) passes::recordQueries(rec, core_.queryParams(), *p.queries);
   passes::recordClearSets(rec);
+  if (p.capture) passes::recordCapture(rec, p.capture_layout, *p.capture);
   passes::recordReadback(rec);
   p.serial = core_.stream.submit();
   p.frame = core_.stream.frame();
@@ -261,6 +269,7 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
       core_.touched.pool = pool;
     }
   }
+  if (p.capture && p.closes_scan) keepCapture(p, counters, pool);
   if (parts_.ticket != p.ticket) parts_ = PartTotals{.ticket = p.ticket};
   if (p.groups > 1) notePart(p, counters);
   if (!p.closes_scan) {
@@ -594,6 +603,91 @@ ScanStats ScanPipeline::insert(const ScanSource& source, const Eigen::Vector3f& 
     throw Error(ErrorCode::kInternal, "internal error: the blocking scan's statistics are missing");
   stats.wall_ms = msSince(start);
   return stats;
+}
+
+}  // namespace octovk
+
+namespace octovk {
+
+// ---- a store's captures ----------------------------------------------------------------------
+
+std::shared_ptr<vk::Buffer> ScanPipeline::captureStaging(std::size_t bytes) {
+  bytes = std::max<std::size_t>(bytes, 4);
+  for (std::shared_ptr<vk::Buffer>& b : capture_buffers_)
+    if (b.use_count() == 1 && b->size() >= bytes) return b;
+  // Too small or all held: drop the free ones, make one with a quarter more for the growth.
+  std::erase_if(capture_buffers_, [](const auto& b) { return b.use_count() == 1; });
+  capture_buffers_.push_back(std::make_shared<vk::Buffer>(core_.device, bytes + bytes / 4, true));
+  return capture_buffers_.back();
+}
+
+void ScanPipeline::keepCapture(const PendingScan& p, const gpu::ScanCounters& counters,
+                               const gpu::PoolState& pool) {
+  // Nothing here may throw: the scan is in the map. A capture that cannot be kept is missing,
+  // and the store captures the map itself (StoreAccess::capture).
+  try {
+    const passes::CaptureLayout& l = p.capture_layout;
+    const std::size_t count = std::size_t{pool.bump} * 8;
+    if (count > l.nodes) return;
+    PoolCapture c;
+    c.version = core_.tree_version;
+    c.root_exists = pool.root_exists != 0;
+    const auto* bytes = static_cast<const unsigned char*>(p.capture->mapped());
+    c.nodes = {reinterpret_cast<const gpu::Node*>(bytes), count};
+    c.kind = core_.params.payload;
+    if (l.payload_bytes)
+      c.payload = {reinterpret_cast<const std::uint32_t*>(bytes + l.node_bytes), count};
+    c.memory = p.capture;
+    // The nodes at depths 0..capture_depth_ on the scan's updated paths: its own touched lists
+    // when it ran in one part (the levels lie one after another from the deepest).
+    c.incremental = p.groups == 1 && capture_depth_ < gpu::kTreeDepth;
+    if (c.incremental) {
+      const auto* touched =
+          reinterpret_cast<const std::uint32_t*>(bytes + l.node_bytes + l.payload_bytes);
+      const std::size_t entries = l.touched_bytes / 4;
+      std::size_t base = 0;
+      for (unsigned level = gpu::kTreeDepth; level-- > 0;) {
+        const std::size_t n = counters.touched_count[level];
+        if (base + n > entries) {
+          c.incremental = false;
+          c.changed.clear();
+          break;
+        }
+        if (level <= capture_depth_)
+          c.changed.insert(c.changed.end(), touched + base, touched + base + n);
+        base += n;
+      }
+      std::sort(c.changed.begin(), c.changed.end());
+    }
+    captures_.emplace_back(p.ticket, std::move(c));
+    while (captures_.size() > core_.stream.frames() + 1) captures_.pop_front();
+  } catch (const std::bad_alloc&) {
+    // without host memory the capture is dropped
+  }
+}
+
+bool ScanPipeline::capturing(std::uint64_t ticket) const noexcept {
+  if (tiles_.enabled()) return false;
+  for (const PendingScan& p : pending_)
+    if (p.ticket == ticket && p.closes_scan && p.capture) return true;
+  for (const auto& [t, c] : captures_)
+    if (t == ticket) return true;
+  return false;
+}
+
+std::optional<PoolCapture> ScanPipeline::takeCapture(std::uint64_t ticket, std::uint64_t since) {
+  while (!pending_.empty() && pending_.front().ticket <= ticket) confirmOldest();
+  while (!captures_.empty() && captures_.front().first < ticket) captures_.pop_front();
+  if (captures_.empty() || captures_.front().first != ticket || tiles_.enabled())
+    return std::nullopt;
+  PoolCapture c = std::move(captures_.front().second);
+  captures_.pop_front();
+  // The changed nodes are the ones since `since` when the tree was at `since` before the scan
+  // (or the scan changed nothing).
+  const bool unchanged = c.version == since;
+  c.incremental = c.incremental && (unchanged || c.version == since + 1);
+  if (!c.incremental || unchanged) c.changed.clear();
+  return c;
 }
 
 }  // namespace octovk

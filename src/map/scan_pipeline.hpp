@@ -8,12 +8,15 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include "map/change_set.hpp"
 #include "map/growth_policy.hpp"
 #include "map/map_core.hpp"
+#include "map/passes/passes.hpp"
+#include "map/pool_capture.hpp"
 #include "map/query_runner.hpp"
 #include "map/ray_scene_cache.hpp"
 #include "map/scan_source.hpp"
@@ -78,7 +81,23 @@ class ScanPipeline {
   /// Whether scan `ticket` is in the map (polls, does not wait).
   bool finished(std::uint64_t ticket);
   std::size_t inFlight() const noexcept { return pending_.size(); }
+  /// The ticket of the last scan submitted (0: none yet).
+  std::uint64_t lastTicket() const noexcept { return next_ticket_ - 1; }
   void setLeafBoxesEveryScan(bool every_scan) noexcept { leaf_boxes_every_scan_ = every_scan; }
+
+  /// A store commits the map after every scan: from the next scan recorded on, each scan's
+  /// submission ends by copying the pool and the touched lists to host staging (a capture, cut
+  /// at `depth`), so that the commit neither waits for a submission of its own nor holds back
+  /// the next scan. 0: none. Not while tiles may leave the device (TileWorkingSet::enabled):
+  /// a scan's parts may then move tiles, which a copy of the pool does not see.
+  void captureScans(unsigned depth) noexcept { capture_depth_ = depth; }
+  /// Whether scan `ticket` brings a capture (captureScans was on when it was recorded, and it
+  /// had points).
+  bool capturing(std::uint64_t ticket) const noexcept;
+  /// Waits for the scans up to `ticket` (not those after it) and returns the map as scan
+  /// `ticket` left it, with the nodes at depths 0..depth that it changed when the tree was at
+  /// version `since` before it (PoolCapture::incremental); nullopt when it brought none.
+  std::optional<PoolCapture> takeCapture(std::uint64_t ticket, std::uint64_t since);
 
  private:
   /// A scan applied in groups of tiles (scan `ticket`; its parts are consecutive in the
@@ -124,6 +143,9 @@ class ScanPipeline {
     std::uint32_t group = 0;
     std::uint32_t groups = 1;
     bool closes_scan = true;
+    /// Its capture (captureScans), copied at the end of its last part's submission.
+    std::shared_ptr<vk::Buffer> capture;
+    passes::CaptureLayout capture_layout;
   };
   /// submit(); `caller` kInsert: the blocking call's scan, whose `queries` (staged here) run
   /// right after it in its submission.
@@ -181,6 +203,14 @@ class ScanPipeline {
   std::uint32_t split_groups_ = 1;
   std::size_t split_points_ = 0;
   bool leaf_boxes_every_scan_ = false;  // a setting (setLeafBoxesEveryScan), not a state
+  /// The capture of scan `p` (applied whole), kept for takeCapture.
+  void keepCapture(const PendingScan& p, const gpu::ScanCounters& counters,
+                   const gpu::PoolState& pool);
+  /// Host-visible staging of at least `bytes` that no capture holds.
+  std::shared_ptr<vk::Buffer> captureStaging(std::size_t bytes);
+  unsigned capture_depth_ = 0;                                  // captureScans
+  std::deque<std::pair<std::uint64_t, PoolCapture>> captures_;  // by ticket, oldest first
+  std::vector<std::shared_ptr<vk::Buffer>> capture_buffers_;    // for reuse
 };
 
 }  // namespace octovk

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -18,6 +19,15 @@ class StoreAccess {
   /// 0..`depth` changed since the tree's version `since` (PoolCapture::incremental says whether
   /// that is known).
   static PoolCapture capture(OccupancyMap& map, std::uint64_t since, unsigned depth);
+  /// From the next scan on, each scan's submission ends with a capture of the map, cut at
+  /// `depth` (not while tiles may leave the device: spillTilesTo).
+  static void captureScans(OccupancyMap& map, unsigned depth);
+  /// The last scan submitted, when it brings such a capture; else 0 (capture() it is).
+  static std::uint64_t capturingTicket(OccupancyMap& map);
+  /// Waits for scan `ticket` only (not the scans after it) and returns the map as it left it,
+  /// as capture() would have right after it; nullopt when it brought no capture.
+  static std::optional<PoolCapture> takeCapture(OccupancyMap& map, std::uint64_t ticket,
+                                                std::uint64_t since);
   /// The tree's version after the scans in flight: changes with every scan that changed the
   /// tree, edit and upload.
   static std::uint64_t version(OccupancyMap& map);

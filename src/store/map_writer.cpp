@@ -132,7 +132,51 @@ bool MapWriter::begin(OccupancyMap& map) {
 
 MapWriter::~MapWriter() { abandon(); }
 
+void MapWriter::failed(const Error& e, const PendingCommit& pending) {
+  const std::uint64_t row = last_seq_ + 1;
+  forget();  // the device map is ahead of the store: the next begin() reloads it
+  throw Error(e.code(), "store '" + store_.location() + "' did not commit scan " +
+                            std::to_string(pending.scan) + " of '" + pending.source +
+                            "' (counted from 0, as 'octovk store log' prints it; log row " +
+                            std::to_string(row) + "): " + e.what());
+}
+
 CommitStats MapWriter::finish() {
+  if (deferred_) {
+    const Deferred d = std::move(*deferred_);
+    deferred_.reset();
+    auto c = std::make_unique<PendingCommit>();
+    c->source = d.source;
+    c->scan = d.scan;
+    const auto start = std::chrono::steady_clock::now();
+    std::optional<PoolCapture> pool;
+    try {
+      pool = StoreAccess::takeCapture(*d.map, d.ticket, version_);  // waits for that scan only
+    } catch (...) {
+      forget();  // the scan's own error: the map does not hold it
+      throw;
+    }
+    if (!pool) {
+      forget();
+      throw Error(ErrorCode::kInternal, "internal error: the store's capture of scan " +
+                                            std::to_string(d.scan) +
+                                            " is missing; please report this with the input");
+    }
+    c->pool = std::move(*pool);
+    c->stats.find_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    try {
+      prepare(*c);
+      write(*c);
+    } catch (const Error& e) {
+      failed(e, *c);
+    } catch (...) {
+      forget();
+      throw;
+    }
+    apply(*c);
+    return c->stats;
+  }
   if (!background_.valid()) return {};
   std::future<void> running = std::move(background_);
   // The pending commit (and its captured pool, a device buffer) goes on this thread.
@@ -140,12 +184,7 @@ CommitStats MapWriter::finish() {
   try {
     running.get();
   } catch (const Error& e) {
-    const std::uint64_t row = last_seq_ + 1;
-    forget();  // the device map is ahead of the store: the next begin() reloads it
-    throw Error(e.code(), "store '" + store_.location() + "' did not commit scan " +
-                              std::to_string(pending->scan) + " of '" + pending->source +
-                              "' (counted from 0, as 'octovk store log' prints it; log row " +
-                              std::to_string(row) + "): " + e.what());
+    failed(e, *pending);
   } catch (...) {
     forget();
     throw;
@@ -163,6 +202,7 @@ void MapWriter::abandon() noexcept {
     }
   }
   pending_commit_.reset();
+  deferred_.reset();
   forget();
 }
 
@@ -187,15 +227,19 @@ void MapWriter::apply(PendingCommit& c) {
   max_body_bytes_ = std::max(max_body_bytes_, c.stats.body_bytes);
 }
 
-std::unique_ptr<MapWriter::PendingCommit> MapWriter::capture(OccupancyMap& map,
-                                                             const std::string& source,
-                                                             std::uint64_t scan) {
-  const auto start = std::chrono::steady_clock::now();
+void MapWriter::requireType(const OccupancyMap& map) const {
   if (map.params().payload != info_.params.payload)
     throw Error(ErrorCode::kInvalidArgument,
                 "map '" + name_ + "' of store '" + store_.location() + "' is " +
                     std::string(treeTypeName(info_.params.payload)) + "; the map to commit is " +
                     treeTypeName(map.params().payload));
+}
+
+std::unique_ptr<MapWriter::PendingCommit> MapWriter::capture(OccupancyMap& map,
+                                                             const std::string& source,
+                                                             std::uint64_t scan) {
+  const auto start = std::chrono::steady_clock::now();
+  requireType(map);
   auto c = std::make_unique<PendingCommit>();
   c->source = source;
   c->scan = scan;
@@ -308,6 +352,15 @@ CommitStats MapWriter::commit(OccupancyMap& map, const std::string& source, std:
 void MapWriter::commitInBackground(OccupancyMap& map, const std::string& source,
                                    std::uint64_t scan) {
   finish();
+  // The scans after this one bring their capture in their own submission (not while tiles may
+  // leave the device); this one may, and is then committed by finish(), with the next scan
+  // already submitted.
+  StoreAccess::captureScans(map, info_.tile_depth);
+  if (const std::uint64_t ticket = StoreAccess::capturingTicket(map); ticket != 0) {
+    requireType(map);
+    deferred_ = Deferred{&map, source, scan, ticket};
+    return;
+  }
   map.flush();
   pending_commit_ = capture(map, source, scan);
   // The tiles and the transaction on a thread of their own. Until finish() has waited for it,

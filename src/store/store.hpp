@@ -142,10 +142,13 @@ class MapWriter {
   /// Commits `map` as it is after scan `scan` of `source`: its tiles that differ from the last
   /// committed ones, and the log row. Waits for the map's submitted scans first.
   CommitStats commit(OccupancyMap& map, const std::string& source, std::uint64_t scan);
-  /// commit(), with only the capture of the map (waiting for its scans) on the caller's thread:
-  /// finding the tiles and the store's transaction run on a thread of their own while the
-  /// caller goes on (with the next scan). The next begin(), commit() or finish() waits for
-  /// them; until then nothing else may use the store.
+  /// commit(), while the caller goes on with the next scan. The map's scans from this call on
+  /// copy the pool to host staging in their own submission (StoreAccess::captureScans); when
+  /// this scan did, its commit waits for the next finish() (or begin(), commit()), which waits
+  /// for this scan only, then finds the tiles and runs the transaction while the scans
+  /// submitted after it run on the device. Otherwise (the first scan, an empty one, a map that
+  /// spills tiles) the map is captured now, after its scans, and the tiles and the transaction
+  /// run on a thread of their own until then. Until finish() nothing else may use the store.
   void commitInBackground(OccupancyMap& map, const std::string& source, std::uint64_t scan);
   /// Waits for a background commit and returns its statistics (all zero: none). Its error is
   /// thrown naming the scan (kIo from the store), and the writer forgets the map (the next
@@ -208,6 +211,20 @@ class MapWriter {
   /// the next commit compares every tile.
   std::uint64_t version_ = kUnknownVersion;
   std::unique_ptr<PendingCommit> pending_commit_;  // what background_ commits
+  /// A commit whose capture comes with its scan's submission (StoreAccess::capturingTicket):
+  /// finish() takes it once the scan is done, while the next scan runs.
+  struct Deferred {
+    OccupancyMap* map = nullptr;
+    std::string source;
+    std::uint64_t scan = 0;
+    std::uint64_t ticket = 0;
+  };
+  std::optional<Deferred> deferred_;
+  /// The commit of `pending`, failed with `e`: the writer forgets the map, and the error names
+  /// the scan.
+  [[noreturn]] void failed(const Error& e, const PendingCommit& pending);
+  /// Checks that `map` is of the stored map's type.
+  void requireType(const OccupancyMap& map) const;
   std::future<void> background_;
   CommitStats totals_;
   std::size_t max_body_bytes_ = 0;

@@ -234,6 +234,21 @@ void recordDegrade(Recorder& r, const gpu::ScanParams& sp, std::uint32_t now,
 /// recordClearBox(r, sp, nullptr) after it. Sets `sp`.
 void recordKeepBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* box);
 
+// ---- capture.cpp: a store's copy of the map after a scan ----
+
+/// Where recordCapture puts the node pool, its payload and the touched lists in a staging
+/// buffer: sized for the pool as it is when recorded (a scan does not grow it).
+struct CaptureLayout {
+  std::size_t nodes = 0;  ///< pool nodes copied (the pool's capacity)
+  std::size_t node_bytes = 0, payload_bytes = 0, touched_bytes = 0;
+  std::size_t bytes() const noexcept { return node_bytes + payload_bytes + touched_bytes; }
+};
+CaptureLayout captureLayout(const MapBuffers& buffers, Payload payload);
+/// Copies the pool, its payload and the touched lists into host-visible `staging` (at least
+/// layout.bytes()) after the passes recorded before it: the map as the scan left it, read by the
+/// host once the submission is done, while later scans change the pool.
+void recordCapture(Recorder& r, const CaptureLayout& layout, const vk::Buffer& staging);
+
 // ---- readback.cpp ----
 
 /// Copies the counters and the pool state to the recording frame's readback region.
