@@ -605,10 +605,6 @@ ScanStats ScanPipeline::insert(const ScanSource& source, const Eigen::Vector3f& 
   return stats;
 }
 
-}  // namespace octovk
-
-namespace octovk {
-
 // ---- a store's captures ----------------------------------------------------------------------
 
 std::shared_ptr<vk::Buffer> ScanPipeline::captureStaging(std::size_t bytes) {
@@ -624,7 +620,7 @@ std::shared_ptr<vk::Buffer> ScanPipeline::captureStaging(std::size_t bytes) {
 void ScanPipeline::keepCapture(const PendingScan& p, const gpu::ScanCounters& counters,
                                const gpu::PoolState& pool) {
   // Nothing here may throw: the scan is in the map. A capture that cannot be kept is missing,
-  // and the store captures the map itself (StoreAccess::capture).
+  // and the store's commit of the scan fails for want of host memory (MapWriter::finish).
   try {
     const passes::CaptureLayout& l = p.capture_layout;
     const std::size_t count = std::size_t{pool.bump} * 8;

@@ -156,11 +156,13 @@ CommitStats MapWriter::finish() {
       forget();  // the scan's own error: the map does not hold it
       throw;
     }
-    if (!pool) {
+    if (!pool) {  // dropped for want of host memory (ScanPipeline::keepCapture)
       forget();
-      throw Error(ErrorCode::kInternal, "internal error: the store's capture of scan " +
-                                            std::to_string(d.scan) +
-                                            " is missing; please report this with the input");
+      throw Error(ErrorCode::kOutOfHostMemory,
+                  "store '" + store_.location() + "' did not commit scan " +
+                      std::to_string(d.scan) + " of '" + d.source +
+                      "': the host ran out of memory for its copy of the map; the store holds "
+                      "the scans before it: free some memory and run again");
     }
     c->pool = std::move(*pool);
     c->stats.find_s =
