@@ -141,6 +141,18 @@ void MapWriter::failed(const Error& e, const PendingCommit& pending) {
                             std::to_string(row) + "): " + e.what());
 }
 
+template <class Work>
+void MapWriter::commitOrForget(const PendingCommit& pending, Work&& work) {
+  try {
+    work();
+  } catch (const Error& e) {
+    failed(e, pending);
+  } catch (...) {
+    forget();
+    throw;
+  }
+}
+
 CommitStats MapWriter::finish() {
   if (deferred_) {
     const Deferred d = std::move(*deferred_);
@@ -167,15 +179,10 @@ CommitStats MapWriter::finish() {
     c->pool = std::move(*pool);
     c->stats.find_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    try {
+    commitOrForget(*c, [&] {
       prepare(*c);
       write(*c);
-    } catch (const Error& e) {
-      failed(e, *c);
-    } catch (...) {
-      forget();
-      throw;
-    }
+    });
     apply(*c);
     return c->stats;
   }
@@ -183,14 +190,7 @@ CommitStats MapWriter::finish() {
   std::future<void> running = std::move(background_);
   // The pending commit (and its captured pool, a device buffer) goes on this thread.
   const std::unique_ptr<PendingCommit> pending = std::move(pending_commit_);
-  try {
-    running.get();
-  } catch (const Error& e) {
-    failed(e, *pending);
-  } catch (...) {
-    forget();
-    throw;
-  }
+  commitOrForget(*pending, [&] { running.get(); });
   apply(*pending);
   return pending->stats;
 }

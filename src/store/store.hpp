@@ -223,6 +223,10 @@ class MapWriter {
   /// The commit of `pending`, failed with `e`: the writer forgets the map, and the error names
   /// the scan.
   [[noreturn]] void failed(const Error& e, const PendingCommit& pending);
+  /// Runs `work` (the rest of the commit of `pending`): its Error goes through failed(), any
+  /// other exception after forget().
+  template <class Work>
+  void commitOrForget(const PendingCommit& pending, Work&& work);
   /// Checks that `map` is of the stored map's type.
   void requireType(const OccupancyMap& map) const;
   std::future<void> background_;
