@@ -14,6 +14,7 @@
 //   index (a merge sort of the linked list, n log n, in place), then the fold in that order on the
 //   node's colour. The node's log-odds (integrateNodeColor's weight) is final by then: the fold
 //   changes colours only.
+// Each node whose colour changes goes on the folded list (FoldedNode), for a store's capture.
 // Nothing is done for a scan the device refused (kStatusNotApplied): it runs again whole.
 #define OCTOVK_NODES_READ_ONLY
 #include "tree_search.glsl"
@@ -123,8 +124,10 @@ void main() {
   if (i > mask) return;
   uint node = COLOR_FOLD[tableWord(i, 0u)];
   if (node == kFoldEmpty) return;
-  uint c = nodePayload(node);
+  uint before = nodePayload(node);
+  uint c = before;
   uint p = sortedList(COLOR_FOLD[tableWord(i, 1u)]);
+  uint first = p;
   if (pc.mode == kColorFoldAverage) {
     for (; p != kFoldEmpty; p = linkAfter(p)) c = averaged(c, colorOf(p));
   } else {
@@ -133,4 +136,17 @@ void main() {
     for (; p != kFoldEmpty; p = linkAfter(p)) c = integrated(c, colorOf(p), occupancy, weight_new);
   }
   setNodePayload(node, c);
+  if (c == before) return;
+  // The folded list, after the points' words: the node, and where it lies (a key of one of its
+  // points, its depth).
+  uvec3 k;
+  coordToKeyChecked(POINTS[3u * first], k.x);  // in the map: the point was grouped
+  coordToKeyChecked(POINTS[3u * first + 1u], k.y);
+  coordToKeyChecked(POINTS[3u * first + 2u], k.z);
+  uint found, depth;
+  searchNode(k, found, depth);
+  uint at = pointWord(params.point_count, 0u) + 3u * atomicAdd(counters.folded_count, 1u);
+  COLOR_FOLD[at] = node;
+  COLOR_FOLD[at + 1u] = k.x | (k.y << 16);
+  COLOR_FOLD[at + 2u] = k.z | (depth << 16);
 }

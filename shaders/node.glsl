@@ -62,6 +62,9 @@ void setNodePayload(uint n, uint payload) {
 }
 
 NodeData nodeData(uint n) { return NodeData(NODES[n].log_odds, nodePayload(n)); }
+// Node n as the pool holds it, link word and all: for a copy of the pool (capture.comp), read
+// after the passes that write it.
+Node storedNode(uint n) { return NODES[n]; }
 void setNodeData(uint n, NodeData d) {
   NODES[n].log_odds = d.log_odds;
   setNodePayload(n, d.payload);

@@ -20,6 +20,7 @@
 #include <thread>
 
 #include "cli_support.hpp"
+#include "map/store_access.hpp"
 #include "octovk/octomap_io.hpp"
 #include "octovk/store.hpp"
 #include "payload_oracle.hpp"
@@ -713,6 +714,106 @@ TEST(StoreWriter, CommitsWhileTheNextScanRunsAndHoldsEachScansMap) {
   EXPECT_EQ(st->log("n").size(), scans.size());
   EXPECT_GT(reruns, 0u) << "no scan ran again: the test misses its case";
   EXPECT_GE(incremental, 3u) << "the commits compared every tile";
+}
+
+// The capture each scan brings (StoreAccess::captureScans) is, after the first, the scan's change
+// applied to the host's copy of the pool (CaptureMirror): its tiles and upper stamps are the ones
+// of the whole pool copied right after the scan, plain, colour and stamped. The scans revisit the
+// same walls until their cells clamp (a clamped leaf changes no more), one is refused at first
+// (a larger room: its capture is whole again), and a degrade between two scans (the tree changed
+// otherwise) makes the next capture whole.
+TEST(StoreCapture, EachScansChangeGivesTheTilesOfTheWholePool) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  for (const Payload kind : {Payload::kNone, Payload::kColor, Payload::kStamp}) {
+    SCOPED_TRACE(treeTypeName(kind));
+    MapParams params;
+    params.resolution = 0.2;
+    params.payload = kind;
+    std::optional<ColorMap> color;
+    std::optional<StampedMap> stamped;
+    std::optional<OccupancyMap> plain;
+    if (kind == Payload::kColor) color.emplace(ctx, params);
+    if (kind == Payload::kStamp) stamped.emplace(ctx, params);
+    if (kind == Payload::kNone) plain.emplace(ctx, params);
+    OccupancyMap& map = color     ? static_cast<OccupancyMap&>(*color)
+                        : stamped ? static_cast<OccupancyMap&>(*stamped)
+                                  : *plain;
+    StoreAccess::captureScans(map, store::kTileDepth);
+    const std::vector<Eigen::Vector3f> small = cubeWalls(3.0f, 12, 0.3f);
+    const std::vector<Eigen::Vector3f> large = cubeWalls(9.0f, 40, 0.6f);
+    std::size_t from_change = 0, whole = 0, reruns = 0;
+    for (std::uint32_t scan = 0; scan < 12; ++scan) {
+      const std::vector<Eigen::Vector3f>& points = scan == 6 ? large : small;
+      const Eigen::Vector3f origin(0.02f * static_cast<float>(scan % 3), 0.0f, 0.0f);
+      const std::vector<Rgb> colors = test::colorsOf(scan, points.size());
+      if (stamped && scan == 9) stamped->degradeOutdated(100 + scan, 2);
+      ScanOptions options;
+      if (color) options.colors = colors;
+      if (stamped) options.stamp = 100 + scan;
+      map.submitPointCloud(points, origin, options);
+      const std::uint64_t ticket = StoreAccess::capturingTicket(map);
+      ASSERT_NE(ticket, 0u) << "scan " << scan << " brought no capture";
+      const std::optional<PoolCapture> taken = StoreAccess::takeCapture(map, ticket, 0);
+      ASSERT_TRUE(taken.has_value()) << "scan " << scan;
+      (taken->from_change ? from_change : whole) += 1;
+      const PoolCapture copied = StoreAccess::capture(map, 0, store::kTileDepth);
+      EXPECT_EQ(taken->root_exists, copied.root_exists);
+      const std::vector<store::PoolTile> tiles = store::poolTiles(*taken);
+      const std::vector<store::PoolTile> expected = store::poolTiles(copied);
+      ASSERT_EQ(tiles.size(), expected.size()) << "scan " << scan;
+      for (std::size_t i = 0; i < tiles.size(); ++i) {
+        ASSERT_EQ(tiles[i].key, expected[i].key) << "scan " << scan;
+        ASSERT_TRUE(store::poolTileBody(*taken, tiles[i]) ==
+                    store::poolTileBody(copied, expected[i]))
+            << "scan " << scan << ", tile " << tiles[i].key;
+      }
+      EXPECT_EQ(store::poolUpperStamps(*taken), store::poolUpperStamps(copied)) << "scan " << scan;
+      for (const ScanStats& s : map.takeScanStats()) reruns += s.cell_set_attempts > 1;
+    }
+    EXPECT_GT(reruns, 0u) << "no scan ran again: the test misses its case";
+    // The first, the refused one's, and (stamped) the one after the degrade are whole.
+    EXPECT_GE(from_change, 8u);
+    EXPECT_GE(whole, 2u);
+  }
+}
+
+// A colour scan folds its colours into nodes off its updated paths: a leaf at the clamping bound
+// takes no update (OctoMap's updateNode returns early), yet averageNodeColor changes its colour.
+// The same room scanned again and again, committed after each scan, waited for and in the
+// background: the store holds the map's cut every time (the fold's list names those tiles).
+TEST(StoreWriter, ColoursOfClampedLeavesAreCommitted) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  Scratch scratch("store");
+  MapParams params;
+  params.resolution = 0.2;
+  params.payload = Payload::kColor;
+  const std::vector<Eigen::Vector3f> room = cubeWalls(3.0f, 12, 0.3f);
+  for (const bool background : {false, true}) {
+    SCOPED_TRACE(background ? "in the background" : "waited for");
+    const std::string location = scratch / (background ? "b.sqlite" : "w.sqlite");
+    std::unique_ptr<store::Store> st = store::Store::open(location, true);
+    store::MapWriter writer(*st, "c", params);
+    ColorMap map(ctx, params);
+    std::vector<std::vector<store::Tile>> expected;
+    std::size_t all_clamped = 0;  // scans whose every cell was at the clamping bound already
+    for (std::uint32_t scan = 0; scan < 10; ++scan) {
+      const std::vector<Rgb> colors = test::colorsOf(scan, room.size());
+      writer.begin(map);
+      const ScanStats stats = map.insertPointCloud(room, Eigen::Vector3f(0, 0, 0), colors);
+      all_clamped += stats.aborted_cells == stats.occupied_cells + stats.free_cells;
+      expected.push_back(store::tilesOf(map.download()));
+      std::vector<store::Tile> stored;
+      if (!background) {
+        writer.commit(map, "test", scan);
+        ASSERT_TRUE(storeHolds(*st, "c", expected.back(), stored)) << "after scan " << scan;
+        continue;
+      }
+      writer.commitInBackground(map, "test", scan);
+      writer.finish();
+      ASSERT_TRUE(storeHolds(*st, "c", expected.back(), stored)) << "after scan " << scan;
+    }
+    EXPECT_GE(all_clamped, 3u) << "no scan changed colours alone: the test misses its case";
+  }
 }
 
 // A map larger than its cap, committed scan by scan while its working set spills tiles: long

@@ -158,9 +158,10 @@ OCTOVK_CONST uint kColorUnset = 0x00FFFFFFu;
 OCTOVK_CONST uint kFoldEmpty = 0xFFFFFFFFu;  // an empty entry of the colour fold's table or list
 
 // color_fold (kBindColorFold: a table of 2^table_log2 (node, first point) pairs, then per point
-// of the scan its colour and its link). Where a driver ends loops early the points are folded in
-// chunks of consecutive indices, one chunk after another, so that no node's list outgrows the
-// loop budget. 16 B.
+// of the scan its colour and its link, then the folded list: a FoldedNode per node whose colour
+// the fold changed, counted in ScanCounters::folded_count). Where a driver ends loops early the
+// points are folded in chunks of consecutive indices, one chunk after another, so that no node's
+// list outgrows the loop budget. 16 B.
 OCTOVK_CONST uint kColorFoldGroup = 0u;  // per point: its node found, the point pushed on its list
 // Per table entry: the node's points in order, folded by averageNodeColor or integrateNodeColor.
 OCTOVK_CONST uint kColorFoldAverage = 1u;
@@ -170,6 +171,40 @@ struct ColorFoldConstants {
   uint table_log2;  // 4B (4)  the table's entries: 2^table_log2
   uint first;       // 4B (8)  the chunk's first point
   uint count;       // 4B (12) its points
+};
+
+// A node whose colour a scan's fold changed, and where it lies: the key of a point in it and its
+// depth (a pruned leaf lies above the finest level). Its tile's ancestors need not be on the
+// scan's updated paths (a leaf at the clamping bound takes no update, yet its colour changes):
+// a store's capture reads the list beside the touched lists. 12 B.
+struct FoldedNode {
+  uint node;         // 4B (0)
+  uint key_xy;       // 4B (4)  key x | key y << 16
+  uint key_z_depth;  // 4B (8)  key z | depth << 16
+};
+
+// A store's capture after a scan, as a change of the host's copy of the pool (capture.comp): per
+// entry of the scan's touched lists (the nodes on its updated paths, deepest level first, as the
+// lists lie), the node, its children's block and their payload words. What a scan changes lies in
+// such a node or in its children's block: updated leaves are children of nodes listed at depth
+// 15, new nodes and merged ones children of listed nodes, inner values listed; a colour the fold
+// changed is in its folded list, whose records follow. 120 B.
+struct CaptureRecord {
+  uint index;             // 4B (0)  the node (the entry of the touched lists)
+  uint payload;           // 4B (4)  its payload word (0 in a map without payload)
+  Node node;              // 8B (8)
+  Node children[8];       // 64B (16) its children's block when it has one, else zeros
+  uint child_payload[8];  // 32B (80) their payload words
+  uint key_xy;            // 4B (112) a folded node's FoldedNode fields; 0 for a listed one
+  uint key_z_depth;       // 4B (116)
+};
+// capture.comp's push constants. 16 B.
+OCTOVK_CONST uint kNoFoldedList = 0xFFFFFFFFu;
+struct CaptureConstants {
+  uint64_t records;  // 8B (0)  device address of CaptureRecord[capacity] (host-visible staging)
+  uint capacity;     // 4B (8)  records it holds: entries past it are not written
+  uint folded_at;    // 4B (12) the word of COLOR_FOLD where the scan's folded list starts (its
+                     //         records follow the touched lists'), else kNoFoldedList
 };
 
 // A node that gets a block of children in this scan: one per entry of the second set, at the
@@ -197,7 +232,7 @@ struct DispatchArgs {
 };
 
 // Counters of one scan, reset at its start. The host reads this struct back once per scan
-// (with the PoolState right after it, in the readback region of its frame). 680 B.
+// (with the PoolState right after it, in the readback region of its frame). 684 B.
 struct ScanCounters {
   uint status;             // 4B (0)   kStatus* bits
   uint brick_entries;      // 4B (4)   distinct bricks in the cell set
@@ -228,6 +263,7 @@ struct ScanCounters {
   uint tiles_needed;         // 4B (420) distinct evicted tiles in needed_tiles (list_cells)
   uint needed_tiles[kNeededTileSlots];  // 256B (424) an open-addressed set of evicted tile
                                         //  nodes the scan reaches: node + 1, 0 = empty slot
+  uint folded_count;                    // 4B (680) entries of color_fold's folded list (FoldedNode)
 };
 
 // A ray walk of the ray-key pass, saved between segments. 48 B.

@@ -50,12 +50,18 @@ inline std::size_t blockBytes(bool payload, bool leaf_boxes) {
 }
 // A colour scan's fold buffer (color_fold.comp) for `count` points folded in chunks of at most
 // `chunk`: a table of (node, head) pairs with 2^colorTableLog2 entries, then a colour and a link
-// per point.
+// per point, then the folded list (a FoldedNode per node whose colour changed: at most a point
+// each; for a scan of `count` points it starts at colorFoldedAt(capacity, chunk, count)).
 inline std::uint32_t colorTableLog2(std::size_t count, std::size_t chunk) {
   return nextPow2Log2(std::max<std::size_t>(2 * std::min(count, chunk), 64));
 }
+inline std::size_t colorFoldedAt(std::size_t capacity, std::size_t chunk, std::size_t count) {
+  return 2 * (std::size_t{1} << colorTableLog2(capacity, chunk)) + 2 * count;
+}
 inline std::size_t colorFoldBytes(std::size_t count, std::size_t chunk) {
-  return (2 * (std::size_t{1} << colorTableLog2(count, chunk)) + 2 * count) * sizeof(std::uint32_t);
+  return (colorFoldedAt(count, chunk, count) +
+          count * sizeof(gpu::FoldedNode) / sizeof(std::uint32_t)) *
+         sizeof(std::uint32_t);
 }
 // The change set of 2^log2 slots (change detection on); log2 0: the one-slot set a map holds
 // while change detection was never on.

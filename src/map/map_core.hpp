@@ -62,6 +62,9 @@ struct MapCore {
     std::array<std::uint32_t, gpu::kLevelCount> counts{};
     std::uint64_t generation = 0;  ///< MapBuffers::listsGeneration() when the scan ran
     gpu::PoolState pool{};         ///< the pool after it (the scan's own readback)
+    /// Entries of its colour fold's folded list (ScanCounters::folded_count; 0 without a fold).
+    std::uint32_t folded = 0;
+    std::uint32_t folded_at = 0;  ///< where that list starts (passes::foldedListAt)
   };
   TouchedLists touched;
   /// Scans recorded (each recording, a scan run again included, overwrites the touched lists).

@@ -17,6 +17,12 @@ namespace octovk {
 
 namespace {
 
+// Whether an applied scan changed the tree: cells updated, or colours folded into nodes (a leaf
+// at the clamping bound takes no update, yet its colour changes).
+bool changesTree(const gpu::ScanCounters& counters) {
+  return counters.active_cells + counters.leaf_cells + counters.folded_count > 0;
+}
+
 double msSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
       .count();
@@ -44,8 +50,15 @@ void ScanPipeline::record(PendingScan& p) {
   // before recording: it may allocate).
   p.capture.reset();
   if (capture_depth_ != 0 && p.closes_scan && !tiles_.enabled()) {
-    p.capture_layout = passes::captureLayout(core_.buffers, core_.params.payload);
+    // Its change alone, when the host's copy will be the tree as the scan finds it.
+    const std::uint64_t others = core_.tree_version - scan_changes_;
+    const bool change =
+        p.groups == 1 && core_.scans_recorded == capture_recording_ && others == capture_others_;
+    p.capture_layout =
+        passes::captureLayout(core_.buffers, core_.params.payload, change, input.colors, p.count);
     p.capture = captureStaging(p.capture_layout.bytes());
+    capture_recording_ = core_.scans_recorded + 1;  // this recording
+    capture_others_ = others;
   }
   passes::Recorder& rec = core_.rec;
   core_.stream.begin(core_.buffers.bindings);
@@ -220,6 +233,7 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
                               const gpu::PoolState& pool) {
   if (counters.status & gpu::kStatusNotApplied) {
     p.state = ScanState::kRefused;
+    capture_recording_ = 0;  // its capture is not kept: the next one recorded is whole
     return false;
   }
   if (counters.status & gpu::kStatusPoolFull)
@@ -257,8 +271,9 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
   stats.aborted_cells = counters.aborted;
   stats.nodes = pool.root_exists ? pool.live_nodes + tiles_.spilledNodes() : 0;
   last_nodes_ = stats.nodes;
-  if (counters.active_cells + counters.leaf_cells > 0) {
+  if (changesTree(counters)) {
     core_.treeChanged();
+    ++scan_changes_;
     if (p.noted_changes) changes_.scanNoted();  // the change set holds what it changed
     // Nothing recorded after it, and all its cells in one part: the lists are its own.
     if (p.recording == core_.scans_recorded && p.groups == 1) {
@@ -267,6 +282,8 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
                 core_.touched.counts.begin());
       core_.touched.generation = core_.buffers.listsGeneration();
       core_.touched.pool = pool;
+      core_.touched.folded = counters.folded_count;
+      core_.touched.folded_at = passes::foldedListAt(core_.buffers, p.count);
     }
   }
   if (p.capture && p.closes_scan) keepCapture(p, counters, pool);
@@ -624,39 +641,60 @@ void ScanPipeline::keepCapture(const PendingScan& p, const gpu::ScanCounters& co
   try {
     const passes::CaptureLayout& l = p.capture_layout;
     const std::size_t count = std::size_t{pool.bump} * 8;
-    if (count > l.nodes) return;
-    PoolCapture c;
+    const bool change = l.records != 0;
+    if (!change && count > l.nodes) return;
+    CaptureMirror::Kept k;
+    k.ticket = p.ticket;
+    k.change = change;
+    k.nodes = count;
+    PoolCapture& c = k.pool;
     c.version = core_.tree_version;
+    k.base = c.version - (changesTree(counters) ? 1 : 0);
     c.root_exists = pool.root_exists != 0;
-    const auto* bytes = static_cast<const unsigned char*>(p.capture->mapped());
-    c.nodes = {reinterpret_cast<const gpu::Node*>(bytes), count};
     c.kind = core_.params.payload;
-    if (l.payload_bytes)
-      c.payload = {reinterpret_cast<const std::uint32_t*>(bytes + l.node_bytes), count};
-    c.memory = p.capture;
+    const auto* bytes = static_cast<const unsigned char*>(p.capture->mapped());
+    std::size_t entries = 0;  // of the touched lists
+    for (unsigned level = 0; level < gpu::kTreeDepth; ++level)
+      entries += counters.touched_count[level];
+    const std::size_t folded = l.folded ? counters.folded_count : 0;
+    // The touched lists' entries: copied whole, or one per change record (then the folded
+    // list's).
+    const std::uint32_t* touched = nullptr;
+    if (change) {
+      k.complete = entries + folded <= l.records;
+      const auto* records = reinterpret_cast<const gpu::CaptureRecord*>(bytes);
+      if (k.complete) k.records.assign(records, records + entries + folded);
+    } else {
+      c.nodes = {reinterpret_cast<const gpu::Node*>(bytes), count};
+      if (l.payload_bytes)
+        c.payload = {reinterpret_cast<const std::uint32_t*>(bytes + l.node_bytes), count};
+      c.memory = p.capture;
+      if (entries <= l.touched_bytes / 4)
+        touched = reinterpret_cast<const std::uint32_t*>(bytes + l.node_bytes + l.payload_bytes);
+    }
     // The nodes at depths 0..capture_depth_ on the scan's updated paths: its own touched lists
-    // when it ran in one part (the levels lie one after another from the deepest).
-    c.incremental = p.groups == 1 && capture_depth_ < gpu::kTreeDepth;
+    // when it ran in one part (the levels lie one after another from the deepest); and the tiles
+    // whose colours the fold changed, from the change's folded records (a whole capture has
+    // none: every tile is compared).
+    c.incremental = p.groups == 1 && capture_depth_ < gpu::kTreeDepth &&
+                    (touched || (change && k.complete)) && (change || folded == 0);
+    if (c.incremental)
+      for (std::size_t r = entries; r < entries + folded; ++r) {
+        const gpu::CaptureRecord& f = k.records[r];
+        c.folded.push_back(PoolCapture::Folded::of(f.key_xy, f.key_z_depth));
+      }
     if (c.incremental) {
-      const auto* touched =
-          reinterpret_cast<const std::uint32_t*>(bytes + l.node_bytes + l.payload_bytes);
-      const std::size_t entries = l.touched_bytes / 4;
       std::size_t base = 0;
       for (unsigned level = gpu::kTreeDepth; level-- > 0;) {
         const std::size_t n = counters.touched_count[level];
-        if (base + n > entries) {
-          c.incremental = false;
-          c.changed.clear();
-          break;
-        }
         if (level <= capture_depth_)
-          c.changed.insert(c.changed.end(), touched + base, touched + base + n);
+          for (std::size_t e = base; e < base + n; ++e)
+            c.changed.push_back(touched ? touched[e] : k.records[e].index);
         base += n;
       }
       std::sort(c.changed.begin(), c.changed.end());
     }
-    captures_.emplace_back(p.ticket, std::move(c));
-    while (captures_.size() > core_.stream.frames() + 1) captures_.pop_front();
+    captures_.keep(std::move(k), core_.stream.frames() + 1);
   } catch (const std::bad_alloc&) {
     // without host memory the capture is dropped
   }
@@ -666,23 +704,22 @@ bool ScanPipeline::capturing(std::uint64_t ticket) const noexcept {
   if (tiles_.enabled()) return false;
   for (const PendingScan& p : pending_)
     if (p.ticket == ticket && p.closes_scan && p.capture) return true;
-  for (const auto& [t, c] : captures_)
-    if (t == ticket) return true;
-  return false;
+  return captures_.holds(ticket);
 }
 
 std::optional<PoolCapture> ScanPipeline::takeCapture(std::uint64_t ticket, std::uint64_t since) {
   while (!pending_.empty() && pending_.front().ticket <= ticket) confirmOldest();
-  while (!captures_.empty() && captures_.front().first < ticket) captures_.pop_front();
-  if (captures_.empty() || captures_.front().first != ticket || tiles_.enabled())
-    return std::nullopt;
-  PoolCapture c = std::move(captures_.front().second);
-  captures_.pop_front();
+  if (tiles_.enabled()) return std::nullopt;
+  std::optional<PoolCapture> c = captures_.take(ticket);
+  if (!c) return c;
   // The changed nodes are the ones since `since` when the tree was at `since` before the scan
   // (or the scan changed nothing).
-  const bool unchanged = c.version == since;
-  c.incremental = c.incremental && (unchanged || c.version == since + 1);
-  if (!c.incremental || unchanged) c.changed.clear();
+  const bool unchanged = c->version == since;
+  c->incremental = c->incremental && (unchanged || c->version == since + 1);
+  if (!c->incremental || unchanged) {
+    c->changed.clear();
+    c->folded.clear();
+  }
   return c;
 }
 

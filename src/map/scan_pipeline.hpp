@@ -12,6 +12,7 @@
 #include <optional>
 #include <vector>
 
+#include "map/capture_mirror.hpp"
 #include "map/change_set.hpp"
 #include "map/growth_policy.hpp"
 #include "map/map_core.hpp"
@@ -203,14 +204,21 @@ class ScanPipeline {
   std::uint32_t split_groups_ = 1;
   std::size_t split_points_ = 0;
   bool leaf_boxes_every_scan_ = false;  // a setting (setLeafBoxesEveryScan), not a state
-  /// The capture of scan `p` (applied whole), kept for takeCapture.
+  /// The capture of scan `p` (applied whole), kept for takeCapture: its staging read (a change's
+  /// records copied out, the staging free again).
   void keepCapture(const PendingScan& p, const gpu::ScanCounters& counters,
                    const gpu::PoolState& pool);
   /// Host-visible staging of at least `bytes` that no capture holds.
   std::shared_ptr<vk::Buffer> captureStaging(std::size_t bytes);
-  unsigned capture_depth_ = 0;                                  // captureScans
-  std::deque<std::pair<std::uint64_t, PoolCapture>> captures_;  // by ticket, oldest first
-  std::vector<std::shared_ptr<vk::Buffer>> capture_buffers_;    // for reuse
+  unsigned capture_depth_ = 0;                                // captureScans
+  CaptureMirror captures_;                                    // by ticket, and the host's copy
+  std::vector<std::shared_ptr<vk::Buffer>> capture_buffers_;  // for reuse
+  /// A scan's capture is its change when the capture before it is the last scan recorded and
+  /// nothing but scans changed the tree since (MapCore::tree_version counts every change,
+  /// scan_changes_ the scans'): the recording and that count at the last capture recorded.
+  std::uint64_t capture_recording_ = 0;
+  std::uint64_t capture_others_ = ~std::uint64_t{0};
+  std::uint64_t scan_changes_ = 0;
 };
 
 }  // namespace octovk

@@ -46,15 +46,17 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
   const gpu::PoolState pool = one_scan ? lists.pool : core_.readPool();
   out.root_exists = pool.root_exists != 0;
   out.incremental = depth < gpu::kTreeDepth && (unchanged || one_scan);
-  std::size_t listed = 0;
-  if (out.incremental && !unchanged)
+  std::size_t listed = 0, folded = 0;
+  if (out.incremental && !unchanged) {
     for (unsigned level = 0; level <= depth; ++level) listed += lists.counts[level];
+    folded = lists.folded;  // the colour fold's list, after the touched entries
+  }
   const std::size_t count = std::size_t{pool.bump} * 8;
   const std::size_t node_bytes = count * sizeof(gpu::Node);
   const std::size_t payload_bytes =
       core_.params.payload != Payload::kNone ? count * sizeof(std::uint32_t) : 0;
-  const std::size_t staging_bytes =
-      std::max<std::size_t>(node_bytes + payload_bytes + listed * 4, 4);
+  const std::size_t staging_bytes = std::max<std::size_t>(
+      node_bytes + payload_bytes + listed * 4 + folded * sizeof(gpu::FoldedNode), 4);
   // The last capture's staging again when it is large enough and no PoolCapture holds it;
   // else a new one with a quarter more room for the map's growth.
   if (!capture_staging_ || capture_staging_.use_count() > 1 ||
@@ -81,6 +83,9 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
       core_.stream.copy(core_.buffers.touched, staging, bytes, base * 4, at);
       at += bytes;
     }
+  if (folded)
+    core_.stream.copy(core_.buffers.color_fold, staging, folded * sizeof(gpu::FoldedNode),
+                      std::size_t{lists.folded_at} * 4, at);
   core_.stream.submitAndWait();
   const auto* bytes = static_cast<const unsigned char*>(staging.mapped());
   out.nodes = {reinterpret_cast<const gpu::Node*>(bytes), count};
@@ -91,6 +96,9 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
   out.changed.resize(listed);
   if (listed) std::memcpy(out.changed.data(), bytes + node_bytes + payload_bytes, listed * 4);
   std::sort(out.changed.begin(), out.changed.end());
+  const auto* f = reinterpret_cast<const gpu::FoldedNode*>(bytes + at);
+  for (std::size_t i = 0; i < folded; ++i)
+    out.folded.push_back(PoolCapture::Folded::of(f[i].key_xy, f[i].key_z_depth));
   return out;
 }
 

@@ -520,13 +520,27 @@ class ChangedTileWalk {
  public:
   ChangedTileWalk(const PoolCapture& pool, unsigned tile_depth,
                   const std::function<bool(std::uint64_t)>& committed, PoolTileChanges& out)
-      : pool_(pool), nodes_{pool}, tile_depth_(tile_depth), committed_(committed), out_(out) {}
+      : pool_(pool), nodes_{pool}, tile_depth_(tile_depth), committed_(committed), out_(out) {
+    // The paths of the cells whose nodes the colour fold changed (3 bits a level, all 16).
+    for (const PoolCapture::Folded& f : pool.folded) {
+      std::uint64_t cell = 0;
+      for (unsigned level = 0; level < kTreeDepth; ++level) {
+        const unsigned bit = kTreeDepth - 1 - level;  // OctoMap's child index: x bit 0, y 1, z 2
+        cell = (cell << 3) | ((f.key[0] >> bit) & 1u) | (((f.key[1] >> bit) & 1u) << 1) |
+               (((f.key[2] >> bit) & 1u) << 2);
+      }
+      folded_.push_back(cell);
+    }
+    std::sort(folded_.begin(), folded_.end());
+  }
 
   // Node `index` at `depth`, reached by `path`: nothing when it did not change (its tiles are
   // as committed), else a tile to compare, or its children walked. `fresh`: the node is new
   // (the scan expanded a leaf above it), and so is everything under it.
   void walk(std::size_t index, unsigned depth, std::uint64_t path, bool fresh) {
-    if (!fresh && !std::binary_search(pool_.changed.begin(), pool_.changed.end(), index)) return;
+    if (!fresh && !std::binary_search(pool_.changed.begin(), pool_.changed.end(), index) &&
+        !holdsFolded(depth, path))
+      return;
     const NodeView n = nodes_(index);
     const std::uint64_t own = tileKey(depth, path);
     if (depth == tile_depth_ || n.mask == 0) {
@@ -548,11 +562,20 @@ class ChangedTileWalk {
   }
 
  private:
+  // Whether a cell whose node the fold changed lies under the node at `depth` reached by
+  // `path`: its colour changed, though the node need not be on the scan's updated paths.
+  bool holdsFolded(unsigned depth, std::uint64_t path) const {
+    const unsigned shift = 3 * (kTreeDepth - depth);
+    const auto first = std::lower_bound(folded_.begin(), folded_.end(), path << shift);
+    return first != folded_.end() && (*first >> shift) == path;
+  }
+
   const PoolCapture& pool_;
   PoolNodes nodes_;
   unsigned tile_depth_;
   const std::function<bool(std::uint64_t)>& committed_;
   PoolTileChanges& out_;
+  std::vector<std::uint64_t> folded_;  // sorted
 };
 
 }  // namespace

@@ -186,6 +186,13 @@ std::uint64_t CommandStream::submit() {
         f.cmd, queries_, current_ * kMaxQueries, f.query_count, timestamps_.handle(),
         std::size_t{current_} * kMaxQueries * sizeof(std::uint64_t), sizeof(std::uint64_t),
         VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
+  // What the submission wrote, visible to the host once the fence is signalled: a fence's
+  // memory dependency covers device accesses only (readbacks, captures, timestamps).
+  VkMemoryBarrier host{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+  host.srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT;
+  host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+  vkCmdPipelineBarrier(f.cmd, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                       &host, 0, nullptr, 0, nullptr);
   OCTOVK_VK(vkEndCommandBuffer(f.cmd));
   recording_ = false;
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};

@@ -30,4 +30,8 @@ void recordColorFold(Recorder& r, std::size_t count, ColorFold fold, VkBuffer so
   }
 }
 
+std::uint32_t foldedListAt(const MapBuffers& b, std::size_t count) {
+  return static_cast<std::uint32_t>(sizes::colorFoldedAt(b.pointCapacity(), b.colorChunk(), count));
+}
+
 }  // namespace octovk::passes

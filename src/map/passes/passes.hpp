@@ -85,6 +85,9 @@ void recordPrune(Recorder& r);
 /// and fold modes. Nothing happens on the device for a refused scan.
 void recordColorFold(Recorder& r, std::size_t count, ColorFold fold, VkBuffer source,
                      VkDeviceSize offset);
+/// The word of the colour fold's buffer where the folded list (FoldedNode) of a scan of `count`
+/// points starts.
+std::uint32_t foldedListAt(const MapBuffers& buffers, std::size_t count);
 
 // ---- leaf_boxes.cpp ----
 
@@ -236,17 +239,29 @@ void recordKeepBox(Recorder& r, const gpu::ScanParams& sp, const gpu::BoxQuery* 
 
 // ---- capture.cpp: a store's copy of the map after a scan ----
 
-/// Where recordCapture puts the node pool, its payload and the touched lists in a staging
-/// buffer: sized for the pool as it is when recorded (a scan does not grow it).
+/// What recordCapture puts in a staging buffer, sized for the pool and the lists as they are when
+/// recorded (a scan grows neither). Whole: the node pool, its payload and the touched lists.
+/// As a change (`records` != 0): a gpu::CaptureRecord per entry of the touched lists, which the
+/// host applies to its copy of the pool as it was before the scan.
 struct CaptureLayout {
-  std::size_t nodes = 0;  ///< pool nodes copied (the pool's capacity)
+  std::size_t nodes = 0;  ///< pool nodes copied (the pool's capacity); 0 for a change
   std::size_t node_bytes = 0, payload_bytes = 0, touched_bytes = 0;
-  std::size_t bytes() const noexcept { return node_bytes + payload_bytes + touched_bytes; }
+  std::size_t records = 0;  ///< room for records (the lists' entries); 0 for the whole pool
+  /// The scan folds colours: its folded list's records follow the lists' (a change), or a
+  /// whole capture cannot say which tiles the fold changed. Its points: where the list starts.
+  bool folded = false;
+  std::size_t points = 0;
+  std::size_t bytes() const noexcept {
+    return node_bytes + payload_bytes + touched_bytes + records * sizeof(gpu::CaptureRecord);
+  }
 };
-CaptureLayout captureLayout(const MapBuffers& buffers, Payload payload);
-/// Copies the pool, its payload and the touched lists into host-visible `staging` (at least
-/// layout.bytes()) after the passes recorded before it: the map as the scan left it, read by the
-/// host once the submission is done, while later scans change the pool.
+/// The whole pool (`change` false), or the scan's change; `folded`: the scan (of `points`)
+/// folds colours.
+CaptureLayout captureLayout(const MapBuffers& buffers, Payload payload, bool change, bool folded,
+                            std::size_t points);
+/// After the passes recorded before it: copies what `layout` says into host-visible `staging`
+/// (at least layout.bytes()), the map as the scan left it, read by the host once the submission
+/// is done, while later scans change the pool. A change is gathered by capture.comp.
 void recordCapture(Recorder& r, const CaptureLayout& layout, const vk::Buffer& staging);
 
 // ---- readback.cpp ----

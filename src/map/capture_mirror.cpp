@@ -1,0 +1,94 @@
+#include "map/capture_mirror.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include "octovk/octovk.hpp"
+
+namespace octovk {
+
+void CaptureMirror::keep(Kept kept, std::size_t limit) {
+  kept_.push_back(std::move(kept));
+  while (kept_.size() > limit) {
+    apply(kept_.front());
+    kept_.pop_front();
+  }
+}
+
+bool CaptureMirror::holds(std::uint64_t ticket) const noexcept {
+  return std::any_of(kept_.begin(), kept_.end(), [&](const Kept& k) { return k.ticket == ticket; });
+}
+
+void CaptureMirror::clear() noexcept {
+  kept_.clear();
+  copy_.reset();
+  valid_ = false;
+}
+
+bool CaptureMirror::apply(const Kept& k) {
+  const PoolCapture& pool = k.pool;
+  if (!k.change) {
+    // The whole pool: the copy becomes it (for the changes after it).
+    if (!copy_ || copy_.use_count() > 1) copy_ = std::make_shared<Pool>();
+    copy_->nodes.assign(pool.nodes.begin(), pool.nodes.end());
+    copy_->payload.assign(pool.payload.begin(), pool.payload.end());
+    version_ = pool.version;
+    valid_ = true;
+    return true;
+  }
+  if (!valid_ || version_ != k.base || !k.complete) {
+    valid_ = false;
+    return false;
+  }
+  if (copy_.use_count() > 1) copy_ = std::make_shared<Pool>(*copy_);  // a capture still reads it
+  Pool& c = *copy_;
+  // The pool only grows between whole captures (a scan takes blocks from its end or its free
+  // stack); nodes past the used ones are stale.
+  c.nodes.resize(std::max(c.nodes.size(), k.nodes));
+  const bool payload = pool.kind != Payload::kNone;
+  if (payload) c.payload.resize(c.nodes.size());
+  for (const gpu::CaptureRecord& r : k.records) {
+    const std::size_t block = r.node.link & gpu::kBlockMask;
+    if (r.index >= c.nodes.size() ||
+        (block != gpu::kNoChildren && block * 8 + 8 > c.nodes.size())) {
+      valid_ = false;
+      return false;
+    }
+    c.nodes[r.index] = r.node;
+    if (payload) c.payload[r.index] = r.payload;
+    if (block != gpu::kNoChildren) {
+      std::copy(std::begin(r.children), std::end(r.children), c.nodes.begin() + block * 8);
+      if (payload)
+        std::copy(std::begin(r.child_payload), std::end(r.child_payload),
+                  c.payload.begin() + block * 8);
+    }
+  }
+  version_ = pool.version;
+  return true;
+}
+
+std::optional<PoolCapture> CaptureMirror::take(std::uint64_t ticket) {
+  while (!kept_.empty() && kept_.front().ticket < ticket) {
+    apply(kept_.front());
+    kept_.pop_front();
+  }
+  if (kept_.empty() || kept_.front().ticket != ticket) return std::nullopt;
+  Kept k = std::move(kept_.front());
+  kept_.pop_front();
+  const bool applied = apply(k);
+  if (!k.change) return std::move(k.pool);  // read in the scan's staging
+  if (!applied)
+    throw Error(ErrorCode::kInternal,
+                "internal error: the host's copy of the map does not follow scan " +
+                    std::to_string(ticket) +
+                    " (a capture before it was lost, or the map changed otherwise in between); "
+                    "please report this with the input");
+  PoolCapture c = std::move(k.pool);
+  c.nodes = {copy_->nodes.data(), k.nodes};
+  if (c.kind != Payload::kNone) c.payload = {copy_->payload.data(), k.nodes};
+  c.memory = copy_;
+  c.from_change = true;
+  return c;
+}
+
+}  // namespace octovk
