@@ -5,7 +5,9 @@
 
 #include <chrono>
 #include <filesystem>
+#include <memory>
 #include <thread>
+#include <unordered_map>
 #include <utility>
 
 #include "store/store.hpp"
@@ -50,6 +52,15 @@ class Statement {
       throw Error(ErrorCode::kIo, where_ + ": " + sqlite3_errmsg(db));
   }
   ~Statement() { sqlite3_finalize(stmt_); }
+  /// For another use of a kept statement: its bindings cleared, its errors naming `where`.
+  /// Ends a read (a kept statement holds no snapshot between uses).
+  void done() { sqlite3_reset(stmt_); }
+  Statement& reuse(const std::string& where) {
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+    where_ = where;
+    return *this;
+  }
   Statement(const Statement&) = delete;
   Statement& operator=(const Statement&) = delete;
 
@@ -104,6 +115,7 @@ class SqliteStore final : public Store {
     try {
       openAndCheck(create);
     } catch (...) {
+      kept_.clear();
       sqlite3_close(db_);
       throw;
     }
@@ -171,7 +183,10 @@ class SqliteStore final : public Store {
     useWal();
     exec("PRAGMA synchronous = NORMAL");
   }
-  ~SqliteStore() override { sqlite3_close(db_); }
+  ~SqliteStore() override {
+    kept_.clear();  // finalized before the connection closes
+    sqlite3_close(db_);
+  }
 
   const std::string& location() const override { return path_; }
 
@@ -235,7 +250,7 @@ class SqliteStore final : public Store {
 
   std::uint64_t lock(const std::string& name) override {
     unlock();
-    exec("BEGIN IMMEDIATE");  // the write lock: another writer waits (busy timeout)
+    run("BEGIN IMMEDIATE", "taking the write lock failed");  // another writer waits (busy timeout)
     locked_ = true;
     try {
       return lastSeq(mapId(name));
@@ -287,8 +302,8 @@ class SqliteStore final : public Store {
 
   void commit(const std::string& name, std::span<const Tile> changed,
               std::span<const std::uint64_t> removed, const LogEntry& entry) override {
-    if (!locked_) exec("BEGIN IMMEDIATE");  // the write lock: another writer waits
-    locked_ = false;                        // the transaction ends here, committed or rolled back
+    if (!locked_) run("BEGIN IMMEDIATE", "taking the write lock failed");  // another writer waits
+    locked_ = false;  // the transaction ends here, committed or rolled back
     try {
       const std::int64_t id = mapId(name);
       const std::uint64_t last = lastSeq(id);
@@ -301,24 +316,24 @@ class SqliteStore final : public Store {
                         "the other");
       const std::string at =
           where("writing scan " + std::to_string(entry.seq) + " of map '" + name + "'");
-      Statement put(db_, "INSERT OR REPLACE INTO tiles (map, key, version, body) VALUES (?,?,?,?)",
-                    at);
+      Statement& put =
+          kept("INSERT OR REPLACE INTO tiles (map, key, version, body) VALUES (?,?,?,?)", at);
       for (const Tile& t : changed) {
         put.bind(1, id).bind(2, static_cast<std::int64_t>(t.key));
         put.bind(3, static_cast<std::int64_t>(entry.seq)).blob(4, t.body);
         put.run();
       }
-      Statement del(db_, "DELETE FROM tiles WHERE map = ? AND key = ?", at);
+      Statement& del = kept("DELETE FROM tiles WHERE map = ? AND key = ?", at);
       for (const std::uint64_t key : removed) {
         del.bind(1, id).bind(2, static_cast<std::int64_t>(key));
         del.run();
       }
-      Statement row(db_, "INSERT INTO log (map, seq, source, scan, time_us) VALUES (?,?,?,?,?)",
-                    at);
+      Statement& row =
+          kept("INSERT INTO log (map, seq, source, scan, time_us) VALUES (?,?,?,?,?)", at);
       row.bind(1, id).bind(2, static_cast<std::int64_t>(entry.seq)).bind(3, entry.source);
       row.bind(4, static_cast<std::int64_t>(entry.scan)).bind(5, entry.time_us);
       row.run();
-      exec("COMMIT");
+      run("COMMIT", "committing failed");
     } catch (...) {
       sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
       throw;
@@ -385,25 +400,40 @@ class SqliteStore final : public Store {
   }
 
   std::int64_t mapId(const std::string& name) {
-    Statement s(db_, "SELECT id FROM maps WHERE name = ?", where("finding map '" + name + "'"));
+    Statement& s = kept("SELECT id FROM maps WHERE name = ?", where("finding map '" + name + "'"));
     s.bind(1, name);
     if (!s.step())
       throw Error(ErrorCode::kInvalidArgument, "store '" + path_ + "' holds no map '" + name +
                                                    "'; 'octovk store info " + path_ +
                                                    "' lists its maps");
-    return s.integer(0);
+    const std::int64_t id = s.integer(0);
+    s.done();
+    return id;
   }
 
   std::uint64_t lastSeq(std::int64_t id) {
-    Statement s(db_, "SELECT coalesce(max(seq), 0) FROM log WHERE map = ?",
-                where("reading the log"));
+    Statement& s =
+        kept("SELECT coalesce(max(seq), 0) FROM log WHERE map = ?", where("reading the log"));
     s.bind(1, id);
-    return s.step() ? static_cast<std::uint64_t>(s.integer(0)) : 0;
+    const std::uint64_t last = s.step() ? static_cast<std::uint64_t>(s.integer(0)) : 0;
+    s.done();
+    return last;
   }
+
+  // The statement of `sql` (a literal), prepared at its first use and kept: a scan's commit
+  // runs the same few statements every time. Its errors name `where`.
+  Statement& kept(const char* sql, const std::string& where) {
+    std::unique_ptr<Statement>& s = kept_[sql];
+    if (!s) s = std::make_unique<Statement>(db_, sql, where);
+    return s->reuse(where);
+  }
+  // A kept statement without results, run ("BEGIN IMMEDIATE", "COMMIT"); its error says `doing`.
+  void run(const char* sql, const char* doing) { kept(sql, where(doing)).run(); }
 
   std::string path_;
   sqlite3* db_ = nullptr;
   bool locked_ = false;  // lock()'s transaction is open
+  std::unordered_map<const char*, std::unique_ptr<Statement>> kept_;
 };
 
 }  // namespace
