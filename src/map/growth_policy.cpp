@@ -143,13 +143,21 @@ void GrowthPolicy::growAheadBestEffort() {
 }
 
 void GrowthPolicy::releaseScratch() {
-  // The last scan's touched lists are kept where they fit the smaller buffer: a store's next
-  // capture reads them.
-  const MapCore::TouchedLists& lists = core_.touched;
+  // The last scan's touched lists are kept where they fit the smaller buffer, and its colour
+  // fold's folded list at the start of the smaller fold buffer: a store's next capture reads
+  // them.
+  MapCore::TouchedLists& lists = core_.touched;
   std::size_t used = 0;
   if (lists.generation == core_.buffers.listsGeneration())
     for (const std::uint32_t n : lists.counts) used += n;
-  core_.buffers.releaseScratch(used);
+  const bool fold = lists.folded > 0 && lists.fold_generation == core_.buffers.foldGeneration();
+  const std::size_t fold_bytes = fold ? std::size_t{lists.folded} * sizeof(gpu::FoldedNode) : 0;
+  core_.buffers.releaseScratch(used, std::size_t{lists.folded_at} * sizeof(std::uint32_t),
+                               fold_bytes);
+  if (fold) {
+    lists.folded_at = 0;
+    lists.fold_generation = core_.buffers.foldGeneration();
+  }
   hash_guess_tried_ = 0;
   scratch_peak_points_ = 0;
 }

@@ -294,13 +294,20 @@ bool MapBuffers::releaseSetsAndLists(std::size_t keep_list_entries) {
   return deviceBytes() < before;
 }
 
-void MapBuffers::releaseScratch(std::size_t keep_list_entries) {
+void MapBuffers::releaseScratch(std::size_t keep_list_entries, std::size_t keep_fold_at,
+                                std::size_t keep_fold_bytes) {
   // Smaller buffers: these fit whatever the cap.
   releaseSetsAndLists(keep_list_entries);
   if (point_capacity_ > 0 || uploadBytes() != kFramesInFlight * kSmallBuffer ||
       depth.size() != kSmallBuffer) {
     vk::Buffer p(device_, kSmallBuffer, false), w(device_, kSmallBuffer, false);
-    vk::Buffer d(device_, kSmallBuffer, false), f(device_, kSmallBuffer, false);
+    vk::Buffer d(device_, kSmallBuffer, false);
+    vk::Buffer f(device_, std::max(kSmallBuffer, keep_fold_bytes), false);
+    if (keep_fold_bytes) {  // no scan is in flight
+      stream_.begin(bindings);
+      stream_.copy(color_fold, f, keep_fold_bytes, keep_fold_at);
+      stream_.submitAndWait();
+    }
     std::vector<vk::Buffer> u(kFramesInFlight);
     for (vk::Buffer& x : u) x = vk::Buffer(device_, kSmallBuffer, true);
     points = std::move(p);
@@ -308,6 +315,7 @@ void MapBuffers::releaseScratch(std::size_t keep_list_entries) {
     uploads = std::move(u);
     depth = std::move(d);
     color_fold = std::move(f);
+    ++fold_generation_;
     point_capacity_ = 0;
     rebind();
   }
@@ -364,6 +372,7 @@ void MapBuffers::ensurePoints(std::size_t count) {
                         false);
   vk::Buffer fold(device_, colors ? colorFoldBytes(cap, colorChunk()) : kSmallBuffer, false);
   color_fold = std::move(fold);
+  ++fold_generation_;
   points = std::move(device_points);
   uploads = std::move(staging);
   walks = std::move(walk_lists);

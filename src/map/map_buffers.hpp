@@ -110,8 +110,11 @@ class MapBuffers {
   void allocatePoolAtLeast(std::uint32_t blocks, std::uint32_t min_blocks, bool copy_old);
   /// Per-scan scratch (cell sets, lists, points, walks, depth image, upload staging) back to
   /// the constructor's sizes; the next scan grows it again. The sets are then cleared whole.
-  /// The first `keep_list_entries` entries of the touched lists are kept (allocateLists).
-  void releaseScratch(std::size_t keep_list_entries = 0);
+  /// The first `keep_list_entries` entries of the touched lists are kept (allocateLists), and
+  /// `keep_fold_bytes` of the colour fold's buffer from `keep_fold_at` (its folded list) are
+  /// copied to the start of the smaller one.
+  void releaseScratch(std::size_t keep_list_entries = 0, std::size_t keep_fold_at = 0,
+                      std::size_t keep_fold_bytes = 0);
   /// The most blocks the pool could have under the cap, the other buffers as they are (the
   /// largest size_t without a cap).
   std::size_t poolBlocksWithinCap() const;
@@ -141,6 +144,9 @@ class MapBuffers {
   /// Counts the touched lists' allocations: lists read after a scan are that scan's only while
   /// this is what it was when the scan ran.
   std::uint64_t listsGeneration() const noexcept { return lists_generation_; }
+  /// Counts the colour fold buffer's allocations: its folded list read after a scan is that
+  /// scan's only while this is what it was when the scan ran.
+  std::uint64_t foldGeneration() const noexcept { return fold_generation_; }
   std::uint32_t poolBlocks() const noexcept { return pool_blocks_; }
   std::size_t pointCapacity() const noexcept { return point_capacity_; }
   /// log2 of the change set's slots (0 while change detection was never on).
@@ -233,6 +239,7 @@ class MapBuffers {
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t list_entries_ = 0;
   std::uint64_t lists_generation_ = 0;
+  std::uint64_t fold_generation_ = 0;
   std::uint32_t pool_blocks_ = 0;
   bool leaf_boxes_on_ = false;  // ensureLeafBoxes: the leaf boxes follow the pool
   std::size_t point_capacity_ = 0;

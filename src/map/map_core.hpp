@@ -64,7 +64,8 @@ struct MapCore {
     gpu::PoolState pool{};         ///< the pool after it (the scan's own readback)
     /// Entries of its colour fold's folded list (ScanCounters::folded_count; 0 without a fold).
     std::uint32_t folded = 0;
-    std::uint32_t folded_at = 0;  ///< where that list starts (passes::foldedListAt)
+    std::uint32_t folded_at = 0;        ///< where that list starts (passes::foldedListAt)
+    std::uint64_t fold_generation = 0;  ///< MapBuffers::foldGeneration() when the scan ran
   };
   TouchedLists touched;
   /// Scans recorded (each recording, a scan run again included, overwrites the touched lists).

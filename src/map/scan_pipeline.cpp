@@ -284,6 +284,7 @@ bool ScanPipeline::takeResult(PendingScan& p, const gpu::ScanCounters& counters,
       core_.touched.pool = pool;
       core_.touched.folded = counters.folded_count;
       core_.touched.folded_at = passes::foldedListAt(core_.buffers, p.count);
+      core_.touched.fold_generation = core_.buffers.foldGeneration();
     }
   }
   if (p.capture && p.closes_scan) keepCapture(p, counters, pool);
@@ -678,12 +679,9 @@ void ScanPipeline::keepCapture(const PendingScan& p, const gpu::ScanCounters& co
     // none: every tile is compared).
     c.incremental = p.groups == 1 && capture_depth_ < gpu::kTreeDepth &&
                     (touched || (change && k.complete)) && (change || folded == 0);
-    if (c.incremental)
-      for (std::size_t r = entries; r < entries + folded; ++r) {
-        const gpu::CaptureRecord& f = k.records[r];
-        c.folded.push_back(PoolCapture::Folded::of(f.key_xy, f.key_z_depth));
-      }
     if (c.incremental) {
+      for (std::size_t r = entries; r < entries + folded; ++r)
+        c.folded.push_back(PoolCapture::Folded::of(k.records[r].key_xy, k.records[r].key_z_depth));
       std::size_t base = 0;
       for (unsigned level = gpu::kTreeDepth; level-- > 0;) {
         const std::size_t n = counters.touched_count[level];

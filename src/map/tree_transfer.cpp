@@ -45,7 +45,11 @@ PoolCapture TreeTransfer::capture(std::uint64_t since, unsigned depth) {
   // After one scan its own readback has the pool's state: no round trip for it.
   const gpu::PoolState pool = one_scan ? lists.pool : core_.readPool();
   out.root_exists = pool.root_exists != 0;
-  out.incremental = depth < gpu::kTreeDepth && (unchanged || one_scan);
+  // A colour scan's folded list is read from the fold buffer it ran with; once that buffer was
+  // replaced (scratch released after an outsized scan), which tiles the fold changed is unknown.
+  const bool folds_known =
+      lists.folded == 0 || lists.fold_generation == core_.buffers.foldGeneration();
+  out.incremental = depth < gpu::kTreeDepth && (unchanged || (one_scan && folds_known));
   std::size_t listed = 0, folded = 0;
   if (out.incremental && !unchanged) {
     for (unsigned level = 0; level <= depth; ++level) listed += lists.counts[level];
