@@ -174,6 +174,10 @@ TEST(StoreTiles, KeysSortInNodeStreamOrderAndNameTheirCorner) {
   EXPECT_EQ(store::tileKeyDepth(c), 2u);
   const Key corner = store::tileKeyCorner(store::tileKey(2, 0b111001));  // x y z, then x
   EXPECT_EQ(corner, (Key{0x8000 | 0x4000, 0x8000, 0x8000}));
+  // A cell's path is the corner's inverse: the tile holding it at depth 2 is the one above.
+  EXPECT_EQ(store::cellPath(corner) >> (3 * 14), 0b111001u);
+  const Key cell{0x1234, 0xFEDC, 0x0F0F};
+  EXPECT_EQ(store::tileKeyCorner(store::tileKey(16, store::cellPath(cell))), cell);
 }
 
 // A damaged body or key is an error naming the tile, never a wrong tree.

@@ -1,7 +1,6 @@
 #include "map/capture_mirror.hpp"
 
 #include <algorithm>
-#include <cstring>
 
 #include "octovk/octovk.hpp"
 
@@ -19,19 +18,13 @@ bool CaptureMirror::holds(std::uint64_t ticket) const noexcept {
   return std::any_of(kept_.begin(), kept_.end(), [&](const Kept& k) { return k.ticket == ticket; });
 }
 
-void CaptureMirror::clear() noexcept {
-  kept_.clear();
-  copy_.reset();
-  valid_ = false;
-}
-
 bool CaptureMirror::apply(const Kept& k) {
   const PoolCapture& pool = k.pool;
   if (!k.change) {
-    // The whole pool: the copy becomes it (for the changes after it).
-    if (!copy_ || copy_.use_count() > 1) copy_ = std::make_shared<Pool>();
-    copy_->nodes.assign(pool.nodes.begin(), pool.nodes.end());
-    copy_->payload.assign(pool.payload.begin(), pool.payload.end());
+    // The whole pool, in its staging: the copy is made from it when a change first follows
+    // (where every capture is whole, none is).
+    whole_ = Whole{pool.nodes, pool.payload, pool.memory};
+    copy_.reset();
     version_ = pool.version;
     valid_ = true;
     return true;
@@ -40,7 +33,14 @@ bool CaptureMirror::apply(const Kept& k) {
     valid_ = false;
     return false;
   }
-  if (copy_.use_count() > 1) copy_ = std::make_shared<Pool>(*copy_);  // a capture still reads it
+  if (!copy_) {
+    copy_ = std::make_shared<Pool>();
+    copy_->nodes.assign(whole_.nodes.begin(), whole_.nodes.end());
+    copy_->payload.assign(whole_.payload.begin(), whole_.payload.end());
+    whole_ = {};  // its staging free for another capture
+  } else if (copy_.use_count() > 1) {
+    copy_ = std::make_shared<Pool>(*copy_);  // a capture still reads it
+  }
   Pool& c = *copy_;
   // The pool only grows between whole captures (a scan takes blocks from its end or its free
   // stack); nodes past the used ones are stale.

@@ -9,6 +9,7 @@
 #include <deque>
 #include <memory>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "gpu/gpu_types.h"
@@ -43,8 +44,6 @@ class CaptureMirror {
   /// kept for it. A change that does not follow the copy (a capture before it lost, the tree
   /// changed otherwise between) throws Error(kInternal).
   std::optional<PoolCapture> take(std::uint64_t ticket);
-  /// Forgets the copy and the kept captures (the next change cannot apply).
-  void clear() noexcept;
 
  private:
   struct Pool {
@@ -54,7 +53,14 @@ class CaptureMirror {
   /// The copy after `k`; false when `k` is a change that does not follow it (the copy is then
   /// unknown until a whole capture).
   bool apply(const Kept& k);
+  /// The last whole capture applied, in its staging, until a change needs the copy made.
+  struct Whole {
+    std::span<const gpu::Node> nodes;
+    std::span<const std::uint32_t> payload;
+    std::shared_ptr<const void> memory;
+  };
   std::deque<Kept> kept_;
+  Whole whole_;
   std::shared_ptr<Pool> copy_;  ///< shared with the captures taken from it (copied on write)
   std::uint64_t version_ = 0;   ///< the tree's version the copy is at
   bool valid_ = false;

@@ -52,9 +52,9 @@ class Statement {
       throw Error(ErrorCode::kIo, where_ + ": " + sqlite3_errmsg(db));
   }
   ~Statement() { sqlite3_finalize(stmt_); }
-  /// For another use of a kept statement: its bindings cleared, its errors naming `where`.
   /// Ends a read (a kept statement holds no snapshot between uses).
   void done() { sqlite3_reset(stmt_); }
+  /// For another use of a kept statement: its bindings cleared, its errors naming `where`.
   Statement& reuse(const std::string& where) {
     sqlite3_reset(stmt_);
     sqlite3_clear_bindings(stmt_);

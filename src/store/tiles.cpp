@@ -472,6 +472,16 @@ Key tileKeyCorner(std::uint64_t key) {
   return k;
 }
 
+std::uint64_t cellPath(const Key& key) {
+  std::uint64_t path = 0;
+  for (unsigned level = 0; level < kTreeDepth; ++level) {
+    const unsigned bit = kTreeDepth - 1 - level;  // OctoMap's child index: x bit 0, y 1, z 2
+    path = (path << 3) | ((key[0] >> bit) & 1u) | (((key[1] >> bit) & 1u) << 1) |
+           (((key[2] >> bit) & 1u) << 2);
+  }
+  return path;
+}
+
 std::vector<Tile> tilesOf(const HostTree& tree, unsigned tile_depth) {
   checkTileDepth(tile_depth);
   std::vector<Tile> tiles;
@@ -521,16 +531,8 @@ class ChangedTileWalk {
   ChangedTileWalk(const PoolCapture& pool, unsigned tile_depth,
                   const std::function<bool(std::uint64_t)>& committed, PoolTileChanges& out)
       : pool_(pool), nodes_{pool}, tile_depth_(tile_depth), committed_(committed), out_(out) {
-    // The paths of the cells whose nodes the colour fold changed (3 bits a level, all 16).
-    for (const PoolCapture::Folded& f : pool.folded) {
-      std::uint64_t cell = 0;
-      for (unsigned level = 0; level < kTreeDepth; ++level) {
-        const unsigned bit = kTreeDepth - 1 - level;  // OctoMap's child index: x bit 0, y 1, z 2
-        cell = (cell << 3) | ((f.key[0] >> bit) & 1u) | (((f.key[1] >> bit) & 1u) << 1) |
-               (((f.key[2] >> bit) & 1u) << 2);
-      }
-      folded_.push_back(cell);
-    }
+    // The paths of the cells whose nodes the colour fold changed.
+    for (const PoolCapture::Folded& f : pool.folded) folded_.push_back(cellPath(f.key));
     std::sort(folded_.begin(), folded_.end());
   }
 

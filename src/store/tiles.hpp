@@ -69,6 +69,9 @@ std::uint64_t tileKey(unsigned depth, std::uint64_t path);
 unsigned tileKeyDepth(std::uint64_t key);
 /// The OctoMap key (k[0], k[1], k[2]) of the first finest cell of a tile: the tile's corner.
 Key tileKeyCorner(std::uint64_t key);
+/// The path (tileKey's) from the root to the finest cell `key`, all 16 levels: the tile at
+/// depth d holding it is tileKey(d, cellPath(key) >> 3 * (16 - d)).
+std::uint64_t cellPath(const Key& key);
 
 /// The tiles of `tree` cut at `tile_depth` (1..16), sorted by key, in the format of its payload
 /// (with the upper stamps record, kUpperStampsKey, first for a stamped tree). kFormat for a
