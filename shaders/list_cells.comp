@@ -81,7 +81,7 @@ void main() {
   uint end = at + count;
   // A list longer than its buffer: the scan is redone with larger sets.
   if (end > params.cell_capacity) {
-    atomicOr(counters.status, kStatusHashFull);
+    atomicOr(counters.status, kStatusHashFull | kStatusCellsShort);
     return;
   }
   if (count != 0u) OCTOVK_COVER_LIST(counters.cell_args, end);

@@ -45,10 +45,17 @@ bool walk() {
   return false;
 }
 
+// The lists hold walk_capacity walks each (sized to what scans leave unfinished, not to every
+// point): a walk past that is lost, and the scan refused (kStatusWalksShort) and run again with
+// longer lists.
 void save(uint list, vec3 e) {
   uint at = atomicAdd(counters.walk_count[list], 1u);
+  if (at >= params.walk_capacity) {
+    atomicOr(counters.status, kStatusWalksShort);
+    return;
+  }
   if (at % kWorkgroupSize == 0u) OCTOVK_COVER_LIST(counters.walk_args[list], at + 1u);
-  WALKS[list * params.point_count + at] =
+  WALKS[list * params.walk_capacity + at] =
       WalkState(w.t_max.x, w.t_max.y, w.t_max.z, e.x, e.y, e.z, w.key.x | (w.key.y << 16), w.key.z,
                 0u);
 }
@@ -57,8 +64,8 @@ void save(uint list, vec3 e) {
 bool resumeWalk(uint i, out vec3 e) {
   e = vec3(0.0);
   uint from = pc.from_list;
-  if (i >= counters.walk_count[from]) return false;
-  WalkState saved = WALKS[from * params.point_count + i];
+  if (i >= min(counters.walk_count[from], params.walk_capacity)) return false;
+  WalkState saved = WALKS[from * params.walk_capacity + i];
   e = vec3(saved.end_x, saved.end_y, saved.end_z);
   coordToKeyChecked(e.x, key_end.x);
   coordToKeyChecked(e.y, key_end.y);

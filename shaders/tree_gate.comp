@@ -47,7 +47,7 @@ void main() {
   }
   if ((status & (kStatusHashFull | kStatusEndpointHashFull | kStatusRayCut | kStatusPoolShort |
                  kStatusListsShort | kStatusHalted | kStatusChangesShort |
-                 kStatusTilesNeeded)) != 0u) {
+                 kStatusTilesNeeded | kStatusWalksShort)) != 0u) {
     status |= kStatusNotApplied;
     pool.halted = 1u;
     setArgs(0u, counters.block_args);

@@ -10,8 +10,14 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <memory>
 #include <sstream>
 
+#include "map/buffer_sizes.hpp"
+#include "map/change_set.hpp"
+#include "map/context_access.hpp"
+#include "map/growth_policy.hpp"
+#include "map/map_core.hpp"
 #include "test_support.hpp"
 
 namespace octovk {
@@ -553,6 +559,62 @@ TEST(MemoryBudget, InfoReportsPoolAndScratch) {
   const std::string line = text.substr(line_at, text.find('\n', line_at) - line_at);
   for (const char* part : {"node pool", "leaf boxes", "scan scratch", "query buffers", "MiB"})
     EXPECT_NE(line.find(part), std::string::npos) << line;
+}
+
+// Under the cap, a scan whose bricks list more cells than the cell lists hold, beside a cell set
+// with room (a dense view lists about 25 cells a brick, the set is made for 4 a slot), lengthens
+// the lists alone to the cells counted and an eighth more where a set four times larger does not
+// fit; without a cap the set grows 4x as before. Where not even the lists fit, the growth is
+// refused with nothing changed (the scan is then split in groups of tiles). A full second set
+// grows 2x under the cap where 4x does not fit.
+TEST(MemoryBudget, ShortCellListsGrowAloneUnderTheCap) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  vk::Device& device = ContextAccess::device(ctx);
+  const MapParams plain = test::withResolution(0.05);
+  MapCore probe(device, plain);
+  const std::uint32_t log2 = probe.buffers.hashLog2();
+  const std::size_t lists = probe.buffers.cellEntries();
+  ASSERT_EQ(lists, (std::size_t{1} << log2) * kCellsPerBrickSlot);
+  gpu::ScanCounters counters{};
+  counters.status = gpu::kStatusHashFull | gpu::kStatusCellsShort | gpu::kStatusNotApplied;
+  counters.brick_entries = 8;  // a set with room
+  counters.cell_entries = static_cast<std::uint32_t>(3 * lists);
+  const std::size_t want = counters.cell_entries + counters.cell_entries / 8;
+  const gpu::PoolState pool = probe.readPool();
+  // Room for the lengthened lists, not for the set 4x larger (every size 4x).
+  const std::size_t room = sizes::cellBytes(want) - sizes::cellBytes(lists);
+  ASSERT_LT(room, sizes::hashBytes(log2 + 2) - sizes::hashBytes(log2));
+  const auto grown = [&](std::size_t cap) {
+    MapParams params = plain;
+    params.max_device_bytes = cap;
+    auto core = std::make_unique<MapCore>(device, params);
+    ChangeSet changes(*core);
+    GrowthPolicy(*core, changes).growForRetry(counters, pool);
+    return core;
+  };
+  const std::size_t empty = probe.buffers.deviceBytes();
+  const auto capped = grown(empty + room);
+  EXPECT_EQ(capped->buffers.hashLog2(), log2);
+  EXPECT_EQ(capped->buffers.cellEntries(), want);
+  EXPECT_EQ(capped->buffers.deviceBytes(), empty + room);
+  const auto uncapped = grown(0);
+  EXPECT_EQ(uncapped->buffers.hashLog2(), log2 + 2);
+  EXPECT_EQ(uncapped->buffers.cellEntries(), (std::size_t{4} << log2) * kCellsPerBrickSlot);
+  try {
+    grown(empty + room - 1);
+    ADD_FAILURE() << "lists beyond the cap were made";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kOutOfDeviceMemory) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cell lists"), std::string::npos) << e.what();
+  }
+  // The second set likewise: 2x where 4x does not fit.
+  counters.status = gpu::kStatusEndpointHashFull | gpu::kStatusNotApplied;
+  const std::uint32_t ends = probe.buffers.endpointLog2();
+  const std::size_t twice = sizes::endpointBytes(ends + 1) - sizes::endpointBytes(ends) +
+                            sizes::slotBytes(log2, ends + 1) - sizes::slotBytes(log2, ends);
+  const auto halved = grown(empty + twice);
+  EXPECT_EQ(halved->buffers.endpointLog2(), ends + 1);
+  EXPECT_EQ(grown(0)->buffers.endpointLog2(), ends + 2);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "map/context_access.hpp"
 #include "test_support.hpp"
 
 namespace octovk::test {
@@ -384,6 +385,35 @@ TEST_P(LargeRandomScans, EqualsOctoMapAfterEveryScan) {
 INSTANTIATE_TEST_SUITE_P(Seeds, LargeRandomScans, ::testing::Values(101u, 102u, 103u, 104u));
 
 // ---- growth of the scan's sets -----------------------------------------------------------------
+
+// Where the driver ends shader loops early (Mesa 22.3's llvmpipe), a walk is saved between rounds
+// in lists that start at 256 walks (most scans leave none unfinished). 300 rays each longer than
+// a round (about 43,000 steps along a diagonal, a round takes 30,000 iterations) leave more: the
+// scan is refused, the lists grow and it runs again, once; the map is OctoMap's. Elsewhere every
+// walk ends in one go and the scan runs once.
+TEST(SetGrowth, MoreUnfinishedWalksThanTheListsHoldGrowThem) {
+  OCTOVK_REQUIRE_CONTEXT(ctx);
+  const double res = 0.2;
+  const MapParams params = withResolution(res);
+  OccupancyMap map(ctx, params);
+  octomap::OcTree oracle = makeOracle(params);
+  // Two ends 5 km away, 150 rays to each: few distinct cells, many long walks.
+  const Eigen::Vector3f origin(0.1f, 0.1f, 0.1f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 300; ++i)
+    pts.push_back(i % 2 ? Eigen::Vector3f(2880.3f, 2870.1f, 2860.7f)
+                        : Eigen::Vector3f(-2850.9f, 2890.2f, -2875.4f));
+  // First 200 of them, which the lists hold (the sets grow for their cells), then all 300.
+  const std::vector<Eigen::Vector3f> fewer(pts.begin(), pts.begin() + 200);
+  ScanStats few, first, second;
+  ASSERT_TRUE(insertBoth(map, oracle, fewer, origin, -1.0, false, &few));
+  ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &first));
+  ASSERT_TRUE(insertBoth(map, oracle, pts, origin, -1.0, false, &second));
+  EXPECT_TRUE(sameTree(oracle, *toOcTree(map)));
+  const bool limited = ContextAccess::device(ctx).loopLimit() != 0;
+  EXPECT_EQ(first.cell_set_attempts, limited ? 2u : 1u) << "300 walks: refused for its walks";
+  EXPECT_EQ(second.cell_set_attempts, 1u) << "the lists grown for 300 walks hold them";
+}
 
 // Few points with long rays touch far more cells than the first guess of the cell set (16 slots
 // per point): the set grows, the ray pass is redone, and the map is the same as OctoMap's.

@@ -79,6 +79,12 @@ OCTOVK_CONST uint kStatusChangesShort = 256u;
 // The scan reaches tiles whose subtree is off the device (kFlagEvicted): not applied; their nodes
 // are in ScanCounters::needed_tiles, and the host loads them and runs the scan again.
 OCTOVK_CONST uint kStatusTilesNeeded = 512u;
+// More walks were left unfinished after a round than a list of saved walks holds
+// (ScanParams::walk_capacity): not applied; the host grows the lists and runs the scan again.
+OCTOVK_CONST uint kStatusWalksShort = 1024u;
+// The scan's bricks list more cells (ScanCounters::cell_entries, counted in full) than the cell
+// list holds (ScanParams::cell_capacity); set with kStatusHashFull, which stops the scan.
+OCTOVK_CONST uint kStatusCellsShort = 2048u;
 // Slots of ScanCounters::needed_tiles (a power of two): the evicted tiles one refusal names; a
 // scan that reaches more is refused again after the host loaded these.
 OCTOVK_CONST uint kNeededTileSlots = 64u;
@@ -116,7 +122,7 @@ struct PoolState {
   uint pad0;         // 4B (28)
 };
 
-// Per-scan parameters, written once per scan. 128 B.
+// Per-scan parameters, written once per scan. 136 B.
 struct ScanParams {
   double resolution;         // 8B (0)
   double resolution_factor;  // 8B (8)
@@ -148,6 +154,8 @@ struct ScanParams {
   uint stamp;                // 4B (120) kPayloadStamp: the scan's time stamp
   uint tile_group;           // 4B (124) a scan applied in groups of tiles: this group's index |
                              // (groups - 1) << 16; 0: every tile
+  uint walk_capacity;        // 4B (128) entries of each list of walks saved between rounds
+  uint pad0;                 // 4B (132)
 };
 
 // What a node holds besides its log-odds (MapParams::payload): PAYLOAD, one word per node.

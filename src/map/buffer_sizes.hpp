@@ -16,11 +16,18 @@ constexpr std::size_t kInitialListEntries = 16384;  // the touched lists, all le
 constexpr std::size_t kSmallBuffer = 16;  // points, walks, upload, depth before the first scan
 constexpr std::size_t kSmallQuery = 64;   // each query buffer and its staging
 
-inline std::size_t hashBytes(std::uint32_t log2) {
+// The cell list and the active-cell list, `entries` each.
+inline std::size_t cellBytes(std::size_t entries) {
+  return entries * (sizeof(std::uint32_t) + sizeof(gpu::ActiveCell));
+}
+// The cell set of 2^log2 brick slots (keys, flags), with the cell lists it is made with
+// (kCellsPerBrickSlot entries a slot; MapBuffers::allocateCells may lengthen them).
+inline std::size_t brickBytes(std::uint32_t log2) {
   const std::size_t cap = std::size_t{1} << log2;
-  const std::size_t cells = cap * kCellsPerBrickSlot;
-  return cap * sizeof(std::uint64_t) + cap * gpu::kBrickFlagWords * sizeof(std::uint32_t) +
-         cells * sizeof(std::uint32_t) + cells * sizeof(gpu::ActiveCell);
+  return cap * sizeof(std::uint64_t) + cap * gpu::kBrickFlagWords * sizeof(std::uint32_t);
+}
+inline std::size_t hashBytes(std::uint32_t log2) {
+  return brickBytes(log2) + cellBytes((std::size_t{1} << log2) * kCellsPerBrickSlot);
 }
 inline std::size_t endpointBytes(std::uint32_t log2) {
   return (std::size_t{1} << log2) * (sizeof(std::uint64_t) + sizeof(gpu::NewBlock));
@@ -72,12 +79,15 @@ inline std::size_t changesBytes(std::uint32_t log2) {
 constexpr std::size_t kFixedBytes = sizeof(gpu::ScanParams) + sizeof(gpu::ScanCounters) +
                                     sizeof(gpu::PoolState) + kFramesInFlight * kReadbackBytes +
                                     sizeof(gpu::ChangeHeader) + sizeof(gpu::ChangeSlot);
-// Points on the device, their staging in each frame, the walks.
-// Points and their staging, and (`walks`: on a device that ends loops early) the two lists of
-// walks saved between rounds.
-inline std::size_t pointBytes(std::size_t count, bool walks) {
-  return count * 3 * sizeof(float) * (1 + kFramesInFlight) +
-         (walks ? 2 * count * sizeof(gpu::WalkState) : kSmallBuffer);
+// Points on the device and their staging in each frame.
+inline std::size_t pointBytes(std::size_t count) {
+  return count * 3 * sizeof(float) * (1 + kFramesInFlight);
 }
+// Entries of each list of walks saved between rounds (on a device that ends loops early) before
+// a scan left more unfinished: most scans leave none, so the lists are not sized to the points
+// (two lists of a 76,800-point view would take 7.4 MB); a scan that leaves more is refused
+// (kStatusWalksShort) and the lists grow.
+constexpr std::size_t kInitialWalkEntries = 256;
+inline std::size_t walkBytes(std::size_t entries) { return 2 * entries * sizeof(gpu::WalkState); }
 
 }  // namespace octovk::sizes

@@ -208,8 +208,33 @@ void GrowthPolicy::growForRetryOf(const gpu::ScanCounters& counters, const gpu::
                     core_.device.info().name +
                     "' (about 196,000 steps); the map is unchanged. Use a coarser resolution "
                     "or a max range");
+  // More walks were left unfinished than the lists hold: twice the lists, or what the rounds
+  // counted (the last round of each list; a list cut short undercounts the rounds after it).
+  if (status & gpu::kStatusWalksShort) {
+    const std::size_t seen = std::max(counters.walk_count[0], counters.walk_count[1]);
+    buffers.ensureWalks(std::min(buffers.pointCapacity(),
+                                 std::max(2 * buffers.walkCapacity(), std::size_t{2} * seen)));
+  }
   // A full set stopped classify early: its other counts are partial, so only the set grows.
   if (status & gpu::kStatusHashFull) {
+    // Under the cap, where the bricks' cells outnumber the cell lists but the set took every
+    // brick (below its 3/4 fill), the lists alone grow, to the cells counted and an eighth
+    // more, when a set four times larger has no room (a dense scan lists 25 cells a brick,
+    // the set is made for 4 a slot): memory goes where the counts say it is short.
+    const std::size_t set_room = (std::size_t{1} << buffers.hashLog2()) * 3 / 4;
+    if ((status & gpu::kStatusCellsShort) && counters.brick_entries < set_room &&
+        buffers.maxBytes() != 0 && counters.cell_entries > buffers.cellEntries()) {
+      try {
+        if (buffers.hashLog2() + 2 <= kMaxHashLog2) {
+          buffers.allocateHash(buffers.hashLog2() + 2);
+          return;
+        }
+      } catch (const BudgetError&) {
+      }
+      const std::size_t cells = counters.cell_entries;
+      buffers.allocateCells(cells + cells / 8);
+      return;
+    }
     if (buffers.hashLog2() + 2 > kMaxHashLog2)
       throw Error(ErrorCode::kOutOfDeviceMemory,
                   "insertPointCloud: a scan touches more than 2^25 bricks of 4x4x4 cells; the "
@@ -221,7 +246,11 @@ void GrowthPolicy::growForRetryOf(const gpu::ScanCounters& counters, const gpu::
     if (buffers.endpointLog2() >= 30)
       throw Error(ErrorCode::kOutOfDeviceMemory,
                   "insertPointCloud: a scan creates more than 2^29 blocks; split the scan");
-    buffers.allocateEndpoints(buffers.endpointLog2() + 2);
+    try {
+      buffers.allocateEndpoints(buffers.endpointLog2() + 2);
+    } catch (const BudgetError&) {
+      buffers.allocateEndpoints(buffers.endpointLog2() + 1);  // under the cap: half as much
+    }
     return;
   }
   if (status & gpu::kStatusPoolShort) reservePool(counters.new_blocks, pool, /*ahead=*/false);

@@ -111,7 +111,7 @@ void MapBuffers::setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2,
   freed = added = 0;
   if (!cell_set_keys.valid() || hash_log2 != hash_log2_) {
     freed += cell_set_keys.size() + cell_set_flags.size() + cell_list.size() + cells.size();
-    added += hashBytes(hash_log2);
+    added += brickBytes(hash_log2) + cellBytes(cellEntriesFor(hash_log2));
   }
   if (!endpoint_keys.valid() || endpoint_log2 != endpoint_log2_) {
     freed += endpoint_keys.size() + prefix_blocks.size();
@@ -138,7 +138,7 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
   vk::Buffer keys, flags, list, active, end_keys, blocks, s;
   if (new_hash) {
     const std::size_t cap = std::size_t{1} << hash_log2;
-    const std::size_t cell_cap = cap * kCellsPerBrickSlot;
+    const std::size_t cell_cap = cellEntriesFor(hash_log2);
     keys = vk::Buffer(device_, cap * sizeof(std::uint64_t), false);
     flags = vk::Buffer(device_, cap * gpu::kBrickFlagWords * sizeof(std::uint32_t), false);
     list = vk::Buffer(device_, cell_cap * sizeof(std::uint32_t), false);
@@ -156,6 +156,7 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
     cell_set_flags = std::move(flags);
     cell_list = std::move(list);
     cells = std::move(active);
+    cell_entries_ = cellEntriesFor(hash_log2);
     hash_log2_ = hash_log2;
   }
   if (new_endpoints) {
@@ -166,6 +167,26 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
   if (new_slots) slots = std::move(s);
   // New sets start unfilled and are cleared whole once.
   sets_need_fill_ = true;
+  rebind();
+}
+
+std::size_t MapBuffers::cellEntriesFor(std::uint32_t hash_log2) const noexcept {
+  const std::size_t made = (std::size_t{1} << hash_log2) * kCellsPerBrickSlot;
+  // A set grown keeps cell lists lengthened before (allocateCells); a set made smaller does not.
+  return hash_log2 > hash_log2_ ? std::max(made, cell_entries_) : made;
+}
+
+void MapBuffers::allocateCells(std::size_t entries) {
+  const std::size_t limit = std::size_t{0xFFFFFFFFu};  // ScanParams::cell_capacity
+  entries = std::min(entries, limit);
+  if (entries <= cell_entries_) return;
+  checkBudget(cell_list.size() + cells.size(), cellBytes(entries),
+              "lengthening the scan's cell lists to " + std::to_string(entries) + " cells");
+  vk::Buffer list(device_, entries * sizeof(std::uint32_t), false);
+  vk::Buffer active(device_, entries * sizeof(gpu::ActiveCell), false);
+  cell_list = std::move(list);
+  cells = std::move(active);
+  cell_entries_ = entries;
   rebind();
 }
 
@@ -312,6 +333,7 @@ void MapBuffers::releaseScratch(std::size_t keep_list_entries, std::size_t keep_
     for (vk::Buffer& x : u) x = vk::Buffer(device_, kSmallBuffer, true);
     points = std::move(p);
     walks = std::move(w);
+    walk_capacity_ = 0;
     uploads = std::move(u);
     depth = std::move(d);
     color_fold = std::move(f);
@@ -349,34 +371,55 @@ void MapBuffers::ensurePoints(std::size_t count) {
   if (count <= point_capacity_) return;
   const bool colors = payload_kind_ == Payload::kColor;
   // Walks are saved between rounds only where the device ends loops early (walk_budget.hpp):
-  // elsewhere every ray is walked in one go and the lists stay unused.
-  const bool walks_saved = device_.loopLimit() != 0;
-  const std::size_t held = points.size() + uploadBytes() + walks.size() + color_fold.size();
+  // elsewhere every ray is walked in one go and the lists stay unused. They start short and
+  // grow when a scan leaves more walks unfinished (ensureWalks).
+  const bool new_walks = device_.loopLimit() != 0 && walk_capacity_ < kInitialWalkEntries;
+  const std::size_t walk_bytes = new_walks ? walkBytes(kInitialWalkEntries) : 0;
+  const std::size_t held =
+      points.size() + uploadBytes() + (new_walks ? walks.size() : 0) + color_fold.size();
   // A colour map's staging holds each point's colour after the points, and its fold buffer the
   // colours, links and table.
   const auto bytesFor = [&](std::size_t n) {
-    return pointBytes(n, walks_saved) + (colors ? n * 2 * sizeof(std::uint32_t) * kFramesInFlight +
-                                                      colorFoldBytes(n, colorChunk())
-                                                : 0);
+    return pointBytes(n) + (colors ? n * 2 * sizeof(std::uint32_t) * kFramesInFlight +
+                                         colorFoldBytes(n, colorChunk())
+                                   : 0);
   };
   std::size_t cap = std::max(count, point_capacity_ * 2);
-  if (!fits(held, bytesFor(cap))) cap = count;  // no headroom where the cap allows none
-  checkBudget(held, bytesFor(cap),
+  if (!fits(held, bytesFor(cap) + walk_bytes))
+    cap = count;  // no headroom where the cap allows none
+  checkBudget(held, bytesFor(cap) + walk_bytes,
               "taking a scan of " + std::to_string(count) + " points (" +
                   std::to_string(bytesFor(1)) + " bytes per point: points, staging" +
-                  (walks_saved ? ", walks" : "") + (colors ? ", colours" : "") + ")");
+                  (colors ? ", colours" : "") + ")" +
+                  (new_walks ? " and " + std::to_string(walk_bytes) + " bytes of saved ray walks"
+                             : std::string()));
   vk::Buffer device_points(device_, cap * 3 * sizeof(float), false);
   std::vector<vk::Buffer> staging(kFramesInFlight);
   for (vk::Buffer& x : staging) x = vk::Buffer(device_, cap * stagingBytesPerPoint(), true);
-  vk::Buffer walk_lists(device_, walks_saved ? 2 * cap * sizeof(gpu::WalkState) : kSmallBuffer,
-                        false);
+  vk::Buffer walk_lists;
+  if (new_walks) walk_lists = vk::Buffer(device_, walk_bytes, false);
   vk::Buffer fold(device_, colors ? colorFoldBytes(cap, colorChunk()) : kSmallBuffer, false);
   color_fold = std::move(fold);
   ++fold_generation_;
   points = std::move(device_points);
   uploads = std::move(staging);
-  walks = std::move(walk_lists);
+  if (new_walks) {
+    walks = std::move(walk_lists);
+    walk_capacity_ = kInitialWalkEntries;
+  }
   point_capacity_ = cap;
+  rebind();
+}
+
+void MapBuffers::ensureWalks(std::size_t entries) {
+  if (device_.loopLimit() == 0 || entries <= walk_capacity_) return;
+  checkBudget(walks.size(), walkBytes(entries),
+              "saving " + std::to_string(entries) +
+                  " unfinished ray walks between rounds (the device ends shader loops early; " +
+                  std::to_string(walkBytes(1)) + " bytes per walk)");
+  vk::Buffer lists(device_, walkBytes(entries), false);
+  walks = std::move(lists);
+  walk_capacity_ = entries;
   rebind();
 }
 

@@ -141,6 +141,14 @@ class MapBuffers {
   std::uint32_t hashLog2() const noexcept { return hash_log2_; }
   std::uint32_t endpointLog2() const noexcept { return endpoint_log2_; }
   std::size_t listEntries() const noexcept { return list_entries_; }
+  /// Entries of the cell list and the active-cell list: kCellsPerBrickSlot per slot of the cell
+  /// set as it is made, or more (allocateCells).
+  std::size_t cellEntries() const noexcept { return cell_entries_; }
+  /// Lengthens the cell list and the active-cell list to `entries` (at most 2^32 - 1), the cell
+  /// set as it is: where a scan's bricks hold more cells than the set was made for, and the cap
+  /// has no room for a set four times larger. Under the cap (BudgetError, nothing changed);
+  /// nothing may be in flight.
+  void allocateCells(std::size_t entries);
   /// Counts the touched lists' allocations: lists read after a scan are that scan's only while
   /// this is what it was when the scan ran.
   std::uint64_t listsGeneration() const noexcept { return lists_generation_; }
@@ -149,6 +157,12 @@ class MapBuffers {
   std::uint64_t foldGeneration() const noexcept { return fold_generation_; }
   std::uint32_t poolBlocks() const noexcept { return pool_blocks_; }
   std::size_t pointCapacity() const noexcept { return point_capacity_; }
+  /// Entries of each list of walks saved between rounds (0 where the device does not end loops
+  /// early: every walk is finished in one go).
+  std::size_t walkCapacity() const noexcept { return walk_capacity_; }
+  /// Grows the two lists of saved walks to `entries` each (at least), where the device ends
+  /// loops early; under the cap (BudgetError, nothing changed); nothing may be in flight.
+  void ensureWalks(std::size_t entries);
   /// log2 of the change set's slots (0 while change detection was never on).
   std::uint32_t changesLog2() const noexcept { return changes_log2_; }
   /// Whether the sets must be cleared whole before the next scan (new, or left in an unknown
@@ -205,7 +219,7 @@ class MapBuffers {
   vk::Buffer prefix_blocks;  // gpu::NewBlock per slot of the second set
   vk::Buffer nodes, block_parents, free_stack, leaf_boxes;
   vk::Buffer query_in, query_out, query_staging_in, query_staging_out;
-  vk::Buffer walks;       // ray walks saved between segments (two lists of pointCapacity())
+  vk::Buffer walks;       // ray walks saved between segments (two lists of walkCapacity())
   vk::Buffer slots;       // filled slots of the cell set, then of the second set
   vk::Buffer depth;       // a depth image: gpu::DepthCamera, then its pixels
   vk::Buffer changes;     // the change set: gpu::ChangeHeader, then gpu::ChangeSlots
@@ -226,6 +240,8 @@ class MapBuffers {
   /// Records the fills that make the change set empty: every slot 0xFF bytes (kEmptyChangeKey,
   /// kChangeNone), the header zero.
   void recordEmptyChanges();
+  /// The cell lists' entries allocateSets makes with a set of 2^hash_log2 slots.
+  std::size_t cellEntriesFor(std::uint32_t hash_log2) const noexcept;
   void setsDelta(std::uint32_t hash_log2, std::uint32_t endpoint_log2, bool exact_slots,
                  std::size_t& freed, std::size_t& added) const;
 
@@ -238,11 +254,13 @@ class MapBuffers {
   bool sets_need_fill_ = true;
   std::uint32_t hash_log2_ = 0, endpoint_log2_ = 0;
   std::size_t list_entries_ = 0;
+  std::size_t cell_entries_ = 0;
   std::uint64_t lists_generation_ = 0;
   std::uint64_t fold_generation_ = 0;
   std::uint32_t pool_blocks_ = 0;
   bool leaf_boxes_on_ = false;  // ensureLeafBoxes: the leaf boxes follow the pool
   std::size_t point_capacity_ = 0;
+  std::size_t walk_capacity_ = 0;
   std::uint32_t changes_log2_ = 0;
   Payload payload_kind_ = Payload::kNone;
 };

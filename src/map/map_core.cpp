@@ -42,7 +42,8 @@ gpu::ScanParams MapCore::scanParams(const Eigen::Vector3f& origin, const Pose* p
   sp.endpoint_log2 = buffers.endpointLog2();
   sp.touched_capacity =
       static_cast<std::uint32_t>(std::min<std::size_t>(buffers.listEntries(), 0xFFFFFFFFu));
-  sp.cell_capacity = (1u << buffers.hashLog2()) * kCellsPerBrickSlot;
+  sp.cell_capacity = static_cast<std::uint32_t>(buffers.cellEntries());
+  sp.walk_capacity = static_cast<std::uint32_t>(buffers.walkCapacity());
   sp.occupancy_log = logs.occupancy;
   sp.payload = static_cast<std::uint32_t>(params.payload);
   if (pose) {

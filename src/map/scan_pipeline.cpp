@@ -502,7 +502,9 @@ ScanPipeline::ScratchFill ScanPipeline::scratchFill(
   return {.bricks = static_cast<double>(counters.brick_entries) / slots(b.hashLog2()),
           .blocks = static_cast<double>(counters.new_blocks) / slots(b.endpointLog2()),
           .cells = static_cast<double>(bound) /
-                   static_cast<double>(std::max<std::size_t>(b.listEntries(), 1))};
+                   static_cast<double>(std::max<std::size_t>(b.listEntries(), 1)),
+          .cell_list = static_cast<double>(counters.cell_entries) /
+                       static_cast<double>(std::max<std::size_t>(b.cellEntries(), 1))};
 }
 
 bool ScanPipeline::splitOldest(std::uint32_t parts) {
@@ -537,11 +539,17 @@ bool ScanPipeline::splitOldest(std::uint32_t parts) {
 }
 
 std::uint32_t ScanPipeline::partsNeeded(const gpu::ScanCounters& counters) const {
-  // Classify stops at a full cell set or second set: the other counts are then partial.
-  if (counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) return 2;
   const ScratchFill fill = scratchFill(counters);
+  // Classify stops at a full cell set or second set: the other counts are then partial. Only
+  // short cell lists beside a set with room leave the cells counted in full.
+  const std::size_t set_room = (std::size_t{1} << core_.buffers.hashLog2()) * 3 / 4;
+  if ((counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) ==
+          gpu::kStatusHashFull &&
+      (counters.status & gpu::kStatusCellsShort) && counters.brick_entries < set_room)
+    return static_cast<std::uint32_t>(std::clamp(std::ceil(1.15 * fill.cell_list), 2.0, 64.0));
+  if (counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) return 2;
   return static_cast<std::uint32_t>(
-      std::clamp(std::ceil(1.15 * std::max(fill.blocks, fill.cells)), 2.0, 64.0));
+      std::clamp(std::ceil(1.15 * std::max({fill.blocks, fill.cells, fill.cell_list})), 2.0, 64.0));
 }
 
 std::uint32_t ScanPipeline::groupsFor(std::size_t count) const {
@@ -554,14 +562,15 @@ std::uint32_t ScanPipeline::groupsFor(std::size_t count) const {
 
 void ScanPipeline::notePart(const PendingScan& p, const gpu::ScanCounters& counters) noexcept {
   const ScratchFill fill = scratchFill(counters);
-  parts_.fill = std::max({parts_.fill, fill.bricks, fill.blocks, fill.cells});
+  parts_.fill = std::max({parts_.fill, fill.bricks, fill.blocks, fill.cells, fill.cell_list});
   parts_.fewest = parts_.fewest == 0 ? p.groups : std::min(parts_.fewest, p.groups);
   if (!p.closes_scan) return;
   // A part of 1/fewest of the tiles filled `parts_.fill`: the scan needed about fewest * fill
-  // parts of this size; half as many again for the next scans, which may touch more cells (a
-  // part refused costs a walk of every ray, a part more a little less).
+  // parts of this size; a fifth more for the next scans, which may touch more cells (a part
+  // refused costs a walk of every ray, a part more a little less; a half more cost the paper
+  // building under a quarter cap about a part a scan more than the refusals it saved).
   split_groups_ = static_cast<std::uint32_t>(
-      std::clamp(std::ceil(1.5 * parts_.fill * static_cast<double>(parts_.fewest)), 1.0,
+      std::clamp(std::ceil(1.2 * parts_.fill * static_cast<double>(parts_.fewest)), 1.0,
                  double{kMaxTileGroups}));
   split_points_ = p.count;
 }

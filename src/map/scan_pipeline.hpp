@@ -115,7 +115,7 @@ class ScanPipeline {
   /// How full a scan (or part) left what the device's checks allow: 3/4 of the cell set's and
   /// the second set's slots, the touched lists' entries (each of 1 when full).
   struct ScratchFill {
-    double bricks, blocks, cells;
+    double bricks, blocks, cells, cell_list;
   };
   ScratchFill scratchFill(const gpu::ScanCounters& counters) const noexcept;
   /// A scan submitted and not yet known to be in the map: what it needs to run again.
