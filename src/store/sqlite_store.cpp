@@ -316,8 +316,13 @@ class SqliteStore final : public Store {
                         "the other");
       const std::string at =
           where("writing scan " + std::to_string(entry.seq) + " of map '" + name + "'");
-      Statement& put =
-          kept("INSERT OR REPLACE INTO tiles (map, key, version, body) VALUES (?,?,?,?)", at);
+      // An upsert updates the row in its page; INSERT OR REPLACE deleted and inserted it, which
+      // rebalanced the tree's leaves: 584 MB written for FR-079's first 500 scans at 0.05 m
+      // against 162 MB, and a fifth more of the writer's CPU time.
+      Statement& put = kept(
+          "INSERT INTO tiles (map, key, version, body) VALUES (?,?,?,?) "
+          "ON CONFLICT (map, key) DO UPDATE SET version = excluded.version, body = excluded.body",
+          at);
       for (const Tile& t : changed) {
         put.bind(1, id).bind(2, static_cast<std::int64_t>(t.key));
         put.bind(3, static_cast<std::int64_t>(entry.seq)).blob(4, t.body);
