@@ -30,8 +30,9 @@ void capture(CaptureRecordsRef records, uint r, uint n) {
   uint children = block != kNoChildren ? 8u : 0u;
   for (uint s = 0u; s < children; ++s) records.v[r].children[s] = storedNode(block * 8u + s);
   for (uint p = hasPayload() ? 0u : 1u; p < 1u; ++p) {
-    records.v[r].payload = PAYLOAD[n];
-    for (uint s = 0u; s < children; ++s) records.v[r].child_payload[s] = PAYLOAD[block * 8u + s];
+    records.v[r].payload = nodePayload(n);
+    for (uint s = 0u; s < children; ++s)
+      records.v[r].child_payload[s] = nodePayload(block * 8u + s);
   }
 }
 
