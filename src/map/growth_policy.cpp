@@ -71,6 +71,12 @@ void growing(const MapCore& core, const std::string& what, F&& grow) {
 
 }  // namespace
 
+bool onlyCellListsShort(const gpu::ScanCounters& counters, std::uint32_t hash_log2) noexcept {
+  const std::size_t set_room = (std::size_t{1} << hash_log2) * 3 / 4;
+  return (counters.status & gpu::kStatusHashFull) && (counters.status & gpu::kStatusCellsShort) &&
+         counters.brick_entries < set_room;
+}
+
 bool GrowthPolicy::mustGrow(std::size_t count, std::size_t depth_bytes) const {
   const MapBuffers& b = core_.buffers;
   return count > b.pointCapacity() || depth_bytes > b.depth.size() ||
@@ -217,13 +223,12 @@ void GrowthPolicy::growForRetryOf(const gpu::ScanCounters& counters, const gpu::
   }
   // A full set stopped classify early: its other counts are partial, so only the set grows.
   if (status & gpu::kStatusHashFull) {
-    // Under the cap, where the bricks' cells outnumber the cell lists but the set took every
-    // brick (below its 3/4 fill), the lists alone grow, to the cells counted and an eighth
-    // more, when a set four times larger has no room (a dense scan lists 25 cells a brick,
-    // the set is made for 4 a slot): memory goes where the counts say it is short.
-    const std::size_t set_room = (std::size_t{1} << buffers.hashLog2()) * 3 / 4;
-    if ((status & gpu::kStatusCellsShort) && counters.brick_entries < set_room &&
-        buffers.maxBytes() != 0 && counters.cell_entries > buffers.cellEntries()) {
+    // Under the cap, where only the cell lists were short, they alone grow, to the cells
+    // counted and an eighth more, when a set four times larger has no room (a dense scan lists
+    // 25 cells a brick, the set is made for 4 a slot): memory goes where the counts say it is
+    // short.
+    if (onlyCellListsShort(counters, buffers.hashLog2()) && buffers.maxBytes() != 0 &&
+        counters.cell_entries > buffers.cellEntries()) {
       try {
         if (buffers.hashLog2() + 2 <= kMaxHashLog2) {
           buffers.allocateHash(buffers.hashLog2() + 2);

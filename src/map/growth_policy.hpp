@@ -14,6 +14,11 @@
 
 namespace octovk {
 
+/// Whether a scan refused for a full cell set was refused for its cell lists alone: they were
+/// shorter than its bricks' cells (kStatusCellsShort), while the set of 2^hash_log2 slots took
+/// every brick (below its 3/4 fill), so that list_cells counted the cells in full.
+bool onlyCellListsShort(const gpu::ScanCounters& counters, std::uint32_t hash_log2) noexcept;
+
 class GrowthPolicy {
  public:
   GrowthPolicy(MapCore& core, ChangeSet& changes) : core_(core), changes_(changes) {}

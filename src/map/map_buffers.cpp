@@ -136,9 +136,9 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
   const std::size_t slot_bytes = slotBytes(hash_log2, endpoint_log2);
   const bool new_slots = slots.size() < slot_bytes || (exact_slots && slots.size() != slot_bytes);
   vk::Buffer keys, flags, list, active, end_keys, blocks, s;
+  const std::size_t cell_cap = cellEntriesFor(hash_log2);
   if (new_hash) {
     const std::size_t cap = std::size_t{1} << hash_log2;
-    const std::size_t cell_cap = cellEntriesFor(hash_log2);
     keys = vk::Buffer(device_, cap * sizeof(std::uint64_t), false);
     flags = vk::Buffer(device_, cap * gpu::kBrickFlagWords * sizeof(std::uint32_t), false);
     list = vk::Buffer(device_, cell_cap * sizeof(std::uint32_t), false);
@@ -156,7 +156,7 @@ void MapBuffers::allocateSets(std::uint32_t hash_log2, std::uint32_t endpoint_lo
     cell_set_flags = std::move(flags);
     cell_list = std::move(list);
     cells = std::move(active);
-    cell_entries_ = cellEntriesFor(hash_log2);
+    cell_entries_ = cell_cap;
     hash_log2_ = hash_log2;
   }
   if (new_endpoints) {

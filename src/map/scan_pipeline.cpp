@@ -542,10 +542,8 @@ std::uint32_t ScanPipeline::partsNeeded(const gpu::ScanCounters& counters) const
   const ScratchFill fill = scratchFill(counters);
   // Classify stops at a full cell set or second set: the other counts are then partial. Only
   // short cell lists beside a set with room leave the cells counted in full.
-  const std::size_t set_room = (std::size_t{1} << core_.buffers.hashLog2()) * 3 / 4;
-  if ((counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) ==
-          gpu::kStatusHashFull &&
-      (counters.status & gpu::kStatusCellsShort) && counters.brick_entries < set_room)
+  if (!(counters.status & gpu::kStatusEndpointHashFull) &&
+      onlyCellListsShort(counters, core_.buffers.hashLog2()))
     return static_cast<std::uint32_t>(std::clamp(std::ceil(1.15 * fill.cell_list), 2.0, 64.0));
   if (counters.status & (gpu::kStatusHashFull | gpu::kStatusEndpointHashFull)) return 2;
   return static_cast<std::uint32_t>(
