@@ -200,8 +200,8 @@ struct FoldedNode {
 struct CaptureRecord {
   uint index;             // 4B (0)  the node (the entry of the touched lists)
   uint payload;           // 4B (4)  its payload word (0 in a map without payload)
-  Node node;              // 8B (8)
-  Node children[8];       // 64B (16) its children's block when it has one, else zeros
+  uint64_t node;          // 8B (8)  the Node's two words as one: log-odds bits | link << 32
+  uint64_t children[8];   // 64B (16) its children's block (as `node`) when it has one
   uint child_payload[8];  // 32B (80) their payload words
   uint key_xy;            // 4B (112) a folded node's FoldedNode fields; 0 for a listed one
   uint key_z_depth;       // 4B (116)

@@ -1,6 +1,7 @@
 #include "map/capture_mirror.hpp"
 
 #include <algorithm>
+#include <bit>
 
 #include "octovk/octovk.hpp"
 
@@ -48,16 +49,18 @@ bool CaptureMirror::apply(const Kept& k) {
   const bool payload = pool.kind != Payload::kNone;
   if (payload) c.payload.resize(c.nodes.size());
   for (const gpu::CaptureRecord& r : k.records) {
-    const std::size_t block = r.node.link & gpu::kBlockMask;
+    const gpu::Node node = std::bit_cast<gpu::Node>(r.node);
+    const std::size_t block = node.link & gpu::kBlockMask;
     if (r.index >= c.nodes.size() ||
         (block != gpu::kNoChildren && block * 8 + 8 > c.nodes.size())) {
       valid_ = false;
       return false;
     }
-    c.nodes[r.index] = r.node;
+    c.nodes[r.index] = node;
     if (payload) c.payload[r.index] = r.payload;
     if (block != gpu::kNoChildren) {
-      std::copy(std::begin(r.children), std::end(r.children), c.nodes.begin() + block * 8);
+      std::transform(std::begin(r.children), std::end(r.children), c.nodes.begin() + block * 8,
+                     [](std::uint64_t word) { return std::bit_cast<gpu::Node>(word); });
       if (payload)
         std::copy(std::begin(r.child_payload), std::end(r.child_payload),
                   c.payload.begin() + block * 8);
