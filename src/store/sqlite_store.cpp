@@ -127,8 +127,10 @@ class WalCheckpointer {
   static constexpr int kLeftFrames = 64;
 
   // Starts on store `path`, whose writer connection is `writer` (its WAL hook becomes this);
-  // nothing when the connection cannot be opened (the writer keeps SQLite's own checkpoints).
+  // nothing when the connection cannot be opened or SQLite has no threads (the writer keeps
+  // SQLite's own checkpoints).
   static std::unique_ptr<WalCheckpointer> start(sqlite3* writer, const std::string& path) {
+    if (sqlite3_threadsafe() == 0) return nullptr;  // a SQLite built without threads
     sqlite3* db = nullptr;
     if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX, nullptr) !=
             SQLITE_OK ||
