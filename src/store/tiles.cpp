@@ -88,42 +88,75 @@ struct HostTreeNodes {
 };
 
 struct PoolNodes {
-  const PoolCapture& pool;
+  explicit PoolNodes(const PoolCapture& pool) : nodes(pool.nodes), payload(pool.payload) {}
+  std::span<const gpu::Node> nodes;
+  std::span<const std::uint32_t> payload;
   NodeView operator()(std::size_t index) const {
-    const std::size_t size = pool.nodes.size();
+    const std::size_t size = nodes.size();
     if (index >= size) throw linkError(index, size);
-    const gpu::Node& n = pool.nodes[index];
+    const gpu::Node& n = nodes[index];
     const std::size_t block = n.link & gpu::kBlockMask;
     std::uint32_t mask = 0;
     if (block != gpu::kNoChildren) {
       if (block * 8 + 8 > size) throw linkError(block * 8, size);
-      for (unsigned s = 0; s < 8; ++s)
-        if (pool.nodes[block * 8 + s].link & gpu::kFlagLive) mask |= 1u << s;
+      static_assert(gpu::kFlagLive == 1u << 31);
+      for (unsigned s = 0; s < 8; ++s) {
+        const std::uint32_t link = nodes[block * 8 + s].link;
+        mask |= (link >> 31) << s;
+        // The grandchildren's blocks lie scattered through the pool (a store's commit
+        // serialises about 17,000 nodes a scan of FR-079, most of its time cache misses on
+        // them, one after another): their reads start now, side by side.
+        const std::size_t grandchildren = link & gpu::kBlockMask;
+        if (grandchildren != gpu::kNoChildren && grandchildren * 8 + 8 <= size)
+          __builtin_prefetch(nodes.data() + grandchildren * 8);
+      }
     }
-    return {n.log_odds, mask, block, index < pool.payload.size() ? pool.payload[index] : 0u};
+    return {n.log_odds, mask, block, index < payload.size() ? payload[index] : 0u};
   }
 };
 
-// Writes node `index` at `depth` and its subtree as records of `kind` (depth <= 16); returns the
-// payload written: a colour map's inner nodes take their children's mean colour
-// (ColorOcTree::updateInnerOccupancy), whatever the device left there.
+// Writes node `index` at `depth` and its subtree as records of `kind` (depth <= 16) at the end of
+// `out`; returns the payload written: a colour map's inner nodes take their children's mean
+// colour (ColorOcTree::updateInnerOccupancy), whatever the device left there. The records go
+// into the string in place, which grows in steps of its own size.
 template <class Nodes>
-std::uint32_t appendRecords(const Nodes& nodes, std::size_t index, unsigned depth, Payload kind,
-                            std::string& out) {
-  const NodeView n = nodes(index);
-  const std::uint32_t mask = depth < kTreeDepth ? n.mask : 0u;
-  const std::size_t record = recordBytes(kind);
-  const std::size_t at = out.size();
-  out.append(record, '\0');
-  std::memcpy(out.data() + at, &n.log_odds, sizeof(float));
-  out[at + record - 1] = static_cast<char>(mask);
-  std::uint32_t payload = n.payload;
-  ChildColorMean mean;
-  for (unsigned i = 0; i < 8; ++i)
-    if (mask & (1u << i)) mean.add(appendRecords(nodes, n.children * 8 + i, depth + 1, kind, out));
-  if (kind == Payload::kColor && mask != 0) payload = mean.value();
-  putPayload(out.data() + at + sizeof(float), kind, payload);
-  return payload;
+class RecordWriter {
+ public:
+  RecordWriter(const Nodes& nodes, Payload kind, std::string& out)
+      : nodes_(nodes), kind_(kind), record_(recordBytes(kind)), out_(out), used_(out.size()) {}
+  ~RecordWriter() { out_.resize(used_); }  // the room beyond cut off
+  RecordWriter(const RecordWriter&) = delete;
+  RecordWriter& operator=(const RecordWriter&) = delete;
+
+  std::uint32_t write(std::size_t index, unsigned depth) {
+    const NodeView n = nodes_(index);
+    const std::uint32_t mask = depth < kTreeDepth ? n.mask : 0u;
+    if (used_ + record_ > out_.size()) out_.resize(std::max(2 * out_.size(), used_ + 2048));
+    const std::size_t at = used_;
+    used_ += record_;
+    std::memcpy(out_.data() + at, &n.log_odds, sizeof(float));
+    out_[at + record_ - 1] = static_cast<char>(mask);
+    std::uint32_t payload = n.payload;
+    ChildColorMean mean;
+    for (std::uint32_t m = mask; m != 0; m &= m - 1)
+      mean.add(write(n.children * 8 + static_cast<unsigned>(std::countr_zero(m)), depth + 1));
+    if (kind_ == Payload::kColor && mask != 0) payload = mean.value();
+    if (kind_ != Payload::kNone) putPayload(out_.data() + at + sizeof(float), kind_, payload);
+    return payload;
+  }
+
+ private:
+  const Nodes nodes_;  // small: a reference, or two spans
+  Payload kind_;
+  std::size_t record_;
+  std::string& out_;
+  std::size_t used_;
+};
+
+template <class Nodes>
+void appendRecords(const Nodes& nodes, std::size_t index, unsigned depth, Payload kind,
+                   std::string& out) {
+  RecordWriter<Nodes>(nodes, kind, out).write(index, depth);
 }
 
 // Visits the tiles under node `index` (at `depth`, reached by `path`) in key order:
@@ -512,7 +545,7 @@ std::vector<PoolTile> poolTiles(const PoolCapture& pool, unsigned tile_depth) {
   std::vector<PoolTile> tiles;
   if (pool.root_exists)
     cut(
-        PoolNodes{pool}, 0, 0, 0, tile_depth,
+        PoolNodes(pool), 0, 0, 0, tile_depth,
         [&](std::uint64_t key, std::size_t index, unsigned depth) {
           tiles.push_back({key, static_cast<std::uint32_t>(index), depth});
         },
@@ -594,84 +627,16 @@ PoolTileChanges changedPoolTiles(const PoolCapture& pool, unsigned tile_depth,
   return out;
 }
 
-namespace {
-
-// appendRecords over a captured pool, for a commit's path (FR-079's scans serialise about 17,000
-// nodes each, a third of a commit's time with appendRecords): each node's children's block is
-// read once, for the child bits, and the records go into the body in place, which grows in
-// steps of its own size.
-class PoolRecords {
- public:
-  PoolRecords(const PoolCapture& pool, std::string& out)
-      : nodes_(pool.nodes),
-        payload_(pool.payload),
-        kind_(pool.kind),
-        record_(recordBytes(pool.kind)),
-        out_(out),
-        used_(out.size()) {}
-
-  // Node `index` (checked by the caller) at `depth` and its subtree; returns the payload
-  // written, as appendRecords.
-  std::uint32_t write(std::size_t index, unsigned depth) {
-    const gpu::Node n = nodes_[index];
-    if (used_ + record_ > out_.size()) out_.resize(std::max(2 * out_.size(), used_ + 2048));
-    const std::size_t at = used_;
-    used_ += record_;
-    std::memcpy(out_.data() + at, &n.log_odds, sizeof(float));
-    const std::size_t block = n.link & gpu::kBlockMask;
-    std::uint32_t mask = 0;
-    if (block != gpu::kNoChildren) {
-      if (block * 8 + 8 > nodes_.size()) throw linkError(block * 8, nodes_.size());
-      static_assert(gpu::kFlagLive == 1u << 31);
-      const gpu::Node* children = nodes_.data() + block * 8;
-      if (depth < kTreeDepth)
-        for (unsigned s = 0; s < 8; ++s) {
-          const std::uint32_t link = children[s].link;
-          mask |= (link >> 31) << s;
-          // The grandchildren's blocks, scattered through the pool: their reads start now,
-          // side by side, instead of one cache miss after another as the walk reaches them.
-          if ((link & gpu::kBlockMask) != gpu::kNoChildren &&
-              (link & gpu::kBlockMask) * 8 + 8 <= nodes_.size())
-            __builtin_prefetch(nodes_.data() + (link & gpu::kBlockMask) * 8);
-        }
-    }
-    out_[at + record_ - 1] = static_cast<char>(mask);
-    std::uint32_t payload = index < payload_.size() ? payload_[index] : 0u;
-    ChildColorMean mean;
-    for (std::uint32_t m = mask; m != 0; m &= m - 1)
-      mean.add(write(block * 8 + static_cast<unsigned>(std::countr_zero(m)), depth + 1));
-    if (kind_ == Payload::kColor && mask != 0) payload = mean.value();
-    if (kind_ != Payload::kNone) putPayload(out_.data() + at + sizeof(float), kind_, payload);
-    return payload;
-  }
-
-  // The body as written: the room beyond cut off.
-  void finish() { out_.resize(used_); }
-
- private:
-  std::span<const gpu::Node> nodes_;
-  std::span<const std::uint32_t> payload_;
-  Payload kind_;
-  std::size_t record_;
-  std::string& out_;
-  std::size_t used_;
-};
-
-}  // namespace
-
 std::string poolTileBody(const PoolCapture& pool, const PoolTile& tile) {
-  if (tile.node >= pool.nodes.size()) throw linkError(tile.node, pool.nodes.size());
   std::string body;
-  PoolRecords records(pool, body);
-  records.write(tile.node, tile.depth);
-  records.finish();
+  appendRecords(PoolNodes(pool), tile.node, tile.depth, pool.kind, body);
   return body;
 }
 
 std::string poolUpperStamps(const PoolCapture& pool, unsigned tile_depth) {
   checkTileDepth(tile_depth);
   if (!pool.root_exists || pool.kind != Payload::kStamp) return {};
-  return upperStamps(PoolNodes{pool}, tile_depth);
+  return upperStamps(PoolNodes(pool), tile_depth);
 }
 
 HostTree treeFromTiles(std::span<const Tile> tiles, unsigned tile_depth, Payload payload) {
