@@ -412,7 +412,10 @@ class SqliteStore final : public Store {
               std::span<const std::uint64_t> removed, const LogEntry& entry) override {
     // The WAL's checkpoints on a thread of their own, from a writer's first commit on (a reader
     // needs none).
-    if (wal_ && !checkpointer_) checkpointer_ = WalCheckpointer::start(db_, path_);
+    if (wal_ && !checkpointer_tried_) {
+      checkpointer_tried_ = true;  // once: where it cannot start, SQLite's own checkpoints stay
+      checkpointer_ = WalCheckpointer::start(db_, path_);
+    }
     if (!locked_) run("BEGIN IMMEDIATE", "taking the write lock failed");  // another writer waits
     locked_ = false;  // the transaction ends here, committed or rolled back
     try {
@@ -555,6 +558,7 @@ class SqliteStore final : public Store {
   bool wal_ = false;     // in WAL mode (useWal)
   std::unordered_map<const char*, std::unique_ptr<Statement>> kept_;
   std::unique_ptr<WalCheckpointer> checkpointer_;  // from the first commit on, in WAL mode
+  bool checkpointer_tried_ = false;
 };
 
 }  // namespace
