@@ -62,10 +62,9 @@ void setNodePayload(uint n, uint payload) {
 }
 
 NodeData nodeData(uint n) { return NodeData(NODES[n].log_odds, nodePayload(n)); }
-// Node n as the pool holds it, link word and all: for a copy of the pool (capture.comp), read
-// after the passes that write it; as one 64-bit word (the log-odds bits, the link word above
-// them: a CaptureRecord's), one read where the struct takes two.
-Node storedNode(uint n) { return NODES[n]; }
+// Node n as the pool holds it, link word and all, as one 64-bit word (the log-odds bits, the link
+// word above them: a CaptureRecord's): for a copy of the pool (capture.comp), read after the
+// passes that write it, one read where the Node struct takes two.
 OCTOVK_ADDRESSED(NodeWordsRef, uint64_t, 8);
 uint64_t storedNodeWord(uint n) { return NodeWordsRef(buffer_address[kBindNodes]).v[n]; }
 void setNodeData(uint n, NodeData d) {

@@ -1123,8 +1123,8 @@ TEST(StoreBackEnd, StaleCommitIsRefusedAndWritesNothing) {
 // The WAL's checkpoints run on a thread of their own beside the writer (sqlite_store.cpp's
 // WalCheckpointer); the writer's own checkpoint of the rest must still let SQLite start the WAL
 // over, though it holds the write lock from one commit to the next. 160 commits of 4 tiles of 100
-// KB write about 4,800 frames of 16 KiB: a WAL that never starts over ends near 75 MB, one that
-// does near 16 MB (1,000 frames and those committed while the thread worked). And nothing committed
+// KB write about 4,800 frames of 16 KiB: a WAL that never starts over ended at 68 MB, one that
+// does at 19 MB (1,000 frames and those committed while the thread worked). And nothing committed
 // is lost, in the file after the writer closes.
 TEST(StoreBackEnd, CheckpointsBesideTheWriterKeepTheWalSmall) {
   Scratch scratch("store");

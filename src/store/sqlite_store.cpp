@@ -113,7 +113,7 @@ class Statement {
 
 // The WAL's checkpoints, mostly off the writer's thread. SQLite's own (wal_autocheckpoint, 1000
 // frames: 16 MB of 16 KiB pages) runs in the commit that fills the WAL, and syncs those 16 MB to
-// disk there: 13-16 ms each on the test machine (strace), every 50th scan of FR-079 at 0.05 m, a
+// disk there: 12-19 ms each on the test machine (strace), every 50th scan of FR-079 at 0.05 m, a
 // tenth of a run's time in the commit's thread. Here a thread with a connection of its own does
 // that work (SQLITE_CHECKPOINT_PASSIVE: beside the writer, which goes on committing); the
 // writer's next commit then checkpoints the few frames committed meanwhile itself, so that every
